@@ -1,0 +1,302 @@
+#include "cli/scene_json.h"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "common/error.h"
+#include "mesh/base_mesh.h"
+#include "sampler/bake.h"
+#include "sampler/tile_io.h"
+
+namespace distile::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+/// A JSON value with the path that leads to it, for error messages.
+class Field {
+public:
+    Field(const json& value, std::string path, const std::string& file) : value_(value), path_(std::move(path)), file_(file) {}
+
+    [[noreturn]] void fail(const std::string& message) const {
+        throw InputError(file_ + ": " + (path_.empty() ? "top level" : path_) + ": " + message);
+    }
+
+    const json& value() const { return value_; }
+    const std::string& path() const { return path_; }
+
+    bool has(const std::string& key) const { return value_.contains(key); }
+
+    Field operator[](const std::string& key) const {
+        return Field(value_.at(key), path_.empty() ? key : path_ + "." + key, file_);
+    }
+    Field operator[](std::size_t index) const {
+        return Field(value_.at(index), path_ + "[" + std::to_string(index) + "]", file_);
+    }
+
+    /// This must be an object whose keys are all in `accepted`.
+    void requireObject(std::initializer_list<const char*> accepted) const {
+        if (!value_.is_object()) fail("must be an object, not " + std::string(value_.type_name()));
+        std::set<std::string> known(accepted.begin(), accepted.end());
+        for (const auto& [key, unused] : value_.items()) {
+            if (!known.count(key)) {
+                std::string list;
+                for (const char* name : accepted) list += std::string(list.empty() ? "" : ", ") + name;
+                Field(value_.at(key), path_.empty() ? key : path_ + "." + key, file_)
+                    .fail("unknown field; accepted here: " + list);
+            }
+        }
+    }
+
+    double number() const {
+        if (!value_.is_number()) fail("must be a number, not " + std::string(value_.type_name()));
+        const double result = value_.get<double>();
+        if (!std::isfinite(result)) fail("must be finite");
+        return result;
+    }
+    double number(double low, double high) const {
+        const double result = number();
+        if (!(result >= low && result <= high)) {
+            std::ostringstream message;
+            message << result << " is not accepted; it must be in [" << low << ", " << high << "]";
+            fail(message.str());
+        }
+        return result;
+    }
+    int integer(int low, int high) const {
+        const double result = number(low, high);
+        if (result != std::floor(result)) fail("must be a whole number");
+        return int(result);
+    }
+    std::string string() const {
+        if (!value_.is_string()) fail("must be a string, not " + std::string(value_.type_name()));
+        return value_.get<std::string>();
+    }
+    template <int N>
+    glm::vec<N, float> vector() const {
+        if (!value_.is_array() || value_.size() != N) fail("must be an array of " + std::to_string(N) + " numbers");
+        glm::vec<N, float> result;
+        for (int i = 0; i < N; ++i) {
+            const double component = (*this)[std::size_t(i)].number();
+            if (std::abs(component) > 1e30) (*this)[std::size_t(i)].fail("is too large");
+            result[i] = float(component);
+        }
+        return result;
+    }
+
+private:
+    const json& value_;
+    std::string path_;
+    const std::string& file_;
+};
+
+Size3 parseSize(const Field& field) {
+    const std::string text = field.string();
+    Size3 size{0, 0, 0};
+    char x1 = 0, x2 = 0;
+    std::istringstream in(text);
+    std::string rest;
+    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x' || (in >> rest)) {
+        field.fail("'" + text + "' is not a size; write WxHxD, e.g. 256x256x16");
+    }
+    try {
+        validateTileSize(size, field.path());
+    } catch (const InputError& error) {
+        field.fail(error.what());
+    }
+    return size;
+}
+
+std::shared_ptr<const Tile> bakedTile(const Field& spec, TileCache& tiles) {
+    spec.requireObject({"bake", "size", "rings_per_row", "rows_per_tile", "ring_radius", "wire_radius", "tilt_deg"});
+    const std::string kind = spec["bake"].string();
+    if (kind != "chainmail") spec["bake"].fail("'" + kind + "' is not a known detail; accepted: chainmail");
+    BakeOptions options;
+    ChainmailOptions chainmail;
+    if (spec.has("size")) options.size = parseSize(spec["size"]);
+    if (spec.has("rings_per_row")) chainmail.ringsPerRow = spec["rings_per_row"].integer(1, 4096);
+    if (spec.has("rows_per_tile")) chainmail.rowsPerTile = spec["rows_per_tile"].integer(2, 4096);
+    if (spec.has("ring_radius")) chainmail.ringRadiusSpacings = spec["ring_radius"].number(0.0, 2.0);
+    if (spec.has("wire_radius")) chainmail.wireRadiusSpacings = spec["wire_radius"].number(0.0, 2.0);
+    if (spec.has("tilt_deg")) chainmail.tiltDeg = spec["tilt_deg"].number(0.0, 60.0);
+    const std::string key = "bake:" + spec.value().dump();
+    if (auto found = tiles.find(key); found != tiles.end()) return found->second;
+    try {
+        auto tile = std::make_shared<const Tile>(bakeChainmail(chainmail, options).tile);
+        tiles[key] = tile;
+        return tile;
+    } catch (const InputError& error) {
+        spec.fail(error.what());
+    }
+}
+
+std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder, TileCache& tiles) {
+    const fs::path path = folder / field.string();
+    if (!fs::exists(path)) field.fail("tile file '" + path.string() + "' does not exist");
+    const std::string key = "file:" + fs::weakly_canonical(path).string();
+    if (auto found = tiles.find(key); found != tiles.end()) return found->second;
+    auto tile = std::make_shared<const Tile>(readTileExr(path));
+    tiles[key] = tile;
+    return tile;
+}
+
+BaseMesh loadMesh(const Field& field, const fs::path& folder) {
+    const std::string name = field.string();
+    if (name == "plane") return makePlane(2.0f, 1);
+    if (name == "sphere") return makeUvSphere(1.0f, 96, 48);
+    if (name == "torus") return makeTorus(1.0f, 0.4f, 128, 48);
+    const fs::path path = folder / name;
+    if (!fs::exists(path)) {
+        field.fail("'" + name + "' is neither a built-in mesh (plane, sphere, torus) nor an existing file (" +
+                   path.string() + ")");
+    }
+    return loadBaseMesh(path);
+}
+
+Material loadMaterial(const Field& field, const fs::path& folder, TileCache& tiles) {
+    field.requireObject({"tile", "uv_scale", "depth", "floor", "color"});
+    Material material;
+    if (field.has("tile")) {
+        const Field tile = field["tile"];
+        material.tile = tile.value().is_object() ? bakedTile(tile, tiles) : tileFile(tile, folder, tiles);
+    }
+    if (field.has("uv_scale")) material.uvScale = field["uv_scale"].vector<2>();
+    if (material.uvScale.x <= 0.0f || material.uvScale.y <= 0.0f) field["uv_scale"].fail("must be two positive numbers");
+    if (field.has("depth")) {
+        material.depthWorld = float(field["depth"].number());
+        if (!(material.depthWorld > 0.0f)) {
+            field["depth"].fail(std::to_string(material.depthWorld) + " is not accepted; it must be a positive number of world units");
+        }
+    }
+    if (field.has("floor")) {
+        const std::string floor = field["floor"].string();
+        if (floor == "solid") {
+            material.floor = Floor::Solid;
+        } else if (floor == "open") {
+            material.floor = Floor::Open;
+        } else {
+            field["floor"].fail("'" + floor + "' is not accepted; accepted: solid, open");
+        }
+    }
+    if (field.has("color")) material.color = field["color"].vector<3>();
+    return material;
+}
+
+}  // namespace
+
+SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
+    if (!fs::exists(file)) throw InputError(file.string() + ": no such file");
+    std::ifstream in(file);
+    json document;
+    try {
+        document = json::parse(in);
+    } catch (const json::parse_error& error) {
+        throw FormatError(file.string() + ": not valid JSON (" + error.what() + ")");
+    }
+    const std::string fileName = file.string();
+    const fs::path folder = file.has_parent_path() ? file.parent_path() : fs::path(".");
+    const Field root(document, "", fileName);
+    root.requireObject({"camera", "image", "lights", "objects"});
+
+    SceneFile result;
+    Scene& scene = result.scene;
+    if (root.has("camera")) {
+        const Field camera = root["camera"];
+        camera.requireObject({"eye", "target", "up", "fov_deg"});
+        if (camera.has("eye")) scene.camera.eye = camera["eye"].vector<3>();
+        if (camera.has("target")) scene.camera.target = camera["target"].vector<3>();
+        if (camera.has("up")) scene.camera.up = camera["up"].vector<3>();
+        if (camera.has("fov_deg")) scene.camera.fovDeg = float(camera["fov_deg"].number(1e-3, 179.0));
+    }
+    if (root.has("image")) {
+        const Field image = root["image"];
+        image.requireObject({"width", "height", "spp"});
+        if (image.has("width")) result.image.width = image["width"].integer(1, 16384);
+        if (image.has("height")) result.image.height = image["height"].integer(1, 16384);
+        if (image.has("spp")) result.image.samplesPerPixel = image["spp"].integer(1, 256);
+    }
+    if (root.has("lights")) {
+        const Field lights = root["lights"];
+        if (!lights.value().is_array()) lights.fail("must be an array");
+        scene.lights.clear();
+        for (std::size_t i = 0; i < lights.value().size(); ++i) {
+            const Field light = lights[i];
+            light.requireObject({"type", "direction", "color", "angle_deg"});
+            DirectionalLight parsed;
+            if (light.has("type") && light["type"].string() != "directional") {
+                light["type"].fail("'" + light["type"].string() + "' is not accepted; accepted: directional");
+            }
+            if (light.has("direction")) parsed.direction = light["direction"].vector<3>();
+            if (light.has("color")) parsed.color = light["color"].vector<3>();
+            if (light.has("angle_deg")) parsed.angleDeg = float(light["angle_deg"].number(0.0, 89.0));
+            scene.lights.push_back(parsed);
+        }
+    }
+    if (!root.has("objects")) root.fail("missing field 'objects' (an array of objects with mesh and material)");
+    const Field objects = root["objects"];
+    if (!objects.value().is_array() || objects.value().empty()) objects.fail("must be a non-empty array");
+    for (std::size_t i = 0; i < objects.value().size(); ++i) {
+        const Field object = objects[i];
+        object.requireObject({"mesh", "transform", "material"});
+        if (!object.has("mesh")) object.fail("missing field 'mesh' (plane, sphere, torus or a mesh file)");
+        SceneObject parsed;
+        parsed.mesh = loadMesh(object["mesh"], folder);
+        if (object.has("transform")) {
+            const Field transform = object["transform"];
+            transform.requireObject({"translate", "rotate_deg", "scale"});
+            Transform placement;
+            if (transform.has("translate")) placement.translate = transform["translate"].vector<3>();
+            if (transform.has("rotate_deg")) placement.rotateDeg = transform["rotate_deg"].vector<3>();
+            if (transform.has("scale")) placement.scale = float(transform["scale"].number(1e-12, 1e12));
+            applyTransform(parsed.mesh, placement);
+        }
+        if (object.has("material")) parsed.material = loadMaterial(object["material"], folder, tiles);
+        scene.objects.push_back(std::move(parsed));
+    }
+    try {
+        validateScene(scene);
+    } catch (const InputError& error) {
+        throw InputError(fileName + ": " + error.what());
+    }
+    return result;
+}
+
+SceneFile demoScene(TileCache& tiles) {
+    auto key = std::string("bake:demo-chainmail");
+    if (!tiles.count(key)) tiles[key] = std::make_shared<const Tile>(bakeChainmail({}, {}).tile);
+    const std::shared_ptr<const Tile> chainmail = tiles[key];
+    // Texels are cubes when depth = (world size of one tile) * D / W.
+    auto cubicDepth = [&](float tileWorldSize) {
+        return tileWorldSize * float(chainmail->size().depth) / float(chainmail->size().width);
+    };
+
+    SceneFile demo;
+    Scene& scene = demo.scene;
+    scene.camera = {{0.0f, -3.4f, 2.3f}, {0.0f, 0.1f, 0.25f}, {0.0f, 0.0f, 1.0f}, 38.0f};
+    scene.lights = {DirectionalLight{{-0.45f, 0.35f, -1.0f}, {1.0f, 0.97f, 0.92f}, 3.0f}};
+
+    SceneObject floor;
+    floor.mesh = makePlane(4.0f, 1);
+    floor.material = {chainmail, {4.0f, 4.0f}, cubicDepth(1.0f), Floor::Solid, {0.62f, 0.63f, 0.66f}};
+    scene.objects.push_back(std::move(floor));
+
+    SceneObject torus;
+    const float majorRadius = 0.75f;
+    const float minorRadius = 0.32f;
+    torus.mesh = makeTorus(majorRadius, minorRadius, 192, 64);
+    applyTransform(torus.mesh, {{0.0f, 0.2f, minorRadius + 0.02f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+    // 10 tiles around, 4 around the tube: tiles of about 0.5 world units on the tube's crown.
+    const glm::vec2 uvScale(10.0f, 4.0f);
+    torus.material = {chainmail, uvScale, cubicDepth(2.0f * 3.14159265f * minorRadius / uvScale.y), Floor::Solid,
+                      {0.85f, 0.72f, 0.45f}};
+    scene.objects.push_back(std::move(torus));
+    return demo;
+}
+
+}  // namespace distile::cli

@@ -1,0 +1,36 @@
+/// @file
+/// Scene files (DESIGN.md, Scene files): JSON to the renderer's structs. Every field but
+/// `objects` has a default; unknown fields are errors; relative paths resolve from the scene's
+/// folder. Errors are InputError (FormatError for unparsable JSON) naming the file and the JSON
+/// path of the bad field, e.g. "scene.json: objects[0].material.depth: -1 is not accepted; ...".
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "render/scene.h"
+
+namespace distile::cli {
+
+struct ImageSettings {
+    int width = 1280;
+    int height = 1024;
+    int samplesPerPixel = 1;
+};
+
+struct SceneFile {
+    Scene scene;
+    ImageSettings image;
+};
+
+/// Tiles shared by the objects of a scene: files by canonical path, bakes by their parameters.
+using TileCache = std::map<std::string, std::shared_ptr<const Tile>>;
+
+SceneFile loadSceneFile(const std::filesystem::path& file, TileCache& tiles);
+
+/// The built-in demo: chain mail on a torus (curved) lying on a plane (flat).
+SceneFile demoScene(TileCache& tiles);
+
+}  // namespace distile::cli

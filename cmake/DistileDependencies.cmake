@@ -1,0 +1,31 @@
+# Finds distile's dependencies on Debian 12 and works around the packaging pitfalls listed in DESIGN.md.
+
+find_package(Threads REQUIRED)
+find_package(TBB CONFIG REQUIRED)
+find_package(glm CONFIG REQUIRED PATHS /usr/share/cmake/glm)
+
+# OpenVDB ships a Find module, not a config; it lives outside the default module path.
+list(APPEND CMAKE_MODULE_PATH /usr/lib/x86_64-linux-gnu/cmake/OpenVDB)
+find_package(OpenVDB REQUIRED)
+
+# CGAL's CMake modules include a FindOpenMesh that would shadow OpenMesh's own config.
+find_package(OpenMesh CONFIG REQUIRED)
+
+# OpenImageIO 2.4's exported target lists /usr/include/opencv4 as an include folder even though
+# nothing in its public headers needs OpenCV; CMake refuses to generate when the folder is missing.
+# Drop the folder from the imported target instead of installing OpenCV's headers.
+find_package(OpenImageIO CONFIG REQUIRED)
+foreach(oiio_target OpenImageIO::OpenImageIO OpenImageIO::OpenImageIO_Util)
+    if(TARGET ${oiio_target})
+        foreach(property INTERFACE_INCLUDE_DIRECTORIES INTERFACE_SYSTEM_INCLUDE_DIRECTORIES)
+            get_target_property(folders ${oiio_target} ${property})
+            if(folders)
+                list(FILTER folders EXCLUDE REGEX "opencv")
+                set_target_properties(${oiio_target} PROPERTIES ${property} "${folders}")
+            endif()
+        endforeach()
+    endif()
+endforeach()
+
+find_package(CLI11 CONFIG REQUIRED)
+find_package(nlohmann_json CONFIG REQUIRED)

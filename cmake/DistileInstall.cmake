@@ -1,0 +1,19 @@
+# Installs the libraries, their headers and the command, with an exported CMake package
+# (find_package(distile) then link distile::render etc.).
+include(GNUInstallDirs)
+include(CMakePackageConfigHelpers)
+
+set(distile_libraries distile_common distile_vdb distile_sampler distile_mesh distile_render)
+install(TARGETS ${distile_libraries} distile_warnings distile_sanitizers EXPORT distileTargets
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
+install(TARGETS distile RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+foreach(folder common vdb sampler mesh render)
+    install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/distile
+            FILES_MATCHING PATTERN "*.h")
+endforeach()
+install(EXPORT distileTargets NAMESPACE distile:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/distile)
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/distileConfig.cmake.in
+    ${CMAKE_BINARY_DIR}/distileConfig.cmake INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/distile)
+write_basic_package_version_file(${CMAKE_BINARY_DIR}/distileConfigVersion.cmake COMPATIBILITY SameMinorVersion)
+install(FILES ${CMAKE_BINARY_DIR}/distileConfig.cmake ${CMAKE_BINARY_DIR}/distileConfigVersion.cmake
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/distile)

@@ -1,0 +1,130 @@
+#include "render/bvh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+#include <glm/common.hpp>
+
+namespace distile {
+
+namespace {
+
+constexpr std::uint32_t kLeafSize = 4;
+constexpr int kMaxDepth = 48;
+
+glm::vec3 centroid(const std::vector<glm::vec3>& corners, std::uint32_t triangle) {
+    return (corners[3 * triangle] + corners[3 * triangle + 1] + corners[3 * triangle + 2]) / 3.0f;
+}
+
+/// Slab test; true when the ray enters the box before `maxDistance`.
+bool hitsBox(const glm::vec3& boundsMin, const glm::vec3& boundsMax, const glm::vec3& origin,
+             const glm::vec3& inverseDirection, float minDistance, float maxDistance) {
+    const glm::vec3 t0 = (boundsMin - origin) * inverseDirection;
+    const glm::vec3 t1 = (boundsMax - origin) * inverseDirection;
+    const glm::vec3 near = glm::min(t0, t1);
+    const glm::vec3 far = glm::max(t0, t1);
+    const float enter = std::max({near.x, near.y, near.z, minDistance});
+    // Widen the exit slightly so a ray grazing a flat box (a plane's zero-thickness bounds) hits.
+    const float exit = std::min({far.x, far.y, far.z, maxDistance}) * 1.00001f + 1e-7f;
+    return enter <= exit;
+}
+
+}  // namespace
+
+TriangleBvh::TriangleBvh(std::vector<glm::vec3> corners) : corners_(std::move(corners)) {
+    const auto count = std::uint32_t(corners_.size() / 3);
+    order_.resize(count);
+    for (std::uint32_t i = 0; i < count; ++i) order_[i] = i;
+    if (count > 0) {
+        nodes_.reserve(2 * count);
+        build(0, count, 0);
+    }
+}
+
+std::uint32_t TriangleBvh::build(std::uint32_t first, std::uint32_t count, int depth) {
+    const auto nodeIndex = std::uint32_t(nodes_.size());
+    nodes_.push_back({});
+    glm::vec3 boundsMin(std::numeric_limits<float>::max());
+    glm::vec3 boundsMax(-std::numeric_limits<float>::max());
+    glm::vec3 centroidMin = boundsMin;
+    glm::vec3 centroidMax = boundsMax;
+    for (std::uint32_t i = first; i < first + count; ++i) {
+        for (int corner = 0; corner < 3; ++corner) {
+            boundsMin = glm::min(boundsMin, corners_[3 * order_[i] + corner]);
+            boundsMax = glm::max(boundsMax, corners_[3 * order_[i] + corner]);
+        }
+        const glm::vec3 c = centroid(corners_, order_[i]);
+        centroidMin = glm::min(centroidMin, c);
+        centroidMax = glm::max(centroidMax, c);
+    }
+    nodes_[nodeIndex].boundsMin = boundsMin;
+    nodes_[nodeIndex].boundsMax = boundsMax;
+    const glm::vec3 extent = centroidMax - centroidMin;
+    if (count <= kLeafSize || depth >= kMaxDepth || glm::max(extent.x, glm::max(extent.y, extent.z)) <= 0.0f) {
+        nodes_[nodeIndex].first = first;
+        nodes_[nodeIndex].count = count;
+        return nodeIndex;
+    }
+    // Median split along the longest centroid axis: balanced, simple, fine for base meshes.
+    const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+    const std::uint32_t half = count / 2;
+    std::nth_element(order_.begin() + first, order_.begin() + first + half, order_.begin() + first + count,
+                     [&](std::uint32_t a, std::uint32_t b) {
+                         return centroid(corners_, a)[axis] < centroid(corners_, b)[axis];
+                     });
+    build(first, half, depth + 1);
+    const std::uint32_t right = build(first + half, count - half, depth + 1);
+    nodes_[nodeIndex].first = right;
+    nodes_[nodeIndex].count = 0;
+    return nodeIndex;
+}
+
+bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance, TriangleHit& hit) const {
+    if (nodes_.empty()) return false;
+    const glm::vec3 inverseDirection = 1.0f / ray.direction;
+    const glm::dvec3 origin(ray.origin);
+    const glm::dvec3 direction(ray.direction);
+    bool found = false;
+    double nearest = maxDistance;
+    std::uint32_t stack[2 * kMaxDepth + 2];
+    int stackSize = 0;
+    stack[stackSize++] = 0;
+    while (stackSize > 0) {
+        const Node& node = nodes_[stack[--stackSize]];
+        if (!hitsBox(node.boundsMin, node.boundsMax, ray.origin, inverseDirection, minDistance, float(nearest))) {
+            continue;
+        }
+        if (node.count == 0) {
+            stack[stackSize++] = node.first;
+            stack[stackSize++] = std::uint32_t(&node - nodes_.data()) + 1;
+            continue;
+        }
+        for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
+            const std::uint32_t triangle = order_[i];
+            // Moeller-Trumbore in double precision.
+            const glm::dvec3 p0(corners_[3 * triangle]);
+            const glm::dvec3 edge1 = glm::dvec3(corners_[3 * triangle + 1]) - p0;
+            const glm::dvec3 edge2 = glm::dvec3(corners_[3 * triangle + 2]) - p0;
+            const glm::dvec3 pvec = glm::cross(direction, edge2);
+            const double determinant = glm::dot(edge1, pvec);
+            if (determinant == 0.0 || !std::isfinite(determinant)) continue;
+            const double inverse = 1.0 / determinant;
+            const glm::dvec3 tvec = origin - p0;
+            const double b1 = glm::dot(tvec, pvec) * inverse;
+            if (b1 < 0.0 || b1 > 1.0) continue;
+            const glm::dvec3 qvec = glm::cross(tvec, edge1);
+            const double b2 = glm::dot(direction, qvec) * inverse;
+            if (b2 < 0.0 || b1 + b2 > 1.0) continue;
+            const double distance = glm::dot(edge2, qvec) * inverse;
+            if (distance <= minDistance || distance >= nearest) continue;
+            nearest = distance;
+            hit = {triangle, float(distance), float(b1), float(b2)};
+            found = true;
+        }
+    }
+    return found;
+}
+
+}  // namespace distile

@@ -1,0 +1,52 @@
+/// @file
+/// Bounding volume hierarchy over the base-mesh triangles of a scene: the primary visibility
+/// of the base surfaces (the tops of the detail shells), where the sphere tracer starts.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace distile {
+
+struct Ray {
+    glm::vec3 origin;
+    glm::vec3 direction;  ///< unit length
+};
+
+struct TriangleHit {
+    std::uint32_t triangle = 0;  ///< index into the triangle list the BVH was built from
+    float distanceWorld = 0.0f;  ///< along the ray
+    float b1 = 0.0f;             ///< barycentric weight of the triangle's second vertex
+    float b2 = 0.0f;             ///< barycentric weight of the third vertex
+};
+
+class TriangleBvh {
+public:
+    TriangleBvh() = default;
+    /// Builds over `corners` (three per triangle, world units). Degenerate triangles are kept
+    /// (they are never hit).
+    explicit TriangleBvh(std::vector<glm::vec3> corners);
+
+    /// Nearest hit with distance in (minDistance, maxDistance), or false. Intersections are
+    /// computed in double precision, so rays through shared edges do not slip between triangles.
+    bool intersect(const Ray& ray, float minDistance, float maxDistance, TriangleHit& hit) const;
+
+    std::size_t triangleCount() const { return corners_.size() / 3; }
+
+private:
+    struct Node {
+        glm::vec3 boundsMin;
+        glm::vec3 boundsMax;
+        std::uint32_t first = 0;  ///< leaf: first entry in order_; inner: right child index
+        std::uint32_t count = 0;  ///< leaf: triangle count; inner: 0 (left child is next node)
+    };
+    std::uint32_t build(std::uint32_t first, std::uint32_t count, int depth);
+
+    std::vector<glm::vec3> corners_;
+    std::vector<std::uint32_t> order_;
+    std::vector<Node> nodes_;
+};
+
+}  // namespace distile

@@ -1,0 +1,220 @@
+#include "render/image.h"
+
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+
+namespace distile {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int kMaxExtentPixels = 65536;
+constexpr std::size_t kMaxPixels = std::size_t(1) << 28;
+
+enum class ImageFormat { Png, Tiff, Exr };
+
+ImageFormat formatFromExtension(const fs::path& file) {
+    std::string extension = file.extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    if (extension == ".png") return ImageFormat::Png;
+    if (extension == ".tif" || extension == ".tiff") return ImageFormat::Tiff;
+    if (extension == ".exr") return ImageFormat::Exr;
+    throw InputError(file.string() + ": image extension '" + file.extension().string() +
+                     "' is not accepted; use .png, .exr, .tif or .tiff");
+}
+
+std::string firstLine(const std::string& message) {
+    const std::string line = message.substr(0, message.find('\n'));
+    return line.empty() ? "unknown OpenImageIO error" : line;
+}
+
+std::string pixelText(const glm::vec3& rgb) {
+    return "(" + std::to_string(rgb.r) + ", " + std::to_string(rgb.g) + ", " +
+           std::to_string(rgb.b) + ")";
+}
+
+/// sRGB-encodes every channel and quantises it to [0, maxCode].
+template <typename Code>
+std::vector<Code> encodeSrgb(const Image& image, float maxCode) {
+    std::vector<Code> codes;
+    codes.reserve(image.rgbLinear.size() * 3);
+    for (const glm::vec3& rgb : image.rgbLinear) {
+        for (int channel = 0; channel < 3; ++channel) {
+            codes.push_back(static_cast<Code>(std::lround(srgbFromLinear(rgb[channel]) * maxCode)));
+        }
+    }
+    return codes;
+}
+
+void writePixels(const fs::path& temporary, const fs::path& target, const OIIO::ImageSpec& spec,
+                 OIIO::TypeDesc pixelType, const void* pixels) {
+    auto output = OIIO::ImageOutput::create(temporary.string());
+    if (!output) {
+        throw std::runtime_error(target.string() + ": OpenImageIO has no writer for it (" +
+                                 firstLine(OIIO::geterror()) + ")");
+    }
+    if (!output->open(temporary.string(), spec) || !output->write_image(pixelType, pixels) ||
+        !output->close()) {
+        throw std::runtime_error(target.string() + ": writing failed (" +
+                                 firstLine(output->geterror()) + ")");
+    }
+}
+
+/// How integer pixels of a file are turned into linear values.
+enum class Transfer { Linear, Srgb, Gamma };
+
+}  // namespace
+
+Image::Image(int widthPixels, int heightPixels, glm::vec3 fill) {
+    if (widthPixels < 1 || heightPixels < 1 || widthPixels > kMaxExtentPixels ||
+        heightPixels > kMaxExtentPixels ||
+        std::size_t(widthPixels) * std::size_t(heightPixels) > kMaxPixels) {
+        throw InputError("image: size " + std::to_string(widthPixels) + "x" +
+                         std::to_string(heightPixels) +
+                         " is not accepted; each extent must be in [1, 65536], at most 2^28 "
+                         "pixels");
+    }
+    width = widthPixels;
+    height = heightPixels;
+    rgbLinear.assign(std::size_t(width) * std::size_t(height), fill);
+}
+
+float srgbFromLinear(float linear) {
+    const float clamped = std::clamp(linear, 0.0f, 1.0f);
+    return clamped <= 0.0031308f ? 12.92f * clamped
+                                 : 1.055f * std::pow(clamped, 1.0f / 2.4f) - 0.055f;
+}
+
+float linearFromSrgb(float encoded) {
+    const float clamped = std::clamp(encoded, 0.0f, 1.0f);
+    return clamped <= 0.04045f ? clamped / 12.92f : std::pow((clamped + 0.055f) / 1.055f, 2.4f);
+}
+
+void writeImage(const Image& image, const fs::path& file) {
+    const ImageFormat format = formatFromExtension(file);
+    if (image.width < 1 || image.height < 1 ||
+        image.rgbLinear.size() != std::size_t(image.width) * std::size_t(image.height)) {
+        throw InputError(file.string() + ": image is " + std::to_string(image.width) + "x" +
+                         std::to_string(image.height) + " but holds " +
+                         std::to_string(image.rgbLinear.size()) +
+                         " pixels; a non-empty image holds exactly width * height pixels");
+    }
+    for (std::size_t i = 0; i < image.rgbLinear.size(); ++i) {
+        const glm::vec3& rgb = image.rgbLinear[i];
+        if (!std::isfinite(rgb.r) || !std::isfinite(rgb.g) || !std::isfinite(rgb.b)) {
+            throw std::runtime_error(
+                file.string() + ": pixel (" + std::to_string(i % std::size_t(image.width)) + ", " +
+                std::to_string(i / std::size_t(image.width)) + ") is " + pixelText(rgb) +
+                "; rendered pixels must be finite (this is a renderer bug)");
+        }
+    }
+
+    OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
+    if (format == ImageFormat::Png) {
+        spec.attribute("oiio:ColorSpace", "sRGB");
+        const std::vector<std::uint8_t> codes = encodeSrgb<std::uint8_t>(image, 255.0f);
+        writeAtomically(file, [&](const fs::path& temporary) {
+            writePixels(temporary, file, spec, OIIO::TypeDesc::UINT8, codes.data());
+        });
+    } else if (format == ImageFormat::Tiff) {
+        spec.set_format(OIIO::TypeDesc::UINT16);
+        spec.attribute("oiio:ColorSpace", "sRGB");
+        spec.attribute("compression", "zip");
+        const std::vector<std::uint16_t> codes = encodeSrgb<std::uint16_t>(image, 65535.0f);
+        writeAtomically(file, [&](const fs::path& temporary) {
+            writePixels(temporary, file, spec, OIIO::TypeDesc::UINT16, codes.data());
+        });
+    } else {
+        spec.set_format(OIIO::TypeDesc::FLOAT);
+        spec.attribute("oiio:ColorSpace", "Linear");
+        spec.attribute("compression", "zip");
+        writeAtomically(file, [&](const fs::path& temporary) {
+            writePixels(temporary, file, spec, OIIO::TypeDesc::FLOAT, image.rgbLinear.data());
+        });
+    }
+}
+
+Image readImage(const fs::path& file) {
+    std::error_code status;
+    if (!fs::exists(file, status)) {
+        throw InputError(file.string() + ": no such file");
+    }
+    if (fs::is_directory(file, status)) {
+        throw InputError(file.string() + ": is a folder; an image file is expected");
+    }
+    auto input = OIIO::ImageInput::open(file.string());
+    if (!input) {
+        throw FormatError(file.string() + ": not a readable image (" + firstLine(OIIO::geterror()) +
+                          ")");
+    }
+    const OIIO::ImageSpec& spec = input->spec();
+    if (spec.nchannels < 1 || spec.depth != 1 || spec.deep) {
+        throw FormatError(file.string() + ": has " + std::to_string(spec.nchannels) +
+                          " channel(s), depth " + std::to_string(spec.depth) +
+                          (spec.deep ? ", deep" : "") +
+                          "; a flat 2D image with at least one channel is accepted");
+    }
+    Image image;
+    try {
+        image = Image(spec.width, spec.height);
+    } catch (const InputError& error) {
+        throw FormatError(file.string() + ": " + error.what());
+    }
+
+    const int channels = std::min(spec.nchannels, 3);
+    std::vector<float> values(image.rgbLinear.size() * std::size_t(channels));
+    if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, values.data())) {
+        throw FormatError(file.string() + ": cannot read the pixels (" +
+                          firstLine(input->geterror()) + "); the file is truncated or corrupted");
+    }
+
+    const std::string colorSpace = spec.get_string_attribute("oiio:ColorSpace");
+    const float gamma = spec.get_float_attribute("oiio:Gamma", 1.0f);
+    Transfer transfer = Transfer::Linear;
+    if (!spec.format.is_floating_point()) {
+        if (OIIO::Strutil::iequals(colorSpace, "GammaCorrected") && gamma > 0.0f) {
+            transfer = Transfer::Gamma;
+        } else if (!OIIO::Strutil::iequals(colorSpace, "Linear")) {
+            transfer = Transfer::Srgb;
+        }
+    }
+    auto decode = [&](float value) {
+        switch (transfer) {
+            case Transfer::Srgb:
+                return linearFromSrgb(value);
+            case Transfer::Gamma:
+                return std::pow(std::max(value, 0.0f), gamma);
+            case Transfer::Linear:
+                break;
+        }
+        return value;
+    };
+
+    for (std::size_t i = 0; i < image.rgbLinear.size(); ++i) {
+        const float* pixel = values.data() + i * std::size_t(channels);
+        glm::vec3 rgb =
+            channels >= 3 ? glm::vec3(pixel[0], pixel[1], pixel[2]) : glm::vec3(pixel[0]);
+        if (!std::isfinite(rgb.r) || !std::isfinite(rgb.g) || !std::isfinite(rgb.b)) {
+            throw FormatError(file.string() + ": pixel (" +
+                              std::to_string(i % std::size_t(image.width)) + ", " +
+                              std::to_string(i / std::size_t(image.width)) + ") is " +
+                              pixelText(rgb) + "; only finite pixel values are accepted");
+        }
+        image.rgbLinear[i] = glm::vec3(decode(rgb.r), decode(rgb.g), decode(rgb.b));
+    }
+    return image;
+}
+
+}  // namespace distile

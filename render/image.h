@@ -1,0 +1,51 @@
+/// @file
+/// The rendered image: linear RGB floats, row-major, row 0 at the top; and its files. PNG and
+/// TIFF hold sRGB-encoded integers, EXR linear floats. Files are written through writeAtomically().
+#pragma once
+
+#include <filesystem>
+#include <glm/vec3.hpp>
+#include <vector>
+
+namespace distile {
+
+struct Image {
+    int width = 0;
+    int height = 0;
+    std::vector<glm::vec3> rgbLinear;  ///< linear RGB, row-major, row 0 at the top
+
+    Image() = default;
+    /// A `widthPixels` x `heightPixels` image filled with `fill`. Throws InputError unless each
+    /// extent is in [1, 65536] and there are at most 2^28 pixels.
+    Image(int widthPixels, int heightPixels, glm::vec3 fill = glm::vec3(0.0f));
+
+    /// Pixel (x, y), x to the right, y down. Preconditions: 0 <= x < width, 0 <= y < height.
+    glm::vec3& at(int x, int y) { return rgbLinear[std::size_t(x) + std::size_t(width) * y]; }
+    const glm::vec3& at(int x, int y) const {
+        return rgbLinear[std::size_t(x) + std::size_t(width) * y];
+    }
+};
+
+/// The sRGB transfer function (IEC 61966-2-1): linear [0, 1] to encoded [0, 1], and back.
+/// Inputs outside [0, 1] are clamped.
+float srgbFromLinear(float linear);
+float linearFromSrgb(float encoded);
+
+/// Writes `image`, choosing the format by extension (case-insensitive):
+///   .png         8-bit RGB, sRGB-encoded, each channel clamped to [0, 1];
+///   .tif / .tiff 16-bit RGB, sRGB-encoded, clamped, zip-compressed;
+///   .exr         32-bit float linear RGB, unclamped, zip-compressed.
+/// Throws InputError for another extension, for an image whose pixel count is not
+/// width * height, or if the target's folder does not exist; std::runtime_error naming the
+/// first NaN or infinite pixel (a renderer bug) or if OpenImageIO fails. Never leaves a partial
+/// file at `file`.
+void writeImage(const Image& image, const std::filesystem::path& file);
+
+/// Reads any image OpenImageIO reads as linear RGB: float and half pixels as they are; integer
+/// pixels sRGB-decoded unless the file says it is linear (or gamma-decoded for a PNG gAMA).
+/// One or two channels (grey, grey + alpha) become grey RGB; channels past the third are
+/// ignored. Throws InputError if `file` does not exist; FormatError if OpenImageIO cannot read
+/// it, it is larger than Image accepts, or it holds NaN or infinite values.
+Image readImage(const std::filesystem::path& file);
+
+}  // namespace distile

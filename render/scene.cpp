@@ -1,0 +1,87 @@
+#include "render/scene.h"
+
+#include <cmath>
+#include <string>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/mat4x4.hpp>
+
+#include "common/error.h"
+
+namespace distile {
+
+namespace {
+
+bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+void requireFinite(const glm::vec3& v, const std::string& field) {
+    if (!finite(v)) throw InputError(field + ": must be three finite numbers");
+}
+
+}  // namespace
+
+void applyTransform(BaseMesh& mesh, const Transform& transform) {
+    requireFinite(transform.translate, "transform.translate");
+    requireFinite(transform.rotateDeg, "transform.rotate_deg");
+    if (!(std::isfinite(transform.scale) && transform.scale > 0.0f)) {
+        throw InputError("transform.scale: " + std::to_string(transform.scale) +
+                         " is not accepted; it must be a positive number");
+    }
+    glm::mat4 matrix(1.0f);
+    matrix = glm::translate(matrix, transform.translate);
+    matrix = glm::rotate(matrix, glm::radians(transform.rotateDeg.z), glm::vec3(0, 0, 1));
+    matrix = glm::rotate(matrix, glm::radians(transform.rotateDeg.y), glm::vec3(0, 1, 0));
+    matrix = glm::rotate(matrix, glm::radians(transform.rotateDeg.x), glm::vec3(1, 0, 0));
+    matrix = glm::scale(matrix, glm::vec3(transform.scale));
+    // Rotation and uniform scale: directions transform with the rotation alone.
+    const glm::mat3 rotation(matrix / transform.scale);
+    for (auto& position : mesh.positions) position = glm::vec3(matrix * glm::vec4(position, 1.0f));
+    for (auto& normal : mesh.normals) normal = glm::normalize(rotation * normal);
+    for (auto& tangent : mesh.tangents) {
+        tangent = glm::vec4(glm::normalize(rotation * glm::vec3(tangent)), tangent.w);
+    }
+}
+
+void validateScene(const Scene& scene) {
+    const Camera& camera = scene.camera;
+    requireFinite(camera.eye, "camera.eye");
+    requireFinite(camera.target, "camera.target");
+    requireFinite(camera.up, "camera.up");
+    const glm::vec3 forward = camera.target - camera.eye;
+    if (glm::length(forward) <= 0.0f) throw InputError("camera.target: equals camera.eye; the camera needs a view direction");
+    if (glm::length(glm::cross(glm::normalize(forward), camera.up)) < 1e-6f) {
+        throw InputError("camera.up: parallel to the view direction (or zero); it must point sideways of it");
+    }
+    if (!(camera.fovDeg > 0.0f && camera.fovDeg < 180.0f)) {
+        throw InputError("camera.fov_deg: " + std::to_string(camera.fovDeg) + " is not accepted; it must be in (0, 180)");
+    }
+    for (std::size_t i = 0; i < scene.lights.size(); ++i) {
+        const std::string field = "lights[" + std::to_string(i) + "]";
+        requireFinite(scene.lights[i].direction, field + ".direction");
+        requireFinite(scene.lights[i].color, field + ".color");
+        if (glm::length(scene.lights[i].direction) <= 0.0f) throw InputError(field + ".direction: must not be zero");
+        if (!(scene.lights[i].angleDeg >= 0.0f && scene.lights[i].angleDeg < 90.0f)) {
+            throw InputError(field + ".angle_deg: must be in [0, 90)");
+        }
+    }
+    if (scene.objects.empty()) throw InputError("objects: the scene has no objects; at least one is needed");
+    for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+        const std::string field = "objects[" + std::to_string(i) + "]";
+        const SceneObject& object = scene.objects[i];
+        if (object.mesh.triangles.empty()) throw InputError(field + ".mesh: has no triangles");
+        const Material& material = object.material;
+        if (!(std::isfinite(material.depthWorld) && material.depthWorld > 0.0f)) {
+            throw InputError(field + ".material.depth: " + std::to_string(material.depthWorld) +
+                             " is not accepted; it must be a positive number of world units");
+        }
+        if (!(std::isfinite(material.uvScale.x) && std::isfinite(material.uvScale.y) &&
+              material.uvScale.x > 0.0f && material.uvScale.y > 0.0f)) {
+            throw InputError(field + ".material.uv_scale: must be two positive numbers");
+        }
+        requireFinite(material.color, field + ".material.color");
+    }
+}
+
+}  // namespace distile

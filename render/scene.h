@@ -1,0 +1,70 @@
+/// @file
+/// What the renderer draws: a camera, directional lights and base meshes carrying distance
+/// tiles. Plain structs with defaults (DESIGN.md, Scene files); the command line fills them
+/// from JSON, the renderer never parses text. World units throughout, angles in degrees.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include "mesh/base_mesh.h"
+#include "sampler/tile.h"
+
+namespace distile {
+
+struct Camera {
+    glm::vec3 eye{0.0f, -3.0f, 2.0f};
+    glm::vec3 target{0.0f, 0.0f, 0.0f};
+    glm::vec3 up{0.0f, 0.0f, 1.0f};
+    float fovDeg = 40.0f;  ///< vertical field of view
+};
+
+struct DirectionalLight {
+    glm::vec3 direction{-0.4f, -0.3f, -1.0f};  ///< direction the light travels (need not be unit)
+    glm::vec3 color{1.0f, 1.0f, 1.0f};          ///< linear RGB radiance scale
+    float angleDeg = 2.0f;                       ///< angular diameter: softness of shadows
+};
+
+enum class Floor { Solid, Open };
+
+struct Material {
+    std::shared_ptr<const Tile> tile;  ///< null: the bare base surface, no detail
+    glm::vec2 uvScale{1.0f, 1.0f};      ///< tile repeats per unit of u and v
+    float depthWorld = 0.05f;           ///< thickness of the detail shell below the surface
+    Floor floor = Floor::Solid;
+    glm::vec3 color{0.8f, 0.8f, 0.85f};  ///< linear RGB albedo
+};
+
+struct SceneObject {
+    BaseMesh mesh;  ///< in world space (transforms already applied)
+    Material material;
+};
+
+struct Scene {
+    Camera camera;
+    std::vector<DirectionalLight> lights{DirectionalLight{}};
+    std::vector<SceneObject> objects;
+};
+
+/// Placement of an object: scale about the origin, then rotate about x, y, z (degrees, in that
+/// order), then translate.
+struct Transform {
+    glm::vec3 translate{0.0f};
+    glm::vec3 rotateDeg{0.0f};
+    float scale = 1.0f;
+};
+
+/// Applies `transform` to positions, normals and tangents (frames stay unit and orthogonal).
+/// Throws InputError for a non-finite transform or a scale <= 0.
+void applyTransform(BaseMesh& mesh, const Transform& transform);
+
+/// Throws InputError, naming the field ("camera.up", "objects[1].material.depth", ...), when the
+/// scene cannot be rendered: non-finite vectors, eye == target, up parallel to the view, field of
+/// view outside (0, 180), no objects, an empty mesh, depth <= 0, uv scale <= 0, a zero light
+/// direction.
+void validateScene(const Scene& scene);
+
+}  // namespace distile

@@ -1,0 +1,129 @@
+/// @file
+/// Reconstruction filters over a distance tile, in texel space: periodic in x and y, clamped to
+/// the first and last slice in z. Positions are texel-space points (texel centres at i + 0.5);
+/// results are distances in texels and gradients in texels per texel (unit length near the
+/// surface of an exact distance field).
+///
+/// Filters are small value types holding a reference to the tile, meant to be passed as template
+/// arguments to the tracer (no virtual call per sample).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/vec3.hpp>
+
+#include "sampler/tile.h"
+
+namespace distile {
+
+namespace detail {
+
+/// Integer texel index and fraction for a coordinate on an axis of `extent` texels: the sample at
+/// `position` lies between texels `lower` and `lower + 1` at fraction `weight` from `lower`.
+struct AxisLerp {
+    int lower;
+    int upper;
+    float weight;
+};
+
+inline int wrapIndex(int index, int extent) {
+    const int wrapped = index % extent;
+    return wrapped < 0 ? wrapped + extent : wrapped;
+}
+
+inline AxisLerp periodicAxis(float position, int extent) {
+    const float shifted = position - 0.5f;
+    const float floorValue = std::floor(shifted);
+    // Wrap in floating point first so huge coordinates (far repeats) keep their fraction.
+    const float wrappedFloor = floorValue - float(extent) * std::floor(floorValue / float(extent));
+    const int lower = wrapIndex(int(wrappedFloor), extent);
+    return {lower, lower + 1 == extent ? 0 : lower + 1, shifted - floorValue};
+}
+
+inline AxisLerp clampedAxis(float position, int extent) {
+    const float shifted = std::fmin(std::fmax(position - 0.5f, 0.0f), float(extent - 1));
+    const int lower = std::min(int(shifted), extent - 2);
+    return {lower, lower + 1, shifted - float(lower)};
+}
+
+}  // namespace detail
+
+/// Nearest-texel lookup (the reference for "no filtering").
+class NearestFilter {
+public:
+    explicit NearestFilter(const Tile& tile) : tile_(tile) {}
+
+    float distanceTexels(const glm::vec3& texelPosition) const {
+        const Size3& size = tile_.size();
+        const int x = detail::wrapIndex(int(std::floor(texelPosition.x)), size.width);
+        const int y = detail::wrapIndex(int(std::floor(texelPosition.y)), size.height);
+        const int z = std::clamp(int(std::floor(texelPosition.z)), 0, size.depth - 1);
+        return tile_.at(x, y, z);
+    }
+
+private:
+    const Tile& tile_;
+};
+
+/// Trilinear interpolation between the 8 surrounding texel centres. The gradient is the exact
+/// derivative of the trilinear interpolant (piecewise constant in each axis' own direction).
+class TrilinearFilter {
+public:
+    explicit TrilinearFilter(const Tile& tile) : tile_(tile) {}
+
+    float distanceTexels(const glm::vec3& texelPosition) const {
+        const Corners c = corners(texelPosition);
+        const float fx = c.x.weight;
+        const float fy = c.y.weight;
+        const float fz = c.z.weight;
+        const float v00 = lerp(c.v[0], c.v[1], fx);
+        const float v10 = lerp(c.v[2], c.v[3], fx);
+        const float v01 = lerp(c.v[4], c.v[5], fx);
+        const float v11 = lerp(c.v[6], c.v[7], fx);
+        return lerp(lerp(v00, v10, fy), lerp(v01, v11, fy), fz);
+    }
+
+    glm::vec3 gradient(const glm::vec3& texelPosition) const {
+        const Corners c = corners(texelPosition);
+        const float fx = c.x.weight;
+        const float fy = c.y.weight;
+        const float fz = c.z.weight;
+        // Differences along x at the four (y, z) corners, then interpolate, etc.
+        const float dx = lerp(lerp(c.v[1] - c.v[0], c.v[3] - c.v[2], fy),
+                              lerp(c.v[5] - c.v[4], c.v[7] - c.v[6], fy), fz);
+        const float dy = lerp(lerp(c.v[2] - c.v[0], c.v[3] - c.v[1], fx),
+                              lerp(c.v[6] - c.v[4], c.v[7] - c.v[5], fx), fz);
+        const float dz = lerp(lerp(c.v[4] - c.v[0], c.v[5] - c.v[1], fx),
+                              lerp(c.v[6] - c.v[2], c.v[7] - c.v[3], fx), fy);
+        return {dx, dy, dz};
+    }
+
+private:
+    struct Corners {
+        detail::AxisLerp x, y, z;
+        float v[8];  ///< corner values, index bit 0: x upper, bit 1: y upper, bit 2: z upper
+    };
+
+    static float lerp(float a, float b, float t) { return a + (b - a) * t; }
+
+    Corners corners(const glm::vec3& p) const {
+        const Size3& size = tile_.size();
+        Corners c{detail::periodicAxis(p.x, size.width), detail::periodicAxis(p.y, size.height),
+                  detail::clampedAxis(p.z, size.depth), {}};
+        const float* data = tile_.distancesTexels().data();
+        const std::size_t strideY = std::size_t(size.width);
+        const std::size_t strideZ = strideY * std::size_t(size.height);
+        const std::size_t rows[2] = {std::size_t(c.y.lower) * strideY, std::size_t(c.y.upper) * strideY};
+        const std::size_t slabs[2] = {std::size_t(c.z.lower) * strideZ, std::size_t(c.z.upper) * strideZ};
+        const std::size_t columns[2] = {std::size_t(c.x.lower), std::size_t(c.x.upper)};
+        for (int corner = 0; corner < 8; ++corner) {
+            c.v[corner] = data[columns[corner & 1] + rows[(corner >> 1) & 1] + slabs[corner >> 2]];
+        }
+        return c;
+    }
+
+    const Tile& tile_;
+};
+
+}  // namespace distile

@@ -1,0 +1,15 @@
+/// @file
+/// Resampling a level set into a dense tile.
+#pragma once
+
+#include "sampler/tile.h"
+#include "vdb/level_set.h"
+
+namespace distile {
+
+/// The tile of the level set's footprint: the level set's voxels are texel-aligned (voxel
+/// (i, j, k) at texel centre (i+0.5, j+0.5, k+0.5)), so each texel takes its voxel's value, exactly.
+/// Texels outside the narrow band hold +/- the half band width. Provenance comes from the level set.
+Tile tileFromLevelSet(const LevelSet& levelSet);
+
+}  // namespace distile

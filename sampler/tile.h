@@ -1,0 +1,47 @@
+/// @file
+/// The distance tile: a dense W x H x D block of signed distances in texel units (negative
+/// inside material), periodic in x and y, with texel (i, j, k) centred at (i+0.5, j+0.5, k+0.5)
+/// in texel space. z = D is the top (the base surface), z = 0 the floor. Layout: x fastest, then
+/// y, then z.
+#pragma once
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/size3.h"
+
+namespace distile {
+
+/// What a tile was made from; stored in the EXR header (see DESIGN.md, Formats).
+struct TileProvenance {
+    std::string source;  ///< e.g. "chainmail", "mesh:ring.obj"
+    std::string params;  ///< the source's parameters as JSON text
+};
+
+class Tile {
+public:
+    /// A tile of `size` texels, all distances set to `fillTexels`. Throws InputError for sizes
+    /// validateTileSize() rejects.
+    explicit Tile(const Size3& size, float fillTexels = 0.0f);
+
+    const Size3& size() const { return size_; }
+
+    /// Index of texel (x, y, z) in distancesTexels(); x fastest. Preconditions: 0 <= x < W etc.
+    std::size_t index(int x, int y, int z) const {
+        return std::size_t(x) + std::size_t(size_.width) * (std::size_t(y) + std::size_t(size_.height) * std::size_t(z));
+    }
+    float at(int x, int y, int z) const { return distances_[index(x, y, z)]; }
+    float& at(int x, int y, int z) { return distances_[index(x, y, z)]; }
+
+    std::span<const float> distancesTexels() const { return distances_; }
+    std::span<float> distancesTexels() { return distances_; }
+
+    TileProvenance provenance;
+
+private:
+    Size3 size_;
+    std::vector<float> distances_;
+};
+
+}  // namespace distile

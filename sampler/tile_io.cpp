@@ -1,0 +1,382 @@
+#include "sampler/tile_io.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+
+namespace distile {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kFormatVersion = "0.1.0";
+constexpr const char* kChannelName = "distance";
+constexpr float kHalfMax = 65504.0f;
+constexpr const char* kUnknownSource = "unknown";
+constexpr const char* kNoParams = "{}";
+
+/// Every attribute a tile file must carry, in the order they are checked on reading.
+constexpr std::array<const char*, 7> kTileAttributes = {
+    "distile:size",   "distile:layout",  "distile:units", "distile:source",
+    "distile:params", "distile:version", "distile:hash"};
+
+/// First line of an OpenImageIO error message, or `fallback` when it is empty.
+std::string firstLine(const std::string& message, const std::string& fallback) {
+    const std::string line = message.substr(0, message.find('\n'));
+    return line.empty() ? fallback : line;
+}
+
+std::uint64_t fnv1a(std::uint64_t hash, std::uint32_t value) {
+    constexpr std::uint64_t kPrime = 0x100000001b3ull;
+    for (int byte = 0; byte < 4; ++byte) {
+        hash ^= (value >> (8 * byte)) & 0xffu;
+        hash *= kPrime;
+    }
+    return hash;
+}
+
+std::uint64_t hashDistances(const Size3& size, std::span<const float> distancesTexels) {
+    std::uint64_t hash = 0xcbf29ce484222325ull;
+    for (int extent : {size.width, size.height, size.depth}) {
+        hash = fnv1a(hash, static_cast<std::uint32_t>(extent));
+    }
+    for (float distance : distancesTexels) {
+        hash = fnv1a(hash, std::bit_cast<std::uint32_t>(distance));
+    }
+    return hash;
+}
+
+std::string hexDigits(std::uint64_t value) {
+    char text[17];
+    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(value));
+    return text;
+}
+
+std::string layoutText(const AtlasGrid& grid) {
+    const std::string cols = std::to_string(grid.cols);
+    return "atlas " + cols + "x" + std::to_string(grid.rows) + " slice k at column k%" + cols +
+           " row k/" + cols + ", x fastest, texel centre at i+0.5";
+}
+
+std::string texelName(const Size3& size, std::size_t index) {
+    const std::size_t sliceTexels = std::size_t(size.width) * std::size_t(size.height);
+    const std::size_t x = index % std::size_t(size.width);
+    const std::size_t y = (index % sliceTexels) / std::size_t(size.width);
+    const std::size_t z = index / sliceTexels;
+    return "texel (" + std::to_string(x) + ", " + std::to_string(y) + ", " + std::to_string(z) +
+           ")";
+}
+
+/// Atlas pixel count per row and per column for a tile of `size`.
+struct AtlasPixels {
+    AtlasGrid grid;
+    int width = 0;
+    int height = 0;
+};
+
+AtlasPixels atlasPixels(const Size3& size) {
+    const AtlasGrid grid = atlasGrid(size.depth);
+    return {grid, grid.cols * size.width, grid.rows * size.height};
+}
+
+/// Copies distances in tile order (x fastest) into a row-major atlas image, filling cells past
+/// the last slice with `fill`.
+template <typename Value>
+std::vector<Value> toAtlas(const Size3& size, std::span<const Value> tileValues, Value fill) {
+    const AtlasPixels atlas = atlasPixels(size);
+    std::vector<Value> pixels(std::size_t(atlas.width) * std::size_t(atlas.height), fill);
+    for (int z = 0; z < size.depth; ++z) {
+        const int originX = (z % atlas.grid.cols) * size.width;
+        const int originY = (z / atlas.grid.cols) * size.height;
+        for (int y = 0; y < size.height; ++y) {
+            const std::size_t from =
+                std::size_t(size.width) * (std::size_t(y) + std::size_t(size.height) * z);
+            const std::size_t to =
+                std::size_t(originX) + std::size_t(atlas.width) * std::size_t(originY + y);
+            std::copy_n(tileValues.begin() + from, size.width, pixels.begin() + to);
+        }
+    }
+    return pixels;
+}
+
+void fromAtlas(const Size3& size, std::span<const float> pixels, Tile& tile) {
+    const AtlasPixels atlas = atlasPixels(size);
+    for (int z = 0; z < size.depth; ++z) {
+        const int originX = (z % atlas.grid.cols) * size.width;
+        const int originY = (z / atlas.grid.cols) * size.height;
+        for (int y = 0; y < size.height; ++y) {
+            const std::size_t from =
+                std::size_t(originX) + std::size_t(atlas.width) * std::size_t(originY + y);
+            std::copy_n(pixels.begin() + from, size.width, &tile.at(0, y, z));
+        }
+    }
+}
+
+void setTileAttributes(OIIO::ImageSpec& spec, const Size3& size, const TileProvenance& provenance,
+                       std::uint64_t hash) {
+    spec.attribute("distile:size", toString(size));
+    spec.attribute("distile:layout", layoutText(atlasGrid(size.depth)));
+    spec.attribute("distile:units", "texels");
+    // OpenImageIO's EXR writer drops empty string attributes, so empty provenance is spelled out.
+    spec.attribute("distile:source",
+                   provenance.source.empty() ? kUnknownSource : provenance.source);
+    spec.attribute("distile:params", provenance.params.empty() ? kNoParams : provenance.params);
+    spec.attribute("distile:version", kFormatVersion);
+    spec.attribute("distile:hash", hexDigits(hash));
+}
+
+/// Opens `temporary` with OpenImageIO and writes `pixels` (one channel, row-major) into it.
+template <typename Value>
+void writeAtlas(const fs::path& temporary, const OIIO::ImageSpec& spec,
+                const std::vector<Value>& pixels, OIIO::TypeDesc pixelType,
+                const fs::path& target) {
+    auto output = OIIO::ImageOutput::create(temporary.string());
+    if (!output) {
+        throw std::runtime_error(target.string() + ": OpenImageIO cannot write this file type (" +
+                                 firstLine(OIIO::geterror(), "no writer") + ")");
+    }
+    if (!output->open(temporary.string(), spec) || !output->write_image(pixelType, pixels.data()) ||
+        !output->close()) {
+        throw std::runtime_error(target.string() + ": writing failed (" +
+                                 firstLine(output->geterror(), "unknown OpenImageIO error") + ")");
+    }
+}
+
+void requireFinite(const Tile& tile, const fs::path& file) {
+    const auto distances = tile.distancesTexels();
+    const auto bad =
+        std::find_if(distances.begin(), distances.end(), [](float d) { return !std::isfinite(d); });
+    if (bad != distances.end()) {
+        throw InputError(file.string() + ": distance at " +
+                         texelName(tile.size(), std::size_t(bad - distances.begin())) + " is " +
+                         std::to_string(*bad) + "; only finite distances can be written");
+    }
+}
+
+Size3 parseSize(const std::string& text, const fs::path& file) {
+    Size3 size;
+    const char* cursor = text.data();
+    const char* end = text.data() + text.size();
+    bool parsed = true;
+    int* extents[3] = {&size.width, &size.height, &size.depth};
+    for (int axis = 0; axis < 3 && parsed; ++axis) {
+        if (axis > 0) {
+            parsed = cursor != end && *cursor == 'x';
+            cursor += parsed ? 1 : 0;
+        }
+        const auto result = std::from_chars(cursor, end, *extents[axis]);
+        parsed = parsed && result.ec == std::errc() && result.ptr != cursor;
+        cursor = result.ptr;
+    }
+    if (!parsed || cursor != end) {
+        throw FormatError(file.string() + ": distile:size '" + text +
+                          "' is not accepted; expected WxHxD such as 256x256x16");
+    }
+    try {
+        validateTileSize(size, file.string() + ": distile:size");
+    } catch (const InputError& error) {
+        throw FormatError(error.what());
+    }
+    return size;
+}
+
+}  // namespace
+
+AtlasGrid atlasGrid(int depthSlices) {
+    if (depthSlices < 1) {
+        throw InputError("atlas: depth " + std::to_string(depthSlices) +
+                         " is not accepted; at least 1 slice");
+    }
+    int cols = static_cast<int>(std::sqrt(static_cast<double>(depthSlices)));
+    while (cols * cols < depthSlices) ++cols;  // exact ceil(sqrt(D)), immune to rounding
+    while ((cols - 1) * (cols - 1) >= depthSlices) --cols;
+    return {cols, (depthSlices + cols - 1) / cols};
+}
+
+std::uint64_t tileHash(const Tile& tile) {
+    return hashDistances(tile.size(), tile.distancesTexels());
+}
+
+void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
+    if (file.extension() != ".exr") {
+        throw InputError(file.string() + ": extension '" + file.extension().string() +
+                         "' is not accepted for a tile; use .exr");
+    }
+    requireFinite(tile, file);
+    const Size3& size = tile.size();
+    std::span<const float> stored = tile.distancesTexels();
+    std::vector<float> roundedToHalf;
+    OIIO::TypeDesc fileType = OIIO::TypeDesc::FLOAT;
+    if (storage == TileStorage::Half16) {
+        // Round once here so the hash covers exactly the values a reader will get back.
+        std::vector<std::uint16_t> halves(stored.size());
+        roundedToHalf.resize(stored.size());
+        OIIO::convert_pixel_values(OIIO::TypeDesc::FLOAT, stored.data(), OIIO::TypeDesc::HALF,
+                                   halves.data(), int(stored.size()));
+        OIIO::convert_pixel_values(OIIO::TypeDesc::HALF, halves.data(), OIIO::TypeDesc::FLOAT,
+                                   roundedToHalf.data(), int(stored.size()));
+        for (std::size_t i = 0; i < stored.size(); ++i) {
+            if (!std::isfinite(roundedToHalf[i])) {
+                throw InputError(file.string() + ": distance " + std::to_string(stored[i]) +
+                                 " at " + texelName(size, i) +
+                                 " does not fit in half storage; |distance| must be at most " +
+                                 std::to_string(int(kHalfMax)) + " texels, or use float storage");
+            }
+        }
+        stored = roundedToHalf;
+        fileType = OIIO::TypeDesc::HALF;
+    }
+
+    const float maxDistance = *std::max_element(stored.begin(), stored.end());
+    const std::vector<float> pixels = toAtlas(size, stored, maxDistance);
+    const AtlasPixels atlas = atlasPixels(size);
+    OIIO::ImageSpec spec(atlas.width, atlas.height, 1, fileType);
+    spec.channelnames = {kChannelName};
+    spec.attribute("compression", "zip");
+    setTileAttributes(spec, size, tile.provenance, hashDistances(size, stored));
+
+    writeAtomically(file, [&](const fs::path& temporary) {
+        writeAtlas(temporary, spec, pixels, OIIO::TypeDesc::FLOAT, file);
+    });
+}
+
+Tile readTileExr(const fs::path& file) {
+    std::error_code status;
+    if (!fs::exists(file, status)) {
+        throw InputError(file.string() + ": no such file");
+    }
+    if (fs::is_directory(file, status)) {
+        throw InputError(file.string() + ": is a folder; a tile .exr file is expected");
+    }
+    auto input = OIIO::ImageInput::open(file.string());
+    if (!input) {
+        throw FormatError(file.string() + ": not a readable image (" +
+                          firstLine(OIIO::geterror(), "unknown OpenImageIO error") +
+                          "); the file is truncated, corrupted or not an image");
+    }
+    if (std::string(input->format_name()) != "openexr") {
+        throw FormatError(file.string() + ": is a " + input->format_name() +
+                          " image; a distile tile must be OpenEXR");
+    }
+    const OIIO::ImageSpec& spec = input->spec();
+    for (const char* name : kTileAttributes) {
+        if (!spec.find_attribute(name, OIIO::TypeDesc::STRING)) {
+            throw FormatError(file.string() + ": not a distile tile (no " + name +
+                              " attribute); write tiles with `distile bake`");
+        }
+    }
+    const Size3 size = parseSize(spec.get_string_attribute("distile:size"), file);
+    const std::string units = spec.get_string_attribute("distile:units");
+    if (units != "texels") {
+        throw FormatError(file.string() + ": distile:units '" + units +
+                          "' is not accepted; only 'texels'");
+    }
+    if (spec.nchannels != 1 || spec.channelnames.empty() || spec.channelnames[0] != kChannelName) {
+        const std::string first = spec.channelnames.empty() ? "" : spec.channelnames[0];
+        throw FormatError(file.string() + ": has " + std::to_string(spec.nchannels) +
+                          " channel(s) starting with '" + first +
+                          "'; a tile has exactly one channel named 'distance'");
+    }
+    const AtlasPixels atlas = atlasPixels(size);
+    if (spec.width != atlas.width || spec.height != atlas.height || spec.depth != 1 || spec.deep) {
+        throw FormatError(file.string() + ": image is " + std::to_string(spec.width) + "x" +
+                          std::to_string(spec.height) + " pixels but distile:size " +
+                          toString(size) + " needs a " + std::to_string(atlas.grid.cols) + "x" +
+                          std::to_string(atlas.grid.rows) + " atlas of " +
+                          std::to_string(atlas.width) + "x" + std::to_string(atlas.height));
+    }
+
+    std::vector<float> pixels(std::size_t(atlas.width) * std::size_t(atlas.height));
+    if (!input->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, pixels.data())) {
+        throw FormatError(file.string() + ": cannot read the pixels (" +
+                          firstLine(input->geterror(), "unknown OpenImageIO error") +
+                          "); the file is truncated or corrupted");
+    }
+
+    Tile tile(size);
+    fromAtlas(size, pixels, tile);
+    const auto distances = tile.distancesTexels();
+    const auto bad =
+        std::find_if(distances.begin(), distances.end(), [](float d) { return !std::isfinite(d); });
+    if (bad != distances.end()) {
+        throw FormatError(file.string() + ": distance at " +
+                          texelName(size, std::size_t(bad - distances.begin())) + " is " +
+                          std::to_string(*bad) + "; a tile holds only finite distances");
+    }
+    const std::string storedHash = spec.get_string_attribute("distile:hash");
+    const std::string actualHash = hexDigits(tileHash(tile));
+    if (storedHash != actualHash) {
+        throw FormatError(file.string() + ": distile:hash is " + storedHash +
+                          " but the distances hash to " + actualHash +
+                          "; the file was modified or corrupted");
+    }
+    tile.provenance.source = spec.get_string_attribute("distile:source");
+    tile.provenance.params = spec.get_string_attribute("distile:params");
+    return tile;
+}
+
+void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
+    if (bitsPerChannel != 8 && bitsPerChannel != 16) {
+        throw InputError(file.string() + ": PNG bit depth " + std::to_string(bitsPerChannel) +
+                         " is not accepted; use 8 or 16");
+    }
+    if (file.extension() != ".png") {
+        throw InputError(file.string() + ": extension '" + file.extension().string() +
+                         "' is not accepted for a PNG export; use .png");
+    }
+    const auto distances = tile.distancesTexels();
+    const auto nan =
+        std::find_if(distances.begin(), distances.end(), [](float d) { return std::isnan(d); });
+    if (nan != distances.end()) {
+        throw InputError(file.string() + ": distance at " +
+                         texelName(tile.size(), std::size_t(nan - distances.begin())) +
+                         " is NaN; only numbers can be exported");
+    }
+    const Size3& size = tile.size();
+    const float depthTexels = float(size.depth);
+    const std::uint32_t maxCode = bitsPerChannel == 8 ? 255u : 65535u;
+    // GPU Gems 2 ch. 8: distance / depth, clamped to [0, 1]; -inf and +inf clamp too.
+    auto toCode = [&](float distanceTexels) {
+        const float unit = std::clamp(distanceTexels / depthTexels, 0.0f, 1.0f);
+        return static_cast<std::uint16_t>(std::lround(unit * float(maxCode)));
+    };
+    std::vector<std::uint16_t> codes(distances.size());
+    std::transform(distances.begin(), distances.end(), codes.begin(), toCode);
+    const std::uint16_t fill = *std::max_element(codes.begin(), codes.end());
+    const std::vector<std::uint16_t> pixels =
+        toAtlas(size, std::span<const std::uint16_t>(codes), fill);
+
+    const AtlasPixels atlas = atlasPixels(size);
+    OIIO::ImageSpec spec(atlas.width, atlas.height, 1,
+                         bitsPerChannel == 8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
+    spec.channelnames = {kChannelName};
+    spec.attribute("oiio:ColorSpace", "Linear");  // data, not colour: no sRGB decoding
+    setTileAttributes(spec, size, tile.provenance, tileHash(tile));
+    spec.attribute("distile:units", "distance / " + std::to_string(size.depth) +
+                                        " texels (tile depth), clamped to [0, 1]");
+    if (bitsPerChannel == 8) {
+        std::vector<std::uint8_t> bytes(pixels.begin(), pixels.end());
+        writeAtomically(file, [&](const fs::path& temporary) {
+            writeAtlas(temporary, spec, bytes, OIIO::TypeDesc::UINT8, file);
+        });
+    } else {
+        writeAtomically(file, [&](const fs::path& temporary) {
+            writeAtlas(temporary, spec, pixels, OIIO::TypeDesc::UINT16, file);
+        });
+    }
+}
+
+}  // namespace distile

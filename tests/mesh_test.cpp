@@ -1,0 +1,539 @@
+// Tests for mesh/: built-in base meshes against their analytic frames, OBJ loading with UV seams,
+// and the bad inputs loadBaseMesh and computeTangentFrames must reject or survive.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <glm/geometric.hpp>
+#include <numbers>
+#include <string>
+
+#include "common/error.h"
+#include "mesh/base_mesh.h"
+
+namespace distile {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+/// Angle between two vectors in radians, in double so it resolves angles down to ~1e-8.
+double angleBetween(const glm::dvec3& a, const glm::dvec3& b) {
+    return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b));
+}
+
+glm::dvec3 bitangentOf(const BaseMesh& mesh, std::size_t v) {
+    const glm::dvec3 n(mesh.normals[v]);
+    const glm::dvec3 t(mesh.tangents[v]);
+    return double(mesh.tangents[v].w) * glm::cross(n, t);
+}
+
+/// Every frame is finite and orthonormal, w is exactly +1 or -1, uvs are in [0, 1] when asked.
+/// 1e-5 covers the float rounding of vectors normalised in double and then stored as float
+/// (each component carries ~6e-8 relative error; lengths and dot products stay far below 1e-5).
+void expectValidFrames(const BaseMesh& mesh, bool uvsInUnitSquare) {
+    ASSERT_EQ(mesh.normals.size(), mesh.positions.size());
+    ASSERT_EQ(mesh.tangents.size(), mesh.positions.size());
+    ASSERT_EQ(mesh.uvs.size(), mesh.positions.size());
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+        const glm::vec3 n = mesh.normals[v];
+        const glm::vec4 t = mesh.tangents[v];
+        ASSERT_TRUE(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z)) << v;
+        ASSERT_TRUE(std::isfinite(t.x) && std::isfinite(t.y) && std::isfinite(t.z)) << v;
+        EXPECT_NEAR(glm::length(n), 1.0, 1e-5) << "vertex " << v;
+        EXPECT_NEAR(glm::length(glm::vec3(t)), 1.0, 1e-5) << "vertex " << v;
+        EXPECT_NEAR(glm::dot(n, glm::vec3(t)), 0.0, 1e-5) << "vertex " << v;
+        EXPECT_TRUE(t.w == 1.0f || t.w == -1.0f) << "vertex " << v << " w " << t.w;
+        if (uvsInUnitSquare) {
+            EXPECT_TRUE(mesh.uvs[v].x >= 0.0f && mesh.uvs[v].x <= 1.0f) << v;
+            EXPECT_TRUE(mesh.uvs[v].y >= 0.0f && mesh.uvs[v].y <= 1.0f) << v;
+        }
+    }
+    for (const glm::uvec3& triangle : mesh.triangles) {
+        for (int corner = 0; corner < 3; ++corner)
+            ASSERT_LT(triangle[corner], mesh.positions.size());
+    }
+}
+
+/// Every triangle is counter-clockwise seen from outside: its geometric normal agrees with the
+/// vertex normals (positive dot product with their sum).
+void expectOutwardWinding(const BaseMesh& mesh) {
+    for (std::size_t k = 0; k < mesh.triangles.size(); ++k) {
+        const glm::uvec3& tri = mesh.triangles[k];
+        const glm::dvec3 p0(mesh.positions[tri[0]]);
+        const glm::dvec3 faceNormal = glm::cross(glm::dvec3(mesh.positions[tri[1]]) - p0,
+                                                 glm::dvec3(mesh.positions[tri[2]]) - p0);
+        const glm::dvec3 vertexNormals = glm::dvec3(mesh.normals[tri[0]]) +
+                                         glm::dvec3(mesh.normals[tri[1]]) +
+                                         glm::dvec3(mesh.normals[tri[2]]);
+        EXPECT_GT(glm::dot(faceNormal, vertexNormals), 0.0) << "triangle " << k;
+    }
+}
+
+/// A file in the temp folder, unique per test and process, removed at the end of the test.
+class TempFile {
+  public:
+    TempFile(const std::string& name, const std::string& contents)
+        : path_(std::filesystem::temp_directory_path() /
+                ("distile_mesh_test_" + std::to_string(::getpid()) + "_" + name)) {
+        std::ofstream(path_, std::ios::binary) << contents;
+    }
+    ~TempFile() {
+        std::error_code ignored;
+        std::filesystem::remove(path_, ignored);
+    }
+    const std::filesystem::path& path() const { return path_; }
+
+  private:
+    std::filesystem::path path_;
+};
+
+/// The message of the exception `call` throws as E (fails the test if it throws nothing or
+/// something else).
+template <typename E, typename Call>
+std::string messageOf(Call call) {
+    try {
+        call();
+    } catch (const E& error) {
+        return error.what();
+    } catch (const std::exception& other) {
+        ADD_FAILURE() << "threw another exception: " << other.what();
+        return {};
+    }
+    ADD_FAILURE() << "threw nothing";
+    return {};
+}
+
+// ---- built-in meshes -----------------------------------------------------------------------
+
+TEST(Plane, FrameIsExactlyXYZ) {
+    const BaseMesh plane = makePlane(2.0f, 4);
+    EXPECT_EQ(plane.positions.size(), 25u);
+    EXPECT_EQ(plane.triangles.size(), 32u);
+    expectValidFrames(plane, true);
+    expectOutwardWinding(plane);
+    // Grid positions and uvs are multiples of 1/4 (exact in float), so every face normal is
+    // exactly along +z and every dP/du exactly along +x: only normalisation rounding remains.
+    for (std::size_t v = 0; v < plane.positions.size(); ++v) {
+        EXPECT_EQ(plane.normals[v], glm::vec3(0, 0, 1)) << v;
+        EXPECT_NEAR(plane.tangents[v].x, 1.0f, 1e-6f) << v;
+        EXPECT_NEAR(plane.tangents[v].y, 0.0f, 1e-6f) << v;
+        EXPECT_NEAR(plane.tangents[v].z, 0.0f, 1e-6f) << v;
+        EXPECT_EQ(plane.tangents[v].w, 1.0f) << v;
+        const glm::dvec3 b = bitangentOf(plane, v);
+        EXPECT_NEAR(b.y, 1.0, 1e-6) << v;
+        // u along +x, v along +y, centred: position = (uv - 0.5) * size.
+        EXPECT_NEAR(plane.positions[v].x, (plane.uvs[v].x - 0.5f) * 2.0f, 1e-6f) << v;
+        EXPECT_NEAR(plane.positions[v].y, (plane.uvs[v].y - 0.5f) * 2.0f, 1e-6f) << v;
+        EXPECT_EQ(plane.positions[v].z, 0.0f) << v;
+    }
+}
+
+TEST(Plane, MirroredUvsGiveNegativeHandedness) {
+    BaseMesh plane = makePlane(1.0f, 3);
+    for (glm::vec2& uv : plane.uvs) uv.x = 1.0f - uv.x;  // u now runs along -x
+    computeTangentFrames(plane);
+    expectValidFrames(plane, true);
+    for (std::size_t v = 0; v < plane.positions.size(); ++v) {
+        EXPECT_NEAR(plane.tangents[v].x, -1.0f, 1e-6f) << v;
+        EXPECT_EQ(plane.tangents[v].w, -1.0f) << v;
+        EXPECT_NEAR(bitangentOf(plane, v).y, 1.0, 1e-6) << v;  // B still along +v = +y
+    }
+}
+
+// Worst angle errors of the computed per-vertex frames against the analytic frame, over all
+// non-pole vertices. Also checks the uv <-> position mapping and w = +1 on the way.
+struct FrameErrors {
+    double normal = 0, tangent = 0, bitangent = 0;  ///< radians
+};
+
+FrameErrors sphereFrameErrors(const BaseMesh& sphere, float radius) {
+    FrameErrors worst;
+    for (std::size_t v = 0; v < sphere.positions.size(); ++v) {
+        const glm::dvec3 p(sphere.positions[v]);
+        EXPECT_NEAR(glm::length(p), radius, 1e-5) << v;
+        if (sphere.uvs[v].y == 0.0f || sphere.uvs[v].y == 1.0f) {
+            // All pole copies share one position, hence the fan's summed normal: ±z up to the
+            // float rounding of the ring positions.
+            EXPECT_NEAR(sphere.normals[v].z, p.z > 0 ? 1.0f : -1.0f, 1e-5f) << v;
+            continue;
+        }
+        const double phi = 2.0 * kPi * sphere.uvs[v].x;
+        const double polar = kPi * sphere.uvs[v].y;
+        const glm::dvec3 n(std::sin(polar) * std::cos(phi), std::sin(polar) * std::sin(phi),
+                           -std::cos(polar));
+        const glm::dvec3 t(-std::sin(phi), std::cos(phi), 0.0);
+        const glm::dvec3 towardsNorth = glm::cross(n, t);
+        EXPECT_GT(towardsNorth.z, 0.0);
+        EXPECT_LT(glm::length(p / double(radius) - n), 1e-5) << v;
+        EXPECT_EQ(sphere.tangents[v].w, 1.0f) << v;
+        worst.normal = std::max(worst.normal, angleBetween(glm::dvec3(sphere.normals[v]), n));
+        worst.tangent = std::max(worst.tangent, angleBetween(glm::dvec3(sphere.tangents[v]), t));
+        worst.bitangent =
+            std::max(worst.bitangent, angleBetween(bitangentOf(sphere, v), towardsNorth));
+    }
+    return worst;
+}
+
+FrameErrors torusFrameErrors(const BaseMesh& torus, float majorRadius, float minorRadius) {
+    FrameErrors worst;
+    for (std::size_t v = 0; v < torus.positions.size(); ++v) {
+        const double theta = 2.0 * kPi * torus.uvs[v].x;
+        const double psi = 2.0 * kPi * torus.uvs[v].y;
+        const double ring = majorRadius + minorRadius * std::cos(psi);
+        const glm::dvec3 p(ring * std::cos(theta), ring * std::sin(theta),
+                           minorRadius * std::sin(psi));
+        EXPECT_LT(glm::length(glm::dvec3(torus.positions[v]) - p), 1e-5) << v;
+        const glm::dvec3 n(std::cos(psi) * std::cos(theta), std::cos(psi) * std::sin(theta),
+                           std::sin(psi));
+        const glm::dvec3 t(-std::sin(theta), std::cos(theta), 0.0);
+        // dP/dψ / r = (-sin ψ cos θ, -sin ψ sin θ, cos ψ), which is exactly cross(N, T): w = +1.
+        const glm::dvec3 dPdpsiUnit(-std::sin(psi) * std::cos(theta),
+                                    -std::sin(psi) * std::sin(theta), std::cos(psi));
+        EXPECT_LT(glm::length(glm::cross(n, t) - dPdpsiUnit), 1e-12);
+        EXPECT_EQ(torus.tangents[v].w, 1.0f) << v;
+        worst.normal = std::max(worst.normal, angleBetween(glm::dvec3(torus.normals[v]), n));
+        worst.tangent = std::max(worst.tangent, angleBetween(glm::dvec3(torus.tangents[v]), t));
+        worst.bitangent =
+            std::max(worst.bitangent, angleBetween(bitangentOf(torus, v), dPdpsiUnit));
+    }
+    return worst;
+}
+
+/// Vertices with the same position (seam and pole copies) have bit-identical normals, and
+/// bit-identical tangents when their uvs differ by whole numbers (wrapping seams).
+void expectSeamCopiesAgree(const BaseMesh& mesh) {
+    int wrappingPairs = 0;
+    for (std::size_t a = 0; a < mesh.positions.size(); ++a) {
+        for (std::size_t b = a + 1; b < mesh.positions.size(); ++b) {
+            if (mesh.positions[a] != mesh.positions[b]) continue;
+            EXPECT_EQ(mesh.normals[a], mesh.normals[b]) << a << " " << b;
+            const glm::vec2 offset = mesh.uvs[a] - mesh.uvs[b];
+            if (offset == glm::round(offset)) {
+                ++wrappingPairs;
+                EXPECT_EQ(mesh.tangents[a], mesh.tangents[b]) << a << " " << b;
+            }
+        }
+    }
+    EXPECT_GT(wrappingPairs, 0);
+}
+
+// How close the computed frames come to the analytic ones, with h the angular step:
+// - Tangents (chords of circles of latitude / of the major circle) are parallel to the analytic
+//   tangent at their mid-angle, so the two sides of a vertex cancel to second order: error
+//   c * h^2. Wrapping-seam copies pool their sums, so seams are no exception.
+// - Torus normals: neighbouring faces differ in area by a factor 1 + O(h) (the ring radius
+//   R + r cos ψ varies slowly), so area weighting stays second order as well.
+// - Sphere normals (and hence B = cross(N, T)) are first order: next to the poles, the bands
+//   above and below a ring differ in area by a factor up to 3 (band area grows like sin of the
+//   polar angle), which tilts the area-weighted sum by a fraction of h.
+// Measured (32 x 16 sphere, 48 x 24 torus): sphere N and B 0.17 h, T 0.25 h^2; torus N
+// 0.06 h^2, T 0.05 h^2. The bounds below (h/4 for first order, h^2/2 for second order) leave a
+// margin of 1.5x or more and stay well below h/2, the tilt of a single face.
+TEST(UvSphere, FramesMatchAnalyticAwayFromPoles) {
+    const int around = 32;
+    const int rings = 16;
+    const float radius = 1.5f;
+    const BaseMesh sphere = makeUvSphere(radius, around, rings);
+    EXPECT_EQ(sphere.positions.size(), std::size_t((rings - 1) * (around + 1) + 2 * around));
+    EXPECT_EQ(sphere.triangles.size(), std::size_t(2 * around * (rings - 1)));
+    expectValidFrames(sphere, true);
+    expectOutwardWinding(sphere);
+    expectSeamCopiesAgree(sphere);
+    const double h = std::max(2.0 * kPi / around, kPi / rings);
+    const FrameErrors worst = sphereFrameErrors(sphere, radius);
+    EXPECT_LT(worst.normal, h / 4);
+    EXPECT_LT(worst.tangent, h * h / 2);
+    EXPECT_LT(worst.bitangent, h / 4);
+}
+
+TEST(UvSphere, FrameErrorsShrinkWithTessellation) {
+    // Doubling the resolution must at least roughly halve the first-order errors and quarter
+    // the second-order ones (0.6 and 0.35 allow for the higher-order terms).
+    const FrameErrors coarse = sphereFrameErrors(makeUvSphere(1.0f, 24, 12), 1.0f);
+    const FrameErrors fine = sphereFrameErrors(makeUvSphere(1.0f, 48, 24), 1.0f);
+    EXPECT_LT(fine.normal, 0.6 * coarse.normal);
+    EXPECT_LT(fine.tangent, 0.35 * coarse.tangent);
+}
+
+TEST(Torus, FramesMatchAnalytic) {
+    const int major = 48;
+    const int minor = 24;
+    const float majorRadius = 2.0f;
+    const float minorRadius = 0.5f;
+    const BaseMesh torus = makeTorus(majorRadius, minorRadius, major, minor);
+    EXPECT_EQ(torus.positions.size(), std::size_t((major + 1) * (minor + 1)));
+    EXPECT_EQ(torus.triangles.size(), std::size_t(2 * major * minor));
+    expectValidFrames(torus, true);
+    expectOutwardWinding(torus);
+    expectSeamCopiesAgree(torus);
+    const double h = std::max(2.0 * kPi / major, 2.0 * kPi / minor);
+    const FrameErrors worst = torusFrameErrors(torus, majorRadius, minorRadius);
+    EXPECT_LT(worst.normal, h * h / 2);
+    EXPECT_LT(worst.tangent, h * h / 2);
+    EXPECT_LT(worst.bitangent, h * h / 2);
+}
+
+TEST(Torus, FrameErrorsShrinkWithTessellation) {
+    const FrameErrors coarse = torusFrameErrors(makeTorus(2.0f, 0.5f, 24, 12), 2.0f, 0.5f);
+    const FrameErrors fine = torusFrameErrors(makeTorus(2.0f, 0.5f, 48, 24), 2.0f, 0.5f);
+    EXPECT_LT(fine.normal, 0.35 * coarse.normal);
+    EXPECT_LT(fine.tangent, 0.35 * coarse.tangent);
+}
+
+TEST(BuiltIns, SmallestTessellationsAreValid) {
+    for (const BaseMesh& mesh :
+         {makePlane(1.0f, 1), makeUvSphere(1.0f, 3, 2), makeTorus(1.0f, 0.25f, 3, 3)}) {
+        expectValidFrames(mesh, true);
+        expectOutwardWinding(mesh);
+    }
+}
+
+TEST(BuiltIns, RejectBadArguments) {
+    EXPECT_THROW(makePlane(0.0f, 4), InputError);
+    EXPECT_THROW(makePlane(std::nanf(""), 4), InputError);
+    EXPECT_THROW(makePlane(1.0f, 0), InputError);
+    EXPECT_THROW(makeUvSphere(-1.0f, 8, 4), InputError);
+    EXPECT_THROW(makeUvSphere(1.0f, 2, 4), InputError);
+    EXPECT_THROW(makeUvSphere(1.0f, 8, 1), InputError);
+    EXPECT_THROW(makeUvSphere(1.0f, kMaxSegments + 1, 4), InputError);
+    EXPECT_THROW(makeTorus(1.0f, 1.0f, 8, 8), InputError);
+    EXPECT_THROW(makeTorus(1.0f, 2.0f, 8, 8), InputError);
+    EXPECT_THROW(makeTorus(1.0f, 0.0f, 8, 8), InputError);
+    EXPECT_THROW(makeTorus(INFINITY, 0.5f, 8, 8), InputError);
+    EXPECT_THROW(makeTorus(1.0f, 0.5f, 2, 8), InputError);
+    const std::string message = messageOf<InputError>([] { makeTorus(1.0f, 0.5f, 8, 1); });
+    EXPECT_NE(message.find("segmentsMinor = 1"), std::string::npos) << message;
+}
+
+// ---- computeTangentFrames on awkward input -------------------------------------------------
+
+TEST(TangentFrames, DegenerateUvTriangleGetsFallbackFrame) {
+    BaseMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    mesh.uvs = {{0.5f, 0.5f}, {0.5f, 0.5f}, {0.5f, 0.5f}};  // zero uv area
+    mesh.triangles = {{0, 1, 2}};
+    computeTangentFrames(mesh);
+    expectValidFrames(mesh, true);
+    for (std::size_t v = 0; v < 3; ++v) {
+        EXPECT_EQ(mesh.normals[v], glm::vec3(0, 0, 1));
+        EXPECT_EQ(mesh.tangents[v], glm::vec4(1, 0, 0, 1));  // documented fallback for N = +z
+    }
+}
+
+TEST(TangentFrames, DegenerateUvTriangleContributesNothing) {
+    // A good unit triangle plus a neighbour whose uvs are collinear: the shared vertices keep the
+    // good triangle's exact tangent +x.
+    BaseMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+    // uv(3) lies on the line from uv(1) to uv(2), so triangle {1, 3, 2} has zero uv area.
+    mesh.uvs = {{0, 0}, {1, 0}, {0, 1}, {0.5f, 0.5f}};
+    mesh.triangles = {{0, 1, 2}, {1, 3, 2}};
+    computeTangentFrames(mesh);
+    expectValidFrames(mesh, true);
+    for (std::size_t v = 0; v < 3; ++v) {
+        EXPECT_NEAR(mesh.tangents[v].x, 1.0f, 1e-6f) << v;
+        EXPECT_EQ(mesh.tangents[v].w, 1.0f) << v;
+    }
+}
+
+TEST(TangentFrames, ZeroAreaTrianglesStayFinite) {
+    BaseMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {5, 5, 5}};  // collinear and coincident
+    mesh.uvs = {{0, 0}, {1, 0}, {0, 1}, {1, 1}};
+    mesh.triangles = {{0, 1, 2}, {3, 3, 3}};
+    computeTangentFrames(mesh);
+    expectValidFrames(mesh, true);
+    for (std::size_t v = 0; v < 4; ++v) EXPECT_EQ(mesh.normals[v], glm::vec3(0, 0, 1)) << v;
+}
+
+TEST(TangentFrames, TwoSidedSheetKeepsEachSidesNormal) {
+    // The same square twice, the back copy wound the other way: the same-position sums cancel,
+    // so each vertex falls back on its own faces instead of an arbitrary direction.
+    BaseMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    mesh.uvs = {{0, 0}, {1, 0}, {0, 1}, {0, 0}, {1, 0}, {0, 1}};
+    mesh.triangles = {{0, 1, 2}, {3, 5, 4}};
+    computeTangentFrames(mesh);
+    expectValidFrames(mesh, true);
+    for (std::size_t v = 0; v < 3; ++v) EXPECT_EQ(mesh.normals[v], glm::vec3(0, 0, 1)) << v;
+    for (std::size_t v = 3; v < 6; ++v) EXPECT_EQ(mesh.normals[v], glm::vec3(0, 0, -1)) << v;
+    // Back side: u still runs along +x, but seen from -z that is mirrored: w = -1.
+    for (std::size_t v = 3; v < 6; ++v) EXPECT_EQ(mesh.tangents[v].w, -1.0f) << v;
+}
+
+TEST(TangentFrames, RejectsInconsistentMeshes) {
+    BaseMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    mesh.uvs = {{0, 0}, {1, 0}};
+    mesh.triangles = {{0, 1, 2}};
+    EXPECT_THROW(computeTangentFrames(mesh), InputError);
+    mesh.uvs.emplace_back(0, 1);
+    mesh.triangles = {{0, 1, 3}};
+    const std::string message = messageOf<InputError>([&] { computeTangentFrames(mesh); });
+    EXPECT_NE(message.find("vertex 3"), std::string::npos) << message;
+    mesh.triangles = {{0, 1, 2}};
+    mesh.positions[1].y = NAN;
+    EXPECT_THROW(computeTangentFrames(mesh), InputError);
+}
+
+// ---- loading -------------------------------------------------------------------------------
+
+// A ridge: two quads sharing the edge 2-3 (at z = 0.5) with separate UV islands, so positions 2
+// and 3 each appear with two uvs. Quad A's face normal is along (-0.5, 0, 1), quad B's along
+// (0.5, 0, 1), equal areas: the ridge normal is exactly +z.
+const char* const kRidgeObj =
+    "# ridge with a UV seam\n"
+    "v 0 0 0\nv 1 0 0.5\nv 1 1 0.5\nv 0 1 0\nv 2 0 0\nv 2 1 0\n"
+    "vt 0 0\nvt 0.5 0\nvt 0.5 1\nvt 0 1\n"
+    "vt 0.6 0\nvt 1 0\nvt 1 1\nvt 0.6 1\n"
+    "f 1/1 2/2 3/3 4/4\n"
+    "f 3/8 2/5 5/6 6/7\n";
+
+TEST(LoadBaseMesh, ObjUvSeamSplitsVerticesThatShareNormals) {
+    const TempFile file("ridge.obj", kRidgeObj);
+    const BaseMesh mesh = loadBaseMesh(file.path());
+    EXPECT_EQ(mesh.positions.size(), 8u);  // 6 positions + 2 seam duplicates
+    EXPECT_EQ(mesh.triangles.size(), 4u);  // two quads, fan-triangulated
+    expectValidFrames(mesh, true);
+    expectOutwardWinding(mesh);
+    int ridgeVertices = 0;
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+        EXPECT_EQ(mesh.tangents[v].w, 1.0f) << v;
+        if (mesh.positions[v].z != 0.5f) continue;
+        ++ridgeVertices;
+        // Same position, so the exact same normal on both sides of the seam: (0, 0, 1) up to the
+        // rounding of summing two mirrored float normals.
+        EXPECT_NEAR(mesh.normals[v].x, 0.0f, 1e-6f) << v;
+        EXPECT_NEAR(mesh.normals[v].z, 1.0f, 1e-6f) << v;
+        for (std::size_t other = 0; other < mesh.positions.size(); ++other) {
+            if (mesh.positions[other] == mesh.positions[v]) {
+                EXPECT_EQ(mesh.normals[other], mesh.normals[v]);
+            }
+        }
+    }
+    EXPECT_EQ(ridgeVertices, 4);
+    // Off the ridge the normal is quad A's or B's face normal.
+    const double slope = 1.0 / std::sqrt(1.25);
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+        if (mesh.positions[v].z != 0.0f) continue;
+        const double expectedX = mesh.positions[v].x < 1.0f ? -0.5 * slope : 0.5 * slope;
+        EXPECT_NEAR(mesh.normals[v].x, expectedX, 1e-6) << v;
+    }
+}
+
+TEST(LoadBaseMesh, OffWithVertexTexcoords) {
+    const TempFile file("quad.off",
+                        "STOFF\n4 1 0\n0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n0 1 0 0 1\n4 0 1 2 3\n");
+    const BaseMesh mesh = loadBaseMesh(file.path());
+    EXPECT_EQ(mesh.positions.size(), 4u);
+    EXPECT_EQ(mesh.triangles.size(), 2u);
+    expectValidFrames(mesh, true);
+    for (std::size_t v = 0; v < 4; ++v) {
+        EXPECT_EQ(mesh.uvs[v], glm::vec2(mesh.positions[v]));
+        EXPECT_NEAR(mesh.tangents[v].x, 1.0f, 1e-6f);
+    }
+}
+
+std::string plyQuad(const std::string& lastVertex) {
+    return "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+           "property float z\nproperty float u\nproperty float v\nelement face 1\n"
+           "property list uchar int vertex_indices\nend_header\n"
+           "0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n" +
+           lastVertex + "\n4 0 1 2 3\n";
+}
+
+TEST(LoadBaseMesh, PlyWithVertexTexcoords) {
+    const TempFile good("quad.ply", plyQuad("0 1 0 0 1"));
+    const BaseMesh mesh = loadBaseMesh(good.path());
+    EXPECT_EQ(mesh.triangles.size(), 2u);
+    expectValidFrames(mesh, true);
+    // OpenMesh's ASCII PLY reader cannot parse "inf": it loses its place and drops the face,
+    // which loadBaseMesh reports instead of returning an empty or partial mesh.
+    const TempFile bad("inf.ply", plyQuad("0 1 0 inf 1"));
+    EXPECT_THROW(loadBaseMesh(bad.path()), FormatError);
+}
+
+TEST(LoadBaseMesh, NonManifoldObjLoadsQuietly) {
+    // Four triangles on one edge: OpenMesh duplicates vertices and logs "complex edge"; our
+    // loader keeps the faces and prints nothing.
+    const TempFile file("fan.obj",
+                        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nv 0 0 -1\n"
+                        "vt 0 0\nvt 1 0\nvt 0 1\n"
+                        "f 1/1 2/2 3/3\nf 2/2 1/1 4/3\nf 1/1 2/2 5/3\nf 2/2 1/1 6/3\n");
+    testing::internal::CaptureStderr();
+    testing::internal::CaptureStdout();
+    const BaseMesh mesh = loadBaseMesh(file.path());
+    const std::string printed =
+        testing::internal::GetCapturedStderr() + testing::internal::GetCapturedStdout();
+    EXPECT_EQ(printed, "");
+    EXPECT_EQ(mesh.triangles.size(), 4u);
+    expectValidFrames(mesh, true);
+}
+
+TEST(LoadBaseMesh, MissingFileIsInputError) {
+    const std::filesystem::path missing =
+        std::filesystem::temp_directory_path() / "no_such_mesh.obj";
+    const std::string message = messageOf<InputError>([&] { loadBaseMesh(missing); });
+    EXPECT_EQ(message, missing.string() + ": no such file");
+}
+
+TEST(LoadBaseMesh, ObjWithoutTexcoordsIsFormatError) {
+    const TempFile file("nouv.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(file.path()); });
+    EXPECT_EQ(message, file.path().string() +
+                           ": has no texture coordinates (vt lines); base meshes need UVs");
+}
+
+TEST(LoadBaseMesh, ObjWithNanVertexIsFormatError) {
+    const TempFile file("nan.obj",
+                        "v 0 0 0\nv nan 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                        "f 1/1 2/2 3/3\n");
+    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(file.path()); });
+    EXPECT_NE(message.find("vertex 2"), std::string::npos) << message;
+    EXPECT_NE(message.find("line 2"), std::string::npos) << message;
+}
+
+TEST(LoadBaseMesh, ObjWithInfTexcoordIsFormatError) {
+    const TempFile file("inf.obj",
+                        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1e39 0\nvt 0 1\n"
+                        "f 1/1 2/2 3/3\n");
+    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(file.path()); });
+    EXPECT_NE(message.find("texture coordinate 2"), std::string::npos) << message;
+}
+
+TEST(LoadBaseMesh, ObjWithOutOfRangeIndicesIsFormatError) {
+    // OpenMesh alone would drop the first face with a log line and leave the second's third
+    // corner uv uninitialised.
+    const std::string header = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n";
+    const TempFile badVertex("badv.obj", header + "f 1/1 2/2 9/3\n");
+    std::string message = messageOf<FormatError>([&] { loadBaseMesh(badVertex.path()); });
+    EXPECT_NE(message.find("refers to vertex 9"), std::string::npos) << message;
+    const TempFile badUv("badvt.obj", header + "f 1/1 2/2 3/7\n");
+    message = messageOf<FormatError>([&] { loadBaseMesh(badUv.path()); });
+    EXPECT_NE(message.find("refers to texture coordinate 7"), std::string::npos) << message;
+    const TempFile missingUv("mixed.obj", header + "f 1/1 2/2 3/3\nf 1 3 2\n");
+    message = messageOf<FormatError>([&] { loadBaseMesh(missingUv.path()); });
+    EXPECT_NE(message.find("line 8"), std::string::npos) << message;
+    // Negative (relative) indices are valid OBJ.
+    const TempFile relative("relative.obj", header + "f -3/-3 -2/-2 -1/-1\n");
+    EXPECT_EQ(loadBaseMesh(relative.path()).triangles.size(), 1u);
+}
+
+TEST(LoadBaseMesh, EmptyOrUnknownFilesAreFormatErrors) {
+    const TempFile empty("empty.obj", "");
+    EXPECT_THROW(loadBaseMesh(empty.path()), FormatError);
+    const TempFile noFaces("nofaces.obj", "v 0 0 0\nvt 0 0\n");
+    EXPECT_THROW(loadBaseMesh(noFaces.path()), FormatError);
+    const TempFile garbage("garbage.ply", "this is not a ply file\n");
+    EXPECT_THROW(loadBaseMesh(garbage.path()), FormatError);
+    const TempFile unknown("mesh.xyz", "1 2 3\n");
+    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(unknown.path()); });
+    EXPECT_NE(message.find("accepted: .obj, .off, .ply"), std::string::npos) << message;
+    const TempFile offWithoutUvs("nouv.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    EXPECT_THROW(loadBaseMesh(offWithoutUvs.path()), FormatError);
+}
+
+}  // namespace
+}  // namespace distile

@@ -1,0 +1,448 @@
+// Tests of the tile files (sampler/tile_io.h) and the image files (render/image.h): exact round
+// trips, the atlas layout pixel by pixel, the header metadata, and every rejection path.
+
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "common/error.h"
+#include "render/image.h"
+#include "sampler/tile_io.h"
+
+namespace distile {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A fresh folder under the system temporary folder per test, removed afterwards.
+class SamplerIo : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        folder_ = fs::temp_directory_path() /
+                  ("distile_sampler_io_" + std::to_string(::getpid()) + "_" + info->name());
+        fs::remove_all(folder_);
+        fs::create_directories(folder_);
+    }
+    void TearDown() override {
+        std::error_code ignored;
+        fs::remove_all(folder_, ignored);
+    }
+    fs::path path(const std::string& name) const { return folder_ / name; }
+
+    /// Only `expected` in the folder: no temporary files left behind.
+    std::vector<std::string> folderEntries() const {
+        std::vector<std::string> names;
+        for (const auto& entry : fs::directory_iterator(folder_)) {
+            names.push_back(entry.path().filename().string());
+        }
+        return names;
+    }
+
+  private:
+    fs::path folder_;
+};
+
+/// A tile whose distances vary smoothly and cross zero, with every texel distinct enough that a
+/// layout mistake shows.
+Tile patternTile(const Size3& size) {
+    Tile tile(size);
+    for (int z = 0; z < size.depth; ++z) {
+        for (int y = 0; y < size.height; ++y) {
+            for (int x = 0; x < size.width; ++x) {
+                tile.at(x, y, z) = 3.0f * std::sin(0.37f * x + 0.11f * y) + 0.5f * z - 2.0f +
+                                   0.001f * float(x + y * size.width);
+            }
+        }
+    }
+    tile.provenance.source = "test:pattern";
+    tile.provenance.params = R"({"amplitude": 3, "label": "a \"quoted\" value"})";
+    return tile;
+}
+
+/// Raw one-channel pixels and header of an image, read with OpenImageIO directly.
+struct RawImage {
+    OIIO::ImageSpec spec;
+    std::vector<float> pixels;
+    float at(int x, int y) const { return pixels[std::size_t(x) + std::size_t(spec.width) * y]; }
+};
+
+RawImage readRaw(const fs::path& file) {
+    auto input = OIIO::ImageInput::open(file.string());
+    if (!input) throw std::runtime_error("test: cannot open " + file.string());
+    RawImage raw{input->spec(), {}};
+    raw.pixels.resize(std::size_t(raw.spec.width) * raw.spec.height * raw.spec.nchannels);
+    if (!input->read_image(0, 0, 0, raw.spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())) {
+        throw std::runtime_error("test: cannot read " + file.string());
+    }
+    return raw;
+}
+
+/// Rewrites an image with OpenImageIO after `edit` changed its header or pixels (float storage).
+void rewriteRaw(const fs::path& file, const std::function<void(RawImage&)>& edit) {
+    RawImage raw = readRaw(file);
+    edit(raw);
+    raw.spec.set_format(OIIO::TypeDesc::FLOAT);
+    auto output = OIIO::ImageOutput::create(file.string());
+    ASSERT_TRUE(output);
+    ASSERT_TRUE(output->open(file.string(), raw.spec));
+    ASSERT_TRUE(output->write_image(OIIO::TypeDesc::FLOAT, raw.pixels.data()));
+    ASSERT_TRUE(output->close());
+}
+
+std::string formatErrorMessage(const fs::path& file) {
+    try {
+        readTileExr(file);
+    } catch (const FormatError& error) {
+        return error.what();
+    }
+    return "(no FormatError)";
+}
+
+TEST(AtlasGrid, ColumnsAreCeilSqrtAndRowsFollow) {
+    EXPECT_EQ(atlasGrid(16).cols, 4);
+    EXPECT_EQ(atlasGrid(16).rows, 4);
+    EXPECT_EQ(atlasGrid(5).cols, 3);
+    EXPECT_EQ(atlasGrid(5).rows, 2);
+    EXPECT_EQ(atlasGrid(2).cols, 2);
+    EXPECT_EQ(atlasGrid(2).rows, 1);
+    EXPECT_EQ(atlasGrid(17).cols, 5);
+    EXPECT_EQ(atlasGrid(17).rows, 4);
+    EXPECT_EQ(atlasGrid(1).cols, 1);
+    EXPECT_EQ(atlasGrid(1).rows, 1);
+}
+
+TEST_F(SamplerIo, FloatExrRoundTripIsExact) {
+    const Tile tile = patternTile({16, 12, 5});
+    writeTileExr(tile, path("tile.exr"));
+    const Tile read = readTileExr(path("tile.exr"));
+    ASSERT_EQ(read.size(), tile.size());
+    for (std::size_t i = 0; i < tile.distancesTexels().size(); ++i) {
+        ASSERT_EQ(read.distancesTexels()[i], tile.distancesTexels()[i]) << "texel index " << i;
+    }
+    EXPECT_EQ(read.provenance.source, tile.provenance.source);
+    EXPECT_EQ(read.provenance.params, tile.provenance.params);
+    EXPECT_EQ(tileHash(read), tileHash(tile));
+    EXPECT_EQ(folderEntries(), std::vector<std::string>{"tile.exr"});
+}
+
+TEST_F(SamplerIo, HalfExrRoundTripIsWithinHalfPrecision) {
+    const Tile tile = patternTile({16, 12, 5});
+    writeTileExr(tile, path("tile.exr"), TileStorage::Half16);
+    EXPECT_EQ(readRaw(path("tile.exr")).spec.format, OIIO::TypeDesc::HALF);
+    const Tile read = readTileExr(path("tile.exr"));
+    // Half has an 11-bit significand: round to nearest is within 2^-11 relative; below the
+    // smallest normal (2^-14) the spacing is absolute, 2^-24.
+    for (std::size_t i = 0; i < tile.distancesTexels().size(); ++i) {
+        const float expected = tile.distancesTexels()[i];
+        const float tolerance =
+            std::max(std::abs(expected) * std::ldexp(1.0f, -11), std::ldexp(1.0f, -24));
+        ASSERT_NEAR(read.distancesTexels()[i], expected, tolerance) << "texel index " << i;
+    }
+}
+
+TEST_F(SamplerIo, HalfStorageRejectsDistancesBeyondHalfRange) {
+    Tile tile({4, 4, 2}, 1.0f);
+    tile.at(1, 2, 1) = 1.0e5f;
+    EXPECT_THROW(writeTileExr(tile, path("tile.exr"), TileStorage::Half16), InputError);
+    EXPECT_TRUE(folderEntries().empty());
+    writeTileExr(tile, path("tile.exr"), TileStorage::Float32);  // float holds it
+    EXPECT_EQ(readTileExr(path("tile.exr")).at(1, 2, 1), 1.0e5f);
+}
+
+TEST_F(SamplerIo, EmptyProvenanceIsSpelledOut) {
+    writeTileExr(Tile({4, 4, 2}, 1.0f), path("tile.exr"));
+    const Tile read = readTileExr(path("tile.exr"));
+    EXPECT_EQ(read.provenance.source, "unknown");
+    EXPECT_EQ(read.provenance.params, "{}");
+}
+
+TEST_F(SamplerIo, AtlasPlacesSliceKAtColumnKModColsRowKDivCols) {
+    const Size3 size{16, 16, 5};
+    Tile tile(size);
+    // Value = slice index k, plus a distinct fraction per (x, y) so a transposed slice shows.
+    for (int z = 0; z < size.depth; ++z) {
+        for (int y = 0; y < size.height; ++y) {
+            for (int x = 0; x < size.width; ++x) {
+                tile.at(x, y, z) = float(z) + float(x + size.width * y) / 1024.0f;
+            }
+        }
+    }
+    writeTileExr(tile, path("tile.exr"));
+    const RawImage raw = readRaw(path("tile.exr"));
+    const int cols = 3;
+    const int rows = 2;
+    ASSERT_EQ(raw.spec.width, cols * size.width);
+    ASSERT_EQ(raw.spec.height, rows * size.height);
+    ASSERT_EQ(raw.spec.nchannels, 1);
+    EXPECT_EQ(raw.spec.channelnames[0], "distance");
+    for (int k = 0; k < size.depth; ++k) {
+        for (int y = 0; y < size.height; ++y) {
+            for (int x = 0; x < size.width; ++x) {
+                ASSERT_EQ(raw.at(k % cols * size.width + x, k / cols * size.height + y),
+                          tile.at(x, y, k))
+                    << "texel (" << x << ", " << y << ", " << k << ")";
+            }
+        }
+    }
+    // The sixth cell (column 2, row 1) is unused: it holds the tile's largest distance.
+    const float maxDistance = tile.at(size.width - 1, size.height - 1, size.depth - 1);
+    EXPECT_EQ(raw.at(2 * size.width, size.height), maxDistance);
+    EXPECT_EQ(raw.at(3 * size.width - 1, 2 * size.height - 1), maxDistance);
+}
+
+TEST_F(SamplerIo, DefaultTileIsA1024SquareAtlas) {
+    Tile tile(Size3{}, 2.5f);
+    writeTileExr(tile, path("tile.exr"));
+    const RawImage raw = readRaw(path("tile.exr"));
+    EXPECT_EQ(raw.spec.width, 1024);
+    EXPECT_EQ(raw.spec.height, 1024);
+    EXPECT_EQ(raw.spec.get_string_attribute("compression"), "zip");
+}
+
+TEST_F(SamplerIo, HeaderCarriesEveryDistileAttribute) {
+    const Tile tile = patternTile({16, 16, 16});
+    writeTileExr(tile, path("tile.exr"));
+    const OIIO::ImageSpec spec = readRaw(path("tile.exr")).spec;
+    EXPECT_EQ(spec.get_string_attribute("distile:size"), "16x16x16");
+    EXPECT_EQ(spec.get_string_attribute("distile:layout"),
+              "atlas 4x4 slice k at column k%4 row k/4, x fastest, texel centre at i+0.5");
+    EXPECT_EQ(spec.get_string_attribute("distile:units"), "texels");
+    EXPECT_EQ(spec.get_string_attribute("distile:source"), tile.provenance.source);
+    EXPECT_EQ(spec.get_string_attribute("distile:params"), tile.provenance.params);
+    EXPECT_EQ(spec.get_string_attribute("distile:version"), "0.1.0");
+    const std::string hash = spec.get_string_attribute("distile:hash");
+    ASSERT_EQ(hash.size(), 16u);
+    EXPECT_EQ(std::stoull(hash, nullptr, 16), tileHash(tile));
+}
+
+TEST(TileHash, DependsOnSizeAndEveryValue) {
+    Tile a({4, 4, 2}, 1.0f);
+    Tile b({4, 2, 4}, 1.0f);  // same texels, other shape
+    EXPECT_NE(tileHash(a), tileHash(b));
+    const std::uint64_t before = tileHash(a);
+    a.at(3, 3, 1) = std::nextafter(1.0f, 2.0f);  // one ulp
+    EXPECT_NE(tileHash(a), before);
+}
+
+TEST_F(SamplerIo, PlainExrIsNotADistileTile) {
+    Image image(8, 8, glm::vec3(0.25f));
+    writeImage(image, path("plain.exr"));
+    EXPECT_NE(formatErrorMessage(path("plain.exr")).find("not a distile tile"), std::string::npos);
+}
+
+TEST_F(SamplerIo, PngNamedExrIsRejected) {
+    Image image(8, 8, glm::vec3(0.25f));
+    writeImage(image, path("plain.png"));
+    fs::rename(path("plain.png"), path("fake.exr"));
+    EXPECT_THROW(readTileExr(path("fake.exr")), FormatError);
+}
+
+TEST_F(SamplerIo, MissingFileIsAnInputError) {
+    try {
+        readTileExr(path("absent.exr"));
+        FAIL() << "no exception";
+    } catch (const InputError& error) {
+        EXPECT_NE(std::string(error.what()).find("no such file"), std::string::npos);
+    }
+}
+
+TEST_F(SamplerIo, TruncatedFileIsAFormatError) {
+    writeTileExr(patternTile({64, 64, 4}), path("tile.exr"));
+    const auto bytes = fs::file_size(path("tile.exr"));
+    fs::resize_file(path("tile.exr"), bytes / 2);  // OpenEXR notices when opening
+    EXPECT_THROW(readTileExr(path("tile.exr")), FormatError);
+    writeTileExr(patternTile({64, 64, 4}), path("tile.exr"));
+    fs::resize_file(path("tile.exr"), bytes - 64);  // only the last scanlines are missing
+    EXPECT_THROW(readTileExr(path("tile.exr")), FormatError);
+}
+
+TEST_F(SamplerIo, GarbageFileIsAFormatError) {
+    std::ofstream(path("garbage.exr")) << "this is not an image";
+    EXPECT_THROW(readTileExr(path("garbage.exr")), FormatError);
+}
+
+TEST_F(SamplerIo, EditedPixelFailsTheHashCheck) {
+    writeTileExr(patternTile({16, 16, 4}), path("tile.exr"));
+    rewriteRaw(path("tile.exr"), [](RawImage& raw) { raw.pixels[17] += 0.25f; });
+    EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:hash"), std::string::npos);
+}
+
+TEST_F(SamplerIo, NonFiniteDistanceInFileIsAFormatError) {
+    writeTileExr(patternTile({16, 16, 4}), path("tile.exr"));
+    rewriteRaw(path("tile.exr"),
+               [](RawImage& raw) { raw.pixels[5] = std::numeric_limits<float>::quiet_NaN(); });
+    EXPECT_NE(formatErrorMessage(path("tile.exr")).find("texel (5, 0, 0)"), std::string::npos);
+}
+
+TEST_F(SamplerIo, SizeThatDisagreesWithTheAtlasIsAFormatError) {
+    writeTileExr(patternTile({16, 16, 4}), path("tile.exr"));
+    rewriteRaw(path("tile.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:size", "16x16x5"); });
+    EXPECT_NE(formatErrorMessage(path("tile.exr")).find("atlas"), std::string::npos);
+    rewriteRaw(path("tile.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:size", "16 by 16"); });
+    EXPECT_NE(formatErrorMessage(path("tile.exr")).find("WxHxD"), std::string::npos);
+}
+
+TEST_F(SamplerIo, WrongChannelIsAFormatError) {
+    writeTileExr(patternTile({16, 16, 4}), path("tile.exr"));
+    rewriteRaw(path("tile.exr"), [](RawImage& raw) { raw.spec.channelnames = {"Y"}; });
+    EXPECT_NE(formatErrorMessage(path("tile.exr")).find("'distance'"), std::string::npos);
+}
+
+TEST_F(SamplerIo, WritingIntoAMissingFolderLeavesNoFile) {
+    const fs::path target = path("absent") / "tile.exr";
+    EXPECT_THROW(writeTileExr(patternTile({4, 4, 2}), target), InputError);
+    EXPECT_FALSE(fs::exists(target));
+    EXPECT_TRUE(folderEntries().empty());
+}
+
+TEST_F(SamplerIo, NonFiniteTileIsNotWritten) {
+    Tile tile({4, 4, 2}, 1.0f);
+    tile.at(2, 1, 1) = std::numeric_limits<float>::infinity();
+    EXPECT_THROW(writeTileExr(tile, path("tile.exr")), InputError);
+    EXPECT_TRUE(folderEntries().empty());
+}
+
+TEST_F(SamplerIo, FailedRewriteKeepsTheGoodFile) {
+    const Tile good = patternTile({8, 8, 2});
+    writeTileExr(good, path("tile.exr"));
+    Tile bad = good;
+    bad.at(0, 0, 0) = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_THROW(writeTileExr(bad, path("tile.exr")), InputError);
+    EXPECT_EQ(tileHash(readTileExr(path("tile.exr"))), tileHash(good));
+    EXPECT_EQ(folderEntries(), std::vector<std::string>{"tile.exr"});
+}
+
+TEST_F(SamplerIo, PngNormalisesDistanceByTileDepth) {
+    const Size3 size{8, 8, 4};
+    Tile tile(size, 0.5f * float(size.depth));  // D/2 -> 0.5
+    tile.at(1, 1, 0) = -3.0f;                   // inside material -> 0
+    tile.at(2, 1, 0) = 10.0f * size.depth;      // far away -> 1
+    tile.provenance.source = "test:constant";
+    for (int bits : {8, 16}) {
+        const fs::path file = path("tile" + std::to_string(bits) + ".png");
+        writeTilePng(tile, file, bits);
+        const RawImage raw = readRaw(file);
+        EXPECT_EQ(raw.spec.format, bits == 8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
+        ASSERT_EQ(raw.spec.width, 2 * size.width);
+        ASSERT_EQ(raw.spec.height, 2 * size.height);
+        const float step = bits == 8 ? 1.0f / 255.0f : 1.0f / 65535.0f;
+        EXPECT_NEAR(raw.at(0, 0), 0.5f, step) << bits << " bits";
+        EXPECT_NEAR(raw.at(size.width + 3, size.height + 5), 0.5f, step) << bits << " bits";
+        EXPECT_EQ(raw.at(1, 1), 0.0f) << bits << " bits";
+        EXPECT_EQ(raw.at(2, 1), 1.0f) << bits << " bits";
+        // PNG keeps the attributes as text chunks.
+        EXPECT_EQ(raw.spec.get_string_attribute("distile:size"), "8x8x4");
+        EXPECT_EQ(raw.spec.get_string_attribute("distile:source"), tile.provenance.source);
+    }
+}
+
+TEST_F(SamplerIo, PngBitDepthOtherThan8Or16IsAnInputError) {
+    EXPECT_THROW(writeTilePng(Tile({4, 4, 2}), path("tile.png"), 12), InputError);
+    EXPECT_TRUE(folderEntries().empty());
+}
+
+TEST(Srgb, TransferFunctionKnownValues) {
+    EXPECT_FLOAT_EQ(srgbFromLinear(0.0f), 0.0f);
+    EXPECT_FLOAT_EQ(srgbFromLinear(1.0f), 1.0f);
+    EXPECT_NEAR(srgbFromLinear(0.5f), 0.735357f, 1e-5f);
+    EXPECT_NEAR(srgbFromLinear(0.001f), 0.01292f, 1e-6f);  // linear segment
+    for (float linear = 0.0f; linear <= 1.0f; linear += 0.01f) {
+        EXPECT_NEAR(linearFromSrgb(srgbFromLinear(linear)), linear, 1e-5f);
+    }
+}
+
+Image gradientImage() {
+    Image image(37, 19);
+    for (int y = 0; y < image.height; ++y) {
+        for (int x = 0; x < image.width; ++x) {
+            image.at(x, y) = glm::vec3(float(x) / (image.width - 1), float(y) / (image.height - 1),
+                                       0.5f * float(x + y) / (image.width + image.height));
+        }
+    }
+    return image;
+}
+
+TEST_F(SamplerIo, ImagePngRoundTripIsWithinSrgbQuantisation) {
+    const Image image = gradientImage();
+    writeImage(image, path("image.png"));
+    const Image read = readImage(path("image.png"));
+    ASSERT_EQ(read.width, image.width);
+    ASSERT_EQ(read.height, image.height);
+    // 8-bit codes round the sRGB-encoded value: at most half a code apart in encoded space.
+    const float tolerance = 0.5f / 255.0f + 1e-5f;
+    for (int y = 0; y < image.height; ++y) {
+        for (int x = 0; x < image.width; ++x) {
+            for (int c = 0; c < 3; ++c) {
+                ASSERT_NEAR(srgbFromLinear(read.at(x, y)[c]), srgbFromLinear(image.at(x, y)[c]),
+                            tolerance)
+                    << "pixel (" << x << ", " << y << ") channel " << c;
+            }
+        }
+    }
+    // Row 0 is the top: the first row of the file is the first row of the image.
+    EXPECT_EQ(readRaw(path("image.png")).spec.nchannels, 3);
+}
+
+TEST_F(SamplerIo, ImageExrAndTiffRoundTrips) {
+    Image image = gradientImage();
+    image.at(3, 4) = glm::vec3(7.5f, -0.25f, 100.0f);  // EXR keeps HDR and negative values
+    writeImage(image, path("image.exr"));
+    const Image exr = readImage(path("image.exr"));
+    ASSERT_EQ(exr.rgbLinear.size(), image.rgbLinear.size());
+    for (std::size_t i = 0; i < image.rgbLinear.size(); ++i) {
+        ASSERT_EQ(exr.rgbLinear[i], image.rgbLinear[i]) << "pixel index " << i;
+    }
+    const Image clamped = gradientImage();
+    writeImage(clamped, path("image.tif"));
+    const Image tiff = readImage(path("image.tif"));
+    for (std::size_t i = 0; i < clamped.rgbLinear.size(); ++i) {
+        for (int c = 0; c < 3; ++c) {
+            ASSERT_NEAR(srgbFromLinear(tiff.rgbLinear[i][c]),
+                        srgbFromLinear(clamped.rgbLinear[i][c]), 0.5f / 65535.0f + 1e-5f);
+        }
+    }
+}
+
+TEST_F(SamplerIo, UnknownImageExtensionIsAnInputErrorAndWritesNothing) {
+    try {
+        writeImage(gradientImage(), path("image.bmpx"));
+        FAIL() << "no exception";
+    } catch (const InputError& error) {
+        EXPECT_NE(std::string(error.what()).find(".png"), std::string::npos);
+    }
+    EXPECT_TRUE(folderEntries().empty());
+}
+
+TEST_F(SamplerIo, NonFinitePixelIsReportedAndWritesNothing) {
+    Image image = gradientImage();
+    image.at(5, 2).g = std::numeric_limits<float>::quiet_NaN();
+    try {
+        writeImage(image, path("image.png"));
+        FAIL() << "no exception";
+    } catch (const std::runtime_error& error) {
+        EXPECT_NE(std::string(error.what()).find("pixel (5, 2)"), std::string::npos);
+    }
+    EXPECT_TRUE(folderEntries().empty());
+}
+
+TEST_F(SamplerIo, ReadImageErrors) {
+    EXPECT_THROW(readImage(path("absent.png")), InputError);
+    std::ofstream(path("garbage.png")) << "not a png";
+    EXPECT_THROW(readImage(path("garbage.png")), FormatError);
+    EXPECT_THROW(Image(0, 5), InputError);
+}
+
+}  // namespace
+}  // namespace distile

@@ -1,0 +1,195 @@
+#include "vdb/level_set.h"
+
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Dense.h>
+#include <tbb/blocked_range2d.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <mutex>
+#include <sstream>
+#include <vector>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+
+namespace distile {
+
+namespace {
+
+constexpr const char* kGridName = "surface";
+constexpr const char* kSizeKey = "distile:size";
+constexpr const char* kSourceKey = "distile:source";
+constexpr const char* kParamsKey = "distile:params";
+
+void initializeOpenVdb() {
+    static std::once_flag once;
+    std::call_once(once, [] { openvdb::initialize(); });
+}
+
+/// Texel space: voxel (i, j, k) centred at (i + 0.5, j + 0.5, k + 0.5).
+openvdb::math::Transform::Ptr texelTransform() {
+    auto transform = openvdb::math::Transform::createLinearTransform(1.0);
+    transform->postTranslate(openvdb::Vec3d(0.5));
+    return transform;
+}
+
+std::string stringMeta(const openvdb::FloatGrid& grid, const char* key) {
+    auto meta = grid.getMetadata<openvdb::StringMetadata>(key);
+    return meta ? meta->value() : std::string();
+}
+
+Size3 parseSize(const std::string& text, const std::string& file) {
+    Size3 size{0, 0, 0};
+    char x1 = 0;
+    char x2 = 0;
+    std::istringstream in(text);
+    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x') {
+        throw FormatError(file + ": " + kSizeKey + " = '" + text + "' is not WxHxD");
+    }
+    validateTileSize(size, file + ": " + kSizeKey);
+    return size;
+}
+
+}  // namespace
+
+struct LevelSet::Impl {
+    openvdb::FloatGrid::Ptr grid;
+    Size3 tile;
+    std::string source;
+    std::string params;
+};
+
+LevelSet::LevelSet(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+LevelSet::LevelSet(LevelSet&&) noexcept = default;
+LevelSet& LevelSet::operator=(LevelSet&&) noexcept = default;
+LevelSet::~LevelSet() = default;
+
+LevelSet LevelSet::fromDistance(const DistanceFunction& distance, const Size3& tile,
+                                float halfBandTexels, const std::string& source,
+                                const std::string& params, const ProgressCallback& progress) {
+    validateTileSize(tile, "level set");
+    if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
+        throw InputError("level set: half band width " + std::to_string(halfBandTexels) +
+                         " texels is not accepted; it must be in [1, 1024]");
+    }
+    initializeOpenVdb();
+
+    // Fill a dense block, one z slab at a time (progress is reported between slabs, on this
+    // thread), then let OpenVDB build the sparse tree from it.
+    const int margin = int(std::ceil(halfBandTexels));
+    const openvdb::CoordBBox box(openvdb::Coord(0, 0, -margin),
+                                 openvdb::Coord(tile.width - 1, tile.height - 1,
+                                                tile.depth - 1 + margin));
+    const int slabs = box.dim().z();
+    openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box);
+    float* values = dense.data();
+    const std::size_t slabStride = std::size_t(tile.width) * std::size_t(tile.height);
+    for (int slab = 0; slab < slabs; ++slab) {
+        const int k = box.min().z() + slab;
+        float* slabValues = values + std::size_t(slab) * slabStride;
+        tbb::parallel_for(tbb::blocked_range<int>(0, tile.height), [&](const tbb::blocked_range<int>& rows) {
+            for (int j = rows.begin(); j != rows.end(); ++j) {
+                for (int i = 0; i < tile.width; ++i) {
+                    const double d = distance(glm::dvec3(i + 0.5, j + 0.5, k + 0.5));
+                    slabValues[std::size_t(j) * tile.width + i] =
+                        std::clamp(float(d), -halfBandTexels, halfBandTexels);
+                }
+            }
+        });
+        if (progress) progress(double(slab + 1) / slabs);
+    }
+
+    auto grid = openvdb::FloatGrid::create(halfBandTexels);
+    openvdb::tools::copyFromDense(dense, *grid, /*tolerance=*/0.0f);
+    // Voxels clamped to -halfBand lie deep inside: inactive, like the background outside.
+    for (auto voxel = grid->tree().beginValueOn(); voxel; ++voxel) {
+        if (*voxel <= -halfBandTexels) voxel.setActiveState(false);
+    }
+    grid->tree().prune();
+    grid->setTransform(texelTransform());
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->setName(kGridName);
+    grid->insertMeta(kSizeKey, openvdb::StringMetadata(toString(tile)));
+    grid->insertMeta(kSourceKey, openvdb::StringMetadata(source));
+    grid->insertMeta(kParamsKey, openvdb::StringMetadata(params));
+    grid->insertMeta("distile:units", openvdb::StringMetadata("texels"));
+
+    auto impl = std::make_unique<Impl>();
+    impl->grid = grid;
+    impl->tile = tile;
+    impl->source = source;
+    impl->params = params;
+    return LevelSet(std::move(impl));
+}
+
+LevelSet LevelSet::load(const std::filesystem::path& file) {
+    if (!std::filesystem::exists(file)) throw InputError(file.string() + ": no such file");
+    initializeOpenVdb();
+    openvdb::GridPtrVecPtr grids;
+    try {
+        openvdb::io::File vdbFile(file.string());
+        vdbFile.open(/*delayLoad=*/false);
+        grids = vdbFile.getGrids();
+        vdbFile.close();
+    } catch (const std::exception& error) {
+        throw FormatError(file.string() + ": not a readable .vdb file (" + error.what() + ")");
+    }
+    openvdb::FloatGrid::Ptr grid;
+    for (const auto& candidate : *grids) {
+        auto floatGrid = openvdb::gridPtrCast<openvdb::FloatGrid>(candidate);
+        if (floatGrid && floatGrid->getGridClass() == openvdb::GRID_LEVEL_SET &&
+            (!grid || floatGrid->getName() == kGridName)) {
+            grid = floatGrid;
+        }
+    }
+    if (!grid) throw FormatError(file.string() + ": holds no float level set grid");
+    const std::string sizeText = stringMeta(*grid, kSizeKey);
+    if (sizeText.empty()) {
+        throw FormatError(file.string() + ": level set '" + grid->getName() +
+                          "' has no distile:size metadata; write level sets with `distile bake`");
+    }
+    const openvdb::Vec3d voxelSize = grid->voxelSize();
+    if (!grid->transform().isLinear() || std::abs(voxelSize.x() - 1.0) > 1e-6 ||
+        std::abs(voxelSize.y() - 1.0) > 1e-6 || std::abs(voxelSize.z() - 1.0) > 1e-6) {
+        throw FormatError(file.string() + ": voxel size is not 1 texel");
+    }
+    auto impl = std::make_unique<Impl>();
+    impl->tile = parseSize(sizeText, file.string());
+    impl->source = stringMeta(*grid, kSourceKey);
+    impl->params = stringMeta(*grid, kParamsKey);
+    impl->grid = grid;
+    return LevelSet(std::move(impl));
+}
+
+void LevelSet::save(const std::filesystem::path& file) const {
+    writeAtomically(file, [&](const std::filesystem::path& temporary) {
+        openvdb::io::File vdbFile(temporary.string());
+        vdbFile.write({impl_->grid});
+        vdbFile.close();
+    });
+}
+
+const Size3& LevelSet::tileSize() const { return impl_->tile; }
+float LevelSet::halfBandTexels() const { return impl_->grid->background(); }
+const std::string& LevelSet::source() const { return impl_->source; }
+const std::string& LevelSet::params() const { return impl_->params; }
+std::size_t LevelSet::activeVoxelCount() const { return impl_->grid->activeVoxelCount(); }
+
+float LevelSet::voxelDistanceTexels(int i, int j, int k) const {
+    return impl_->grid->tree().getValue(openvdb::Coord(i, j, k));
+}
+
+void LevelSet::copyTileVoxels(std::span<float> texels) const {
+    const Size3& tile = impl_->tile;
+    assert(texels.size() == tile.texelCount());
+    const openvdb::CoordBBox box(openvdb::Coord(0, 0, 0),
+                                 openvdb::Coord(tile.width - 1, tile.height - 1, tile.depth - 1));
+    openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box, texels.data());
+    openvdb::tools::copyToDense(*impl_->grid, dense);
+}
+
+}  // namespace distile

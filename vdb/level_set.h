@@ -1,0 +1,69 @@
+/// @file
+/// Narrow-band signed distance level sets (OpenVDB FloatGrid) in texel units, and their .vdb
+/// files. This is the only module that sees OpenVDB; the rest of distile uses this class.
+///
+/// Index and world space of the grid are texel space of the tile: voxel size 1 texel, voxel
+/// (i, j, k) centred at (i + 0.5, j + 0.5, k + 0.5). The grid is a level set (grid class
+/// GRID_LEVEL_SET, background = half band width), named "surface", and carries the tile size and
+/// provenance as metadata, so vdb_print, Houdini and Blender read it as an ordinary level set.
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+
+#include <glm/vec3.hpp>
+
+#include "common/progress.h"
+#include "common/size3.h"
+
+namespace distile {
+
+class LevelSet {
+public:
+    /// Exact signed distance in texels at a texel-space position.
+    using DistanceFunction = std::function<double(const glm::dvec3& texelPosition)>;
+
+    /// Samples `distance` at every voxel of the tile, plus `halfBandTexels` voxels of margin
+    /// above the top and below the floor so the band closes around detail near them. Voxels with
+    /// |distance| < halfBandTexels are active; others are inactive at +/- halfBandTexels.
+    /// `distance` is called concurrently from several threads. Deterministic for any thread
+    /// count. Throws InputError for a bad size or a half band below 1 texel.
+    static LevelSet fromDistance(const DistanceFunction& distance, const Size3& tile,
+                                 float halfBandTexels, const std::string& source,
+                                 const std::string& params, const ProgressCallback& progress = {});
+
+    /// Reads the grid named "surface" (or the first float level set) of a .vdb file written by
+    /// save(). Throws InputError for a missing file, FormatError for anything unreadable or not
+    /// a distile level set.
+    static LevelSet load(const std::filesystem::path& file);
+
+    /// Writes the grid to `file` atomically (see common/atomic_file.h).
+    void save(const std::filesystem::path& file) const;
+
+    LevelSet(LevelSet&&) noexcept;
+    LevelSet& operator=(LevelSet&&) noexcept;
+    ~LevelSet();
+
+    const Size3& tileSize() const;
+    float halfBandTexels() const;
+    const std::string& source() const;
+    const std::string& params() const;
+    std::size_t activeVoxelCount() const;
+
+    /// Distance stored at voxel (i, j, k) (background outside the band), texels.
+    float voxelDistanceTexels(int i, int j, int k) const;
+
+    /// Copies the voxels of the tile's footprint, [0,W) x [0,H) x [0,D), into `texels` (size
+    /// W*H*D, x fastest: the Tile layout). Precondition: texels.size() == tileSize().texelCount().
+    void copyTileVoxels(std::span<float> texels) const;
+
+private:
+    struct Impl;
+    explicit LevelSet(std::unique_ptr<Impl> impl);
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace distile
