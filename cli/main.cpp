@@ -183,8 +183,11 @@ int run(int argc, char** argv) {
 
     try {
         app.parse(argc, argv);
+    } catch (const CLI::Success& success) {  // --help, --version
+        return app.exit(success);
     } catch (const CLI::ParseError& error) {
-        return app.exit(error);
+        std::fprintf(stderr, "distile: error: %s (see distile --help)\n", error.what());
+        return kExitInput;
     }
     std::optional<tbb::global_control> threadLimit;
     if (threads > 0) threadLimit.emplace(tbb::global_control::max_allowed_parallelism, std::size_t(threads));

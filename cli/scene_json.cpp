@@ -141,9 +141,13 @@ std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder,
     if (!fs::exists(path)) field.fail("tile file '" + path.string() + "' does not exist");
     const std::string key = "file:" + fs::weakly_canonical(path).string();
     if (auto found = tiles.find(key); found != tiles.end()) return found->second;
-    auto tile = std::make_shared<const Tile>(readTileExr(path));
-    tiles[key] = tile;
-    return tile;
+    try {
+        auto tile = std::make_shared<const Tile>(readTileExr(path));
+        tiles[key] = tile;
+        return tile;
+    } catch (const FormatError& error) {
+        field.fail(error.what());
+    }
 }
 
 BaseMesh loadMesh(const Field& field, const fs::path& folder) {
@@ -171,7 +175,9 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
     if (field.has("depth")) {
         material.depthWorld = float(field["depth"].number());
         if (!(material.depthWorld > 0.0f)) {
-            field["depth"].fail(std::to_string(material.depthWorld) + " is not accepted; it must be a positive number of world units");
+            std::ostringstream message;
+            message << material.depthWorld << " is not accepted; it must be a positive number of world units";
+            field["depth"].fail(message.str());
         }
     }
     if (field.has("floor")) {
@@ -192,11 +198,12 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
 
 SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
     if (!fs::exists(file)) throw InputError(file.string() + ": no such file");
+    if (fs::is_directory(file)) throw InputError(file.string() + ": is a folder; a scene .json file is expected");
     std::ifstream in(file);
     json document;
     try {
         document = json::parse(in);
-    } catch (const json::parse_error& error) {
+    } catch (const json::exception& error) {
         throw FormatError(file.string() + ": not valid JSON (" + error.what() + ")");
     }
     const std::string fileName = file.string();

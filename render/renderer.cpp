@@ -12,6 +12,7 @@
 
 #include "common/error.h"
 #include "render/bvh.h"
+#include "render/march.h"
 #include "sampler/filters.h"
 
 namespace distile {
@@ -50,48 +51,6 @@ struct SurfacePoint {
                normal * (gradient.z * texelsPerWorld.z);
     }
 };
-
-struct MarchResult {
-    glm::vec3 texelPosition;
-    float travelTexels = 0.0f;
-    int iterations = 0;
-    bool converged = false;  ///< within epsilon of the detail, or on the solid floor
-    bool onFloor = false;
-    bool exitedFloor = false;  ///< open floor: the ray left the shell through the bottom
-};
-
-/// Sphere tracing in texel space (ch. 8) with an early stop below epsilon. The floor z = 0 is
-/// hit exactly when a step would cross it: the step's sphere is empty of detail, so the floor
-/// crossing inside it is the first surface along the ray.
-template <class Filter>
-MarchResult march(const Filter& filter, glm::vec3 position, const glm::vec3& direction, Floor floor,
-                  const RenderOptions& options) {
-    MarchResult result;
-    for (result.iterations = 0; result.iterations < options.maxIterations; ++result.iterations) {
-        const float distance = filter.distanceTexels(position);
-        if (distance < options.epsilonTexels) {
-            result.converged = true;
-            break;
-        }
-        if (position.z + distance * direction.z <= 0.0f) {
-            const float toFloor = position.z / -direction.z;
-            position += direction * toFloor;
-            result.travelTexels += toFloor;
-            position.z = 0.0f;
-            ++result.iterations;
-            if (floor == Floor::Solid) {
-                result.converged = result.onFloor = true;
-            } else {
-                result.exitedFloor = true;
-            }
-            break;
-        }
-        position += direction * distance;
-        result.travelTexels += distance;
-    }
-    result.texelPosition = position;
-    return result;
-}
 
 /// Visibility in [0, 1] of a light of angular radius `tanHalfAngle` from a texel-space point,
 /// by tracing toward it until the ray leaves the top of the tile; the nearest miss relative to
@@ -254,7 +213,7 @@ private:
             const double v = double(point.uv.y) * material.uvScale.y;
             const glm::vec3 entry(float((u - std::floor(u)) * size.width), float((v - std::floor(v)) * size.height),
                                   float(size.depth));
-            const MarchResult result = march(filter, entry, direction, material.floor, options_);
+            const MarchResult result = march(filter, entry, direction, material.floor, options_.maxIterations, options_.epsilonTexels);
             stats.marchIterations += std::uint64_t(result.iterations);
             if (result.converged) ++stats.converged;
             if (result.exitedFloor) {

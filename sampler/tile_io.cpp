@@ -1,5 +1,7 @@
 #include "sampler/tile_io.h"
 
+#include <cctype>
+
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -21,6 +23,13 @@ namespace distile {
 namespace fs = std::filesystem;
 
 namespace {
+
+std::string lowerExtension(const std::filesystem::path& file) {
+    std::string extension = file.extension().string();
+    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return extension;
+}
+
 
 constexpr const char* kFormatVersion = "0.1.0";
 constexpr const char* kChannelName = "distance";
@@ -211,7 +220,7 @@ std::uint64_t tileHash(const Tile& tile) {
 }
 
 void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
-    if (file.extension() != ".exr") {
+    if (lowerExtension(file) != ".exr") {
         throw InputError(file.string() + ": extension '" + file.extension().string() +
                          "' is not accepted for a tile; use .exr");
     }
@@ -333,7 +342,7 @@ void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
         throw InputError(file.string() + ": PNG bit depth " + std::to_string(bitsPerChannel) +
                          " is not accepted; use 8 or 16");
     }
-    if (file.extension() != ".png") {
+    if (lowerExtension(file) != ".png") {
         throw InputError(file.string() + ": extension '" + file.extension().string() +
                          "' is not accepted for a PNG export; use .png");
     }

@@ -1,0 +1,387 @@
+// End-to-end tests of the `distile` command (cli/): run the built binary in a fresh folder per
+// test and check its exit status, its one-line errors, the files it writes and the images it
+// renders. DISTILE_BINARY is the path of the executable (tests/CMakeLists.txt).
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <iterator>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "render/image.h"
+
+namespace distile {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// What one run of the command gave.
+struct RunResult {
+    int status = -1;  ///< exit status; -1 if it did not exit normally (crash, signal)
+    std::string out;
+    std::string err;
+
+    std::vector<std::string> errLines() const {
+        std::vector<std::string> lines;
+        std::istringstream in(err);
+        for (std::string line; std::getline(in, line);) lines.push_back(line);
+        return lines;
+    }
+};
+
+std::string readText(const fs::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void writeText(const fs::path& file, const std::string& text) {
+    std::ofstream out(file, std::ios::binary);
+    out << text;
+}
+
+/// Single-quoted for /bin/sh: safe for any character.
+std::string shellQuote(const std::string& text) {
+    std::string quoted = "'";
+    for (char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return quoted + "'";
+}
+
+/// Rec. 709 luminance of a linear RGB pixel.
+double luminance(const glm::vec3& rgb) {
+    return 0.2126 * rgb.r + 0.7152 * rgb.g + 0.0722 * rgb.b;
+}
+
+struct LuminanceStats {
+    double mean = 0.0;
+    double standardDeviation = 0.0;
+    int nonFinite = 0;
+};
+
+LuminanceStats luminanceStats(const Image& image) {
+    LuminanceStats stats;
+    double sum = 0.0, sumSquares = 0.0;
+    for (const glm::vec3& pixel : image.rgbLinear) {
+        if (!std::isfinite(pixel.r) || !std::isfinite(pixel.g) || !std::isfinite(pixel.b)) {
+            ++stats.nonFinite;
+            continue;
+        }
+        const double y = luminance(pixel);
+        sum += y;
+        sumSquares += y * y;
+    }
+    const double count = double(image.rgbLinear.size());
+    stats.mean = sum / count;
+    stats.standardDeviation =
+        std::sqrt(std::max(0.0, sumSquares / count - stats.mean * stats.mean));
+    return stats;
+}
+
+/// A scene with the built-in 2 x 2 plane in z = 0 seen from 1.5 units straight above (40 degree
+/// vertical field of view at 4:3 spans 1.46 x 1.09 units: every pixel is on the plane), lit by a
+/// low light from +x. That light's Blinn-Phong highlight lies far outside the view (the halfway
+/// vector is ~34 degrees off the normal: 0.83^48 < 1e-3), so a bare plane shades uniformly.
+/// `material` is the JSON of the plane's material.
+std::string planeScene(const std::string& material) {
+    return R"({"camera": {"eye": [0, 0, 1.5], "target": [0, 0, 0], "up": [0, 1, 0], "fov_deg": 40},
+ "lights": [{"type": "directional", "direction": [-1, 0, -0.4], "angle_deg": 2}],
+ "objects": [{"mesh": "plane", "material": )" +
+           material + "}]}\n";
+}
+
+/// One tile over the whole plane: 2 world units wide, so cubic texels of a 64 x 64 x 8 tile need
+/// a depth of 2 * 8 / 64 = 0.25.
+std::string chainmailMaterial(const std::string& tile) {
+    return R"({"tile": )" + tile + R"(, "uv_scale": [1, 1], "depth": 0.25})";
+}
+
+/// Each test runs the command in its own empty folder `work()`; stdout and stderr go to a
+/// sibling folder so that `work()` holds only what the command wrote.
+class Cli : public ::testing::Test {
+  protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        root_ = fs::temp_directory_path() /
+                ("distile_cli_" + std::to_string(::getpid()) + "_" + info->name());
+        fs::remove_all(root_);
+        fs::create_directories(work());
+        fs::create_directories(root_ / "logs");
+    }
+    void TearDown() override {
+        std::error_code ignored;
+        fs::remove_all(root_, ignored);
+    }
+
+    fs::path work() const { return root_ / "work"; }
+    fs::path path(const std::string& name) const { return work() / name; }
+
+    /// Runs `distile <arguments>` in work().
+    RunResult run(const std::vector<std::string>& arguments) const {
+        const fs::path outFile = root_ / "logs" / "stdout.txt";
+        const fs::path errFile = root_ / "logs" / "stderr.txt";
+        std::string command =
+            "cd " + shellQuote(work().string()) + " && " + shellQuote(DISTILE_BINARY);
+        for (const std::string& argument : arguments) command += " " + shellQuote(argument);
+        command +=
+            " </dev/null >" + shellQuote(outFile.string()) + " 2>" + shellQuote(errFile.string());
+        const int wait = std::system(command.c_str());
+        RunResult result;
+        result.status = (wait != -1 && WIFEXITED(wait)) ? WEXITSTATUS(wait) : -1;
+        result.out = readText(outFile);
+        result.err = readText(errFile);
+        return result;
+    }
+
+    std::set<std::string> workEntries() const {
+        std::set<std::string> names;
+        for (const auto& entry : fs::directory_iterator(work())) {
+            names.insert(entry.path().filename().string());
+        }
+        return names;
+    }
+
+    /// Runs a command that must fail on bad input: a non-zero exit (not a crash), exactly one line
+    /// on stderr starting "distile: error:" that contains every one of `keywords`, no `output`
+    /// file and nothing new (no partial or temporary file) in the folder.
+    void expectInputError(const std::vector<std::string>& arguments, const std::string& output,
+                          std::initializer_list<std::string> keywords) const {
+        std::string shown = "distile";
+        for (const std::string& argument : arguments) shown += " " + argument;
+        SCOPED_TRACE(shown);
+        const std::set<std::string> before = workEntries();
+        const RunResult result = run(arguments);
+        EXPECT_GT(result.status, 0) << "stderr: " << result.err;
+        const std::vector<std::string> lines = result.errLines();
+        ASSERT_EQ(lines.size(), 1u) << "stderr: " << result.err;
+        EXPECT_EQ(lines[0].rfind("distile: error:", 0), 0u) << lines[0];
+        for (const std::string& keyword : keywords) {
+            EXPECT_NE(lines[0].find(keyword), std::string::npos)
+                << "'" << keyword << "' missing from: " << lines[0];
+        }
+        EXPECT_FALSE(fs::exists(path(output))) << output;
+        EXPECT_EQ(workEntries(), before) << "files were left behind";
+    }
+
+    /// Writes a scene file and expects `render` of it to fail naming `keywords`.
+    void expectSceneError(const std::string& sceneJson,
+                          std::initializer_list<std::string> keywords) {
+        writeText(path("scene.json"), sceneJson);
+        expectInputError({"render", "scene.json", "-o", "out.png"}, "out.png", keywords);
+    }
+
+  private:
+    fs::path root_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Working runs.
+
+TEST_F(Cli, BakeThenRenderShowsTheDetail) {
+    // 64x64x8: the default chain mail scales with the width (rings 3.4 texels tall at 64 wide),
+    // and 8 slices leave the required half texel of margin above and below (4 would not).
+    const RunResult bake =
+        run({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x8", "--vdb", "level.vdb"});
+    ASSERT_EQ(bake.status, 0) << bake.err;
+    EXPECT_EQ(bake.err, "");
+    EXPECT_TRUE(fs::is_regular_file(path("tile.exr")));
+    EXPECT_GT(fs::file_size(path("tile.exr")), 0u);
+    EXPECT_TRUE(fs::is_regular_file(path("level.vdb")));
+    EXPECT_GT(fs::file_size(path("level.vdb")), 0u);
+    EXPECT_EQ(workEntries(), (std::set<std::string>{"tile.exr", "level.vdb"}));
+
+    writeText(path("detail.json"), planeScene(chainmailMaterial(R"("tile.exr")")));
+    const RunResult detail =
+        run({"render", "detail.json", "-o", "detail.png", "--width", "64", "--height", "48"});
+    ASSERT_EQ(detail.status, 0) << detail.err;
+    EXPECT_EQ(detail.err, "");
+    ASSERT_TRUE(fs::is_regular_file(path("detail.png")));
+    const Image detailImage = readImage(path("detail.png"));
+    EXPECT_EQ(detailImage.width, 64);
+    EXPECT_EQ(detailImage.height, 48);
+    const LuminanceStats detailStats = luminanceStats(detailImage);
+    EXPECT_EQ(detailStats.nonFinite, 0);
+
+    // Control: the same plane without a tile. A flat surface under one directional light has
+    // one normal and one light direction everywhere, so its shading is (up to 8-bit rounding)
+    // uniform; any variation in the chain-mail render comes from the detail.
+    writeText(path("bare.json"), planeScene(R"({"color": [0.8, 0.8, 0.85]})"));
+    const RunResult bare =
+        run({"render", "bare.json", "-o", "bare.png", "--width", "64", "--height", "48"});
+    ASSERT_EQ(bare.status, 0) << bare.err;
+    const LuminanceStats bareStats = luminanceStats(readImage(path("bare.png")));
+    EXPECT_EQ(bareStats.nonFinite, 0);
+    EXPECT_GT(bareStats.mean, 0.05) << "the bare plane should be lit";
+    // A few 8-bit sRGB steps at this grey are ~0.01 linear: a uniform image stays below that
+    // (measured: 0.003 around a mean of 0.44).
+    EXPECT_LT(bareStats.standardDeviation, 0.01);
+    // Rings, gaps and self-shadows under the low light put bright and dark pixels side by side
+    // (measured: standard deviation 0.22 around a mean of 0.21). Require half the mean and ten
+    // times the bare plane's bound: far above anything shading noise or rounding could give.
+    EXPECT_GT(detailStats.standardDeviation, 0.5 * detailStats.mean)
+        << "mean " << detailStats.mean << ", standard deviation " << detailStats.standardDeviation;
+    EXPECT_GT(detailStats.standardDeviation, 0.1);
+}
+
+TEST_F(Cli, DemoRendersAndPrintsTheAbsolutePath) {
+    const RunResult demo = run({"render", "-o", "demo.png", "--width", "160", "--height", "128"});
+    ASSERT_EQ(demo.status, 0) << demo.err;
+    EXPECT_EQ(demo.err, "");
+    const fs::path absolute = fs::canonical(path("demo.png"));
+    EXPECT_TRUE(absolute.is_absolute());
+    EXPECT_NE(demo.out.find(absolute.string() + "\n"), std::string::npos) << "stdout: " << demo.out;
+    const Image image = readImage(path("demo.png"));
+    EXPECT_EQ(image.width, 160);
+    EXPECT_EQ(image.height, 128);
+    EXPECT_EQ(luminanceStats(image).nonFinite, 0);
+    EXPECT_EQ(workEntries(), std::set<std::string>{"demo.png"});
+}
+
+TEST_F(Cli, RenderDoesNotDependOnTheThreadCount) {
+    // The tile is baked from the scene itself (a material "bake" spec), with shadows and 2 spp.
+    writeText(path("scene.json"),
+              planeScene(chainmailMaterial(R"({"bake": "chainmail", "size": "64x64x8"})")));
+    for (const std::string threads : {"1", "2"}) {
+        for (const std::string extension : {".png", ".exr"}) {
+            const RunResult result = run({"--threads", threads, "render", "scene.json", "-o",
+                                          "threads" + threads + extension, "--width", "96",
+                                          "--height", "72", "--spp", "2"});
+            ASSERT_EQ(result.status, 0) << result.err;
+        }
+    }
+    EXPECT_EQ(readText(path("threads1.png")), readText(path("threads2.png")));
+    // The EXR holds the unrounded linear floats: compare them exactly.
+    const Image one = readImage(path("threads1.exr"));
+    const Image two = readImage(path("threads2.exr"));
+    ASSERT_EQ(one.width, 96);
+    ASSERT_EQ(two.width, 96);
+    ASSERT_EQ(one.rgbLinear.size(), two.rgbLinear.size());
+    for (std::size_t i = 0; i < one.rgbLinear.size(); ++i) {
+        ASSERT_EQ(one.rgbLinear[i], two.rgbLinear[i]) << "pixel " << i;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bad input: one line naming the problem, a non-zero exit, no output.
+
+TEST_F(Cli, RejectsMissingSceneFile) {
+    expectInputError({"render", "missing.json", "-o", "out.png"}, "out.png",
+                     {"missing.json", "no such file"});
+}
+
+TEST_F(Cli, RejectsMissingTileFile) {
+    expectSceneError(planeScene(chainmailMaterial(R"("nope.exr")")),
+                     {"objects[0].material.tile", "nope.exr", "does not exist"});
+}
+
+TEST_F(Cli, RejectsExrThatIsNotADistileTile) {
+    Image plain(8, 8, glm::vec3(0.5f));
+    writeImage(plain, path("plain.exr"));
+    expectSceneError(planeScene(chainmailMaterial(R"("plain.exr")")),
+                     {"plain.exr", "not a distile tile"});
+}
+
+TEST_F(Cli, RejectsPngAsTile) {
+    Image plain(8, 8, glm::vec3(0.5f));
+    writeImage(plain, path("picture.png"));
+    expectSceneError(planeScene(chainmailMaterial(R"("picture.png")")), {"picture.png", "OpenEXR"});
+}
+
+TEST_F(Cli, RejectsBadBakeSizes) {
+    expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "256x0x16"}, "tile.exr",
+                     {"--size", "256x0x16", "[2, 65536]"});
+    expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "100000x100000x100000"},
+                     "tile.exr", {"--size", "100000x100000x100000", "not accepted"});
+    expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "abc"}, "tile.exr",
+                     {"--size", "'abc'", "WxHxD"});
+    // Accepted as a size but too shallow for the default rings.
+    expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x4"}, "tile.exr",
+                     {"chainmail", "deep"});
+}
+
+TEST_F(Cli, RejectsBadBakeOutputs) {
+    expectInputError({"bake", "chainmail", "-o", "out.txt", "--size", "64x64x8"}, "out.txt",
+                     {"-o", ".txt", ".exr"});
+    expectInputError({"bake", "chainmail", "-o", "nowhere/tile.exr", "--size", "64x64x8"},
+                     "nowhere/tile.exr", {"-o", "nowhere", "does not exist"});
+    expectInputError(
+        {"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x8", "--vdb", "level.txt"},
+        "tile.exr", {"--vdb", ".vdb"});
+    EXPECT_FALSE(fs::exists(path("nowhere")));
+}
+
+TEST_F(Cli, RejectsObjWithoutTextureCoordinates) {
+    writeText(path("flat.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n");
+    expectSceneError(
+        R"({"objects": [{"mesh": "flat.obj", "material": {"color": [0.8, 0.8, 0.8]}}]})",
+        {"flat.obj", "texture coordinates"});
+}
+
+TEST_F(Cli, RejectsSceneJsonErrorsNamingTheField) {
+    expectSceneError(R"({"camera": {"fov_deg": 40}})", {"scene.json", "top level", "objects"});
+    expectSceneError(R"({"camrea": {"fov_deg": 40}, "objects": [{"mesh": "plane"}]})",
+                     {"scene.json", "camrea", "unknown field", "camera"});
+    expectSceneError(R"({"camera": {"fov_deg": "wide"}, "objects": [{"mesh": "plane"}]})",
+                     {"camera.fov_deg", "number"});
+    expectSceneError(R"({"objects": [{"mesh": "cube"}]})", {"objects[0].mesh", "'cube'", "plane"});
+    expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"depth": -1}}]})",
+                     {"objects[0].material.depth", "positive"});
+    expectSceneError(R"({"camera": {"eye": ["nan", 0, 1]}, "objects": [{"mesh": "plane"}]})",
+                     {"camera.eye[0]", "number"});
+    expectSceneError(
+        R"({"objects": [{"mesh": "plane"}, {"mesh": "plane", "material": {"floor": "glass"}}]})",
+        {"objects[1].material.floor", "glass", "open"});
+    expectSceneError(R"({"objects": [{"mesh": "pla)", {"scene.json", "not valid JSON"});
+    expectSceneError("", {"scene.json", "not valid JSON"});
+}
+
+// Bug: nlohmann::json throws out_of_range (not parse_error) for a number that overflows a double;
+// the command prints the raw library message without the file, and exits 1 instead of 2.
+TEST_F(Cli, RejectsOverflowingJsonNumberNamingTheFile) {
+    expectSceneError(R"({"camera": {"eye": [1e400, 0, 1]}, "objects": [{"mesh": "plane"}]})",
+                     {"scene.json", "1e400"});
+}
+
+// Bug: a folder given as the scene reaches std::ifstream and fails with
+// "basic_filebuf::underflow error reading the file: Is a directory", without the path.
+TEST_F(Cli, RejectsFolderAsSceneNamingIt) {
+    fs::create_directories(path("scenes"));
+    expectInputError({"render", "scenes", "-o", "out.png"}, "out.png", {"scenes"});
+}
+
+TEST_F(Cli, RejectsZeroWidth) {
+    // CLI11's own range check: it prints its own two-line message, so only the status and the
+    // absence of output are checked.
+    const RunResult result = run({"render", "-o", "out.png", "--width", "0"});
+    EXPECT_GT(result.status, 0);
+    EXPECT_NE(result.err.find("--width"), std::string::npos) << result.err;
+    EXPECT_TRUE(workEntries().empty());
+}
+
+TEST_F(Cli, FailedRunLeavesExistingOutputUntouched) {
+    const std::string keep = "an earlier good result, byte for byte\n";
+    writeText(path("out.png"), keep);
+    writeText(path("tile.exr"), keep);
+    writeText(path("scene.json"), planeScene(chainmailMaterial(R"("nope.exr")")));
+    const std::set<std::string> before = workEntries();
+    const RunResult render = run({"render", "scene.json", "-o", "out.png"});
+    EXPECT_GT(render.status, 0);
+    EXPECT_NE(render.err.find("nope.exr"), std::string::npos) << render.err;
+    EXPECT_EQ(readText(path("out.png")), keep);
+    EXPECT_EQ(workEntries(), before);
+    const RunResult bake = run({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x4"});
+    EXPECT_GT(bake.status, 0);
+    EXPECT_EQ(readText(path("tile.exr")), keep);
+    EXPECT_EQ(workEntries(), before);
+}
+
+}  // namespace
+}  // namespace distile
