@@ -11,9 +11,6 @@
 #include <glm/geometric.hpp>
 
 #include "common/error.h"
-#include "render/bvh.h"
-#include "render/march.h"
-#include "sampler/filters.h"
 
 namespace distile {
 
@@ -24,46 +21,19 @@ constexpr float kSpecularStrength = 0.35f;
 constexpr float kShininess = 48.0f;
 constexpr float kAmbientStrength = 0.18f;
 
-/// Per base-mesh triangle of the whole scene.
-struct ShellTriangle {
-    std::uint32_t object;
-    std::uint32_t localTriangle;
-    glm::vec2 texelsPerWorldUv;  ///< texels per world unit along T and B (0 if UVs are degenerate)
-};
-
-/// The base surface where a camera ray enters an object's detail shell.
-struct SurfacePoint {
-    glm::vec3 position;
-    glm::vec3 normal;     ///< N, unit, outward
-    glm::vec3 tangent;    ///< T, unit, along +u
-    glm::vec3 bitangent;  ///< B, unit, along +v
-    glm::vec2 uv;
-    glm::vec3 texelsPerWorld;  ///< scale of T, B, N components into texel units
-    bool frontFacing;
-
-    glm::vec3 toTexel(const glm::vec3& world) const {
-        return {glm::dot(world, tangent) * texelsPerWorld.x, glm::dot(world, bitangent) * texelsPerWorld.y,
-                glm::dot(world, normal) * texelsPerWorld.z};
-    }
-    /// A texel-space gradient as a world-space normal (gradients transform with the transpose).
-    glm::vec3 gradientToWorld(const glm::vec3& gradient) const {
-        return tangent * (gradient.x * texelsPerWorld.x) + bitangent * (gradient.y * texelsPerWorld.y) +
-               normal * (gradient.z * texelsPerWorld.z);
-    }
-};
-
-/// Visibility in [0, 1] of a light of angular radius `tanHalfAngle` from a texel-space point,
-/// by tracing toward it until the ray leaves the top of the tile; the nearest miss relative to
-/// the distance travelled estimates how much of the light's disk is covered.
+/// Visibility in [0, 1] of a light of angular radius atan(tanHalfAngle) from a texel-space
+/// point, by sphere tracing toward it until the ray leaves the top of the tile; the nearest miss
+/// relative to the distance travelled estimates how much of the light's disk is covered.
 template <class Filter>
 float lightVisibility(const Filter& filter, const glm::vec3& start, const glm::vec3& toLight, float depthTexels,
-                      float tanHalfAngle, const RenderOptions& options) {
+                      float tanHalfAngle, const RenderOptions& options, std::uint64_t& steps) {
     if (toLight.z <= 0.0f) return 0.0f;
     float visibility = 1.0f;
     float travel = 0.1f;
     for (int i = 0; i < options.shadowIterations; ++i) {
         const glm::vec3 position = start + toLight * travel;
         if (position.z >= depthTexels) break;
+        ++steps;
         const float distance = filter.distanceTexels(position);
         if (distance < 0.5f * options.epsilonTexels) return 0.0f;
         visibility = std::min(visibility, distance / (travel * tanHalfAngle));
@@ -78,6 +48,14 @@ glm::vec3 skyColor(const glm::vec3& direction) {
     return glm::mix(glm::vec3(0.18f, 0.19f, 0.21f), glm::vec3(0.55f, 0.62f, 0.72f), t);
 }
 
+glm::vec3 directLight(const glm::vec3& normal, const glm::vec3& toLight, const glm::vec3& view, const glm::vec3& albedo) {
+    const float diffuse = std::max(glm::dot(normal, toLight), 0.0f);
+    if (diffuse <= 0.0f) return glm::vec3(0.0f);
+    const glm::vec3 halfway = glm::normalize(toLight - view);
+    const float specular = std::pow(std::max(glm::dot(normal, halfway), 0.0f), kShininess);
+    return albedo * diffuse + glm::vec3(kSpecularStrength * specular);
+}
+
 /// Position of sample `index` of `count` inside the pixel: the centre for one sample, else the
 /// R2 low-discrepancy sequence (Roberts 2018), the same for every pixel.
 glm::vec2 sampleOffset(int index, int count) {
@@ -88,26 +66,21 @@ glm::vec2 sampleOffset(int index, int count) {
     return {float(x - std::floor(x)), float(y - std::floor(y))};
 }
 
+/// What one camera ray produced.
+struct Sample {
+    glm::vec3 color{0.0f};
+    float depth = 0.0f;
+    glm::vec3 normal{0.0f};
+    int iterations = 0;
+    std::uint64_t shadowSteps = 0;
+};
+
 class Renderer {
 public:
-    Renderer(const Scene& scene, const RenderOptions& options) : scene_(scene), options_(options) {
-        std::vector<glm::vec3> corners;
-        for (std::uint32_t objectIndex = 0; objectIndex < scene.objects.size(); ++objectIndex) {
-            const SceneObject& object = scene.objects[objectIndex];
-            const BaseMesh& mesh = object.mesh;
-            const Tile* tile = object.material.tile.get();
-            for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
-                const glm::uvec3 triangle = mesh.triangles[t];
-                for (int corner = 0; corner < 3; ++corner) corners.push_back(mesh.positions[triangle[corner]]);
-                glm::vec2 texelsPerWorld(0.0f);
-                if (tile) {
-                    texelsPerWorld = texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size());
-                }
-                triangles_.push_back({objectIndex, t, texelsPerWorld});
-            }
-        }
-        bvh_ = TriangleBvh(std::move(corners));
-
+    Renderer(const Scene& scene, const RenderOptions& options)
+        : scene_(scene),
+          options_(options),
+          tracer_(scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter}) {
         const Camera& camera = scene.camera;
         forward_ = glm::normalize(camera.target - camera.eye);
         right_ = glm::normalize(glm::cross(forward_, camera.up));
@@ -115,205 +88,144 @@ public:
         tanHalfFov_ = std::tan(0.5f * camera.fovDeg * kPi / 180.0f);
     }
 
-    glm::vec3 shadePixel(int x, int y, RenderStats& stats) const {
+    Ray cameraRay(float x, float y) const {
         const float aspect = float(options_.width) / float(options_.height);
+        const float ndcX = (2.0f * x / options_.width - 1.0f) * tanHalfFov_ * aspect;
+        const float ndcY = (1.0f - 2.0f * y / options_.height) * tanHalfFov_;
+        return {scene_.camera.eye, glm::normalize(forward_ + ndcX * right_ + ndcY * up_)};
+    }
+
+    /// All samples of pixel (x, y): the mean colour, and the first sample's AOV values.
+    Sample renderPixel(int x, int y, RenderStats& stats) const {
+        Sample pixel;
         glm::vec3 sum(0.0f);
-        for (int sample = 0; sample < options_.samplesPerPixel; ++sample) {
-            const glm::vec2 offset = sampleOffset(sample, options_.samplesPerPixel);
-            const float ndcX = (2.0f * (x + offset.x) / options_.width - 1.0f) * tanHalfFov_ * aspect;
-            const float ndcY = (1.0f - 2.0f * (y + offset.y) / options_.height) * tanHalfFov_;
-            const Ray ray{scene_.camera.eye, glm::normalize(forward_ + ndcX * right_ + ndcY * up_)};
-            sum += traceRay(ray, stats);
+        for (int index = 0; index < options_.samplesPerPixel; ++index) {
+            const glm::vec2 offset = sampleOffset(index, options_.samplesPerPixel);
+            const Sample sample = renderSample(cameraRay(x + offset.x, y + offset.y), stats);
+            if (index == 0) pixel = sample;
+            sum += sample.color;
         }
-        return sum / float(options_.samplesPerPixel);
+        pixel.color = sum / float(options_.samplesPerPixel);
+        return pixel;
     }
 
 private:
-    /// Texels per world unit along the triangle's u and v directions: the tile spans 1/uvScale in
-    /// uv, and |dP/du|, |dP/dv| convert uv to world units.
-    static glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle, const glm::vec2& uvScale,
-                                      const Size3& tileSize) {
-        const glm::vec3 edge1 = mesh.positions[triangle[1]] - mesh.positions[triangle[0]];
-        const glm::vec3 edge2 = mesh.positions[triangle[2]] - mesh.positions[triangle[0]];
-        const glm::vec2 duv1 = mesh.uvs[triangle[1]] - mesh.uvs[triangle[0]];
-        const glm::vec2 duv2 = mesh.uvs[triangle[2]] - mesh.uvs[triangle[0]];
-        const float determinant = duv1.x * duv2.y - duv2.x * duv1.y;
-        if (std::abs(determinant) < 1e-12f) return glm::vec2(0.0f);
-        const glm::vec3 dPdu = (edge1 * duv2.y - edge2 * duv1.y) / determinant;
-        const glm::vec3 dPdv = (edge2 * duv1.x - edge1 * duv2.x) / determinant;
-        const float worldPerU = glm::length(dPdu);
-        const float worldPerV = glm::length(dPdv);
-        if (!(worldPerU > 0.0f && worldPerV > 0.0f) || !std::isfinite(worldPerU) || !std::isfinite(worldPerV)) {
-            return glm::vec2(0.0f);
+    Sample renderSample(const Ray& ray, RenderStats& stats) const {
+        ++stats.rays;
+        Sample sample;
+        SurfaceHit hit;
+        TraceCounters counters;
+        const bool found = tracer_.traceNearest(ray, 0.0f, hit, counters);
+        stats.marchIterations += counters.marchIterations;
+        stats.converged += counters.converged;
+        if (!found) {
+            sample.color = skyColor(ray.direction);
+            return sample;
         }
-        return {tileSize.width * uvScale.x / worldPerU, tileSize.height * uvScale.y / worldPerV};
-    }
-
-    SurfacePoint surfacePoint(const TriangleHit& hit, const Ray& ray) const {
-        const ShellTriangle& shell = triangles_[hit.triangle];
-        const SceneObject& object = scene_.objects[shell.object];
-        const BaseMesh& mesh = object.mesh;
-        const glm::uvec3 triangle = mesh.triangles[shell.localTriangle];
-        const float b0 = 1.0f - hit.b1 - hit.b2;
-        auto interpolate = [&](const auto& values) {
-            return values[triangle[0]] * b0 + values[triangle[1]] * hit.b1 + values[triangle[2]] * hit.b2;
-        };
-        SurfacePoint point;
-        point.position = ray.origin + ray.direction * hit.distanceWorld;
-        point.normal = glm::normalize(interpolate(mesh.normals));
-        const glm::vec4 tangent = interpolate(mesh.tangents);
-        const glm::vec3 tangentInPlane = glm::vec3(tangent) - point.normal * glm::dot(glm::vec3(tangent), point.normal);
-        const float tangentLength = glm::length(tangentInPlane);
-        point.tangent = tangentLength > 1e-6f ? tangentInPlane / tangentLength
-                                              : glm::normalize(glm::cross(point.normal, std::abs(point.normal.x) < 0.9f
-                                                                                            ? glm::vec3(1, 0, 0)
-                                                                                            : glm::vec3(0, 1, 0)));
-        point.bitangent = glm::cross(point.normal, point.tangent) * (tangent.w < 0.0f ? -1.0f : 1.0f);
-        point.uv = interpolate(mesh.uvs);
-        const glm::vec3 geometricNormal = glm::cross(mesh.positions[triangle[1]] - mesh.positions[triangle[0]],
-                                                     mesh.positions[triangle[2]] - mesh.positions[triangle[0]]);
-        point.frontFacing = glm::dot(geometricNormal, ray.direction) < 0.0f;
-        const Tile* tile = object.material.tile.get();
-        const float depthTexels = tile ? float(tile->size().depth) : 1.0f;
-        point.texelsPerWorld = {shell.texelsPerWorldUv.x, shell.texelsPerWorldUv.y,
-                                depthTexels / object.material.depthWorld};
-        return point;
-    }
-
-    glm::vec3 traceRay(Ray ray, RenderStats& stats) const {
-        float minDistance = 0.0f;
-        // An open floor lets the ray leave a shell through a hole and go on; bounded by the
-        // object count so a ray cannot loop.
-        for (std::size_t pass = 0; pass <= scene_.objects.size() + 1; ++pass) {
-            TriangleHit hit;
-            if (!bvh_.intersect(ray, minDistance, std::numeric_limits<float>::max(), hit)) {
-                return skyColor(ray.direction);
-            }
-            if (pass == 0) ++stats.baseHits;
-            const ShellTriangle& shell = triangles_[hit.triangle];
-            const Material& material = scene_.objects[shell.object].material;
-            const SurfacePoint point = surfacePoint(hit, ray);
-            if (!point.frontFacing) {
-                return material.color * 0.05f;  // inside of a closed mesh, or a plane from below
-            }
-            if (!material.tile || shell.texelsPerWorldUv.x == 0.0f) {
-                return shadeBase(point, material, ray.direction);
-            }
-            const TrilinearFilter filter(*material.tile);
-            const Size3& size = material.tile->size();
-            glm::vec3 direction = point.toTexel(ray.direction);
-            // Silhouettes of smooth-shaded meshes can tilt the interpolated frame until the ray
-            // no longer descends; keep it descending so the march stays in the shell.
-            direction.z = std::min(direction.z, -1e-3f * glm::length(direction));
-            const float texelsPerWorldAlongRay = glm::length(direction);
-            direction /= texelsPerWorldAlongRay;
-            // Wrap the entry point into the tile in double precision: far repeats keep their
-            // sub-texel position.
-            const double u = double(point.uv.x) * material.uvScale.x;
-            const double v = double(point.uv.y) * material.uvScale.y;
-            const glm::vec3 entry(float((u - std::floor(u)) * size.width), float((v - std::floor(v)) * size.height),
-                                  float(size.depth));
-            const MarchResult result = march(filter, entry, direction, material.floor, options_.maxIterations, options_.epsilonTexels);
-            stats.marchIterations += std::uint64_t(result.iterations);
-            if (result.converged) ++stats.converged;
-            if (result.exitedFloor) {
-                minDistance = hit.distanceWorld + result.travelTexels / texelsPerWorldAlongRay;
-                continue;
-            }
-            return shadeDetail(filter, point, material, result, ray.direction);
+        ++stats.baseHits;
+        sample.depth = hit.distanceWorld;
+        sample.normal = hit.normal;
+        sample.iterations = int(counters.marchIterations);
+        const Material& material = scene_.objects[hit.object].material;
+        if (!hit.entry.frontFacing) {
+            sample.color = material.color * 0.05f;  // inside of a closed mesh, or a plane from below
+        } else if (!hit.onDetail) {
+            sample.color = shadeBase(hit, material, ray.direction);
+        } else {
+            withFilter(options_.filter, *material.tile, [&](const auto& filter) {
+                sample.color = shadeDetail(filter, hit, material, ray.direction, sample.shadowSteps);
+            });
         }
-        return skyColor(ray.direction);
+        stats.shadowSteps += sample.shadowSteps;
+        return sample;
     }
 
-    glm::vec3 shadeBase(const SurfacePoint& point, const Material& material, const glm::vec3& view) const {
+    glm::vec3 shadeBase(const SurfaceHit& hit, const Material& material, const glm::vec3& view) const {
         glm::vec3 color = material.color * kAmbientStrength;
         for (const DirectionalLight& light : scene_.lights) {
-            const glm::vec3 toLight = -glm::normalize(light.direction);
-            color += directLight(point.normal, toLight, view, material.color) * light.color;
+            color += directLight(hit.normal, -glm::normalize(light.direction), view, material.color) * light.color;
         }
         return color;
     }
 
     template <class Filter>
-    glm::vec3 shadeDetail(const Filter& filter, const SurfacePoint& point, const Material& material,
-                          const MarchResult& result, const glm::vec3& view) const {
+    glm::vec3 shadeDetail(const Filter& filter, const SurfaceHit& hit, const Material& material, const glm::vec3& view,
+                          std::uint64_t& shadowSteps) const {
         const float depthTexels = float(material.tile->size().depth);
-        glm::vec3 texelNormal(0.0f, 0.0f, 1.0f);
-        glm::vec3 normal = point.normal;
-        if (!result.onFloor) {
-            const glm::vec3 gradient = filter.gradient(result.texelPosition);
-            const float length = glm::length(gradient);
-            if (length > 1e-6f) {
-                texelNormal = gradient / length;
-                normal = glm::normalize(point.gradientToWorld(gradient));
-            }
-        }
+        const glm::vec3 texelPosition = hit.march.texelPosition;
         // Cavities (low in the shell) see less of the sky.
-        const float openness = 0.35f + 0.65f * std::clamp(result.texelPosition.z / depthTexels, 0.0f, 1.0f);
+        const float openness = 0.35f + 0.65f * std::clamp(texelPosition.z / depthTexels, 0.0f, 1.0f);
         glm::vec3 color = material.color * (kAmbientStrength * openness);
         for (const DirectionalLight& light : scene_.lights) {
             const glm::vec3 toLight = -glm::normalize(light.direction);
             // A base surface facing away from the light is in its own shadow: no work.
-            if (glm::dot(point.normal, toLight) <= 0.0f) continue;
+            if (glm::dot(hit.entry.normal, toLight) <= 0.0f) continue;
             float visibility = 1.0f;
             if (options_.selfShadows) {
-                glm::vec3 toLightTexel = point.toTexel(toLight);
-                toLightTexel /= glm::length(toLightTexel);
+                glm::vec3 texelNormal(0.0f, 0.0f, 1.0f);
+                if (!hit.march.onFloor) {
+                    const glm::vec3 gradient = filter.gradient(texelPosition);
+                    if (glm::length(gradient) > 1e-6f) texelNormal = glm::normalize(gradient);
+                }
+                const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLight));
                 const float tanHalfAngle = std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f);
-                const glm::vec3 start = result.texelPosition + texelNormal * (2.0f * options_.epsilonTexels);
-                visibility = lightVisibility(filter, start, toLightTexel, depthTexels, tanHalfAngle, options_);
+                const glm::vec3 start = texelPosition + texelNormal * (2.0f * options_.epsilonTexels);
+                visibility = lightVisibility(filter, start, toLightTexel, depthTexels, tanHalfAngle, options_, shadowSteps);
                 if (visibility <= 0.0f) continue;
             }
-            color += directLight(normal, toLight, view, material.color) * light.color * visibility;
+            color += directLight(hit.normal, toLight, view, material.color) * light.color * visibility;
         }
         return color;
     }
 
-    static glm::vec3 directLight(const glm::vec3& normal, const glm::vec3& toLight, const glm::vec3& view,
-                                 const glm::vec3& albedo) {
-        const float diffuse = std::max(glm::dot(normal, toLight), 0.0f);
-        if (diffuse <= 0.0f) return glm::vec3(0.0f);
-        const glm::vec3 halfway = glm::normalize(toLight - view);
-        const float specular = std::pow(std::max(glm::dot(normal, halfway), 0.0f), kShininess);
-        return albedo * diffuse + glm::vec3(kSpecularStrength * specular);
-    }
-
     const Scene& scene_;
     const RenderOptions& options_;
-    std::vector<ShellTriangle> triangles_;
-    TriangleBvh bvh_;
+    SceneTracer tracer_;
     glm::vec3 forward_, right_, up_;
     float tanHalfFov_;
 };
 
 void validateOptions(const RenderOptions& options) {
-    if (options.width < 1 || options.width > 16384 || options.height < 1 || options.height > 16384) {
-        throw InputError("image size " + std::to_string(options.width) + "x" + std::to_string(options.height) +
-                         " is not accepted; width and height must be in [1, 16384]");
-    }
+    auto reject = [](const std::string& what, const std::string& value, const std::string& accepted) {
+        throw InputError(what + ": " + value + " is not accepted; " + accepted);
+    };
+    if (options.width < 1 || options.width > 16384) reject("--width", std::to_string(options.width), "it must be in [1, 16384]");
+    if (options.height < 1 || options.height > 16384) reject("--height", std::to_string(options.height), "it must be in [1, 16384]");
     if (options.maxIterations < 1 || options.maxIterations > 4096) {
-        throw InputError("iterations: " + std::to_string(options.maxIterations) + " is not accepted; it must be in [1, 4096]");
+        reject("--iterations", std::to_string(options.maxIterations), "it must be in [1, 4096]");
     }
     if (!(options.epsilonTexels > 0.0f && options.epsilonTexels <= 1.0f)) {
-        throw InputError("epsilon: " + std::to_string(options.epsilonTexels) + " texels is not accepted; it must be in (0, 1]");
+        reject("--epsilon", std::to_string(options.epsilonTexels), "it must be in (0, 1] texels");
     }
     if (options.shadowIterations < 1 || options.shadowIterations > 4096) {
-        throw InputError("shadow iterations: must be in [1, 4096]");
+        reject("shadow iterations", std::to_string(options.shadowIterations), "it must be in [1, 4096]");
     }
     if (options.samplesPerPixel < 1 || options.samplesPerPixel > 256) {
-        throw InputError("samples per pixel: " + std::to_string(options.samplesPerPixel) + " is not accepted; it must be in [1, 256]");
+        reject("--spp", std::to_string(options.samplesPerPixel), "it must be in [1, 256]");
     }
 }
 
 }  // namespace
 
-Image renderScene(const Scene& scene, const RenderOptions& options, RenderStats* stats,
-                  const ProgressCallback& progress) {
+glm::vec3 heatColor(float value) {
+    const float t = std::clamp(value, 0.0f, 1.0f) * 4.0f;
+    const glm::vec3 stops[5] = {{0, 0, 1}, {0, 1, 1}, {0, 1, 0}, {1, 1, 0}, {1, 0, 0}};
+    const int lower = std::min(int(t), 3);
+    return glm::mix(stops[lower], stops[lower + 1], t - float(lower));
+}
+
+RenderResult renderScene(const Scene& scene, const RenderOptions& options, const ProgressCallback& progress) {
     validateOptions(options);
     validateScene(scene);
     const Renderer renderer(scene, options);
-    Image image(options.width, options.height);
-    std::atomic<std::uint64_t> baseHits{0}, iterations{0}, converged{0};
+    RenderResult result;
+    result.image = Image(options.width, options.height);
+    if (options.outputAovs) {
+        result.aovs.emplace(RenderAovs{Image(options.width, options.height), Image(options.width, options.height),
+                                       Image(options.width, options.height), Image(options.width, options.height)});
+    }
+    const float shadowBudget = float(options.shadowIterations * std::max<std::size_t>(scene.lights.size(), 1));
+    std::atomic<std::uint64_t> rays{0}, baseHits{0}, iterations{0}, converged{0}, shadowSteps{0};
     // Bands of rows, so progress can be reported from this thread between them; inside a band,
     // 16 x 16 pixel blocks are shared among the threads. Every pixel is computed on its own.
     constexpr int kBlock = 16;
@@ -325,22 +237,28 @@ Image renderScene(const Scene& scene, const RenderOptions& options, RenderStats*
                               RenderStats local;
                               for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
                                   for (int x = block.cols().begin(); x != block.cols().end(); ++x) {
-                                      image.at(x, y) = renderer.shadePixel(x, y, local);
+                                      const Sample pixel = renderer.renderPixel(x, y, local);
+                                      result.image.at(x, y) = pixel.color;
+                                      if (!result.aovs) continue;
+                                      result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
+                                      result.aovs->normal.at(x, y) =
+                                          pixel.depth > 0.0f ? pixel.normal * 0.5f + 0.5f : glm::vec3(0.0f);
+                                      result.aovs->iterations.at(x, y) =
+                                          heatColor(float(pixel.iterations) / float(options.maxIterations));
+                                      result.aovs->shadowSamples.at(x, y) =
+                                          heatColor(float(pixel.shadowSteps) / shadowBudget);
                                   }
                               }
+                              rays += local.rays;
                               baseHits += local.baseHits;
                               iterations += local.marchIterations;
                               converged += local.converged;
+                              shadowSteps += local.shadowSteps;
                           });
         if (progress) progress(double(bandEnd) / options.height);
     }
-    if (stats) {
-        stats->rays = std::uint64_t(options.width) * std::uint64_t(options.height) * std::uint64_t(options.samplesPerPixel);
-        stats->baseHits = baseHits;
-        stats->marchIterations = iterations;
-        stats->converged = converged;
-    }
-    return image;
+    result.stats = {rays, baseHits, iterations, converged, shadowSteps};
+    return result;
 }
 
 }  // namespace distile

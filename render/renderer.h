@@ -1,45 +1,64 @@
 /// @file
-/// The distance-mapping sphere tracer (GPU Gems 2, ch. 8) on the CPU.
+/// The distance-mapping renderer (GPU Gems 2, ch. 8) on the CPU.
 ///
-/// Per pixel: the camera ray finds the nearest base-mesh triangle (the top of the detail shell).
-/// The interpolated tangent frame maps the ray into the tile's texel space, where texels are
-/// cubes, and the direction is normalised there; from the entry point at z = D the ray steps by
-/// the sampled distance until the distance drops below the epsilon, it reaches a solid floor, or
-/// the iteration budget ends. The shading normal is the tile gradient mapped back to world space;
-/// Lambert + Blinn-Phong, with soft self-shadows traced through the tile toward each light.
-/// Pixels are independent, so the image does not depend on the thread count.
+/// Per pixel, camera rays find the nearest displaced detail through SceneTracer (base-mesh
+/// visibility, then the march in the tile's texel space). Shading: Lambert + Blinn-Phong with the
+/// tile gradient as normal, an ambient term darkened low in the shell, and soft self-shadows
+/// traced through the tile toward each light. Pixels are independent, so the image does not
+/// depend on the thread count.
 #pragma once
 
 #include <cstdint>
+#include <optional>
 
 #include "common/progress.h"
 #include "render/image.h"
 #include "render/scene.h"
+#include "render/tracer.h"
 
 namespace distile {
 
 struct RenderOptions {
     int width = 1280;
     int height = 1024;
+    int samplesPerPixel = 1;        ///< camera rays per pixel (R2 low-discrepancy offsets), averaged
     int maxIterations = 16;         ///< sphere-tracing budget per ray (ch. 8 uses 8 to 16)
     float epsilonTexels = 0.02f;    ///< a ray closer than this to the surface has hit it
+    FilterKind filter = FilterKind::Trilinear;
     bool selfShadows = true;        ///< trace shadow rays through the tile toward each light
     int shadowIterations = 24;      ///< budget of each shadow ray
-    int samplesPerPixel = 1;        ///< camera rays per pixel (R2 low-discrepancy offsets), averaged
+    bool outputAovs = false;        ///< also produce the AOV images of RenderResult
 };
 
 struct RenderStats {
-    std::uint64_t rays = 0;                ///< camera rays (pixels x samples per pixel)
-    std::uint64_t baseHits = 0;            ///< camera rays that hit a base surface
-    std::uint64_t marchIterations = 0;     ///< sphere-tracing steps over all primary rays
-    std::uint64_t converged = 0;           ///< rays that hit detail or floor within the budget
-    double meanIterations() const { return baseHits ? double(marchIterations) / baseHits : 0.0; }
+    std::uint64_t rays = 0;              ///< camera rays (pixels x samples per pixel)
+    std::uint64_t baseHits = 0;          ///< camera rays that hit a base surface
+    std::uint64_t marchIterations = 0;   ///< sphere-tracing steps over all camera rays
+    std::uint64_t converged = 0;         ///< camera rays that hit detail or floor within the budget
+    std::uint64_t shadowSteps = 0;       ///< steps of self-shadow rays
+    double meanIterations() const { return baseHits ? double(marchIterations) / double(baseHits) : 0.0; }
 };
 
-/// Renders `scene` (validated with validateScene first). Throws InputError for invalid scenes or
-/// options (width/height in [1, 16384], maxIterations in [1, 4096], epsilon in (0, 1],
-/// samplesPerPixel in [1, 256]). `progress` is called on the calling thread.
-Image renderScene(const Scene& scene, const RenderOptions& options, RenderStats* stats = nullptr,
-                  const ProgressCallback& progress = {});
+/// Arbitrary output variables, per pixel (first sample of the pixel), when requested.
+struct RenderAovs {
+    Image depth;          ///< distance from the eye along the ray, world units (0: miss), in all channels
+    Image normal;         ///< shading normal * 0.5 + 0.5 (0: miss)
+    Image iterations;     ///< march iterations as a heat map (blue 0 .. red = budget)
+    Image shadowSamples;  ///< self-shadow steps as a heat map (blue 0 .. red = budget x lights)
+};
+
+struct RenderResult {
+    Image image;
+    std::optional<RenderAovs> aovs;
+    RenderStats stats;
+};
+
+/// Renders `scene`. Throws InputError for an invalid scene (validateScene) or options
+/// (width/height in [1, 16384], iterations in [1, 4096], epsilon in (0, 1], samples per pixel
+/// in [1, 256]). `progress` is called on the calling thread.
+RenderResult renderScene(const Scene& scene, const RenderOptions& options, const ProgressCallback& progress = {});
+
+/// A heat-map colour (blue, cyan, green, yellow, red) for a value in [0, 1].
+glm::vec3 heatColor(float value);
 
 }  // namespace distile

@@ -62,6 +62,22 @@ public:
         return tile_.at(x, y, z);
     }
 
+    /// Central differences of the stored texels around the containing texel (one-sided at the
+    /// first and last slice): the gradient of the grid, as a shading normal for this filter.
+    glm::vec3 gradient(const glm::vec3& texelPosition) const {
+        const Size3& size = tile_.size();
+        const int x = detail::wrapIndex(int(std::floor(texelPosition.x)), size.width);
+        const int y = detail::wrapIndex(int(std::floor(texelPosition.y)), size.height);
+        const int z = std::clamp(int(std::floor(texelPosition.z)), 0, size.depth - 1);
+        const int zLow = std::max(z - 1, 0);
+        const int zHigh = std::min(z + 1, size.depth - 1);
+        return {0.5f * (tile_.at(detail::wrapIndex(x + 1, size.width), y, z) -
+                        tile_.at(detail::wrapIndex(x - 1, size.width), y, z)),
+                0.5f * (tile_.at(x, detail::wrapIndex(y + 1, size.height), z) -
+                        tile_.at(x, detail::wrapIndex(y - 1, size.height), z)),
+                (tile_.at(x, y, zHigh) - tile_.at(x, y, zLow)) / float(std::max(zHigh - zLow, 1))};
+    }
+
 private:
     const Tile& tile_;
 };
@@ -125,5 +141,21 @@ private:
 
     const Tile& tile_;
 };
+
+/// The reconstruction filters a renderer or a check can choose.
+enum class FilterKind { Nearest, Trilinear };
+
+/// Calls `function(filter)` with the filter of `kind` over `tile`: the one place where a run-time
+/// choice becomes a compile-time filter type (hot loops are templates over the filter).
+template <class Function>
+decltype(auto) withFilter(FilterKind kind, const Tile& tile, Function&& function) {
+    switch (kind) {
+        case FilterKind::Nearest:
+            return function(NearestFilter(tile));
+        case FilterKind::Trilinear:
+            break;
+    }
+    return function(TrilinearFilter(tile));
+}
 
 }  // namespace distile

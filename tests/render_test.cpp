@@ -145,17 +145,22 @@ TEST(Renderer, ImageIsFiniteAndIndependentOfTheThreadCount) {
     RenderOptions options;
     options.width = 96;
     options.height = 64;
-    RenderStats stats;
-    Image one;
+    options.outputAovs = true;
+    RenderResult first;
     {
         tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
-        one = renderScene(scene, options, &stats);
+        first = renderScene(scene, options);
     }
-    Image two;
+    RenderResult second;
     {
         tbb::global_control pair(tbb::global_control::max_allowed_parallelism, 2);
-        two = renderScene(scene, options);
+        second = renderScene(scene, options);
     }
+    const Image& one = first.image;
+    const Image& two = second.image;
+    const RenderStats& stats = first.stats;
+    EXPECT_EQ(first.aovs->depth.rgbLinear, second.aovs->depth.rgbLinear);
+    EXPECT_EQ(first.aovs->iterations.rgbLinear, second.aovs->iterations.rgbLinear);
     ASSERT_EQ(one.rgbLinear.size(), two.rgbLinear.size());
     for (std::size_t i = 0; i < one.rgbLinear.size(); ++i) {
         ASSERT_TRUE(std::isfinite(one.rgbLinear[i].x) && std::isfinite(one.rgbLinear[i].y) &&

@@ -1,0 +1,105 @@
+// distile render: a scene (or the built-in demo) to an image, with optional AOVs.
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <optional>
+
+#include "cli/arguments.h"
+#include "cli/commands.h"
+#include "cli/progress_bar.h"
+#include "cli/scene_json.h"
+#include "common/error.h"
+#include "render/renderer.h"
+
+namespace distile::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct RenderArguments {
+    fs::path scene;
+    fs::path output;
+    std::optional<int> width;
+    std::optional<int> height;
+    std::optional<int> samplesPerPixel;
+    RenderOptions options;
+    bool noShadows = false;
+};
+
+/// "out.png" + "depth" -> "out.depth.exr" (AOVs beside the image).
+fs::path aovPath(const fs::path& image, const std::string& name, const std::string& extension) {
+    return image.parent_path() / (image.stem().string() + "." + name + extension);
+}
+
+void runRender(RenderArguments arguments) {
+    requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
+    TileCache tiles;
+    SceneFile sceneFile = arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles);
+    RenderOptions& options = arguments.options;
+    options.width = arguments.width.value_or(sceneFile.image.width);
+    options.height = arguments.height.value_or(sceneFile.image.height);
+    options.samplesPerPixel = arguments.samplesPerPixel.value_or(sceneFile.image.samplesPerPixel);
+    options.selfShadows = !arguments.noShadows;
+
+    const auto start = std::chrono::steady_clock::now();
+    RenderResult result;
+    {
+        ProgressBar progress("render " + std::to_string(options.width) + "x" + std::to_string(options.height));
+        result = renderScene(sceneFile.scene, options, std::ref(progress));
+    }
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    writeImage(result.image, arguments.output);
+    if (result.aovs) {
+        writeImage(result.aovs->depth, aovPath(arguments.output, "depth", ".exr"));
+        writeImage(result.aovs->normal, aovPath(arguments.output, "normal", ".png"));
+        writeImage(result.aovs->iterations, aovPath(arguments.output, "iterations", ".png"));
+        writeImage(result.aovs->shadowSamples, aovPath(arguments.output, "shadow_samples", ".png"));
+    }
+    const RenderStats& stats = result.stats;
+    std::printf("rendered %s (%dx%d, %d spp) in %.2f s: %llu rays, %.1f%% hit a surface, mean %.2f iterations, "
+                "%.1f%% converged within %d\n",
+                arguments.scene.empty() ? "the demo scene" : arguments.scene.c_str(), options.width, options.height,
+                options.samplesPerPixel, seconds, static_cast<unsigned long long>(stats.rays),
+                stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0, stats.meanIterations(),
+                stats.baseHits ? 100.0 * double(stats.converged) / double(stats.baseHits) : 0.0,
+                options.maxIterations);
+    if (result.aovs) {
+        std::printf("AOVs written beside it: %s, %s, %s, %s\n", aovPath(arguments.output, "depth", ".exr").c_str(),
+                    aovPath(arguments.output, "normal", ".png").c_str(),
+                    aovPath(arguments.output, "iterations", ".png").c_str(),
+                    aovPath(arguments.output, "shadow_samples", ".png").c_str());
+    }
+    std::printf("image written to %s\n", fs::absolute(arguments.output).c_str());
+}
+
+}  // namespace
+
+void addRenderCommand(CLI::App& app) {
+    auto arguments = std::make_shared<RenderArguments>();
+    CLI::App* command =
+        app.add_subcommand("render", "Render a scene (JSON, see DESIGN.md) or, without one, the built-in demo");
+    command->add_option("scene", arguments->scene, "Scene file (.json); omit for the demo scene");
+    command->add_option("-o,--output", arguments->output, "Image to write (.png, .exr, .tif)")->required();
+    command->add_option("--width", arguments->width, "Image width in pixels (default: the scene's, else 1280)")
+        ->check(CLI::Range(1, 16384));
+    command->add_option("--height", arguments->height, "Image height in pixels (default: the scene's, else 1024)")
+        ->check(CLI::Range(1, 16384));
+    command->add_option("--spp", arguments->samplesPerPixel, "Samples per pixel (default: the scene's, else 1)")
+        ->check(CLI::Range(1, 256));
+    command->add_option("--iterations", arguments->options.maxIterations, "Sphere-tracing budget per ray")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 4096));
+    command->add_option("--epsilon", arguments->options.epsilonTexels, "Hit threshold in texels")->capture_default_str();
+    const std::map<std::string, FilterKind> filters{{"nearest", FilterKind::Nearest},
+                                                    {"trilinear", FilterKind::Trilinear}};
+    command->add_option("--filter", arguments->options.filter, "Tile reconstruction filter")
+        ->transform(CLI::CheckedTransformer(filters, CLI::ignore_case))
+        ->default_str("trilinear");
+    command->add_flag("--no-shadows", arguments->noShadows, "Skip self-shadow rays");
+    command->add_flag("--aovs", arguments->options.outputAovs,
+                      "Also write depth (.exr), normal, iteration and shadow-sample heat maps beside the image");
+    command->callback([arguments] { runRender(*arguments); });
+}
+
+}  // namespace distile::cli

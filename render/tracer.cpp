@@ -1,0 +1,145 @@
+#include "render/tracer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+namespace distile {
+
+namespace {
+
+/// Texels per world unit along a triangle's u and v directions: the tile spans 1/uvScale in uv,
+/// and |dP/du|, |dP/dv| convert uv to world units. Zero when the UVs are degenerate.
+glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle, const glm::vec2& uvScale,
+                           const Size3& tileSize) {
+    const glm::vec3 edge1 = mesh.positions[triangle[1]] - mesh.positions[triangle[0]];
+    const glm::vec3 edge2 = mesh.positions[triangle[2]] - mesh.positions[triangle[0]];
+    const glm::vec2 duv1 = mesh.uvs[triangle[1]] - mesh.uvs[triangle[0]];
+    const glm::vec2 duv2 = mesh.uvs[triangle[2]] - mesh.uvs[triangle[0]];
+    const float determinant = duv1.x * duv2.y - duv2.x * duv1.y;
+    if (std::abs(determinant) < 1e-12f) return glm::vec2(0.0f);
+    const glm::vec3 dPdu = (edge1 * duv2.y - edge2 * duv1.y) / determinant;
+    const glm::vec3 dPdv = (edge2 * duv1.x - edge1 * duv2.x) / determinant;
+    const float worldPerU = glm::length(dPdu);
+    const float worldPerV = glm::length(dPdv);
+    if (!(worldPerU > 0.0f && worldPerV > 0.0f) || !std::isfinite(worldPerU) || !std::isfinite(worldPerV)) {
+        return glm::vec2(0.0f);
+    }
+    return {tileSize.width * uvScale.x / worldPerU, tileSize.height * uvScale.y / worldPerV};
+}
+
+}  // namespace
+
+glm::vec3 ShellEntry::toTexel(const glm::vec3& world) const {
+    return {glm::dot(world, tangent) * texelsPerWorld.x, glm::dot(world, bitangent) * texelsPerWorld.y,
+            glm::dot(world, normal) * texelsPerWorld.z};
+}
+
+glm::vec3 ShellEntry::gradientToWorld(const glm::vec3& gradient) const {
+    // Texel = M world with M's rows T sx, B sy, N sz; gradients transform with M transposed.
+    return tangent * (gradient.x * texelsPerWorld.x) + bitangent * (gradient.y * texelsPerWorld.y) +
+           normal * (gradient.z * texelsPerWorld.z);
+}
+
+SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options) : scene_(scene), options_(options) {
+    std::vector<glm::vec3> corners;
+    for (std::uint32_t objectIndex = 0; objectIndex < scene.objects.size(); ++objectIndex) {
+        const SceneObject& object = scene.objects[objectIndex];
+        const BaseMesh& mesh = object.mesh;
+        const Tile* tile = object.material.tile.get();
+        for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
+            const glm::uvec3 triangle = mesh.triangles[t];
+            for (int corner = 0; corner < 3; ++corner) corners.push_back(mesh.positions[triangle[corner]]);
+            glm::vec2 texelsPerWorld(0.0f);
+            if (tile) texelsPerWorld = texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size());
+            triangles_.push_back({objectIndex, t, texelsPerWorld});
+        }
+    }
+    bvh_ = TriangleBvh(std::move(corners));
+}
+
+ShellEntry SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray) const {
+    const ShellTriangle& shell = triangles_[hit.triangle];
+    const SceneObject& object = scene_.objects[shell.object];
+    const BaseMesh& mesh = object.mesh;
+    const glm::uvec3 triangle = mesh.triangles[shell.localTriangle];
+    const float b0 = 1.0f - hit.b1 - hit.b2;
+    auto interpolate = [&](const auto& values) {
+        return values[triangle[0]] * b0 + values[triangle[1]] * hit.b1 + values[triangle[2]] * hit.b2;
+    };
+    ShellEntry entry;
+    entry.position = ray.origin + ray.direction * hit.distanceWorld;
+    entry.normal = glm::normalize(interpolate(mesh.normals));
+    const glm::vec4 tangent = interpolate(mesh.tangents);
+    const glm::vec3 inPlane = glm::vec3(tangent) - entry.normal * glm::dot(glm::vec3(tangent), entry.normal);
+    const float inPlaneLength = glm::length(inPlane);
+    if (inPlaneLength > 1e-6f) {
+        entry.tangent = inPlane / inPlaneLength;
+    } else {  // the interpolated tangent vanished (opposite tangents across a seam): any valid frame
+        const glm::vec3 axis = std::abs(entry.normal.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
+        entry.tangent = glm::normalize(glm::cross(entry.normal, axis));
+    }
+    entry.bitangent = glm::cross(entry.normal, entry.tangent) * (tangent.w < 0.0f ? -1.0f : 1.0f);
+    entry.uv = interpolate(mesh.uvs);
+    const glm::vec3 geometricNormal = glm::cross(mesh.positions[triangle[1]] - mesh.positions[triangle[0]],
+                                                 mesh.positions[triangle[2]] - mesh.positions[triangle[0]]);
+    entry.frontFacing = glm::dot(geometricNormal, ray.direction) < 0.0f;
+    const Tile* tile = object.material.tile.get();
+    const float depthTexels = tile ? float(tile->size().depth) : 1.0f;
+    entry.texelsPerWorld = {shell.texelsPerWorldUv.x, shell.texelsPerWorldUv.y, depthTexels / object.material.depthWorld};
+    return entry;
+}
+
+bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit, TraceCounters& counters) const {
+    // An open floor lets the ray leave a shell through a hole and go on; bounded by the object
+    // count so a ray cannot loop.
+    for (std::size_t pass = 0; pass <= scene_.objects.size() + 1; ++pass) {
+        TriangleHit baseHit;
+        if (!bvh_.intersect(ray, minDistance, std::numeric_limits<float>::max(), baseHit)) return false;
+        const ShellTriangle& shell = triangles_[baseHit.triangle];
+        const Material& material = scene_.objects[shell.object].material;
+        hit.object = shell.object;
+        hit.entry = shellEntry(baseHit, ray);
+        hit.distanceWorld = baseHit.distanceWorld;
+        hit.position = hit.entry.position;
+        hit.normal = hit.entry.normal;
+        hit.onDetail = false;
+        if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) return true;
+
+        const Size3& size = material.tile->size();
+        glm::vec3 direction = hit.entry.toTexel(ray.direction);
+        // Silhouettes of smooth-shaded meshes can tilt the interpolated frame until the ray no
+        // longer descends; keep it descending so the march stays in the shell.
+        direction.z = std::min(direction.z, -1e-3f * glm::length(direction));
+        const float texelsPerWorldAlongRay = glm::length(direction);
+        direction /= texelsPerWorldAlongRay;
+        // Wrap the entry point into the tile in double precision: far repeats keep their
+        // sub-texel position.
+        const double u = double(hit.entry.uv.x) * material.uvScale.x;
+        const double v = double(hit.entry.uv.y) * material.uvScale.y;
+        const glm::vec3 start(float((u - std::floor(u)) * size.width), float((v - std::floor(v)) * size.height),
+                              float(size.depth));
+        const bool done = withFilter(options_.filter, *material.tile, [&](const auto& filter) {
+            hit.march = march(filter, start, direction, material.floor, options_.maxIterations, options_.epsilonTexels);
+            ++counters.shellEntries;
+            counters.marchIterations += std::uint64_t(hit.march.iterations);
+            if (hit.march.converged) ++counters.converged;
+            if (hit.march.exitedFloor) return false;
+            hit.onDetail = true;
+            hit.distanceWorld = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
+            hit.position = ray.origin + ray.direction * hit.distanceWorld;
+            if (!hit.march.onFloor) {
+                const glm::vec3 gradient = filter.gradient(hit.march.texelPosition);
+                if (glm::length(gradient) > 1e-6f) hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
+            }
+            return true;
+        });
+        if (done) return true;
+        minDistance = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
+    }
+    return false;
+}
+
+}  // namespace distile

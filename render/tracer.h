@@ -1,0 +1,84 @@
+/// @file
+/// Nearest-hit queries against a scene's displaced detail: the base-mesh visibility (where a ray
+/// enters a detail shell) followed by the ch. 8 march in the tile's texel space. Used for camera
+/// rays by the renderer and for light rays by shadow maps; shading lives in renderer.cpp.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include "render/bvh.h"
+#include "render/march.h"
+#include "render/scene.h"
+#include "sampler/filters.h"
+
+namespace distile {
+
+struct TraceOptions {
+    int maxIterations = 16;       ///< sphere-tracing budget per ray (ch. 8 uses 8 to 16)
+    float epsilonTexels = 0.02f;  ///< a ray closer than this to the surface has hit it
+    FilterKind filter = FilterKind::Trilinear;
+};
+
+/// The base surface where a ray enters an object's detail shell, with the linear map between
+/// world directions and the tile's texel space there (the per-pixel tangent frame, ch. 8).
+struct ShellEntry {
+    glm::vec3 position;        ///< on the base surface, world units
+    glm::vec3 normal;          ///< N, unit, outward
+    glm::vec3 tangent;         ///< T, unit, along +u
+    glm::vec3 bitangent;       ///< B, unit, along +v
+    glm::vec2 uv;
+    glm::vec3 texelsPerWorld;  ///< scale of the T, B, N components into texels
+    bool frontFacing = true;
+
+    glm::vec3 toTexel(const glm::vec3& world) const;
+    /// A texel-space gradient as a world-space normal direction (not normalised).
+    glm::vec3 gradientToWorld(const glm::vec3& gradient) const;
+};
+
+/// The nearest surface along a ray.
+struct SurfaceHit {
+    std::uint32_t object = 0;
+    float distanceWorld = 0.0f;  ///< from the ray origin to the hit
+    glm::vec3 position{0.0f};    ///< world units
+    glm::vec3 normal{0.0f};      ///< shading normal, unit, world space
+    ShellEntry entry;            ///< where the ray entered the shell
+    bool onDetail = false;       ///< false: the bare base surface (no tile) or a back face
+    MarchResult march;           ///< valid when onDetail
+};
+
+struct TraceCounters {
+    std::uint64_t shellEntries = 0;     ///< rays that entered a detail shell and were marched
+    std::uint64_t marchIterations = 0;  ///< sphere-tracing steps
+    std::uint64_t converged = 0;        ///< marches that hit detail or floor within the budget
+};
+
+class SceneTracer {
+public:
+    /// Preconditions: validateScene(scene) passed; `scene` outlives the tracer.
+    SceneTracer(const Scene& scene, const TraceOptions& options);
+
+    /// The nearest hit beyond `minDistance`, or false for a miss. Thread-safe.
+    bool traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit, TraceCounters& counters) const;
+
+    const Scene& scene() const { return scene_; }
+    const TraceOptions& options() const { return options_; }
+
+private:
+    struct ShellTriangle {
+        std::uint32_t object;
+        std::uint32_t localTriangle;
+        glm::vec2 texelsPerWorldUv;  ///< texels per world unit along T and B (0: degenerate UVs)
+    };
+    ShellEntry shellEntry(const TriangleHit& hit, const Ray& ray) const;
+
+    const Scene& scene_;
+    TraceOptions options_;
+    std::vector<ShellTriangle> triangles_;
+    TriangleBvh bvh_;
+};
+
+}  // namespace distile
