@@ -88,9 +88,11 @@ std::vector<std::uint32_t> samePositionGroups(const std::vector<glm::vec3>& posi
 /// kWholeUvTolerance), e.g. the u = 0 and u = 1 copies on a sphere's seam. Across such a seam
 /// the texture continues unchanged (tiles repeat every whole uv), so the parametrisation and
 /// its dP/du, dP/dv are continuous there and both copies must get the same tangent. Groups of
-/// more than kMaxWeldGroup coincident vertices (pathological input) are left unwelded.
+/// more than kMaxWeldGroup coincident vertices (pathological input) are left unwelded, and so
+/// are the two sides of a mirror line (different uv handedness, see splitMirroredVertices).
 std::vector<std::uint32_t> tangentWeldTargets(const std::vector<std::uint32_t>& groupOf,
-                                              const std::vector<glm::vec2>& uvs) {
+                                              const std::vector<glm::vec2>& uvs,
+                                              const std::vector<std::int8_t>& uvSides) {
     const std::size_t vertexCount = groupOf.size();
     std::vector<std::uint32_t> target(vertexCount);
     std::iota(target.begin(), target.end(), 0u);
@@ -106,7 +108,7 @@ std::vector<std::uint32_t> tangentWeldTargets(const std::vector<std::uint32_t>& 
 
     auto wholeOffset = [&](std::uint32_t a, std::uint32_t b) {
         const glm::dvec2 offset = glm::dvec2(uvs[a]) - glm::dvec2(uvs[b]);
-        return std::abs(offset.x - std::round(offset.x)) <= kWholeUvTolerance &&
+        return uvSides[a] == uvSides[b] && std::abs(offset.x - std::round(offset.x)) <= kWholeUvTolerance &&
                std::abs(offset.y - std::round(offset.y)) <= kWholeUvTolerance;
     };
     for (std::size_t g = 0; g < groupCount; ++g) {
@@ -192,10 +194,50 @@ void appendGrid(BaseMesh& mesh, int columns, int rows, PositionAt positionAt, Uv
     }
 }
 
+/// Mirrored UV layouts share vertices between triangles whose uv mapping has opposite
+/// handedness (the mirror line): no single tangent frame serves both sides, and averaging their
+/// tangents cancels them. As MikkTSpace does, such a vertex is split: the triangles of negative
+/// uv handedness get their own copy (same position and uv), so each side gets its own frame.
+/// Returns, per vertex after the split, which handedness uses it: bit 0 positive, bit 1 negative.
+std::vector<std::int8_t> splitMirroredVertices(BaseMesh& mesh) {
+    const std::size_t vertexCount = mesh.positions.size();
+    std::vector<std::int8_t> sides(vertexCount, 0);  // bit 0: a positive triangle uses it, bit 1: negative
+    std::vector<int> handedness(mesh.triangles.size(), 0);
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        const glm::uvec3& triangle = mesh.triangles[t];
+        const glm::dvec2 d1 = glm::dvec2(mesh.uvs[triangle[1]]) - glm::dvec2(mesh.uvs[triangle[0]]);
+        const glm::dvec2 d2 = glm::dvec2(mesh.uvs[triangle[2]]) - glm::dvec2(mesh.uvs[triangle[0]]);
+        const double uvDeterminant = d1.x * d2.y - d2.x * d1.y;
+        if (!(std::abs(uvDeterminant) > kDegenerateSine * glm::length(d1) * glm::length(d2))) continue;
+        handedness[t] = uvDeterminant > 0.0 ? 1 : -1;
+        for (int corner = 0; corner < 3; ++corner) sides[triangle[corner]] |= handedness[t] > 0 ? 1 : 2;
+    }
+    std::vector<std::uint32_t> copyOf(vertexCount, 0);
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+        if (handedness[t] >= 0) continue;
+        for (int corner = 0; corner < 3; ++corner) {
+            const std::uint32_t v = mesh.triangles[t][corner];
+            if (sides[v] != 3) continue;
+            if (copyOf[v] == 0) {
+                copyOf[v] = std::uint32_t(mesh.positions.size());
+                mesh.positions.push_back(mesh.positions[v]);
+                mesh.uvs.push_back(mesh.uvs[v]);
+                sides.push_back(2);
+            }
+            mesh.triangles[t][corner] = copyOf[v];
+        }
+    }
+    for (std::size_t v = 0; v < vertexCount; ++v) {
+        if (sides[v] == 3) sides[v] = 1;
+    }
+    return sides;
+}
+
 }  // namespace
 
 void computeTangentFrames(BaseMesh& mesh) {
     validateForFrames(mesh);
+    const std::vector<std::int8_t> uvSides = splitMirroredVertices(mesh);
     const std::size_t vertexCount = mesh.positions.size();
     auto position = [&](std::uint32_t v) { return glm::dvec3(mesh.positions[v]); };
     auto uv = [&](std::uint32_t v) { return glm::dvec2(mesh.uvs[v]); };
@@ -264,7 +306,7 @@ void computeTangentFrames(BaseMesh& mesh) {
     }
 
     // Seam copies of one texture point pool their sums (see tangentWeldTargets).
-    const std::vector<std::uint32_t> weldTarget = tangentWeldTargets(groupOf, mesh.uvs);
+    const std::vector<std::uint32_t> weldTarget = tangentWeldTargets(groupOf, mesh.uvs, uvSides);
     for (std::size_t v = 0; v < vertexCount; ++v) {
         const std::uint32_t target = weldTarget[v];
         if (target == v) continue;

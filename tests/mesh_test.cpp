@@ -12,6 +12,7 @@
 
 #include "common/error.h"
 #include "mesh/base_mesh.h"
+#include "mesh/detail_mesh.h"
 
 namespace distile {
 namespace {
@@ -533,6 +534,110 @@ TEST(LoadBaseMesh, EmptyOrUnknownFilesAreFormatErrors) {
     EXPECT_NE(message.find("accepted: .obj, .off, .ply"), std::string::npos) << message;
     const TempFile offWithoutUvs("nouv.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
     EXPECT_THROW(loadBaseMesh(offWithoutUvs.path()), FormatError);
+}
+
+}  // namespace
+}  // namespace distile
+
+namespace distile {
+namespace {
+
+TEST(TangentFrames, MirroredUvLayoutSplitsTheMirrorLineIntoTwoFrames) {
+    // Two unit quads side by side in the z = 0 plane, sharing the edge x = 1. The left quad maps
+    // u = x, the right one u = 2 - x (mirrored about x = 1): along the shared edge the two sides
+    // need opposite tangents, which one vertex cannot hold.
+    BaseMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 1, 0}, {1, 1, 0}, {2, 1, 0}};
+    mesh.uvs = {{0, 0}, {1, 0}, {0, 0}, {0, 1}, {1, 1}, {0, 1}};
+    mesh.triangles = {{0, 1, 4}, {0, 4, 3}, {1, 2, 5}, {1, 5, 4}};
+    computeTangentFrames(mesh);
+    // The two vertices on the mirror line are split: 6 + 2 vertices.
+    ASSERT_EQ(mesh.positions.size(), 8u);
+    for (const glm::uvec3& triangle : mesh.triangles) {
+        const bool right = mesh.positions[triangle[0]].x + mesh.positions[triangle[1]].x +
+                               mesh.positions[triangle[2]].x > 3.0f;
+        for (int corner = 0; corner < 3; ++corner) {
+            const glm::vec4 tangent = mesh.tangents[triangle[corner]];
+            // Exact: a flat quad's dP/du is +x on the left and -x on the right, v is +y on both.
+            EXPECT_NEAR(tangent.x, right ? -1.0f : 1.0f, 1e-6f);
+            EXPECT_NEAR(tangent.y, 0.0f, 1e-6f);
+            EXPECT_EQ(tangent.w, right ? -1.0f : 1.0f);
+            const glm::vec3 normal = mesh.normals[triangle[corner]];
+            EXPECT_NEAR(normal.z, 1.0f, 1e-6f);
+            // B = w cross(N, T) is +y on both sides: the detail is not flipped.
+            const glm::vec3 bitangent = tangent.w * glm::cross(normal, glm::vec3(tangent));
+            EXPECT_NEAR(bitangent.y, 1.0f, 1e-6f);
+        }
+    }
+}
+
+// ---- detail meshes (loadDetailMesh) ----------------------------------------------------------
+
+const std::string kTetrahedronObj =
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+/// Binary STL of the tetrahedron above; `dropBytes` cuts the end off.
+std::string tetrahedronBinaryStl(std::size_t dropBytes = 0) {
+    const float corners[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    const int faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    std::string bytes(80, ' ');
+    const std::uint32_t count = 4;
+    bytes.append(reinterpret_cast<const char*>(&count), 4);  // little-endian host (x86-64)
+    for (const auto& face : faces) {
+        const float normal[3] = {0, 0, 0};
+        bytes.append(reinterpret_cast<const char*>(normal), 12);
+        for (int c = 0; c < 3; ++c) bytes.append(reinterpret_cast<const char*>(corners[face[c]]), 12);
+        bytes.append(2, '\0');
+    }
+    bytes.resize(bytes.size() - dropBytes);
+    return bytes;
+}
+
+TEST(DetailMesh, ReadsObjOffPlyStl) {
+    const TempFile obj("tet.obj", kTetrahedronObj);
+    const TempFile off("tet.off", "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+    const TempFile ply("tet.ply",
+                       "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                       "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+                       "end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+    const TempFile stl("tet.stl", tetrahedronBinaryStl());
+    for (const TempFile* file : {&obj, &off, &ply, &stl}) {
+        const TriangleSoup soup = loadDetailMesh(file->path());
+        EXPECT_EQ(soup.positions.size(), 4u) << file->path();  // STL corners merged
+        EXPECT_EQ(soup.triangles.size(), 4u) << file->path();
+        const Bounds3 box = boundsOf(soup);
+        EXPECT_EQ(box.min, glm::dvec3(0.0)) << file->path();
+        EXPECT_EQ(box.max, glm::dvec3(1.0)) << file->path();
+    }
+}
+
+TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
+    const auto expectFormatError = [](const std::string& name, const std::string& contents,
+                                      const std::string& expectedPart) {
+        const TempFile file(name, contents);
+        const std::string message = messageOf<FormatError>([&] { loadDetailMesh(file.path()); });
+        EXPECT_NE(message.find(expectedPart), std::string::npos) << name << ": " << message;
+        EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    };
+    expectFormatError("nan.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "non-finite");
+    expectFormatError("inf.obj", "v inf 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "non-finite");
+    expectFormatError("empty.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "no faces");
+    expectFormatError("empty.stl", "", "binary STL");
+    expectFormatError("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "refers to vertex 7");
+    expectFormatError("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n", "invalid vertex index");
+    expectFormatError("truncated.stl", tetrahedronBinaryStl(30), "truncated");
+    expectFormatError("truncated.ply",
+                      "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
+                      "property float y\nproperty float z\nelement face 4\n"
+                      "property list uchar int vertex_indices\nend_header\n" + std::string(20, '\0'),
+                      "truncated");
+    expectFormatError("truncated_ascii.ply",
+                      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                      "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+                      "end_header\n0 0 0\n1 0 0\n", "truncated");
+    expectFormatError("huge.obj", "v -1e30 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n", "within +-1e+09");
+    expectFormatError("mesh.xyz", "", "unsupported mesh format");
+    EXPECT_THROW(loadDetailMesh(std::filesystem::temp_directory_path() / "no_such_detail.stl"), InputError);
 }
 
 }  // namespace
