@@ -2,12 +2,17 @@
 // tile, and the bake itself. Run: build/bin/distile_bench [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
 
+#include <cmath>
+#include <ctime>
 #include <random>
 #include <vector>
 
 #include <glm/geometric.hpp>
 
+#include "render/coverage.h"
+#include "render/demo_scene.h"
 #include "render/march.h"
+#include "render/renderer.h"
 #include "sampler/bake.h"
 #include "sampler/filters.h"
 
@@ -72,6 +77,200 @@ void bakeDefaultChainmail(benchmark::State& state) {
     for (auto _ : state) benchmark::DoNotOptimize(bakeChainmail(ChainmailOptions{}, BakeOptions{}).tile.size());
 }
 BENCHMARK(bakeDefaultChainmail)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+/// CPU seconds used by all threads of this process: steadier than wall time on a shared machine.
+double processCpuSeconds() {
+    timespec now{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &now);
+    return double(now.tv_sec) + 1e-9 * double(now.tv_nsec);
+}
+
+/// Ch. 17 acceptance on the demo scene at 640 x 512: one full-filter and one adaptive render per
+/// iteration (shadow maps at the default resolution, built in each render). Counters: shadow-map
+/// samples of each, their ratio, the CPU-time ratio full / adaptive (whole renders, map build
+/// and camera rays included), the same ratio of the shadow-map filtering alone (each render
+/// minus a render without maps, minus one map build), and the share of pixels whose 8-bit sRGB
+/// values differ by <= 2.
+void demoShadowFilters(benchmark::State& state) {
+    static const Scene scene = demoScene(std::make_shared<const Tile>(chainmailTile()));
+    RenderOptions options;
+    options.width = 640;
+    options.height = 512;
+    double fullSeconds = 0.0, adaptiveSeconds = 0.0, noMapSeconds = 0.0, buildSeconds = 0.0, closeShare = 0.0;
+    std::uint64_t fullSamples = 0, adaptiveSamples = 0;
+    auto srgb8 = [](float linear) { return int(std::lround(255.0f * srgbFromLinear(linear))); };
+    for (auto _ : state) {
+        options.shadowFilter = ShadowFilter::Full;
+        double start = processCpuSeconds();
+        const RenderResult full = renderScene(scene, options);
+        fullSeconds += processCpuSeconds() - start;
+        options.shadowFilter = ShadowFilter::Adaptive;
+        start = processCpuSeconds();
+        const RenderResult adaptive = renderScene(scene, options);
+        adaptiveSeconds += processCpuSeconds() - start;
+        options.shadowFilter = ShadowFilter::None;  // self-shadow rays stay on
+        start = processCpuSeconds();
+        benchmark::DoNotOptimize(renderScene(scene, options).stats.rays);
+        noMapSeconds += processCpuSeconds() - start;
+        start = processCpuSeconds();
+        const SceneTracer tracer(scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter});
+        benchmark::DoNotOptimize(ShadowMap(tracer, scene.lights[0]).width());
+        buildSeconds += processCpuSeconds() - start;
+        fullSamples = full.stats.shadowMapSamples;
+        adaptiveSamples = adaptive.stats.shadowMapSamples;
+        std::size_t close = 0;
+        for (std::size_t i = 0; i < full.image.rgbLinear.size(); ++i) {
+            int difference = 0;
+            for (int c = 0; c < 3; ++c) {
+                difference = std::max(difference, std::abs(srgb8(full.image.rgbLinear[i][c]) -
+                                                           srgb8(adaptive.image.rgbLinear[i][c])));
+            }
+            close += difference <= 2 ? 1 : 0;
+        }
+        closeShare = double(close) / double(full.image.rgbLinear.size());
+    }
+    state.counters["full samples"] = double(fullSamples);
+    state.counters["adaptive samples"] = double(adaptiveSamples);
+    state.counters["adaptive/full samples"] = double(adaptiveSamples) / double(std::max<std::uint64_t>(fullSamples, 1));
+    state.counters["full/adaptive time"] = fullSeconds / adaptiveSeconds;
+    state.counters["full/adaptive filter time"] =
+        (fullSeconds - noMapSeconds - buildSeconds) / (adaptiveSeconds - noMapSeconds - buildSeconds);
+    state.counters["map build s"] = buildSeconds / double(state.iterations());
+    state.counters["full s"] = fullSeconds / double(state.iterations());
+    state.counters["adaptive s"] = adaptiveSeconds / double(state.iterations());
+    state.counters["no map s"] = noMapSeconds / double(state.iterations());
+    state.counters["pixels within 2/255"] = closeShare;
+}
+BENCHMARK(demoShadowFilters)->Unit(benchmark::kSecond)->Iterations(1);
+
+/// The filter alone: shadow-map lookups on the demo's floor (a 128 x 128 grid over the 3 x 3
+/// world units around the torus, shadow and penumbra included), argument 0 Full, 1 Adaptive.
+/// Compare the two time/lookup figures of one run; samples/lookup is the work ratio.
+void demoShadowLookups(benchmark::State& state) {
+    static const Scene scene = demoScene(std::make_shared<const Tile>(chainmailTile()));
+    static const SceneTracer tracer(scene, TraceOptions{});
+    static const ShadowMap map(tracer, scene.lights[0]);
+    const ShadowFilter filter = state.range(0) == 0 ? ShadowFilter::Full : ShadowFilter::Adaptive;
+    std::vector<ShadowReceiver> receivers;
+    for (int y = 0; y < 128; ++y) {
+        for (int x = 0; x < 128; ++x) {
+            receivers.push_back({{-1.5f + 3.0f * (x + 0.5f) / 128.0f, -1.3f + 3.0f * (y + 0.5f) / 128.0f, 0.0f},
+                                 {0.0f, 0.0f, 1.0f}});
+        }
+    }
+    std::uint64_t samples = 0;
+    std::uint32_t index = 0;
+    for (auto _ : state) {
+        benchmark::DoNotOptimize(map.visibility(receivers[index & 0x3fff], filter, index, samples));
+        ++index;
+    }
+    state.SetItemsProcessed(state.iterations());
+    state.counters["samples/lookup"] = double(samples) / double(state.iterations());
+}
+BENCHMARK(demoShadowLookups)->Arg(0)->Arg(1);
+
+// Ch. 20: third-order filters on the same random points as sampleDistance. Compare
+// sampleDistance<TricubicBSplineFilter> (8 trilinear fetches) with tricubic64Tap (the plain sum),
+// and the gradients with trilinearGradient and trilinearCentralDifferences (6 trilinear samples,
+// the shading-normal competitor of the tricubic gradient).
+BENCHMARK(sampleDistance<TricubicBSplineFilter>);
+BENCHMARK(sampleDistance<CatmullRomFilter>);
+
+void tricubic64Tap(benchmark::State& state) {
+    const TricubicBSplineFilter filter(chainmailTile());
+    const auto points = randomPoints(1 << 16);
+    std::size_t i = 0;
+    for (auto _ : state) benchmark::DoNotOptimize(filter.distanceTexels64Tap(points[i++ & 0xffff]));
+    state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(tricubic64Tap);
+
+template <class Filter>
+void sampleGradient(benchmark::State& state) {
+    const Filter filter(chainmailTile());
+    const auto points = randomPoints(1 << 16);
+    std::size_t i = 0;
+    for (auto _ : state) benchmark::DoNotOptimize(filter.gradient(points[i++ & 0xffff]));
+    state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(sampleGradient<TricubicBSplineFilter>);
+BENCHMARK(sampleGradient<CatmullRomFilter>);
+
+void trilinearCentralDifferences(benchmark::State& state) {
+    const TrilinearFilter filter(chainmailTile());
+    const auto points = randomPoints(1 << 16);
+    std::size_t i = 0;
+    for (auto _ : state) {
+        const glm::vec3 p = points[i++ & 0xffff];
+        benchmark::DoNotOptimize(glm::vec3(
+            filter.distanceTexels(p + glm::vec3(1, 0, 0)) - filter.distanceTexels(p - glm::vec3(1, 0, 0)),
+            filter.distanceTexels(p + glm::vec3(0, 1, 0)) - filter.distanceTexels(p - glm::vec3(0, 1, 0)),
+            filter.distanceTexels(p + glm::vec3(0, 0, 1)) - filter.distanceTexels(p - glm::vec3(0, 0, 1))) * 0.5f);
+    }
+    state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(trilinearCentralDifferences);
+
+void tricubicHessian(benchmark::State& state) {
+    const TricubicBSplineFilter filter(chainmailTile());
+    const auto points = randomPoints(1 << 16);
+    std::size_t i = 0;
+    for (auto _ : state) benchmark::DoNotOptimize(filter.hessian(points[i++ & 0xffff]));
+    state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(tricubicHessian);
+
+
+/// Ch. 42 shell culling on the demo scene at 640 x 512 (the torus overlaps the floor's shells
+/// and its own back half): renders with and without culling (no shadows, so camera rays
+/// dominate), plus the same camera rays through the BVH path (SceneTracer::traceNearest) for
+/// reference. Counters: shells traced and march iterations of each, CPU seconds of each, and
+/// whether the two images are identical (1) as they must be.
+void demoShellCulling(benchmark::State& state) {
+    static const Scene scene = demoScene(std::make_shared<const Tile>(chainmailTile()));
+    RenderOptions options;
+    options.width = 640;
+    options.height = 512;
+    options.shadowFilter = ShadowFilter::None;
+    options.selfShadows = false;
+    double culledSeconds = 0.0, unculledSeconds = 0.0, bvhSeconds = 0.0;
+    RenderStats culled, unculled;
+    bool identical = true;
+    for (auto _ : state) {
+        options.shellCulling = true;
+        double start = processCpuSeconds();
+        const RenderResult withCulling = renderScene(scene, options);
+        culledSeconds += processCpuSeconds() - start;
+        options.shellCulling = false;
+        start = processCpuSeconds();
+        const RenderResult withoutCulling = renderScene(scene, options);
+        unculledSeconds += processCpuSeconds() - start;
+        start = processCpuSeconds();
+        const SceneTracer tracer(scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter});
+        const PinholeProjection projection(scene.camera, options.width, options.height);
+        TraceCounters counters;
+        for (int y = 0; y < options.height; ++y) {
+            for (int x = 0; x < options.width; ++x) {
+                SurfaceHit hit;
+                benchmark::DoNotOptimize(tracer.traceNearest(projection.ray(x + 0.5f, y + 0.5f), 0.0f, hit, counters));
+            }
+        }
+        bvhSeconds += processCpuSeconds() - start;
+        culled = withCulling.stats;
+        unculled = withoutCulling.stats;
+        identical = identical && withCulling.image.rgbLinear == withoutCulling.image.rgbLinear;
+    }
+    const double iterations = double(state.iterations());
+    state.counters["culled shells traced"] = double(culled.shellsTraced);
+    state.counters["unculled shells traced"] = double(unculled.shellsTraced);
+    state.counters["culled march steps"] = double(culled.marchIterations);
+    state.counters["unculled march steps"] = double(unculled.marchIterations);
+    state.counters["culled s"] = culledSeconds / iterations;
+    state.counters["unculled s"] = unculledSeconds / iterations;
+    state.counters["bvh camera rays s"] = bvhSeconds / iterations;
+    state.counters["identical"] = identical ? 1.0 : 0.0;
+}
+BENCHMARK(demoShellCulling)->Unit(benchmark::kSecond)->Iterations(1);
 
 }  // namespace
 }  // namespace distile

@@ -3,13 +3,20 @@
 #include <cstdio>
 #include <memory>
 #include <optional>
+#include <random>
+#include <set>
+#include <sstream>
+#include <utility>
 
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "cli/progress_bar.h"
 #include "common/error.h"
+#include "mesh/detail_mesh.h"
 #include "sampler/bake.h"
+#include "sampler/height_image.h"
 #include "sampler/tile_io.h"
+#include "truth/mesh_truth.h"
 
 namespace distile::cli {
 
@@ -19,34 +26,216 @@ namespace {
 
 struct BakeArguments {
     std::string detail;
+    fs::path input;  ///< mesh or height map file
     fs::path output;
     std::string size = "256x256x16";
     fs::path vdbOutput;
     bool half = false;
     float halfBandTexels = 0.0f;
     ChainmailOptions chainmail;
+    std::string weave = "european4in1";
+    GratingOptions grating;
+    fs::path png8Output;
+    fs::path png16Output;
+    std::string repeat;
+    bool exactTexels = false;
+    /// Chain-mail options given on the command line (the others take the weave's defaults).
+    std::set<std::string> chainmailGiven;
+    bool fit = false;  ///< --fit given (it is also the default placement)
+    std::optional<double> meshScale;
+    std::vector<double> meshOffset;
+    double heightTexels = 0.0;
 };
 
-void runBake(const BakeArguments& arguments) {
-    if (arguments.detail != "chainmail") {
-        throw InputError("bake: '" + arguments.detail + "' is not a known detail; accepted: chainmail");
+/// How `bake mesh` places the mesh: --fit (default) or --scale/--offset.
+MeshPlacement meshPlacement(const BakeArguments& arguments) {
+    MeshPlacement placement;
+    const bool explicitPlacement = arguments.meshScale || !arguments.meshOffset.empty();
+    if (arguments.fit && explicitPlacement) {
+        throw InputError("--fit: cannot be combined with --scale/--offset; give one placement");
     }
+    if (!explicitPlacement) return placement;
+    placement.fit = false;
+    placement.scale = arguments.meshScale.value_or(1.0);
+    if (!arguments.meshOffset.empty()) {
+        if (arguments.meshOffset.size() != 3) throw InputError("--offset: give three numbers X,Y,Z (texels)");
+        placement.offsetTexels = {arguments.meshOffset[0], arguments.meshOffset[1], arguments.meshOffset[2]};
+    }
+    return placement;
+}
+
+/// Number of voxels whose sign `bake mesh` verifies against the exact inside test.
+constexpr int kSignCheckVoxels = 10000;
+/// Voxels nearer the surface than this (texels) are skipped by the check: there OpenVDB's inside
+/// test is approximate (the bake takes their sign from the exact test anyway).
+constexpr double kSignCheckSkipTexels = 0.1;
+
+/// `bake mesh FILE`: load, refuse meshes that have no inside, bake with exact signs near the
+/// surface, verify the sign at kSignCheckVoxels voxels. Throws before anything is written.
+BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& options, ProgressBar& progress) {
+    const std::string file = arguments.input.string();
+    const TriangleSoup mesh = loadDetailMesh(arguments.input);
+    const MeshTopology topology = inspectMesh(mesh);
+    if (!topology.closed || !topology.manifold) {
+        std::ostringstream message;
+        message << file << ": the mesh is ";
+        if (!topology.closed) message << "open (" << topology.boundaryEdges << " boundary edges)";
+        if (!topology.closed && !topology.manifold) message << " and ";
+        if (!topology.manifold) message << "non-manifold or not orientable";
+        message << "; bake mesh accepts closed, manifold triangle meshes (a solid with an inside)";
+        throw InputError(message.str());
+    }
+    if (topology.degenerateFaces > 0) {
+        std::fprintf(stderr, "distile: warning: %s: %zu degenerate (zero-area) faces\n", file.c_str(),
+                     topology.degenerateFaces);
+    }
+    if (topology.selfIntersecting) {
+        std::fprintf(stderr, "distile: warning: %s: the mesh intersects itself; inside is where the exact test says\n",
+                     file.c_str());
+    }
+    const MeshPlacement placement = meshPlacement(arguments);
+    const TriangleSoup placed = placeMesh(mesh, placement, options.size);
+    const MeshDistance truth(placed, MeshDistance::Periodic{options.size});
+    if (!truth.hasSign()) {
+        throw InputError(file + ": the mesh has no inside (CGAL could not close it); bake mesh accepts closed, "
+                                "manifold triangle meshes");
+    }
+    BakeResult result = bakeMesh(mesh, placement, options, std::ref(progress),
+                                 [&truth](const glm::dvec3& p) { return truth.isInside(p); });
+
+    // Verify the sign at random voxels of the footprint against the exact inside test.
+    const Size3& size = options.size;
+    std::mt19937 random(20240603u);
+    std::uniform_int_distribution<int> pickX(0, size.width - 1), pickY(0, size.height - 1), pickZ(0, size.depth - 1);
+    int checked = 0, wrong = 0;
+    glm::dvec3 firstWrong(0.0);
+    for (int n = 0; n < kSignCheckVoxels; ++n) {
+        const int x = pickX(random), y = pickY(random), z = pickZ(random);
+        const glm::dvec3 centre(x + 0.5, y + 0.5, z + 0.5);
+        if (truth.unsignedDistance(centre) < kSignCheckSkipTexels) continue;
+        ++checked;
+        const bool bakedInside = result.levelSet.voxelDistanceTexels(x, y, z) < 0.0f;
+        if (bakedInside != truth.isInside(centre)) {
+            if (wrong++ == 0) firstWrong = centre;
+        }
+    }
+    if (wrong > 0) {
+        std::ostringstream message;
+        message << file << ": sign verification failed: " << wrong << " of " << checked
+                << " voxels have the wrong sign against the exact inside test (first at texel " << firstWrong.x
+                << ", " << firstWrong.y << ", " << firstWrong.z << "); nothing written";
+        throw std::runtime_error(message.str());
+    }
+    std::printf("%s: %zu triangles, closed and manifold; sign verified at %d voxels\n", file.c_str(),
+                mesh.triangles.size(), checked);
+    return result;
+}
+
+/// "NxM" -> (N, M) for --repeat; the level set checks the range.
+std::pair<int, int> parseRepeat(const std::string& text) {
+    int x = 0, y = 0;
+    char separator = 0;
+    std::string rest;
+    std::istringstream in(text);
+    if (!(in >> x >> separator >> y) || separator != 'x' || (in >> rest) || x < 1 || x > 64 || y < 1 || y > 64) {
+        throw InputError("--repeat: '" + text + "' is not accepted; write NxM with N and M in [1, 64], e.g. 2x2");
+    }
+    return {x, y};
+}
+
+/// The procedural pattern the arguments describe (chain mail of the chosen weave, or grating).
+ProceduralOptions proceduralOptions(const BakeArguments& arguments) {
+    ProceduralOptions procedural;
+    if (arguments.detail == "grating") {
+        procedural.kind = ProceduralKind::Grating;
+        procedural.grating = arguments.grating;
+        return procedural;
+    }
+    procedural.kind = ProceduralKind::Chainmail;
+    procedural.chainmail = arguments.chainmail;
+    if (arguments.weave == "japanese4in1") {
+        // Options not given take the Japanese weave's defaults.
+        ChainmailOptions& chainmail = procedural.chainmail;
+        const ChainmailOptions defaults = japanese4in1Defaults();
+        auto given = [&](const char* name) { return arguments.chainmailGiven.count(name) > 0; };
+        chainmail.weave = ChainmailWeave::Japanese4in1;
+        if (!given("--rings-per-row")) chainmail.ringsPerRow = defaults.ringsPerRow;
+        if (!given("--rows")) chainmail.rowsPerTile = defaults.rowsPerTile;
+        if (!given("--ring-radius")) chainmail.ringRadiusSpacings = defaults.ringRadiusSpacings;
+        if (!given("--wire-radius")) chainmail.wireRadiusSpacings = defaults.wireRadiusSpacings;
+        if (!given("--tilt")) chainmail.tiltDeg = defaults.tiltDeg;
+        if (!given("--small-ring-radius")) chainmail.smallRingRadiusSpacings = defaults.smallRingRadiusSpacings;
+        if (!given("--small-wire-radius")) chainmail.smallWireRadiusSpacings = defaults.smallWireRadiusSpacings;
+    } else if (arguments.weave != "european4in1") {
+        throw InputError("--weave: '" + arguments.weave + "' is not accepted; accepted: european4in1, japanese4in1");
+    }
+    return procedural;
+}
+
+void runBake(const BakeArguments& arguments) {
+    const bool fromFile = arguments.detail == "mesh" || arguments.detail == "heightmap";
+    if (arguments.detail != "chainmail" && arguments.detail != "grating" && !fromFile) {
+        throw InputError("bake: '" + arguments.detail +
+                         "' is not a known detail; accepted: chainmail, grating, mesh FILE, heightmap IMAGE");
+    }
+    if (fromFile && arguments.input.empty()) {
+        throw InputError("bake " + arguments.detail + ": needs the input file, e.g. `distile bake " +
+                         arguments.detail + (arguments.detail == "mesh" ? " ring.obj" : " stones.png") + " -o tile.exr`");
+    }
+    if (!fromFile && !arguments.input.empty()) {
+        throw InputError("bake " + arguments.detail + ": takes no input file ('" + arguments.input.string() + "')");
+    }
+    const ProceduralOptions procedural = fromFile ? ProceduralOptions() : proceduralOptions(arguments);
     BakeOptions options;
     options.size = parseSize(arguments.size, "--size");
     options.halfBandTexels = arguments.halfBandTexels;
     requireOutput(arguments.output, "-o", {".exr"});
     if (!arguments.vdbOutput.empty()) requireOutput(arguments.vdbOutput, "--vdb", {".vdb"});
+    if (!arguments.png8Output.empty()) requireOutput(arguments.png8Output, "--png8", {".png"});
+    if (!arguments.png16Output.empty()) requireOutput(arguments.png16Output, "--png16", {".png"});
+    std::pair<int, int> repeat{1, 1};
+    if (!arguments.repeat.empty()) {
+        if (arguments.vdbOutput.empty()) throw InputError("--repeat: needs --vdb FILE (it tiles the level set written there)");
+        repeat = parseRepeat(arguments.repeat);
+    }
+    options.conservative.enabled = !arguments.exactTexels;
 
     const auto start = std::chrono::steady_clock::now();
     std::optional<BakeResult> result;
     {
         ProgressBar progress("bake " + arguments.detail + " " + toString(options.size));
-        result.emplace(bakeChainmail(arguments.chainmail, options, std::ref(progress)));
+        if (arguments.detail == "mesh") {
+            result.emplace(bakeMeshFile(arguments, options, progress));
+        } else if (arguments.detail == "heightmap") {
+            const HeightImage image = readHeightImage(arguments.input);
+            HeightMapOptions heightMap;
+            heightMap.heightTexels = arguments.heightTexels;
+            result.emplace(bakeHeightMap(image, heightMap, options, std::ref(progress)));
+        } else {
+            result.emplace(bakeProcedural(procedural, options, std::ref(progress)));
+        }
     }
+    // The repeated level set is built before anything is written: a refused --repeat leaves no file.
+    std::optional<LevelSet> repeatedLevelSet;
+    if (repeat.first > 1 || repeat.second > 1) repeatedLevelSet.emplace(result->levelSet.repeated(repeat.first, repeat.second));
     writeTileExr(result->tile, arguments.output, arguments.half ? TileStorage::Half16 : TileStorage::Float32);
     std::printf("tile %s (%s, %s) written to %s\n", toString(options.size).c_str(), arguments.detail.c_str(),
                 arguments.half ? "half" : "float", arguments.output.c_str());
-    if (!arguments.vdbOutput.empty()) {
+    if (!arguments.png8Output.empty()) {
+        writeTilePng(result->tile, arguments.png8Output, 8);
+        std::printf("8-bit PNG atlas written to %s\n", arguments.png8Output.c_str());
+    }
+    if (!arguments.png16Output.empty()) {
+        writeTilePng(result->tile, arguments.png16Output, 16);
+        std::printf("16-bit PNG atlas written to %s\n", arguments.png16Output.c_str());
+    }
+    if (repeatedLevelSet) {
+        const LevelSet& repeated = *repeatedLevelSet;
+        repeated.save(arguments.vdbOutput);
+        std::printf("level set tiled %dx%d (%s texels, %zu active voxels) written to %s\n", repeat.first,
+                    repeat.second, toString(repeated.tileSize()).c_str(), repeated.activeVoxelCount(),
+                    arguments.vdbOutput.c_str());
+    } else if (!arguments.vdbOutput.empty()) {
         result->levelSet.save(arguments.vdbOutput);
         std::printf("level set (%zu active voxels, half band %.1f texels) written to %s\n",
                     result->levelSet.activeVoxelCount(), result->levelSet.halfBandTexels(),
@@ -62,7 +251,9 @@ void addBakeCommand(CLI::App& app) {
     auto arguments = std::make_shared<BakeArguments>();
     CLI::App* command = app.add_subcommand(
         "bake", "Bake detail into a distance tile (EXR atlas) and optionally its level set (.vdb)");
-    command->add_option("detail", arguments->detail, "What to bake: chainmail")->required();
+    command->add_option("detail", arguments->detail, "What to bake: chainmail, grating, mesh FILE, heightmap IMAGE")
+        ->required();
+    command->add_option("input", arguments->input, "mesh: the detail mesh (OBJ, PLY, OFF, STL); heightmap: the image");
     command->add_option("-o,--output", arguments->output, "Tile file to write (.exr)")->required();
     command->add_option("--size", arguments->size, "Tile size WxHxD in texels")->capture_default_str();
     command->add_option("--vdb", arguments->vdbOutput, "Also write the narrow-band level set (.vdb, texel units)");
@@ -79,7 +270,53 @@ void addBakeCommand(CLI::App& app) {
     chainmail->add_option("--wire-radius", arguments->chainmail.wireRadiusSpacings, "Wire radius, in ring spacings")
         ->capture_default_str();
     chainmail->add_option("--tilt", arguments->chainmail.tiltDeg, "Ring tilt about y, degrees")->capture_default_str();
-    command->callback([arguments] { runBake(*arguments); });
+    chainmail->add_option("--weave", arguments->weave, "european4in1 or japanese4in1 (its own defaults)")
+        ->capture_default_str();
+    chainmail->add_option("--small-ring-radius", arguments->chainmail.smallRingRadiusSpacings,
+                          "Japanese 4-in-1: small ring radius, in ring spacings");
+    chainmail->add_option("--small-wire-radius", arguments->chainmail.smallWireRadiusSpacings,
+                          "Japanese 4-in-1: small ring wire radius, in ring spacings");
+    auto* grating = command->add_option_group("grating", "Grating: two layers of bars with rounded edges");
+    grating->add_option("--bars", arguments->grating.barsPerTile, "Bars per layer across the tile")->capture_default_str();
+    grating->add_option("--bar-width", arguments->grating.barWidthTexels, "Bar width, texels")->capture_default_str();
+    grating->add_option("--bar-height", arguments->grating.barHeightTexels, "Bar thickness, texels")->capture_default_str();
+    grating->add_option("--edge-radius", arguments->grating.edgeRadiusTexels, "Rounding of the bar edges, texels")
+        ->capture_default_str();
+    grating->add_option("--layer-gap", arguments->grating.layerGapTexels, "Gap between the two layers, texels")
+        ->capture_default_str();
+    command->add_option("--png8", arguments->png8Output, "Also write an 8-bit PNG atlas (distance / depth, ch. 8)");
+    command->add_option("--png16", arguments->png16Output, "Also write a 16-bit PNG atlas (distance / depth, ch. 8)");
+    command->add_option("--repeat", arguments->repeat, "Write the --vdb level set tiled NxM (world units = texels)");
+    auto* mesh = command->add_option_group(
+        "mesh",
+        "bake mesh FILE: a closed, manifold triangle mesh (OBJ, PLY, OFF, STL; open or non-manifold meshes are "
+        "refused). Placement in texel space (x, y in [0,W) x [0,H), z = 0 the floor, z = D the top): by default "
+        "(--fit) the mesh is scaled uniformly so its x/y bounding box spans the tile footprint (the axis with the "
+        "larger extent relative to W or H spans it exactly), centred in x and y, its lowest point on the floor; give "
+        "a repeating mesh its period as its x/y bounding box. With --scale/--offset: texel = S * file position + "
+        "(X, Y, Z). The tile is periodic: parts beyond the footprint continue on the other side. The sign is checked "
+        "against an exact inside test (CGAL) before anything is written");
+    mesh->add_flag("--fit", arguments->fit, "Fit the x/y bounding box to the footprint, floor at z = 0 (the default)");
+    mesh->add_option("--scale", arguments->meshScale, "Explicit placement: texels per file unit S (> 0)");
+    mesh->add_option("--offset", arguments->meshOffset, "Explicit placement: where the file's origin goes, X,Y,Z texels")
+        ->expected(3)
+        ->delimiter(',');
+    auto* heightmap = command->add_option_group(
+        "heightmap",
+        "bake heightmap IMAGE: an 8/16-bit PNG or an EXR read as grey, values in [0,1] mapped to heights "
+        "0..--height-texels; the image is stretched over the footprint (any size, sampled periodically and "
+        "bilinearly at the texel columns); material is solid below the surface");
+    heightmap->add_option("--height-texels", arguments->heightTexels,
+                          "Height of image value 1, texels, in (0, D] (default: D - 1)");
+    command->add_flag("--exact-texels", arguments->exactTexels,
+                      "Keep the exact distances at texel centres (no conservative lowering; trilinear may overestimate)");
+    command->callback([arguments, command] {
+        for (const char* name : {"--rings-per-row", "--rows", "--ring-radius", "--wire-radius", "--tilt",
+                                 "--small-ring-radius", "--small-wire-radius"}) {
+            if (command->count(name) > 0) arguments->chainmailGiven.insert(name);
+        }
+        runBake(*arguments);
+    });
 }
 
 }  // namespace distile::cli

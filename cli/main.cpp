@@ -35,6 +35,7 @@ int run(int argc, char** argv) {
     });
     distile::cli::addBakeCommand(app);
     distile::cli::addRenderCommand(app);
+    distile::cli::addCheckCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::Success& success) {  // --help, --version

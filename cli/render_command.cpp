@@ -25,6 +25,7 @@ struct RenderArguments {
     std::optional<int> samplesPerPixel;
     RenderOptions options;
     bool noShadows = false;
+    bool noShellCulling = false;
 };
 
 /// "out.png" + "depth" -> "out.depth.exr" (AOVs beside the image).
@@ -40,7 +41,10 @@ void runRender(RenderArguments arguments) {
     options.width = arguments.width.value_or(sceneFile.image.width);
     options.height = arguments.height.value_or(sceneFile.image.height);
     options.samplesPerPixel = arguments.samplesPerPixel.value_or(sceneFile.image.samplesPerPixel);
-    options.selfShadows = !arguments.noShadows;
+    // --no-shadows is --shadows none: neither shadow maps nor self-shadow rays.
+    if (arguments.noShadows) options.shadowFilter = ShadowFilter::None;
+    options.shellCulling = !arguments.noShellCulling;
+    options.selfShadows = options.shadowFilter != ShadowFilter::None;
 
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;
@@ -55,6 +59,8 @@ void runRender(RenderArguments arguments) {
         writeImage(result.aovs->normal, aovPath(arguments.output, "normal", ".png"));
         writeImage(result.aovs->iterations, aovPath(arguments.output, "iterations", ".png"));
         writeImage(result.aovs->shadowSamples, aovPath(arguments.output, "shadow_samples", ".png"));
+        writeImage(result.aovs->shadowMapSamples, aovPath(arguments.output, "shadow_map_samples", ".png"));
+        writeImage(result.aovs->curvature, aovPath(arguments.output, "curvature", ".png"));
     }
     const RenderStats& stats = result.stats;
     std::printf("rendered %s (%dx%d, %d spp) in %.2f s: %llu rays, %.1f%% hit a surface, mean %.2f iterations, "
@@ -64,11 +70,21 @@ void runRender(RenderArguments arguments) {
                 stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0, stats.meanIterations(),
                 stats.baseHits ? 100.0 * double(stats.converged) / double(stats.baseHits) : 0.0,
                 options.maxIterations);
+    std::printf("shells: %llu coverage tests, %llu traced (%.2f per ray), culling %s\n",
+                static_cast<unsigned long long>(stats.shellsTested), static_cast<unsigned long long>(stats.shellsTraced),
+                stats.rays ? double(stats.shellsTraced) / double(stats.rays) : 0.0, options.shellCulling ? "on" : "off");
+    if (options.shadowFilter != ShadowFilter::None) {
+        std::printf("shadow maps: %llu samples (%.1f per surface hit)\n",
+                    static_cast<unsigned long long>(stats.shadowMapSamples),
+                    stats.baseHits ? double(stats.shadowMapSamples) / double(stats.baseHits) : 0.0);
+    }
     if (result.aovs) {
-        std::printf("AOVs written beside it: %s, %s, %s, %s\n", aovPath(arguments.output, "depth", ".exr").c_str(),
+        std::printf("AOVs written beside it: %s, %s, %s, %s, %s, %s\n", aovPath(arguments.output, "depth", ".exr").c_str(),
                     aovPath(arguments.output, "normal", ".png").c_str(),
                     aovPath(arguments.output, "iterations", ".png").c_str(),
-                    aovPath(arguments.output, "shadow_samples", ".png").c_str());
+                    aovPath(arguments.output, "shadow_samples", ".png").c_str(),
+                    aovPath(arguments.output, "shadow_map_samples", ".png").c_str(),
+                    aovPath(arguments.output, "curvature", ".png").c_str());
     }
     std::printf("image written to %s\n", fs::absolute(arguments.output).c_str());
 }
@@ -92,13 +108,31 @@ void addRenderCommand(CLI::App& app) {
         ->check(CLI::Range(1, 4096));
     command->add_option("--epsilon", arguments->options.epsilonTexels, "Hit threshold in texels")->capture_default_str();
     const std::map<std::string, FilterKind> filters{{"nearest", FilterKind::Nearest},
-                                                    {"trilinear", FilterKind::Trilinear}};
+                                                    {"trilinear", FilterKind::Trilinear},
+                                                    {"tricubic", FilterKind::TricubicBSpline},
+                                                    {"catmullrom", FilterKind::CatmullRom}};
     command->add_option("--filter", arguments->options.filter, "Tile reconstruction filter")
         ->transform(CLI::CheckedTransformer(filters, CLI::ignore_case))
         ->default_str("trilinear");
-    command->add_flag("--no-shadows", arguments->noShadows, "Skip self-shadow rays");
+    command->add_option("--normal-filter", arguments->options.normalFilter,
+                        "Filter whose gradient gives the shading normal (same names as --filter)")
+        ->transform(CLI::CheckedTransformer(filters, CLI::ignore_case))
+        ->default_str("tricubic");
+    const std::map<std::string, ShadowFilter> shadowFilters{
+        {"none", ShadowFilter::None}, {"full", ShadowFilter::Full}, {"adaptive", ShadowFilter::Adaptive}};
+    CLI::Option* shadows =
+        command
+            ->add_option("--shadows", arguments->options.shadowFilter,
+                         "Shadows: none (no shadow maps, no self-shadow rays), full (64-sample soft shadow "
+                         "maps everywhere) or adaptive (8 test samples first, 64 only in penumbrae)")
+            ->transform(CLI::CheckedTransformer(shadowFilters, CLI::ignore_case))
+            ->default_str("adaptive");
+    command->add_flag("--no-shadows", arguments->noShadows, "Same as --shadows none")->excludes(shadows);
+    command->add_flag("--no-shell-culling", arguments->noShellCulling,
+                      "Trace every detail shell under a pixel, not only those that may be nearer than the best hit "
+                      "(same image, more work)");
     command->add_flag("--aovs", arguments->options.outputAovs,
-                      "Also write depth (.exr), normal, iteration and shadow-sample heat maps beside the image");
+                      "Also write depth (.exr), normal, iteration, shadow-sample and curvature heat maps beside the image");
     command->callback([arguments] { runRender(*arguments); });
 }
 

@@ -9,6 +9,7 @@
 
 #include "common/error.h"
 #include "mesh/base_mesh.h"
+#include "render/demo_scene.h"
 #include "sampler/bake.h"
 #include "sampler/tile_io.h"
 
@@ -277,32 +278,8 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
 SceneFile demoScene(TileCache& tiles) {
     auto key = std::string("bake:demo-chainmail");
     if (!tiles.count(key)) tiles[key] = std::make_shared<const Tile>(bakeChainmail({}, {}).tile);
-    const std::shared_ptr<const Tile> chainmail = tiles[key];
-    // Texels are cubes when depth = (world size of one tile) * D / W.
-    auto cubicDepth = [&](float tileWorldSize) {
-        return tileWorldSize * float(chainmail->size().depth) / float(chainmail->size().width);
-    };
-
     SceneFile demo;
-    Scene& scene = demo.scene;
-    scene.camera = {{0.0f, -3.4f, 2.3f}, {0.0f, 0.1f, 0.25f}, {0.0f, 0.0f, 1.0f}, 38.0f};
-    scene.lights = {DirectionalLight{{-0.45f, 0.35f, -1.0f}, {1.0f, 0.97f, 0.92f}, 3.0f}};
-
-    SceneObject floor;
-    floor.mesh = makePlane(4.0f, 1);
-    floor.material = {chainmail, {4.0f, 4.0f}, cubicDepth(1.0f), Floor::Solid, {0.62f, 0.63f, 0.66f}};
-    scene.objects.push_back(std::move(floor));
-
-    SceneObject torus;
-    const float majorRadius = 0.75f;
-    const float minorRadius = 0.32f;
-    torus.mesh = makeTorus(majorRadius, minorRadius, 192, 64);
-    applyTransform(torus.mesh, {{0.0f, 0.2f, minorRadius + 0.02f}, {0.0f, 0.0f, 0.0f}, 1.0f});
-    // 10 tiles around, 4 around the tube: tiles of about 0.5 world units on the tube's crown.
-    const glm::vec2 uvScale(10.0f, 4.0f);
-    torus.material = {chainmail, uvScale, cubicDepth(2.0f * 3.14159265f * minorRadius / uvScale.y), Floor::Solid,
-                      {0.85f, 0.72f, 0.45f}};
-    scene.objects.push_back(std::move(torus));
+    demo.scene = distile::demoScene(tiles[key]);
     return demo;
 }
 

@@ -10,6 +10,8 @@ find_package(OpenVDB REQUIRED)
 
 # CGAL's CMake modules include a FindOpenMesh that would shadow OpenMesh's own config.
 find_package(OpenMesh CONFIG REQUIRED)
+# CGAL (header-only) serves the ground truth in truth/ only.
+find_package(CGAL CONFIG REQUIRED)
 
 # OpenImageIO 2.4's exported target lists /usr/include/opencv4 as an include folder even though
 # nothing in its public headers needs OpenCV; CMake refuses to generate when the folder is missing.

@@ -19,6 +19,7 @@
 
 #include "common/error.h"
 #include "mesh/base_mesh.h"
+#include "mesh/detail_mesh.h"
 
 namespace distile {
 namespace {
@@ -56,7 +57,9 @@ struct ObjFacts {
 /// makes its stream parsing fail and then indexes past the vertex array; an out-of-range
 /// vertex index drops the face with only a log line. So every line that matters is checked
 /// here first, with OBJ's rules (1-based indices, negative = relative to the end so far).
-ObjFacts checkObjFile(const std::filesystem::path& file) {
+/// `requireUvs` false (detail meshes): corners without `vt` and files without any are fine;
+/// `vt` indices that are given must still be in range.
+ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true) {
     std::ifstream in(file, std::ios::binary);
     if (!in) throw InputError(file.string() + ": cannot open for reading");
     const std::string name = file.string();
@@ -131,6 +134,7 @@ ObjFacts checkObjFile(const std::filesystem::path& file) {
                 };
                 vertices.push_back(resolve(vertexText, positionCount, "vertex"));
                 if (uvText.empty()) {
+                    if (!requireUvs) continue;
                     // Reported at the end: a file without any vt gets the plainer message.
                     if (cornerWithoutUv.empty()) {
                         cornerWithoutUv = where + "face corner '" + std::string(corner) +
@@ -147,6 +151,7 @@ ObjFacts checkObjFile(const std::filesystem::path& file) {
         }
     }
     if (in.bad()) throw InputError(name + ": read error");
+    if (!requireUvs) return facts;
     if (uvCount == 0) {
         throw FormatError(name + ": has no texture coordinates (vt lines); base meshes need UVs");
     }
@@ -296,6 +301,198 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file) {
     }
     computeTangentFrames(mesh);
     return mesh;
+}
+
+namespace {
+
+/// Binary STL: 80-byte header, uint32 triangle count, 50 bytes per triangle. ASCII STL starts
+/// with "solid" and is a text file; a binary file whose header happens to start with "solid" is
+/// recognised by its exact size. Checks the size of binary files and the numbers of ASCII
+/// `vertex` lines.
+void checkStlFile(const std::filesystem::path& file) {
+    const std::string name = file.string();
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw InputError(name + ": cannot open for reading");
+    const std::uintmax_t size = std::filesystem::file_size(file);
+    char header[84] = {};
+    in.read(header, sizeof header);
+    const bool startsWithSolid = in.gcount() >= 5 && std::string_view(header, 5) == "solid";
+    std::uint32_t count = 0;
+    if (in.gcount() == 84) {
+        const auto* bytes = reinterpret_cast<const unsigned char*>(header + 80);
+        count = std::uint32_t(bytes[0]) | std::uint32_t(bytes[1]) << 8 |
+                std::uint32_t(bytes[2]) << 16 | std::uint32_t(bytes[3]) << 24;
+    }
+    const std::uintmax_t binarySize = 84 + 50 * std::uintmax_t(count);
+    if (in.gcount() == 84 && size == binarySize) return;  // a complete binary STL
+    if (!startsWithSolid) {
+        throw FormatError(name + ": binary STL of " + std::to_string(size) + " bytes, but its " +
+                          "header promises " + std::to_string(count) + " triangles (" +
+                          std::to_string(binarySize) + " bytes); the file is truncated or corrupted");
+    }
+    in.clear();
+    in.seekg(0);
+    std::string line;
+    for (std::size_t lineNumber = 1; std::getline(in, line); ++lineNumber) {
+        const std::vector<std::string_view> tokens = splitWhitespace(line);
+        if (tokens.empty() || tokens[0] != "vertex") continue;
+        if (tokens.size() != 4) {
+            throw FormatError(name + ": line " + std::to_string(lineNumber) +
+                              ": vertex needs 3 numbers");
+        }
+        for (std::size_t k = 1; k < 4; ++k) {
+            const std::string token(tokens[k]);
+            char* end = nullptr;
+            const double value = std::strtod(token.c_str(), &end);
+            if (end != token.c_str() + token.size() || !std::isfinite(value)) {
+                throw FormatError(name + ": line " + std::to_string(lineNumber) + ": '" + token +
+                                  "' is not a finite number");
+            }
+        }
+    }
+}
+
+/// PLY: compares the data after `end_header` with what the header's elements promise: for
+/// binary files at least the bytes of their fixed-size properties (lists counted with their
+/// count field plus three entries, the least a face has), for ASCII files one line per element.
+void checkPlyFile(const std::filesystem::path& file) {
+    const std::string name = file.string();
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw InputError(name + ": cannot open for reading");
+    const auto typeBytes = [&](std::string_view type) -> std::uintmax_t {
+        if (type == "char" || type == "uchar" || type == "int8" || type == "uint8") return 1;
+        if (type == "short" || type == "ushort" || type == "int16" || type == "uint16") return 2;
+        if (type == "int" || type == "uint" || type == "int32" || type == "uint32" ||
+            type == "float" || type == "float32") {
+            return 4;
+        }
+        if (type == "double" || type == "float64") return 8;
+        throw FormatError(name + ": PLY property type '" + std::string(type) + "' is unknown");
+    };
+    std::string line;
+    std::getline(in, line);
+    if (line.rfind("ply", 0) != 0) throw FormatError(name + ": does not start with 'ply'");
+    bool ascii = false;
+    std::uintmax_t elementCount = 0;     // all elements
+    std::uintmax_t minimumBytes = 0;     // binary data the header promises at least
+    std::uintmax_t currentCount = 0;
+    bool headerEnded = false;
+    while (std::getline(in, line)) {
+        const std::vector<std::string_view> tokens = splitWhitespace(line);
+        if (tokens.empty()) continue;
+        if (tokens[0] == "end_header") {
+            headerEnded = true;
+            break;
+        }
+        if (tokens[0] == "format" && tokens.size() >= 2) ascii = tokens[1] == "ascii";
+        if (tokens[0] == "element" && tokens.size() >= 3) {
+            currentCount = 0;
+            const auto [end, error] = std::from_chars(
+                tokens[2].data(), tokens[2].data() + tokens[2].size(), currentCount);
+            if (error != std::errc() || end != tokens[2].data() + tokens[2].size()) {
+                throw FormatError(name + ": PLY element count '" + std::string(tokens[2]) +
+                                  "' is not a number");
+            }
+            elementCount += currentCount;
+        }
+        if (tokens[0] == "property" && tokens.size() >= 3) {
+            const std::uintmax_t bytes = tokens[1] == "list" && tokens.size() >= 5
+                                             ? typeBytes(tokens[2]) + 3 * typeBytes(tokens[3])
+                                             : typeBytes(tokens[1]);
+            minimumBytes += bytes * currentCount;
+        }
+    }
+    if (!headerEnded) throw FormatError(name + ": PLY header has no end_header");
+    const std::uintmax_t dataStart = std::uintmax_t(in.tellg());
+    const std::uintmax_t size = std::filesystem::file_size(file);
+    if (!ascii) {
+        if (size - dataStart < minimumBytes) {
+            throw FormatError(name + ": PLY header promises " + std::to_string(elementCount) +
+                              " elements (at least " + std::to_string(minimumBytes) +
+                              " bytes) but only " + std::to_string(size - dataStart) +
+                              " bytes follow it; the file is truncated");
+        }
+        return;
+    }
+    std::uintmax_t lines = 0;
+    while (std::getline(in, line)) {
+        if (!splitWhitespace(line).empty()) ++lines;
+    }
+    if (lines < elementCount) {
+        throw FormatError(name + ": PLY header promises " + std::to_string(elementCount) +
+                          " elements but only " + std::to_string(lines) +
+                          " data lines follow it; the file is truncated");
+    }
+}
+
+}  // namespace
+
+TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
+    const std::string name = file.string();
+    std::error_code error;
+    if (!std::filesystem::exists(file, error)) throw InputError(name + ": no such file");
+    if (!std::filesystem::is_regular_file(file, error)) {
+        throw InputError(name + ": is not a regular file; expected a mesh file");
+    }
+    const std::string extension = lowercase(file.extension().string());
+    ObjFacts objFacts;
+    if (extension == ".obj") {
+        objFacts = checkObjFile(file, /*requireUvs=*/false);
+    } else if (extension == ".stl") {
+        checkStlFile(file);
+    } else if (extension == ".ply") {
+        checkPlyFile(file);
+    } else if (extension != ".off") {
+        throw FormatError(name + ": unsupported mesh format '" + file.extension().string() +
+                          "'; accepted: .obj, .ply, .off, .stl");
+    }
+
+    OpenMeshPolygons polygons;
+    OpenMesh::IO::Options options;
+    {
+        std::lock_guard<std::mutex> lock(openMeshReadMutex());
+        OpenMeshLogCapture log;
+        const bool readOk = OpenMesh::IO::read_mesh(polygons, name, options);
+        const std::string failure = log.firstFailure();
+        if (!readOk || !failure.empty()) {
+            throw FormatError(name + ": OpenMesh cannot read it as " + extension.substr(1) +
+                              (failure.empty() ? std::string() : " (" + failure + ")"));
+        }
+    }
+    if (polygons.n_faces() == 0) {
+        throw FormatError(name + ": has no faces OpenMesh could read; expected a mesh "
+                                 "(NaN/Inf numbers also end up here)");
+    }
+    if (extension == ".obj" && polygons.n_faces() < objFacts.faceCount) {
+        throw FormatError(name + ": OpenMesh read only " + std::to_string(polygons.n_faces()) +
+                          " of its " + std::to_string(objFacts.faceCount) + " faces");
+    }
+    TriangleSoup soup;
+    soup.positions.reserve(polygons.n_vertices());
+    for (const auto vertex : polygons.vertices()) {
+        const auto& p = polygons.point(vertex);
+        for (int axis = 0; axis < 3; ++axis) {
+            if (!std::isfinite(p[axis]) || std::abs(double(p[axis])) > kMaxDetailCoordinate) {
+                std::ostringstream message;
+                message << name << ": vertex " << vertex.idx() << " (counting from 0) has the "
+                        << "coordinate " << p[axis] << "; detail meshes need finite coordinates "
+                        << "within +-" << kMaxDetailCoordinate;
+                throw FormatError(message.str());
+            }
+        }
+        soup.positions.emplace_back(p[0], p[1], p[2]);
+    }
+    std::vector<std::uint32_t> corners;
+    for (const auto face : polygons.faces()) {
+        corners.clear();
+        for (const auto vertex : polygons.fv_range(face)) {
+            corners.push_back(static_cast<std::uint32_t>(vertex.idx()));
+        }
+        for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
+            soup.triangles.emplace_back(corners[0], corners[k], corners[k + 1]);
+        }
+    }
+    return soup;
 }
 
 }  // namespace distile

@@ -81,11 +81,30 @@ std::uint32_t TriangleBvh::build(std::uint32_t first, std::uint32_t count, int d
     return nodeIndex;
 }
 
+bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1, const glm::vec3& p2,
+                       double minDistance, double maxDistance, double& distanceWorld, double& b1, double& b2) {
+    const glm::dvec3 origin(ray.origin);
+    const glm::dvec3 direction(ray.direction);
+    const glm::dvec3 corner0(p0);
+    const glm::dvec3 edge1 = glm::dvec3(p1) - corner0;
+    const glm::dvec3 edge2 = glm::dvec3(p2) - corner0;
+    const glm::dvec3 pvec = glm::cross(direction, edge2);
+    const double determinant = glm::dot(edge1, pvec);
+    if (determinant == 0.0 || !std::isfinite(determinant)) return false;
+    const double inverse = 1.0 / determinant;
+    const glm::dvec3 tvec = origin - corner0;
+    b1 = glm::dot(tvec, pvec) * inverse;
+    if (b1 < 0.0 || b1 > 1.0) return false;
+    const glm::dvec3 qvec = glm::cross(tvec, edge1);
+    b2 = glm::dot(direction, qvec) * inverse;
+    if (b2 < 0.0 || b1 + b2 > 1.0) return false;
+    distanceWorld = glm::dot(edge2, qvec) * inverse;
+    return distanceWorld > minDistance && distanceWorld < maxDistance;
+}
+
 bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance, TriangleHit& hit) const {
     if (nodes_.empty()) return false;
     const glm::vec3 inverseDirection = 1.0f / ray.direction;
-    const glm::dvec3 origin(ray.origin);
-    const glm::dvec3 direction(ray.direction);
     bool found = false;
     double nearest = maxDistance;
     std::uint32_t stack[2 * kMaxDepth + 2];
@@ -103,22 +122,11 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
         }
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
             const std::uint32_t triangle = order_[i];
-            // Moeller-Trumbore in double precision.
-            const glm::dvec3 p0(corners_[3 * triangle]);
-            const glm::dvec3 edge1 = glm::dvec3(corners_[3 * triangle + 1]) - p0;
-            const glm::dvec3 edge2 = glm::dvec3(corners_[3 * triangle + 2]) - p0;
-            const glm::dvec3 pvec = glm::cross(direction, edge2);
-            const double determinant = glm::dot(edge1, pvec);
-            if (determinant == 0.0 || !std::isfinite(determinant)) continue;
-            const double inverse = 1.0 / determinant;
-            const glm::dvec3 tvec = origin - p0;
-            const double b1 = glm::dot(tvec, pvec) * inverse;
-            if (b1 < 0.0 || b1 > 1.0) continue;
-            const glm::dvec3 qvec = glm::cross(tvec, edge1);
-            const double b2 = glm::dot(direction, qvec) * inverse;
-            if (b2 < 0.0 || b1 + b2 > 1.0) continue;
-            const double distance = glm::dot(edge2, qvec) * inverse;
-            if (distance <= minDistance || distance >= nearest) continue;
+            double distance = 0.0, b1 = 0.0, b2 = 0.0;
+            if (!intersectTriangle(ray, corners_[3 * triangle], corners_[3 * triangle + 1], corners_[3 * triangle + 2],
+                                   minDistance, nearest, distance, b1, b2)) {
+                continue;
+            }
             nearest = distance;
             hit = {triangle, float(distance), float(b1), float(b2)};
             found = true;

@@ -22,6 +22,12 @@ struct TriangleHit {
     float b2 = 0.0f;             ///< barycentric weight of the third vertex
 };
 
+/// The ray against one triangle (Moeller-Trumbore in double precision, the test TriangleBvh uses):
+/// true when it hits at a distance in (minDistance, maxDistance) world units, with the
+/// barycentric weights b1, b2 of p1, p2. Degenerate triangles and rays in their plane miss.
+bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1, const glm::vec3& p2,
+                       double minDistance, double maxDistance, double& distanceWorld, double& b1, double& b2);
+
 class TriangleBvh {
 public:
     TriangleBvh() = default;

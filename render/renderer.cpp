@@ -7,10 +7,12 @@
 #include <atomic>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include <glm/geometric.hpp>
 
 #include "common/error.h"
+#include "render/coverage.h"
 
 namespace distile {
 
@@ -73,27 +75,35 @@ struct Sample {
     glm::vec3 normal{0.0f};
     int iterations = 0;
     std::uint64_t shadowSteps = 0;
+    std::uint64_t shadowMapSamples = 0;
+    float meanCurvature = 0.0f;  ///< 1/texel, when hasCurvature (AOVs only)
+    bool hasCurvature = false;   ///< the ray hit detail (not the floor, not a bare base surface)
 };
+
+/// The seed of the shadow-map sample pattern of sample `index` of pixel (x, y): fixed per pixel,
+/// so renders are repeatable, and different between neighbours, so the error is noise, not bands.
+std::uint32_t shadowSeed(int x, int y, int index) {
+    return std::uint32_t(x) * 0x9e3779b1U ^ std::uint32_t(y) * 0x85ebca77U ^ std::uint32_t(index) * 0xc2b2ae3dU;
+}
 
 class Renderer {
 public:
     Renderer(const Scene& scene, const RenderOptions& options)
         : scene_(scene),
           options_(options),
-          tracer_(scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter}) {
-        const Camera& camera = scene.camera;
-        forward_ = glm::normalize(camera.target - camera.eye);
-        right_ = glm::normalize(glm::cross(forward_, camera.up));
-        up_ = glm::cross(right_, forward_);
-        tanHalfFov_ = std::tan(0.5f * camera.fovDeg * kPi / 180.0f);
+          tracer_(scene,
+                  TraceOptions{options.maxIterations, options.epsilonTexels, options.filter, options.normalFilter}),
+          projection_(scene.camera, options.width, options.height),
+          shells_(tracer_, projection_) {
+        shadowMaps_.resize(scene.lights.size());
+        if (options.shadowFilter == ShadowFilter::None) return;
+        for (std::size_t light = 0; light < scene.lights.size(); ++light) {
+            if (!lightReachesVisibleSurface(scene, scene.lights[light])) continue;  // no receiver would ask
+            shadowMaps_[light].emplace(tracer_, scene.lights[light], options.shadowMapResolution);
+        }
     }
 
-    Ray cameraRay(float x, float y) const {
-        const float aspect = float(options_.width) / float(options_.height);
-        const float ndcX = (2.0f * x / options_.width - 1.0f) * tanHalfFov_ * aspect;
-        const float ndcY = (1.0f - 2.0f * y / options_.height) * tanHalfFov_;
-        return {scene_.camera.eye, glm::normalize(forward_ + ndcX * right_ + ndcY * up_)};
-    }
+    Ray cameraRay(float x, float y) const { return projection_.ray(x, y); }
 
     /// All samples of pixel (x, y): the mean colour, and the first sample's AOV values.
     Sample renderPixel(int x, int y, RenderStats& stats) const {
@@ -101,7 +111,7 @@ public:
         glm::vec3 sum(0.0f);
         for (int index = 0; index < options_.samplesPerPixel; ++index) {
             const glm::vec2 offset = sampleOffset(index, options_.samplesPerPixel);
-            const Sample sample = renderSample(cameraRay(x + offset.x, y + offset.y), stats);
+            const Sample sample = renderSample(x, y, cameraRay(x + offset.x, y + offset.y), shadowSeed(x, y, index), stats);
             if (index == 0) pixel = sample;
             sum += sample.color;
         }
@@ -110,12 +120,16 @@ public:
     }
 
 private:
-    Sample renderSample(const Ray& ray, RenderStats& stats) const {
+    /// One camera ray through the square of pixel (x, y).
+    Sample renderSample(int x, int y, const Ray& ray, std::uint32_t seed, RenderStats& stats) const {
         ++stats.rays;
         Sample sample;
         SurfaceHit hit;
         TraceCounters counters;
-        const bool found = tracer_.traceNearest(ray, 0.0f, hit, counters);
+        ShellCounters shellCounters;
+        const bool found = shells_.traceNearest(x, y, ray, options_.shellCulling, hit, counters, shellCounters);
+        stats.shellsTested += shellCounters.tested;
+        stats.shellsTraced += shellCounters.traced;
         stats.marchIterations += counters.marchIterations;
         stats.converged += counters.converged;
         if (!found) {
@@ -130,36 +144,59 @@ private:
         if (!hit.entry.frontFacing) {
             sample.color = material.color * 0.05f;  // inside of a closed mesh, or a plane from below
         } else if (!hit.onDetail) {
-            sample.color = shadeBase(hit, material, ray.direction);
+            sample.color = shadeBase(hit, material, ray.direction, seed, sample.shadowMapSamples);
         } else {
             withFilter(options_.filter, *material.tile, [&](const auto& filter) {
-                sample.color = shadeDetail(filter, hit, material, ray.direction, sample.shadowSteps);
+                sample.color = shadeDetail(filter, hit, material, ray.direction, seed, sample);
             });
         }
         stats.shadowSteps += sample.shadowSteps;
+        stats.shadowMapSamples += sample.shadowMapSamples;
+        if (options_.outputAovs && hit.entry.frontFacing && hit.onDetail && !hit.march.onFloor) {
+            const TricubicBSplineFilter curvatureFilter(*material.tile);
+            const glm::vec3 at = hit.march.texelPosition;
+            sample.meanCurvature = curvatureFromDerivatives(curvatureFilter.gradient(at), curvatureFilter.hessian(at)).mean;
+            sample.hasCurvature = true;
+        }
         return sample;
     }
 
-    glm::vec3 shadeBase(const SurfaceHit& hit, const Material& material, const glm::vec3& view) const {
+    /// Fraction of light `lightIndex` reaching `receiver` past other surfaces (1 without a map).
+    float castShadow(std::size_t lightIndex, const ShadowReceiver& receiver, std::uint32_t seed,
+                     std::uint64_t& samples) const {
+        if (!shadowMaps_[lightIndex]) return 1.0f;
+        return shadowMaps_[lightIndex]->visibility(receiver, options_.shadowFilter,
+                                                   seed ^ (0x27d4eb2fU * std::uint32_t(lightIndex + 1)), samples);
+    }
+
+    glm::vec3 shadeBase(const SurfaceHit& hit, const Material& material, const glm::vec3& view, std::uint32_t seed,
+                        std::uint64_t& shadowMapSamples) const {
         glm::vec3 color = material.color * kAmbientStrength;
-        for (const DirectionalLight& light : scene_.lights) {
-            color += directLight(hit.normal, -glm::normalize(light.direction), view, material.color) * light.color;
+        for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
+            const DirectionalLight& light = scene_.lights[index];
+            const glm::vec3 toLight = -glm::normalize(light.direction);
+            if (glm::dot(hit.entry.normal, toLight) <= 0.0f) continue;
+            const float visibility = castShadow(index, {hit.position, hit.entry.normal}, seed, shadowMapSamples);
+            if (visibility <= 0.0f) continue;
+            color += directLight(hit.normal, toLight, view, material.color) * light.color * visibility;
         }
         return color;
     }
 
     template <class Filter>
     glm::vec3 shadeDetail(const Filter& filter, const SurfaceHit& hit, const Material& material, const glm::vec3& view,
-                          std::uint64_t& shadowSteps) const {
+                          std::uint32_t seed, Sample& sample) const {
         const float depthTexels = float(material.tile->size().depth);
         const glm::vec3 texelPosition = hit.march.texelPosition;
         // Cavities (low in the shell) see less of the sky.
         const float openness = 0.35f + 0.65f * std::clamp(texelPosition.z / depthTexels, 0.0f, 1.0f);
         glm::vec3 color = material.color * (kAmbientStrength * openness);
-        for (const DirectionalLight& light : scene_.lights) {
+        for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
+            const DirectionalLight& light = scene_.lights[index];
             const glm::vec3 toLight = -glm::normalize(light.direction);
             // A base surface facing away from the light is in its own shadow: no work.
-            if (glm::dot(hit.entry.normal, toLight) <= 0.0f) continue;
+            const float facing = glm::dot(hit.entry.normal, toLight);
+            if (facing <= 0.0f) continue;
             float visibility = 1.0f;
             if (options_.selfShadows) {
                 glm::vec3 texelNormal(0.0f, 0.0f, 1.0f);
@@ -170,9 +207,18 @@ private:
                 const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLight));
                 const float tanHalfAngle = std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f);
                 const glm::vec3 start = texelPosition + texelNormal * (2.0f * options_.epsilonTexels);
-                visibility = lightVisibility(filter, start, toLightTexel, depthTexels, tanHalfAngle, options_, shadowSteps);
+                visibility =
+                    lightVisibility(filter, start, toLightTexel, depthTexels, tanHalfAngle, options_, sample.shadowSteps);
                 if (visibility <= 0.0f) continue;
             }
+            // Other surfaces, from the shadow map, asked where the light ray leaves this shell
+            // (its own detail is the self-shadow's job). The two sets of blockers are disjoint,
+            // so their covered parts of the light's disk are uncorrelated: the visible share is
+            // the product (min would assume they always overlap and under-darken penumbrae).
+            const float belowSurfaceWorld = (depthTexels - texelPosition.z) / depthTexels * material.depthWorld;
+            const ShadowReceiver receiver{hit.position + toLight * (belowSurfaceWorld / facing), hit.entry.normal};
+            visibility *= castShadow(index, receiver, seed, sample.shadowMapSamples);
+            if (visibility <= 0.0f) continue;
             color += directLight(hit.normal, toLight, view, material.color) * light.color * visibility;
         }
         return color;
@@ -181,8 +227,9 @@ private:
     const Scene& scene_;
     const RenderOptions& options_;
     SceneTracer tracer_;
-    glm::vec3 forward_, right_, up_;
-    float tanHalfFov_;
+    std::vector<std::optional<ShadowMap>> shadowMaps_;  ///< per light; empty: no map needed or wanted
+    PinholeProjection projection_;
+    ScreenShells shells_;  ///< camera rays' shells per screen tile (the BVH serves the other rays)
 };
 
 void validateOptions(const RenderOptions& options) {
@@ -203,6 +250,9 @@ void validateOptions(const RenderOptions& options) {
     if (options.samplesPerPixel < 1 || options.samplesPerPixel > 256) {
         reject("--spp", std::to_string(options.samplesPerPixel), "it must be in [1, 256]");
     }
+    if (options.shadowMapResolution < 16 || options.shadowMapResolution > 16384) {
+        reject("shadow map resolution", std::to_string(options.shadowMapResolution), "it must be in [16, 16384] texels");
+    }
 }
 
 }  // namespace
@@ -222,10 +272,14 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& options, const
     result.image = Image(options.width, options.height);
     if (options.outputAovs) {
         result.aovs.emplace(RenderAovs{Image(options.width, options.height), Image(options.width, options.height),
+                                       Image(options.width, options.height), Image(options.width, options.height),
                                        Image(options.width, options.height), Image(options.width, options.height)});
     }
     const float shadowBudget = float(options.shadowIterations * std::max<std::size_t>(scene.lights.size(), 1));
-    std::atomic<std::uint64_t> rays{0}, baseHits{0}, iterations{0}, converged{0}, shadowSteps{0};
+    const float shadowMapBudget =
+        float((kShadowRingSamples + kShadowDiskSamples) * std::max<std::size_t>(scene.lights.size(), 1));
+    std::atomic<std::uint64_t> rays{0}, baseHits{0}, iterations{0}, converged{0}, shadowSteps{0}, shadowMapSamples{0};
+    std::atomic<std::uint64_t> shellsTested{0}, shellsTraced{0};
     // Bands of rows, so progress can be reported from this thread between them; inside a band,
     // 16 x 16 pixel blocks are shared among the threads. Every pixel is computed on its own.
     constexpr int kBlock = 16;
@@ -247,6 +301,11 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& options, const
                                           heatColor(float(pixel.iterations) / float(options.maxIterations));
                                       result.aovs->shadowSamples.at(x, y) =
                                           heatColor(float(pixel.shadowSteps) / shadowBudget);
+                                      result.aovs->shadowMapSamples.at(x, y) =
+                                          heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
+                                      if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
+                                          result.aovs->curvature.at(x, y) = heatColor(0.5f + pixel.meanCurvature);
+                                      }
                                   }
                               }
                               rays += local.rays;
@@ -254,10 +313,15 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& options, const
                               iterations += local.marchIterations;
                               converged += local.converged;
                               shadowSteps += local.shadowSteps;
+                              shadowMapSamples += local.shadowMapSamples;
+                              shellsTested += local.shellsTested;
+                              shellsTraced += local.shellsTraced;
                           });
         if (progress) progress(double(bandEnd) / options.height);
     }
-    result.stats = {rays, baseHits, iterations, converged, shadowSteps};
+    result.stats = {rays, baseHits, iterations, converged, shadowSteps, shadowMapSamples};
+    result.stats.shellsTested = shellsTested;
+    result.stats.shellsTraced = shellsTraced;
     return result;
 }
 

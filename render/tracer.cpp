@@ -98,48 +98,80 @@ bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hi
     for (std::size_t pass = 0; pass <= scene_.objects.size() + 1; ++pass) {
         TriangleHit baseHit;
         if (!bvh_.intersect(ray, minDistance, std::numeric_limits<float>::max(), baseHit)) return false;
-        const ShellTriangle& shell = triangles_[baseHit.triangle];
-        const Material& material = scene_.objects[shell.object].material;
-        hit.object = shell.object;
-        hit.entry = shellEntry(baseHit, ray);
-        hit.distanceWorld = baseHit.distanceWorld;
-        hit.position = hit.entry.position;
-        hit.normal = hit.entry.normal;
-        hit.onDetail = false;
-        if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) return true;
-
-        const Size3& size = material.tile->size();
-        glm::vec3 direction = hit.entry.toTexel(ray.direction);
-        // Silhouettes of smooth-shaded meshes can tilt the interpolated frame until the ray no
-        // longer descends; keep it descending so the march stays in the shell.
-        direction.z = std::min(direction.z, -1e-3f * glm::length(direction));
-        const float texelsPerWorldAlongRay = glm::length(direction);
-        direction /= texelsPerWorldAlongRay;
-        // Wrap the entry point into the tile in double precision: far repeats keep their
-        // sub-texel position.
-        const double u = double(hit.entry.uv.x) * material.uvScale.x;
-        const double v = double(hit.entry.uv.y) * material.uvScale.y;
-        const glm::vec3 start(float((u - std::floor(u)) * size.width), float((v - std::floor(v)) * size.height),
-                              float(size.depth));
-        const bool done = withFilter(options_.filter, *material.tile, [&](const auto& filter) {
-            hit.march = march(filter, start, direction, material.floor, options_.maxIterations, options_.epsilonTexels);
-            ++counters.shellEntries;
-            counters.marchIterations += std::uint64_t(hit.march.iterations);
-            if (hit.march.converged) ++counters.converged;
-            if (hit.march.exitedFloor) return false;
-            hit.onDetail = true;
-            hit.distanceWorld = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
-            hit.position = ray.origin + ray.direction * hit.distanceWorld;
-            if (!hit.march.onFloor) {
-                const glm::vec3 gradient = filter.gradient(hit.march.texelPosition);
-                if (glm::length(gradient) > 1e-6f) hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
-            }
-            return true;
-        });
-        if (done) return true;
-        minDistance = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
+        if (traceEntry(ray, baseHit, hit, counters, minDistance)) return true;
     }
     return false;
+}
+
+void SceneTracer::shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 bottom[3]) const {
+    const ShellTriangle& triangle = triangles_[shell];
+    const SceneObject& object = scene_.objects[triangle.object];
+    const glm::uvec3 vertices = object.mesh.triangles[triangle.localTriangle];
+    const float depthWorld = object.material.tile ? object.material.depthWorld : 0.0f;
+    for (int corner = 0; corner < 3; ++corner) {
+        top[corner] = object.mesh.positions[vertices[corner]];
+        bottom[corner] = top[corner] - object.mesh.normals[vertices[corner]] * depthWorld;
+    }
+}
+
+bool SceneTracer::traceShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
+                             SurfaceHit& hit, TraceCounters& counters) const {
+    const ShellTriangle& triangle = triangles_[shell];
+    const SceneObject& object = scene_.objects[triangle.object];
+    const glm::uvec3 vertices = object.mesh.triangles[triangle.localTriangle];
+    double distance = 0.0, b1 = 0.0, b2 = 0.0;
+    if (!intersectTriangle(ray, object.mesh.positions[vertices[0]], object.mesh.positions[vertices[1]],
+                           object.mesh.positions[vertices[2]], minDistance, maxDistance, distance, b1, b2)) {
+        return false;
+    }
+    float exitDistanceWorld = 0.0f;
+    return traceEntry(ray, {shell, float(distance), float(b1), float(b2)}, hit, counters, exitDistanceWorld);
+}
+
+bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit, TraceCounters& counters,
+                             float& exitDistanceWorld) const {
+    const ShellTriangle& shell = triangles_[baseHit.triangle];
+    const Material& material = scene_.objects[shell.object].material;
+    hit.object = shell.object;
+    hit.entry = shellEntry(baseHit, ray);
+    hit.distanceWorld = baseHit.distanceWorld;
+    hit.position = hit.entry.position;
+    hit.normal = hit.entry.normal;
+    hit.onDetail = false;
+    if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) return true;
+
+    const Size3& size = material.tile->size();
+    glm::vec3 direction = hit.entry.toTexel(ray.direction);
+    // Silhouettes of smooth-shaded meshes can tilt the interpolated frame until the ray no
+    // longer descends; keep it descending so the march stays in the shell.
+    direction.z = std::min(direction.z, -1e-3f * glm::length(direction));
+    const float texelsPerWorldAlongRay = glm::length(direction);
+    direction /= texelsPerWorldAlongRay;
+    // Wrap the entry point into the tile in double precision: far repeats keep their
+    // sub-texel position.
+    const double u = double(hit.entry.uv.x) * material.uvScale.x;
+    const double v = double(hit.entry.uv.y) * material.uvScale.y;
+    const glm::vec3 start(float((u - std::floor(u)) * size.width), float((v - std::floor(v)) * size.height),
+                          float(size.depth));
+    const bool done = withFilter(options_.filter, *material.tile, [&](const auto& filter) {
+        hit.march = march(filter, start, direction, material.floor, options_.maxIterations, options_.epsilonTexels);
+        ++counters.shellEntries;
+        counters.marchIterations += std::uint64_t(hit.march.iterations);
+        if (hit.march.converged) ++counters.converged;
+        if (hit.march.exitedFloor) return false;
+        hit.onDetail = true;
+        hit.distanceWorld = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
+        hit.position = ray.origin + ray.direction * hit.distanceWorld;
+        return true;
+    });
+    if (done && !hit.march.onFloor) {
+        const glm::vec3 gradient = withFilter(options_.normalFilter, *material.tile, [&](const auto& normalFilter) {
+            return normalFilter.gradient(hit.march.texelPosition);
+        });
+        if (glm::length(gradient) > 1e-6f) hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
+    }
+    if (!done) exitDistanceWorld = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
+    return done;
 }
 
 }  // namespace distile

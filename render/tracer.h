@@ -20,7 +20,9 @@ namespace distile {
 struct TraceOptions {
     int maxIterations = 16;       ///< sphere-tracing budget per ray (ch. 8 uses 8 to 16)
     float epsilonTexels = 0.02f;  ///< a ray closer than this to the surface has hit it
-    FilterKind filter = FilterKind::Trilinear;
+    FilterKind filter = FilterKind::Trilinear;  ///< the march's distances (must not overestimate)
+    /// The shading normal's gradient at the hit; the B-spline's is smooth (ch. 20).
+    FilterKind normalFilter = FilterKind::TricubicBSpline;
 };
 
 /// The base surface where a ray enters an object's detail shell, with the linear map between
@@ -64,6 +66,21 @@ public:
     /// The nearest hit beyond `minDistance`, or false for a miss. Thread-safe.
     bool traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit, TraceCounters& counters) const;
 
+    /// Base triangles of all objects, in scene order: shell `s` is the detail shell of one of them.
+    std::uint32_t shellCount() const { return std::uint32_t(triangles_.size()); }
+    /// World corners of shell `shell`: its top (the base triangle) and its bottom, the top moved
+    /// by -N * depthWorld along the vertex normals (equal to the top without a tile).
+    /// Precondition: shell < shellCount().
+    void shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 bottom[3]) const;
+
+    /// The ray against one shell only: its top (intersectTriangle, as the BVH tests it), then the
+    /// march from there, as traceNearest does for the shell it enters. True with `hit` filled when
+    /// the top is hit in (minDistance, maxDistance) and the ray stops in this shell (detail, solid
+    /// floor, end of the budget, or the bare base surface: a back face, no tile); false for a
+    /// miss or when the ray leaves through an open floor. Thread-safe.
+    bool traceShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance, SurfaceHit& hit,
+                    TraceCounters& counters) const;
+
     const Scene& scene() const { return scene_; }
     const TraceOptions& options() const { return options_; }
 
@@ -74,6 +91,10 @@ private:
         glm::vec2 texelsPerWorldUv;  ///< texels per world unit along T and B (0: degenerate UVs)
     };
     ShellEntry shellEntry(const TriangleHit& hit, const Ray& ray) const;
+    /// The march of the shell the ray enters at `baseHit`: true with `hit` filled when the ray stops
+    /// there, false when it leaves through an open floor at `exitDistanceWorld`.
+    bool traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit, TraceCounters& counters,
+                    float& exitDistanceWorld) const;
 
     const Scene& scene_;
     TraceOptions options_;

@@ -1,23 +1,135 @@
 #include "sampler/bake.h"
 
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
 #include "common/error.h"
 #include "sampler/resample.h"
+#include "vdb/height_field.h"
+#include "vdb/mesh_level_set.h"
 
 namespace distile {
 
 BakeResult bakeChainmail(const ChainmailOptions& chainmailOptions, const BakeOptions& options,
                          const ProgressCallback& progress) {
+    ProceduralOptions procedural;
+    procedural.kind = ProceduralKind::Chainmail;
+    procedural.chainmail = chainmailOptions;
+    return bakeProcedural(procedural, options, progress);
+}
+
+BakeResult bakeProcedural(const ProceduralOptions& proceduralOptions, const BakeOptions& options,
+                          const ProgressCallback& progress) {
     validateTileSize(options.size, "--size");
     if (!(options.halfBandTexels >= 0.0f)) {
         throw InputError("--band: " + std::to_string(options.halfBandTexels) +
                          " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
     }
-    const Chainmail chainmail(chainmailOptions, options.size);
+    const ProceduralDistance procedural = proceduralDistance(proceduralOptions, options.size);
     const float halfBand = options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
-    LevelSet levelSet = LevelSet::fromDistance(
-        [&](const glm::dvec3& p) { return chainmail.signedDistanceTexels(p); }, options.size, halfBand,
-        "chainmail", chainmail.paramsJson(), progress);
-    Tile tile = tileFromLevelSet(levelSet);
+    LevelSet levelSet = LevelSet::fromDistance(procedural.signedDistanceTexels, options.size, halfBand,
+                                               procedural.source, procedural.paramsJson, progress);
+    Tile tile = tileFromLevelSet(levelSet, options.conservative);
+    return {std::move(levelSet), std::move(tile)};
+}
+
+namespace {
+
+bool isFinite(const glm::dvec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+}  // namespace
+
+TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
+                       const Size3& tile) {
+    validateTileSize(tile, "--size");
+    validateTriangleSoup(meshFileUnits, "detail mesh");
+    const Bounds3 box = boundsOf(meshFileUnits);
+    const glm::dvec3 extent = box.max - box.min;
+    double scale = placement.scale;
+    glm::dvec3 offset = placement.offsetTexels;
+    if (placement.fit) {
+        if (!(extent.x > 0.0 || extent.y > 0.0)) {
+            throw InputError("detail mesh: has no extent in x or y, so it cannot be fitted to "
+                             "the tile footprint; use --scale and --offset");
+        }
+        scale = std::min(extent.x > 0.0 ? tile.width / extent.x : HUGE_VAL,
+                         extent.y > 0.0 ? tile.height / extent.y : HUGE_VAL);
+        const glm::dvec3 centre = 0.5 * (box.min + box.max);
+        offset = glm::dvec3(0.5 * tile.width - scale * centre.x,
+                            0.5 * tile.height - scale * centre.y, -scale * box.min.z);
+        if (scale * extent.z > tile.depth) {
+            std::ostringstream message;
+            message << "detail mesh: fitted to the " << tile.width << "x" << tile.height
+                    << " footprint it is " << scale * extent.z << " texels tall, more than the "
+                    << "tile depth " << tile.depth << "; use a deeper --size or --scale/--offset";
+            throw InputError(message.str());
+        }
+    } else {
+        if (!(std::isfinite(scale) && scale > 0.0)) {
+            throw InputError("--scale: " + std::to_string(scale) +
+                             " is not accepted; it must be a finite number > 0 (texels per unit)");
+        }
+        if (!isFinite(offset)) throw InputError("--offset: must be three finite numbers (texels)");
+    }
+    TriangleSoup placed;
+    placed.triangles = meshFileUnits.triangles;
+    placed.positions.reserve(meshFileUnits.positions.size());
+    for (const glm::dvec3& p : meshFileUnits.positions) {
+        const glm::dvec3 texel = scale * p + offset;
+        if (!(std::abs(texel.x) <= kMaxPlacedTexelCoordinate &&
+              std::abs(texel.y) <= kMaxPlacedTexelCoordinate &&
+              std::abs(texel.z) <= kMaxPlacedTexelCoordinate)) {
+            std::ostringstream message;
+            message << "detail mesh: placed at (" << texel.x << ", " << texel.y << ", " << texel.z
+                    << ") texels; placed coordinates must be within +-"
+                    << kMaxPlacedTexelCoordinate << " (check --scale and --offset)";
+            throw InputError(message.str());
+        }
+        placed.positions.push_back(texel);
+    }
+    return placed;
+}
+
+BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
+                    const BakeOptions& options, const ProgressCallback& progress,
+                    const InsideTest& insideTest) {
+    validateTileSize(options.size, "--size");
+    if (!(options.halfBandTexels >= 0.0f)) {
+        throw InputError("--band: " + std::to_string(options.halfBandTexels) +
+                         " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
+    }
+    const TriangleSoup placed = placeMesh(meshFileUnits, placement, options.size);
+    const float halfBand = options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    std::ostringstream params;
+    params.precision(17);
+    params << "{\"placement\":\"" << (placement.fit ? "fit" : "explicit") << "\",\"triangles\":"
+           << placed.triangles.size() << "}";
+    LevelSet levelSet = levelSetFromMesh(placed, options.size, halfBand, "mesh", params.str(), progress,
+                                          insideTest);
+    Tile tile = tileFromLevelSet(levelSet, options.conservative);
+    return {std::move(levelSet), std::move(tile)};
+}
+
+BakeResult bakeHeightMap(const HeightImage& image, const HeightMapOptions& heightMap,
+                         const BakeOptions& options, const ProgressCallback& progress) {
+    validateTileSize(options.size, "--size");
+    if (!(options.halfBandTexels >= 0.0f)) {
+        throw InputError("--band: " + std::to_string(options.halfBandTexels) +
+                         " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
+    }
+    const double heightTexels =
+        heightMap.heightTexels != 0.0 ? heightMap.heightTexels : double(options.size.depth - 1);
+    const HeightField field = heightFieldFromImage(image, options.size, heightTexels);
+    const float halfBand = options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    std::ostringstream params;
+    params.precision(17);
+    params << "{\"image\":\"" << image.width << "x" << image.height << "\",\"height_texels\":" << heightTexels
+           << "}";
+    LevelSet levelSet = levelSetFromHeightField(field, options.size, halfBand, "heightmap", params.str(), progress);
+    Tile tile = tileFromLevelSet(levelSet, options.conservative);
     return {std::move(levelSet), std::move(tile)};
 }
 

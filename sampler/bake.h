@@ -2,10 +2,17 @@
 /// Baking: detail source -> exact narrow-band level set -> dense tile.
 #pragma once
 
+#include <glm/vec3.hpp>
+
 #include "common/progress.h"
+#include "common/triangle_soup.h"
+#include "sampler/conservative.h"
+#include "sampler/height_image.h"
 #include "sampler/tile.h"
 #include "vdb/chainmail.h"
 #include "vdb/level_set.h"
+#include "vdb/mesh_level_set.h"
+#include "vdb/procedural.h"
 
 namespace distile {
 
@@ -14,6 +21,9 @@ struct BakeOptions {
     /// Half width of the level set's narrow band, texels; 0 means the tile depth, so the band
     /// covers every texel of the tile.
     float halfBandTexels = 0.0f;
+    /// Resampling into the tile lowers texels so trilinear interpolation does not overestimate
+    /// (sampler/conservative.h); on by default.
+    ConservativeOptions conservative;
 };
 
 struct BakeResult {
@@ -25,5 +35,57 @@ struct BakeResult {
 /// sizes or chain-mail options.
 BakeResult bakeChainmail(const ChainmailOptions& chainmail, const BakeOptions& options,
                          const ProgressCallback& progress = {});
+
+/// Any procedural pattern (vdb/procedural.h) baked into a level set and its tile; the tile's
+/// provenance is the pattern's source name and paramsJson. Throws InputError for bad sizes or
+/// pattern options.
+BakeResult bakeProcedural(const ProceduralOptions& procedural, const BakeOptions& options,
+                          const ProgressCallback& progress = {});
+
+/// Where a detail mesh goes in the tile (texel space, see DESIGN.md).
+/// - Fit (default): scaled uniformly so its x/y bounding box fits the tile footprint exactly
+///   (the axis with the larger extent relative to W or H spans it), centred in x and y, its
+///   bottom resting on the floor z = 0. A mesh meant to repeat should have its period as its
+///   x/y bounding box. The scaled mesh must not be taller than the tile depth D.
+/// - Explicit: texel position = scale * file position + offsetTexels.
+struct MeshPlacement {
+    bool fit = true;
+    double scale = 1.0;               ///< Explicit only: texels per file unit, > 0
+    glm::dvec3 offsetTexels{0.0};     ///< Explicit only: where the file's origin goes, texels
+};
+
+/// Largest texel coordinate a placed mesh may have: beyond 2^20 a float (OpenVDB's mesh
+/// positions) resolves less than 1/8 texel.
+inline constexpr double kMaxPlacedTexelCoordinate = 1 << 20;
+
+/// The mesh (file units) placed in the tile by `placement`, positions in texels.
+/// @throws InputError the mesh fails validateTriangleSoup, has no x/y extent (Fit), is taller
+///   than the tile depth after fitting, the scale is not finite and > 0, the offset is not
+///   finite, or a placed coordinate exceeds kMaxPlacedTexelCoordinate.
+TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
+                       const Size3& tile);
+
+/// A closed detail mesh (file units) placed by `placement` and baked with OpenVDB's
+/// mesh-to-level-set into a periodic level set (vdb/mesh_level_set.h) and its tile. The sign is
+/// only meaningful for a closed, manifold mesh: callers check that (truth/mesh_truth.h) and
+/// verify the sign. `insideTest`, when given, is the exact inside test of the *placed* mesh
+/// (placeMesh's result, texels), which fixes the sign of the voxels within 1 texel of the surface
+/// (vdb/mesh_level_set.h). Throws InputError as placeMesh and bakeChainmail do.
+BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
+                    const BakeOptions& options, const ProgressCallback& progress = {},
+                    const InsideTest& insideTest = {});
+
+/// A height map: the image (sampler/height_image.h) scaled to heights 0..heightTexels, sampled
+/// periodically and bilinearly at the tile's texel columns, material solid below the
+/// triangulated surface through those heights (vdb/height_field.h), baked into an exact signed
+/// level set and its tile (provenance: source "heightmap", the image size and heightTexels).
+struct HeightMapOptions {
+    /// Height of image value 1, texels; 0 means the tile depth minus one (D - 1).
+    double heightTexels = 0.0;
+};
+
+/// Throws InputError for bad sizes or heightTexels (heightFieldFromImage).
+BakeResult bakeHeightMap(const HeightImage& image, const HeightMapOptions& heightMap,
+                         const BakeOptions& options, const ProgressCallback& progress = {});
 
 }  // namespace distile

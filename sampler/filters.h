@@ -89,7 +89,18 @@ public:
     explicit TrilinearFilter(const Tile& tile) : tile_(tile) {}
 
     float distanceTexels(const glm::vec3& texelPosition) const {
-        const Corners c = corners(texelPosition);
+        const Size3& size = tile_.size();
+        return fetch(detail::periodicAxis(texelPosition.x, size.width),
+                     detail::periodicAxis(texelPosition.y, size.height),
+                     detail::clampedAxis(texelPosition.z, size.depth));
+    }
+
+    /// One linear texture fetch: the trilinear interpolant between the two texels given on each
+    /// axis (indices already wrapped or clamped into the tile, weight = fraction toward `upper`).
+    /// The building block of the third-order filters of sampler/tricubic.h. Preconditions: the
+    /// indices are inside the tile; no checks.
+    float fetch(const detail::AxisLerp& x, const detail::AxisLerp& y, const detail::AxisLerp& z) const {
+        const Corners c = corners(x, y, z);
         const float fx = c.x.weight;
         const float fy = c.y.weight;
         const float fz = c.z.weight;
@@ -125,8 +136,13 @@ private:
 
     Corners corners(const glm::vec3& p) const {
         const Size3& size = tile_.size();
-        Corners c{detail::periodicAxis(p.x, size.width), detail::periodicAxis(p.y, size.height),
-                  detail::clampedAxis(p.z, size.depth), {}};
+        return corners(detail::periodicAxis(p.x, size.width), detail::periodicAxis(p.y, size.height),
+                       detail::clampedAxis(p.z, size.depth));
+    }
+
+    Corners corners(const detail::AxisLerp& x, const detail::AxisLerp& y, const detail::AxisLerp& z) const {
+        const Size3& size = tile_.size();
+        Corners c{x, y, z, {}};
         const float* data = tile_.distancesTexels().data();
         const std::size_t strideY = std::size_t(size.width);
         const std::size_t strideZ = strideY * std::size_t(size.height);
@@ -142,8 +158,16 @@ private:
     const Tile& tile_;
 };
 
+}  // namespace distile
+
+// The third-order filters build on TrilinearFilter::fetch and withFilter dispatches to them; the
+// two headers include each other (see the note at the top of sampler/tricubic.h).
+#include "sampler/tricubic.h"
+
+namespace distile {
+
 /// The reconstruction filters a renderer or a check can choose.
-enum class FilterKind { Nearest, Trilinear };
+enum class FilterKind { Nearest, Trilinear, TricubicBSpline, CatmullRom };
 
 /// Calls `function(filter)` with the filter of `kind` over `tile`: the one place where a run-time
 /// choice becomes a compile-time filter type (hot loops are templates over the filter).
@@ -152,6 +176,10 @@ decltype(auto) withFilter(FilterKind kind, const Tile& tile, Function&& function
     switch (kind) {
         case FilterKind::Nearest:
             return function(NearestFilter(tile));
+        case FilterKind::TricubicBSpline:
+            return function(TricubicBSplineFilter(tile));
+        case FilterKind::CatmullRom:
+            return function(CatmullRomFilter(tile));
         case FilterKind::Trilinear:
             break;
     }

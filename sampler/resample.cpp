@@ -2,10 +2,11 @@
 
 namespace distile {
 
-Tile tileFromLevelSet(const LevelSet& levelSet) {
+Tile tileFromLevelSet(const LevelSet& levelSet, const ConservativeOptions& conservative) {
     Tile tile(levelSet.tileSize());
     levelSet.copyTileVoxels(tile.distancesTexels());
     tile.provenance = {levelSet.source(), levelSet.params()};
+    makeConservative(tile, conservative);
     return tile;
 }
 

@@ -2,6 +2,7 @@
 /// Resampling a level set into a dense tile.
 #pragma once
 
+#include "sampler/conservative.h"
 #include "sampler/tile.h"
 #include "vdb/level_set.h"
 
@@ -10,6 +11,9 @@ namespace distile {
 /// The tile of the level set's footprint: the level set's voxels are texel-aligned (voxel
 /// (i, j, k) at texel centre (i+0.5, j+0.5, k+0.5)), so each texel takes its voxel's value, exactly.
 /// Texels outside the narrow band hold +/- the half band width. Provenance comes from the level set.
-Tile tileFromLevelSet(const LevelSet& levelSet);
+/// Then, by default, the texels are lowered so trilinear interpolation does not overestimate
+/// (sampler/conservative.h; `conservative.enabled = false` keeps the exact voxel values).
+/// Throws InputError for bad conservative options.
+Tile tileFromLevelSet(const LevelSet& levelSet, const ConservativeOptions& conservative = {});
 
 }  // namespace distile

@@ -8,9 +8,17 @@
 #include <random>
 #include <vector>
 
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
+
 #include "sampler/bake.h"
 #include "sampler/filters.h"
+#include "sampler/tricubic.h"
 #include "vdb/chainmail.h"
+#include "common/error.h"
+#include "sampler/conservative.h"
+#include "sampler/tile_error.h"
+#include "vdb/procedural.h"
 
 namespace distile {
 namespace {
@@ -81,8 +89,15 @@ TEST(NearestFilter, ReturnsTheTexelContainingThePoint) {
 }
 
 /// The default chain-mail tile, baked once for the tests below (about 3 s).
+/// The tile holds the exact distances at texel centres (conservative lowering off: the error
+/// analyses below are those of the exact samples; the conservative tile has its own tests at the
+/// end of this file).
 const BakeResult& defaultChainmail() {
-    static const BakeResult baked = bakeChainmail(ChainmailOptions{}, BakeOptions{});
+    static const BakeResult baked = [] {
+        BakeOptions options;
+        options.conservative.enabled = false;
+        return bakeChainmail(ChainmailOptions{}, options);
+    }();
     return baked;
 }
 
@@ -154,6 +169,339 @@ TEST(BakedChainmail, TrilinearTileMatchesTheAnalyticDistance) {
     EXPECT_LE(p999, 0.5);
     EXPECT_LE(maxError, 0.5 + 3 * 0.06);
     EXPECT_LE(rms, 0.1);
+}
+
+// --- Third-order filters (ch. 20) ---------------------------------------------------------
+
+TEST(TricubicBSplineFilter, EightFetchesEqualThe64TapSum) {
+    // Both forms sum the same 64 products in float, in a different order, of distances of at most
+    // ~16 texels (ulp 2e-6): a few roundings apart, so 1e-5 texel. A wrong fetch position, weight
+    // or address (wrap, z clamp) shows up as 1e-2 or more.
+    const Tile& tile = defaultChainmail().tile;
+    const TricubicBSplineFilter filter(tile);
+    std::mt19937 random(20);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    auto nearEdge = [&](float extent) { return (unit(random) < 0.5f ? 0.0f : extent) + 4.0f * (unit(random) - 0.5f); };
+    double maxDifference = 0.0;
+    for (int i = 0; i < 100000; ++i) {
+        glm::vec3 p{unit(random) * 256.0f, unit(random) * 256.0f, unit(random) * 16.0f};
+        if (i % 4 == 1) p.x = nearEdge(256.0f);   // across the x wrap
+        if (i % 4 == 2) p.y = nearEdge(256.0f);   // across the y wrap
+        if (i % 4 == 3) p.z = nearEdge(16.0f);    // at and beyond the z clamp
+        const double difference = std::abs(double(filter.distanceTexels(p)) - double(filter.distanceTexels64Tap(p)));
+        maxDifference = std::max(maxDifference, difference);
+        ASSERT_LE(difference, 1e-5) << "at (" << p.x << ", " << p.y << ", " << p.z << ")";
+    }
+    std::printf("[ figures  ] 8-fetch vs 64-tap B-spline: max |difference| = %.2e texel\n", maxDifference);
+    // Periodic: a shift by the tile size is the same value.
+    EXPECT_NEAR(filter.distanceTexels({0.3f, 17.2f, 7.7f}), filter.distanceTexels({256.3f, 273.2f, 7.7f}), 1e-5);
+}
+
+TEST(TricubicBSplineFilter, ReproducesLinearFunctionsAndQuadraticHessians) {
+    // The cubic B-spline reproduces polynomials of degree 1 exactly and of degree 2 up to the
+    // constant trace(H) / 6 (its kernel's variance is 1/3 per axis). Exact only where all 4 taps
+    // per axis are real texels: x in [1.5, W - 1.5) etc. (no wrap, no z clamp).
+    const Size3 size{12, 12, 8};
+    auto affine = [](const glm::dvec3& p) { return 0.25 * p.x - 0.5 * p.y + 0.75 * p.z + 1.0; };
+    const glm::dmat3 h(0.04, -0.03, 0.015, -0.03, 0.1, 0.04, 0.015, 0.04, -0.02);  // symmetric
+    auto quadratic = [&](const glm::dvec3& p) { return 0.5 * glm::dot(p, h * p) + 0.1 * p.x - 0.2 * p.z; };
+    const Tile linearTile = tileOf(size, affine);
+    const Tile quadraticTile = tileOf(size, quadratic);
+    const TricubicBSplineFilter linearFilter(linearTile);
+    const TricubicBSplineFilter quadraticFilter(quadraticTile);
+    std::mt19937 random(21);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    for (int i = 0; i < 2000; ++i) {
+        const glm::vec3 p{1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 4.99f};
+        // Values up to ~10 in float: a few ulps (1e-6 each) over 64 products.
+        EXPECT_NEAR(linearFilter.distanceTexels(p), affine(glm::dvec3(p)), 2e-5);
+        const glm::vec3 gradient = linearFilter.gradient(p);
+        EXPECT_NEAR(gradient.x, 0.25, 2e-5);
+        EXPECT_NEAR(gradient.y, -0.5, 2e-5);
+        EXPECT_NEAR(gradient.z, 0.75, 2e-5);
+        const double trace = h[0][0] + h[1][1] + h[2][2];
+        EXPECT_NEAR(quadraticFilter.distanceTexels(p), quadratic(glm::dvec3(p)) + trace / 6.0, 2e-5);
+        const glm::vec3 quadraticGradient = quadraticFilter.gradient(p);
+        const glm::dvec3 exactGradient = h * glm::dvec3(p) + glm::dvec3(0.1, 0.0, -0.2);
+        const glm::mat3 hessian = quadraticFilter.hessian(p);
+        for (int r = 0; r < 3; ++r) {
+            EXPECT_NEAR(quadraticGradient[r], exactGradient[r], 2e-5);
+            // Second differences of float values up to ~10 texels: cancellation leaves ~1e-5.
+            for (int c = 0; c < 3; ++c) EXPECT_NEAR(hessian[c][r], h[c][r], 5e-5) << "H[" << r << "][" << c << "]";
+        }
+    }
+}
+
+TEST(CatmullRomFilter, InterpolatesTexelCentresAndLinearFunctions) {
+    // At a texel centre the Catmull-Rom weights are exactly (0, 1, 0, 0) on each axis: the stored
+    // value comes back bit for bit, also at the x/y wrap and the first and last slice.
+    const Tile& tile = defaultChainmail().tile;
+    const CatmullRomFilter filter(tile);
+    std::mt19937 random(22);
+    std::uniform_int_distribution<int> column(0, 255), slice(0, 15);
+    for (int i = 0; i < 10000; ++i) {
+        const int x = i % 7 == 0 ? 255 : column(random);
+        const int y = i % 5 == 0 ? 0 : column(random);
+        const int z = i % 3 == 0 ? 15 * (i % 2) : slice(random);
+        ASSERT_EQ(filter.distanceTexels({x + 0.5f, y + 0.5f, z + 0.5f}), tile.at(x, y, z)) << x << " " << y << " " << z;
+    }
+    // Linear functions are reproduced (Catmull-Rom has order 2), gradient included.
+    const Size3 size{12, 12, 8};
+    auto affine = [](const glm::dvec3& p) { return 0.25 * p.x - 0.5 * p.y + 0.75 * p.z + 1.0; };
+    const Tile linearTile = tileOf(size, affine);
+    const CatmullRomFilter linearFilter(linearTile);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    for (int i = 0; i < 2000; ++i) {
+        const glm::vec3 p{1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 4.99f};
+        EXPECT_NEAR(linearFilter.distanceTexels(p), affine(glm::dvec3(p)), 2e-5);  // float, values < 10
+        const glm::vec3 gradient = linearFilter.gradient(p);
+        EXPECT_NEAR(gradient.x, 0.25, 2e-5);
+        EXPECT_NEAR(gradient.y, -0.5, 2e-5);
+        EXPECT_NEAR(gradient.z, 0.75, 2e-5);
+    }
+}
+
+TEST(Curvature, ClosedFormCases) {
+    // Sphere of radius 4 seen from outside (distance r - 4): H = (I - n n^T) / r.
+    const glm::vec3 up(0.0f, 0.0f, 1.0f);
+    const glm::mat3 sphere(0.25f, 0, 0, 0, 0.25f, 0, 0, 0, 0);
+    EXPECT_NEAR(curvatureFromDerivatives(up, sphere).mean, 0.25f, 1e-6);
+    EXPECT_NEAR(curvatureFromDerivatives(up, sphere).gaussian, 0.0625f, 1e-6);
+    // A spherical hole (distance 4 - r): same Gaussian, negative mean.
+    EXPECT_NEAR(curvatureFromDerivatives(-up, -sphere).mean, -0.25f, 1e-6);
+    EXPECT_NEAR(curvatureFromDerivatives(-up, -sphere).gaussian, 0.0625f, 1e-6);
+    // Cylinder of radius 2 along y: k1 = 1/2, k2 = 0. Gradient length does not matter.
+    const Curvature cylinder = curvatureFromDerivatives(3.0f * up, glm::mat3(1.5f, 0, 0, 0, 0, 0, 0, 0, 0));
+    EXPECT_NEAR(cylinder.mean, 0.25f, 1e-6);
+    EXPECT_NEAR(cylinder.gaussian, 0.0f, 1e-6);
+    EXPECT_EQ(curvatureFromDerivatives(glm::vec3(0.0f), sphere).mean, 0.0f);
+}
+
+TEST(TricubicBSplineFilter, CurvatureOfASphereTile) {
+    // Distance to a sphere of radius 6, sampled at texel centres; curvature from the B-spline
+    // gradient and Hessian at points on the sphere. The B-spline smooths the field by about
+    // Laplacian / 6 (kernel variance 1/3 per axis), but an isotropic smoothing of a radial field
+    // stays radial, and every isosurface of a radial field through a point at radius 6 is that
+    // sphere: the shift cancels. What remains is the anisotropy of the tensor-product kernel and
+    // the sampling, fourth-order terms ~ 1/r^3 per axis (measured: worst 0.5% on the mean, 1.1% on
+    // the Gaussian curvature). Tolerances 3% and 5%: a wrong weight, sign or formula errs by tens
+    // of percent (e.g. dropping the g^T H g term doubles the mean curvature).
+    const Size3 size{32, 32, 16};
+    const glm::dvec3 centre(16.0, 16.0, 8.0);
+    constexpr double kRadius = 6.0;
+    const Tile tile = tileOf(size, [&](const glm::dvec3& p) { return glm::length(p - centre) - kRadius; });
+    const TricubicBSplineFilter filter(tile);
+    std::mt19937 random(23);
+    std::normal_distribution<double> gaussian(0.0, 1.0);
+    double sumMean = 0.0, sumGaussian = 0.0, worstMean = 0.0, worstGaussian = 0.0;
+    constexpr int kPoints = 2000;
+    for (int i = 0; i < kPoints; ++i) {
+        const glm::dvec3 direction = glm::normalize(glm::dvec3(gaussian(random), gaussian(random), gaussian(random)));
+        const glm::vec3 p(centre + kRadius * direction);
+        const Curvature curvature = curvatureFromDerivatives(filter.gradient(p), filter.hessian(p));
+        sumMean += curvature.mean;
+        sumGaussian += curvature.gaussian;
+        worstMean = std::max(worstMean, std::abs(curvature.mean - 1.0 / kRadius));
+        worstGaussian = std::max(worstGaussian, std::abs(curvature.gaussian - 1.0 / (kRadius * kRadius)));
+        EXPECT_NEAR(curvature.mean, 1.0 / kRadius, 0.03 / kRadius);
+        EXPECT_NEAR(curvature.gaussian, 1.0 / (kRadius * kRadius), 0.05 / (kRadius * kRadius));
+    }
+    std::printf("[ figures  ] sphere r = 6: mean curvature %.5f (exact %.5f, worst error %.5f), Gaussian %.6f "
+                "(exact %.6f, worst error %.6f), 1/texel\n",
+                sumMean / kPoints, 1.0 / kRadius, worstMean, sumGaussian / kPoints, 1.0 / (kRadius * kRadius),
+                worstGaussian);
+}
+
+/// Unit outward normal of the analytic chain mail: central differences in double, h = 1e-5
+/// texel (truncation ~h^2 * curvature ~1e-11, rounding ~1e-16 / h ~1e-11).
+glm::dvec3 chainmailNormal(const Chainmail& chainmail, const glm::dvec3& p) {
+    constexpr double h = 1e-5;
+    glm::dvec3 gradient;
+    for (int axis = 0; axis < 3; ++axis) {
+        glm::dvec3 step(0.0);
+        step[axis] = h;
+        gradient[axis] = (chainmail.signedDistanceTexels(p + step) - chainmail.signedDistanceTexels(p - step)) / (2 * h);
+    }
+    return glm::normalize(gradient);
+}
+
+double angleDegrees(const glm::dvec3& unit, const glm::vec3& direction) {
+    const double length = glm::length(glm::dvec3(direction));
+    if (!(length > 0.0)) return 180.0;
+    return std::acos(std::clamp(glm::dot(unit, glm::dvec3(direction)) / length, -1.0, 1.0)) * 180.0 / 3.14159265358979;
+}
+
+TEST(TricubicBSplineFilter, NormalsBeatTrilinearCentralDifferencesOnChainmail) {
+    // Issue acceptance: angle between the filter's gradient and the analytic normal, averaged over
+    // random points near the surface of the default chain-mail tile. The competitor is the
+    // classic volume-rendering gradient: central differences of the trilinear filter. h = 1 texel
+    // is the usual choice (the texels' own central differences, interpolated: continuous across
+    // cells, but twice the stencil); h = 0.5 spans one texel (less smoothing, but its difference
+    // quotient jumps where the stencil ends cross texel centres). Both are measured and reported;
+    // the tricubic gradient must beat the better of the two.
+    const Tile& tile = defaultChainmail().tile;
+    const Chainmail chainmail(ChainmailOptions{}, tile.size());
+    const TricubicBSplineFilter tricubic(tile);
+    const TrilinearFilter trilinear(tile);
+    auto centralDifferences = [&](const glm::vec3& p, float h) {
+        glm::vec3 gradient;
+        for (int axis = 0; axis < 3; ++axis) {
+            glm::vec3 step(0.0f);
+            step[axis] = h;
+            gradient[axis] = (trilinear.distanceTexels(p + step) - trilinear.distanceTexels(p - step)) / (2 * h);
+        }
+        return gradient;
+    };
+    struct Sums {
+        double tricubic = 0.0, trilinearHalf = 0.0, trilinearOne = 0.0;
+        int count = 0;
+    } nearSurface, band;
+    std::mt19937 random(24);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int i = 0; i < 300000; ++i) {
+        const glm::dvec3 p{unit(random) * 256.0, unit(random) * 256.0, unit(random) * 16.0};
+        const double distance = chainmail.signedDistanceTexels(p);
+        if (std::abs(distance) > 1.0) continue;
+        const glm::dvec3 normal = chainmailNormal(chainmail, p);
+        const double tricubicError = angleDegrees(normal, tricubic.gradient(glm::vec3(p)));
+        const double halfError = angleDegrees(normal, centralDifferences(glm::vec3(p), 0.5f));
+        const double oneError = angleDegrees(normal, centralDifferences(glm::vec3(p), 1.0f));
+        for (Sums* sums : {&band, std::abs(distance) <= 0.1 ? &nearSurface : nullptr}) {
+            if (!sums) continue;
+            sums->tricubic += tricubicError;
+            sums->trilinearHalf += halfError;
+            sums->trilinearOne += oneError;
+            ++sums->count;
+        }
+    }
+    // ~3% of the tile lies within 0.1 texel of the wire surface: ~9,000 of 300,000 points.
+    ASSERT_GT(nearSurface.count, 1000);
+    for (const auto& [sums, name] : {std::pair{nearSurface, "|d| <= 0.1"}, std::pair{band, "|d| <= 1"}}) {
+        const double tricubicMean = sums.tricubic / sums.count;
+        const double halfMean = sums.trilinearHalf / sums.count;
+        const double oneMean = sums.trilinearOne / sums.count;
+        std::printf("[ figures  ] mean normal angle error, %s (%d points): tricubic B-spline %.3f deg; trilinear "
+                    "central differences h = 0.5: %.3f deg, h = 1: %.3f deg\n",
+                    name, sums.count, tricubicMean, halfMean, oneMean);
+        EXPECT_LT(tricubicMean, std::min(halfMean, oneMean)) << name;
+    }
+}
+
+}  // namespace
+}  // namespace distile
+
+// ---- Conservative resampling and seams of every procedural kind ------------------------------
+
+namespace distile {
+namespace {
+
+/// The procedural kinds distile bakes, with their default options.
+std::vector<std::pair<std::string, ProceduralOptions>> proceduralKinds() {
+    ProceduralOptions european;
+    ProceduralOptions japanese;
+    japanese.chainmail = japanese4in1Defaults();
+    ProceduralOptions grating;
+    grating.kind = ProceduralKind::Grating;
+    return {{"european 4-in-1 chain mail", european}, {"japanese 4-in-1 chain mail", japanese}, {"grating", grating}};
+}
+
+TEST(ConservativeResampling, EveryProceduralTileMeetsTheOverestimateAndRmsTargets) {
+    // Issue #3 acceptance, against the analytic truth at 100,000 uniform random points: trilinear
+    // overestimates beyond 0.05 texel in under 0.1% of the samples, and RMS <= 0.1 texel. The
+    // exact tile (texel-centre distances) misses the first target by far on chain mail (measured
+    // ~11%: convex fields between samples), which the test also asserts, so it can fail.
+    for (const auto& [name, procedural] : proceduralKinds()) {
+        SCOPED_TRACE(name);
+        BakeOptions exactOptions;
+        exactOptions.conservative.enabled = false;
+        const BakeResult exact = bakeProcedural(procedural, exactOptions);
+        Tile conservative = exact.tile;
+        makeConservative(conservative, ConservativeOptions{});
+        const ProceduralDistance truth = proceduralDistance(procedural, exact.tile.size());
+        const TileErrorReport before = measureTileError(exact.tile, truth.signedDistanceTexels);
+        const TileErrorReport after = measureTileError(conservative, truth.signedDistanceTexels);
+        std::printf("[ figures  ] %s: exact texels: %.3f%% overestimates > 0.05, RMS %.4f; conservative: %.3f%% "
+                    "(largest %.3f), RMS %.4f, near-surface max %.3f p99.9 %.3f\n",
+                    name.c_str(), 100.0 * before.overestimateShare, before.rmsTexels, 100.0 * after.overestimateShare,
+                    after.maxOverestimateTexels, after.rmsTexels, after.nearMaxAbsTexels, after.nearP999Texels);
+        EXPECT_LT(after.overestimateShare, 0.001);
+        EXPECT_LE(after.rmsTexels, 0.1);
+        EXPECT_EQ(after.signErrors, 0);
+        // The correction only lowers.
+        for (std::size_t i = 0; i < conservative.distancesTexels().size(); ++i) {
+            ASSERT_LE(conservative.distancesTexels()[i], exact.tile.distancesTexels()[i]);
+        }
+        if (procedural.kind == ProceduralKind::Chainmail) {
+            EXPECT_GT(before.overestimateShare, 0.05);
+        }
+    }
+    // The default bake is the conservative one.
+    const BakeResult baked = bakeProcedural(ProceduralOptions{}, BakeOptions{});
+    Tile expected(baked.tile.size());
+    baked.levelSet.copyTileVoxels(expected.distancesTexels());
+    makeConservative(expected, ConservativeOptions{});
+    EXPECT_TRUE(std::equal(expected.distancesTexels().begin(), expected.distancesTexels().end(),
+                           baked.tile.distancesTexels().begin()));
+}
+
+TEST(ConservativeResampling, SeamsAgreeWithTheInteriorForEveryProceduralKind) {
+    // A tile of the pattern shifted by half a tile has the seams x = 0/W and y = 0/H in its middle.
+    // Where the wrap is computed right (distances and correction across the edge), the tile at the
+    // seam equals the shifted tile at the same point of the pattern. Both hold the same doubles
+    // rounded to float at the same pattern points, so they agree to float rounding; 0.01 texel is
+    // the issue's seam tolerance.
+    const Size3 size{256, 256, 16};
+    for (const auto& [name, procedural] : proceduralKinds()) {
+        SCOPED_TRACE(name);
+        const ProceduralDistance pattern = proceduralDistance(procedural, size);
+        const glm::dvec3 half(128.0, 128.0, 0.0);
+        Tile tile = tileOf(size, pattern.signedDistanceTexels);
+        Tile shifted = tileOf(size, [&](const glm::dvec3& p) { return pattern.signedDistanceTexels(p + half); });
+        makeConservative(tile, ConservativeOptions{});
+        makeConservative(shifted, ConservativeOptions{});
+        const TrilinearFilter atSeam(tile);
+        const TrilinearFilter inside(shifted);
+        std::mt19937 random(5);
+        std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+        double worst = 0.0;
+        for (int i = 0; i < 5000; ++i) {
+            const float a = unit(random) * 256.0f;
+            const float z = unit(random) * 16.0f;
+            const float across = -1.0f + 2.0f * unit(random);  // within a texel of the seam
+            const glm::vec3 xSeam{across, a, z};
+            const glm::vec3 ySeam{a, across, z};
+            worst = std::max(worst, double(std::abs(atSeam.distanceTexels(xSeam) -
+                                                    inside.distanceTexels(xSeam + glm::vec3(128.0f, 128.0f, 0.0f)))));
+            worst = std::max(worst, double(std::abs(atSeam.distanceTexels(ySeam) -
+                                                    inside.distanceTexels(ySeam + glm::vec3(128.0f, 128.0f, 0.0f)))));
+        }
+        std::printf("[ figures  ] %s: largest difference across the seams %.2g texel\n", name.c_str(), worst);
+        EXPECT_LE(worst, 0.01);
+    }
+}
+
+TEST(ConservativeResampling, LowersByTheCurvatureEstimateAndRejectsBadOptions) {
+    // A paraboloid-free check of the formula: f = x^2 / 2 along x has second difference 1 at every
+    // texel (a kink-free field above the threshold 0.8): lowering = 0.3 * 1 - 0.9 * 0.05 = 0.255;
+    // a plane has none.
+    const Size3 size{8, 8, 8};
+    Tile plane = tileOf(size, [](const glm::dvec3& p) { return p.z - 4.0; });
+    const Tile planeBefore = plane;
+    makeConservative(plane, ConservativeOptions{});
+    for (std::size_t i = 0; i < plane.distancesTexels().size(); ++i) {
+        EXPECT_FLOAT_EQ(plane.distancesTexels()[i], planeBefore.distancesTexels()[i]);
+    }
+    Tile parabola = tileOf(Size3{64, 8, 8}, [](const glm::dvec3& p) { return 0.5 * (p.x - 32.0) * (p.x - 32.0); });
+    const Tile parabolaBefore = parabola;
+    makeConservative(parabola, ConservativeOptions{});
+    // Interior columns (the wrap at x = 0/W breaks the parabola): float rounding of values < 600.
+    for (int x = 1; x < 63; ++x) EXPECT_NEAR(parabolaBefore.at(x, 3, 3) - parabola.at(x, 3, 3), 0.255f, 1e-4f);
+    ConservativeOptions bad;
+    bad.kinkFactor = -1.0f;
+    EXPECT_THROW(makeConservative(parabola, bad), InputError);
+    bad = {};
+    bad.toleranceTexels = std::nanf("");
+    EXPECT_THROW(makeConservative(parabola, bad), InputError);
 }
 
 }  // namespace

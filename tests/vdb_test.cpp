@@ -1,16 +1,24 @@
 // Tests of vdb/: the chain-mail distance against closed-form torus geometry, and level sets.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <random>
+#include <cstdio>
 
 #include <glm/geometric.hpp>
 
 #include "common/error.h"
 #include "vdb/chainmail.h"
 #include "vdb/level_set.h"
+#include "vdb/mesh_level_set.h"
+#include "detail_meshes.h"
+#include "vdb/grating.h"
+#include "vdb/height_field.h"
+#include "vdb/procedural.h"
 
 namespace distile {
 namespace {
@@ -221,6 +229,403 @@ TEST(LevelSet, RejectsBadBands) {
     auto plane = [](const glm::dvec3& p) { return p.z; };
     EXPECT_THROW(LevelSet::fromDistance(plane, Size3{8, 8, 4}, 0.5f, "", ""), InputError);
     EXPECT_THROW(LevelSet::fromDistance(plane, Size3{8, 8, 4}, std::nanf(""), "", ""), InputError);
+}
+
+// ---- mesh level sets ---------------------------------------------------------------------------
+
+TEST(MeshLevelSet, BoxDistancesAreExact) {
+    // Axis-aligned box, corners off the voxel grid: outside the faces the distance is exact.
+    const Size3 tile{32, 32, 16};
+    const TriangleSoup box = test::makeBoxSoup(glm::dvec3(10.25, 9.75, 4.5), glm::dvec3(20.5, 22.25, 11.5));
+    const LevelSet levelSet = levelSetFromMesh(box, tile, 4.0f, "box", "{}");
+    EXPECT_EQ(levelSet.tileSize(), tile);
+    EXPECT_EQ(levelSet.source(), "box");
+    // Voxel (15, 15, k) has centre z = k + 0.5: above the top face z = 11.5 by k - 11.
+    // OpenVDB computes point-triangle distances in float: 1e-4 texel covers the rounding.
+    EXPECT_NEAR(levelSet.voxelDistanceTexels(15, 15, 13), 2.0, 1e-4);
+    EXPECT_NEAR(levelSet.voxelDistanceTexels(15, 15, 9), -2.0, 1e-4);
+    EXPECT_NEAR(levelSet.voxelDistanceTexels(15, 15, 14), 3.0, 1e-4);
+    EXPECT_FLOAT_EQ(levelSet.voxelDistanceTexels(2, 2, 8), 4.0f);  // outside the band
+}
+
+/// Baking a mesh shifted by whole texels in x and y gives the same tile, cyclically shifted:
+/// so the tile's values across x = 0/W and y = 0/H continue as they do inside (no seam).
+void expectShiftInvariant(const TriangleSoup& mesh, const Size3& tile, int shiftX, int shiftY) {
+    TriangleSoup shifted = mesh;
+    for (glm::dvec3& p : shifted.positions) p += glm::dvec3(shiftX, shiftY, 0.0);
+    const LevelSet a = levelSetFromMesh(mesh, tile, float(tile.depth), "mesh", "{}");
+    const LevelSet b = levelSetFromMesh(shifted, tile, float(tile.depth), "mesh", "{}");
+    double worst = 0.0;
+    glm::ivec3 worstAt(0);
+    double worstNear = 0.0;
+    for (int k = 0; k < tile.depth; ++k) {
+        for (int j = 0; j < tile.height; ++j) {
+            for (int i = 0; i < tile.width; ++i) {
+                const int si = (i + shiftX) % tile.width, sj = (j + shiftY) % tile.height;
+                const double difference = std::abs(a.voxelDistanceTexels(i, j, k) -
+                                                   b.voxelDistanceTexels(si, sj, k));
+                if (std::abs(a.voxelDistanceTexels(i, j, k)) <= 2.0f) {
+                    worstNear = std::max(worstNear, difference);
+                }
+                if (difference > worst) {
+                    worst = difference;
+                    worstAt = glm::ivec3(i, j, k);
+                }
+            }
+        }
+    }
+    std::printf("[ figures  ] mesh level set shifted by (%d, %d) texels: max change %.3g texels "
+                "within 2 texels of the surface, %.3g anywhere\n", shiftX, shiftY, worstNear, worst);
+    // OpenVDB's mesh-to-volume is exact near the triangles but propagates nearest triangles
+    // approximately farther out (measured: up to ~0.25 texel at 4 texels), and the float
+    // rounding of shifted positions changes which voxels it gets slightly wrong. Near the
+    // surface (measured 2e-6) the 0.01 seam tolerance holds; farther out OpenVDB's own
+    // approximation (< 0.5 texel) is the bound.
+    EXPECT_LE(worstNear, 0.01);
+    EXPECT_LE(worst, 0.5) << "at voxel " << worstAt.x << " " << worstAt.y << " " << worstAt.z << ": "
+                           << a.voxelDistanceTexels(worstAt.x, worstAt.y, worstAt.z);
+}
+
+TEST(MeshLevelSet, MeshAcrossTheTileEdgeIsSeamless) {
+    const Size3 tile{48, 40, 12};
+    // Torus centred near the corner: it crosses x = 0 and y = 0 and continues across the wrap.
+    const TriangleSoup torus = test::makeTorusSoup(glm::dvec3(3.3, 2.6, 6.1), 10.0, 3.5, 64, 32);
+    expectShiftInvariant(torus, tile, 17, 23);
+    // The wrapped part is really there: x = W - 0.5 is as close to the tube as x = -0.5 would be.
+    const LevelSet levelSet = levelSetFromMesh(torus, tile, 12.0f, "torus", "{}");
+    // Voxel (47, 2, 6) centre (47.5, 2.5, 6.5) is the point (-0.5, 2.5, 6.5) of the unwrapped
+    // torus: 3.8 from its axis, 6.2 texels from the tube's centre line, 2.7 outside; tessellation
+    // (64 x 32) moves the surface by < 0.06 texel.
+    const double expected = std::hypot(10.0 - std::hypot(-0.5 - 3.3, 2.5 - 2.6), 0.4) - 3.5;
+    EXPECT_NEAR(levelSet.voxelDistanceTexels(47, 2, 6), expected, 0.06);
+}
+
+TEST(MeshLevelSet, RejectsBadInput) {
+    const Size3 tile{16, 16, 8};
+    const TriangleSoup box = test::makeBoxSoup(glm::dvec3(4.0), glm::dvec3(6.0));
+    EXPECT_THROW(levelSetFromMesh(TriangleSoup{}, tile, 4.0f, "", ""), InputError);
+    TriangleSoup nan = box;
+    nan.positions[3].y = std::nan("");
+    EXPECT_THROW(levelSetFromMesh(nan, tile, 4.0f, "", ""), InputError);
+    TriangleSoup outOfRange = box;
+    outOfRange.triangles[5].z = 99;
+    EXPECT_THROW(levelSetFromMesh(outOfRange, tile, 4.0f, "", ""), InputError);
+    EXPECT_THROW(levelSetFromMesh(box, tile, 0.5f, "", ""), InputError);
+    EXPECT_THROW(levelSetFromMesh(box, Size3{1, 16, 8}, 4.0f, "", ""), InputError);
+}
+
+}  // namespace
+}  // namespace distile
+
+// ---- Japanese 4-in-1 chain mail, grating, procedural access, repeated level sets -------------
+
+namespace distile {
+namespace {
+
+/// Closed-form Japanese 4-in-1 geometry as chainmail.h documents it: a torus by centre, unit axis,
+/// centreline radius and wire radius.
+struct Torus {
+    glm::dvec3 centre;
+    glm::dvec3 axis;
+    double ringRadius;
+    double wireRadius;
+};
+
+double torusDistanceBruteForce(const Torus& torus, const glm::dvec3& p) {
+    const glm::dvec3 offset = p - torus.centre;
+    const double along = glm::dot(offset, torus.axis);
+    const double inPlane = glm::length(offset - along * torus.axis);
+    return std::hypot(inPlane - torus.ringRadius, along) - torus.wireRadius;
+}
+
+std::vector<Torus> japaneseRings(const ChainmailOptions& options, const Size3& tile, int reachCells) {
+    const double s = double(tile.width) / options.ringsPerRow;
+    const double t = double(tile.height) / options.rowsPerTile;
+    const double z = 0.5 * tile.depth;
+    std::vector<Torus> rings;
+    for (int j = -reachCells; j < options.rowsPerTile + reachCells; ++j) {
+        for (int i = -reachCells; i < options.ringsPerRow + reachCells; ++i) {
+            rings.push_back({{i * s, j * t, z}, {0, 0, 1}, options.ringRadiusSpacings * s, options.wireRadiusSpacings * s});
+            rings.push_back({{(i + 0.5) * s, j * t, z}, {0, 1, 0}, options.smallRingRadiusSpacings * s,
+                             options.smallWireRadiusSpacings * s});
+            rings.push_back({{i * s, (j + 0.5) * t, z}, {1, 0, 0}, options.smallRingRadiusSpacings * s,
+                             options.smallWireRadiusSpacings * s});
+        }
+    }
+    return rings;
+}
+
+TEST(JapaneseChainmail, MatchesBruteForceMinimumOverAllRingsAndIsPeriodic) {
+    const ChainmailOptions options = japanese4in1Defaults();
+    const Chainmail chainmail(options, kDefaultTile);
+    const std::vector<Torus> rings = japaneseRings(options, kDefaultTile, 3);
+    std::mt19937 random(17);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int sample = 0; sample < 300; ++sample) {
+        // Includes points far above and below, where many rings are candidates.
+        const glm::dvec3 p{unit(random) * 256.0, unit(random) * 256.0, -40.0 + unit(random) * 96.0};
+        double expected = 1e300;
+        for (const Torus& ring : rings) expected = std::min(expected, torusDistanceBruteForce(ring, p));
+        // Both are sums of a few double operations on values below 300: 1e-9 is ~1e5 ulps of slack.
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p), expected, 1e-9) << p.x << "," << p.y << "," << p.z;
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(256.0, 0.0, 0.0)), expected, 1e-9);
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(-256.0 * 5, 256.0 * 9, 0.0)), expected, 1e-8);
+    }
+}
+
+TEST(JapaneseChainmail, CentrelinesAreOneWireInsideRingsDoNotTouchAndFitTheDepth) {
+    const ChainmailOptions options = japanese4in1Defaults();
+    const Chainmail chainmail(options, kDefaultTile);
+    const double s = 32.0;
+    for (int i = 0; i < 360; ++i) {
+        const double angle = 2.0 * kPi * i / 360.0;
+        // Large ring (2, 3): centreline in the plane z = 8.
+        const glm::dvec3 large{2 * s + 13.75 * std::cos(angle), 3 * s + 13.75 * std::sin(angle), 8.0};
+        EXPECT_NEAR(chainmail.signedDistanceTexels(large), -1.5, 1e-9);
+        // Small ring between (2, 3) and (3, 3): centreline in the x-z plane.
+        const glm::dvec3 small{2.5 * s + 6.0 * std::cos(angle), 3 * s, 8.0 + 6.0 * std::sin(angle)};
+        EXPECT_NEAR(chainmail.signedDistanceTexels(small), -1.25, 1e-9);
+    }
+    // Linked wires keep 1 texel of clearance (file note): the distance from one ring's surface to
+    // any other ring is >= 1, so nowhere is a point inside two rings; sample on each wire's
+    // surface and check the distance to the union there is exactly 0 (no other ring intersects).
+    for (int i = 0; i < 720; ++i) {
+        const double angle = 2.0 * kPi * i / 720.0;
+        for (int j = 0; j < 8; ++j) {
+            const double tube = 2.0 * kPi * j / 8.0;
+            const glm::dvec3 radial{std::cos(angle), 0.0, std::sin(angle)};
+            const glm::dvec3 onSmall = glm::dvec3(2.5 * s, 3 * s, 8.0) + (6.0 + 1.25 * std::cos(tube)) * radial +
+                                       glm::dvec3(0.0, 1.25 * std::sin(tube), 0.0);
+            EXPECT_NEAR(chainmail.signedDistanceTexels(onSmall), 0.0, 1e-9);
+        }
+    }
+    EXPECT_LE(chainmail.heightTexels(), 15.0);
+    for (int y = 0; y < 256; ++y) {
+        for (int x = 0; x < 256; ++x) {
+            EXPECT_GT(chainmail.signedDistanceTexels({x + 0.25, y + 0.75, 0.0}), 0.5);
+            EXPECT_GT(chainmail.signedDistanceTexels({x + 0.25, y + 0.75, 16.0}), 0.5);
+        }
+    }
+}
+
+TEST(JapaneseChainmail, SmallRingsThreadBothLargeRings) {
+    // The small ring's centreline crosses each joined large ring's disk once inside the disk
+    // (at x = 2.5 s - 6 = 74, inside ring 2 whose centreline radius reaches 64 + 13.75) and once
+    // outside it, so it is linked with both; the large rings' planes are z = 8.
+    const double s = 32.0;
+    auto insideLargeDisk = [&](double x, int column) { return std::abs(x - column * s) < 13.75; };
+    EXPECT_TRUE(insideLargeDisk(2.5 * s - 6.0, 2));
+    EXPECT_FALSE(insideLargeDisk(2.5 * s + 6.0, 2));
+    EXPECT_TRUE(insideLargeDisk(2.5 * s + 6.0, 3));
+    EXPECT_FALSE(insideLargeDisk(2.5 * s - 6.0, 3));
+    // Parameters that would make neighbouring large rings touch are refused.
+    ChainmailOptions touching = japanese4in1Defaults();
+    touching.ringRadiusSpacings = 0.48;
+    EXPECT_THROW(Chainmail(touching, kDefaultTile), InputError);
+    ChainmailOptions tall = japanese4in1Defaults();
+    tall.smallRingRadiusSpacings = 0.3;
+    EXPECT_THROW(Chainmail(tall, kDefaultTile), InputError);
+}
+
+/// Exact distance to a rounded rectangle, written differently from grating.cpp: outside the inner
+/// rectangle (the rectangle shrunk by the radius) it is the distance to that rectangle minus the
+/// radius (the nearest boundary point lies on the ray from the nearest inner point); inside it,
+/// the nearest boundary point is on the nearest straight side.
+double roundedRectangleBruteForce(double u, double v, double halfU, double halfV, double radius) {
+    const double innerU = halfU - radius;
+    const double innerV = halfV - radius;
+    const double toInner = std::hypot(u - std::clamp(u, -innerU, innerU), v - std::clamp(v, -innerV, innerV));
+    if (toInner > 0.0) return toInner - radius;
+    return -std::min(halfU - std::abs(u), halfV - std::abs(v));
+}
+
+TEST(Grating, MatchesBruteForceOverAllBarsClosedFormPointsAndIsPeriodic) {
+    const GratingOptions options;
+    const Grating grating(options, kDefaultTile);
+    const double spacing = 256.0 / options.barsPerTile;
+    const double offset = 0.5 * (options.barHeightTexels + options.layerGapTexels);
+    std::mt19937 random(19);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int sample = 0; sample < 2000; ++sample) {
+        const glm::dvec3 p{unit(random) * 256.0, unit(random) * 256.0, -10.0 + unit(random) * 36.0};
+        double expected = 1e300;
+        for (int k = -2; k < options.barsPerTile + 2; ++k) {
+            const double centre = (k + 0.5) * spacing;
+            expected = std::min(expected, roundedRectangleBruteForce(p.y - centre, p.z - 8.0 - offset, 4.0, 3.0, 3.0));
+            expected = std::min(expected, roundedRectangleBruteForce(p.x - centre, p.z - 8.0 + offset, 4.0, 3.0, 3.0));
+        }
+        EXPECT_NEAR(grating.signedDistanceTexels(p), expected, 1e-9) << p.x << "," << p.y << "," << p.z;
+        EXPECT_NEAR(grating.signedDistanceTexels(p + glm::dvec3(256.0 * 3, -256.0, 0.0)), expected, 1e-9);
+    }
+    // Closed form: the top face of an upper bar is at z = 8 + 0.5 + 6 = 14.5, its centre line at
+    // y = 16; the bar's core is 3 texels (half the height) inside; the gap's middle is 0.5 away.
+    EXPECT_NEAR(grating.signedDistanceTexels({100.0, 16.0, 14.5}), 0.0, 1e-12);
+    EXPECT_NEAR(grating.signedDistanceTexels({100.0, 16.0, 11.5}), -3.0, 1e-12);
+    EXPECT_NEAR(grating.signedDistanceTexels({16.0, 16.0, 8.0}), 0.5, 1e-12);
+    // Beside a rounded edge: the edge circle's centre is at (y, z) = (16 + 1, 11.5), radius 3.
+    EXPECT_NEAR(grating.signedDistanceTexels({100.0, 17.0 + 3.0, 11.5 + 4.0}), 5.0 - 3.0, 1e-12);
+    EXPECT_EQ(grating.heightTexels(), 13.0);
+    for (int y = 0; y < 256; ++y) {
+        for (int x = 0; x < 256; ++x) {
+            EXPECT_GT(grating.signedDistanceTexels({x + 0.5, y + 0.5, 0.0}), 0.5);
+            EXPECT_GT(grating.signedDistanceTexels({x + 0.5, y + 0.5, 16.0}), 0.5);
+        }
+    }
+}
+
+TEST(Grating, RejectsOptionsThatCannotWork) {
+    GratingOptions wide;
+    wide.barWidthTexels = 40.0;
+    EXPECT_THROW(Grating(wide, kDefaultTile), InputError);
+    GratingOptions touching;
+    touching.layerGapTexels = 0.0;
+    EXPECT_THROW(Grating(touching, kDefaultTile), InputError);
+    GratingOptions tall;
+    tall.barHeightTexels = 8.0;
+    EXPECT_THROW(Grating(tall, kDefaultTile), InputError);
+    GratingOptions round;
+    round.edgeRadiusTexels = 3.5;
+    EXPECT_THROW(Grating(round, kDefaultTile), InputError);
+}
+
+TEST(Procedural, GivesEachPatternsDistanceSourceAndParams) {
+    ProceduralOptions options;
+    options.kind = ProceduralKind::Grating;
+    const ProceduralDistance grating = proceduralDistance(options, kDefaultTile);
+    EXPECT_EQ(grating.source, "grating");
+    EXPECT_EQ(grating.paramsJson, Grating(GratingOptions{}, kDefaultTile).paramsJson());
+    const glm::dvec3 p{12.3, 45.6, 7.8};
+    EXPECT_EQ(grating.signedDistanceTexels(p), Grating(GratingOptions{}, kDefaultTile).signedDistanceTexels(p));
+    options.kind = ProceduralKind::Chainmail;
+    options.chainmail = japanese4in1Defaults();
+    const ProceduralDistance japanese = proceduralDistance(options, kDefaultTile);
+    EXPECT_EQ(japanese.source, "chainmail");
+    EXPECT_NE(japanese.paramsJson.find("\"weave\":\"japanese4in1\""), std::string::npos);
+    EXPECT_NE(japanese.paramsJson.find("\"ring_radius_spacings\":0.4296875"), std::string::npos);
+    EXPECT_EQ(japanese.signedDistanceTexels(p), Chainmail(japanese4in1Defaults(), kDefaultTile).signedDistanceTexels(p));
+    // The default European weave keeps its provenance text.
+    EXPECT_EQ(Chainmail(ChainmailOptions{}, kDefaultTile).paramsJson(),
+              "{\"weave\":\"european4in1\",\"rings_per_row\":8,\"rows_per_tile\":10,\"ring_radius_spacings\":0.703125,"
+              "\"wire_radius_spacings\":0.065625,\"tilt_deg\":12}");
+}
+
+TEST(LevelSetRepeat, CopiesTheTileWithOffsetsAndChecksTheCounts) {
+    const Size3 size{8, 6, 4};
+    const LevelSet levelSet = LevelSet::fromDistance(
+        [](const glm::dvec3& p) { return std::sin(0.7 * p.x) + std::cos(1.1 * p.y) + 0.3 * p.z - 1.0; }, size, 3.0f,
+        "wave", "{}");
+    const LevelSet repeated = levelSet.repeated(3, 2);
+    EXPECT_EQ(repeated.tileSize(), (Size3{24, 12, 4}));
+    EXPECT_EQ(repeated.source(), "wave");
+    EXPECT_FLOAT_EQ(repeated.halfBandTexels(), 3.0f);
+    for (int k = -3; k < 7; ++k)
+        for (int j = 0; j < 12; ++j)
+            for (int i = 0; i < 24; ++i)
+                ASSERT_EQ(repeated.voxelDistanceTexels(i, j, k), levelSet.voxelDistanceTexels(i % 8, j % 6, k))
+                    << i << "," << j << "," << k;
+    EXPECT_THROW(levelSet.repeated(0, 2), InputError);
+    EXPECT_THROW(levelSet.repeated(2, 65), InputError);
+}
+
+/// A smooth periodic height field on a W x H tile, heights in [1, 13] texels.
+HeightField wavyHeightField(const Size3& tile) {
+    HeightField field;
+    field.width = tile.width;
+    field.height = tile.height;
+    const double tau = 2.0 * std::numbers::pi;
+    for (int j = 0; j < tile.height; ++j) {
+        for (int i = 0; i < tile.width; ++i) {
+            const double u = (i + 0.5) / tile.width, v = (j + 0.5) / tile.height;
+            field.heightsTexels.push_back(7.0 + 4.0 * std::sin(tau * u) * std::cos(2.0 * tau * v) +
+                                          2.0 * std::cos(tau * (u + v)));
+        }
+    }
+    return field;
+}
+
+TEST(HeightFieldLevelSet, FlatFieldIsExactlyZMinusHeight) {
+    const Size3 tile{24, 20, 16};
+    HeightField field;
+    field.width = tile.width;
+    field.height = tile.height;
+    field.heightsTexels.assign(std::size_t(tile.width) * tile.height, 5.25);
+    const float band = 6.0f;
+    const LevelSet levelSet = levelSetFromHeightField(field, tile, band, "heightmap", "{}");
+    double maxError = 0.0;
+    for (int k = -6; k < tile.depth + 6; ++k) {
+        for (int j = 0; j < tile.height; ++j) {
+            for (int i = 0; i < tile.width; ++i) {
+                const double expected = std::clamp(k + 0.5 - 5.25, -double(band), double(band));
+                maxError = std::max(maxError, std::abs(levelSet.voxelDistanceTexels(i, j, k) - expected));
+            }
+        }
+    }
+    // Float storage of values up to 16 texels: a few ulp (1e-6 each) at most.
+    EXPECT_LT(maxError, 1e-5);
+    EXPECT_DOUBLE_EQ(heightFieldSurfaceTexels(field, -3.7, 41.2), 5.25);
+}
+
+TEST(HeightFieldLevelSet, SurfaceInterpolatesTheNodesPeriodically) {
+    const Size3 tile{8, 8, 16};
+    HeightField field = wavyHeightField(tile);
+    // At a node: the node; halfway along the diagonal of a cell: the mean of its two ends; one
+    // period away: the same.
+    EXPECT_DOUBLE_EQ(heightFieldSurfaceTexels(field, 3.5, 4.5), field.node(3, 4));
+    EXPECT_NEAR(heightFieldSurfaceTexels(field, 4.0, 5.0), 0.5 * (field.node(3, 4) + field.node(4, 5)), 1e-12);
+    EXPECT_NEAR(heightFieldSurfaceTexels(field, 4.0 + 8.0, 5.0 - 16.0), heightFieldSurfaceTexels(field, 4.0, 5.0),
+                1e-12);
+    // Across the wrap: between node 7 and node 8 = node 0.
+    EXPECT_NEAR(heightFieldSurfaceTexels(field, 8.0, 0.5), 0.5 * (field.node(7, 0) + field.node(0, 0)), 1e-12);
+}
+
+TEST(HeightFieldLevelSet, ShiftedFieldGivesTheShiftedLevelSetAcrossTheWrap) {
+    // Seams: the level set of the field shifted by (s, t) nodes is the level set shifted by
+    // (s, t) voxels, so values next to x = 0/W and y = 0/H equal interior ones. Both are exact
+    // distances up to float rounding; 0.01 texel is the seam tolerance.
+    const Size3 tile{32, 24, 16};
+    const HeightField field = wavyHeightField(tile);
+    HeightField shifted = field;
+    const int s = 13, t = 7;
+    for (int j = 0; j < tile.height; ++j) {
+        for (int i = 0; i < tile.width; ++i) {
+            shifted.heightsTexels[std::size_t(i) + std::size_t(j) * tile.width] = field.node(i + s, j + t);
+        }
+    }
+    const LevelSet a = levelSetFromHeightField(field, tile, 16.0f, "heightmap", "{}");
+    const LevelSet b = levelSetFromHeightField(shifted, tile, 16.0f, "heightmap", "{}");
+    double maxDifference = 0.0;
+    for (int k = 0; k < tile.depth; ++k) {
+        for (int j = 0; j < tile.height; ++j) {
+            for (int i = 0; i < tile.width; ++i) {
+                const float wrapped = a.voxelDistanceTexels((i + s) % tile.width, (j + t) % tile.height, k);
+                maxDifference = std::max(maxDifference, double(std::abs(b.voxelDistanceTexels(i, j, k) - wrapped)));
+            }
+        }
+    }
+    EXPECT_LE(maxDifference, 0.01);
+    // The values on both sides of x = 0 (and y = 0) differ by at most the surface's slope.
+    for (int j = 0; j < tile.height; ++j) {
+        EXPECT_LE(std::abs(a.voxelDistanceTexels(0, j, 8) - a.voxelDistanceTexels(tile.width - 1, j, 8)), 1.0);
+    }
+}
+
+TEST(HeightFieldLevelSet, RejectsBadFields) {
+    const Size3 tile{8, 8, 8};
+    HeightField field;
+    field.width = 8;
+    field.height = 8;
+    field.heightsTexels.assign(64, 2.0);
+    EXPECT_NO_THROW(validateHeightField(field, tile, "test"));
+    HeightField wrongSize = field;
+    wrongSize.width = 4;
+    EXPECT_THROW(levelSetFromHeightField(wrongSize, tile, 4.0f, "", ""), InputError);
+    HeightField nan = field;
+    nan.heightsTexels[5] = std::nan("");
+    EXPECT_THROW(levelSetFromHeightField(nan, tile, 4.0f, "", ""), InputError);
+    HeightField tooHigh = field;
+    tooHigh.heightsTexels[5] = 8.5;
+    EXPECT_THROW(levelSetFromHeightField(tooHigh, tile, 4.0f, "", ""), InputError);
+    EXPECT_THROW(levelSetFromHeightField(field, tile, 0.5f, "", ""), InputError);
 }
 
 }  // namespace

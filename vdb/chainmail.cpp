@@ -26,6 +26,23 @@ double wrap(double value, double period) {
 
 }  // namespace
 
+ChainmailOptions japanese4in1Defaults() {
+    ChainmailOptions options;
+    options.weave = ChainmailWeave::Japanese4in1;
+    options.ringsPerRow = 8;
+    options.rowsPerTile = 8;
+    options.ringRadiusSpacings = 0.4296875;      // 13.75 texels at 32-texel spacing
+    options.wireRadiusSpacings = 0.046875;       // 1.5 texels
+    options.smallRingRadiusSpacings = 0.1875;    // 6 texels
+    options.smallWireRadiusSpacings = 0.0390625; // 1.25 texels
+    options.tiltDeg = 0.0;
+    return options;
+}
+
+const char* weaveName(ChainmailWeave weave) {
+    return weave == ChainmailWeave::Japanese4in1 ? "japanese4in1" : "european4in1";
+}
+
 Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
     : options_(options), tile_(tile) {
     validateTileSize(tile, "chainmail");
@@ -37,8 +54,13 @@ Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
     if (options.ringsPerRow < 1 || options.ringsPerRow > tile.width / 4) {
         reject("rings per row", options.ringsPerRow, "it must be in [1, width/4]");
     }
-    if (options.rowsPerTile < 2 || options.rowsPerTile % 2 != 0 ||
-        options.rowsPerTile > tile.height / 2) {
+    const bool japanese = options.weave == ChainmailWeave::Japanese4in1;
+    if (japanese) {
+        if (options.rowsPerTile < 1 || options.rowsPerTile > tile.height / 4) {
+            reject("rows per tile", options.rowsPerTile, "it must be in [1, height/4]");
+        }
+    } else if (options.rowsPerTile < 2 || options.rowsPerTile % 2 != 0 ||
+               options.rowsPerTile > tile.height / 2) {
         reject("rows per tile", options.rowsPerTile, "it must be even and in [2, height/2]");
     }
     if (!(options.ringRadiusSpacings > 0.0 && options.ringRadiusSpacings <= 2.0)) {
@@ -58,6 +80,23 @@ Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
     wireRadiusTexels_ = options.wireRadiusSpacings * ringSpacingTexels_;
     cosTilt_ = std::cos(options.tiltDeg * kPi / 180.0);
     sinTilt_ = std::sin(options.tiltDeg * kPi / 180.0);
+    if (japanese) {
+        if (!(options.smallRingRadiusSpacings > 0.0 && options.smallRingRadiusSpacings <= 1.0)) {
+            reject("small ring radius", options.smallRingRadiusSpacings, "it must be in (0, 1] ring spacings");
+        }
+        if (!(options.smallWireRadiusSpacings > 0.0 &&
+              options.smallWireRadiusSpacings < options.smallRingRadiusSpacings)) {
+            reject("small wire radius", options.smallWireRadiusSpacings,
+                   "it must be positive and below the small ring radius");
+        }
+        smallRingRadiusTexels_ = options.smallRingRadiusSpacings * ringSpacingTexels_;
+        smallWireRadiusTexels_ = options.smallWireRadiusSpacings * ringSpacingTexels_;
+        const double outerRadius = ringRadiusTexels_ + wireRadiusTexels_;
+        if (2.0 * outerRadius >= std::min(ringSpacingTexels_, rowSpacingTexels_)) {
+            reject("ring radius", options.ringRadiusSpacings,
+                   "Japanese 4-in-1 large rings (ring + wire radius) must not touch their neighbours");
+        }
+    }
 
     constexpr double kMarginTexels = 0.5;
     if (heightTexels() > tile.depth - 2.0 * kMarginTexels) {
@@ -70,6 +109,10 @@ Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
 }
 
 double Chainmail::heightTexels() const {
+    if (options_.weave == ChainmailWeave::Japanese4in1) {
+        // Flat large rings are 2 r tall; vertical small rings 2 (rho + r_s).
+        return 2.0 * std::max(wireRadiusTexels_, smallRingRadiusTexels_ + smallWireRadiusTexels_);
+    }
     // The centreline circle (radius R) tilted by t spans 2 R sin t vertically; the tube adds r
     // above and below.
     return 2.0 * (ringRadiusTexels_ * sinTilt_ + wireRadiusTexels_);
@@ -79,6 +122,7 @@ double Chainmail::signedDistanceTexels(const glm::dvec3& texelPosition) const {
     const double x = wrap(texelPosition.x, tile_.width);
     const double y = wrap(texelPosition.y, tile_.height);
     const double z = texelPosition.z - 0.5 * tile_.depth;
+    if (options_.weave == ChainmailWeave::Japanese4in1) return japaneseDistanceTexels(x, y, z);
 
     // Distance to the ring at lattice position (row, column).
     auto ringDistance = [&](int row, int column) {
@@ -103,10 +147,70 @@ double Chainmail::signedDistanceTexels(const glm::dvec3& texelPosition) const {
     const double reach = std::abs(distance) + ringRadiusTexels_ + wireRadiusTexels_;
     const int rowReach = int(std::ceil(reach / rowSpacingTexels_));
     const int columnReach = int(std::ceil(reach / ringSpacingTexels_));
+    // The same bound prunes candidates as the distance shrinks (skipped rings cannot be nearer, so
+    // the minimum is unchanged); compared squared: distance + extent >= R > 0.
+    const double extent = ringRadiusTexels_ + wireRadiusTexels_;
     for (int row = nearestRow - rowReach; row <= nearestRow + rowReach; ++row) {
+        const double dy = y - row * rowSpacingTexels_;
+        if (std::abs(dy) >= distance + extent) continue;
         const int centreColumn = nearestColumn(row);
+        const double rowShift = (row % 2 + 2) % 2 == 1 ? 0.5 * ringSpacingTexels_ : 0.0;
         for (int column = centreColumn - columnReach; column <= centreColumn + columnReach; ++column) {
+            const double dx = x - (column * ringSpacingTexels_ + rowShift);
+            const double reachNow = distance + extent;
+            if (dx * dx + dy * dy >= reachNow * reachNow) continue;
             distance = std::min(distance, ringDistance(row, column));
+        }
+    }
+    return distance;
+}
+
+double Chainmail::japaneseDistanceTexels(double x, double y, double z) const {
+    // Three ring families on the lattice (s along x, t along y), centred at mid-depth:
+    //  large flat rings at (i s, j t), axis z;
+    //  small rings joining neighbours along x at ((i + 1/2) s, j t), in the x-z plane (axis y);
+    //  small rings joining neighbours along y at (i s, (j + 1/2) t), in the y-z plane (axis x).
+    const double s = ringSpacingTexels_;
+    const double t = rowSpacingTexels_;
+    struct Family {
+        double offsetX, offsetY;  ///< centre of ring (0, 0), texels
+        double extentTexels;      ///< horizontal distance from the centre to the farthest surface point
+    };
+    const Family families[3] = {{0.0, 0.0, ringRadiusTexels_ + wireRadiusTexels_},
+                                {0.5 * s, 0.0, smallRingRadiusTexels_ + smallWireRadiusTexels_},
+                                {0.0, 0.5 * t, smallRingRadiusTexels_ + smallWireRadiusTexels_}};
+    auto ringDistance = [&](int family, int column, int row) {
+        const double dx = x - (column * s + families[family].offsetX);
+        const double dy = y - (row * t + families[family].offsetY);
+        if (family == 0) return torusDistance({dx, dy, z}, ringRadiusTexels_, wireRadiusTexels_);
+        const glm::dvec3 local = family == 1 ? glm::dvec3(dx, z, dy) : glm::dvec3(dy, z, dx);
+        return torusDistance(local, smallRingRadiusTexels_, smallWireRadiusTexels_);
+    };
+    // Nearest ring of each family first; then, as for the European weave, only rings whose centre
+    // is within |d| + extent horizontally can be nearer (a ring's surface lies within `extent` of
+    // its centre horizontally, so a point h away from the centre is at least h - extent away).
+    double distance = std::numeric_limits<double>::infinity();
+    for (int family = 0; family < 3; ++family) {
+        distance = std::min(distance, ringDistance(family, int(std::lround((x - families[family].offsetX) / s)),
+                                                   int(std::lround((y - families[family].offsetY) / t))));
+    }
+    const double bound = std::abs(distance);
+    for (int family = 0; family < 3; ++family) {
+        const Family& f = families[family];
+        const double reach = bound + f.extentTexels;
+        const int columnBegin = int(std::ceil((x - reach - f.offsetX) / s));
+        const int columnEnd = int(std::floor((x + reach - f.offsetX) / s));
+        const int rowBegin = int(std::ceil((y - reach - f.offsetY) / t));
+        const int rowEnd = int(std::floor((y + reach - f.offsetY) / t));
+        for (int row = rowBegin; row <= rowEnd; ++row) {
+            const double dy = y - (row * t + f.offsetY);
+            for (int column = columnBegin; column <= columnEnd; ++column) {
+                // Prune as the distance shrinks: a ring h away horizontally is at least h - extent away.
+                const double dx = x - (column * s + f.offsetX);
+                const double reachNow = distance + f.extentTexels;
+                if (reachNow > 0.0 && dx * dx + dy * dy >= reachNow * reachNow) continue;
+                distance = std::min(distance, ringDistance(family, column, row));
+            }
         }
     }
     return distance;
@@ -114,6 +218,16 @@ double Chainmail::signedDistanceTexels(const glm::dvec3& texelPosition) const {
 
 std::string Chainmail::paramsJson() const {
     std::ostringstream json;
+    json.precision(15);  // decimal options round-trip through the tile's provenance
+    if (options_.weave == ChainmailWeave::Japanese4in1) {
+        json << "{\"weave\":\"japanese4in1\",\"rings_per_row\":" << options_.ringsPerRow
+             << ",\"rows_per_tile\":" << options_.rowsPerTile
+             << ",\"ring_radius_spacings\":" << options_.ringRadiusSpacings
+             << ",\"wire_radius_spacings\":" << options_.wireRadiusSpacings
+             << ",\"small_ring_radius_spacings\":" << options_.smallRingRadiusSpacings
+             << ",\"small_wire_radius_spacings\":" << options_.smallWireRadiusSpacings << "}";
+        return json.str();
+    }
     json << "{\"weave\":\"european4in1\",\"rings_per_row\":" << options_.ringsPerRow
          << ",\"rows_per_tile\":" << options_.rowsPerTile
          << ",\"ring_radius_spacings\":" << options_.ringRadiusSpacings

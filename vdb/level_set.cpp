@@ -63,6 +63,32 @@ struct LevelSet::Impl {
     std::string params;
 };
 
+namespace {
+
+/// The sparse level set of a dense block of clamped distances: voxels at -halfBand lie deep inside
+/// and become inactive, like the background outside; grid class, name, transform and metadata as
+/// the file note of level_set.h says.
+openvdb::FloatGrid::Ptr sparseGrid(const openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ>& dense,
+                                   float halfBandTexels, const Size3& tile, const std::string& source,
+                                   const std::string& params) {
+    auto grid = openvdb::FloatGrid::create(halfBandTexels);
+    openvdb::tools::copyFromDense(dense, *grid, /*tolerance=*/0.0f);
+    for (auto voxel = grid->tree().beginValueOn(); voxel; ++voxel) {
+        if (*voxel <= -halfBandTexels) voxel.setActiveState(false);
+    }
+    grid->tree().prune();
+    grid->setTransform(texelTransform());
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    grid->setName(kGridName);
+    grid->insertMeta(kSizeKey, openvdb::StringMetadata(toString(tile)));
+    grid->insertMeta(kSourceKey, openvdb::StringMetadata(source));
+    grid->insertMeta(kParamsKey, openvdb::StringMetadata(params));
+    grid->insertMeta("distile:units", openvdb::StringMetadata("texels"));
+    return grid;
+}
+
+}  // namespace
+
 LevelSet::LevelSet(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 LevelSet::LevelSet(LevelSet&&) noexcept = default;
 LevelSet& LevelSet::operator=(LevelSet&&) noexcept = default;
@@ -103,26 +129,53 @@ LevelSet LevelSet::fromDistance(const DistanceFunction& distance, const Size3& t
         if (progress) progress(double(slab + 1) / slabs);
     }
 
-    auto grid = openvdb::FloatGrid::create(halfBandTexels);
-    openvdb::tools::copyFromDense(dense, *grid, /*tolerance=*/0.0f);
-    // Voxels clamped to -halfBand lie deep inside: inactive, like the background outside.
-    for (auto voxel = grid->tree().beginValueOn(); voxel; ++voxel) {
-        if (*voxel <= -halfBandTexels) voxel.setActiveState(false);
-    }
-    grid->tree().prune();
-    grid->setTransform(texelTransform());
-    grid->setGridClass(openvdb::GRID_LEVEL_SET);
-    grid->setName(kGridName);
-    grid->insertMeta(kSizeKey, openvdb::StringMetadata(toString(tile)));
-    grid->insertMeta(kSourceKey, openvdb::StringMetadata(source));
-    grid->insertMeta(kParamsKey, openvdb::StringMetadata(params));
-    grid->insertMeta("distile:units", openvdb::StringMetadata("texels"));
-
     auto impl = std::make_unique<Impl>();
-    impl->grid = grid;
+    impl->grid = sparseGrid(dense, halfBandTexels, tile, source, params);
     impl->tile = tile;
     impl->source = source;
     impl->params = params;
+    return LevelSet(std::move(impl));
+}
+
+LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
+    const Size3& tile = impl_->tile;
+    const float halfBand = impl_->grid->background();
+    const int margin = int(std::ceil(halfBand));
+    const std::size_t voxels = std::size_t(tile.width) * std::size_t(std::max(repeatX, 1)) * std::size_t(tile.height) *
+                               std::size_t(std::max(repeatY, 1)) * std::size_t(tile.depth + 2 * margin);
+    if (repeatX < 1 || repeatX > 64 || repeatY < 1 || repeatY > 64 || voxels > (std::size_t(1) << 30)) {
+        throw InputError("--repeat: " + std::to_string(repeatX) + "x" + std::to_string(repeatY) +
+                         " is not accepted; each count must be in [1, 64] and the repeated level set at most 2^30 voxels");
+    }
+    const openvdb::CoordBBox source(openvdb::Coord(0, 0, -margin),
+                                    openvdb::Coord(tile.width - 1, tile.height - 1, tile.depth - 1 + margin));
+    openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> one(source);
+    openvdb::tools::copyToDense(*impl_->grid, one);
+    const Size3 repeatedTile{tile.width * repeatX, tile.height * repeatY, tile.depth};
+    const openvdb::CoordBBox box(openvdb::Coord(0, 0, -margin),
+                                 openvdb::Coord(repeatedTile.width - 1, repeatedTile.height - 1,
+                                                tile.depth - 1 + margin));
+    openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box);
+    const float* from = one.data();
+    float* to = dense.data();
+    const std::size_t rows = std::size_t(tile.height) * std::size_t(tile.depth + 2 * margin);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t row = range.begin(); row != range.end(); ++row) {
+            const std::size_t j = row % std::size_t(tile.height);
+            const std::size_t k = row / std::size_t(tile.height);
+            const float* sourceRow = from + row * std::size_t(tile.width);
+            for (int n = 0; n < repeatY; ++n) {
+                float* targetRow = to + (k * std::size_t(repeatedTile.height) + std::size_t(n) * tile.height + j) *
+                                            std::size_t(repeatedTile.width);
+                for (int m = 0; m < repeatX; ++m) std::copy_n(sourceRow, tile.width, targetRow + std::size_t(m) * tile.width);
+            }
+        }
+    });
+    auto impl = std::make_unique<Impl>();
+    impl->grid = sparseGrid(dense, halfBand, repeatedTile, impl_->source, impl_->params);
+    impl->tile = repeatedTile;
+    impl->source = impl_->source;
+    impl->params = impl_->params;
     return LevelSet(std::move(impl));
 }
 

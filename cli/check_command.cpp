@@ -1,0 +1,292 @@
+// distile check: how far a tile is from the truth (analytic, mesh or level set).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/arguments.h"
+#include "cli/commands.h"
+#include "common/error.h"
+#include "mesh/detail_mesh.h"
+#include "sampler/bake.h"
+#include "sampler/resample.h"
+#include "sampler/tile_error.h"
+#include "sampler/tile_io.h"
+#include "truth/mesh_truth.h"
+#include "vdb/level_set.h"
+#include "vdb/procedural.h"
+
+namespace distile::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using nlohmann::json;
+
+struct CheckArguments {
+    fs::path tile;
+    std::string against = "analytic";
+    int samples = 100000;
+    std::uint64_t seed = 1;
+    bool json = false;
+    double maxOverestimateTexels = 0.05;
+    double maxOverestimateShare = 0.001;
+    double maxRmsTexels = 0.1;
+    std::optional<double> maxNearErrorTexels;
+    bool allowSignErrors = false;
+    std::optional<double> meshScale;
+    std::vector<double> meshOffset;
+};
+
+/// The procedural options recorded in a tile's distile:source and distile:params (written by
+/// vdb/procedural.h's paramsJson). Unknown sources or fields are FormatErrors naming the file.
+ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance, const std::string& file) {
+    auto fail = [&](const std::string& message) -> void {
+        throw FormatError(file + ": distile:params " + message);
+    };
+    ProceduralOptions options;
+    if (provenance.source == "chainmail") {
+        options.kind = ProceduralKind::Chainmail;
+    } else if (provenance.source == "grating") {
+        options.kind = ProceduralKind::Grating;
+    } else {
+        throw InputError(file + ": distile:source '" + provenance.source +
+                         "' has no analytic truth (chainmail, grating); use --against MESH or LEVEL.vdb");
+    }
+    json params;
+    try {
+        params = json::parse(provenance.params);
+    } catch (const json::exception&) {
+        throw FormatError(file + ": distile:params is not valid JSON: '" + provenance.params + "'");
+    }
+    if (!params.is_object()) fail("must be a JSON object");
+    std::set<std::string> used;
+    auto number = [&](const char* key, double& target) {
+        if (!params.contains(key)) return;
+        used.insert(key);
+        if (!params[key].is_number()) fail(std::string(key) + " must be a number");
+        target = params[key].get<double>();
+    };
+    auto integer = [&](const char* key, int& target) {
+        double value = target;
+        number(key, value);
+        if (value != std::floor(value) || std::abs(value) > 1e6) fail(std::string(key) + " must be a whole number");
+        target = int(value);
+    };
+    if (options.kind == ProceduralKind::Chainmail) {
+        ChainmailOptions& chainmail = options.chainmail;
+        if (params.contains("weave")) {
+            used.insert("weave");
+            const std::string weave = params["weave"].is_string() ? params["weave"].get<std::string>() : "";
+            if (weave == "japanese4in1") {
+                chainmail = japanese4in1Defaults();
+            } else if (weave != "european4in1") {
+                fail("weave '" + params["weave"].dump() + "' is not accepted; accepted: european4in1, japanese4in1");
+            }
+        }
+        integer("rings_per_row", chainmail.ringsPerRow);
+        integer("rows_per_tile", chainmail.rowsPerTile);
+        number("ring_radius_spacings", chainmail.ringRadiusSpacings);
+        number("wire_radius_spacings", chainmail.wireRadiusSpacings);
+        number("tilt_deg", chainmail.tiltDeg);
+        number("small_ring_radius_spacings", chainmail.smallRingRadiusSpacings);
+        number("small_wire_radius_spacings", chainmail.smallWireRadiusSpacings);
+    } else {
+        GratingOptions& grating = options.grating;
+        integer("bars_per_tile", grating.barsPerTile);
+        number("bar_width_texels", grating.barWidthTexels);
+        number("bar_height_texels", grating.barHeightTexels);
+        number("edge_radius_texels", grating.edgeRadiusTexels);
+        number("layer_gap_texels", grating.layerGapTexels);
+    }
+    for (const auto& [key, unused] : params.items()) {
+        if (!used.count(key)) fail("has an unknown field '" + key + "' for " + provenance.source);
+    }
+    return options;
+}
+
+void printReport(const CheckArguments& arguments, const std::string& against, const TileErrorReport& report,
+                 bool passed, const std::vector<std::string>& failures) {
+    if (arguments.json) {
+        json out = {{"tile", arguments.tile.string()},
+                    {"against", against},
+                    {"samples", report.samples},
+                    {"seed", arguments.seed},
+                    {"units", "texels"},
+                    {"rms", report.rmsTexels},
+                    {"max_abs", report.maxAbsTexels},
+                    {"max_abs_at", {report.maxAbsAt.x, report.maxAbsAt.y, report.maxAbsAt.z}},
+                    {"max_abs_true_distance", report.maxAbsTruthTexels},
+                    {"near_surface_texels", 2.0},
+                    {"near_samples", report.nearSamples},
+                    {"near_rms", report.nearRmsTexels},
+                    {"near_max_abs", report.nearMaxAbsTexels},
+                    {"near_p999_abs", report.nearP999Texels},
+                    {"overestimate_tolerance", arguments.maxOverestimateTexels},
+                    {"overestimates", report.overestimates},
+                    {"overestimate_share", report.overestimateShare},
+                    {"max_overestimate", report.maxOverestimateTexels},
+                    {"sign_errors", report.signErrors},
+                    {"passed", passed},
+                    {"failures", failures}};
+        std::printf("%s\n", out.dump().c_str());
+        return;
+    }
+    std::printf("%s against %s, %d samples (seed %llu), trilinear, texels:\n", arguments.tile.c_str(), against.c_str(),
+                report.samples, static_cast<unsigned long long>(arguments.seed));
+    std::printf("  near surface (|d| <= 2, %d samples): max %.4f  RMS %.4f  p99.9 %.4f\n", report.nearSamples,
+                report.nearMaxAbsTexels, report.nearRmsTexels, report.nearP999Texels);
+    std::printf("  overall: max %.4f at (%.2f, %.2f, %.2f) where the true distance is %.3f  RMS %.4f\n",
+                report.maxAbsTexels, report.maxAbsAt.x, report.maxAbsAt.y, report.maxAbsAt.z, report.maxAbsTruthTexels,
+                report.rmsTexels);
+    std::printf("  overestimates beyond %.3f: %d (%.4f%%), largest %.4f; sign errors (|d| > 1): %d\n",
+                arguments.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
+                report.maxOverestimateTexels, report.signErrors);
+    if (passed) {
+        std::printf("passed\n");
+    } else {
+        for (const std::string& failure : failures) std::printf("FAILED: %s\n", failure.c_str());
+    }
+}
+
+void runCheck(const CheckArguments& arguments) {
+    const Tile tile = readTileExr(arguments.tile);
+    const std::string tileName = arguments.tile.string();
+    std::function<double(const glm::dvec3&)> truth;
+    std::string against;
+    // Keep the truth's owners alive while sampling.
+    std::shared_ptr<const void> keepAlive;
+    if (arguments.against == "analytic") {
+        const ProceduralOptions options = proceduralFromProvenance(tile.provenance, tileName);
+        ProceduralDistance procedural;
+        try {
+            procedural = proceduralDistance(options, tile.size());
+        } catch (const InputError& error) {
+            throw FormatError(tileName + ": distile:params do not describe a valid pattern (" + error.what() + ")");
+        }
+        truth = procedural.signedDistanceTexels;
+        against = "analytic " + procedural.source + " " + procedural.paramsJson;
+    } else if (lowerExtension(arguments.against) == ".vdb") {
+        const LevelSet levelSet = LevelSet::load(arguments.against);
+        if (!(levelSet.tileSize() == tile.size())) {
+            throw InputError("--against: level set '" + arguments.against + "' is " + toString(levelSet.tileSize()) +
+                             " but the tile is " + toString(tile.size()));
+        }
+        ConservativeOptions exact;
+        exact.enabled = false;
+        auto grid = std::make_shared<const Tile>(tileFromLevelSet(levelSet, exact));
+        keepAlive = grid;
+        truth = [grid, filter = TrilinearFilter(*grid)](const glm::dvec3& p) {
+            return double(filter.distanceTexels(glm::vec3(p)));
+        };
+        against = "level set " + arguments.against + " (trilinear of its voxels)";
+    } else {
+        const TriangleSoup soup = loadDetailMesh(arguments.against);
+        MeshPlacement placement;
+        if (arguments.meshScale || !arguments.meshOffset.empty()) {
+            placement.fit = false;
+            placement.scale = arguments.meshScale.value_or(1.0);
+            if (!arguments.meshOffset.empty()) {
+                if (arguments.meshOffset.size() != 3) throw InputError("--offset: give three numbers X Y Z (texels)");
+                placement.offsetTexels = {arguments.meshOffset[0], arguments.meshOffset[1], arguments.meshOffset[2]};
+            }
+        }
+        const TriangleSoup placed = placeMesh(soup, placement, tile.size());
+        auto mesh = std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
+        if (!mesh->hasSign()) {
+            throw InputError("--against: mesh '" + arguments.against +
+                             "' is not closed, so it has no inside; check against its level set (.vdb) instead");
+        }
+        keepAlive = mesh;
+        truth = [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
+        against = "mesh " + arguments.against + (placement.fit ? " (fitted to the footprint)" : " (explicit placement)");
+    }
+
+    TileErrorOptions options;
+    options.samples = arguments.samples;
+    options.seed = arguments.seed;
+    options.overestimateToleranceTexels = arguments.maxOverestimateTexels;
+    // The tile holds its level set's band: distances beyond it are clamped to +-band, the largest
+    // |value| the tile stores. Compare with the truth clamped alike.
+    float bandTexels = 0.0f;
+    for (float value : tile.distancesTexels()) bandTexels = std::max(bandTexels, std::abs(value));
+    if (bandTexels > 0.0f) options.truthClampTexels = bandTexels;
+    const TileErrorReport report = measureTileError(tile, truth, options);
+
+    std::vector<std::string> failures;
+    auto text = [](double value) {
+        std::ostringstream out;
+        out << value;
+        return out.str();
+    };
+    if (report.overestimateShare > arguments.maxOverestimateShare) {
+        failures.push_back("overestimates beyond " + text(arguments.maxOverestimateTexels) + " texel in " +
+                           text(100.0 * report.overestimateShare) + "% of samples (allowed " +
+                           text(100.0 * arguments.maxOverestimateShare) + "%)");
+    }
+    if (report.rmsTexels > arguments.maxRmsTexels) {
+        failures.push_back("RMS " + text(report.rmsTexels) + " texel (allowed " + text(arguments.maxRmsTexels) + ")");
+    }
+    if (arguments.maxNearErrorTexels && report.nearMaxAbsTexels > *arguments.maxNearErrorTexels) {
+        failures.push_back("max error near the surface " + text(report.nearMaxAbsTexels) + " texel (allowed " +
+                           text(*arguments.maxNearErrorTexels) + ")");
+    }
+    if (report.signErrors > 0 && !arguments.allowSignErrors) {
+        failures.push_back(std::to_string(report.signErrors) + " sign errors more than 1 texel from the surface");
+    }
+    printReport(arguments, against, report, failures.empty(), failures);
+    if (!failures.empty()) {
+        std::fflush(stdout);
+        std::exit(1);  // a tolerance is exceeded: exit status 1 (bad input is 2, from main)
+    }
+}
+
+}  // namespace
+
+void addCheckCommand(CLI::App& app) {
+    auto arguments = std::make_shared<CheckArguments>();
+    CLI::App* command = app.add_subcommand(
+        "check", "Sample a tile (trilinear) against the truth and report its error in texels; exit 1 when a tolerance "
+                 "is exceeded");
+    command->add_option("tile", arguments->tile, "Tile file (.exr)")->required();
+    command->add_option("--against", arguments->against,
+                        "Truth: analytic (from the tile's distile:source/params), a closed mesh file (OBJ, PLY, OFF, "
+                        "STL; placed as `bake mesh` does) or a level set (.vdb)")
+        ->capture_default_str();
+    command->add_option("--samples", arguments->samples, "Uniform random sample points")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 100000000));
+    command->add_option("--seed", arguments->seed, "Seed of the sample points")->capture_default_str();
+    command->add_flag("--json", arguments->json, "Print the report as one JSON object");
+    command->add_option("--max-overestimate", arguments->maxOverestimateTexels,
+                        "Overestimate tolerance, texels: tile - truth above it counts as an overestimate")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1e6));
+    command->add_option("--max-overestimate-share", arguments->maxOverestimateShare,
+                        "Largest accepted share of overestimates (0.001 = 0.1%)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1.0));
+    command->add_option("--max-rms", arguments->maxRmsTexels, "Largest accepted RMS error, texels")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 1e6));
+    command->add_option("--max-near-error", arguments->maxNearErrorTexels,
+                        "Largest accepted error within 2 texels of the surface (default: not checked)")
+        ->check(CLI::Range(0.0, 1e6));
+    command->add_flag("--allow-sign-errors", arguments->allowSignErrors,
+                      "Do not fail on sign errors (samples more than 1 texel from the surface with the wrong sign)");
+    command->add_option("--scale", arguments->meshScale, "Mesh truth: explicit placement, texels per file unit");
+    command->add_option("--offset", arguments->meshOffset, "Mesh truth: explicit placement, offset X Y Z in texels")
+        ->expected(3);
+    command->callback([arguments] { runCheck(*arguments); });
+}
+
+}  // namespace distile::cli

@@ -1,0 +1,33 @@
+/// @file
+/// Detail meshes: closed triangle meshes (chain links, rivets, any solid) that are baked into
+/// distance tiles. Only positions and faces matter; no UVs are needed.
+#pragma once
+
+#include <filesystem>
+
+#include "common/triangle_soup.h"
+
+namespace distile {
+
+/// Largest coordinate magnitude loadDetailMesh accepts, in file units. Beyond it squared
+/// lengths overflow OpenMesh's float arithmetic (1e30 squared is not a float) and a placement
+/// into a tile of at most 65536 texels cannot keep the mesh's shape in float.
+inline constexpr double kMaxDetailCoordinate = 1e9;
+
+/// Reads a detail mesh through OpenMesh: `.obj`, `.ply` (ASCII or binary), `.off`, `.stl`
+/// (ASCII or binary); the extension picks the reader, case-insensitively. Polygons are
+/// fan-triangulated from their first corner. Positions are returned in file units; identical
+/// STL corners are merged by OpenMesh, so closed STL meshes stay closed.
+/// Checked before OpenMesh reads the file (it crashes or silently drops data otherwise): OBJ
+/// lines (finite numbers, in-range face indices, as loadBaseMesh does); binary STL size
+/// (exactly 84 + 50 x the triangle count in its header); PLY data against its header (enough
+/// bytes, or enough lines for ASCII, for the counts the header promises).
+/// Thread-safety as loadBaseMesh (reads are serialised).
+/// @throws InputError  the file does not exist, is not a regular file or cannot be opened.
+/// @throws FormatError the extension is not one of the above, the file is truncated or
+///                     corrupted, OpenMesh cannot read it, the mesh has no faces, a face refers
+///                     to a missing vertex, a coordinate is NaN/Inf or beyond
+///                     +-kMaxDetailCoordinate.
+TriangleSoup loadDetailMesh(const std::filesystem::path& file);
+
+}  // namespace distile

@@ -1,0 +1,344 @@
+#include "render/coverage.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include <glm/geometric.hpp>
+
+namespace distile {
+
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+/// Depth bounds are pulled toward the eye by this relative amount: far more than the rounding of
+/// the double-precision bound and of the single-precision hit distance it is compared with.
+constexpr double kDepthSafety = 1e-6;
+
+/// A convex polygon in view space, clipped by half-spaces through the eye (Sutherland-Hodgman).
+struct ViewPolygon {
+    glm::dvec3 points[8];
+    int count = 0;
+
+    /// Keeps the part where dot(plane, p) >= 0.
+    void clip(const glm::dvec3& plane) {
+        glm::dvec3 kept[8];
+        int keptCount = 0;
+        for (int i = 0; i < count; ++i) {
+            const glm::dvec3& current = points[i];
+            const glm::dvec3& next = points[(i + 1) % count];
+            const double currentSide = glm::dot(plane, current);
+            const double nextSide = glm::dot(plane, next);
+            if (currentSide >= 0.0) kept[keptCount++] = current;
+            if ((currentSide >= 0.0) != (nextSide >= 0.0)) {
+                kept[keptCount++] = current + (next - current) * (currentSide / (currentSide - nextSide));
+            }
+        }
+        std::copy(kept, kept + keptCount, points);
+        count = keptCount;
+    }
+};
+
+}  // namespace
+
+PinholeProjection::PinholeProjection(const Camera& camera, int widthPixels, int heightPixels)
+    : eye_(camera.eye), width_(widthPixels), height_(heightPixels) {
+    forward_ = glm::normalize(camera.target - camera.eye);
+    right_ = glm::normalize(glm::cross(forward_, camera.up));
+    up_ = glm::cross(right_, forward_);
+    tanHalfFov_ = std::tan(0.5f * camera.fovDeg * kPi / 180.0f);
+    const double tanX = double(tanHalfFov_) * (double(width_) / double(height_));
+    slopePerPixel_ = {2.0 * tanX / width_, -2.0 * double(tanHalfFov_) / height_};
+    slopeAtOrigin_ = {-tanX, double(tanHalfFov_)};
+    // Single-precision rays stray by a few ulps of direction (relative 1e-6 is a wide allowance,
+    // basis vectors included); in pixels that is the slope error over the slope per pixel.
+    const double slopeRange = 1.0 + tanX + double(tanHalfFov_);
+    marginPixels_ = 1e-4 + 1e-6 * slopeRange / std::min(slopePerPixel_.x, -slopePerPixel_.y);
+}
+
+Ray PinholeProjection::ray(float xPixels, float yPixels) const {
+    const float aspect = float(width_) / float(height_);
+    const float ndcX = (2.0f * xPixels / width_ - 1.0f) * tanHalfFov_ * aspect;
+    const float ndcY = (1.0f - 2.0f * yPixels / height_) * tanHalfFov_;
+    return {eye_, glm::normalize(forward_ + ndcX * right_ + ndcY * up_)};
+}
+
+glm::dvec3 PinholeProjection::toView(const glm::vec3& world) const {
+    const glm::dvec3 relative = glm::dvec3(world) - glm::dvec3(eye_);
+    return {glm::dot(relative, glm::dvec3(right_)), glm::dot(relative, glm::dvec3(up_)),
+            glm::dot(relative, glm::dvec3(forward_))};
+}
+
+glm::dvec2 PinholeProjection::toPixels(const glm::dvec3& view) const {
+    return (glm::dvec2(view.x, view.y) / view.z - slopeAtOrigin_) / slopePerPixel_;
+}
+
+ScreenTriangle screenTriangle(const glm::dvec2 cornersPixels[3], double marginPixels) {
+    ScreenTriangle triangle;
+    triangle.marginPixels = marginPixels;
+    triangle.boundsMin = glm::min(cornersPixels[0], glm::min(cornersPixels[1], cornersPixels[2]));
+    triangle.boundsMax = glm::max(cornersPixels[0], glm::max(cornersPixels[1], cornersPixels[2]));
+    const glm::dvec2 edge1 = cornersPixels[1] - cornersPixels[0];
+    const glm::dvec2 edge2 = cornersPixels[2] - cornersPixels[0];
+    const double twiceArea = edge1.x * edge2.y - edge1.y * edge2.x;
+    const double extent = std::max(glm::length(edge1), glm::length(edge2));
+    if (!(std::abs(twiceArea) > 1e-12 * extent * extent)) return triangle;
+    const double orientation = twiceArea > 0.0 ? 1.0 : -1.0;
+    for (int i = 0; i < 3; ++i) {
+        const glm::dvec2 from = cornersPixels[i];
+        const glm::dvec2 to = cornersPixels[(i + 1) % 3];
+        // orientation * cross(to - from, p - from): positive on the triangle's side.
+        const double a = -orientation * (to.y - from.y);
+        const double b = orientation * (to.x - from.x);
+        triangle.edges[i] = {a, b, -(a * from.x + b * from.y)};
+        triangle.edgeTolerance[i] = 1e-12 * (std::abs(a) + std::abs(b)) * (1.0 + std::abs(from.x) + std::abs(from.y));
+    }
+    triangle.hasEdges = true;
+    return triangle;
+}
+
+ScreenTriangle projectTriangle(const PinholeProjection& projection, const glm::vec3 cornersWorld[3]) {
+    ScreenTriangle triangle;
+    triangle.marginPixels = projection.marginPixels();
+    const glm::dvec3 view[3] = {projection.toView(cornersWorld[0]), projection.toView(cornersWorld[1]),
+                                projection.toView(cornersWorld[2])};
+    const glm::dvec2 slopePerPixel = projection.slopePerPixel();
+    const glm::dvec2 slopeAtOrigin = projection.slopeAtOrigin();
+    const double width = projection.width();
+    const double height = projection.height();
+
+    // Bounds: the part of the triangle inside the view frustum grown by one pixel. Its side
+    // planes pass through the eye and together keep z >= 0, so what is behind the eye goes.
+    ViewPolygon polygon;
+    polygon.count = 3;
+    std::copy(view, view + 3, polygon.points);
+    const double slopeLeft = slopeAtOrigin.x - slopePerPixel.x;
+    const double slopeRight = slopeAtOrigin.x + slopePerPixel.x * (width + 1.0);
+    const double slopeTop = slopeAtOrigin.y - slopePerPixel.y;              // y = -1 pixel
+    const double slopeBottom = slopeAtOrigin.y + slopePerPixel.y * (height + 1.0);
+    polygon.clip({1.0, 0.0, -slopeLeft});
+    polygon.clip({-1.0, 0.0, slopeRight});
+    polygon.clip({0.0, -1.0, slopeTop});
+    polygon.clip({0.0, 1.0, -slopeBottom});
+    if (polygon.count == 0) return triangle;  // empty bounds: no camera ray reaches it
+    const double margin = triangle.marginPixels;
+    const glm::dvec2 screenMin(-1.0 - margin, -1.0 - margin);
+    const glm::dvec2 screenMax(width + 1.0 + margin, height + 1.0 + margin);
+    glm::dvec2 boundsMin(std::numeric_limits<double>::max());
+    glm::dvec2 boundsMax(-std::numeric_limits<double>::max());
+    bool touchesEye = false;
+    for (int i = 0; i < polygon.count; ++i) {
+        const glm::dvec3& point = polygon.points[i];
+        const glm::dvec2 pixels = point.z > 0.0 ? projection.toPixels(point) : glm::dvec2(0.0);
+        if (!(point.z > 0.0) || !std::isfinite(pixels.x) || !std::isfinite(pixels.y)) {
+            touchesEye = true;  // only the eye itself has z = 0 inside the frustum
+            break;
+        }
+        boundsMin = glm::min(boundsMin, pixels);
+        boundsMax = glm::max(boundsMax, pixels);
+    }
+    if (touchesEye) {
+        boundsMin = screenMin;
+        boundsMax = screenMax;
+    }
+    // Clipping rounds; the margin absorbs it (and is added again by the rectangle test).
+    triangle.boundsMin = glm::clamp(boundsMin - margin, screenMin, screenMax);
+    triangle.boundsMax = glm::clamp(boundsMax + margin, screenMin, screenMax);
+
+    // Edges: a ray with view direction d meets the triangle iff d = a V0 + b V1 + c V2 with a, b,
+    // c >= 0, where a = det(d, V1, V2) / det(V0, V1, V2) and so on. With d = (slope(x, y), 1),
+    // each weight's numerator is affine in the pixel position.
+    const double determinant = glm::dot(view[0], glm::cross(view[1], view[2]));
+    const double scale = glm::length(view[0]) * glm::length(view[1]) * glm::length(view[2]);
+    if (!(std::abs(determinant) > 1e-10 * scale)) return triangle;  // its plane (nearly) holds the eye
+    const double orientation = determinant > 0.0 ? 1.0 : -1.0;
+    const double slopeMagnitude = 1.0 + std::abs(slopeAtOrigin.x) + std::abs(slopePerPixel.x) * (width + 2.0) +
+                                  std::abs(slopeAtOrigin.y) + std::abs(slopePerPixel.y) * (height + 2.0);
+    for (int i = 0; i < 3; ++i) {
+        const glm::dvec3& from = view[(i + 1) % 3];
+        const glm::dvec3& to = view[(i + 2) % 3];
+        const glm::dvec3 normal = glm::cross(from, to) * orientation;
+        triangle.edges[i] = {normal.x * slopePerPixel.x, normal.y * slopePerPixel.y,
+                             normal.x * slopeAtOrigin.x + normal.y * slopeAtOrigin.y + normal.z};
+        triangle.edgeTolerance[i] = 1e-12 * glm::length(from) * glm::length(to) * slopeMagnitude;
+    }
+    triangle.hasEdges = true;
+    return triangle;
+}
+
+bool triangleRectOverlapConservative(const ScreenTriangle& triangle, double x0, double y0, double x1, double y1) {
+    x0 -= triangle.marginPixels;
+    y0 -= triangle.marginPixels;
+    x1 += triangle.marginPixels;
+    y1 += triangle.marginPixels;
+    // Separating axes x and y: the bounds.
+    if (x1 < triangle.boundsMin.x || x0 > triangle.boundsMax.x || y1 < triangle.boundsMin.y ||
+        y0 > triangle.boundsMax.y) {
+        return false;
+    }
+    if (!triangle.hasEdges) return true;
+    // Separating axes along the edge normals: the corner most inside each edge.
+    for (int i = 0; i < 3; ++i) {
+        const glm::dvec3& edge = triangle.edges[i];
+        const double x = edge.x > 0.0 ? x1 : x0;
+        const double y = edge.y > 0.0 ? y1 : y0;
+        if (edge.x * x + edge.y * y + edge.z < -triangle.edgeTolerance[i]) return false;
+    }
+    return true;
+}
+
+ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& projection)
+    : tracer_(tracer), projection_(projection) {
+    tilesX_ = (projection.width() + kTilePixels - 1) / kTilePixels;
+    tilesY_ = (projection.height() + kTilePixels - 1) / kTilePixels;
+    const std::uint32_t shellCount = tracer.shellCount();
+    bounds_.resize(shellCount);
+    const glm::dvec2 slopePerPixel = projection.slopePerPixel();
+    const glm::dvec2 slopeAtOrigin = projection.slopeAtOrigin();
+    const glm::dvec3 eye(projection.eye());
+    std::vector<std::uint32_t> visible;
+    for (std::uint32_t shell = 0; shell < shellCount; ++shell) {
+        glm::vec3 top[3], bottom[3];
+        tracer.shellCorners(shell, top, bottom);
+        // A camera ray enters a shell only through a front-facing top (the tracer's own test is
+        // dot(geometric normal, direction) < 0); keep the ones at rounding distance from edge-on.
+        const glm::dvec3 geometricNormal =
+            glm::cross(glm::dvec3(top[1]) - glm::dvec3(top[0]), glm::dvec3(top[2]) - glm::dvec3(top[0]));
+        const glm::dvec3 toCorner = glm::dvec3(top[0]) - eye;
+        if (glm::dot(geometricNormal, toCorner) > 1e-5 * glm::length(geometricNormal) * glm::length(toCorner)) {
+            continue;
+        }
+        ShellBounds& bounds = bounds_[shell];
+        bounds.top = projectTriangle(projection, top);
+        if (bounds.top.empty()) continue;
+        double zMin = std::numeric_limits<double>::max();
+        double zMax = 0.0;
+        glm::dvec3 view[3];
+        for (int corner = 0; corner < 3; ++corner) {
+            view[corner] = projection.toView(top[corner]);
+            zMin = std::min(zMin, view[corner].z);  // depth along the view axis <= distance from the eye
+            zMax = std::max({zMax, glm::length(view[corner]), glm::length(projection.toView(bottom[corner]))});
+        }
+        bounds.zMinWorld = float(std::max(zMin, 0.0) * (1.0 - kDepthSafety));
+        bounds.zMaxWorld = float(zMax * (1.0 + kDepthSafety));
+        // The top's plane n.p = h: a ray with view direction (slope, 1) meets it at view depth
+        // h / n.(slope, 1), so the inverse depth is affine in the pixel position.
+        const glm::dvec3 normal = glm::cross(view[1] - view[0], view[2] - view[0]);
+        const double offset = glm::dot(normal, view[0]);
+        if (std::abs(offset) > 1e-10 * glm::length(normal) * glm::length(view[0])) {
+            bounds.hasDepthPlane = true;
+            bounds.inverseDepthPlane = glm::dvec3(normal.x * slopePerPixel.x, normal.y * slopePerPixel.y,
+                                                  normal.x * slopeAtOrigin.x + normal.y * slopeAtOrigin.y + normal.z) /
+                                       offset;
+        }
+        visible.push_back(shell);
+    }
+    // Nearest first: filling the bins in this order sorts every bin.
+    std::stable_sort(visible.begin(), visible.end(), [&](std::uint32_t a, std::uint32_t b) {
+        return bounds_[a].zMinWorld < bounds_[b].zMinWorld;
+    });
+    std::vector<std::uint32_t> tileOfEntry;
+    std::vector<std::uint32_t> shellOfEntry;
+    for (const std::uint32_t shell : visible) {
+        const ScreenTriangle& top = bounds_[shell].top;
+        const int tileX0 = std::clamp(int(std::floor(top.boundsMin.x / kTilePixels)), 0, tilesX_ - 1);
+        const int tileY0 = std::clamp(int(std::floor(top.boundsMin.y / kTilePixels)), 0, tilesY_ - 1);
+        const int tileX1 = std::clamp(int(std::floor(top.boundsMax.x / kTilePixels)), 0, tilesX_ - 1);
+        const int tileY1 = std::clamp(int(std::floor(top.boundsMax.y / kTilePixels)), 0, tilesY_ - 1);
+        for (int tileY = tileY0; tileY <= tileY1; ++tileY) {
+            for (int tileX = tileX0; tileX <= tileX1; ++tileX) {
+                const double x0 = tileX * kTilePixels;
+                const double y0 = tileY * kTilePixels;
+                const double x1 = std::min(x0 + kTilePixels, double(projection.width()));
+                const double y1 = std::min(y0 + kTilePixels, double(projection.height()));
+                if (!triangleRectOverlapConservative(top, x0, y0, x1, y1)) continue;
+                tileOfEntry.push_back(std::uint32_t(tileY * tilesX_ + tileX));
+                shellOfEntry.push_back(shell);
+            }
+        }
+    }
+    // Counting sort by tile, stable: each bin keeps the nearest-first order.
+    tileStart_.assign(std::size_t(tilesX_) * tilesY_ + 1, 0);
+    for (const std::uint32_t tile : tileOfEntry) ++tileStart_[tile + 1];
+    std::partial_sum(tileStart_.begin(), tileStart_.end(), tileStart_.begin());
+    shellsByTile_.resize(shellOfEntry.size());
+    std::vector<std::uint32_t> fill(tileStart_.begin(), tileStart_.end() - 1);
+    for (std::size_t i = 0; i < shellOfEntry.size(); ++i) shellsByTile_[fill[tileOfEntry[i]]++] = shellOfEntry[i];
+}
+
+std::span<const std::uint32_t> ScreenShells::tileShells(int tileX, int tileY) const {
+    const std::size_t tile = std::size_t(tileY) * tilesX_ + tileX;
+    return {shellsByTile_.data() + tileStart_[tile], shellsByTile_.data() + tileStart_[tile + 1]};
+}
+
+float ScreenShells::pixelDepthBound(std::uint32_t shell, int x, int y) const {
+    const ShellBounds& bounds = bounds_[shell];
+    if (!bounds.hasDepthPlane) return bounds.zMinWorld;
+    // The inverse depth is affine, so its largest value over the (grown) square is at the corner
+    // picked by the gradient's signs; a ray's distance is at least its view depth.
+    const double margin = bounds.top.marginPixels;
+    const glm::dvec3& plane = bounds.inverseDepthPlane;
+    const double cornerX = plane.x > 0.0 ? x + 1.0 + margin : x - margin;
+    const double cornerY = plane.y > 0.0 ? y + 1.0 + margin : y - margin;
+    const double largestInverseDepth = plane.x * cornerX + plane.y * cornerY + plane.z;
+    if (!(largestInverseDepth > 0.0)) return bounds.zMinWorld;
+    return std::max(bounds.zMinWorld, float((1.0 - kDepthSafety) / largestInverseDepth));
+}
+
+bool ScreenShells::traceNearest(int x, int y, const Ray& ray, bool shellCulling, SurfaceHit& hit,
+                                TraceCounters& counters, ShellCounters& shellCounters) const {
+    // The candidates of this pixel: the tile's shells that pass the pixel test, with their depth
+    // bound over the pixel, nearest first (ties in bin order, so the order is the same whether or
+    // not shells are culled). Few per pixel: a small buffer on the stack, the heap beyond it.
+    struct Candidate {
+        float depthBound;
+        std::uint32_t shell;
+    };
+    constexpr std::size_t kStackCandidates = 64;
+    Candidate stackCandidates[kStackCandidates];
+    std::vector<Candidate> heapCandidates;
+    Candidate* candidates = stackCandidates;
+    std::size_t count = 0;
+    for (const std::uint32_t shell : tileShells(x / kTilePixels, y / kTilePixels)) {
+        ++shellCounters.tested;
+        if (!trianglePixelOverlapConservative(bounds_[shell].top, x, y)) continue;
+        if (count == kStackCandidates && candidates == stackCandidates) {
+            heapCandidates.assign(stackCandidates, stackCandidates + count);
+            candidates = nullptr;
+        }
+        const Candidate candidate{pixelDepthBound(shell, x, y), shell};
+        if (candidates == stackCandidates) {
+            candidates[count] = candidate;
+        } else {
+            heapCandidates.push_back(candidate);
+        }
+        ++count;
+    }
+    if (candidates != stackCandidates) candidates = heapCandidates.data();
+    std::stable_sort(candidates, candidates + count,
+                     [](const Candidate& a, const Candidate& b) { return a.depthBound < b.depthBound; });
+
+    constexpr float kFar = std::numeric_limits<float>::max();
+    float nearest = kFar;
+    bool found = false;
+    SurfaceHit shellHit;
+    for (std::size_t i = 0; i < count; ++i) {
+        // A shell's hits are never nearer than its depth bound: once the bound is not nearer
+        // than the best hit, neither is any later candidate's.
+        if (shellCulling && candidates[i].depthBound >= nearest) break;
+        ++shellCounters.traced;
+        // With culling the top must also be nearer than the best hit; without, every top is
+        // traced and its hit compared afterwards, to the same result.
+        if (!tracer_.traceShell(candidates[i].shell, ray, 0.0f, shellCulling ? nearest : kFar, shellHit, counters)) {
+            continue;
+        }
+        if (!shellHit.entry.frontFacing || !(shellHit.distanceWorld < nearest)) continue;
+        nearest = shellHit.distanceWorld;
+        hit = shellHit;
+        found = true;
+    }
+    return found;
+}
+
+}  // namespace distile

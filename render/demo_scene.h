@@ -1,0 +1,17 @@
+/// @file
+/// The built-in demo scene: chain mail on a torus (curved) lying on a plane (flat), lit by one
+/// soft directional light. One definition, used by the command (`distile render` without a
+/// scene) and by the benchmarks. World units; the camera frames the torus.
+#pragma once
+
+#include <memory>
+
+#include "render/scene.h"
+
+namespace distile {
+
+/// The demo scene with `chainmail` as the detail of both objects; the shell depths make its
+/// texels cubes on the plane and on the torus's crown. Throws InputError if `chainmail` is null.
+Scene demoScene(std::shared_ptr<const Tile> chainmail);
+
+}  // namespace distile

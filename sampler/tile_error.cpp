@@ -1,0 +1,85 @@
+#include "sampler/tile_error.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "common/error.h"
+
+namespace distile {
+
+TileErrorReport measureTileError(const Tile& tile, const std::function<double(const glm::dvec3&)>& truth,
+                                 const TileErrorOptions& options) {
+    if (options.samples < 1) {
+        throw InputError("--samples: " + std::to_string(options.samples) + " is not accepted; it must be at least 1");
+    }
+    auto requireNonNegative = [](double value, const char* field) {
+        if (!(value >= 0.0 && std::isfinite(value))) {
+            throw InputError(std::string(field) + ": " + std::to_string(value) +
+                             " is not accepted; it must be a finite number >= 0 (texels)");
+        }
+    };
+    requireNonNegative(options.nearSurfaceTexels, "near-surface distance");
+    requireNonNegative(options.overestimateToleranceTexels, "--max-overestimate");
+    requireNonNegative(options.signMarginTexels, "sign margin");
+    if (!(options.truthClampTexels > 0.0)) {
+        throw InputError("truth clamp: " + std::to_string(options.truthClampTexels) + " is not accepted; it must be > 0");
+    }
+
+    const Size3& size = tile.size();
+    // Points from one sequential generator: the same for a seed whatever the thread count.
+    std::mt19937_64 random(options.seed);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    std::vector<glm::dvec3> points(std::size_t(options.samples));
+    for (glm::dvec3& p : points) {
+        const double x = unit(random) * size.width;
+        const double y = unit(random) * size.height;
+        const double z = unit(random) * size.depth;
+        p = {x, y, z};
+    }
+    std::vector<float> tileValues(points.size());
+    withFilter(options.filter, tile, [&](const auto& filter) {
+        for (std::size_t i = 0; i < points.size(); ++i) tileValues[i] = filter.distanceTexels(glm::vec3(points[i]));
+    });
+
+    TileErrorReport report;
+    report.samples = options.samples;
+    double sumSquares = 0.0;
+    double nearSumSquares = 0.0;
+    std::vector<double> nearErrors;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const double trueDistance =
+            std::clamp(truth(points[i]), -options.truthClampTexels, options.truthClampTexels);
+        const double error = double(tileValues[i]) - trueDistance;
+        const double absError = std::abs(error);
+        sumSquares += error * error;
+        if (absError > report.maxAbsTexels || i == 0) {
+            report.maxAbsTexels = absError;
+            report.maxAbsAt = points[i];
+            report.maxAbsTruthTexels = trueDistance;
+        }
+        report.maxOverestimateTexels = std::max(report.maxOverestimateTexels, error);
+        if (error > options.overestimateToleranceTexels) ++report.overestimates;
+        if (std::abs(trueDistance) > options.signMarginTexels && (tileValues[i] < 0.0f) != (trueDistance < 0.0)) {
+            ++report.signErrors;
+        }
+        if (std::abs(trueDistance) <= options.nearSurfaceTexels) {
+            nearErrors.push_back(absError);
+            nearSumSquares += error * error;
+        }
+    }
+    report.rmsTexels = std::sqrt(sumSquares / double(points.size()));
+    report.overestimateShare = double(report.overestimates) / double(points.size());
+    report.nearSamples = int(nearErrors.size());
+    if (!nearErrors.empty()) {
+        std::sort(nearErrors.begin(), nearErrors.end());
+        report.nearRmsTexels = std::sqrt(nearSumSquares / double(nearErrors.size()));
+        report.nearMaxAbsTexels = nearErrors.back();
+        report.nearP999Texels = nearErrors[std::size_t(0.999 * double(nearErrors.size() - 1))];
+    }
+    return report;
+}
+
+}  // namespace distile

@@ -1,0 +1,308 @@
+/// @file
+/// Third-order reconstruction filters over a distance tile (GPU Gems 2, ch. 20): the cubic
+/// B-spline (approximating, C2: continuous gradient and Hessian, for shading normals and
+/// curvature) and Catmull-Rom (interpolating: it returns the stored texels at texel centres).
+/// Same texel space and addressing as TrilinearFilter: periodic in x and y, clamped to the first
+/// and last slice in z (taps beyond them repeat the edge texel). Distances are in texels,
+/// gradients in texels per texel, Hessians in 1/texel, curvatures in 1/texel.
+///
+/// The B-spline is evaluated in the chapter's "8 trilinear fetches" form: on each axis the four
+/// tap weights form two same-sign pairs, and each pair is one linear fetch at the pair's weighted
+/// position, so the 64-tap tensor-product sum becomes 8 TrilinearFilter::fetch calls (24 for the
+/// gradient, 60 for the Hessian). distanceTexels64Tap() is the plain sum, kept as the reference.
+///
+/// Note: the B-spline smooths. It reproduces linear functions, and quadratics up to a constant,
+/// but on a distance field it may overestimate distances (by about Laplacian / 6 texels), so the
+/// march keeps trilinear distances and uses this filter for normals and curvature.
+///
+/// This header and sampler/filters.h include each other: the filters here build on
+/// TrilinearFilter, and withFilter() in filters.h dispatches to them. filters.h includes this file
+/// right after TrilinearFilter; hence a classic include guard placed after that include.
+#include "sampler/filters.h"
+
+#ifndef DISTILE_SAMPLER_TRICUBIC_H
+#define DISTILE_SAMPLER_TRICUBIC_H
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/vec3.hpp>
+
+#include "sampler/tile.h"
+
+namespace distile {
+
+namespace detail {
+
+/// The four taps of a cubic filter on one axis: texel indices (already wrapped or clamped into
+/// the tile) for the texels at offsets -1, 0, +1, +2 from the lower neighbour of the position,
+/// and the fraction of the position from tap 1 toward tap 2, in [0, 1).
+struct CubicAxis {
+    int tap[4];
+    float fraction;
+};
+
+/// Periodic axis of `extent` texels (x, y), reusing the trilinear filter's wrap.
+inline CubicAxis periodicCubicAxis(float position, int extent) {
+    const AxisLerp middle = periodicAxis(position, extent);
+    return {{middle.lower == 0 ? extent - 1 : middle.lower - 1, middle.lower, middle.upper,
+             middle.upper + 1 == extent ? 0 : middle.upper + 1},
+            middle.weight};
+}
+
+/// Clamped axis of `extent` texels (z): taps outside [0, extent) repeat the edge texel, as
+/// TrilinearFilter does by clamping the position (both are clamp-to-edge addressing).
+inline CubicAxis clampedCubicAxis(float position, int extent) {
+    // Beyond 2 texels outside, all four taps are the edge texel: clamping there changes nothing
+    // and keeps the integer conversion in range (NaN becomes -2).
+    const float shifted = std::fmin(std::fmax(position - 0.5f, -2.0f), float(extent + 1));
+    const float floorValue = std::floor(shifted);
+    const int lower = int(floorValue);
+    CubicAxis axis{{}, shifted - floorValue};
+    for (int k = 0; k < 4; ++k) axis.tap[k] = std::clamp(lower - 1 + k, 0, extent - 1);
+    return axis;
+}
+
+/// Weights of the four taps at fraction `a`, for the filter value or one of its derivatives
+/// along the axis (derivative weights sum to zero).
+struct CubicWeights {
+    float w[4];
+};
+
+inline CubicWeights bsplineWeights(float a) {
+    const float b = 1.0f - a;
+    return {{b * b * b / 6.0f, ((3.0f * a - 6.0f) * a * a + 4.0f) / 6.0f,
+             (((-3.0f * a + 3.0f) * a + 3.0f) * a + 1.0f) / 6.0f, a * a * a / 6.0f}};
+}
+
+inline CubicWeights bsplineDerivativeWeights(float a) {
+    const float b = 1.0f - a;
+    return {{-0.5f * b * b, 0.5f * a * (3.0f * a - 4.0f), 0.5f * b * (3.0f * a + 1.0f), 0.5f * a * a}};
+}
+
+inline CubicWeights catmullRomWeights(float a) {
+    return {{0.5f * ((-a + 2.0f) * a - 1.0f) * a, 0.5f * ((3.0f * a - 5.0f) * a * a + 2.0f),
+             0.5f * (((-3.0f * a + 4.0f) * a + 1.0f) * a), 0.5f * (a - 1.0f) * a * a}};
+}
+
+inline CubicWeights catmullRomDerivativeWeights(float a) {
+    return {{0.5f * ((-3.0f * a + 4.0f) * a - 1.0f), 0.5f * (9.0f * a - 10.0f) * a,
+             0.5f * ((-9.0f * a + 8.0f) * a + 1.0f), 0.5f * (3.0f * a - 2.0f) * a}};
+}
+
+/// The linear fetches that replace the four taps on one axis, with their weights.
+struct LinearFetches {
+    AxisLerp fetch[3];
+    float weight[3];
+    int count;
+};
+
+/// Two fetches for weights that form same-sign pairs (w0, w1) and (w2, w3), as the cubic
+/// B-spline's and its first derivative's do: w0 f0 + w1 f1 = (w0 + w1) lerp(f0, f1, w1 / (w0 + w1)).
+/// Precondition: neither pair sums to zero (true for those weights on [0, 1]).
+inline LinearFetches pairedFetches(const CubicAxis& axis, const CubicWeights& weights) {
+    const float low = weights.w[0] + weights.w[1];
+    const float high = weights.w[2] + weights.w[3];
+    assert(low != 0.0f && high != 0.0f);
+    return {{{axis.tap[0], axis.tap[1], weights.w[1] / low}, {axis.tap[2], axis.tap[3], weights.w[3] / high}, {}},
+            {low, high, 0.0f},
+            2};
+}
+
+/// Three fetches for the B-spline's second derivative, whose weights (1 - a, 3a - 2, 1 - 3a, a)
+/// are the (1, -2, 1) difference of linear fetches one texel apart.
+inline LinearFetches secondDerivativeFetches(const CubicAxis& axis) {
+    const float a = axis.fraction;
+    return {{{axis.tap[0], axis.tap[1], a}, {axis.tap[1], axis.tap[2], a}, {axis.tap[2], axis.tap[3], a}},
+            {1.0f, -2.0f, 1.0f},
+            3};
+}
+
+/// The weighted sum of the fetches' tensor product: one filter output from linear fetches.
+inline float sumOfFetches(const TrilinearFilter& linear, const LinearFetches& x, const LinearFetches& y,
+                          const LinearFetches& z) {
+    float sum = 0.0f;
+    for (int k = 0; k < z.count; ++k) {
+        float plane = 0.0f;
+        for (int j = 0; j < y.count; ++j) {
+            float row = 0.0f;
+            for (int i = 0; i < x.count; ++i) row += x.weight[i] * linear.fetch(x.fetch[i], y.fetch[j], z.fetch[k]);
+            plane += y.weight[j] * row;
+        }
+        sum += z.weight[k] * plane;
+    }
+    return sum;
+}
+
+/// The plain 4 x 4 x 4 tensor-product sum of the taps with per-axis weights (64 reads).
+inline float sumOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y, const CubicAxis& z,
+                       const CubicWeights& wx, const CubicWeights& wy, const CubicWeights& wz) {
+    float sum = 0.0f;
+    for (int k = 0; k < 4; ++k) {
+        for (int j = 0; j < 4; ++j) {
+            const float* row = &tile.distancesTexels()[tile.index(0, y.tap[j], z.tap[k])];
+            float rowSum = 0.0f;
+            for (int i = 0; i < 4; ++i) rowSum += wx.w[i] * row[x.tap[i]];
+            sum += wy.w[j] * wz.w[k] * rowSum;
+        }
+    }
+    return sum;
+}
+
+}  // namespace detail
+
+/// Cubic B-spline reconstruction (approximating, C2), evaluated from trilinear fetches.
+class TricubicBSplineFilter {
+public:
+    /// Precondition: `tile` outlives the filter (validated tiles have every extent >= 2).
+    explicit TricubicBSplineFilter(const Tile& tile) : tile_(tile), linear_(tile) {}
+
+    /// Filtered distance, texels, at a texel-space point: 8 trilinear fetches. Any finite point.
+    float distanceTexels(const glm::vec3& texelPosition) const {
+        const Axes a = axes(texelPosition);
+        return detail::sumOfFetches(linear_, value(a.x), value(a.y), value(a.z));
+    }
+
+    /// The same value as the plain 64-tap weighted sum: the reference for distanceTexels().
+    float distanceTexels64Tap(const glm::vec3& texelPosition) const {
+        const Axes a = axes(texelPosition);
+        return detail::sumOfTaps(tile_, a.x, a.y, a.z, detail::bsplineWeights(a.x.fraction),
+                                 detail::bsplineWeights(a.y.fraction), detail::bsplineWeights(a.z.fraction));
+    }
+
+    /// Exact first derivatives of the filtered field (texels per texel), continuous everywhere:
+    /// per component 8 trilinear fetches with the derivative weights on its own axis.
+    glm::vec3 gradient(const glm::vec3& texelPosition) const {
+        const Axes a = axes(texelPosition);
+        const detail::LinearFetches vx = value(a.x), vy = value(a.y), vz = value(a.z);
+        const detail::LinearFetches dx = derivative(a.x), dy = derivative(a.y), dz = derivative(a.z);
+        return {detail::sumOfFetches(linear_, dx, vy, vz), detail::sumOfFetches(linear_, vx, dy, vz),
+                detail::sumOfFetches(linear_, vx, vy, dz)};
+    }
+
+    /// Exact second derivatives of the filtered field (1/texel), symmetric, continuous: mixed
+    /// terms from first-derivative fetches on two axes (8 fetches each), diagonal terms from the
+    /// (1, -2, 1) form on their axis (12 fetches each).
+    glm::mat3 hessian(const glm::vec3& texelPosition) const {
+        const Axes a = axes(texelPosition);
+        const detail::LinearFetches vx = value(a.x), vy = value(a.y), vz = value(a.z);
+        const detail::LinearFetches dx = derivative(a.x), dy = derivative(a.y), dz = derivative(a.z);
+        const float xx = detail::sumOfFetches(linear_, detail::secondDerivativeFetches(a.x), vy, vz);
+        const float yy = detail::sumOfFetches(linear_, vx, detail::secondDerivativeFetches(a.y), vz);
+        const float zz = detail::sumOfFetches(linear_, vx, vy, detail::secondDerivativeFetches(a.z));
+        const float xy = detail::sumOfFetches(linear_, dx, dy, vz);
+        const float xz = detail::sumOfFetches(linear_, dx, vy, dz);
+        const float yz = detail::sumOfFetches(linear_, vx, dy, dz);
+        return glm::mat3(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+    }
+
+private:
+    struct Axes {
+        detail::CubicAxis x, y, z;
+    };
+
+    Axes axes(const glm::vec3& p) const {
+        const Size3& size = tile_.size();
+        return {detail::periodicCubicAxis(p.x, size.width), detail::periodicCubicAxis(p.y, size.height),
+                detail::clampedCubicAxis(p.z, size.depth)};
+    }
+    static detail::LinearFetches value(const detail::CubicAxis& axis) {
+        return detail::pairedFetches(axis, detail::bsplineWeights(axis.fraction));
+    }
+    static detail::LinearFetches derivative(const detail::CubicAxis& axis) {
+        return detail::pairedFetches(axis, detail::bsplineDerivativeWeights(axis.fraction));
+    }
+
+    const Tile& tile_;
+    TrilinearFilter linear_;
+};
+
+/// Catmull-Rom reconstruction (interpolating cubic, C1): returns the stored distance at texel
+/// centres, reproduces linear functions, may overshoot between texels. Its outer tap weights are
+/// negative, so the pairing trick does not apply: it reads the 64 taps directly.
+class CatmullRomFilter {
+public:
+    /// Precondition: `tile` outlives the filter.
+    explicit CatmullRomFilter(const Tile& tile) : tile_(tile) {}
+
+    /// Interpolated distance, texels, at a texel-space point. Any finite point.
+    float distanceTexels(const glm::vec3& texelPosition) const {
+        const Axes a = axes(texelPosition);
+        return detail::sumOfTaps(tile_, a.x, a.y, a.z, detail::catmullRomWeights(a.x.fraction),
+                                 detail::catmullRomWeights(a.y.fraction), detail::catmullRomWeights(a.z.fraction));
+    }
+
+    /// Exact first derivatives of the interpolant (texels per texel), one pass over the 64 taps.
+    glm::vec3 gradient(const glm::vec3& texelPosition) const {
+        const Axes a = axes(texelPosition);
+        const detail::CubicWeights wx = detail::catmullRomWeights(a.x.fraction);
+        const detail::CubicWeights wy = detail::catmullRomWeights(a.y.fraction);
+        const detail::CubicWeights wz = detail::catmullRomWeights(a.z.fraction);
+        const detail::CubicWeights dx = detail::catmullRomDerivativeWeights(a.x.fraction);
+        const detail::CubicWeights dy = detail::catmullRomDerivativeWeights(a.y.fraction);
+        const detail::CubicWeights dz = detail::catmullRomDerivativeWeights(a.z.fraction);
+        glm::vec3 sum(0.0f);
+        for (int k = 0; k < 4; ++k) {
+            for (int j = 0; j < 4; ++j) {
+                const float* row = &tile_.distancesTexels()[tile_.index(0, a.y.tap[j], a.z.tap[k])];
+                float rowValue = 0.0f;
+                float rowDerivative = 0.0f;
+                for (int i = 0; i < 4; ++i) {
+                    rowValue += wx.w[i] * row[a.x.tap[i]];
+                    rowDerivative += dx.w[i] * row[a.x.tap[i]];
+                }
+                sum.x += wy.w[j] * wz.w[k] * rowDerivative;
+                sum.y += dy.w[j] * wz.w[k] * rowValue;
+                sum.z += wy.w[j] * dz.w[k] * rowValue;
+            }
+        }
+        return sum;
+    }
+
+private:
+    struct Axes {
+        detail::CubicAxis x, y, z;
+    };
+    Axes axes(const glm::vec3& p) const {
+        const Size3& size = tile_.size();
+        return {detail::periodicCubicAxis(p.x, size.width), detail::periodicCubicAxis(p.y, size.height),
+                detail::clampedCubicAxis(p.z, size.depth)};
+    }
+
+    const Tile& tile_;
+};
+
+/// Curvatures of the isosurface of a field through a point, 1/texel.
+struct Curvature {
+    float mean;      ///< (k1 + k2) / 2
+    float gaussian;  ///< k1 * k2
+};
+
+/// Mean and Gaussian curvature of the isosurface through a point from the field's gradient g and
+/// Hessian H there (implicit-surface formulas, Goldman 2005; Kindlmann et al. 2003):
+///   mean     = (|g|^2 trace(H) - g^T H g) / (2 |g|^3),
+///   gaussian = g^T adj(H) g / |g|^4.
+/// Sign convention: the normal is the gradient, pointing out of the material (distances grow
+/// outward), and convex material has positive mean curvature: a sphere of radius r gives
+/// mean = 1/r, gaussian = 1/r^2; a spherical hole gives mean = -1/r, gaussian = 1/r^2.
+/// Precondition: H symmetric. Returns {0, 0} when |g| is zero or not finite (no surface direction).
+inline Curvature curvatureFromDerivatives(glm::vec3 gradient, glm::mat3 hessian) {
+    const float lengthSquared = glm::dot(gradient, gradient);
+    if (!(lengthSquared > 0.0f) || !std::isfinite(lengthSquared)) return {0.0f, 0.0f};
+    const float length = std::sqrt(lengthSquared);
+    const float trace = hessian[0][0] + hessian[1][1] + hessian[2][2];
+    const float normalTerm = glm::dot(gradient, hessian * gradient);
+    // Rows of the adjugate of a symmetric matrix: cross products of its columns.
+    const glm::vec3 adjugateTimesGradient(glm::dot(glm::cross(hessian[1], hessian[2]), gradient),
+                                          glm::dot(glm::cross(hessian[2], hessian[0]), gradient),
+                                          glm::dot(glm::cross(hessian[0], hessian[1]), gradient));
+    return {(lengthSquared * trace - normalTerm) / (2.0f * lengthSquared * length),
+            glm::dot(gradient, adjugateTimesGradient) / (lengthSquared * lengthSquared)};
+}
+
+}  // namespace distile
+
+#endif  // DISTILE_SAMPLER_TRICUBIC_H
