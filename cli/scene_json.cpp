@@ -11,6 +11,7 @@
 #include "mesh/base_mesh.h"
 #include "render/demo_scene.h"
 #include "sampler/bake.h"
+#include "render/image.h"
 #include "sampler/tile_io.h"
 
 namespace distile::cli {
@@ -191,7 +192,20 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
             field["floor"].fail("'" + floor + "' is not accepted; accepted: solid, open");
         }
     }
-    if (field.has("color")) material.color = field["color"].vector<3>();
+    if (field.has("color")) {
+        const Field color = field["color"];
+        if (color.value().is_string()) {
+            const fs::path path = folder / color.string();
+            if (!fs::exists(path)) color.fail("colour texture '" + path.string() + "' does not exist");
+            try {
+                material.colorTexture = std::make_shared<const Image>(readImage(path));
+            } catch (const FormatError& error) {
+                color.fail(error.what());
+            }
+        } else {
+            material.color = color.vector<3>();
+        }
+    }
     return material;
 }
 

@@ -171,14 +171,15 @@ private:
 
     glm::vec3 shadeBase(const SurfaceHit& hit, const Material& material, const glm::vec3& view, std::uint32_t seed,
                         std::uint64_t& shadowMapSamples) const {
-        glm::vec3 color = material.color * kAmbientStrength;
+        const glm::vec3 albedo = albedoAt(material, hit.entry.uv);
+        glm::vec3 color = albedo * kAmbientStrength;
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const DirectionalLight& light = scene_.lights[index];
             const glm::vec3 toLight = -glm::normalize(light.direction);
             if (glm::dot(hit.entry.normal, toLight) <= 0.0f) continue;
             const float visibility = castShadow(index, {hit.position, hit.entry.normal}, seed, shadowMapSamples);
             if (visibility <= 0.0f) continue;
-            color += directLight(hit.normal, toLight, view, material.color) * light.color * visibility;
+            color += directLight(hit.normal, toLight, view, albedo) * light.color * visibility;
         }
         return color;
     }
@@ -190,7 +191,8 @@ private:
         const glm::vec3 texelPosition = hit.march.texelPosition;
         // Cavities (low in the shell) see less of the sky.
         const float openness = 0.35f + 0.65f * std::clamp(texelPosition.z / depthTexels, 0.0f, 1.0f);
-        glm::vec3 color = material.color * (kAmbientStrength * openness);
+        const glm::vec3 albedo = albedoAt(material, hit.entry.uv);
+        glm::vec3 color = albedo * (kAmbientStrength * openness);
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const DirectionalLight& light = scene_.lights[index];
             const glm::vec3 toLight = -glm::normalize(light.direction);
@@ -219,7 +221,7 @@ private:
             const ShadowReceiver receiver{hit.position + toLight * (belowSurfaceWorld / facing), hit.entry.normal};
             visibility *= castShadow(index, receiver, seed, sample.shadowMapSamples);
             if (visibility <= 0.0f) continue;
-            color += directLight(hit.normal, toLight, view, material.color) * light.color * visibility;
+            color += directLight(hit.normal, toLight, view, albedo) * light.color * visibility;
         }
         return color;
     }

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <string>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/mat3x3.hpp>
@@ -42,6 +43,27 @@ void applyTransform(BaseMesh& mesh, const Transform& transform) {
     for (auto& tangent : mesh.tangents) {
         tangent = glm::vec4(glm::normalize(rotation * glm::vec3(tangent)), tangent.w);
     }
+}
+
+glm::vec3 albedoAt(const Material& material, const glm::vec2& uv) {
+    const Image* texture = material.colorTexture.get();
+    if (!texture) return material.color;
+    // Texel centres at (i + 0.5) / width, row 0 at the top (v = 1), wrapping in both directions.
+    const float x = uv.x * float(texture->width) - 0.5f;
+    const float y = (1.0f - uv.y) * float(texture->height) - 0.5f;
+    const float x0 = std::floor(x);
+    const float y0 = std::floor(y);
+    const float fx = x - x0;
+    const float fy = y - y0;
+    auto wrap = [](float index, int extent) {
+        const int wrapped = int(std::fmod(index, float(extent)));
+        return wrapped < 0 ? wrapped + extent : wrapped;
+    };
+    const int ix0 = wrap(x0, texture->width), ix1 = wrap(x0 + 1.0f, texture->width);
+    const int iy0 = wrap(y0, texture->height), iy1 = wrap(y0 + 1.0f, texture->height);
+    const glm::vec3 top = glm::mix(texture->at(ix0, iy0), texture->at(ix1, iy0), fx);
+    const glm::vec3 bottom = glm::mix(texture->at(ix0, iy1), texture->at(ix1, iy1), fx);
+    return glm::mix(top, bottom, fy);
 }
 
 void validateScene(const Scene& scene) {

@@ -11,6 +11,7 @@
 #include <glm/vec3.hpp>
 
 #include "mesh/base_mesh.h"
+#include "render/image.h"
 #include "sampler/tile.h"
 
 namespace distile {
@@ -35,8 +36,14 @@ struct Material {
     glm::vec2 uvScale{1.0f, 1.0f};      ///< tile repeats per unit of u and v
     float depthWorld = 0.05f;           ///< thickness of the detail shell below the surface
     Floor floor = Floor::Solid;
-    glm::vec3 color{0.8f, 0.8f, 0.85f};  ///< linear RGB albedo
+    glm::vec3 color{0.8f, 0.8f, 0.85f};  ///< linear RGB albedo (when there is no colour texture)
+    /// Optional albedo texture (linear RGB, see render/image.h readImage), looked up bilinearly at
+    /// the base mesh's uv (not scaled by uvScale: it paints the whole mesh), repeating outside [0,1].
+    std::shared_ptr<const Image> colorTexture;
 };
+
+/// The material's albedo at base-mesh uv: the colour texture there, else the constant colour.
+glm::vec3 albedoAt(const Material& material, const glm::vec2& uv);
 
 struct SceneObject {
     BaseMesh mesh;  ///< in world space (transforms already applied)

@@ -635,3 +635,32 @@ TEST(ShellCulling, MatchesTheBvhPathWhereShellsDoNotOverlap) {
 
 }  // namespace
 }  // namespace distile
+
+namespace distile {
+namespace {
+
+TEST(Material, ColorTextureIsLookedUpBilinearlyAtTheBaseUvAndWraps) {
+    // A 2 x 1 texture: left texel red, right texel blue. Texel centres sit at u = 0.25 and 0.75
+    // (row 0 is the top, v = 1; one row means v does not matter).
+    auto texture = std::make_shared<Image>(2, 1);
+    texture->at(0, 0) = {1.0f, 0.0f, 0.0f};
+    texture->at(1, 0) = {0.0f, 0.0f, 1.0f};
+    Material material;
+    material.colorTexture = texture;
+    const glm::vec3 left = albedoAt(material, {0.25f, 0.3f});
+    EXPECT_FLOAT_EQ(left.x, 1.0f);
+    EXPECT_FLOAT_EQ(left.z, 0.0f);
+    const glm::vec3 middle = albedoAt(material, {0.5f, 0.9f});  // halfway between the centres
+    EXPECT_FLOAT_EQ(middle.x, 0.5f);
+    EXPECT_FLOAT_EQ(middle.z, 0.5f);
+    const glm::vec3 wrapped = albedoAt(material, {1.0f, 0.5f});  // u = 0 = 1: halfway across the wrap
+    EXPECT_FLOAT_EQ(wrapped.x, 0.5f);
+    EXPECT_FLOAT_EQ(wrapped.z, 0.5f);
+    const glm::vec3 far = albedoAt(material, {3.25f, -7.5f});  // whole repeats away: the left texel
+    EXPECT_FLOAT_EQ(far.x, 1.0f);
+    Material plain;
+    EXPECT_EQ(albedoAt(plain, {0.1f, 0.2f}), plain.color);
+}
+
+}  // namespace
+}  // namespace distile
