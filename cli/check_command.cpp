@@ -14,6 +14,7 @@
 
 #include "cli/arguments.h"
 #include "cli/commands.h"
+#include "cli/provenance.h"
 #include "common/error.h"
 #include "mesh/detail_mesh.h"
 #include "sampler/bake.h"
@@ -47,8 +48,9 @@ struct CheckArguments {
     std::vector<double> meshOffset;
 };
 
-/// The procedural options recorded in a tile's distile:source and distile:params (written by
-/// vdb/procedural.h's paramsJson). Unknown sources or fields are FormatErrors naming the file.
+}  // namespace
+
+// Declared in cli/provenance.h (also used by render --reference).
 ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance, const std::string& file) {
     auto fail = [&](const std::string& message) -> void {
         throw FormatError(file + ": distile:params " + message);
@@ -113,6 +115,8 @@ ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance, con
     }
     return options;
 }
+
+namespace {
 
 void printReport(const CheckArguments& arguments, const std::string& against, const TileErrorReport& report,
                  bool passed, const std::vector<std::string>& failures) {

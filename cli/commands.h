@@ -11,5 +11,6 @@ namespace distile::cli {
 void addBakeCommand(CLI::App& app);
 void addRenderCommand(CLI::App& app);
 void addCheckCommand(CLI::App& app);
+void addCompareCommand(CLI::App& app);
 
 }  // namespace distile::cli

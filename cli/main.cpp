@@ -36,6 +36,7 @@ int run(int argc, char** argv) {
     distile::cli::addBakeCommand(app);
     distile::cli::addRenderCommand(app);
     distile::cli::addCheckCommand(app);
+    distile::cli::addCompareCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::Success& success) {  // --help, --version

@@ -12,6 +12,7 @@
 #include <glm/geometric.hpp>
 
 #include "common/error.h"
+#include "render/analytic_filter.h"
 #include "render/coverage.h"
 
 namespace distile {
@@ -76,6 +77,7 @@ struct Sample {
     int iterations = 0;
     std::uint64_t shadowSteps = 0;
     std::uint64_t shadowMapSamples = 0;
+    float texelsPerWorldAlongRay = 0.0f;  ///< the hit's SurfaceHit::texelsPerWorldAlongRay
     float meanCurvature = 0.0f;  ///< 1/texel, when hasCurvature (AOVs only)
     bool hasCurvature = false;   ///< the ray hit detail (not the floor, not a bare base surface)
 };
@@ -92,7 +94,8 @@ public:
         : scene_(scene),
           options_(options),
           tracer_(scene,
-                  TraceOptions{options.maxIterations, options.epsilonTexels, options.filter, options.normalFilter}),
+                  TraceOptions{options.maxIterations, options.epsilonTexels, options.filter, options.normalFilter,
+                               options.reference}),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
         shadowMaps_.resize(scene.lights.size());
@@ -139,6 +142,7 @@ private:
         ++stats.baseHits;
         sample.depth = hit.distanceWorld;
         sample.normal = hit.normal;
+        sample.texelsPerWorldAlongRay = hit.texelsPerWorldAlongRay;
         sample.iterations = int(counters.marchIterations);
         const Material& material = scene_.objects[hit.object].material;
         if (!hit.entry.frontFacing) {
@@ -146,7 +150,7 @@ private:
         } else if (!hit.onDetail) {
             sample.color = shadeBase(hit, material, ray.direction, seed, sample.shadowMapSamples);
         } else {
-            withFilter(options_.filter, *material.tile, [&](const auto& filter) {
+            withMarchFilter(options_.filter, material, options_.reference, [&](const auto& filter) {
                 sample.color = shadeDetail(filter, hit, material, ray.direction, seed, sample);
             });
         }
@@ -266,16 +270,39 @@ glm::vec3 heatColor(float value) {
     return glm::mix(stops[lower], stops[lower + 1], t - float(lower));
 }
 
-RenderResult renderScene(const Scene& scene, const RenderOptions& options, const ProgressCallback& progress) {
-    validateOptions(options);
+namespace {
+
+/// Throws InputError for the first tiled object without an analytic distance.
+void validateReference(const Scene& scene) {
+    for (std::size_t index = 0; index < scene.objects.size(); ++index) {
+        const Material& material = scene.objects[index].material;
+        if (!material.tile || material.analyticDistance) continue;
+        const std::string source = material.tile->provenance.source.empty() ? "unknown" : material.tile->provenance.source;
+        throw InputError("objects[" + std::to_string(index) + "].material.tile: a reference render needs procedural "
+                         "detail with an analytic distance (chainmail, grating); this tile's source '" + source +
+                         "' has none");
+    }
+}
+
+}  // namespace
+
+RenderResult renderScene(const Scene& scene, const RenderOptions& requested, const ProgressCallback& progress) {
+    validateOptions(requested);
     validateScene(scene);
+    RenderOptions options = requested;
+    if (options.reference) {
+        validateReference(scene);
+        options.maxIterations = RenderOptions::kReferenceIterations;
+        options.epsilonTexels = RenderOptions::kReferenceEpsilonTexels;
+    }
     const Renderer renderer(scene, options);
     RenderResult result;
     result.image = Image(options.width, options.height);
     if (options.outputAovs) {
         result.aovs.emplace(RenderAovs{Image(options.width, options.height), Image(options.width, options.height),
                                        Image(options.width, options.height), Image(options.width, options.height),
-                                       Image(options.width, options.height), Image(options.width, options.height)});
+                                       Image(options.width, options.height), Image(options.width, options.height),
+                                       Image(options.width, options.height)});
     }
     const float shadowBudget = float(options.shadowIterations * std::max<std::size_t>(scene.lights.size(), 1));
     const float shadowMapBudget =
@@ -305,6 +332,7 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& options, const
                                           heatColor(float(pixel.shadowSteps) / shadowBudget);
                                       result.aovs->shadowMapSamples.at(x, y) =
                                           heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
+                                      result.aovs->texelScale.at(x, y) = glm::vec3(pixel.texelsPerWorldAlongRay);
                                       if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
                                           result.aovs->curvature.at(x, y) = heatColor(0.5f + pixel.meanCurvature);
                                       }

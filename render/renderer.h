@@ -38,6 +38,13 @@ struct RenderOptions {
     /// Camera rays skip detail shells whose conservative depth is not nearer than their best hit
     /// (render/coverage.h); the image is the same either way, only the work differs.
     bool shellCulling = true;
+    /// Reference render: march and shade every tiled material on its Material::analyticDistance
+    /// (double precision, render/analytic_filter.h) instead of its tile, with kReferenceIterations
+    /// and kReferenceEpsilonTexels in place of maxIterations and epsilonTexels (filter and
+    /// normalFilter are unused). The truth against which ordinary renders are compared.
+    bool reference = false;
+    static constexpr int kReferenceIterations = 512;
+    static constexpr float kReferenceEpsilonTexels = 1e-3f;
 };
 
 struct RenderStats {
@@ -63,6 +70,10 @@ struct RenderAovs {
     /// B-spline's gradient and Hessian, as a heat map: blue -0.5 (concave) .. green 0 (flat) ..
     /// red +0.5 (convex, a wire of radius 2 texels is 0.25); black where no detail was hit.
     Image curvature;
+    /// Texels per world unit along the camera ray in the hit's texel space (from the shell entry's
+    /// frame), in all channels; 0 where the ray missed or hit no tile. Converts depth differences
+    /// to texels (render/compare.h).
+    Image texelScale;
 };
 
 struct RenderResult {
@@ -71,7 +82,8 @@ struct RenderResult {
     RenderStats stats;
 };
 
-/// Renders `scene`. Throws InputError for an invalid scene (validateScene) or options
+/// Renders `scene`. Throws InputError for an invalid scene (validateScene) or options; for a
+/// reference render, also for an object whose tile has no analytic distance (naming the object)
 /// (width/height in [1, 16384], iterations in [1, 4096], epsilon in (0, 1], samples per pixel
 /// in [1, 256], shadow-map resolution in [16, 16384]). `progress` is called on the calling
 /// thread; it is not called while the shadow maps are built, before the first row.

@@ -4,6 +4,7 @@
 /// from JSON, the renderer never parses text. World units throughout, angles in degrees.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -40,6 +41,10 @@ struct Material {
     /// Optional albedo texture (linear RGB, see render/image.h readImage), looked up bilinearly at
     /// the base mesh's uv (not scaled by uvScale: it paints the whole mesh), repeating outside [0,1].
     std::shared_ptr<const Image> colorTexture;
+    /// Optional exact signed distance of the detail the tile was made from (texels, texel space,
+    /// periodic in x and y; safe to call from several threads): the truth a reference render
+    /// (RenderOptions::reference) traces instead of the tile. Empty: no analytic truth.
+    std::function<double(const glm::dvec3& texelPosition)> analyticDistance;
 };
 
 /// The material's albedo at base-mesh uv: the colour texture there, else the constant colour.

@@ -6,6 +6,8 @@
 
 #include <glm/geometric.hpp>
 
+#include "render/analytic_filter.h"
+
 namespace distile {
 
 namespace {
@@ -138,6 +140,7 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
     hit.position = hit.entry.position;
     hit.normal = hit.entry.normal;
     hit.onDetail = false;
+    hit.texelsPerWorldAlongRay = 0.0f;
     if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) return true;
 
     const Size3& size = material.tile->size();
@@ -147,13 +150,23 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
     direction.z = std::min(direction.z, -1e-3f * glm::length(direction));
     const float texelsPerWorldAlongRay = glm::length(direction);
     direction /= texelsPerWorldAlongRay;
+    hit.texelsPerWorldAlongRay = texelsPerWorldAlongRay;
     // Wrap the entry point into the tile in double precision: far repeats keep their
-    // sub-texel position.
-    const double u = double(hit.entry.uv.x) * material.uvScale.x;
-    const double v = double(hit.entry.uv.y) * material.uvScale.y;
+    // sub-texel position. The uv is interpolated here in double from the corners (as corner 0 plus
+    // the weighted edge deltas), not taken from the float entry.uv: near uv 1e4 a float
+    // interpolation is off by a few ulps of 2^-10, a tenth of a texel (tests/stress_test.cpp).
+    const BaseMesh& baseMesh = scene_.objects[shell.object].mesh;
+    const glm::uvec3 corners = baseMesh.triangles[shell.localTriangle];
+    auto interpolateUv = [&](int axis) {
+        const double first = baseMesh.uvs[corners[0]][axis];
+        return first + double(baseHit.b1) * (double(baseMesh.uvs[corners[1]][axis]) - first) +
+               double(baseHit.b2) * (double(baseMesh.uvs[corners[2]][axis]) - first);
+    };
+    const double u = interpolateUv(0) * material.uvScale.x;
+    const double v = interpolateUv(1) * material.uvScale.y;
     const glm::vec3 start(float((u - std::floor(u)) * size.width), float((v - std::floor(v)) * size.height),
                           float(size.depth));
-    const bool done = withFilter(options_.filter, *material.tile, [&](const auto& filter) {
+    const bool done = withMarchFilter(options_.filter, material, options_.reference, [&](const auto& filter) {
         hit.march = march(filter, start, direction, material.floor, options_.maxIterations, options_.epsilonTexels);
         ++counters.shellEntries;
         counters.marchIterations += std::uint64_t(hit.march.iterations);
@@ -165,7 +178,8 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
         return true;
     });
     if (done && !hit.march.onFloor) {
-        const glm::vec3 gradient = withFilter(options_.normalFilter, *material.tile, [&](const auto& normalFilter) {
+        const glm::vec3 gradient = withMarchFilter(options_.normalFilter, material, options_.reference,
+                                                   [&](const auto& normalFilter) {
             return normalFilter.gradient(hit.march.texelPosition);
         });
         if (glm::length(gradient) > 1e-6f) hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));

@@ -13,7 +13,7 @@
 #include "render/bvh.h"
 #include "render/march.h"
 #include "render/scene.h"
-#include "sampler/filters.h"
+#include "sampler/filter_choice.h"
 
 namespace distile {
 
@@ -23,6 +23,9 @@ struct TraceOptions {
     FilterKind filter = FilterKind::Trilinear;  ///< the march's distances (must not overestimate)
     /// The shading normal's gradient at the hit; the B-spline's is smooth (ch. 20).
     FilterKind normalFilter = FilterKind::TricubicBSpline;
+    /// March and normals on each material's analyticDistance instead of its tile (reference
+    /// renders, render/analytic_filter.h). Precondition: every tiled material has one.
+    bool reference = false;
 };
 
 /// The base surface where a ray enters an object's detail shell, with the linear map between
@@ -50,6 +53,9 @@ struct SurfaceHit {
     ShellEntry entry;            ///< where the ray entered the shell
     bool onDetail = false;       ///< false: the bare base surface (no tile) or a back face
     MarchResult march;           ///< valid when onDetail
+    /// Texels per world unit along the ray in the shell's texel space (from the entry's frame);
+    /// 0 when the ray did not enter a tile (bare base surface, back face).
+    float texelsPerWorldAlongRay = 0.0f;
 };
 
 struct TraceCounters {

@@ -159,31 +159,3 @@ private:
 };
 
 }  // namespace distile
-
-// The third-order filters build on TrilinearFilter::fetch and withFilter dispatches to them; the
-// two headers include each other (see the note at the top of sampler/tricubic.h).
-#include "sampler/tricubic.h"
-
-namespace distile {
-
-/// The reconstruction filters a renderer or a check can choose.
-enum class FilterKind { Nearest, Trilinear, TricubicBSpline, CatmullRom };
-
-/// Calls `function(filter)` with the filter of `kind` over `tile`: the one place where a run-time
-/// choice becomes a compile-time filter type (hot loops are templates over the filter).
-template <class Function>
-decltype(auto) withFilter(FilterKind kind, const Tile& tile, Function&& function) {
-    switch (kind) {
-        case FilterKind::Nearest:
-            return function(NearestFilter(tile));
-        case FilterKind::TricubicBSpline:
-            return function(TricubicBSplineFilter(tile));
-        case FilterKind::CatmullRom:
-            return function(CatmullRomFilter(tile));
-        case FilterKind::Trilinear:
-            break;
-    }
-    return function(TrilinearFilter(tile));
-}
-
-}  // namespace distile

@@ -11,7 +11,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "sampler/filters.h"
+#include "sampler/filter_choice.h"
 #include "sampler/tile.h"
 
 namespace distile {

@@ -14,14 +14,9 @@
 /// Note: the B-spline smooths. It reproduces linear functions, and quadratics up to a constant,
 /// but on a distance field it may overestimate distances (by about Laplacian / 6 texels), so the
 /// march keeps trilinear distances and uses this filter for normals and curvature.
-///
-/// This header and sampler/filters.h include each other: the filters here build on
-/// TrilinearFilter, and withFilter() in filters.h dispatches to them. filters.h includes this file
-/// right after TrilinearFilter; hence a classic include guard placed after that include.
-#include "sampler/filters.h"
+#pragma once
 
-#ifndef DISTILE_SAMPLER_TRICUBIC_H
-#define DISTILE_SAMPLER_TRICUBIC_H
+#include "sampler/filters.h"
 
 #include <algorithm>
 #include <cassert>
@@ -304,5 +299,3 @@ inline Curvature curvatureFromDerivatives(glm::vec3 gradient, glm::mat3 hessian)
 }
 
 }  // namespace distile
-
-#endif  // DISTILE_SAMPLER_TRICUBIC_H
