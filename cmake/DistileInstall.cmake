@@ -9,7 +9,7 @@ install(TARGETS ${distile_libraries} distile_warnings distile_sanitizers EXPORT 
 install(TARGETS distile RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 foreach(folder common vdb sampler mesh truth render)
     install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/distile
-            FILES_MATCHING PATTERN "*.h")
+            FILES_MATCHING PATTERN "*.h" PATTERN "detail" EXCLUDE)
 endforeach()
 install(EXPORT distileTargets NAMESPACE distile:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/distile)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/distileConfig.cmake.in

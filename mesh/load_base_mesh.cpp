@@ -202,6 +202,15 @@ class OpenMeshLogCapture {
     std::streambuf* previousErrBuffer_;
 };
 
+/// Throws InputError unless `file` exists and is a regular file.
+void requireMeshFile(const std::filesystem::path& file) {
+    std::error_code error;
+    if (!std::filesystem::exists(file, error)) throw InputError(file.string() + ": no such file");
+    if (!std::filesystem::is_regular_file(file, error)) {
+        throw InputError(file.string() + ": is not a regular file; expected a mesh file");
+    }
+}
+
 /// OpenMesh's log streams are process globals: one read at a time.
 std::mutex& openMeshReadMutex() {
     static std::mutex mutex;
@@ -212,11 +221,7 @@ std::mutex& openMeshReadMutex() {
 
 BaseMesh loadBaseMesh(const std::filesystem::path& file) {
     const std::string name = file.string();
-    std::error_code error;
-    if (!std::filesystem::exists(file, error)) throw InputError(name + ": no such file");
-    if (!std::filesystem::is_regular_file(file, error)) {
-        throw InputError(name + ": is not a regular file; expected a mesh file");
-    }
+    requireMeshFile(file);
     const std::string extension = lowercase(file.extension().string());
     if (extension != ".obj" && extension != ".off" && extension != ".ply") {
         throw FormatError(name + ": unsupported mesh format '" + file.extension().string() +
@@ -429,11 +434,7 @@ void checkPlyFile(const std::filesystem::path& file) {
 
 TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
     const std::string name = file.string();
-    std::error_code error;
-    if (!std::filesystem::exists(file, error)) throw InputError(name + ": no such file");
-    if (!std::filesystem::is_regular_file(file, error)) {
-        throw InputError(name + ": is not a regular file; expected a mesh file");
-    }
+    requireMeshFile(file);
     const std::string extension = lowercase(file.extension().string());
     ObjFacts objFacts;
     if (extension == ".obj") {

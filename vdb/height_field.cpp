@@ -1,5 +1,7 @@
 #include "vdb/height_field.h"
 
+#include "vdb/detail/openvdb_mesh.h"
+
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 
@@ -157,18 +159,10 @@ LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, fl
     // of the tile within the band sees all triangles that can be nearest to it.
     const float convertedBand = halfBandTexels + 2.0f;  // OpenVDB's band is ragged at its edge
     const TriangleSoup surface = heightFieldTriangles(field, int(std::ceil(convertedBand)) + 2);
-    // Index space: voxel (i, j, k) is centred at texel (i+.5, j+.5, k+.5).
-    std::vector<openvdb::Vec3s> points;
-    points.reserve(surface.positions.size());
-    for (const glm::dvec3& p : surface.positions) {
-        points.emplace_back(float(p.x - 0.5), float(p.y - 0.5), float(p.z - 0.5));
-    }
-    std::vector<openvdb::Vec3I> triangles;
-    triangles.reserve(surface.triangles.size());
-    for (const glm::uvec3& t : surface.triangles) triangles.emplace_back(t.x, t.y, t.z);
+    const detail::OpenVdbMesh mesh = detail::toOpenVdbIndexSpace(surface);
     const auto transform = openvdb::math::Transform::createLinearTransform(1.0);
     const openvdb::FloatGrid::Ptr unsignedGrid = openvdb::tools::meshToUnsignedDistanceField<openvdb::FloatGrid>(
-        *transform, points, triangles, std::vector<openvdb::Vec4I>(), convertedBand);
+        *transform, mesh.points, mesh.triangles, std::vector<openvdb::Vec4I>(), convertedBand);
     if (progress) progress(0.5);
 
     // OpenVDB's band expansion propagates the nearest triangle from neighbouring voxels, which is

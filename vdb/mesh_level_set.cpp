@@ -1,5 +1,7 @@
 #include "vdb/mesh_level_set.h"
 
+#include "vdb/detail/openvdb_mesh.h"
+
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 
@@ -23,22 +25,13 @@ LevelSet levelSetFromMesh(const TriangleSoup& meshTexels, const Size3& tile, flo
     validateTriangleSoup(meshTexels, "mesh level set");
     openvdb::initialize();
 
-    // Index space of the unshifted grid: voxel (i, j, k) is centred at texel (i+.5, j+.5, k+.5),
-    // so a texel-space point p sits at index p - 0.5 under a unit transform.
-    std::vector<openvdb::Vec3s> points;
-    points.reserve(meshTexels.positions.size());
-    for (const glm::dvec3& p : meshTexels.positions) {
-        points.emplace_back(float(p.x - 0.5), float(p.y - 0.5), float(p.z - 0.5));
-    }
-    std::vector<openvdb::Vec3I> triangles;
-    triangles.reserve(meshTexels.triangles.size());
-    for (const glm::uvec3& t : meshTexels.triangles) triangles.emplace_back(t.x, t.y, t.z);
+    const detail::OpenVdbMesh mesh = detail::toOpenVdbIndexSpace(meshTexels);
     // OpenVDB's band is ragged at its outer voxels (some just inside the half width come back
     // as background); converting with 2 texels more and clamping to the half band afterwards
     // (fromDistance does) makes every voxel inside the band exact.
     const auto transform = openvdb::math::Transform::createLinearTransform(1.0);
     const openvdb::FloatGrid::Ptr meshGrid =
-        openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(*transform, points, triangles,
+        openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(*transform, mesh.points, mesh.triangles,
                                                            halfBandTexels + 2.0f);
     if (progress) progress(0.5);
 
