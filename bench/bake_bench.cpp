@@ -10,10 +10,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <glm/vec3.hpp>
 #include <optional>
 #include <vector>
-
-#include <glm/vec3.hpp>
 
 #include "common/triangle_soup.h"
 #include "sampler/bake.h"
@@ -41,7 +40,8 @@ TriangleSoup tessellatedChainmail(int around, int tube) {
         const bool odd = row % 2 == 1;
         const double tilt = (odd ? -1.0 : 1.0) * options.tiltDeg * kPi / 180.0;
         for (int column = 0; column < options.ringsPerRow; ++column) {
-            const glm::dvec3 centre{column * spacing + (odd ? 0.5 * spacing : 0.0), row * rowSpacing, 0.5 * kTile.depth};
+            const glm::dvec3 centre{column * spacing + (odd ? 0.5 * spacing : 0.0),
+                                    row * rowSpacing, 0.5 * kTile.depth};
             const auto first = unsigned(soup.positions.size());
             for (int i = 0; i < around; ++i) {
                 const double a = 2.0 * kPi * i / around;
@@ -50,18 +50,24 @@ TriangleSoup tessellatedChainmail(int around, int tube) {
                     // Torus in the ring's frame (axis local z), then rotated about y by the tilt:
                     // the inverse of the rotation in vdb/chainmail.cpp.
                     const glm::dvec3 local{(ringRadius + wireRadius * std::cos(b)) * std::cos(a),
-                                           (ringRadius + wireRadius * std::cos(b)) * std::sin(a), wireRadius * std::sin(b)};
-                    const glm::dvec3 offset{std::cos(tilt) * local.x + std::sin(tilt) * local.z, local.y,
+                                           (ringRadius + wireRadius * std::cos(b)) * std::sin(a),
+                                           wireRadius * std::sin(b)};
+                    const glm::dvec3 offset{std::cos(tilt) * local.x + std::sin(tilt) * local.z,
+                                            local.y,
                                             -std::sin(tilt) * local.x + std::cos(tilt) * local.z};
                     soup.positions.push_back(centre + offset);
                 }
             }
-            auto vertex = [&](int i, int j) { return first + unsigned((i % around) * tube + (j % tube)); };
+            auto vertex = [&](int i, int j) {
+                return first + unsigned((i % around) * tube + (j % tube));
+            };
             for (int i = 0; i < around; ++i) {
                 for (int j = 0; j < tube; ++j) {
                     // Counter-clockwise seen from outside.
-                    soup.triangles.push_back({vertex(i, j), vertex(i + 1, j), vertex(i + 1, j + 1)});
-                    soup.triangles.push_back({vertex(i, j), vertex(i + 1, j + 1), vertex(i, j + 1)});
+                    soup.triangles.push_back(
+                        {vertex(i, j), vertex(i + 1, j), vertex(i + 1, j + 1)});
+                    soup.triangles.push_back(
+                        {vertex(i, j), vertex(i + 1, j + 1), vertex(i, j + 1)});
                 }
             }
         }
@@ -84,9 +90,12 @@ VoxelErrors voxelErrors(const LevelSet& levelSet, const LevelSet& reference) {
     for (int k = 0; k < kTile.depth; ++k) {
         for (int j = 0; j < kTile.height; ++j) {
             for (int i = 0; i < kTile.width; ++i) {
-                if (!(std::abs(reference.voxelDistanceTexels(i, j, k)) < reference.halfBandTexels())) continue;
+                if (!(std::abs(reference.voxelDistanceTexels(i, j, k)) <
+                      reference.halfBandTexels()))
+                    continue;
                 const double truth = chainmail.signedDistanceTexels({i + 0.5, j + 0.5, k + 0.5});
-                const double error = std::abs(double(levelSet.voxelDistanceTexels(i, j, k)) - truth);
+                const double error =
+                    std::abs(double(levelSet.voxelDistanceTexels(i, j, k)) - truth);
                 sumSquares += error * error;
                 errors.max = std::max(errors.max, error);
                 errors.voxels += 1.0;

@@ -4,10 +4,9 @@
 
 #include <cmath>
 #include <ctime>
+#include <glm/geometric.hpp>
 #include <random>
 #include <vector>
-
-#include <glm/geometric.hpp>
 
 #include "render/coverage.h"
 #include "render/demo_scene.h"
@@ -64,17 +63,20 @@ void marchChainmail(benchmark::State& state) {
     std::size_t i = 0;
     std::int64_t iterations = 0;
     for (auto _ : state) {
-        const MarchResult result = march(filter, entries[i++ & 0xfff], direction, Floor::Solid, budget, 0.02f);
+        const MarchResult result =
+            march(filter, entries[i++ & 0xfff], direction, Floor::Solid, budget, 0.02f);
         iterations += result.iterations;
         benchmark::DoNotOptimize(result);
     }
     state.SetItemsProcessed(state.iterations());
-    state.counters["iterations/ray"] = benchmark::Counter(double(iterations) / double(state.iterations()));
+    state.counters["iterations/ray"] =
+        benchmark::Counter(double(iterations) / double(state.iterations()));
 }
 BENCHMARK(marchChainmail)->Arg(8)->Arg(16)->Arg(64);
 
 void bakeDefaultChainmail(benchmark::State& state) {
-    for (auto _ : state) benchmark::DoNotOptimize(bakeChainmail(ChainmailOptions{}, BakeOptions{}).tile.size());
+    for (auto _ : state)
+        benchmark::DoNotOptimize(bakeChainmail(ChainmailOptions{}, BakeOptions{}).tile.size());
 }
 BENCHMARK(bakeDefaultChainmail)->Unit(benchmark::kMillisecond)->Iterations(2);
 
@@ -96,7 +98,8 @@ void demoShadowFilters(benchmark::State& state) {
     RenderOptions options;
     options.width = 640;
     options.height = 512;
-    double fullSeconds = 0.0, adaptiveSeconds = 0.0, noMapSeconds = 0.0, buildSeconds = 0.0, closeShare = 0.0;
+    double fullSeconds = 0.0, adaptiveSeconds = 0.0, noMapSeconds = 0.0, buildSeconds = 0.0,
+           closeShare = 0.0;
     std::uint64_t fullSamples = 0, adaptiveSamples = 0;
     auto srgb8 = [](float linear) { return int(std::lround(255.0f * srgbFromLinear(linear))); };
     for (auto _ : state) {
@@ -113,7 +116,8 @@ void demoShadowFilters(benchmark::State& state) {
         benchmark::DoNotOptimize(renderScene(scene, options).stats.rays);
         noMapSeconds += processCpuSeconds() - start;
         start = processCpuSeconds();
-        const SceneTracer tracer(scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter});
+        const SceneTracer tracer(
+            scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter});
         benchmark::DoNotOptimize(ShadowMap(tracer, scene.lights[0]).width());
         buildSeconds += processCpuSeconds() - start;
         fullSamples = full.stats.shadowMapSamples;
@@ -131,10 +135,11 @@ void demoShadowFilters(benchmark::State& state) {
     }
     state.counters["full samples"] = double(fullSamples);
     state.counters["adaptive samples"] = double(adaptiveSamples);
-    state.counters["adaptive/full samples"] = double(adaptiveSamples) / double(std::max<std::uint64_t>(fullSamples, 1));
+    state.counters["adaptive/full samples"] =
+        double(adaptiveSamples) / double(std::max<std::uint64_t>(fullSamples, 1));
     state.counters["full/adaptive time"] = fullSeconds / adaptiveSeconds;
-    state.counters["full/adaptive filter time"] =
-        (fullSeconds - noMapSeconds - buildSeconds) / (adaptiveSeconds - noMapSeconds - buildSeconds);
+    state.counters["full/adaptive filter time"] = (fullSeconds - noMapSeconds - buildSeconds) /
+                                                  (adaptiveSeconds - noMapSeconds - buildSeconds);
     state.counters["map build s"] = buildSeconds / double(state.iterations());
     state.counters["full s"] = fullSeconds / double(state.iterations());
     state.counters["adaptive s"] = adaptiveSeconds / double(state.iterations());
@@ -154,8 +159,9 @@ void demoShadowLookups(benchmark::State& state) {
     std::vector<ShadowReceiver> receivers;
     for (int y = 0; y < 128; ++y) {
         for (int x = 0; x < 128; ++x) {
-            receivers.push_back({{-1.5f + 3.0f * (x + 0.5f) / 128.0f, -1.3f + 3.0f * (y + 0.5f) / 128.0f, 0.0f},
-                                 {0.0f, 0.0f, 1.0f}});
+            receivers.push_back(
+                {{-1.5f + 3.0f * (x + 0.5f) / 128.0f, -1.3f + 3.0f * (y + 0.5f) / 128.0f, 0.0f},
+                 {0.0f, 0.0f, 1.0f}});
         }
     }
     std::uint64_t samples = 0;
@@ -202,10 +208,13 @@ void trilinearCentralDifferences(benchmark::State& state) {
     std::size_t i = 0;
     for (auto _ : state) {
         const glm::vec3 p = points[i++ & 0xffff];
-        benchmark::DoNotOptimize(glm::vec3(
-            filter.distanceTexels(p + glm::vec3(1, 0, 0)) - filter.distanceTexels(p - glm::vec3(1, 0, 0)),
-            filter.distanceTexels(p + glm::vec3(0, 1, 0)) - filter.distanceTexels(p - glm::vec3(0, 1, 0)),
-            filter.distanceTexels(p + glm::vec3(0, 0, 1)) - filter.distanceTexels(p - glm::vec3(0, 0, 1))) * 0.5f);
+        benchmark::DoNotOptimize(glm::vec3(filter.distanceTexels(p + glm::vec3(1, 0, 0)) -
+                                               filter.distanceTexels(p - glm::vec3(1, 0, 0)),
+                                           filter.distanceTexels(p + glm::vec3(0, 1, 0)) -
+                                               filter.distanceTexels(p - glm::vec3(0, 1, 0)),
+                                           filter.distanceTexels(p + glm::vec3(0, 0, 1)) -
+                                               filter.distanceTexels(p - glm::vec3(0, 0, 1))) *
+                                 0.5f);
     }
     state.SetItemsProcessed(state.iterations());
 }
@@ -219,7 +228,6 @@ void tricubicHessian(benchmark::State& state) {
     state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(tricubicHessian);
-
 
 /// Ch. 42 shell culling on the demo scene at 640 x 512 (the torus overlaps the floor's shells
 /// and its own back half): renders with and without culling (no shadows, so camera rays
@@ -246,13 +254,15 @@ void demoShellCulling(benchmark::State& state) {
         const RenderResult withoutCulling = renderScene(scene, options);
         unculledSeconds += processCpuSeconds() - start;
         start = processCpuSeconds();
-        const SceneTracer tracer(scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter});
+        const SceneTracer tracer(
+            scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter});
         const PinholeProjection projection(scene.camera, options.width, options.height);
         TraceCounters counters;
         for (int y = 0; y < options.height; ++y) {
             for (int x = 0; x < options.width; ++x) {
                 SurfaceHit hit;
-                benchmark::DoNotOptimize(tracer.traceNearest(projection.ray(x + 0.5f, y + 0.5f), 0.0f, hit, counters));
+                benchmark::DoNotOptimize(
+                    tracer.traceNearest(projection.ray(x + 0.5f, y + 0.5f), 0.0f, hit, counters));
             }
         }
         bvhSeconds += processCpuSeconds() - start;

@@ -14,7 +14,8 @@ Size3 parseSize(const std::string& text, const std::string& option) {
     char x1 = 0, x2 = 0;
     std::string rest;
     std::istringstream in(text);
-    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x' || (in >> rest)) {
+    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x' ||
+        (in >> rest)) {
         throw InputError(option + ": '" + text + "' is not a size; write WxHxD, e.g. 256x256x16");
     }
     validateTileSize(size, option);
@@ -28,7 +29,8 @@ std::string lowerExtension(const fs::path& path) {
     return extension;
 }
 
-void requireOutput(const fs::path& path, const std::string& option, std::initializer_list<const char*> extensions) {
+void requireOutput(const fs::path& path, const std::string& option,
+                   std::initializer_list<const char*> extensions) {
     const std::string extension = lowerExtension(path);
     bool accepted = false;
     std::string list;
@@ -37,11 +39,13 @@ void requireOutput(const fs::path& path, const std::string& option, std::initial
         list += std::string(list.empty() ? "" : ", ") + candidate;
     }
     if (!accepted) {
-        throw InputError(option + ": '" + path.string() + "' has extension '" + extension + "'; accepted: " + list);
+        throw InputError(option + ": '" + path.string() + "' has extension '" + extension +
+                         "'; accepted: " + list);
     }
     const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
     if (!fs::is_directory(folder)) {
-        throw InputError(option + ": folder '" + folder.string() + "' of '" + path.string() + "' does not exist");
+        throw InputError(option + ": folder '" + folder.string() + "' of '" + path.string() +
+                         "' does not exist");
     }
 }
 

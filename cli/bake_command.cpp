@@ -58,8 +58,10 @@ MeshPlacement meshPlacement(const BakeArguments& arguments) {
     placement.fit = false;
     placement.scale = arguments.meshScale.value_or(1.0);
     if (!arguments.meshOffset.empty()) {
-        if (arguments.meshOffset.size() != 3) throw InputError("--offset: give three numbers X,Y,Z (texels)");
-        placement.offsetTexels = {arguments.meshOffset[0], arguments.meshOffset[1], arguments.meshOffset[2]};
+        if (arguments.meshOffset.size() != 3)
+            throw InputError("--offset: give three numbers X,Y,Z (texels)");
+        placement.offsetTexels = {arguments.meshOffset[0], arguments.meshOffset[1],
+                                  arguments.meshOffset[2]};
     }
     return placement;
 }
@@ -72,7 +74,8 @@ constexpr double kSignCheckSkipTexels = 0.1;
 
 /// `bake mesh FILE`: load, refuse meshes that have no inside, bake with exact signs near the
 /// surface, verify the sign at kSignCheckVoxels voxels. Throws before anything is written.
-BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& options, ProgressBar& progress) {
+BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& options,
+                        ProgressBar& progress) {
     const std::string file = arguments.input.string();
     const TriangleSoup mesh = loadDetailMesh(arguments.input);
     const MeshTopology topology = inspectMesh(mesh);
@@ -86,19 +89,23 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
         throw InputError(message.str());
     }
     if (topology.degenerateFaces > 0) {
-        std::fprintf(stderr, "distile: warning: %s: %zu degenerate (zero-area) faces\n", file.c_str(),
-                     topology.degenerateFaces);
+        std::fprintf(stderr, "distile: warning: %s: %zu degenerate (zero-area) faces\n",
+                     file.c_str(), topology.degenerateFaces);
     }
     if (topology.selfIntersecting) {
-        std::fprintf(stderr, "distile: warning: %s: the mesh intersects itself; inside is where the exact test says\n",
+        std::fprintf(stderr,
+                     "distile: warning: %s: the mesh intersects itself; inside is where the exact "
+                     "test says\n",
                      file.c_str());
     }
     const MeshPlacement placement = meshPlacement(arguments);
     const TriangleSoup placed = placeMesh(mesh, placement, options.size);
     const MeshDistance truth(placed, MeshDistance::Periodic{options.size});
     if (!truth.hasSign()) {
-        throw InputError(file + ": the mesh has no inside (CGAL could not close it); bake mesh accepts closed, "
-                                "manifold triangle meshes");
+        throw InputError(
+            file +
+            ": the mesh has no inside (CGAL could not close it); bake mesh accepts closed, "
+            "manifold triangle meshes");
     }
     BakeResult result = bakeMesh(mesh, placement, options, std::ref(progress),
                                  [&truth](const glm::dvec3& p) { return truth.isInside(p); });
@@ -106,7 +113,8 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
     // Verify the sign at random voxels of the footprint against the exact inside test.
     const Size3& size = options.size;
     std::mt19937 random(20240603u);
-    std::uniform_int_distribution<int> pickX(0, size.width - 1), pickY(0, size.height - 1), pickZ(0, size.depth - 1);
+    std::uniform_int_distribution<int> pickX(0, size.width - 1), pickY(0, size.height - 1),
+        pickZ(0, size.depth - 1);
     int checked = 0, wrong = 0;
     glm::dvec3 firstWrong(0.0);
     for (int n = 0; n < kSignCheckVoxels; ++n) {
@@ -122,12 +130,13 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
     if (wrong > 0) {
         std::ostringstream message;
         message << file << ": sign verification failed: " << wrong << " of " << checked
-                << " voxels have the wrong sign against the exact inside test (first at texel " << firstWrong.x
-                << ", " << firstWrong.y << ", " << firstWrong.z << "); nothing written";
+                << " voxels have the wrong sign against the exact inside test (first at texel "
+                << firstWrong.x << ", " << firstWrong.y << ", " << firstWrong.z
+                << "); nothing written";
         throw std::runtime_error(message.str());
     }
-    std::printf("%s: %zu triangles, closed and manifold; sign verified at %d voxels\n", file.c_str(),
-                mesh.triangles.size(), checked);
+    std::printf("%s: %zu triangles, closed and manifold; sign verified at %d voxels\n",
+                file.c_str(), mesh.triangles.size(), checked);
     return result;
 }
 
@@ -137,8 +146,10 @@ std::pair<int, int> parseRepeat(const std::string& text) {
     char separator = 0;
     std::string rest;
     std::istringstream in(text);
-    if (!(in >> x >> separator >> y) || separator != 'x' || (in >> rest) || x < 1 || x > 64 || y < 1 || y > 64) {
-        throw InputError("--repeat: '" + text + "' is not accepted; write NxM with N and M in [1, 64], e.g. 2x2");
+    if (!(in >> x >> separator >> y) || separator != 'x' || (in >> rest) || x < 1 || x > 64 ||
+        y < 1 || y > 64) {
+        throw InputError("--repeat: '" + text +
+                         "' is not accepted; write NxM with N and M in [1, 64], e.g. 2x2");
     }
     return {x, y};
 }
@@ -164,10 +175,13 @@ ProceduralOptions proceduralOptions(const BakeArguments& arguments) {
         if (!given("--ring-radius")) chainmail.ringRadiusSpacings = defaults.ringRadiusSpacings;
         if (!given("--wire-radius")) chainmail.wireRadiusSpacings = defaults.wireRadiusSpacings;
         if (!given("--tilt")) chainmail.tiltDeg = defaults.tiltDeg;
-        if (!given("--small-ring-radius")) chainmail.smallRingRadiusSpacings = defaults.smallRingRadiusSpacings;
-        if (!given("--small-wire-radius")) chainmail.smallWireRadiusSpacings = defaults.smallWireRadiusSpacings;
+        if (!given("--small-ring-radius"))
+            chainmail.smallRingRadiusSpacings = defaults.smallRingRadiusSpacings;
+        if (!given("--small-wire-radius"))
+            chainmail.smallWireRadiusSpacings = defaults.smallWireRadiusSpacings;
     } else if (arguments.weave != "european4in1") {
-        throw InputError("--weave: '" + arguments.weave + "' is not accepted; accepted: european4in1, japanese4in1");
+        throw InputError("--weave: '" + arguments.weave +
+                         "' is not accepted; accepted: european4in1, japanese4in1");
     }
     return procedural;
 }
@@ -175,17 +189,22 @@ ProceduralOptions proceduralOptions(const BakeArguments& arguments) {
 void runBake(const BakeArguments& arguments) {
     const bool fromFile = arguments.detail == "mesh" || arguments.detail == "heightmap";
     if (arguments.detail != "chainmail" && arguments.detail != "grating" && !fromFile) {
-        throw InputError("bake: '" + arguments.detail +
-                         "' is not a known detail; accepted: chainmail, grating, mesh FILE, heightmap IMAGE");
+        throw InputError(
+            "bake: '" + arguments.detail +
+            "' is not a known detail; accepted: chainmail, grating, mesh FILE, heightmap IMAGE");
     }
     if (fromFile && arguments.input.empty()) {
-        throw InputError("bake " + arguments.detail + ": needs the input file, e.g. `distile bake " +
-                         arguments.detail + (arguments.detail == "mesh" ? " ring.obj" : " stones.png") + " -o tile.exr`");
+        throw InputError("bake " + arguments.detail +
+                         ": needs the input file, e.g. `distile bake " + arguments.detail +
+                         (arguments.detail == "mesh" ? " ring.obj" : " stones.png") +
+                         " -o tile.exr`");
     }
     if (!fromFile && !arguments.input.empty()) {
-        throw InputError("bake " + arguments.detail + ": takes no input file ('" + arguments.input.string() + "')");
+        throw InputError("bake " + arguments.detail + ": takes no input file ('" +
+                         arguments.input.string() + "')");
     }
-    const ProceduralOptions procedural = fromFile ? ProceduralOptions() : proceduralOptions(arguments);
+    const ProceduralOptions procedural =
+        fromFile ? ProceduralOptions() : proceduralOptions(arguments);
     BakeOptions options;
     options.size = parseSize(arguments.size, "--size");
     options.halfBandTexels = arguments.halfBandTexels;
@@ -195,7 +214,8 @@ void runBake(const BakeArguments& arguments) {
     if (!arguments.png16Output.empty()) requireOutput(arguments.png16Output, "--png16", {".png"});
     std::pair<int, int> repeat{1, 1};
     if (!arguments.repeat.empty()) {
-        if (arguments.vdbOutput.empty()) throw InputError("--repeat: needs --vdb FILE (it tiles the level set written there)");
+        if (arguments.vdbOutput.empty())
+            throw InputError("--repeat: needs --vdb FILE (it tiles the level set written there)");
         repeat = parseRepeat(arguments.repeat);
     }
     options.conservative.enabled = !arguments.exactTexels;
@@ -215,12 +235,16 @@ void runBake(const BakeArguments& arguments) {
             result.emplace(bakeProcedural(procedural, options, std::ref(progress)));
         }
     }
-    // The repeated level set is built before anything is written: a refused --repeat leaves no file.
+    // The repeated level set is built before anything is written: a refused --repeat leaves no
+    // file.
     std::optional<LevelSet> repeatedLevelSet;
-    if (repeat.first > 1 || repeat.second > 1) repeatedLevelSet.emplace(result->levelSet.repeated(repeat.first, repeat.second));
-    writeTileExr(result->tile, arguments.output, arguments.half ? TileStorage::Half16 : TileStorage::Float32);
-    std::printf("tile %s (%s, %s) written to %s\n", toString(options.size).c_str(), arguments.detail.c_str(),
-                arguments.half ? "half" : "float", arguments.output.c_str());
+    if (repeat.first > 1 || repeat.second > 1)
+        repeatedLevelSet.emplace(result->levelSet.repeated(repeat.first, repeat.second));
+    writeTileExr(result->tile, arguments.output,
+                 arguments.half ? TileStorage::Half16 : TileStorage::Float32);
+    std::printf("tile %s (%s, %s) written to %s\n", toString(options.size).c_str(),
+                arguments.detail.c_str(), arguments.half ? "half" : "float",
+                arguments.output.c_str());
     if (!arguments.png8Output.empty()) {
         writeTilePng(result->tile, arguments.png8Output, 8);
         std::printf("8-bit PNG atlas written to %s\n", arguments.png8Output.c_str());
@@ -232,16 +256,17 @@ void runBake(const BakeArguments& arguments) {
     if (repeatedLevelSet) {
         const LevelSet& repeated = *repeatedLevelSet;
         repeated.save(arguments.vdbOutput);
-        std::printf("level set tiled %dx%d (%s texels, %zu active voxels) written to %s\n", repeat.first,
-                    repeat.second, toString(repeated.tileSize()).c_str(), repeated.activeVoxelCount(),
-                    arguments.vdbOutput.c_str());
+        std::printf("level set tiled %dx%d (%s texels, %zu active voxels) written to %s\n",
+                    repeat.first, repeat.second, toString(repeated.tileSize()).c_str(),
+                    repeated.activeVoxelCount(), arguments.vdbOutput.c_str());
     } else if (!arguments.vdbOutput.empty()) {
         result->levelSet.save(arguments.vdbOutput);
         std::printf("level set (%zu active voxels, half band %.1f texels) written to %s\n",
                     result->levelSet.activeVoxelCount(), result->levelSet.halfBandTexels(),
                     arguments.vdbOutput.c_str());
     }
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::printf("baked in %.2f s\n", seconds);
 }
 
@@ -251,68 +276,106 @@ void addBakeCommand(CLI::App& app) {
     auto arguments = std::make_shared<BakeArguments>();
     CLI::App* command = app.add_subcommand(
         "bake", "Bake detail into a distance tile (EXR atlas) and optionally its level set (.vdb)");
-    command->add_option("detail", arguments->detail, "What to bake: chainmail, grating, mesh FILE, heightmap IMAGE")
+    command
+        ->add_option("detail", arguments->detail,
+                     "What to bake: chainmail, grating, mesh FILE, heightmap IMAGE")
         ->required();
-    command->add_option("input", arguments->input, "mesh: the detail mesh (OBJ, PLY, OFF, STL); heightmap: the image");
+    command->add_option("input", arguments->input,
+                        "mesh: the detail mesh (OBJ, PLY, OFF, STL); heightmap: the image");
     command->add_option("-o,--output", arguments->output, "Tile file to write (.exr)")->required();
-    command->add_option("--size", arguments->size, "Tile size WxHxD in texels")->capture_default_str();
-    command->add_option("--vdb", arguments->vdbOutput, "Also write the narrow-band level set (.vdb, texel units)");
+    command->add_option("--size", arguments->size, "Tile size WxHxD in texels")
+        ->capture_default_str();
+    command->add_option("--vdb", arguments->vdbOutput,
+                        "Also write the narrow-band level set (.vdb, texel units)");
     command->add_flag("--half", arguments->half, "Store half floats instead of 32-bit floats");
-    command->add_option("--band", arguments->halfBandTexels,
-                        "Half width of the level set's narrow band in texels (default: the tile depth)");
-    auto* chainmail = command->add_option_group("chainmail", "European 4-in-1 chain mail (defaults fill 256x256x16)");
-    chainmail->add_option("--rings-per-row", arguments->chainmail.ringsPerRow, "Rings along x per tile")
+    command->add_option(
+        "--band", arguments->halfBandTexels,
+        "Half width of the level set's narrow band in texels (default: the tile depth)");
+    auto* chainmail = command->add_option_group(
+        "chainmail", "European 4-in-1 chain mail (defaults fill 256x256x16)");
+    chainmail
+        ->add_option("--rings-per-row", arguments->chainmail.ringsPerRow, "Rings along x per tile")
         ->capture_default_str();
-    chainmail->add_option("--rows", arguments->chainmail.rowsPerTile, "Rows along y per tile (even)")
+    chainmail
+        ->add_option("--rows", arguments->chainmail.rowsPerTile, "Rows along y per tile (even)")
         ->capture_default_str();
-    chainmail->add_option("--ring-radius", arguments->chainmail.ringRadiusSpacings, "Ring centreline radius, in ring spacings")
+    chainmail
+        ->add_option("--ring-radius", arguments->chainmail.ringRadiusSpacings,
+                     "Ring centreline radius, in ring spacings")
         ->capture_default_str();
-    chainmail->add_option("--wire-radius", arguments->chainmail.wireRadiusSpacings, "Wire radius, in ring spacings")
+    chainmail
+        ->add_option("--wire-radius", arguments->chainmail.wireRadiusSpacings,
+                     "Wire radius, in ring spacings")
         ->capture_default_str();
-    chainmail->add_option("--tilt", arguments->chainmail.tiltDeg, "Ring tilt about y, degrees")->capture_default_str();
-    chainmail->add_option("--weave", arguments->weave, "european4in1 or japanese4in1 (its own defaults)")
+    chainmail->add_option("--tilt", arguments->chainmail.tiltDeg, "Ring tilt about y, degrees")
+        ->capture_default_str();
+    chainmail
+        ->add_option("--weave", arguments->weave, "european4in1 or japanese4in1 (its own defaults)")
         ->capture_default_str();
     chainmail->add_option("--small-ring-radius", arguments->chainmail.smallRingRadiusSpacings,
                           "Japanese 4-in-1: small ring radius, in ring spacings");
     chainmail->add_option("--small-wire-radius", arguments->chainmail.smallWireRadiusSpacings,
                           "Japanese 4-in-1: small ring wire radius, in ring spacings");
-    auto* grating = command->add_option_group("grating", "Grating: two layers of bars with rounded edges");
-    grating->add_option("--bars", arguments->grating.barsPerTile, "Bars per layer across the tile")->capture_default_str();
-    grating->add_option("--bar-width", arguments->grating.barWidthTexels, "Bar width, texels")->capture_default_str();
-    grating->add_option("--bar-height", arguments->grating.barHeightTexels, "Bar thickness, texels")->capture_default_str();
-    grating->add_option("--edge-radius", arguments->grating.edgeRadiusTexels, "Rounding of the bar edges, texels")
+    auto* grating =
+        command->add_option_group("grating", "Grating: two layers of bars with rounded edges");
+    grating->add_option("--bars", arguments->grating.barsPerTile, "Bars per layer across the tile")
         ->capture_default_str();
-    grating->add_option("--layer-gap", arguments->grating.layerGapTexels, "Gap between the two layers, texels")
+    grating->add_option("--bar-width", arguments->grating.barWidthTexels, "Bar width, texels")
         ->capture_default_str();
-    command->add_option("--png8", arguments->png8Output, "Also write an 8-bit PNG atlas (distance / depth, ch. 8)");
-    command->add_option("--png16", arguments->png16Output, "Also write a 16-bit PNG atlas (distance / depth, ch. 8)");
-    command->add_option("--repeat", arguments->repeat, "Write the --vdb level set tiled NxM (world units = texels)");
-    auto* mesh = command->add_option_group(
-        "mesh",
-        "bake mesh FILE: a closed, manifold triangle mesh (OBJ, PLY, OFF, STL; open or non-manifold meshes are "
-        "refused). Placement in texel space (x, y in [0,W) x [0,H), z = 0 the floor, z = D the top): by default "
-        "(--fit) the mesh is scaled uniformly so its x/y bounding box spans the tile footprint (the axis with the "
-        "larger extent relative to W or H spans it exactly), centred in x and y, its lowest point on the floor; give "
-        "a repeating mesh its period as its x/y bounding box. With --scale/--offset: texel = S * file position + "
-        "(X, Y, Z). The tile is periodic: parts beyond the footprint continue on the other side. The sign is checked "
-        "against an exact inside test (CGAL) before anything is written");
-    mesh->add_flag("--fit", arguments->fit, "Fit the x/y bounding box to the footprint, floor at z = 0 (the default)");
-    mesh->add_option("--scale", arguments->meshScale, "Explicit placement: texels per file unit S (> 0)");
-    mesh->add_option("--offset", arguments->meshOffset, "Explicit placement: where the file's origin goes, X,Y,Z texels")
+    grating->add_option("--bar-height", arguments->grating.barHeightTexels, "Bar thickness, texels")
+        ->capture_default_str();
+    grating
+        ->add_option("--edge-radius", arguments->grating.edgeRadiusTexels,
+                     "Rounding of the bar edges, texels")
+        ->capture_default_str();
+    grating
+        ->add_option("--layer-gap", arguments->grating.layerGapTexels,
+                     "Gap between the two layers, texels")
+        ->capture_default_str();
+    command->add_option("--png8", arguments->png8Output,
+                        "Also write an 8-bit PNG atlas (distance / depth, ch. 8)");
+    command->add_option("--png16", arguments->png16Output,
+                        "Also write a 16-bit PNG atlas (distance / depth, ch. 8)");
+    command->add_option("--repeat", arguments->repeat,
+                        "Write the --vdb level set tiled NxM (world units = texels)");
+    auto* mesh =
+        command->add_option_group("mesh",
+                                  "bake mesh FILE: a closed, manifold triangle mesh (OBJ, PLY, "
+                                  "OFF, STL; open or non-manifold meshes are "
+                                  "refused). Placement in texel space (x, y in [0,W) x [0,H), z = "
+                                  "0 the floor, z = D the top): by default "
+                                  "(--fit) the mesh is scaled uniformly so its x/y bounding box "
+                                  "spans the tile footprint (the axis with the "
+                                  "larger extent relative to W or H spans it exactly), centred in "
+                                  "x and y, its lowest point on the floor; give "
+                                  "a repeating mesh its period as its x/y bounding box. With "
+                                  "--scale/--offset: texel = S * file position + "
+                                  "(X, Y, Z). The tile is periodic: parts beyond the footprint "
+                                  "continue on the other side. The sign is checked "
+                                  "against an exact inside test (CGAL) before anything is written");
+    mesh->add_flag("--fit", arguments->fit,
+                   "Fit the x/y bounding box to the footprint, floor at z = 0 (the default)");
+    mesh->add_option("--scale", arguments->meshScale,
+                     "Explicit placement: texels per file unit S (> 0)");
+    mesh->add_option("--offset", arguments->meshOffset,
+                     "Explicit placement: where the file's origin goes, X,Y,Z texels")
         ->expected(3)
         ->delimiter(',');
     auto* heightmap = command->add_option_group(
         "heightmap",
-        "bake heightmap IMAGE: an 8/16-bit PNG or an EXR read as grey, values in [0,1] mapped to heights "
-        "0..--height-texels; the image is stretched over the footprint (any size, sampled periodically and "
+        "bake heightmap IMAGE: an 8/16-bit PNG or an EXR read as grey, values in [0,1] mapped to "
+        "heights "
+        "0..--height-texels; the image is stretched over the footprint (any size, sampled "
+        "periodically and "
         "bilinearly at the texel columns); material is solid below the surface");
     heightmap->add_option("--height-texels", arguments->heightTexels,
                           "Height of image value 1, texels, in (0, D] (default: D - 1)");
     command->add_flag("--exact-texels", arguments->exactTexels,
-                      "Keep the exact distances at texel centres (no conservative lowering; trilinear may overestimate)");
+                      "Keep the exact distances at texel centres (no conservative lowering; "
+                      "trilinear may overestimate)");
     command->callback([arguments, command] {
-        for (const char* name : {"--rings-per-row", "--rows", "--ring-radius", "--wire-radius", "--tilt",
-                                 "--small-ring-radius", "--small-wire-radius"}) {
+        for (const char* name : {"--rings-per-row", "--rows", "--ring-radius", "--wire-radius",
+                                 "--tilt", "--small-ring-radius", "--small-wire-radius"}) {
             if (command->count(name) > 0) arguments->chainmailGiven.insert(name);
         }
         runBake(*arguments);

@@ -5,12 +5,11 @@
 #include <cstdlib>
 #include <functional>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
 #include <sstream>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "cli/arguments.h"
 #include "cli/commands.h"
@@ -51,7 +50,8 @@ struct CheckArguments {
 }  // namespace
 
 // Declared in cli/provenance.h (also used by render --reference).
-ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance, const std::string& file) {
+ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance,
+                                           const std::string& file) {
     auto fail = [&](const std::string& message) -> void {
         throw FormatError(file + ": distile:params " + message);
     };
@@ -61,8 +61,9 @@ ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance, con
     } else if (provenance.source == "grating") {
         options.kind = ProceduralKind::Grating;
     } else {
-        throw InputError(file + ": distile:source '" + provenance.source +
-                         "' has no analytic truth (chainmail, grating); use --against MESH or LEVEL.vdb");
+        throw InputError(
+            file + ": distile:source '" + provenance.source +
+            "' has no analytic truth (chainmail, grating); use --against MESH or LEVEL.vdb");
     }
     json params;
     try {
@@ -81,18 +82,21 @@ ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance, con
     auto integer = [&](const char* key, int& target) {
         double value = target;
         number(key, value);
-        if (value != std::floor(value) || std::abs(value) > 1e6) fail(std::string(key) + " must be a whole number");
+        if (value != std::floor(value) || std::abs(value) > 1e6)
+            fail(std::string(key) + " must be a whole number");
         target = int(value);
     };
     if (options.kind == ProceduralKind::Chainmail) {
         ChainmailOptions& chainmail = options.chainmail;
         if (params.contains("weave")) {
             used.insert("weave");
-            const std::string weave = params["weave"].is_string() ? params["weave"].get<std::string>() : "";
+            const std::string weave =
+                params["weave"].is_string() ? params["weave"].get<std::string>() : "";
             if (weave == "japanese4in1") {
                 chainmail = japanese4in1Defaults();
             } else if (weave != "european4in1") {
-                fail("weave '" + params["weave"].dump() + "' is not accepted; accepted: european4in1, japanese4in1");
+                fail("weave '" + params["weave"].dump() +
+                     "' is not accepted; accepted: european4in1, japanese4in1");
             }
         }
         integer("rings_per_row", chainmail.ringsPerRow);
@@ -118,8 +122,9 @@ ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance, con
 
 namespace {
 
-void printReport(const CheckArguments& arguments, const std::string& against, const TileErrorReport& report,
-                 bool passed, const std::vector<std::string>& failures) {
+void printReport(const CheckArguments& arguments, const std::string& against,
+                 const TileErrorReport& report, bool passed,
+                 const std::vector<std::string>& failures) {
     if (arguments.json) {
         json out = {{"tile", arguments.tile.string()},
                     {"against", against},
@@ -145,16 +150,20 @@ void printReport(const CheckArguments& arguments, const std::string& against, co
         std::printf("%s\n", out.dump().c_str());
         return;
     }
-    std::printf("%s against %s, %d samples (seed %llu), trilinear, texels:\n", arguments.tile.c_str(), against.c_str(),
-                report.samples, static_cast<unsigned long long>(arguments.seed));
-    std::printf("  near surface (|d| <= 2, %d samples): max %.4f  RMS %.4f  p99.9 %.4f\n", report.nearSamples,
-                report.nearMaxAbsTexels, report.nearRmsTexels, report.nearP999Texels);
-    std::printf("  overall: max %.4f at (%.2f, %.2f, %.2f) where the true distance is %.3f  RMS %.4f\n",
-                report.maxAbsTexels, report.maxAbsAt.x, report.maxAbsAt.y, report.maxAbsAt.z, report.maxAbsTruthTexels,
-                report.rmsTexels);
-    std::printf("  overestimates beyond %.3f: %d (%.4f%%), largest %.4f; sign errors (|d| > 1): %d\n",
-                arguments.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
-                report.maxOverestimateTexels, report.signErrors);
+    std::printf("%s against %s, %d samples (seed %llu), trilinear, texels:\n",
+                arguments.tile.c_str(), against.c_str(), report.samples,
+                static_cast<unsigned long long>(arguments.seed));
+    std::printf("  near surface (|d| <= 2, %d samples): max %.4f  RMS %.4f  p99.9 %.4f\n",
+                report.nearSamples, report.nearMaxAbsTexels, report.nearRmsTexels,
+                report.nearP999Texels);
+    std::printf(
+        "  overall: max %.4f at (%.2f, %.2f, %.2f) where the true distance is %.3f  RMS %.4f\n",
+        report.maxAbsTexels, report.maxAbsAt.x, report.maxAbsAt.y, report.maxAbsAt.z,
+        report.maxAbsTruthTexels, report.rmsTexels);
+    std::printf(
+        "  overestimates beyond %.3f: %d (%.4f%%), largest %.4f; sign errors (|d| > 1): %d\n",
+        arguments.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
+        report.maxOverestimateTexels, report.signErrors);
     if (passed) {
         std::printf("passed\n");
     } else {
@@ -175,15 +184,17 @@ void runCheck(const CheckArguments& arguments) {
         try {
             procedural = proceduralDistance(options, tile.size());
         } catch (const InputError& error) {
-            throw FormatError(tileName + ": distile:params do not describe a valid pattern (" + error.what() + ")");
+            throw FormatError(tileName + ": distile:params do not describe a valid pattern (" +
+                              error.what() + ")");
         }
         truth = procedural.signedDistanceTexels;
         against = "analytic " + procedural.source + " " + procedural.paramsJson;
     } else if (lowerExtension(arguments.against) == ".vdb") {
         const LevelSet levelSet = LevelSet::load(arguments.against);
         if (!(levelSet.tileSize() == tile.size())) {
-            throw InputError("--against: level set '" + arguments.against + "' is " + toString(levelSet.tileSize()) +
-                             " but the tile is " + toString(tile.size()));
+            throw InputError("--against: level set '" + arguments.against + "' is " +
+                             toString(levelSet.tileSize()) + " but the tile is " +
+                             toString(tile.size()));
         }
         ConservativeOptions exact;
         exact.enabled = false;
@@ -200,19 +211,24 @@ void runCheck(const CheckArguments& arguments) {
             placement.fit = false;
             placement.scale = arguments.meshScale.value_or(1.0);
             if (!arguments.meshOffset.empty()) {
-                if (arguments.meshOffset.size() != 3) throw InputError("--offset: give three numbers X Y Z (texels)");
-                placement.offsetTexels = {arguments.meshOffset[0], arguments.meshOffset[1], arguments.meshOffset[2]};
+                if (arguments.meshOffset.size() != 3)
+                    throw InputError("--offset: give three numbers X Y Z (texels)");
+                placement.offsetTexels = {arguments.meshOffset[0], arguments.meshOffset[1],
+                                          arguments.meshOffset[2]};
             }
         }
         const TriangleSoup placed = placeMesh(soup, placement, tile.size());
-        auto mesh = std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
+        auto mesh =
+            std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
         if (!mesh->hasSign()) {
-            throw InputError("--against: mesh '" + arguments.against +
-                             "' is not closed, so it has no inside; check against its level set (.vdb) instead");
+            throw InputError(
+                "--against: mesh '" + arguments.against +
+                "' is not closed, so it has no inside; check against its level set (.vdb) instead");
         }
         keepAlive = mesh;
         truth = [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
-        against = "mesh " + arguments.against + (placement.fit ? " (fitted to the footprint)" : " (explicit placement)");
+        against = "mesh " + arguments.against +
+                  (placement.fit ? " (fitted to the footprint)" : " (explicit placement)");
     }
 
     TileErrorOptions options;
@@ -233,19 +249,22 @@ void runCheck(const CheckArguments& arguments) {
         return out.str();
     };
     if (report.overestimateShare > arguments.maxOverestimateShare) {
-        failures.push_back("overestimates beyond " + text(arguments.maxOverestimateTexels) + " texel in " +
-                           text(100.0 * report.overestimateShare) + "% of samples (allowed " +
-                           text(100.0 * arguments.maxOverestimateShare) + "%)");
+        failures.push_back("overestimates beyond " + text(arguments.maxOverestimateTexels) +
+                           " texel in " + text(100.0 * report.overestimateShare) +
+                           "% of samples (allowed " + text(100.0 * arguments.maxOverestimateShare) +
+                           "%)");
     }
     if (report.rmsTexels > arguments.maxRmsTexels) {
-        failures.push_back("RMS " + text(report.rmsTexels) + " texel (allowed " + text(arguments.maxRmsTexels) + ")");
+        failures.push_back("RMS " + text(report.rmsTexels) + " texel (allowed " +
+                           text(arguments.maxRmsTexels) + ")");
     }
     if (arguments.maxNearErrorTexels && report.nearMaxAbsTexels > *arguments.maxNearErrorTexels) {
-        failures.push_back("max error near the surface " + text(report.nearMaxAbsTexels) + " texel (allowed " +
-                           text(*arguments.maxNearErrorTexels) + ")");
+        failures.push_back("max error near the surface " + text(report.nearMaxAbsTexels) +
+                           " texel (allowed " + text(*arguments.maxNearErrorTexels) + ")");
     }
     if (report.signErrors > 0 && !arguments.allowSignErrors) {
-        failures.push_back(std::to_string(report.signErrors) + " sign errors more than 1 texel from the surface");
+        failures.push_back(std::to_string(report.signErrors) +
+                           " sign errors more than 1 texel from the surface");
     }
     printReport(arguments, against, report, failures.empty(), failures);
     if (!failures.empty()) {
@@ -258,37 +277,49 @@ void runCheck(const CheckArguments& arguments) {
 
 void addCheckCommand(CLI::App& app) {
     auto arguments = std::make_shared<CheckArguments>();
-    CLI::App* command = app.add_subcommand(
-        "check", "Sample a tile (trilinear) against the truth and report its error in texels; exit 1 when a tolerance "
-                 "is exceeded");
+    CLI::App* command = app.add_subcommand("check",
+                                           "Sample a tile (trilinear) against the truth and report "
+                                           "its error in texels; exit 1 when a tolerance "
+                                           "is exceeded");
     command->add_option("tile", arguments->tile, "Tile file (.exr)")->required();
-    command->add_option("--against", arguments->against,
-                        "Truth: analytic (from the tile's distile:source/params), a closed mesh file (OBJ, PLY, OFF, "
-                        "STL; placed as `bake mesh` does) or a level set (.vdb)")
+    command
+        ->add_option("--against", arguments->against,
+                     "Truth: analytic (from the tile's distile:source/params), a closed mesh file "
+                     "(OBJ, PLY, OFF, "
+                     "STL; placed as `bake mesh` does) or a level set (.vdb)")
         ->capture_default_str();
     command->add_option("--samples", arguments->samples, "Uniform random sample points")
         ->capture_default_str()
         ->check(CLI::Range(1, 100000000));
-    command->add_option("--seed", arguments->seed, "Seed of the sample points")->capture_default_str();
+    command->add_option("--seed", arguments->seed, "Seed of the sample points")
+        ->capture_default_str();
     command->add_flag("--json", arguments->json, "Print the report as one JSON object");
-    command->add_option("--max-overestimate", arguments->maxOverestimateTexels,
-                        "Overestimate tolerance, texels: tile - truth above it counts as an overestimate")
+    command
+        ->add_option(
+            "--max-overestimate", arguments->maxOverestimateTexels,
+            "Overestimate tolerance, texels: tile - truth above it counts as an overestimate")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 1e6));
-    command->add_option("--max-overestimate-share", arguments->maxOverestimateShare,
-                        "Largest accepted share of overestimates (0.001 = 0.1%)")
+    command
+        ->add_option("--max-overestimate-share", arguments->maxOverestimateShare,
+                     "Largest accepted share of overestimates (0.001 = 0.1%)")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 1.0));
     command->add_option("--max-rms", arguments->maxRmsTexels, "Largest accepted RMS error, texels")
         ->capture_default_str()
         ->check(CLI::Range(0.0, 1e6));
-    command->add_option("--max-near-error", arguments->maxNearErrorTexels,
-                        "Largest accepted error within 2 texels of the surface (default: not checked)")
+    command
+        ->add_option("--max-near-error", arguments->maxNearErrorTexels,
+                     "Largest accepted error within 2 texels of the surface (default: not checked)")
         ->check(CLI::Range(0.0, 1e6));
     command->add_flag("--allow-sign-errors", arguments->allowSignErrors,
-                      "Do not fail on sign errors (samples more than 1 texel from the surface with the wrong sign)");
-    command->add_option("--scale", arguments->meshScale, "Mesh truth: explicit placement, texels per file unit");
-    command->add_option("--offset", arguments->meshOffset, "Mesh truth: explicit placement, offset X Y Z in texels")
+                      "Do not fail on sign errors (samples more than 1 texel from the surface with "
+                      "the wrong sign)");
+    command->add_option("--scale", arguments->meshScale,
+                        "Mesh truth: explicit placement, texels per file unit");
+    command
+        ->add_option("--offset", arguments->meshOffset,
+                     "Mesh truth: explicit placement, offset X Y Z in texels")
         ->expected(3);
     command->callback([arguments] { runCheck(*arguments); });
 }

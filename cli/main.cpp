@@ -17,20 +17,23 @@ constexpr int kExitInput = 2;    ///< bad input: arguments, files, scenes
 
 int run(int argc, char** argv) {
     CLI::App app{
-        "distile: volumetric distance detail. Bakes detail (chain mail, ...) into exact, periodic distance tiles\n"
-        "(OpenVDB level set -> 256x256x16 EXR atlas) and renders them on base meshes with a CPU sphere tracer.\n"};
+        "distile: volumetric distance detail. Bakes detail (chain mail, ...) into exact, periodic "
+        "distance tiles\n"
+        "(OpenVDB level set -> 256x256x16 EXR atlas) and renders them on base meshes with a CPU "
+        "sphere tracer.\n"};
     app.name("distile");
     app.require_subcommand(1);
     app.fallthrough();  // --threads may also follow the subcommand
     app.set_version_flag("--version", "distile 0.1.0");
     int threads = 0;
-    app.add_option("--threads", threads, "Worker threads (default: all cores)")->check(CLI::Range(1, 1024));
+    app.add_option("--threads", threads, "Worker threads (default: all cores)")
+        ->check(CLI::Range(1, 1024));
     // The thread limit must be in force before a command's callback runs.
     std::unique_ptr<tbb::global_control> threadLimit;
     app.parse_complete_callback([&] {
         if (threads > 0) {
-            threadLimit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                                std::size_t(threads));
+            threadLimit = std::make_unique<tbb::global_control>(
+                tbb::global_control::max_allowed_parallelism, std::size_t(threads));
         }
     });
     distile::cli::addBakeCommand(app);

@@ -12,8 +12,9 @@
 namespace distile::cli {
 
 class ProgressBar {
-public:
-    explicit ProgressBar(std::string label) : label_(std::move(label)), enabled_(::isatty(STDERR_FILENO) == 1) {}
+  public:
+    explicit ProgressBar(std::string label)
+        : label_(std::move(label)), enabled_(::isatty(STDERR_FILENO) == 1) {}
     ProgressBar(const ProgressBar&) = delete;
     ProgressBar& operator=(const ProgressBar&) = delete;
     ~ProgressBar() {
@@ -27,13 +28,15 @@ public:
         shownPercent_ = percent;
         constexpr int kWidth = 30;
         const int filled = percent * kWidth / 100;
-        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-        std::fprintf(stderr, "\r%s [%s%s] %3d%% %.1fs", label_.c_str(), std::string(filled, '#').c_str(),
-                     std::string(kWidth - filled, '.').c_str(), percent, seconds);
+        const double seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+        std::fprintf(stderr, "\r%s [%s%s] %3d%% %.1fs", label_.c_str(),
+                     std::string(filled, '#').c_str(), std::string(kWidth - filled, '.').c_str(),
+                     percent, seconds);
         std::fflush(stderr);
     }
 
-private:
+  private:
     std::string label_;
     bool enabled_;
     int shownPercent_ = -1;

@@ -42,7 +42,8 @@ void attachAnalyticDistances(Scene& scene) {
         }
         const std::string where = "objects[" + std::to_string(index) + "].material.tile";
         material.analyticDistance =
-            proceduralDistance(proceduralFromProvenance(provenance, where), material.tile->size()).signedDistanceTexels;
+            proceduralDistance(proceduralFromProvenance(provenance, where), material.tile->size())
+                .signedDistanceTexels;
     }
 }
 
@@ -54,7 +55,8 @@ fs::path aovPath(const fs::path& image, const std::string& name, const std::stri
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
     TileCache tiles;
-    SceneFile sceneFile = arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles);
+    SceneFile sceneFile =
+        arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles);
     RenderOptions& options = arguments.options;
     options.width = arguments.width.value_or(sceneFile.image.width);
     options.height = arguments.height.value_or(sceneFile.image.height);
@@ -68,38 +70,48 @@ void runRender(RenderArguments arguments) {
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;
     {
-        ProgressBar progress("render " + std::to_string(options.width) + "x" + std::to_string(options.height));
+        ProgressBar progress("render " + std::to_string(options.width) + "x" +
+                             std::to_string(options.height));
         result = renderScene(sceneFile.scene, options, std::ref(progress));
     }
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     writeImage(result.image, arguments.output);
     if (result.aovs) {
         writeImage(result.aovs->depth, aovPath(arguments.output, "depth", ".exr"));
         writeImage(result.aovs->normal, aovPath(arguments.output, "normal", ".png"));
         writeImage(result.aovs->iterations, aovPath(arguments.output, "iterations", ".png"));
         writeImage(result.aovs->shadowSamples, aovPath(arguments.output, "shadow_samples", ".png"));
-        writeImage(result.aovs->shadowMapSamples, aovPath(arguments.output, "shadow_map_samples", ".png"));
+        writeImage(result.aovs->shadowMapSamples,
+                   aovPath(arguments.output, "shadow_map_samples", ".png"));
         writeImage(result.aovs->curvature, aovPath(arguments.output, "curvature", ".png"));
         writeImage(result.aovs->texelScale, aovPath(arguments.output, "texel_scale", ".exr"));
     }
     const RenderStats& stats = result.stats;
-    std::printf("rendered %s (%dx%d, %d spp) in %.2f s: %llu rays, %.1f%% hit a surface, mean %.2f iterations, "
-                "%.1f%% converged within %d\n",
-                arguments.scene.empty() ? "the demo scene" : arguments.scene.c_str(), options.width, options.height,
-                options.samplesPerPixel, seconds, static_cast<unsigned long long>(stats.rays),
-                stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0, stats.meanIterations(),
-                stats.baseHits ? 100.0 * double(stats.converged) / double(stats.baseHits) : 0.0,
-                options.reference ? RenderOptions::kReferenceIterations : options.maxIterations);
+    std::printf(
+        "rendered %s (%dx%d, %d spp) in %.2f s: %llu rays, %.1f%% hit a surface, mean %.2f "
+        "iterations, "
+        "%.1f%% converged within %d\n",
+        arguments.scene.empty() ? "the demo scene" : arguments.scene.c_str(), options.width,
+        options.height, options.samplesPerPixel, seconds,
+        static_cast<unsigned long long>(stats.rays),
+        stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0,
+        stats.meanIterations(),
+        stats.baseHits ? 100.0 * double(stats.converged) / double(stats.baseHits) : 0.0,
+        options.reference ? RenderOptions::kReferenceIterations : options.maxIterations);
     std::printf("shells: %llu coverage tests, %llu traced (%.2f per ray), culling %s\n",
-                static_cast<unsigned long long>(stats.shellsTested), static_cast<unsigned long long>(stats.shellsTraced),
-                stats.rays ? double(stats.shellsTraced) / double(stats.rays) : 0.0, options.shellCulling ? "on" : "off");
+                static_cast<unsigned long long>(stats.shellsTested),
+                static_cast<unsigned long long>(stats.shellsTraced),
+                stats.rays ? double(stats.shellsTraced) / double(stats.rays) : 0.0,
+                options.shellCulling ? "on" : "off");
     if (options.shadowFilter != ShadowFilter::None) {
         std::printf("shadow maps: %llu samples (%.1f per surface hit)\n",
                     static_cast<unsigned long long>(stats.shadowMapSamples),
                     stats.baseHits ? double(stats.shadowMapSamples) / double(stats.baseHits) : 0.0);
     }
     if (result.aovs) {
-        std::printf("AOVs written beside it: %s, %s, %s, %s, %s, %s\n", aovPath(arguments.output, "depth", ".exr").c_str(),
+        std::printf("AOVs written beside it: %s, %s, %s, %s, %s, %s\n",
+                    aovPath(arguments.output, "depth", ".exr").c_str(),
                     aovPath(arguments.output, "normal", ".png").c_str(),
                     aovPath(arguments.output, "iterations", ".png").c_str(),
                     aovPath(arguments.output, "shadow_samples", ".png").c_str(),
@@ -115,20 +127,30 @@ void runRender(RenderArguments arguments) {
 
 void addRenderCommand(CLI::App& app) {
     auto arguments = std::make_shared<RenderArguments>();
-    CLI::App* command =
-        app.add_subcommand("render", "Render a scene (JSON, see DESIGN.md) or, without one, the built-in demo");
+    CLI::App* command = app.add_subcommand(
+        "render", "Render a scene (JSON, see DESIGN.md) or, without one, the built-in demo");
     command->add_option("scene", arguments->scene, "Scene file (.json); omit for the demo scene");
-    command->add_option("-o,--output", arguments->output, "Image to write (.png, .exr, .tif)")->required();
-    command->add_option("--width", arguments->width, "Image width in pixels (default: the scene's, else 1280)")
+    command->add_option("-o,--output", arguments->output, "Image to write (.png, .exr, .tif)")
+        ->required();
+    command
+        ->add_option("--width", arguments->width,
+                     "Image width in pixels (default: the scene's, else 1280)")
         ->check(CLI::Range(1, 16384));
-    command->add_option("--height", arguments->height, "Image height in pixels (default: the scene's, else 1024)")
+    command
+        ->add_option("--height", arguments->height,
+                     "Image height in pixels (default: the scene's, else 1024)")
         ->check(CLI::Range(1, 16384));
-    command->add_option("--spp", arguments->samplesPerPixel, "Samples per pixel (default: the scene's, else 1)")
+    command
+        ->add_option("--spp", arguments->samplesPerPixel,
+                     "Samples per pixel (default: the scene's, else 1)")
         ->check(CLI::Range(1, 256));
-    command->add_option("--iterations", arguments->options.maxIterations, "Sphere-tracing budget per ray")
+    command
+        ->add_option("--iterations", arguments->options.maxIterations,
+                     "Sphere-tracing budget per ray")
         ->capture_default_str()
         ->check(CLI::Range(1, 4096));
-    command->add_option("--epsilon", arguments->options.epsilonTexels, "Hit threshold in texels")->capture_default_str();
+    command->add_option("--epsilon", arguments->options.epsilonTexels, "Hit threshold in texels")
+        ->capture_default_str();
     const std::map<std::string, FilterKind> filters{{"nearest", FilterKind::Nearest},
                                                     {"trilinear", FilterKind::Trilinear},
                                                     {"tricubic", FilterKind::TricubicBSpline},
@@ -136,28 +158,35 @@ void addRenderCommand(CLI::App& app) {
     command->add_option("--filter", arguments->options.filter, "Tile reconstruction filter")
         ->transform(CLI::CheckedTransformer(filters, CLI::ignore_case))
         ->default_str("trilinear");
-    command->add_option("--normal-filter", arguments->options.normalFilter,
-                        "Filter whose gradient gives the shading normal (same names as --filter)")
+    command
+        ->add_option("--normal-filter", arguments->options.normalFilter,
+                     "Filter whose gradient gives the shading normal (same names as --filter)")
         ->transform(CLI::CheckedTransformer(filters, CLI::ignore_case))
         ->default_str("tricubic");
-    const std::map<std::string, ShadowFilter> shadowFilters{
-        {"none", ShadowFilter::None}, {"full", ShadowFilter::Full}, {"adaptive", ShadowFilter::Adaptive}};
+    const std::map<std::string, ShadowFilter> shadowFilters{{"none", ShadowFilter::None},
+                                                            {"full", ShadowFilter::Full},
+                                                            {"adaptive", ShadowFilter::Adaptive}};
     CLI::Option* shadows =
         command
-            ->add_option("--shadows", arguments->options.shadowFilter,
-                         "Shadows: none (no shadow maps, no self-shadow rays), full (64-sample soft shadow "
-                         "maps everywhere) or adaptive (8 test samples first, 64 only in penumbrae)")
+            ->add_option(
+                "--shadows", arguments->options.shadowFilter,
+                "Shadows: none (no shadow maps, no self-shadow rays), full (64-sample soft shadow "
+                "maps everywhere) or adaptive (8 test samples first, 64 only in penumbrae)")
             ->transform(CLI::CheckedTransformer(shadowFilters, CLI::ignore_case))
             ->default_str("adaptive");
-    command->add_flag("--no-shadows", arguments->noShadows, "Same as --shadows none")->excludes(shadows);
+    command->add_flag("--no-shadows", arguments->noShadows, "Same as --shadows none")
+        ->excludes(shadows);
     command->add_flag("--no-shell-culling", arguments->noShellCulling,
-                      "Trace every detail shell under a pixel, not only those that may be nearer than the best hit "
+                      "Trace every detail shell under a pixel, not only those that may be nearer "
+                      "than the best hit "
                       "(same image, more work)");
     command->add_flag("--aovs", arguments->options.outputAovs,
-                      "Also write depth (.exr), normal, iteration, shadow-sample and curvature heat maps beside the image");
-    command->add_flag("--reference", arguments->options.reference,
-                      "Trace the truth instead of the tiles: each tile's analytic procedural detail in double "
-                      "precision, 512 iterations, epsilon 0.001 texel (the ground truth for distile compare)");
+                      "Also write depth (.exr), normal, iteration, shadow-sample and curvature "
+                      "heat maps beside the image");
+    command->add_flag(
+        "--reference", arguments->options.reference,
+        "Trace the truth instead of the tiles: each tile's analytic procedural detail in double "
+        "precision, 512 iterations, epsilon 0.001 texel (the ground truth for distile compare)");
     command->callback([arguments] { runRender(*arguments); });
 }
 

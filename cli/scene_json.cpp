@@ -2,16 +2,15 @@
 
 #include <cmath>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
-
-#include <nlohmann/json.hpp>
 
 #include "common/error.h"
 #include "mesh/base_mesh.h"
 #include "render/demo_scene.h"
-#include "sampler/bake.h"
 #include "render/image.h"
+#include "sampler/bake.h"
 #include "sampler/tile_io.h"
 
 namespace distile::cli {
@@ -23,8 +22,9 @@ using nlohmann::json;
 
 /// A JSON value with the path that leads to it, for error messages.
 class Field {
-public:
-    Field(const json& value, std::string path, const std::string& file) : value_(value), path_(std::move(path)), file_(file) {}
+  public:
+    Field(const json& value, std::string path, const std::string& file)
+        : value_(value), path_(std::move(path)), file_(file) {}
 
     [[noreturn]] void fail(const std::string& message) const {
         throw InputError(file_ + ": " + (path_.empty() ? "top level" : path_) + ": " + message);
@@ -49,7 +49,8 @@ public:
         for (const auto& [key, unused] : value_.items()) {
             if (!known.count(key)) {
                 std::string list;
-                for (const char* name : accepted) list += std::string(list.empty() ? "" : ", ") + name;
+                for (const char* name : accepted)
+                    list += std::string(list.empty() ? "" : ", ") + name;
                 Field(value_.at(key), path_.empty() ? key : path_ + "." + key, file_)
                     .fail("unknown field; accepted here: " + list);
             }
@@ -82,7 +83,8 @@ public:
     }
     template <int N>
     glm::vec<N, float> vector() const {
-        if (!value_.is_array() || value_.size() != N) fail("must be an array of " + std::to_string(N) + " numbers");
+        if (!value_.is_array() || value_.size() != N)
+            fail("must be an array of " + std::to_string(N) + " numbers");
         glm::vec<N, float> result;
         for (int i = 0; i < N; ++i) {
             const double component = (*this)[std::size_t(i)].number();
@@ -92,7 +94,7 @@ public:
         return result;
     }
 
-private:
+  private:
     const json& value_;
     std::string path_;
     const std::string& file_;
@@ -104,7 +106,8 @@ Size3 parseSize(const Field& field) {
     char x1 = 0, x2 = 0;
     std::istringstream in(text);
     std::string rest;
-    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x' || (in >> rest)) {
+    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x' ||
+        (in >> rest)) {
         field.fail("'" + text + "' is not a size; write WxHxD, e.g. 256x256x16");
     }
     try {
@@ -116,16 +119,20 @@ Size3 parseSize(const Field& field) {
 }
 
 std::shared_ptr<const Tile> bakedTile(const Field& spec, TileCache& tiles) {
-    spec.requireObject({"bake", "size", "rings_per_row", "rows_per_tile", "ring_radius", "wire_radius", "tilt_deg"});
+    spec.requireObject({"bake", "size", "rings_per_row", "rows_per_tile", "ring_radius",
+                        "wire_radius", "tilt_deg"});
     const std::string kind = spec["bake"].string();
-    if (kind != "chainmail") spec["bake"].fail("'" + kind + "' is not a known detail; accepted: chainmail");
+    if (kind != "chainmail")
+        spec["bake"].fail("'" + kind + "' is not a known detail; accepted: chainmail");
     BakeOptions options;
     ChainmailOptions chainmail;
     if (spec.has("size")) options.size = parseSize(spec["size"]);
     if (spec.has("rings_per_row")) chainmail.ringsPerRow = spec["rings_per_row"].integer(1, 4096);
     if (spec.has("rows_per_tile")) chainmail.rowsPerTile = spec["rows_per_tile"].integer(2, 4096);
-    if (spec.has("ring_radius")) chainmail.ringRadiusSpacings = spec["ring_radius"].number(0.0, 2.0);
-    if (spec.has("wire_radius")) chainmail.wireRadiusSpacings = spec["wire_radius"].number(0.0, 2.0);
+    if (spec.has("ring_radius"))
+        chainmail.ringRadiusSpacings = spec["ring_radius"].number(0.0, 2.0);
+    if (spec.has("wire_radius"))
+        chainmail.wireRadiusSpacings = spec["wire_radius"].number(0.0, 2.0);
     if (spec.has("tilt_deg")) chainmail.tiltDeg = spec["tilt_deg"].number(0.0, 60.0);
     const std::string key = "bake:" + spec.value().dump();
     if (auto found = tiles.find(key); found != tiles.end()) return found->second;
@@ -159,7 +166,8 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
     if (name == "torus") return makeTorus(1.0f, 0.4f, 128, 48);
     const fs::path path = folder / name;
     if (!fs::exists(path)) {
-        field.fail("'" + name + "' is neither a built-in mesh (plane, sphere, torus) nor an existing file (" +
+        field.fail("'" + name +
+                   "' is neither a built-in mesh (plane, sphere, torus) nor an existing file (" +
                    path.string() + ")");
     }
     return loadBaseMesh(path);
@@ -170,15 +178,18 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
     Material material;
     if (field.has("tile")) {
         const Field tile = field["tile"];
-        material.tile = tile.value().is_object() ? bakedTile(tile, tiles) : tileFile(tile, folder, tiles);
+        material.tile =
+            tile.value().is_object() ? bakedTile(tile, tiles) : tileFile(tile, folder, tiles);
     }
     if (field.has("uv_scale")) material.uvScale = field["uv_scale"].vector<2>();
-    if (material.uvScale.x <= 0.0f || material.uvScale.y <= 0.0f) field["uv_scale"].fail("must be two positive numbers");
+    if (material.uvScale.x <= 0.0f || material.uvScale.y <= 0.0f)
+        field["uv_scale"].fail("must be two positive numbers");
     if (field.has("depth")) {
         material.depthWorld = float(field["depth"].number());
         if (!(material.depthWorld > 0.0f)) {
             std::ostringstream message;
-            message << material.depthWorld << " is not accepted; it must be a positive number of world units";
+            message << material.depthWorld
+                    << " is not accepted; it must be a positive number of world units";
             field["depth"].fail(message.str());
         }
     }
@@ -196,7 +207,8 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
         const Field color = field["color"];
         if (color.value().is_string()) {
             const fs::path path = folder / color.string();
-            if (!fs::exists(path)) color.fail("colour texture '" + path.string() + "' does not exist");
+            if (!fs::exists(path))
+                color.fail("colour texture '" + path.string() + "' does not exist");
             try {
                 material.colorTexture = std::make_shared<const Image>(readImage(path));
             } catch (const FormatError& error) {
@@ -213,7 +225,8 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
 
 SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
     if (!fs::exists(file)) throw InputError(file.string() + ": no such file");
-    if (fs::is_directory(file)) throw InputError(file.string() + ": is a folder; a scene .json file is expected");
+    if (fs::is_directory(file))
+        throw InputError(file.string() + ": is a folder; a scene .json file is expected");
     std::ifstream in(file);
     json document;
     try {
@@ -234,7 +247,8 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
         if (camera.has("eye")) scene.camera.eye = camera["eye"].vector<3>();
         if (camera.has("target")) scene.camera.target = camera["target"].vector<3>();
         if (camera.has("up")) scene.camera.up = camera["up"].vector<3>();
-        if (camera.has("fov_deg")) scene.camera.fovDeg = float(camera["fov_deg"].number(1e-3, 179.0));
+        if (camera.has("fov_deg"))
+            scene.camera.fovDeg = float(camera["fov_deg"].number(1e-3, 179.0));
     }
     if (root.has("image")) {
         const Field image = root["image"];
@@ -252,33 +266,42 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
             light.requireObject({"type", "direction", "color", "angle_deg"});
             DirectionalLight parsed;
             if (light.has("type") && light["type"].string() != "directional") {
-                light["type"].fail("'" + light["type"].string() + "' is not accepted; accepted: directional");
+                light["type"].fail("'" + light["type"].string() +
+                                   "' is not accepted; accepted: directional");
             }
             if (light.has("direction")) parsed.direction = light["direction"].vector<3>();
             if (light.has("color")) parsed.color = light["color"].vector<3>();
-            if (light.has("angle_deg")) parsed.angleDeg = float(light["angle_deg"].number(0.0, 89.0));
+            if (light.has("angle_deg"))
+                parsed.angleDeg = float(light["angle_deg"].number(0.0, 89.0));
             scene.lights.push_back(parsed);
         }
     }
-    if (!root.has("objects")) root.fail("missing field 'objects' (an array of objects with mesh and material)");
+    if (!root.has("objects"))
+        root.fail("missing field 'objects' (an array of objects with mesh and material)");
     const Field objects = root["objects"];
-    if (!objects.value().is_array() || objects.value().empty()) objects.fail("must be a non-empty array");
+    if (!objects.value().is_array() || objects.value().empty())
+        objects.fail("must be a non-empty array");
     for (std::size_t i = 0; i < objects.value().size(); ++i) {
         const Field object = objects[i];
         object.requireObject({"mesh", "transform", "material"});
-        if (!object.has("mesh")) object.fail("missing field 'mesh' (plane, sphere, torus or a mesh file)");
+        if (!object.has("mesh"))
+            object.fail("missing field 'mesh' (plane, sphere, torus or a mesh file)");
         SceneObject parsed;
         parsed.mesh = loadMesh(object["mesh"], folder);
         if (object.has("transform")) {
             const Field transform = object["transform"];
             transform.requireObject({"translate", "rotate_deg", "scale"});
             Transform placement;
-            if (transform.has("translate")) placement.translate = transform["translate"].vector<3>();
-            if (transform.has("rotate_deg")) placement.rotateDeg = transform["rotate_deg"].vector<3>();
-            if (transform.has("scale")) placement.scale = float(transform["scale"].number(1e-12, 1e12));
+            if (transform.has("translate"))
+                placement.translate = transform["translate"].vector<3>();
+            if (transform.has("rotate_deg"))
+                placement.rotateDeg = transform["rotate_deg"].vector<3>();
+            if (transform.has("scale"))
+                placement.scale = float(transform["scale"].number(1e-12, 1e12));
             applyTransform(parsed.mesh, placement);
         }
-        if (object.has("material")) parsed.material = loadMaterial(object["material"], folder, tiles);
+        if (object.has("material"))
+            parsed.material = loadMaterial(object["material"], folder, tiles);
         scene.objects.push_back(std::move(parsed));
     }
     try {

@@ -17,7 +17,8 @@ namespace distile {
 
 struct TriangleSoup {
     std::vector<glm::dvec3> positions;  ///< texel space when baking; file units after loading
-    std::vector<glm::uvec3> triangles;  ///< indices into positions, counter-clockwise seen from outside
+    std::vector<glm::uvec3>
+        triangles;  ///< indices into positions, counter-clockwise seen from outside
 };
 
 /// Throws InputError naming `what` unless the soup has at least one triangle, every position is

@@ -108,7 +108,8 @@ std::vector<std::uint32_t> tangentWeldTargets(const std::vector<std::uint32_t>& 
 
     auto wholeOffset = [&](std::uint32_t a, std::uint32_t b) {
         const glm::dvec2 offset = glm::dvec2(uvs[a]) - glm::dvec2(uvs[b]);
-        return uvSides[a] == uvSides[b] && std::abs(offset.x - std::round(offset.x)) <= kWholeUvTolerance &&
+        return uvSides[a] == uvSides[b] &&
+               std::abs(offset.x - std::round(offset.x)) <= kWholeUvTolerance &&
                std::abs(offset.y - std::round(offset.y)) <= kWholeUvTolerance;
     };
     for (std::size_t g = 0; g < groupCount; ++g) {
@@ -201,16 +202,19 @@ void appendGrid(BaseMesh& mesh, int columns, int rows, PositionAt positionAt, Uv
 /// Returns, per vertex after the split, which handedness uses it: bit 0 positive, bit 1 negative.
 std::vector<std::int8_t> splitMirroredVertices(BaseMesh& mesh) {
     const std::size_t vertexCount = mesh.positions.size();
-    std::vector<std::int8_t> sides(vertexCount, 0);  // bit 0: a positive triangle uses it, bit 1: negative
+    std::vector<std::int8_t> sides(vertexCount,
+                                   0);  // bit 0: a positive triangle uses it, bit 1: negative
     std::vector<int> handedness(mesh.triangles.size(), 0);
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
         const glm::uvec3& triangle = mesh.triangles[t];
         const glm::dvec2 d1 = glm::dvec2(mesh.uvs[triangle[1]]) - glm::dvec2(mesh.uvs[triangle[0]]);
         const glm::dvec2 d2 = glm::dvec2(mesh.uvs[triangle[2]]) - glm::dvec2(mesh.uvs[triangle[0]]);
         const double uvDeterminant = d1.x * d2.y - d2.x * d1.y;
-        if (!(std::abs(uvDeterminant) > kDegenerateSine * glm::length(d1) * glm::length(d2))) continue;
+        if (!(std::abs(uvDeterminant) > kDegenerateSine * glm::length(d1) * glm::length(d2)))
+            continue;
         handedness[t] = uvDeterminant > 0.0 ? 1 : -1;
-        for (int corner = 0; corner < 3; ++corner) sides[triangle[corner]] |= handedness[t] > 0 ? 1 : 2;
+        for (int corner = 0; corner < 3; ++corner)
+            sides[triangle[corner]] |= handedness[t] > 0 ? 1 : 2;
     }
     std::vector<std::uint32_t> copyOf(vertexCount, 0);
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {

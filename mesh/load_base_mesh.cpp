@@ -333,7 +333,8 @@ void checkStlFile(const std::filesystem::path& file) {
     if (!startsWithSolid) {
         throw FormatError(name + ": binary STL of " + std::to_string(size) + " bytes, but its " +
                           "header promises " + std::to_string(count) + " triangles (" +
-                          std::to_string(binarySize) + " bytes); the file is truncated or corrupted");
+                          std::to_string(binarySize) +
+                          " bytes); the file is truncated or corrupted");
     }
     in.clear();
     in.seekg(0);
@@ -378,8 +379,8 @@ void checkPlyFile(const std::filesystem::path& file) {
     std::getline(in, line);
     if (line.rfind("ply", 0) != 0) throw FormatError(name + ": does not start with 'ply'");
     bool ascii = false;
-    std::uintmax_t elementCount = 0;     // all elements
-    std::uintmax_t minimumBytes = 0;     // binary data the header promises at least
+    std::uintmax_t elementCount = 0;  // all elements
+    std::uintmax_t minimumBytes = 0;  // binary data the header promises at least
     std::uintmax_t currentCount = 0;
     bool headerEnded = false;
     while (std::getline(in, line)) {
@@ -461,8 +462,9 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
         }
     }
     if (polygons.n_faces() == 0) {
-        throw FormatError(name + ": has no faces OpenMesh could read; expected a mesh "
-                                 "(NaN/Inf numbers also end up here)");
+        throw FormatError(name +
+                          ": has no faces OpenMesh could read; expected a mesh "
+                          "(NaN/Inf numbers also end up here)");
     }
     if (extension == ".obj" && polygons.n_faces() < objFacts.faceCount) {
         throw FormatError(name + ": OpenMesh read only " + std::to_string(polygons.n_faces()) +

@@ -2,10 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-
-#include <glm/geometric.hpp>
 #include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <limits>
 
 namespace distile {
 
@@ -62,16 +61,18 @@ std::uint32_t TriangleBvh::build(std::uint32_t first, std::uint32_t count, int d
     nodes_[nodeIndex].boundsMin = boundsMin;
     nodes_[nodeIndex].boundsMax = boundsMax;
     const glm::vec3 extent = centroidMax - centroidMin;
-    if (count <= kLeafSize || depth >= kMaxDepth || glm::max(extent.x, glm::max(extent.y, extent.z)) <= 0.0f) {
+    if (count <= kLeafSize || depth >= kMaxDepth ||
+        glm::max(extent.x, glm::max(extent.y, extent.z)) <= 0.0f) {
         nodes_[nodeIndex].first = first;
         nodes_[nodeIndex].count = count;
         return nodeIndex;
     }
     // Median split along the longest centroid axis: balanced, simple, fine for base meshes.
-    const int axis = extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+    const int axis =
+        extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
     const std::uint32_t half = count / 2;
-    std::nth_element(order_.begin() + first, order_.begin() + first + half, order_.begin() + first + count,
-                     [&](std::uint32_t a, std::uint32_t b) {
+    std::nth_element(order_.begin() + first, order_.begin() + first + half,
+                     order_.begin() + first + count, [&](std::uint32_t a, std::uint32_t b) {
                          return centroid(corners_, a)[axis] < centroid(corners_, b)[axis];
                      });
     build(first, half, depth + 1);
@@ -81,8 +82,9 @@ std::uint32_t TriangleBvh::build(std::uint32_t first, std::uint32_t count, int d
     return nodeIndex;
 }
 
-bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1, const glm::vec3& p2,
-                       double minDistance, double maxDistance, double& distanceWorld, double& b1, double& b2) {
+bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1,
+                       const glm::vec3& p2, double minDistance, double maxDistance,
+                       double& distanceWorld, double& b1, double& b2) {
     const glm::dvec3 origin(ray.origin);
     const glm::dvec3 direction(ray.direction);
     const glm::dvec3 corner0(p0);
@@ -102,7 +104,8 @@ bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1,
     return distanceWorld > minDistance && distanceWorld < maxDistance;
 }
 
-bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance, TriangleHit& hit) const {
+bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance,
+                            TriangleHit& hit) const {
     if (nodes_.empty()) return false;
     const glm::vec3 inverseDirection = 1.0f / ray.direction;
     bool found = false;
@@ -112,7 +115,8 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
     stack[stackSize++] = 0;
     while (stackSize > 0) {
         const Node& node = nodes_[stack[--stackSize]];
-        if (!hitsBox(node.boundsMin, node.boundsMax, ray.origin, inverseDirection, minDistance, float(nearest))) {
+        if (!hitsBox(node.boundsMin, node.boundsMax, ray.origin, inverseDirection, minDistance,
+                     float(nearest))) {
             continue;
         }
         if (node.count == 0) {
@@ -123,8 +127,9 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
             const std::uint32_t triangle = order_[i];
             double distance = 0.0, b1 = 0.0, b2 = 0.0;
-            if (!intersectTriangle(ray, corners_[3 * triangle], corners_[3 * triangle + 1], corners_[3 * triangle + 2],
-                                   minDistance, nearest, distance, b1, b2)) {
+            if (!intersectTriangle(ray, corners_[3 * triangle], corners_[3 * triangle + 1],
+                                   corners_[3 * triangle + 2], minDistance, nearest, distance, b1,
+                                   b2)) {
                 continue;
             }
             nearest = distance;

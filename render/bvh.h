@@ -4,9 +4,8 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/vec3.hpp>
+#include <vector>
 
 namespace distile {
 
@@ -25,11 +24,12 @@ struct TriangleHit {
 /// The ray against one triangle (Moeller-Trumbore in double precision, the test TriangleBvh uses):
 /// true when it hits at a distance in (minDistance, maxDistance) world units, with the
 /// barycentric weights b1, b2 of p1, p2. Degenerate triangles and rays in their plane miss.
-bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1, const glm::vec3& p2,
-                       double minDistance, double maxDistance, double& distanceWorld, double& b1, double& b2);
+bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1,
+                       const glm::vec3& p2, double minDistance, double maxDistance,
+                       double& distanceWorld, double& b1, double& b2);
 
 class TriangleBvh {
-public:
+  public:
     TriangleBvh() = default;
     /// Builds over `corners` (three per triangle, world units). Degenerate triangles are kept
     /// (they are never hit).
@@ -41,7 +41,7 @@ public:
 
     std::size_t triangleCount() const { return corners_.size() / 3; }
 
-private:
+  private:
     struct Node {
         glm::vec3 boundsMin;
         glm::vec3 boundsMax;

@@ -2,10 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <limits>
 #include <numeric>
-
-#include <glm/geometric.hpp>
 
 namespace distile {
 
@@ -32,7 +31,8 @@ struct ViewPolygon {
             const double nextSide = glm::dot(plane, next);
             if (currentSide >= 0.0) kept[keptCount++] = current;
             if ((currentSide >= 0.0) != (nextSide >= 0.0)) {
-                kept[keptCount++] = current + (next - current) * (currentSide / (currentSide - nextSide));
+                kept[keptCount++] =
+                    current + (next - current) * (currentSide / (currentSide - nextSide));
             }
         }
         std::copy(kept, kept + keptCount, points);
@@ -92,16 +92,19 @@ ScreenTriangle screenTriangle(const glm::dvec2 cornersPixels[3], double marginPi
         const double a = -orientation * (to.y - from.y);
         const double b = orientation * (to.x - from.x);
         triangle.edges[i] = {a, b, -(a * from.x + b * from.y)};
-        triangle.edgeTolerance[i] = 1e-12 * (std::abs(a) + std::abs(b)) * (1.0 + std::abs(from.x) + std::abs(from.y));
+        triangle.edgeTolerance[i] =
+            1e-12 * (std::abs(a) + std::abs(b)) * (1.0 + std::abs(from.x) + std::abs(from.y));
     }
     triangle.hasEdges = true;
     return triangle;
 }
 
-ScreenTriangle projectTriangle(const PinholeProjection& projection, const glm::vec3 cornersWorld[3]) {
+ScreenTriangle projectTriangle(const PinholeProjection& projection,
+                               const glm::vec3 cornersWorld[3]) {
     ScreenTriangle triangle;
     triangle.marginPixels = projection.marginPixels();
-    const glm::dvec3 view[3] = {projection.toView(cornersWorld[0]), projection.toView(cornersWorld[1]),
+    const glm::dvec3 view[3] = {projection.toView(cornersWorld[0]),
+                                projection.toView(cornersWorld[1]),
                                 projection.toView(cornersWorld[2])};
     const glm::dvec2 slopePerPixel = projection.slopePerPixel();
     const glm::dvec2 slopeAtOrigin = projection.slopeAtOrigin();
@@ -115,7 +118,7 @@ ScreenTriangle projectTriangle(const PinholeProjection& projection, const glm::v
     std::copy(view, view + 3, polygon.points);
     const double slopeLeft = slopeAtOrigin.x - slopePerPixel.x;
     const double slopeRight = slopeAtOrigin.x + slopePerPixel.x * (width + 1.0);
-    const double slopeTop = slopeAtOrigin.y - slopePerPixel.y;              // y = -1 pixel
+    const double slopeTop = slopeAtOrigin.y - slopePerPixel.y;  // y = -1 pixel
     const double slopeBottom = slopeAtOrigin.y + slopePerPixel.y * (height + 1.0);
     polygon.clip({1.0, 0.0, -slopeLeft});
     polygon.clip({-1.0, 0.0, slopeRight});
@@ -151,10 +154,12 @@ ScreenTriangle projectTriangle(const PinholeProjection& projection, const glm::v
     // each weight's numerator is affine in the pixel position.
     const double determinant = glm::dot(view[0], glm::cross(view[1], view[2]));
     const double scale = glm::length(view[0]) * glm::length(view[1]) * glm::length(view[2]);
-    if (!(std::abs(determinant) > 1e-10 * scale)) return triangle;  // its plane (nearly) holds the eye
+    if (!(std::abs(determinant) > 1e-10 * scale))
+        return triangle;  // its plane (nearly) holds the eye
     const double orientation = determinant > 0.0 ? 1.0 : -1.0;
-    const double slopeMagnitude = 1.0 + std::abs(slopeAtOrigin.x) + std::abs(slopePerPixel.x) * (width + 2.0) +
-                                  std::abs(slopeAtOrigin.y) + std::abs(slopePerPixel.y) * (height + 2.0);
+    const double slopeMagnitude =
+        1.0 + std::abs(slopeAtOrigin.x) + std::abs(slopePerPixel.x) * (width + 2.0) +
+        std::abs(slopeAtOrigin.y) + std::abs(slopePerPixel.y) * (height + 2.0);
     for (int i = 0; i < 3; ++i) {
         const glm::dvec3& from = view[(i + 1) % 3];
         const glm::dvec3& to = view[(i + 2) % 3];
@@ -167,7 +172,8 @@ ScreenTriangle projectTriangle(const PinholeProjection& projection, const glm::v
     return triangle;
 }
 
-bool triangleRectOverlapConservative(const ScreenTriangle& triangle, double x0, double y0, double x1, double y1) {
+bool triangleRectOverlapConservative(const ScreenTriangle& triangle, double x0, double y0,
+                                     double x1, double y1) {
     x0 -= triangle.marginPixels;
     y0 -= triangle.marginPixels;
     x1 += triangle.marginPixels;
@@ -203,10 +209,11 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
         tracer.shellCorners(shell, top, bottom);
         // A camera ray enters a shell only through a front-facing top (the tracer's own test is
         // dot(geometric normal, direction) < 0); keep the ones at rounding distance from edge-on.
-        const glm::dvec3 geometricNormal =
-            glm::cross(glm::dvec3(top[1]) - glm::dvec3(top[0]), glm::dvec3(top[2]) - glm::dvec3(top[0]));
+        const glm::dvec3 geometricNormal = glm::cross(glm::dvec3(top[1]) - glm::dvec3(top[0]),
+                                                      glm::dvec3(top[2]) - glm::dvec3(top[0]));
         const glm::dvec3 toCorner = glm::dvec3(top[0]) - eye;
-        if (glm::dot(geometricNormal, toCorner) > 1e-5 * glm::length(geometricNormal) * glm::length(toCorner)) {
+        if (glm::dot(geometricNormal, toCorner) >
+            1e-5 * glm::length(geometricNormal) * glm::length(toCorner)) {
             continue;
         }
         ShellBounds& bounds = bounds_[shell];
@@ -217,8 +224,10 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
         glm::dvec3 view[3];
         for (int corner = 0; corner < 3; ++corner) {
             view[corner] = projection.toView(top[corner]);
-            zMin = std::min(zMin, view[corner].z);  // depth along the view axis <= distance from the eye
-            zMax = std::max({zMax, glm::length(view[corner]), glm::length(projection.toView(bottom[corner]))});
+            zMin = std::min(zMin,
+                            view[corner].z);  // depth along the view axis <= distance from the eye
+            zMax = std::max(
+                {zMax, glm::length(view[corner]), glm::length(projection.toView(bottom[corner]))});
         }
         bounds.zMinWorld = float(std::max(zMin, 0.0) * (1.0 - kDepthSafety));
         bounds.zMaxWorld = float(zMax * (1.0 + kDepthSafety));
@@ -228,9 +237,10 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
         const double offset = glm::dot(normal, view[0]);
         if (std::abs(offset) > 1e-10 * glm::length(normal) * glm::length(view[0])) {
             bounds.hasDepthPlane = true;
-            bounds.inverseDepthPlane = glm::dvec3(normal.x * slopePerPixel.x, normal.y * slopePerPixel.y,
-                                                  normal.x * slopeAtOrigin.x + normal.y * slopeAtOrigin.y + normal.z) /
-                                       offset;
+            bounds.inverseDepthPlane =
+                glm::dvec3(normal.x * slopePerPixel.x, normal.y * slopePerPixel.y,
+                           normal.x * slopeAtOrigin.x + normal.y * slopeAtOrigin.y + normal.z) /
+                offset;
         }
         visible.push_back(shell);
     }
@@ -242,10 +252,14 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     std::vector<std::uint32_t> shellOfEntry;
     for (const std::uint32_t shell : visible) {
         const ScreenTriangle& top = bounds_[shell].top;
-        const int tileX0 = std::clamp(int(std::floor(top.boundsMin.x / kTilePixels)), 0, tilesX_ - 1);
-        const int tileY0 = std::clamp(int(std::floor(top.boundsMin.y / kTilePixels)), 0, tilesY_ - 1);
-        const int tileX1 = std::clamp(int(std::floor(top.boundsMax.x / kTilePixels)), 0, tilesX_ - 1);
-        const int tileY1 = std::clamp(int(std::floor(top.boundsMax.y / kTilePixels)), 0, tilesY_ - 1);
+        const int tileX0 =
+            std::clamp(int(std::floor(top.boundsMin.x / kTilePixels)), 0, tilesX_ - 1);
+        const int tileY0 =
+            std::clamp(int(std::floor(top.boundsMin.y / kTilePixels)), 0, tilesY_ - 1);
+        const int tileX1 =
+            std::clamp(int(std::floor(top.boundsMax.x / kTilePixels)), 0, tilesX_ - 1);
+        const int tileY1 =
+            std::clamp(int(std::floor(top.boundsMax.y / kTilePixels)), 0, tilesY_ - 1);
         for (int tileY = tileY0; tileY <= tileY1; ++tileY) {
             for (int tileX = tileX0; tileX <= tileX1; ++tileX) {
                 const double x0 = tileX * kTilePixels;
@@ -264,7 +278,8 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     std::partial_sum(tileStart_.begin(), tileStart_.end(), tileStart_.begin());
     shellsByTile_.resize(shellOfEntry.size());
     std::vector<std::uint32_t> fill(tileStart_.begin(), tileStart_.end() - 1);
-    for (std::size_t i = 0; i < shellOfEntry.size(); ++i) shellsByTile_[fill[tileOfEntry[i]]++] = shellOfEntry[i];
+    for (std::size_t i = 0; i < shellOfEntry.size(); ++i)
+        shellsByTile_[fill[tileOfEntry[i]]++] = shellOfEntry[i];
 }
 
 std::span<const std::uint32_t> ScreenShells::tileShells(int tileX, int tileY) const {
@@ -316,8 +331,9 @@ bool ScreenShells::traceNearest(int x, int y, const Ray& ray, bool shellCulling,
         ++count;
     }
     if (candidates != stackCandidates) candidates = heapCandidates.data();
-    std::stable_sort(candidates, candidates + count,
-                     [](const Candidate& a, const Candidate& b) { return a.depthBound < b.depthBound; });
+    std::stable_sort(candidates, candidates + count, [](const Candidate& a, const Candidate& b) {
+        return a.depthBound < b.depthBound;
+    });
 
     constexpr float kFar = std::numeric_limits<float>::max();
     float nearest = kFar;
@@ -330,7 +346,8 @@ bool ScreenShells::traceNearest(int x, int y, const Ray& ray, bool shellCulling,
         ++shellCounters.traced;
         // With culling the top must also be nearer than the best hit; without, every top is
         // traced and its hit compared afterwards, to the same result.
-        if (!tracer_.traceShell(candidates[i].shell, ray, 0.0f, shellCulling ? nearest : kFar, shellHit, counters)) {
+        if (!tracer_.traceShell(candidates[i].shell, ray, 0.0f, shellCulling ? nearest : kFar,
+                                shellHit, counters)) {
             continue;
         }
         if (!shellHit.entry.frontFacing || !(shellHit.distanceWorld < nearest)) continue;

@@ -13,11 +13,10 @@
 #pragma once
 
 #include <cstdint>
-#include <span>
-#include <vector>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <span>
+#include <vector>
 
 #include "render/bvh.h"
 #include "render/scene.h"
@@ -27,7 +26,7 @@ namespace distile {
 
 /// The renderer's pinhole camera: pixel positions to rays, world points to pixels.
 class PinholeProjection {
-public:
+  public:
     /// Preconditions: the camera passed validateScene; width and height >= 1 pixels.
     PinholeProjection(const Camera& camera, int widthPixels, int heightPixels);
 
@@ -50,7 +49,7 @@ public:
     /// position it was asked for; coverage tests grow pixel squares by this much.
     double marginPixels() const { return marginPixels_; }
 
-private:
+  private:
     glm::vec3 eye_, forward_, right_, up_;
     float tanHalfFov_;
     int width_, height_;
@@ -63,12 +62,12 @@ private:
 /// triangle against an axis-aligned square (ch. 42: bounding box, and each edge tested at the
 /// square's corner that is most inside).
 struct ScreenTriangle {
-    glm::dvec3 edges[3]{};         ///< a x + b y + c of a pixel position, >= 0 on the triangle's side
-    double edgeTolerance[3]{};     ///< rounding allowance of each edge function
-    bool hasEdges = false;         ///< false: the bounds only (degenerate, or seen exactly edge-on)
-    glm::dvec2 boundsMin{0.0};     ///< pixels; empty when boundsMin.x > boundsMax.x
+    glm::dvec3 edges[3]{};      ///< a x + b y + c of a pixel position, >= 0 on the triangle's side
+    double edgeTolerance[3]{};  ///< rounding allowance of each edge function
+    bool hasEdges = false;      ///< false: the bounds only (degenerate, or seen exactly edge-on)
+    glm::dvec2 boundsMin{0.0};  ///< pixels; empty when boundsMin.x > boundsMax.x
     glm::dvec2 boundsMax{-1.0};
-    double marginPixels = 0.0;     ///< squares are grown by this much before the test
+    double marginPixels = 0.0;  ///< squares are grown by this much before the test
 
     bool empty() const { return boundsMin.x > boundsMax.x || boundsMin.y > boundsMax.y; }
 };
@@ -81,11 +80,13 @@ ScreenTriangle screenTriangle(const glm::dvec2 cornersPixels[3], double marginPi
 /// so triangles crossing the eye plane are handled; the edge functions are those of the rays
 /// from the eye (homogeneous rasterization), exact for any triangle whose plane misses the eye.
 /// Empty when no camera ray can hit it. The margin is projection.marginPixels().
-ScreenTriangle projectTriangle(const PinholeProjection& projection, const glm::vec3 cornersWorld[3]);
+ScreenTriangle projectTriangle(const PinholeProjection& projection,
+                               const glm::vec3 cornersWorld[3]);
 
 /// Overestimated coverage: false only when the rectangle [x0, x1] x [y0, y1] (pixels), grown by
 /// the triangle's margin, certainly does not touch the triangle.
-bool triangleRectOverlapConservative(const ScreenTriangle& triangle, double x0, double y0, double x1, double y1);
+bool triangleRectOverlapConservative(const ScreenTriangle& triangle, double x0, double y0,
+                                     double x1, double y1);
 
 /// The per-pixel test: false only when the square of pixel (x, y) certainly misses the triangle.
 inline bool trianglePixelOverlapConservative(const ScreenTriangle& triangle, int x, int y) {
@@ -94,24 +95,26 @@ inline bool trianglePixelOverlapConservative(const ScreenTriangle& triangle, int
 
 /// What the camera sees of one detail shell.
 struct ShellBounds {
-    ScreenTriangle top;              ///< coverage of the shell's top (rays enter a shell there)
-    float zMinWorld = 0.0f;          ///< no camera ray meets the shell's top nearer than this
-    float zMaxWorld = 0.0f;          ///< the farthest corner of the prism (top and bottom corners)
-    bool hasDepthPlane = false;      ///< inverseDepthPlane is valid
-    glm::dvec3 inverseDepthPlane{};  ///< 1 / view depth of the top's plane, affine in pixels (ch. 42)
+    ScreenTriangle top;          ///< coverage of the shell's top (rays enter a shell there)
+    float zMinWorld = 0.0f;      ///< no camera ray meets the shell's top nearer than this
+    float zMaxWorld = 0.0f;      ///< the farthest corner of the prism (top and bottom corners)
+    bool hasDepthPlane = false;  ///< inverseDepthPlane is valid
+    glm::dvec3
+        inverseDepthPlane{};  ///< 1 / view depth of the top's plane, affine in pixels (ch. 42)
 };
 
 /// Per-ray work of the screen-space path, for statistics.
 struct ShellCounters {
     std::uint64_t tested = 0;  ///< binned shells whose pixel coverage was tested
-    std::uint64_t traced = 0;  ///< shells whose top was intersected with the ray (then marched if entered)
+    std::uint64_t traced =
+        0;  ///< shells whose top was intersected with the ray (then marched if entered)
 };
 
 /// Shells binned into screen tiles, nearest z_min first, for the camera rays of one image.
 /// Shells that face away from the eye, or that no camera ray can reach, are left out: a camera
 /// ray only enters a shell through its front-facing top.
 class ScreenShells {
-public:
+  public:
     static constexpr int kTilePixels = 16;
 
     /// Preconditions: `tracer` and `projection` outlive this object (both are referenced).
@@ -136,10 +139,10 @@ public:
     /// `shellCulling`, shells whose bound is not nearer than the best hit so far are skipped; the
     /// hit is the same either way.
     /// Precondition: 0 <= x < width, 0 <= y < height. Thread-safe.
-    bool traceNearest(int x, int y, const Ray& ray, bool shellCulling, SurfaceHit& hit, TraceCounters& counters,
-                      ShellCounters& shellCounters) const;
+    bool traceNearest(int x, int y, const Ray& ray, bool shellCulling, SurfaceHit& hit,
+                      TraceCounters& counters, ShellCounters& shellCounters) const;
 
-private:
+  private:
     const SceneTracer& tracer_;
     const PinholeProjection& projection_;
     int tilesX_ = 0, tilesY_ = 0;

@@ -7,7 +7,8 @@
 namespace distile {
 
 Scene demoScene(std::shared_ptr<const Tile> chainmail) {
-    if (!chainmail) throw InputError("demo scene: no chain-mail tile was given; a baked tile is required");
+    if (!chainmail)
+        throw InputError("demo scene: no chain-mail tile was given; a baked tile is required");
     // Texels are cubes when depth = (world size of one tile) * D / W.
     auto cubicDepth = [&](float tileWorldSize) {
         return tileWorldSize * float(chainmail->size().depth) / float(chainmail->size().width);
@@ -19,7 +20,8 @@ Scene demoScene(std::shared_ptr<const Tile> chainmail) {
 
     SceneObject floor;
     floor.mesh = makePlane(4.0f, 1);
-    floor.material = {chainmail, {4.0f, 4.0f}, cubicDepth(1.0f), Floor::Solid, {0.62f, 0.63f, 0.66f}};
+    floor.material = {
+        chainmail, {4.0f, 4.0f}, cubicDepth(1.0f), Floor::Solid, {0.62f, 0.63f, 0.66f}};
     scene.objects.push_back(std::move(floor));
 
     SceneObject torus;
@@ -29,7 +31,10 @@ Scene demoScene(std::shared_ptr<const Tile> chainmail) {
     applyTransform(torus.mesh, {{0.0f, 0.2f, minorRadius + 0.02f}, {0.0f, 0.0f, 0.0f}, 1.0f});
     // 10 tiles around, 4 around the tube: tiles of about 0.5 world units on the tube's crown.
     const glm::vec2 uvScale(10.0f, 4.0f);
-    torus.material = {chainmail, uvScale, cubicDepth(2.0f * 3.14159265f * minorRadius / uvScale.y), Floor::Solid,
+    torus.material = {chainmail,
+                      uvScale,
+                      cubicDepth(2.0f * 3.14159265f * minorRadius / uvScale.y),
+                      Floor::Solid,
                       {0.85f, 0.72f, 0.45f}};
     scene.objects.push_back(std::move(torus));
     return scene;

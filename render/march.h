@@ -5,7 +5,6 @@
 #pragma once
 
 #include <cmath>
-
 #include <glm/vec3.hpp>
 
 #include "render/scene.h"
@@ -23,8 +22,8 @@ struct MarchResult {
 };
 
 /// Sphere tracing in texel space (ch. 8) with an early stop below `epsilonTexels`. Preconditions:
-/// `direction` unit length with direction.z < 0; `position` inside the tile's slab. The floor z = 0 is
-/// hit exactly when a step would cross it: the step's sphere is empty of detail, so the floor
+/// `direction` unit length with direction.z < 0; `position` inside the tile's slab. The floor z = 0
+/// is hit exactly when a step would cross it: the step's sphere is empty of detail, so the floor
 /// crossing inside it is the first surface along the ray. A NaN/Inf position or direction (outside
 /// the preconditions) returns at once: not converged, no iterations, the position as given.
 template <class Filter>

@@ -6,10 +6,9 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/geometric.hpp>
 
 #include "common/error.h"
 #include "render/analytic_filter.h"
@@ -28,8 +27,9 @@ constexpr float kAmbientStrength = 0.18f;
 /// point, by sphere tracing toward it until the ray leaves the top of the tile; the nearest miss
 /// relative to the distance travelled estimates how much of the light's disk is covered.
 template <class Filter>
-float lightVisibility(const Filter& filter, const glm::vec3& start, const glm::vec3& toLight, float depthTexels,
-                      float tanHalfAngle, const RenderOptions& options, std::uint64_t& steps) {
+float lightVisibility(const Filter& filter, const glm::vec3& start, const glm::vec3& toLight,
+                      float depthTexels, float tanHalfAngle, const RenderOptions& options,
+                      std::uint64_t& steps) {
     if (toLight.z <= 0.0f) return 0.0f;
     float visibility = 1.0f;
     float travel = 0.1f;
@@ -51,7 +51,8 @@ glm::vec3 skyColor(const glm::vec3& direction) {
     return glm::mix(glm::vec3(0.18f, 0.19f, 0.21f), glm::vec3(0.55f, 0.62f, 0.72f), t);
 }
 
-glm::vec3 directLight(const glm::vec3& normal, const glm::vec3& toLight, const glm::vec3& view, const glm::vec3& albedo) {
+glm::vec3 directLight(const glm::vec3& normal, const glm::vec3& toLight, const glm::vec3& view,
+                      const glm::vec3& albedo) {
     const float diffuse = std::max(glm::dot(normal, toLight), 0.0f);
     if (diffuse <= 0.0f) return glm::vec3(0.0f);
     const glm::vec3 halfway = glm::normalize(toLight - view);
@@ -78,30 +79,31 @@ struct Sample {
     std::uint64_t shadowSteps = 0;
     std::uint64_t shadowMapSamples = 0;
     float texelsPerWorldAlongRay = 0.0f;  ///< the hit's SurfaceHit::texelsPerWorldAlongRay
-    float meanCurvature = 0.0f;  ///< 1/texel, when hasCurvature (AOVs only)
-    bool hasCurvature = false;   ///< the ray hit detail (not the floor, not a bare base surface)
+    float meanCurvature = 0.0f;           ///< 1/texel, when hasCurvature (AOVs only)
+    bool hasCurvature = false;  ///< the ray hit detail (not the floor, not a bare base surface)
 };
 
 /// The seed of the shadow-map sample pattern of sample `index` of pixel (x, y): fixed per pixel,
 /// so renders are repeatable, and different between neighbours, so the error is noise, not bands.
 std::uint32_t shadowSeed(int x, int y, int index) {
-    return std::uint32_t(x) * 0x9e3779b1U ^ std::uint32_t(y) * 0x85ebca77U ^ std::uint32_t(index) * 0xc2b2ae3dU;
+    return std::uint32_t(x) * 0x9e3779b1U ^ std::uint32_t(y) * 0x85ebca77U ^
+           std::uint32_t(index) * 0xc2b2ae3dU;
 }
 
 class Renderer {
-public:
+  public:
     Renderer(const Scene& scene, const RenderOptions& options)
         : scene_(scene),
           options_(options),
-          tracer_(scene,
-                  TraceOptions{options.maxIterations, options.epsilonTexels, options.filter, options.normalFilter,
-                               options.reference}),
+          tracer_(scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter,
+                                      options.normalFilter, options.reference}),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
         shadowMaps_.resize(scene.lights.size());
         if (options.shadowFilter == ShadowFilter::None) return;
         for (std::size_t light = 0; light < scene.lights.size(); ++light) {
-            if (!lightReachesVisibleSurface(scene, scene.lights[light])) continue;  // no receiver would ask
+            if (!lightReachesVisibleSurface(scene, scene.lights[light]))
+                continue;  // no receiver would ask
             shadowMaps_[light].emplace(tracer_, scene.lights[light], options.shadowMapResolution);
         }
     }
@@ -114,7 +116,8 @@ public:
         glm::vec3 sum(0.0f);
         for (int index = 0; index < options_.samplesPerPixel; ++index) {
             const glm::vec2 offset = sampleOffset(index, options_.samplesPerPixel);
-            const Sample sample = renderSample(x, y, cameraRay(x + offset.x, y + offset.y), shadowSeed(x, y, index), stats);
+            const Sample sample = renderSample(x, y, cameraRay(x + offset.x, y + offset.y),
+                                               shadowSeed(x, y, index), stats);
             if (index == 0) pixel = sample;
             sum += sample.color;
         }
@@ -122,15 +125,17 @@ public:
         return pixel;
     }
 
-private:
+  private:
     /// One camera ray through the square of pixel (x, y).
-    Sample renderSample(int x, int y, const Ray& ray, std::uint32_t seed, RenderStats& stats) const {
+    Sample renderSample(int x, int y, const Ray& ray, std::uint32_t seed,
+                        RenderStats& stats) const {
         ++stats.rays;
         Sample sample;
         SurfaceHit hit;
         TraceCounters counters;
         ShellCounters shellCounters;
-        const bool found = shells_.traceNearest(x, y, ray, options_.shellCulling, hit, counters, shellCounters);
+        const bool found =
+            shells_.traceNearest(x, y, ray, options_.shellCulling, hit, counters, shellCounters);
         stats.shellsTested += shellCounters.tested;
         stats.shellsTraced += shellCounters.traced;
         stats.marchIterations += counters.marchIterations;
@@ -146,7 +151,8 @@ private:
         sample.iterations = int(counters.marchIterations);
         const Material& material = scene_.objects[hit.object].material;
         if (!hit.entry.frontFacing) {
-            sample.color = material.color * 0.05f;  // inside of a closed mesh, or a plane from below
+            sample.color =
+                material.color * 0.05f;  // inside of a closed mesh, or a plane from below
         } else if (!hit.onDetail) {
             sample.color = shadeBase(hit, material, ray.direction, seed, sample.shadowMapSamples);
         } else {
@@ -159,7 +165,9 @@ private:
         if (options_.outputAovs && hit.entry.frontFacing && hit.onDetail && !hit.march.onFloor) {
             const TricubicBSplineFilter curvatureFilter(*material.tile);
             const glm::vec3 at = hit.march.texelPosition;
-            sample.meanCurvature = curvatureFromDerivatives(curvatureFilter.gradient(at), curvatureFilter.hessian(at)).mean;
+            sample.meanCurvature =
+                curvatureFromDerivatives(curvatureFilter.gradient(at), curvatureFilter.hessian(at))
+                    .mean;
             sample.hasCurvature = true;
         }
         return sample;
@@ -169,19 +177,21 @@ private:
     float castShadow(std::size_t lightIndex, const ShadowReceiver& receiver, std::uint32_t seed,
                      std::uint64_t& samples) const {
         if (!shadowMaps_[lightIndex]) return 1.0f;
-        return shadowMaps_[lightIndex]->visibility(receiver, options_.shadowFilter,
-                                                   seed ^ (0x27d4eb2fU * std::uint32_t(lightIndex + 1)), samples);
+        return shadowMaps_[lightIndex]->visibility(
+            receiver, options_.shadowFilter, seed ^ (0x27d4eb2fU * std::uint32_t(lightIndex + 1)),
+            samples);
     }
 
-    glm::vec3 shadeBase(const SurfaceHit& hit, const Material& material, const glm::vec3& view, std::uint32_t seed,
-                        std::uint64_t& shadowMapSamples) const {
+    glm::vec3 shadeBase(const SurfaceHit& hit, const Material& material, const glm::vec3& view,
+                        std::uint32_t seed, std::uint64_t& shadowMapSamples) const {
         const glm::vec3 albedo = albedoAt(material, hit.entry.uv);
         glm::vec3 color = albedo * kAmbientStrength;
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const DirectionalLight& light = scene_.lights[index];
             const glm::vec3 toLight = -glm::normalize(light.direction);
             if (glm::dot(hit.entry.normal, toLight) <= 0.0f) continue;
-            const float visibility = castShadow(index, {hit.position, hit.entry.normal}, seed, shadowMapSamples);
+            const float visibility =
+                castShadow(index, {hit.position, hit.entry.normal}, seed, shadowMapSamples);
             if (visibility <= 0.0f) continue;
             color += directLight(hit.normal, toLight, view, albedo) * light.color * visibility;
         }
@@ -189,12 +199,13 @@ private:
     }
 
     template <class Filter>
-    glm::vec3 shadeDetail(const Filter& filter, const SurfaceHit& hit, const Material& material, const glm::vec3& view,
-                          std::uint32_t seed, Sample& sample) const {
+    glm::vec3 shadeDetail(const Filter& filter, const SurfaceHit& hit, const Material& material,
+                          const glm::vec3& view, std::uint32_t seed, Sample& sample) const {
         const float depthTexels = float(material.tile->size().depth);
         const glm::vec3 texelPosition = hit.march.texelPosition;
         // Cavities (low in the shell) see less of the sky.
-        const float openness = 0.35f + 0.65f * std::clamp(texelPosition.z / depthTexels, 0.0f, 1.0f);
+        const float openness =
+            0.35f + 0.65f * std::clamp(texelPosition.z / depthTexels, 0.0f, 1.0f);
         const glm::vec3 albedo = albedoAt(material, hit.entry.uv);
         glm::vec3 color = albedo * (kAmbientStrength * openness);
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
@@ -211,18 +222,22 @@ private:
                     if (glm::length(gradient) > 1e-6f) texelNormal = glm::normalize(gradient);
                 }
                 const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLight));
-                const float tanHalfAngle = std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f);
-                const glm::vec3 start = texelPosition + texelNormal * (2.0f * options_.epsilonTexels);
-                visibility =
-                    lightVisibility(filter, start, toLightTexel, depthTexels, tanHalfAngle, options_, sample.shadowSteps);
+                const float tanHalfAngle =
+                    std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f);
+                const glm::vec3 start =
+                    texelPosition + texelNormal * (2.0f * options_.epsilonTexels);
+                visibility = lightVisibility(filter, start, toLightTexel, depthTexels, tanHalfAngle,
+                                             options_, sample.shadowSteps);
                 if (visibility <= 0.0f) continue;
             }
             // Other surfaces, from the shadow map, asked where the light ray leaves this shell
             // (its own detail is the self-shadow's job). The two sets of blockers are disjoint,
             // so their covered parts of the light's disk are uncorrelated: the visible share is
             // the product (min would assume they always overlap and under-darken penumbrae).
-            const float belowSurfaceWorld = (depthTexels - texelPosition.z) / depthTexels * material.depthWorld;
-            const ShadowReceiver receiver{hit.position + toLight * (belowSurfaceWorld / facing), hit.entry.normal};
+            const float belowSurfaceWorld =
+                (depthTexels - texelPosition.z) / depthTexels * material.depthWorld;
+            const ShadowReceiver receiver{hit.position + toLight * (belowSurfaceWorld / facing),
+                                          hit.entry.normal};
             visibility *= castShadow(index, receiver, seed, sample.shadowMapSamples);
             if (visibility <= 0.0f) continue;
             color += directLight(hit.normal, toLight, view, albedo) * light.color * visibility;
@@ -233,17 +248,21 @@ private:
     const Scene& scene_;
     const RenderOptions& options_;
     SceneTracer tracer_;
-    std::vector<std::optional<ShadowMap>> shadowMaps_;  ///< per light; empty: no map needed or wanted
+    std::vector<std::optional<ShadowMap>>
+        shadowMaps_;  ///< per light; empty: no map needed or wanted
     PinholeProjection projection_;
     ScreenShells shells_;  ///< camera rays' shells per screen tile (the BVH serves the other rays)
 };
 
 void validateOptions(const RenderOptions& options) {
-    auto reject = [](const std::string& what, const std::string& value, const std::string& accepted) {
+    auto reject = [](const std::string& what, const std::string& value,
+                     const std::string& accepted) {
         throw InputError(what + ": " + value + " is not accepted; " + accepted);
     };
-    if (options.width < 1 || options.width > 16384) reject("--width", std::to_string(options.width), "it must be in [1, 16384]");
-    if (options.height < 1 || options.height > 16384) reject("--height", std::to_string(options.height), "it must be in [1, 16384]");
+    if (options.width < 1 || options.width > 16384)
+        reject("--width", std::to_string(options.width), "it must be in [1, 16384]");
+    if (options.height < 1 || options.height > 16384)
+        reject("--height", std::to_string(options.height), "it must be in [1, 16384]");
     if (options.maxIterations < 1 || options.maxIterations > 4096) {
         reject("--iterations", std::to_string(options.maxIterations), "it must be in [1, 4096]");
     }
@@ -251,13 +270,15 @@ void validateOptions(const RenderOptions& options) {
         reject("--epsilon", std::to_string(options.epsilonTexels), "it must be in (0, 1] texels");
     }
     if (options.shadowIterations < 1 || options.shadowIterations > 4096) {
-        reject("shadow iterations", std::to_string(options.shadowIterations), "it must be in [1, 4096]");
+        reject("shadow iterations", std::to_string(options.shadowIterations),
+               "it must be in [1, 4096]");
     }
     if (options.samplesPerPixel < 1 || options.samplesPerPixel > 256) {
         reject("--spp", std::to_string(options.samplesPerPixel), "it must be in [1, 256]");
     }
     if (options.shadowMapResolution < 16 || options.shadowMapResolution > 16384) {
-        reject("shadow map resolution", std::to_string(options.shadowMapResolution), "it must be in [16, 16384] texels");
+        reject("shadow map resolution", std::to_string(options.shadowMapResolution),
+               "it must be in [16, 16384] texels");
     }
 }
 
@@ -277,16 +298,20 @@ void validateReference(const Scene& scene) {
     for (std::size_t index = 0; index < scene.objects.size(); ++index) {
         const Material& material = scene.objects[index].material;
         if (!material.tile || material.analyticDistance) continue;
-        const std::string source = material.tile->provenance.source.empty() ? "unknown" : material.tile->provenance.source;
-        throw InputError("objects[" + std::to_string(index) + "].material.tile: a reference render needs procedural "
-                         "detail with an analytic distance (chainmail, grating); this tile's source '" + source +
-                         "' has none");
+        const std::string source =
+            material.tile->provenance.source.empty() ? "unknown" : material.tile->provenance.source;
+        throw InputError(
+            "objects[" + std::to_string(index) +
+            "].material.tile: a reference render needs procedural "
+            "detail with an analytic distance (chainmail, grating); this tile's source '" +
+            source + "' has none");
     }
 }
 
 }  // namespace
 
-RenderResult renderScene(const Scene& scene, const RenderOptions& requested, const ProgressCallback& progress) {
+RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
+                         const ProgressCallback& progress) {
     validateOptions(requested);
     validateScene(scene);
     RenderOptions options = requested;
@@ -299,15 +324,18 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested, con
     RenderResult result;
     result.image = Image(options.width, options.height);
     if (options.outputAovs) {
-        result.aovs.emplace(RenderAovs{Image(options.width, options.height), Image(options.width, options.height),
-                                       Image(options.width, options.height), Image(options.width, options.height),
-                                       Image(options.width, options.height), Image(options.width, options.height),
-                                       Image(options.width, options.height)});
+        result.aovs.emplace(
+            RenderAovs{Image(options.width, options.height), Image(options.width, options.height),
+                       Image(options.width, options.height), Image(options.width, options.height),
+                       Image(options.width, options.height), Image(options.width, options.height),
+                       Image(options.width, options.height)});
     }
-    const float shadowBudget = float(options.shadowIterations * std::max<std::size_t>(scene.lights.size(), 1));
-    const float shadowMapBudget =
-        float((kShadowRingSamples + kShadowDiskSamples) * std::max<std::size_t>(scene.lights.size(), 1));
-    std::atomic<std::uint64_t> rays{0}, baseHits{0}, iterations{0}, converged{0}, shadowSteps{0}, shadowMapSamples{0};
+    const float shadowBudget =
+        float(options.shadowIterations * std::max<std::size_t>(scene.lights.size(), 1));
+    const float shadowMapBudget = float((kShadowRingSamples + kShadowDiskSamples) *
+                                        std::max<std::size_t>(scene.lights.size(), 1));
+    std::atomic<std::uint64_t> rays{0}, baseHits{0}, iterations{0}, converged{0}, shadowSteps{0},
+        shadowMapSamples{0};
     std::atomic<std::uint64_t> shellsTested{0}, shellsTraced{0};
     // Bands of rows, so progress can be reported from this thread between them; inside a band,
     // 16 x 16 pixel blocks are shared among the threads. Every pixel is computed on its own.
@@ -315,38 +343,39 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested, con
     constexpr int kBandRows = 64;
     for (int bandStart = 0; bandStart < options.height; bandStart += kBandRows) {
         const int bandEnd = std::min(bandStart + kBandRows, options.height);
-        tbb::parallel_for(tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
-                          [&](const tbb::blocked_range2d<int>& block) {
-                              RenderStats local;
-                              for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
-                                  for (int x = block.cols().begin(); x != block.cols().end(); ++x) {
-                                      const Sample pixel = renderer.renderPixel(x, y, local);
-                                      result.image.at(x, y) = pixel.color;
-                                      if (!result.aovs) continue;
-                                      result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
-                                      result.aovs->normal.at(x, y) =
-                                          pixel.depth > 0.0f ? pixel.normal * 0.5f + 0.5f : glm::vec3(0.0f);
-                                      result.aovs->iterations.at(x, y) =
-                                          heatColor(float(pixel.iterations) / float(options.maxIterations));
-                                      result.aovs->shadowSamples.at(x, y) =
-                                          heatColor(float(pixel.shadowSteps) / shadowBudget);
-                                      result.aovs->shadowMapSamples.at(x, y) =
-                                          heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
-                                      result.aovs->texelScale.at(x, y) = glm::vec3(pixel.texelsPerWorldAlongRay);
-                                      if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
-                                          result.aovs->curvature.at(x, y) = heatColor(0.5f + pixel.meanCurvature);
-                                      }
-                                  }
-                              }
-                              rays += local.rays;
-                              baseHits += local.baseHits;
-                              iterations += local.marchIterations;
-                              converged += local.converged;
-                              shadowSteps += local.shadowSteps;
-                              shadowMapSamples += local.shadowMapSamples;
-                              shellsTested += local.shellsTested;
-                              shellsTraced += local.shellsTraced;
-                          });
+        tbb::parallel_for(
+            tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
+            [&](const tbb::blocked_range2d<int>& block) {
+                RenderStats local;
+                for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
+                    for (int x = block.cols().begin(); x != block.cols().end(); ++x) {
+                        const Sample pixel = renderer.renderPixel(x, y, local);
+                        result.image.at(x, y) = pixel.color;
+                        if (!result.aovs) continue;
+                        result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
+                        result.aovs->normal.at(x, y) =
+                            pixel.depth > 0.0f ? pixel.normal * 0.5f + 0.5f : glm::vec3(0.0f);
+                        result.aovs->iterations.at(x, y) =
+                            heatColor(float(pixel.iterations) / float(options.maxIterations));
+                        result.aovs->shadowSamples.at(x, y) =
+                            heatColor(float(pixel.shadowSteps) / shadowBudget);
+                        result.aovs->shadowMapSamples.at(x, y) =
+                            heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
+                        result.aovs->texelScale.at(x, y) = glm::vec3(pixel.texelsPerWorldAlongRay);
+                        if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
+                            result.aovs->curvature.at(x, y) = heatColor(0.5f + pixel.meanCurvature);
+                        }
+                    }
+                }
+                rays += local.rays;
+                baseHits += local.baseHits;
+                iterations += local.marchIterations;
+                converged += local.converged;
+                shadowSteps += local.shadowSteps;
+                shadowMapSamples += local.shadowMapSamples;
+                shellsTested += local.shellsTested;
+                shellsTraced += local.shellsTraced;
+            });
         if (progress) progress(double(bandEnd) / options.height);
     }
     result.stats = {rays, baseHits, iterations, converged, shadowSteps, shadowMapSamples};

@@ -3,10 +3,10 @@
 ///
 /// Per pixel, camera rays find the nearest displaced detail among the shells conservatively
 /// rasterized to their screen tile (render/coverage.h, ch. 42), each traced by SceneTracer (entry
-/// through the base mesh, then the march in the tile's texel space). Shading: Lambert + Blinn-Phong with the
-/// tile gradient as normal, an ambient term darkened low in the shell, soft self-shadows traced
-/// through the tile toward each light, and shadows of other surfaces from a shadow map per light
-/// (render/shadow_map.h, ch. 17). Pixels are independent, so the image does not depend on the
+/// through the base mesh, then the march in the tile's texel space). Shading: Lambert + Blinn-Phong
+/// with the tile gradient as normal, an ambient term darkened low in the shell, soft self-shadows
+/// traced through the tile toward each light, and shadows of other surfaces from a shadow map per
+/// light (render/shadow_map.h, ch. 17). Pixels are independent, so the image does not depend on the
 /// thread count.
 #pragma once
 
@@ -24,17 +24,18 @@ namespace distile {
 struct RenderOptions {
     int width = 1280;
     int height = 1024;
-    int samplesPerPixel = 1;        ///< camera rays per pixel (R2 low-discrepancy offsets), averaged
-    int maxIterations = 16;         ///< sphere-tracing budget per ray (ch. 8 uses 8 to 16)
-    float epsilonTexels = 0.02f;    ///< a ray closer than this to the surface has hit it
+    int samplesPerPixel = 1;      ///< camera rays per pixel (R2 low-discrepancy offsets), averaged
+    int maxIterations = 16;       ///< sphere-tracing budget per ray (ch. 8 uses 8 to 16)
+    float epsilonTexels = 0.02f;  ///< a ray closer than this to the surface has hit it
     FilterKind filter = FilterKind::Trilinear;  ///< the march's (and self-shadows') distances
     FilterKind normalFilter = FilterKind::TricubicBSpline;  ///< the shading normal's gradient
-    bool selfShadows = true;        ///< trace shadow rays through the tile toward each light
-    int shadowIterations = 24;      ///< budget of each shadow ray
+    bool selfShadows = true;    ///< trace shadow rays through the tile toward each light
+    int shadowIterations = 24;  ///< budget of each shadow ray
     /// Shadows cast between surfaces, from a shadow map per light; None builds no map.
     ShadowFilter shadowFilter = ShadowFilter::Adaptive;
-    int shadowMapResolution = ShadowMap::kDefaultResolution;  ///< texels along the map's longer side
-    bool outputAovs = false;        ///< also produce the AOV images of RenderResult
+    int shadowMapResolution =
+        ShadowMap::kDefaultResolution;  ///< texels along the map's longer side
+    bool outputAovs = false;            ///< also produce the AOV images of RenderResult
     /// Camera rays skip detail shells whose conservative depth is not nearer than their best hit
     /// (render/coverage.h); the image is the same either way, only the work differs.
     bool shellCulling = true;
@@ -54,17 +55,21 @@ struct RenderStats {
     std::uint64_t converged = 0;         ///< camera rays that hit detail or floor within the budget
     std::uint64_t shadowSteps = 0;       ///< steps of self-shadow rays
     std::uint64_t shadowMapSamples = 0;  ///< shadow-map depth comparisons (PCF samples), all lights
-    std::uint64_t shellsTested = 0;      ///< camera rays x binned shells whose pixel coverage was tested
-    std::uint64_t shellsTraced = 0;      ///< camera rays x shells whose top was intersected (and marched if entered)
-    double meanIterations() const { return baseHits ? double(marchIterations) / double(baseHits) : 0.0; }
+    std::uint64_t shellsTested =
+        0;  ///< camera rays x binned shells whose pixel coverage was tested
+    std::uint64_t shellsTraced =
+        0;  ///< camera rays x shells whose top was intersected (and marched if entered)
+    double meanIterations() const {
+        return baseHits ? double(marchIterations) / double(baseHits) : 0.0;
+    }
 };
 
 /// Arbitrary output variables, per pixel (first sample of the pixel), when requested.
 struct RenderAovs {
-    Image depth;          ///< distance from the eye along the ray, world units (0: miss), in all channels
-    Image normal;         ///< shading normal * 0.5 + 0.5 (0: miss)
-    Image iterations;     ///< march iterations as a heat map (blue 0 .. red = budget)
-    Image shadowSamples;  ///< self-shadow steps as a heat map (blue 0 .. red = budget x lights)
+    Image depth;   ///< distance from the eye along the ray, world units (0: miss), in all channels
+    Image normal;  ///< shading normal * 0.5 + 0.5 (0: miss)
+    Image iterations;        ///< march iterations as a heat map (blue 0 .. red = budget)
+    Image shadowSamples;     ///< self-shadow steps as a heat map (blue 0 .. red = budget x lights)
     Image shadowMapSamples;  ///< shadow-map samples as a heat map (blue 0 .. red = 72 x lights)
     /// Mean curvature of the detail at the hit, 1/texel in texel space, from the tricubic
     /// B-spline's gradient and Hessian, as a heat map: blue -0.5 (concave) .. green 0 (flat) ..
@@ -87,7 +92,8 @@ struct RenderResult {
 /// (width/height in [1, 16384], iterations in [1, 4096], epsilon in (0, 1], samples per pixel
 /// in [1, 256], shadow-map resolution in [16, 16384]). `progress` is called on the calling
 /// thread; it is not called while the shadow maps are built, before the first row.
-RenderResult renderScene(const Scene& scene, const RenderOptions& options, const ProgressCallback& progress = {});
+RenderResult renderScene(const Scene& scene, const RenderOptions& options,
+                         const ProgressCallback& progress = {});
 
 /// A heat-map colour (blue, cyan, green, yellow, red) for a value in [0, 1].
 glm::vec3 heatColor(float value);

@@ -1,13 +1,12 @@
 #include "render/scene.h"
 
 #include <cmath>
-#include <string>
-
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
+#include <string>
 
 #include "common/error.h"
 
@@ -15,7 +14,9 @@ namespace distile {
 
 namespace {
 
-bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool finite(const glm::vec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
 
 void requireFinite(const glm::vec3& v, const std::string& field) {
     if (!finite(v)) throw InputError(field + ": must be three finite numbers");
@@ -72,23 +73,28 @@ void validateScene(const Scene& scene) {
     requireFinite(camera.target, "camera.target");
     requireFinite(camera.up, "camera.up");
     const glm::vec3 forward = camera.target - camera.eye;
-    if (glm::length(forward) <= 0.0f) throw InputError("camera.target: equals camera.eye; the camera needs a view direction");
+    if (glm::length(forward) <= 0.0f)
+        throw InputError("camera.target: equals camera.eye; the camera needs a view direction");
     if (glm::length(glm::cross(glm::normalize(forward), camera.up)) < 1e-6f) {
-        throw InputError("camera.up: parallel to the view direction (or zero); it must point sideways of it");
+        throw InputError(
+            "camera.up: parallel to the view direction (or zero); it must point sideways of it");
     }
     if (!(camera.fovDeg > 0.0f && camera.fovDeg < 180.0f)) {
-        throw InputError("camera.fov_deg: " + std::to_string(camera.fovDeg) + " is not accepted; it must be in (0, 180)");
+        throw InputError("camera.fov_deg: " + std::to_string(camera.fovDeg) +
+                         " is not accepted; it must be in (0, 180)");
     }
     for (std::size_t i = 0; i < scene.lights.size(); ++i) {
         const std::string field = "lights[" + std::to_string(i) + "]";
         requireFinite(scene.lights[i].direction, field + ".direction");
         requireFinite(scene.lights[i].color, field + ".color");
-        if (glm::length(scene.lights[i].direction) <= 0.0f) throw InputError(field + ".direction: must not be zero");
+        if (glm::length(scene.lights[i].direction) <= 0.0f)
+            throw InputError(field + ".direction: must not be zero");
         if (!(scene.lights[i].angleDeg >= 0.0f && scene.lights[i].angleDeg < 90.0f)) {
             throw InputError(field + ".angle_deg: must be in [0, 90)");
         }
     }
-    if (scene.objects.empty()) throw InputError("objects: the scene has no objects; at least one is needed");
+    if (scene.objects.empty())
+        throw InputError("objects: the scene has no objects; at least one is needed");
     for (std::size_t i = 0; i < scene.objects.size(); ++i) {
         const std::string field = "objects[" + std::to_string(i) + "]";
         const SceneObject& object = scene.objects[i];

@@ -5,11 +5,10 @@
 #pragma once
 
 #include <functional>
-#include <memory>
-#include <vector>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <memory>
+#include <vector>
 
 #include "mesh/base_mesh.h"
 #include "render/image.h"
@@ -26,20 +25,21 @@ struct Camera {
 
 struct DirectionalLight {
     glm::vec3 direction{-0.4f, -0.3f, -1.0f};  ///< direction the light travels (need not be unit)
-    glm::vec3 color{1.0f, 1.0f, 1.0f};          ///< linear RGB radiance scale
-    float angleDeg = 2.0f;                       ///< angular diameter: softness of shadows
+    glm::vec3 color{1.0f, 1.0f, 1.0f};         ///< linear RGB radiance scale
+    float angleDeg = 2.0f;                     ///< angular diameter: softness of shadows
 };
 
 enum class Floor { Solid, Open };
 
 struct Material {
     std::shared_ptr<const Tile> tile;  ///< null: the bare base surface, no detail
-    glm::vec2 uvScale{1.0f, 1.0f};      ///< tile repeats per unit of u and v
-    float depthWorld = 0.05f;           ///< thickness of the detail shell below the surface
+    glm::vec2 uvScale{1.0f, 1.0f};     ///< tile repeats per unit of u and v
+    float depthWorld = 0.05f;          ///< thickness of the detail shell below the surface
     Floor floor = Floor::Solid;
     glm::vec3 color{0.8f, 0.8f, 0.85f};  ///< linear RGB albedo (when there is no colour texture)
     /// Optional albedo texture (linear RGB, see render/image.h readImage), looked up bilinearly at
-    /// the base mesh's uv (not scaled by uvScale: it paints the whole mesh), repeating outside [0,1].
+    /// the base mesh's uv (not scaled by uvScale: it paints the whole mesh), repeating outside
+    /// [0,1].
     std::shared_ptr<const Image> colorTexture;
     /// Optional exact signed distance of the detail the tile was made from (texels, texel space,
     /// periodic in x and y; safe to call from several threads): the truth a reference render

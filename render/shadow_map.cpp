@@ -5,11 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-#include <string>
-
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
+#include <limits>
+#include <string>
 
 #include "common/error.h"
 
@@ -41,14 +40,17 @@ std::uint32_t mixBits(std::uint32_t x) {
 }
 
 /// The top 24 bits of `bits` as a float in [0, 1).
-float unitFloat(std::uint32_t bits) { return float(bits >> 8) * (1.0f / 16777216.0f); }
+float unitFloat(std::uint32_t bits) {
+    return float(bits >> 8) * (1.0f / 16777216.0f);
+}
 
 /// Offset in the unit disk of the sample in angular stratum `angular` and radial stratum
 /// `radial` (0 at the centre, 7 the outer ring): jittered inside its cell of the 8 x 8 grid by
 /// `seed`, then warped to the disk with angle 2 pi u and radius sqrt(v), which keeps the cells'
 /// areas equal; `rotation` (radians) turns the whole pattern.
 glm::vec2 diskOffset(int angular, int radial, std::uint32_t seed, float rotation) {
-    const std::uint32_t bits = mixBits(seed ^ mixBits(std::uint32_t(radial * kStrata + angular) + 0x9e3779b9U));
+    const std::uint32_t bits =
+        mixBits(seed ^ mixBits(std::uint32_t(radial * kStrata + angular) + 0x9e3779b9U));
     const float u = (float(angular) + unitFloat(bits)) / float(kStrata);
     const float v = (float(radial) + unitFloat(mixBits(bits))) / float(kStrata);
     const float angle = kTwoPi * u + rotation;
@@ -58,7 +60,8 @@ glm::vec2 diskOffset(int angular, int radial, std::uint32_t seed, float rotation
 
 }  // namespace
 
-ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels) {
+ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
+                     int resolutionTexels) {
     if (resolutionTexels < 16 || resolutionTexels > 16384) {
         throw InputError("shadow map resolution: " + std::to_string(resolutionTexels) +
                          " is not accepted; it must be in [16, 16384] texels");
@@ -85,10 +88,12 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     high += glm::vec3(shellDepth);
 
     // The bounds' corners in light coordinates: (across x, across y) and depth along the light.
-    glm::vec2 planeLow(std::numeric_limits<float>::max()), planeHigh(-std::numeric_limits<float>::max());
+    glm::vec2 planeLow(std::numeric_limits<float>::max()),
+        planeHigh(-std::numeric_limits<float>::max());
     float depthLow = std::numeric_limits<float>::max();
     for (int corner = 0; corner < 8; ++corner) {
-        const glm::vec3 p(corner & 1 ? high.x : low.x, corner & 2 ? high.y : low.y, corner & 4 ? high.z : low.z);
+        const glm::vec3 p(corner & 1 ? high.x : low.x, corner & 2 ? high.y : low.y,
+                          corner & 4 ? high.z : low.z);
         const glm::vec2 plane(glm::dot(p, axisX_), glm::dot(p, axisY_));
         planeLow = glm::min(planeLow, plane);
         planeHigh = glm::max(planeHigh, plane);
@@ -103,8 +108,10 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     // Rays start a little in front of everything.
     const float startDepth = depthLow - std::max(texelWorld_, 1e-3f * longer);
 
-    depths_.assign(std::size_t(width_) * std::size_t(height_), std::numeric_limits<float>::infinity());
-    tbb::parallel_for(tbb::blocked_range<int>(0, height_, 8), [&](const tbb::blocked_range<int>& rows) {
+    depths_.assign(std::size_t(width_) * std::size_t(height_),
+                   std::numeric_limits<float>::infinity());
+    tbb::parallel_for(tbb::blocked_range<int>(0, height_, 8), [&](const tbb::blocked_range<int>&
+                                                                      rows) {
         TraceCounters counters;
         for (int y = rows.begin(); y != rows.end(); ++y) {
             for (int x = 0; x < width_; ++x) {
@@ -113,7 +120,8 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
                 const Ray ray{axisX_ * across + axisY_ * along - toLight_ * startDepth, -toLight_};
                 SurfaceHit hit;
                 if (tracer.traceNearest(ray, 0.0f, hit, counters)) {
-                    depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)] = startDepth + hit.distanceWorld;
+                    depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)] =
+                        startDepth + hit.distanceWorld;
                 }
             }
         }
@@ -136,11 +144,13 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     const float facing = glm::dot(receiver.normal, toLight_);
     if (!(facing > 0.0f)) return 0.0f;
 
-    const glm::vec2 centre(glm::dot(receiver.surfaceWorld, axisX_), glm::dot(receiver.surfaceWorld, axisY_));
+    const glm::vec2 centre(glm::dot(receiver.surfaceWorld, axisX_),
+                           glm::dot(receiver.surfaceWorld, axisY_));
     const float receiverDepth = -glm::dot(receiver.surfaceWorld, toLight_);
     // The receiver's tangent plane, as depth along the light per unit of light-plane offset.
     const glm::vec2 slope =
-        glm::vec2(glm::dot(receiver.normal, axisX_), glm::dot(receiver.normal, axisY_)) / std::max(facing, kMinFacing);
+        glm::vec2(glm::dot(receiver.normal, axisX_), glm::dot(receiver.normal, axisY_)) /
+        std::max(facing, kMinFacing);
     // A nearest-texel lookup lands up to 0.71 texel from the asked point; on the slope that is
     // 0.71 texel * |slope| of depth. One texel (plus one of slope) covers it with margin.
     const float quantisationBias = texelWorld_ * (1.0f + glm::length(slope));
@@ -153,8 +163,9 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     };
 
     // The widest penumbra possible here: the nearest blocker anywhere in the map.
-    const float searchRadius = std::min(tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f),
-                                        kMaxSearchTexels * texelWorld_);
+    const float searchRadius =
+        std::min(tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f),
+                 kMaxSearchTexels * texelWorld_);
     if (searchRadius < 0.5f * texelWorld_) {  // a disk inside one texel: a hard shadow, one sample
         ++samples;
         return std::isinf(blocker(glm::vec2(0.0f))) ? 1.0f : 0.0f;
@@ -166,7 +177,8 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     int blocked = 0;
     float blockerDepthSum = 0.0f;
     for (int angular = 0; angular < kStrata; ++angular) {
-        const float depth = blocker(diskOffset(angular, kStrata - 1, pixelSeed, rotation) * searchRadius);
+        const float depth =
+            blocker(diskOffset(angular, kStrata - 1, pixelSeed, rotation) * searchRadius);
         if (!std::isinf(depth)) {
             ++blocked;
             blockerDepthSum += depth;
@@ -179,12 +191,17 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
 
     // Penumbra radius from the light's angle and the mean receiver-blocker distance.
     const float filterRadius =
-        blocked == 0 ? searchRadius
-                     : std::clamp(tanHalfAngle_ * (receiverDepth - blockerDepthSum / float(blocked)), 0.0f, searchRadius);
+        blocked == 0
+            ? searchRadius
+            : std::clamp(tanHalfAngle_ * (receiverDepth - blockerDepthSum / float(blocked)), 0.0f,
+                         searchRadius);
     int lit = 0;
     for (int radial = 0; radial < kStrata; ++radial) {
         for (int angular = 0; angular < kStrata; ++angular) {
-            lit += std::isinf(blocker(diskOffset(angular, radial, pixelSeed, rotation) * filterRadius)) ? 1 : 0;
+            lit +=
+                std::isinf(blocker(diskOffset(angular, radial, pixelSeed, rotation) * filterRadius))
+                    ? 1
+                    : 0;
         }
     }
     samples += kShadowDiskSamples;

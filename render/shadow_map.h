@@ -12,10 +12,9 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "render/scene.h"
 #include "render/tracer.h"
@@ -38,7 +37,7 @@ struct ShadowReceiver {
 };
 
 class ShadowMap {
-public:
+  public:
     /// The default resolution: the longer side of the map, in texels. 2048 over the demo scene
     /// (about 4.5 world units across as the light sees it) gives 2.2 mm texels, the footprint of
     /// a pixel of the 1280 x 1024 demo view on the floor (2.7 mm) and finer than a chain-mail
@@ -50,7 +49,8 @@ public:
     /// Built in parallel; the result does not depend on the thread count. Preconditions:
     /// validateScene passed for tracer.scene(). Throws InputError unless resolutionTexels is in
     /// [16, 16384].
-    ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels = kDefaultResolution);
+    ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
+              int resolutionTexels = kDefaultResolution);
 
     /// Fraction in [0, 1] of the light that reaches `receiver` past other surfaces, by
     /// percentage-closer filtering over a disk whose radius is tan(angle/2) times the receiver-
@@ -68,18 +68,20 @@ public:
     float texelWorld() const { return texelWorld_; }
     /// Stored depth of texel (x, y) along the light direction, world units; +infinity where the
     /// light ray hit nothing. Preconditions: 0 <= x < width(), 0 <= y < height().
-    float depthAt(int x, int y) const { return depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)]; }
+    float depthAt(int x, int y) const {
+        return depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)];
+    }
 
-private:
+  private:
     /// Depth stored at the texel containing light-plane point `planeWorld`; +infinity outside.
     float lookup(const glm::vec2& planeWorld) const;
 
     glm::vec3 toLight_{0.0f, 0.0f, 1.0f};  ///< unit, from surfaces toward the light
     glm::vec3 axisX_{1.0f, 0.0f, 0.0f};    ///< unit, across the map
     glm::vec3 axisY_{0.0f, 1.0f, 0.0f};    ///< unit, across the map
-    glm::vec2 originPlane_{0.0f};          ///< light-plane coordinates of the map's corner, world units
+    glm::vec2 originPlane_{0.0f};  ///< light-plane coordinates of the map's corner, world units
     float tanHalfAngle_ = 0.0f;
-    float nearestDepth_ = 0.0f;            ///< smallest stored depth (the blocker nearest the light)
+    float nearestDepth_ = 0.0f;  ///< smallest stored depth (the blocker nearest the light)
     float texelWorld_ = 1.0f;
     int width_ = 0;
     int height_ = 0;

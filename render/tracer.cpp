@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-
 #include <glm/geometric.hpp>
+#include <limits>
 
 #include "render/analytic_filter.h"
 
@@ -14,8 +13,8 @@ namespace {
 
 /// Texels per world unit along a triangle's u and v directions: the tile spans 1/uvScale in uv,
 /// and |dP/du|, |dP/dv| convert uv to world units. Zero when the UVs are degenerate.
-glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle, const glm::vec2& uvScale,
-                           const Size3& tileSize) {
+glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle,
+                           const glm::vec2& uvScale, const Size3& tileSize) {
     const glm::vec3 edge1 = mesh.positions[triangle[1]] - mesh.positions[triangle[0]];
     const glm::vec3 edge2 = mesh.positions[triangle[2]] - mesh.positions[triangle[0]];
     const glm::vec2 duv1 = mesh.uvs[triangle[1]] - mesh.uvs[triangle[0]];
@@ -26,7 +25,8 @@ glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle, con
     const glm::vec3 dPdv = (edge2 * duv1.x - edge1 * duv2.x) / determinant;
     const float worldPerU = glm::length(dPdu);
     const float worldPerV = glm::length(dPdv);
-    if (!(worldPerU > 0.0f && worldPerV > 0.0f) || !std::isfinite(worldPerU) || !std::isfinite(worldPerV)) {
+    if (!(worldPerU > 0.0f && worldPerV > 0.0f) || !std::isfinite(worldPerU) ||
+        !std::isfinite(worldPerV)) {
         return glm::vec2(0.0f);
     }
     return {tileSize.width * uvScale.x / worldPerU, tileSize.height * uvScale.y / worldPerV};
@@ -35,7 +35,8 @@ glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle, con
 }  // namespace
 
 glm::vec3 ShellEntry::toTexel(const glm::vec3& world) const {
-    return {glm::dot(world, tangent) * texelsPerWorld.x, glm::dot(world, bitangent) * texelsPerWorld.y,
+    return {glm::dot(world, tangent) * texelsPerWorld.x,
+            glm::dot(world, bitangent) * texelsPerWorld.y,
             glm::dot(world, normal) * texelsPerWorld.z};
 }
 
@@ -45,7 +46,8 @@ glm::vec3 ShellEntry::gradientToWorld(const glm::vec3& gradient) const {
            normal * (gradient.z * texelsPerWorld.z);
 }
 
-SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options) : scene_(scene), options_(options) {
+SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
+    : scene_(scene), options_(options) {
     std::vector<glm::vec3> corners;
     for (std::uint32_t objectIndex = 0; objectIndex < scene.objects.size(); ++objectIndex) {
         const SceneObject& object = scene.objects[objectIndex];
@@ -53,9 +55,12 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options) : scen
         const Tile* tile = object.material.tile.get();
         for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
             const glm::uvec3 triangle = mesh.triangles[t];
-            for (int corner = 0; corner < 3; ++corner) corners.push_back(mesh.positions[triangle[corner]]);
+            for (int corner = 0; corner < 3; ++corner)
+                corners.push_back(mesh.positions[triangle[corner]]);
             glm::vec2 texelsPerWorld(0.0f);
-            if (tile) texelsPerWorld = texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size());
+            if (tile)
+                texelsPerWorld =
+                    texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size());
             triangles_.push_back({objectIndex, t, texelsPerWorld});
         }
     }
@@ -69,37 +74,45 @@ ShellEntry SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray) const
     const glm::uvec3 triangle = mesh.triangles[shell.localTriangle];
     const float b0 = 1.0f - hit.b1 - hit.b2;
     auto interpolate = [&](const auto& values) {
-        return values[triangle[0]] * b0 + values[triangle[1]] * hit.b1 + values[triangle[2]] * hit.b2;
+        return values[triangle[0]] * b0 + values[triangle[1]] * hit.b1 +
+               values[triangle[2]] * hit.b2;
     };
     ShellEntry entry;
     entry.position = ray.origin + ray.direction * hit.distanceWorld;
     entry.normal = glm::normalize(interpolate(mesh.normals));
     const glm::vec4 tangent = interpolate(mesh.tangents);
-    const glm::vec3 inPlane = glm::vec3(tangent) - entry.normal * glm::dot(glm::vec3(tangent), entry.normal);
+    const glm::vec3 inPlane =
+        glm::vec3(tangent) - entry.normal * glm::dot(glm::vec3(tangent), entry.normal);
     const float inPlaneLength = glm::length(inPlane);
     if (inPlaneLength > 1e-6f) {
         entry.tangent = inPlane / inPlaneLength;
-    } else {  // the interpolated tangent vanished (opposite tangents across a seam): any valid frame
-        const glm::vec3 axis = std::abs(entry.normal.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
+    } else {  // the interpolated tangent vanished (opposite tangents across a seam): any valid
+              // frame
+        const glm::vec3 axis =
+            std::abs(entry.normal.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
         entry.tangent = glm::normalize(glm::cross(entry.normal, axis));
     }
     entry.bitangent = glm::cross(entry.normal, entry.tangent) * (tangent.w < 0.0f ? -1.0f : 1.0f);
     entry.uv = interpolate(mesh.uvs);
-    const glm::vec3 geometricNormal = glm::cross(mesh.positions[triangle[1]] - mesh.positions[triangle[0]],
-                                                 mesh.positions[triangle[2]] - mesh.positions[triangle[0]]);
+    const glm::vec3 geometricNormal =
+        glm::cross(mesh.positions[triangle[1]] - mesh.positions[triangle[0]],
+                   mesh.positions[triangle[2]] - mesh.positions[triangle[0]]);
     entry.frontFacing = glm::dot(geometricNormal, ray.direction) < 0.0f;
     const Tile* tile = object.material.tile.get();
     const float depthTexels = tile ? float(tile->size().depth) : 1.0f;
-    entry.texelsPerWorld = {shell.texelsPerWorldUv.x, shell.texelsPerWorldUv.y, depthTexels / object.material.depthWorld};
+    entry.texelsPerWorld = {shell.texelsPerWorldUv.x, shell.texelsPerWorldUv.y,
+                            depthTexels / object.material.depthWorld};
     return entry;
 }
 
-bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit, TraceCounters& counters) const {
+bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit,
+                               TraceCounters& counters) const {
     // An open floor lets the ray leave a shell through a hole and go on; bounded by the object
     // count so a ray cannot loop.
     for (std::size_t pass = 0; pass <= scene_.objects.size() + 1; ++pass) {
         TriangleHit baseHit;
-        if (!bvh_.intersect(ray, minDistance, std::numeric_limits<float>::max(), baseHit)) return false;
+        if (!bvh_.intersect(ray, minDistance, std::numeric_limits<float>::max(), baseHit))
+            return false;
         if (traceEntry(ray, baseHit, hit, counters, minDistance)) return true;
     }
     return false;
@@ -116,22 +129,24 @@ void SceneTracer::shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 
     }
 }
 
-bool SceneTracer::traceShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
-                             SurfaceHit& hit, TraceCounters& counters) const {
+bool SceneTracer::traceShell(std::uint32_t shell, const Ray& ray, float minDistance,
+                             float maxDistance, SurfaceHit& hit, TraceCounters& counters) const {
     const ShellTriangle& triangle = triangles_[shell];
     const SceneObject& object = scene_.objects[triangle.object];
     const glm::uvec3 vertices = object.mesh.triangles[triangle.localTriangle];
     double distance = 0.0, b1 = 0.0, b2 = 0.0;
-    if (!intersectTriangle(ray, object.mesh.positions[vertices[0]], object.mesh.positions[vertices[1]],
-                           object.mesh.positions[vertices[2]], minDistance, maxDistance, distance, b1, b2)) {
+    if (!intersectTriangle(ray, object.mesh.positions[vertices[0]],
+                           object.mesh.positions[vertices[1]], object.mesh.positions[vertices[2]],
+                           minDistance, maxDistance, distance, b1, b2)) {
         return false;
     }
     float exitDistanceWorld = 0.0f;
-    return traceEntry(ray, {shell, float(distance), float(b1), float(b2)}, hit, counters, exitDistanceWorld);
+    return traceEntry(ray, {shell, float(distance), float(b1), float(b2)}, hit, counters,
+                      exitDistanceWorld);
 }
 
-bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit, TraceCounters& counters,
-                             float& exitDistanceWorld) const {
+bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
+                             TraceCounters& counters, float& exitDistanceWorld) const {
     const ShellTriangle& shell = triangles_[baseHit.triangle];
     const Material& material = scene_.objects[shell.object].material;
     hit.object = shell.object;
@@ -164,27 +179,32 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
     };
     const double u = interpolateUv(0) * material.uvScale.x;
     const double v = interpolateUv(1) * material.uvScale.y;
-    const glm::vec3 start(float((u - std::floor(u)) * size.width), float((v - std::floor(v)) * size.height),
-                          float(size.depth));
-    const bool done = withMarchFilter(options_.filter, material, options_.reference, [&](const auto& filter) {
-        hit.march = march(filter, start, direction, material.floor, options_.maxIterations, options_.epsilonTexels);
-        ++counters.shellEntries;
-        counters.marchIterations += std::uint64_t(hit.march.iterations);
-        if (hit.march.converged) ++counters.converged;
-        if (hit.march.exitedFloor) return false;
-        hit.onDetail = true;
-        hit.distanceWorld = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
-        hit.position = ray.origin + ray.direction * hit.distanceWorld;
-        return true;
-    });
-    if (done && !hit.march.onFloor) {
-        const glm::vec3 gradient = withMarchFilter(options_.normalFilter, material, options_.reference,
-                                                   [&](const auto& normalFilter) {
-            return normalFilter.gradient(hit.march.texelPosition);
+    const glm::vec3 start(float((u - std::floor(u)) * size.width),
+                          float((v - std::floor(v)) * size.height), float(size.depth));
+    const bool done =
+        withMarchFilter(options_.filter, material, options_.reference, [&](const auto& filter) {
+            hit.march = march(filter, start, direction, material.floor, options_.maxIterations,
+                              options_.epsilonTexels);
+            ++counters.shellEntries;
+            counters.marchIterations += std::uint64_t(hit.march.iterations);
+            if (hit.march.converged) ++counters.converged;
+            if (hit.march.exitedFloor) return false;
+            hit.onDetail = true;
+            hit.distanceWorld =
+                baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
+            hit.position = ray.origin + ray.direction * hit.distanceWorld;
+            return true;
         });
-        if (glm::length(gradient) > 1e-6f) hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
+    if (done && !hit.march.onFloor) {
+        const glm::vec3 gradient = withMarchFilter(
+            options_.normalFilter, material, options_.reference, [&](const auto& normalFilter) {
+                return normalFilter.gradient(hit.march.texelPosition);
+            });
+        if (glm::length(gradient) > 1e-6f)
+            hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
     }
-    if (!done) exitDistanceWorld = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
+    if (!done)
+        exitDistanceWorld = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
     return done;
 }
 

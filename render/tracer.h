@@ -5,10 +5,9 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "render/bvh.h"
 #include "render/march.h"
@@ -31,10 +30,10 @@ struct TraceOptions {
 /// The base surface where a ray enters an object's detail shell, with the linear map between
 /// world directions and the tile's texel space there (the per-pixel tangent frame, ch. 8).
 struct ShellEntry {
-    glm::vec3 position;        ///< on the base surface, world units
-    glm::vec3 normal;          ///< N, unit, outward
-    glm::vec3 tangent;         ///< T, unit, along +u
-    glm::vec3 bitangent;       ///< B, unit, along +v
+    glm::vec3 position;   ///< on the base surface, world units
+    glm::vec3 normal;     ///< N, unit, outward
+    glm::vec3 tangent;    ///< T, unit, along +u
+    glm::vec3 bitangent;  ///< B, unit, along +v
     glm::vec2 uv;
     glm::vec3 texelsPerWorld;  ///< scale of the T, B, N components into texels
     bool frontFacing = true;
@@ -65,12 +64,13 @@ struct TraceCounters {
 };
 
 class SceneTracer {
-public:
+  public:
     /// Preconditions: validateScene(scene) passed; `scene` outlives the tracer.
     SceneTracer(const Scene& scene, const TraceOptions& options);
 
     /// The nearest hit beyond `minDistance`, or false for a miss. Thread-safe.
-    bool traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit, TraceCounters& counters) const;
+    bool traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit,
+                      TraceCounters& counters) const;
 
     /// Base triangles of all objects, in scene order: shell `s` is the detail shell of one of them.
     std::uint32_t shellCount() const { return std::uint32_t(triangles_.size()); }
@@ -84,23 +84,23 @@ public:
     /// the top is hit in (minDistance, maxDistance) and the ray stops in this shell (detail, solid
     /// floor, end of the budget, or the bare base surface: a back face, no tile); false for a
     /// miss or when the ray leaves through an open floor. Thread-safe.
-    bool traceShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance, SurfaceHit& hit,
-                    TraceCounters& counters) const;
+    bool traceShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
+                    SurfaceHit& hit, TraceCounters& counters) const;
 
     const Scene& scene() const { return scene_; }
     const TraceOptions& options() const { return options_; }
 
-private:
+  private:
     struct ShellTriangle {
         std::uint32_t object;
         std::uint32_t localTriangle;
         glm::vec2 texelsPerWorldUv;  ///< texels per world unit along T and B (0: degenerate UVs)
     };
     ShellEntry shellEntry(const TriangleHit& hit, const Ray& ray) const;
-    /// The march of the shell the ray enters at `baseHit`: true with `hit` filled when the ray stops
-    /// there, false when it leaves through an open floor at `exitDistanceWorld`.
-    bool traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit, TraceCounters& counters,
-                    float& exitDistanceWorld) const;
+    /// The march of the shell the ray enters at `baseHit`: true with `hit` filled when the ray
+    /// stops there, false when it leaves through an open floor at `exitDistanceWorld`.
+    bool traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
+                    TraceCounters& counters, float& exitDistanceWorld) const;
 
     const Scene& scene_;
     TraceOptions options_;

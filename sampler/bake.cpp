@@ -23,13 +23,16 @@ BakeResult bakeProcedural(const ProceduralOptions& proceduralOptions, const Bake
                           const ProgressCallback& progress) {
     validateTileSize(options.size, "--size");
     if (!(options.halfBandTexels >= 0.0f)) {
-        throw InputError("--band: " + std::to_string(options.halfBandTexels) +
-                         " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
+        throw InputError(
+            "--band: " + std::to_string(options.halfBandTexels) +
+            " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
     }
     const ProceduralDistance procedural = proceduralDistance(proceduralOptions, options.size);
-    const float halfBand = options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
-    LevelSet levelSet = LevelSet::fromDistance(procedural.signedDistanceTexels, options.size, halfBand,
-                                               procedural.source, procedural.paramsJson, progress);
+    const float halfBand =
+        options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    LevelSet levelSet =
+        LevelSet::fromDistance(procedural.signedDistanceTexels, options.size, halfBand,
+                               procedural.source, procedural.paramsJson, progress);
     Tile tile = tileFromLevelSet(levelSet, options.conservative);
     return {std::move(levelSet), std::move(tile)};
 }
@@ -52,8 +55,9 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
     glm::dvec3 offset = placement.offsetTexels;
     if (placement.fit) {
         if (!(extent.x > 0.0 || extent.y > 0.0)) {
-            throw InputError("detail mesh: has no extent in x or y, so it cannot be fitted to "
-                             "the tile footprint; use --scale and --offset");
+            throw InputError(
+                "detail mesh: has no extent in x or y, so it cannot be fitted to "
+                "the tile footprint; use --scale and --offset");
         }
         scale = std::min(extent.x > 0.0 ? tile.width / extent.x : HUGE_VAL,
                          extent.y > 0.0 ? tile.height / extent.y : HUGE_VAL);
@@ -84,8 +88,8 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
               std::abs(texel.z) <= kMaxPlacedTexelCoordinate)) {
             std::ostringstream message;
             message << "detail mesh: placed at (" << texel.x << ", " << texel.y << ", " << texel.z
-                    << ") texels; placed coordinates must be within +-"
-                    << kMaxPlacedTexelCoordinate << " (check --scale and --offset)";
+                    << ") texels; placed coordinates must be within +-" << kMaxPlacedTexelCoordinate
+                    << " (check --scale and --offset)";
             throw InputError(message.str());
         }
         placed.positions.push_back(texel);
@@ -98,17 +102,19 @@ BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& plac
                     const InsideTest& insideTest) {
     validateTileSize(options.size, "--size");
     if (!(options.halfBandTexels >= 0.0f)) {
-        throw InputError("--band: " + std::to_string(options.halfBandTexels) +
-                         " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
+        throw InputError(
+            "--band: " + std::to_string(options.halfBandTexels) +
+            " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
     }
     const TriangleSoup placed = placeMesh(meshFileUnits, placement, options.size);
-    const float halfBand = options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    const float halfBand =
+        options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
     std::ostringstream params;
     params.precision(17);
-    params << "{\"placement\":\"" << (placement.fit ? "fit" : "explicit") << "\",\"triangles\":"
-           << placed.triangles.size() << "}";
-    LevelSet levelSet = levelSetFromMesh(placed, options.size, halfBand, "mesh", params.str(), progress,
-                                          insideTest);
+    params << "{\"placement\":\"" << (placement.fit ? "fit" : "explicit")
+           << "\",\"triangles\":" << placed.triangles.size() << "}";
+    LevelSet levelSet = levelSetFromMesh(placed, options.size, halfBand, "mesh", params.str(),
+                                         progress, insideTest);
     Tile tile = tileFromLevelSet(levelSet, options.conservative);
     return {std::move(levelSet), std::move(tile)};
 }
@@ -117,18 +123,21 @@ BakeResult bakeHeightMap(const HeightImage& image, const HeightMapOptions& heigh
                          const BakeOptions& options, const ProgressCallback& progress) {
     validateTileSize(options.size, "--size");
     if (!(options.halfBandTexels >= 0.0f)) {
-        throw InputError("--band: " + std::to_string(options.halfBandTexels) +
-                         " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
+        throw InputError(
+            "--band: " + std::to_string(options.halfBandTexels) +
+            " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
     }
     const double heightTexels =
         heightMap.heightTexels != 0.0 ? heightMap.heightTexels : double(options.size.depth - 1);
     const HeightField field = heightFieldFromImage(image, options.size, heightTexels);
-    const float halfBand = options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    const float halfBand =
+        options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
     std::ostringstream params;
     params.precision(17);
-    params << "{\"image\":\"" << image.width << "x" << image.height << "\",\"height_texels\":" << heightTexels
-           << "}";
-    LevelSet levelSet = levelSetFromHeightField(field, options.size, halfBand, "heightmap", params.str(), progress);
+    params << "{\"image\":\"" << image.width << "x" << image.height
+           << "\",\"height_texels\":" << heightTexels << "}";
+    LevelSet levelSet =
+        levelSetFromHeightField(field, options.size, halfBand, "heightmap", params.str(), progress);
     Tile tile = tileFromLevelSet(levelSet, options.conservative);
     return {std::move(levelSet), std::move(tile)};
 }

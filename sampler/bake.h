@@ -50,8 +50,8 @@ BakeResult bakeProcedural(const ProceduralOptions& procedural, const BakeOptions
 /// - Explicit: texel position = scale * file position + offsetTexels.
 struct MeshPlacement {
     bool fit = true;
-    double scale = 1.0;               ///< Explicit only: texels per file unit, > 0
-    glm::dvec3 offsetTexels{0.0};     ///< Explicit only: where the file's origin goes, texels
+    double scale = 1.0;            ///< Explicit only: texels per file unit, > 0
+    glm::dvec3 offsetTexels{0.0};  ///< Explicit only: where the file's origin goes, texels
 };
 
 /// Largest texel coordinate a placed mesh may have: beyond 2^20 a float (OpenVDB's mesh

@@ -28,9 +28,10 @@ namespace distile {
 struct ConservativeOptions {
     bool enabled = true;            ///< false: keep the exact texel-centre distances
     float toleranceTexels = 0.05f;  ///< overestimate the correction aims to stay below, texels
-    float smoothFactor = 0.15f;     ///< lowering per unit of second difference (1/8 = exact for constant curvature)
+    float smoothFactor =
+        0.15f;  ///< lowering per unit of second difference (1/8 = exact for constant curvature)
     float kinkThresholdTexels = 0.8f;  ///< second differences above this are treated as kinks
-    float kinkFactor = 0.3f;        ///< lowering per unit of second difference at a kink (at most 1/2)
+    float kinkFactor = 0.3f;  ///< lowering per unit of second difference at a kink (at most 1/2)
 };
 
 /// Lowers the texels of `tile` as the file note says (nothing when !options.enabled). Multi-

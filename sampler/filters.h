@@ -10,7 +10,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <glm/vec3.hpp>
 
 #include "sampler/tile.h"
@@ -51,7 +50,7 @@ inline AxisLerp clampedAxis(float position, int extent) {
 
 /// Nearest-texel lookup (the reference for "no filtering").
 class NearestFilter {
-public:
+  public:
     explicit NearestFilter(const Tile& tile) : tile_(tile) {}
 
     float distanceTexels(const glm::vec3& texelPosition) const {
@@ -78,14 +77,14 @@ public:
                 (tile_.at(x, y, zHigh) - tile_.at(x, y, zLow)) / float(std::max(zHigh - zLow, 1))};
     }
 
-private:
+  private:
     const Tile& tile_;
 };
 
 /// Trilinear interpolation between the 8 surrounding texel centres. The gradient is the exact
 /// derivative of the trilinear interpolant (piecewise constant in each axis' own direction).
 class TrilinearFilter {
-public:
+  public:
     explicit TrilinearFilter(const Tile& tile) : tile_(tile) {}
 
     float distanceTexels(const glm::vec3& texelPosition) const {
@@ -99,7 +98,8 @@ public:
     /// axis (indices already wrapped or clamped into the tile, weight = fraction toward `upper`).
     /// The building block of the third-order filters of sampler/tricubic.h. Preconditions: the
     /// indices are inside the tile; no checks.
-    float fetch(const detail::AxisLerp& x, const detail::AxisLerp& y, const detail::AxisLerp& z) const {
+    float fetch(const detail::AxisLerp& x, const detail::AxisLerp& y,
+                const detail::AxisLerp& z) const {
         const Corners c = corners(x, y, z);
         const float fx = c.x.weight;
         const float fy = c.y.weight;
@@ -126,7 +126,7 @@ public:
         return {dx, dy, dz};
     }
 
-private:
+  private:
     struct Corners {
         detail::AxisLerp x, y, z;
         float v[8];  ///< corner values, index bit 0: x upper, bit 1: y upper, bit 2: z upper
@@ -136,18 +136,22 @@ private:
 
     Corners corners(const glm::vec3& p) const {
         const Size3& size = tile_.size();
-        return corners(detail::periodicAxis(p.x, size.width), detail::periodicAxis(p.y, size.height),
+        return corners(detail::periodicAxis(p.x, size.width),
+                       detail::periodicAxis(p.y, size.height),
                        detail::clampedAxis(p.z, size.depth));
     }
 
-    Corners corners(const detail::AxisLerp& x, const detail::AxisLerp& y, const detail::AxisLerp& z) const {
+    Corners corners(const detail::AxisLerp& x, const detail::AxisLerp& y,
+                    const detail::AxisLerp& z) const {
         const Size3& size = tile_.size();
         Corners c{x, y, z, {}};
         const float* data = tile_.distancesTexels().data();
         const std::size_t strideY = std::size_t(size.width);
         const std::size_t strideZ = strideY * std::size_t(size.height);
-        const std::size_t rows[2] = {std::size_t(c.y.lower) * strideY, std::size_t(c.y.upper) * strideY};
-        const std::size_t slabs[2] = {std::size_t(c.z.lower) * strideZ, std::size_t(c.z.upper) * strideZ};
+        const std::size_t rows[2] = {std::size_t(c.y.lower) * strideY,
+                                     std::size_t(c.y.upper) * strideY};
+        const std::size_t slabs[2] = {std::size_t(c.z.lower) * strideZ,
+                                      std::size_t(c.z.upper) * strideZ};
         const std::size_t columns[2] = {std::size_t(c.x.lower), std::size_t(c.x.upper)};
         for (int corner = 0; corner < 8; ++corner) {
             c.v[corner] = data[columns[corner & 1] + rows[(corner >> 1) & 1] + slabs[corner >> 2]];

@@ -31,7 +31,8 @@ HeightImage readHeightImage(const fs::path& file) {
     std::error_code status;
     if (!fs::exists(file, status)) throw InputError(file.string() + ": no such file");
     if (fs::is_directory(file, status)) {
-        throw InputError(file.string() + ": is a folder; a height map image (.png, .exr) is expected");
+        throw InputError(file.string() +
+                         ": is a folder; a height map image (.png, .exr) is expected");
     }
     auto input = OIIO::ImageInput::open(file.string());
     if (!input) {
@@ -44,9 +45,10 @@ HeightImage readHeightImage(const fs::path& file) {
     if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1 ||
         pixels > kMaxHeightImagePixels) {
         std::ostringstream message;
-        message << file.string() << ": image of " << spec.width << "x" << spec.height << " pixels and "
-                << spec.nchannels << " channel(s) is not accepted; a height map has 1 to "
-                << kMaxHeightImagePixels << " pixels in one 2D image";
+        message << file.string() << ": image of " << spec.width << "x" << spec.height
+                << " pixels and " << spec.nchannels
+                << " channel(s) is not accepted; a height map has 1 to " << kMaxHeightImagePixels
+                << " pixels in one 2D image";
         throw FormatError(message.str());
     }
     const int channels = spec.nchannels;
@@ -66,8 +68,9 @@ HeightImage readHeightImage(const fs::path& file) {
             channels >= 3 ? 0.2126f * pixel[0] + 0.7152f * pixel[1] + 0.0722f * pixel[2] : pixel[0];
         if (!(std::isfinite(grey) && grey >= 0.0f && grey <= 1.0f)) {
             std::ostringstream message;
-            message << file.string() << ": height " << grey << " at pixel (" << n % std::size_t(image.width) << ", "
-                    << n / std::size_t(image.width) << ") is not accepted; heights must be finite and in [0, 1]";
+            message << file.string() << ": height " << grey << " at pixel ("
+                    << n % std::size_t(image.width) << ", " << n / std::size_t(image.width)
+                    << ") is not accepted; heights must be finite and in [0, 1]";
             throw FormatError(message.str());
         }
         image.values[n] = grey;
@@ -77,15 +80,17 @@ HeightImage readHeightImage(const fs::path& file) {
 
 HeightField heightFieldFromImage(const HeightImage& image, const Size3& tile, double heightTexels) {
     validateTileSize(tile, "--size");
-    if (!(std::isfinite(heightTexels) && heightTexels > 0.0 && heightTexels <= double(tile.depth))) {
+    if (!(std::isfinite(heightTexels) && heightTexels > 0.0 &&
+          heightTexels <= double(tile.depth))) {
         std::ostringstream message;
-        message << "--height-texels: " << heightTexels << " is not accepted; it must be > 0 and at most the tile depth "
-                << tile.depth;
+        message << "--height-texels: " << heightTexels
+                << " is not accepted; it must be > 0 and at most the tile depth " << tile.depth;
         throw InputError(message.str());
     }
     if (image.width <= 0 || image.height <= 0 ||
         image.values.size() != std::size_t(image.width) * std::size_t(image.height)) {
-        throw InputError("height map: the image is empty or its size does not match its pixel count");
+        throw InputError(
+            "height map: the image is empty or its size does not match its pixel count");
     }
     const auto pixel = [&](int c, int r) {
         return double(image.values[std::size_t(wrap(c, image.width)) +

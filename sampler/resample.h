@@ -9,11 +9,11 @@
 namespace distile {
 
 /// The tile of the level set's footprint: the level set's voxels are texel-aligned (voxel
-/// (i, j, k) at texel centre (i+0.5, j+0.5, k+0.5)), so each texel takes its voxel's value, exactly.
-/// Texels outside the narrow band hold +/- the half band width. Provenance comes from the level set.
-/// Then, by default, the texels are lowered so trilinear interpolation does not overestimate
-/// (sampler/conservative.h; `conservative.enabled = false` keeps the exact voxel values).
-/// Throws InputError for bad conservative options.
+/// (i, j, k) at texel centre (i+0.5, j+0.5, k+0.5)), so each texel takes its voxel's value,
+/// exactly. Texels outside the narrow band hold +/- the half band width. Provenance comes from the
+/// level set. Then, by default, the texels are lowered so trilinear interpolation does not
+/// overestimate (sampler/conservative.h; `conservative.enabled = false` keeps the exact voxel
+/// values). Throws InputError for bad conservative options.
 Tile tileFromLevelSet(const LevelSet& levelSet, const ConservativeOptions& conservative = {});
 
 }  // namespace distile

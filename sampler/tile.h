@@ -20,7 +20,7 @@ struct TileProvenance {
 };
 
 class Tile {
-public:
+  public:
     /// A tile of `size` texels, all distances set to `fillTexels`. Throws InputError for sizes
     /// validateTileSize() rejects.
     explicit Tile(const Size3& size, float fillTexels = 0.0f);
@@ -29,7 +29,8 @@ public:
 
     /// Index of texel (x, y, z) in distancesTexels(); x fastest. Preconditions: 0 <= x < W etc.
     std::size_t index(int x, int y, int z) const {
-        return std::size_t(x) + std::size_t(size_.width) * (std::size_t(y) + std::size_t(size_.height) * std::size_t(z));
+        return std::size_t(x) + std::size_t(size_.width) *
+                                    (std::size_t(y) + std::size_t(size_.height) * std::size_t(z));
     }
     float at(int x, int y, int z) const { return distances_[index(x, y, z)]; }
     float& at(int x, int y, int z) { return distances_[index(x, y, z)]; }
@@ -39,7 +40,7 @@ public:
 
     TileProvenance provenance;
 
-private:
+  private:
     Size3 size_;
     std::vector<float> distances_;
 };

@@ -10,10 +10,12 @@
 
 namespace distile {
 
-TileErrorReport measureTileError(const Tile& tile, const std::function<double(const glm::dvec3&)>& truth,
+TileErrorReport measureTileError(const Tile& tile,
+                                 const std::function<double(const glm::dvec3&)>& truth,
                                  const TileErrorOptions& options) {
     if (options.samples < 1) {
-        throw InputError("--samples: " + std::to_string(options.samples) + " is not accepted; it must be at least 1");
+        throw InputError("--samples: " + std::to_string(options.samples) +
+                         " is not accepted; it must be at least 1");
     }
     auto requireNonNegative = [](double value, const char* field) {
         if (!(value >= 0.0 && std::isfinite(value))) {
@@ -25,7 +27,8 @@ TileErrorReport measureTileError(const Tile& tile, const std::function<double(co
     requireNonNegative(options.overestimateToleranceTexels, "--max-overestimate");
     requireNonNegative(options.signMarginTexels, "sign margin");
     if (!(options.truthClampTexels > 0.0)) {
-        throw InputError("truth clamp: " + std::to_string(options.truthClampTexels) + " is not accepted; it must be > 0");
+        throw InputError("truth clamp: " + std::to_string(options.truthClampTexels) +
+                         " is not accepted; it must be > 0");
     }
 
     const Size3& size = tile.size();
@@ -41,7 +44,8 @@ TileErrorReport measureTileError(const Tile& tile, const std::function<double(co
     }
     std::vector<float> tileValues(points.size());
     withFilter(options.filter, tile, [&](const auto& filter) {
-        for (std::size_t i = 0; i < points.size(); ++i) tileValues[i] = filter.distanceTexels(glm::vec3(points[i]));
+        for (std::size_t i = 0; i < points.size(); ++i)
+            tileValues[i] = filter.distanceTexels(glm::vec3(points[i]));
     });
 
     TileErrorReport report;
@@ -62,7 +66,8 @@ TileErrorReport measureTileError(const Tile& tile, const std::function<double(co
         }
         report.maxOverestimateTexels = std::max(report.maxOverestimateTexels, error);
         if (error > options.overestimateToleranceTexels) ++report.overestimates;
-        if (std::abs(trueDistance) > options.signMarginTexels && (tileValues[i] < 0.0f) != (trueDistance < 0.0)) {
+        if (std::abs(trueDistance) > options.signMarginTexels &&
+            (tileValues[i] < 0.0f) != (trueDistance < 0.0)) {
             ++report.signErrors;
         }
         if (std::abs(trueDistance) <= options.nearSurfaceTexels) {

@@ -7,9 +7,8 @@
 
 #include <cstdint>
 #include <functional>
-#include <limits>
-
 #include <glm/vec3.hpp>
+#include <limits>
 
 #include "sampler/filter_choice.h"
 #include "sampler/tile.h"
@@ -17,12 +16,13 @@
 namespace distile {
 
 struct TileErrorOptions {
-    int samples = 100000;                     ///< uniform random points, >= 1
-    std::uint64_t seed = 1;                   ///< the points depend only on the seed and the tile size
+    int samples = 100000;    ///< uniform random points, >= 1
+    std::uint64_t seed = 1;  ///< the points depend only on the seed and the tile size
     FilterKind filter = FilterKind::Trilinear;
-    double nearSurfaceTexels = 2.0;           ///< "near the surface": |true distance| <= this
-    double overestimateToleranceTexels = 0.05;  ///< tile - truth above this counts as an overestimate
-    double signMarginTexels = 1.0;            ///< sign errors are counted where |truth| > this
+    double nearSurfaceTexels = 2.0;  ///< "near the surface": |true distance| <= this
+    double overestimateToleranceTexels =
+        0.05;                       ///< tile - truth above this counts as an overestimate
+    double signMarginTexels = 1.0;  ///< sign errors are counted where |truth| > this
     /// The truth is clamped to [-this, this] before comparing: a tile stores its level set's
     /// narrow band, distances beyond it clamped to +-band (pass the band, e.g. the tile's largest
     /// |value|). Infinity: no clamp.
@@ -31,25 +31,27 @@ struct TileErrorOptions {
 
 struct TileErrorReport {
     int samples = 0;
-    int nearSamples = 0;                 ///< samples with |truth| <= nearSurfaceTexels
-    double rmsTexels = 0.0;              ///< RMS of tile - truth over all samples
-    double maxAbsTexels = 0.0;           ///< largest |tile - truth|
-    glm::dvec3 maxAbsAt{0.0};            ///< where it occurs (texel space)
-    double maxAbsTruthTexels = 0.0;      ///< the true distance there
-    double nearRmsTexels = 0.0;          ///< RMS over the near samples (0 if none)
-    double nearMaxAbsTexels = 0.0;       ///< largest |error| over the near samples
-    double nearP999Texels = 0.0;         ///< 99.9th percentile of |error| over the near samples
-    double maxOverestimateTexels = 0.0;  ///< largest tile - truth (0 if the tile never overestimates)
-    int overestimates = 0;               ///< samples with tile - truth > overestimateToleranceTexels
-    double overestimateShare = 0.0;      ///< overestimates / samples
-    int signErrors = 0;                  ///< samples with |truth| > signMarginTexels and the other sign in the tile
+    int nearSamples = 0;             ///< samples with |truth| <= nearSurfaceTexels
+    double rmsTexels = 0.0;          ///< RMS of tile - truth over all samples
+    double maxAbsTexels = 0.0;       ///< largest |tile - truth|
+    glm::dvec3 maxAbsAt{0.0};        ///< where it occurs (texel space)
+    double maxAbsTruthTexels = 0.0;  ///< the true distance there
+    double nearRmsTexels = 0.0;      ///< RMS over the near samples (0 if none)
+    double nearMaxAbsTexels = 0.0;   ///< largest |error| over the near samples
+    double nearP999Texels = 0.0;     ///< 99.9th percentile of |error| over the near samples
+    double maxOverestimateTexels =
+        0.0;                         ///< largest tile - truth (0 if the tile never overestimates)
+    int overestimates = 0;           ///< samples with tile - truth > overestimateToleranceTexels
+    double overestimateShare = 0.0;  ///< overestimates / samples
+    int signErrors = 0;  ///< samples with |truth| > signMarginTexels and the other sign in the tile
 };
 
 /// Samples `tile` with options.filter and `truth` (signed distance in texels at a texel-space
 /// point; called on this thread only, in the order of the points) at options.samples uniform
 /// random points. Deterministic for a seed. Throws InputError when samples < 1 or a tolerance or
 /// margin is negative or not finite.
-TileErrorReport measureTileError(const Tile& tile, const std::function<double(const glm::dvec3&)>& truth,
+TileErrorReport measureTileError(const Tile& tile,
+                                 const std::function<double(const glm::dvec3&)>& truth,
                                  const TileErrorOptions& options = {});
 
 }  // namespace distile

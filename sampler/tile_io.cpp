@@ -1,12 +1,11 @@
 #include "sampler/tile_io.h"
 
-#include <cctype>
-
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -29,7 +28,6 @@ std::string lowerExtension(const std::filesystem::path& file) {
     for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
     return extension;
 }
-
 
 constexpr const char* kFormatVersion = "0.1.0";
 constexpr const char* kChannelName = "distance";

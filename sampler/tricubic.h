@@ -16,16 +16,14 @@
 /// march keeps trilinear distances and uses this filter for normals and curvature.
 #pragma once
 
-#include "sampler/filters.h"
-
 #include <algorithm>
 #include <cassert>
 #include <cmath>
-
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 
+#include "sampler/filters.h"
 #include "sampler/tile.h"
 
 namespace distile {
@@ -75,7 +73,8 @@ inline CubicWeights bsplineWeights(float a) {
 
 inline CubicWeights bsplineDerivativeWeights(float a) {
     const float b = 1.0f - a;
-    return {{-0.5f * b * b, 0.5f * a * (3.0f * a - 4.0f), 0.5f * b * (3.0f * a + 1.0f), 0.5f * a * a}};
+    return {
+        {-0.5f * b * b, 0.5f * a * (3.0f * a - 4.0f), 0.5f * b * (3.0f * a + 1.0f), 0.5f * a * a}};
 }
 
 inline CubicWeights catmullRomWeights(float a) {
@@ -96,13 +95,15 @@ struct LinearFetches {
 };
 
 /// Two fetches for weights that form same-sign pairs (w0, w1) and (w2, w3), as the cubic
-/// B-spline's and its first derivative's do: w0 f0 + w1 f1 = (w0 + w1) lerp(f0, f1, w1 / (w0 + w1)).
-/// Precondition: neither pair sums to zero (true for those weights on [0, 1]).
+/// B-spline's and its first derivative's do: w0 f0 + w1 f1 = (w0 + w1) lerp(f0, f1, w1 / (w0 +
+/// w1)). Precondition: neither pair sums to zero (true for those weights on [0, 1]).
 inline LinearFetches pairedFetches(const CubicAxis& axis, const CubicWeights& weights) {
     const float low = weights.w[0] + weights.w[1];
     const float high = weights.w[2] + weights.w[3];
     assert(low != 0.0f && high != 0.0f);
-    return {{{axis.tap[0], axis.tap[1], weights.w[1] / low}, {axis.tap[2], axis.tap[3], weights.w[3] / high}, {}},
+    return {{{axis.tap[0], axis.tap[1], weights.w[1] / low},
+             {axis.tap[2], axis.tap[3], weights.w[3] / high},
+             {}},
             {low, high, 0.0f},
             2};
 }
@@ -111,20 +112,23 @@ inline LinearFetches pairedFetches(const CubicAxis& axis, const CubicWeights& we
 /// are the (1, -2, 1) difference of linear fetches one texel apart.
 inline LinearFetches secondDerivativeFetches(const CubicAxis& axis) {
     const float a = axis.fraction;
-    return {{{axis.tap[0], axis.tap[1], a}, {axis.tap[1], axis.tap[2], a}, {axis.tap[2], axis.tap[3], a}},
+    return {{{axis.tap[0], axis.tap[1], a},
+             {axis.tap[1], axis.tap[2], a},
+             {axis.tap[2], axis.tap[3], a}},
             {1.0f, -2.0f, 1.0f},
             3};
 }
 
 /// The weighted sum of the fetches' tensor product: one filter output from linear fetches.
-inline float sumOfFetches(const TrilinearFilter& linear, const LinearFetches& x, const LinearFetches& y,
-                          const LinearFetches& z) {
+inline float sumOfFetches(const TrilinearFilter& linear, const LinearFetches& x,
+                          const LinearFetches& y, const LinearFetches& z) {
     float sum = 0.0f;
     for (int k = 0; k < z.count; ++k) {
         float plane = 0.0f;
         for (int j = 0; j < y.count; ++j) {
             float row = 0.0f;
-            for (int i = 0; i < x.count; ++i) row += x.weight[i] * linear.fetch(x.fetch[i], y.fetch[j], z.fetch[k]);
+            for (int i = 0; i < x.count; ++i)
+                row += x.weight[i] * linear.fetch(x.fetch[i], y.fetch[j], z.fetch[k]);
             plane += y.weight[j] * row;
         }
         sum += z.weight[k] * plane;
@@ -151,7 +155,7 @@ inline float sumOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y,
 
 /// Cubic B-spline reconstruction (approximating, C2), evaluated from trilinear fetches.
 class TricubicBSplineFilter {
-public:
+  public:
     /// Precondition: `tile` outlives the filter (validated tiles have every extent >= 2).
     explicit TricubicBSplineFilter(const Tile& tile) : tile_(tile), linear_(tile) {}
 
@@ -165,7 +169,8 @@ public:
     float distanceTexels64Tap(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
         return detail::sumOfTaps(tile_, a.x, a.y, a.z, detail::bsplineWeights(a.x.fraction),
-                                 detail::bsplineWeights(a.y.fraction), detail::bsplineWeights(a.z.fraction));
+                                 detail::bsplineWeights(a.y.fraction),
+                                 detail::bsplineWeights(a.z.fraction));
     }
 
     /// Exact first derivatives of the filtered field (texels per texel), continuous everywhere:
@@ -173,8 +178,10 @@ public:
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
         const detail::LinearFetches vx = value(a.x), vy = value(a.y), vz = value(a.z);
-        const detail::LinearFetches dx = derivative(a.x), dy = derivative(a.y), dz = derivative(a.z);
-        return {detail::sumOfFetches(linear_, dx, vy, vz), detail::sumOfFetches(linear_, vx, dy, vz),
+        const detail::LinearFetches dx = derivative(a.x), dy = derivative(a.y),
+                                    dz = derivative(a.z);
+        return {detail::sumOfFetches(linear_, dx, vy, vz),
+                detail::sumOfFetches(linear_, vx, dy, vz),
                 detail::sumOfFetches(linear_, vx, vy, dz)};
     }
 
@@ -184,24 +191,29 @@ public:
     glm::mat3 hessian(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
         const detail::LinearFetches vx = value(a.x), vy = value(a.y), vz = value(a.z);
-        const detail::LinearFetches dx = derivative(a.x), dy = derivative(a.y), dz = derivative(a.z);
-        const float xx = detail::sumOfFetches(linear_, detail::secondDerivativeFetches(a.x), vy, vz);
-        const float yy = detail::sumOfFetches(linear_, vx, detail::secondDerivativeFetches(a.y), vz);
-        const float zz = detail::sumOfFetches(linear_, vx, vy, detail::secondDerivativeFetches(a.z));
+        const detail::LinearFetches dx = derivative(a.x), dy = derivative(a.y),
+                                    dz = derivative(a.z);
+        const float xx =
+            detail::sumOfFetches(linear_, detail::secondDerivativeFetches(a.x), vy, vz);
+        const float yy =
+            detail::sumOfFetches(linear_, vx, detail::secondDerivativeFetches(a.y), vz);
+        const float zz =
+            detail::sumOfFetches(linear_, vx, vy, detail::secondDerivativeFetches(a.z));
         const float xy = detail::sumOfFetches(linear_, dx, dy, vz);
         const float xz = detail::sumOfFetches(linear_, dx, vy, dz);
         const float yz = detail::sumOfFetches(linear_, vx, dy, dz);
         return glm::mat3(xx, xy, xz, xy, yy, yz, xz, yz, zz);
     }
 
-private:
+  private:
     struct Axes {
         detail::CubicAxis x, y, z;
     };
 
     Axes axes(const glm::vec3& p) const {
         const Size3& size = tile_.size();
-        return {detail::periodicCubicAxis(p.x, size.width), detail::periodicCubicAxis(p.y, size.height),
+        return {detail::periodicCubicAxis(p.x, size.width),
+                detail::periodicCubicAxis(p.y, size.height),
                 detail::clampedCubicAxis(p.z, size.depth)};
     }
     static detail::LinearFetches value(const detail::CubicAxis& axis) {
@@ -219,7 +231,7 @@ private:
 /// centres, reproduces linear functions, may overshoot between texels. Its outer tap weights are
 /// negative, so the pairing trick does not apply: it reads the 64 taps directly.
 class CatmullRomFilter {
-public:
+  public:
     /// Precondition: `tile` outlives the filter.
     explicit CatmullRomFilter(const Tile& tile) : tile_(tile) {}
 
@@ -227,7 +239,8 @@ public:
     float distanceTexels(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
         return detail::sumOfTaps(tile_, a.x, a.y, a.z, detail::catmullRomWeights(a.x.fraction),
-                                 detail::catmullRomWeights(a.y.fraction), detail::catmullRomWeights(a.z.fraction));
+                                 detail::catmullRomWeights(a.y.fraction),
+                                 detail::catmullRomWeights(a.z.fraction));
     }
 
     /// Exact first derivatives of the interpolant (texels per texel), one pass over the 64 taps.
@@ -257,13 +270,14 @@ public:
         return sum;
     }
 
-private:
+  private:
     struct Axes {
         detail::CubicAxis x, y, z;
     };
     Axes axes(const glm::vec3& p) const {
         const Size3& size = tile_.size();
-        return {detail::periodicCubicAxis(p.x, size.width), detail::periodicCubicAxis(p.y, size.height),
+        return {detail::periodicCubicAxis(p.x, size.width),
+                detail::periodicCubicAxis(p.y, size.height),
                 detail::clampedCubicAxis(p.z, size.depth)};
     }
 

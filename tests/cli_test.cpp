@@ -13,12 +13,11 @@
 #include <fstream>
 #include <initializer_list>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "render/image.h"
 
@@ -396,7 +395,8 @@ namespace {
 // A small grating (4 bars per layer on 128 x 128 x 16: the default bars, 8 wide at a 32-texel
 // spacing) bakes in about a second; its conservative tile meets check's default tolerances
 // (measured: no overestimate beyond 0.05, RMS 0.08; a 16-texel spacing has RMS 0.11 > 0.1).
-const std::vector<std::string> kBakeGrating = {"bake", "grating", "--size", "128x128x16", "--bars", "4", "-o", "grating.exr"};
+const std::vector<std::string> kBakeGrating = {"bake",   "grating", "--size", "128x128x16",
+                                               "--bars", "4",       "-o",     "grating.exr"};
 
 TEST_F(Cli, CheckPassesOnAGoodTileAndPrintsTheFigures) {
     ASSERT_EQ(run(kBakeGrating).status, 0);
@@ -409,7 +409,8 @@ TEST_F(Cli, CheckPassesOnAGoodTileAndPrintsTheFigures) {
 TEST_F(Cli, CheckExitsOneWhenAToleranceIsExceeded) {
     ASSERT_EQ(run(kBakeGrating).status, 0);
     // No tile is that close to the truth.
-    const RunResult strict = run({"check", "grating.exr", "--samples", "20000", "--max-rms", "0.0001"});
+    const RunResult strict =
+        run({"check", "grating.exr", "--samples", "20000", "--max-rms", "0.0001"});
     EXPECT_EQ(strict.status, 1) << strict.out << strict.err;
     EXPECT_NE(strict.out.find("FAILED: RMS"), std::string::npos) << strict.out;
     // The exact texel values overestimate between samples outside the rounded edges.
@@ -417,9 +418,11 @@ TEST_F(Cli, CheckExitsOneWhenAToleranceIsExceeded) {
     exact.back() = "exact.exr";
     exact.push_back("--exact-texels");
     ASSERT_EQ(run(exact).status, 0);
-    const RunResult overestimating = run({"check", "exact.exr", "--samples", "20000", "--max-overestimate", "0.01"});
+    const RunResult overestimating =
+        run({"check", "exact.exr", "--samples", "20000", "--max-overestimate", "0.01"});
     EXPECT_EQ(overestimating.status, 1) << overestimating.out << overestimating.err;
-    EXPECT_NE(overestimating.out.find("FAILED: overestimates"), std::string::npos) << overestimating.out;
+    EXPECT_NE(overestimating.out.find("FAILED: overestimates"), std::string::npos)
+        << overestimating.out;
 }
 
 TEST_F(Cli, CheckJsonIsOneObjectWithTheFigures) {
@@ -429,8 +432,8 @@ TEST_F(Cli, CheckJsonIsOneObjectWithTheFigures) {
     const nlohmann::json report = nlohmann::json::parse(result.out);
     EXPECT_EQ(report.at("samples").get<int>(), 5000);
     EXPECT_TRUE(report.at("passed").get<bool>());
-    for (const char* key : {"rms", "max_abs", "near_rms", "near_max_abs", "near_p999_abs", "overestimate_share",
-                            "sign_errors", "max_abs_at"}) {
+    for (const char* key : {"rms", "max_abs", "near_rms", "near_max_abs", "near_p999_abs",
+                            "overestimate_share", "sign_errors", "max_abs_at"}) {
         EXPECT_TRUE(report.contains(key)) << key;
     }
     EXPECT_LE(report.at("rms").get<double>(), 0.1);
@@ -438,14 +441,17 @@ TEST_F(Cli, CheckJsonIsOneObjectWithTheFigures) {
 
 TEST_F(Cli, CheckAgainstTheLevelSetAndRejectsBadInput) {
     std::vector<std::string> bake = kBakeGrating;
-    bake.insert(bake.end(), {"--vdb", "grating.vdb", "--png8", "grating8.png", "--png16", "grating16.png"});
+    bake.insert(bake.end(),
+                {"--vdb", "grating.vdb", "--png8", "grating8.png", "--png16", "grating16.png"});
     ASSERT_EQ(run(bake).status, 0);
     EXPECT_TRUE(fs::exists(path("grating8.png")));
     EXPECT_TRUE(fs::exists(path("grating16.png")));
-    const RunResult result = run({"check", "grating.exr", "--against", "grating.vdb", "--samples", "5000", "--json"});
+    const RunResult result =
+        run({"check", "grating.exr", "--against", "grating.vdb", "--samples", "5000", "--json"});
     EXPECT_EQ(result.status, 0) << result.out << result.err;
     expectInputError({"check", "missing.exr"}, "missing.exr", {"missing.exr"});
-    expectInputError({"check", "grating.exr", "--against", "missing.vdb"}, "missing.vdb", {"missing.vdb"});
+    expectInputError({"check", "grating.exr", "--against", "missing.vdb"}, "missing.vdb",
+                     {"missing.vdb"});
     expectInputError({"check", "grating.exr", "--samples", "0"}, "x", {"--samples"});
 }
 
@@ -455,23 +461,26 @@ TEST_F(Cli, BakeRepeatWritesTheTiledLevelSet) {
     const RunResult result = run(bake);
     ASSERT_EQ(result.status, 0) << result.err;
     EXPECT_NE(result.out.find("256x384x16"), std::string::npos) << result.out;
-    expectInputError({"bake", "grating", "--size", "128x128x16", "--bars", "4", "-o", "r.exr", "--vdb", "r.vdb",
-                      "--repeat", "2by2"},
+    expectInputError({"bake", "grating", "--size", "128x128x16", "--bars", "4", "-o", "r.exr",
+                      "--vdb", "r.vdb", "--repeat", "2by2"},
                      "r.exr", {"--repeat", "2by2"});
-    expectInputError({"bake", "grating", "--size", "128x128x16", "--bars", "4", "-o", "r.exr", "--vdb", "r.vdb",
-                      "--repeat", "0x2"},
+    expectInputError({"bake", "grating", "--size", "128x128x16", "--bars", "4", "-o", "r.exr",
+                      "--vdb", "r.vdb", "--repeat", "0x2"},
                      "r.exr", {"--repeat", "0x2"});
-    expectInputError({"bake", "grating", "--size", "128x128x16", "--bars", "4", "-o", "r.exr", "--repeat", "2x2"},
+    expectInputError({"bake", "grating", "--size", "128x128x16", "--bars", "4", "-o", "r.exr",
+                      "--repeat", "2x2"},
                      "r.exr", {"--repeat", "--vdb"});
 }
 
 TEST_F(Cli, BakesTheJapaneseWeaveAndChecksItAgainstItsParams) {
-    const RunResult bake = run({"bake", "chainmail", "--weave", "japanese4in1", "-o", "japanese.exr"});
+    const RunResult bake =
+        run({"bake", "chainmail", "--weave", "japanese4in1", "-o", "japanese.exr"});
     ASSERT_EQ(bake.status, 0) << bake.err;
     const RunResult check = run({"check", "japanese.exr", "--samples", "20000", "--json"});
     EXPECT_EQ(check.status, 0) << check.out << check.err;
     EXPECT_NE(check.out.find("japanese4in1"), std::string::npos) << check.out;
-    expectInputError({"bake", "chainmail", "--weave", "byzantine", "-o", "b.exr"}, "b.exr", {"--weave", "byzantine"});
+    expectInputError({"bake", "chainmail", "--weave", "byzantine", "-o", "b.exr"}, "b.exr",
+                     {"--weave", "byzantine"});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -485,17 +494,18 @@ const char* const kCubeObj =
 TEST_F(Cli, BakesAClosedMeshWithVerifiedSignAndChecksItAgainstTheMesh) {
     writeText(path("cube.obj"), kCubeObj);
     // A 10-texel cube at (5, 5, 2) in a 32x32x16 tile.
-    const RunResult bake = run({"bake", "mesh", "cube.obj", "-o", "cube.exr", "--size", "32x32x16", "--scale", "10",
-                                "--offset", "5,5,2", "--vdb", "cube.vdb"});
+    const RunResult bake = run({"bake", "mesh", "cube.obj", "-o", "cube.exr", "--size", "32x32x16",
+                                "--scale", "10", "--offset", "5,5,2", "--vdb", "cube.vdb"});
     ASSERT_EQ(bake.status, 0) << bake.out << bake.err;
     EXPECT_NE(bake.out.find("sign verified"), std::string::npos) << bake.out;
     EXPECT_TRUE(fs::exists(path("cube.exr")));
-    // Against the exact mesh distance: no sign errors. The level set's voxels are exact (truth_test),
-    // but trilinear reconstruction between them rounds the cube's edges and corners (errors up to
-    // ~0.8 texel there, plus the conservative lowering), so only a loose bound on the error.
-    const RunResult check = run({"check", "cube.exr", "--against", "cube.obj", "--scale", "10", "--offset", "5", "5",
-                                 "2", "--samples", "20000", "--json", "--max-overestimate-share", "1",
-                                 "--max-rms", "1"});
+    // Against the exact mesh distance: no sign errors. The level set's voxels are exact
+    // (truth_test), but trilinear reconstruction between them rounds the cube's edges and corners
+    // (errors up to ~0.8 texel there, plus the conservative lowering), so only a loose bound on the
+    // error.
+    const RunResult check = run({"check", "cube.exr", "--against", "cube.obj", "--scale", "10",
+                                 "--offset", "5", "5", "2", "--samples", "20000", "--json",
+                                 "--max-overestimate-share", "1", "--max-rms", "1"});
     EXPECT_EQ(check.status, 0) << check.out << check.err;
     const nlohmann::json report = nlohmann::json::parse(check.out);
     EXPECT_EQ(report["sign_errors"].get<int>(), 0);
@@ -504,43 +514,50 @@ TEST_F(Cli, BakesAClosedMeshWithVerifiedSignAndChecksItAgainstTheMesh) {
     // The default placement (--fit) fills the footprint: a 32x32x16 tile takes the cube 32 tall.
     expectInputError({"bake", "mesh", "cube.obj", "-o", "fit.exr", "--size", "32x32x16"}, "fit.exr",
                      {"detail mesh", "tall", "16"});
-    const RunResult fit = run({"bake", "mesh", "cube.obj", "-o", "fit.exr", "--size", "16x16x16", "--fit"});
+    const RunResult fit =
+        run({"bake", "mesh", "cube.obj", "-o", "fit.exr", "--size", "16x16x16", "--fit"});
     EXPECT_EQ(fit.status, 0) << fit.err;
-    expectInputError({"bake", "mesh", "cube.obj", "-o", "both.exr", "--fit", "--scale", "2"}, "both.exr",
-                     {"--fit", "--scale"});
+    expectInputError({"bake", "mesh", "cube.obj", "-o", "both.exr", "--fit", "--scale", "2"},
+                     "both.exr", {"--fit", "--scale"});
     expectInputError({"bake", "mesh", "-o", "none.exr"}, "none.exr", {"mesh", "input file"});
 }
 
 TEST_F(Cli, BakesAHeightMap) {
     Image ramp(16, 8, glm::vec3(0.0f));
     for (int y = 0; y < 8; ++y) {
-        for (int x = 0; x < 16; ++x) ramp.rgbLinear[std::size_t(y) * 16 + x] = glm::vec3(float(x) / 15.0f);
+        for (int x = 0; x < 16; ++x)
+            ramp.rgbLinear[std::size_t(y) * 16 + x] = glm::vec3(float(x) / 15.0f);
     }
     writeImage(ramp, path("ramp.png"));
-    const RunResult bake =
-        run({"bake", "heightmap", "ramp.png", "-o", "ramp.exr", "--size", "32x32x8", "--height-texels", "6"});
+    const RunResult bake = run({"bake", "heightmap", "ramp.png", "-o", "ramp.exr", "--size",
+                                "32x32x8", "--height-texels", "6"});
     ASSERT_EQ(bake.status, 0) << bake.out << bake.err;
     EXPECT_TRUE(fs::exists(path("ramp.exr")));
-    expectInputError({"bake", "heightmap", "ramp.png", "-o", "high.exr", "--size", "32x32x8", "--height-texels", "9"},
+    expectInputError({"bake", "heightmap", "ramp.png", "-o", "high.exr", "--size", "32x32x8",
+                      "--height-texels", "9"},
                      "high.exr", {"--height-texels", "9"});
 }
 
 TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
     const std::vector<std::string> size{"--size", "16x16x16"};
-    const auto bakeMesh = [&](const std::string& file, std::initializer_list<std::string> keywords) {
+    const auto bakeMesh = [&](const std::string& file,
+                              std::initializer_list<std::string> keywords) {
         std::vector<std::string> arguments{"bake", "mesh", file, "-o", "tile.exr"};
         arguments.insert(arguments.end(), size.begin(), size.end());
         expectInputError(arguments, "tile.exr", keywords);
     };
-    writeText(path("nan.obj"), "v 0 0 0\nv 1 0 0\nv nan 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n");
+    writeText(path("nan.obj"),
+              "v 0 0 0\nv 1 0 0\nv nan 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n");
     bakeMesh("nan.obj", {"nan.obj"});
-    writeText(path("inf.obj"), "v 0 0 0\nv 1 0 0\nv inf 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n");
+    writeText(path("inf.obj"),
+              "v 0 0 0\nv 1 0 0\nv inf 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n");
     bakeMesh("inf.obj", {"inf.obj"});
     writeText(path("empty.obj"), "# nothing\n");
     bakeMesh("empty.obj", {"empty.obj"});
     writeText(path("range.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
     bakeMesh("range.obj", {"range.obj", "9"});
-    writeText(path("huge.obj"), "v 0 0 0\nv 1e30 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+    writeText(path("huge.obj"),
+              "v 0 0 0\nv 1e30 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
     bakeMesh("huge.obj", {"huge.obj", "1e+30"});
     // Binary STL: 80-byte header, a count of 12 triangles, but only one triangle's 50 bytes.
     {
@@ -552,15 +569,19 @@ TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
     }
     bakeMesh("short.stl", {"short.stl"});
     writeText(path("short.ply"),
-              "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\nproperty float z\n"
-              "element face 12\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n");
+              "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float "
+              "y\nproperty float z\n"
+              "element face 12\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 "
+              "0\n1 1 0\n");
     bakeMesh("short.ply", {"short.ply"});
     // Five faces of the cube: open, 4 boundary edges.
-    writeText(path("open.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
-                                "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\n");
+    writeText(path("open.obj"),
+              "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+              "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\n");
     bakeMesh("open.obj", {"open.obj", "open", "4 boundary edges", "closed, manifold"});
 
-    const auto bakeHeightMap = [&](const std::string& file, std::initializer_list<std::string> keywords) {
+    const auto bakeHeightMap = [&](const std::string& file,
+                                   std::initializer_list<std::string> keywords) {
         std::vector<std::string> arguments{"bake", "heightmap", file, "-o", "tile.exr"};
         arguments.insert(arguments.end(), size.begin(), size.end());
         expectInputError(arguments, "tile.exr", keywords);
@@ -571,7 +592,6 @@ TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
     bakeHeightMap("missing.png", {"missing.png", "no such file"});
 }
 
-
 // ---------------------------------------------------------------------------------------------
 // Reference renders and distile compare.
 
@@ -580,13 +600,13 @@ TEST_F(Cli, ReferenceRenderAndCompareReportTheFigures) {
     writeText(path("scene.json"), planeScene(chainmailMaterial(R"("tile.exr")")));
     // 64 iterations: with the default 16 a fifth of the rays stop short (see render_test's
     // ReferenceRender tests), which is measured there, not here.
-    const RunResult tested = run({"render", "scene.json", "-o", "tile.png", "--width", "64", "--height", "48", "--aovs",
-                                  "--iterations", "64", "--no-shadows"});
+    const RunResult tested =
+        run({"render", "scene.json", "-o", "tile.png", "--width", "64", "--height", "48", "--aovs",
+             "--iterations", "64", "--no-shadows"});
     ASSERT_EQ(tested.status, 0) << tested.err;
     EXPECT_TRUE(fs::is_regular_file(path("tile.texel_scale.exr")));
-    const RunResult truth =
-        run({"render", "scene.json", "-o", "truth.png", "--width", "64", "--height", "48", "--aovs", "--reference",
-             "--no-shadows"});
+    const RunResult truth = run({"render", "scene.json", "-o", "truth.png", "--width", "64",
+                                 "--height", "48", "--aovs", "--reference", "--no-shadows"});
     ASSERT_EQ(truth.status, 0) << truth.err;
 
     const RunResult compared = run({"compare", "tile.png", "truth.png", "--json"});
@@ -613,8 +633,11 @@ TEST_F(Cli, ReferenceRenderAndCompareReportTheFigures) {
     EXPECT_TRUE(fs::is_regular_file(path("same.png")));
 
     // Without the AOVs beside it, an image cannot be compared.
-    ASSERT_EQ(run({"render", "scene.json", "-o", "plain.png", "--width", "16", "--height", "12"}).status, 0);
-    expectInputError({"compare", "plain.png", "truth.png", "-o", "never.png"}, "never.png", {"plain.depth.exr", "--aovs"});
+    ASSERT_EQ(
+        run({"render", "scene.json", "-o", "plain.png", "--width", "16", "--height", "12"}).status,
+        0);
+    expectInputError({"compare", "plain.png", "truth.png", "-o", "never.png"}, "never.png",
+                     {"plain.depth.exr", "--aovs"});
 }
 
 }  // namespace

@@ -39,7 +39,8 @@ inline TriangleSoup makeTorusSoup(const glm::dvec3& centre, double R, double r, 
             const double psi = tau * j / segmentsMinor;
             const double ring = R + r * std::cos(psi);
             soup.positions.push_back(centre + glm::dvec3(ring * std::cos(theta),
-                                                         ring * std::sin(theta), r * std::sin(psi)));
+                                                         ring * std::sin(theta),
+                                                         r * std::sin(psi)));
         }
     }
     const auto index = [&](int i, int j) {

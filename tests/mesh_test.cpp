@@ -555,7 +555,8 @@ TEST(TangentFrames, MirroredUvLayoutSplitsTheMirrorLineIntoTwoFrames) {
     ASSERT_EQ(mesh.positions.size(), 8u);
     for (const glm::uvec3& triangle : mesh.triangles) {
         const bool right = mesh.positions[triangle[0]].x + mesh.positions[triangle[1]].x +
-                               mesh.positions[triangle[2]].x > 3.0f;
+                               mesh.positions[triangle[2]].x >
+                           3.0f;
         for (int corner = 0; corner < 3; ++corner) {
             const glm::vec4 tangent = mesh.tangents[triangle[corner]];
             // Exact: a flat quad's dP/du is +x on the left and -x on the right, v is +y on both.
@@ -586,7 +587,8 @@ std::string tetrahedronBinaryStl(std::size_t dropBytes = 0) {
     for (const auto& face : faces) {
         const float normal[3] = {0, 0, 0};
         bytes.append(reinterpret_cast<const char*>(normal), 12);
-        for (int c = 0; c < 3; ++c) bytes.append(reinterpret_cast<const char*>(corners[face[c]]), 12);
+        for (int c = 0; c < 3; ++c)
+            bytes.append(reinterpret_cast<const char*>(corners[face[c]]), 12);
         bytes.append(2, '\0');
     }
     bytes.resize(bytes.size() - dropBytes);
@@ -595,11 +597,13 @@ std::string tetrahedronBinaryStl(std::size_t dropBytes = 0) {
 
 TEST(DetailMesh, ReadsObjOffPlyStl) {
     const TempFile obj("tet.obj", kTetrahedronObj);
-    const TempFile off("tet.off", "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
-    const TempFile ply("tet.ply",
-                       "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
-                       "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
-                       "end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+    const TempFile off(
+        "tet.off", "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+    const TempFile ply(
+        "tet.ply",
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
     const TempFile stl("tet.stl", tetrahedronBinaryStl());
     for (const TempFile* file : {&obj, &off, &ply, &stl}) {
         const TriangleSoup soup = loadDetailMesh(file->path());
@@ -624,20 +628,25 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
     expectFormatError("empty.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "no faces");
     expectFormatError("empty.stl", "", "binary STL");
     expectFormatError("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "refers to vertex 7");
-    expectFormatError("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n", "invalid vertex index");
+    expectFormatError("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n",
+                      "invalid vertex index");
     expectFormatError("truncated.stl", tetrahedronBinaryStl(30), "truncated");
     expectFormatError("truncated.ply",
                       "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
                       "property float y\nproperty float z\nelement face 4\n"
-                      "property list uchar int vertex_indices\nend_header\n" + std::string(20, '\0'),
+                      "property list uchar int vertex_indices\nend_header\n" +
+                          std::string(20, '\0'),
                       "truncated");
-    expectFormatError("truncated_ascii.ply",
-                      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
-                      "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
-                      "end_header\n0 0 0\n1 0 0\n", "truncated");
+    expectFormatError(
+        "truncated_ascii.ply",
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 0\n",
+        "truncated");
     expectFormatError("huge.obj", "v -1e30 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n", "within +-1e+09");
     expectFormatError("mesh.xyz", "", "unsupported mesh format");
-    EXPECT_THROW(loadDetailMesh(std::filesystem::temp_directory_path() / "no_such_detail.stl"), InputError);
+    EXPECT_THROW(loadDetailMesh(std::filesystem::temp_directory_path() / "no_such_detail.stl"),
+                 InputError);
 }
 
 }  // namespace

@@ -1,16 +1,14 @@
 // Tests of render/: the ch. 8 march lands exactly on known surfaces, the base-mesh BVH finds the
 // same hits as brute force, and whole renders are finite and thread-count independent.
 #include <gtest/gtest.h>
-
 #include <tbb/global_control.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <random>
-
 #include <glm/geometric.hpp>
+#include <random>
 
 #include "common/error.h"
 #include "render/bvh.h"
@@ -44,19 +42,22 @@ TEST(March, LandsOnAFlatDetailPlane) {
         for (float azimuthDeg : {0.0f, 45.0f, 200.0f}) {
             const float elevation = elevationDeg * kPi / 180.0f;
             const float azimuth = azimuthDeg * kPi / 180.0f;
-            const glm::vec3 direction{std::cos(elevation) * std::cos(azimuth), std::cos(elevation) * std::sin(azimuth),
+            const glm::vec3 direction{std::cos(elevation) * std::cos(azimuth),
+                                      std::cos(elevation) * std::sin(azimuth),
                                       -std::sin(elevation)};
             const glm::vec3 entry{7.25f, 19.5f, 16.0f};
             const float epsilon = 1e-4f;
             const MarchResult result = march(filter, entry, direction, Floor::Solid, 4096, epsilon);
             ASSERT_TRUE(result.converged) << elevationDeg;
             EXPECT_FALSE(result.onFloor);
-            EXPECT_GE(result.texelPosition.z, 4.0f - 1e-4f) << elevationDeg;  // never below the surface
+            EXPECT_GE(result.texelPosition.z, 4.0f - 1e-4f)
+                << elevationDeg;  // never below the surface
             EXPECT_NEAR(result.texelPosition.z, 4.0f, 2e-4f) << elevationDeg;
             // On the ray: the travelled length reproduces the end point.
             const glm::vec3 expected = entry + direction * result.travelTexels;
             EXPECT_NEAR(glm::length(result.texelPosition - expected), 0.0f, 1e-3f);
-            EXPECT_NEAR(result.travelTexels, (16.0f - 4.0f) / std::sin(elevation), 2e-3f / std::sin(elevation));
+            EXPECT_NEAR(result.travelTexels, (16.0f - 4.0f) / std::sin(elevation),
+                        2e-3f / std::sin(elevation));
         }
     }
 }
@@ -83,7 +84,8 @@ TEST(TriangleBvh, FindsTheSameNearestHitAsBruteForce) {
     std::mt19937 random(5);
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
     std::vector<glm::vec3> corners;
-    for (int i = 0; i < 3 * 500; ++i) corners.emplace_back(unit(random), unit(random), unit(random));
+    for (int i = 0; i < 3 * 500; ++i)
+        corners.emplace_back(unit(random), unit(random), unit(random));
     const TriangleBvh bvh(corners);
     int hits = 0;
     for (int i = 0; i < 2000; ++i) {
@@ -120,7 +122,8 @@ TEST(TriangleBvh, RaysThroughASharedEdgeDoNotSlipBetweenTriangles) {
         const glm::vec3 target(s, s, 0.0f);
         const glm::vec3 origin(0.37f, -0.61f, 2.0f);
         TriangleHit hit;
-        ASSERT_TRUE(quad.intersect({origin, glm::normalize(target - origin)}, 0.0f, 100.0f, hit)) << s;
+        ASSERT_TRUE(quad.intersect({origin, glm::normalize(target - origin)}, 0.0f, 100.0f, hit))
+            << s;
         EXPECT_NEAR(hit.distanceWorld, glm::length(target - origin), 1e-5f);
     }
 }
@@ -144,8 +147,9 @@ TEST(Renderer, ImageIsFiniteAndIndependentOfTheThreadCount) {
     for (int z = 0; z < 16; ++z)
         for (int y = 0; y < 32; ++y)
             for (int x = 0; x < 32; ++x)
-                tile.at(x, y, z) = 0.5f * ((z + 0.5f) - (8.0f + 4.0f * std::sin(2 * kPi * (x + 0.5f) / 32) *
-                                                                    std::cos(2 * kPi * (y + 0.5f) / 32)));
+                tile.at(x, y, z) =
+                    0.5f * ((z + 0.5f) - (8.0f + 4.0f * std::sin(2 * kPi * (x + 0.5f) / 32) *
+                                                     std::cos(2 * kPi * (y + 0.5f) / 32)));
     const Scene scene = planeScene(std::make_shared<const Tile>(std::move(tile)));
     RenderOptions options;
     options.width = 96;
@@ -220,11 +224,13 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     }
     // Right under the occluder's edge x = 0.25, half of the light's disk is covered. The mean
     // over seeds of 64 stratified samples is within a few per cent of 1/2; texel quantisation
-    // (half a texel of a 4.5-texel radius) moves the edge by up to ~0.1 of the disk: tolerance 0.12.
+    // (half a texel of a 4.5-texel radius) moves the edge by up to ~0.1 of the disk: tolerance
+    // 0.12.
     double sum = 0.0;
     for (std::uint32_t seed = 0; seed < 32; ++seed) {
         std::uint64_t samples = 0;
-        const float visibility = map.visibility({{0.25f, 0.0f, 0.0f}, up}, ShadowFilter::Full, seed, samples);
+        const float visibility =
+            map.visibility({{0.25f, 0.0f, 0.0f}, up}, ShadowFilter::Full, seed, samples);
         EXPECT_GT(visibility, 0.0f);
         EXPECT_LT(visibility, 1.0f);
         sum += visibility;
@@ -247,7 +253,9 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     std::uint64_t samples = 0;
     int lookups = 0;
     for (float x = -0.9f; x < 0.9f; x += 0.0137f, ++lookups) {
-        EXPECT_EQ(tiledMap.visibility({{x, 0.3f * x, 0.0f}, up}, ShadowFilter::Full, 7, samples), 1.0f) << x;
+        EXPECT_EQ(tiledMap.visibility({{x, 0.3f * x, 0.0f}, up}, ShadowFilter::Full, 7, samples),
+                  1.0f)
+            << x;
     }
     EXPECT_EQ(samples, std::uint64_t(72 * lookups));
 }
@@ -300,15 +308,17 @@ TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
     for (std::size_t i = 0; i < full.image.rgbLinear.size(); ++i) {
         const glm::vec3 a = full.image.rgbLinear[i], b = adaptive.image.rgbLinear[i];
         int difference = 0;
-        for (int c = 0; c < 3; ++c) difference = std::max(difference, std::abs(srgb8(a[c]) - srgb8(b[c])));
+        for (int c = 0; c < 3; ++c)
+            difference = std::max(difference, std::abs(srgb8(a[c]) - srgb8(b[c])));
         close += difference <= 2 ? 1 : 0;
         shadowed += srgb8(full.image.rgbLinear[i].x) + 8 < srgb8(none.image.rgbLinear[i].x) ? 1 : 0;
     }
-    std::printf("[          ] shadow-map samples full %llu, adaptive %llu (%llu penumbra lookups); "
-                "%.3f%% of pixels within 2/255; %zu pixels darkened by the shadow\n",
-                (unsigned long long)full.stats.shadowMapSamples, (unsigned long long)adaptive.stats.shadowMapSamples,
-                (unsigned long long)penumbraLookups, 100.0 * double(close) / double(full.image.rgbLinear.size()),
-                shadowed);
+    std::printf(
+        "[          ] shadow-map samples full %llu, adaptive %llu (%llu penumbra lookups); "
+        "%.3f%% of pixels within 2/255; %zu pixels darkened by the shadow\n",
+        (unsigned long long)full.stats.shadowMapSamples,
+        (unsigned long long)adaptive.stats.shadowMapSamples, (unsigned long long)penumbraLookups,
+        100.0 * double(close) / double(full.image.rgbLinear.size()), shadowed);
     EXPECT_GE(double(close), 0.995 * double(full.image.rgbLinear.size()));
     EXPECT_GT(shadowed, 500u);  // the sphere casts a visible shadow on the plane
 }
@@ -329,12 +339,12 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
     EXPECT_THROW(renderScene(badDepth, RenderOptions{}), InputError);
 }
 
-
 // ---- Conservative rasterization (ch. 42): coverage and shell culling -------------------------
 
 /// Exact overlap of a closed triangle and the closed box [x0, x1] x [y0, y1] in double precision,
 /// by the separating axis theorem: the box's two axes and the triangle's three edge normals.
-bool triangleBoxOverlapExact(const glm::dvec2 corners[3], double x0, double y0, double x1, double y1) {
+bool triangleBoxOverlapExact(const glm::dvec2 corners[3], double x0, double y0, double x1,
+                             double y1) {
     const glm::dvec2 box[4] = {{x0, y0}, {x1, y0}, {x0, y1}, {x1, y1}};
     auto separated = [&](const glm::dvec2& axis) {
         double triangleMin = 1e300, triangleMax = -1e300, boxMin = 1e300, boxMax = -1e300;
@@ -358,7 +368,8 @@ bool triangleBoxOverlapExact(const glm::dvec2 corners[3], double x0, double y0, 
 
 /// Random triangles in pixel coordinates of a small screen: slivers under 0.1 pixel wide, tiny
 /// ones inside one pixel, huge ones reaching past the screen, and ordinary ones.
-std::vector<std::array<glm::dvec2, 3>> randomScreenTriangles(int count, double screenSize, std::mt19937& random) {
+std::vector<std::array<glm::dvec2, 3>> randomScreenTriangles(int count, double screenSize,
+                                                             std::mt19937& random) {
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     std::vector<std::array<glm::dvec2, 3>> triangles;
     for (int i = 0; i < count; ++i) {
@@ -370,20 +381,25 @@ std::vector<std::array<glm::dvec2, 3>> randomScreenTriangles(int count, double s
                 const glm::dvec2 along(std::cos(angle), std::sin(angle));
                 const glm::dvec2 across(-along.y, along.x);
                 const double length = 1.0 + unit(random) * screenSize;
-                t = {a, a + along * length, a + along * (unit(random) * length) + across * (unit(random) * 0.1)};
+                t = {a, a + along * length,
+                     a + along * (unit(random) * length) + across * (unit(random) * 0.1)};
                 break;
             }
             case 1: {  // tiny, inside one pixel
                 const glm::dvec2 pixel = glm::floor(a);
-                t = {pixel + glm::dvec2(unit(random), unit(random)), pixel + glm::dvec2(unit(random), unit(random)),
+                t = {pixel + glm::dvec2(unit(random), unit(random)),
+                     pixel + glm::dvec2(unit(random), unit(random)),
                      pixel + glm::dvec2(unit(random), unit(random))};
                 break;
             }
             case 2:  // huge: corners far outside the screen
-                for (auto& corner : t) corner = glm::dvec2(unit(random), unit(random)) * (6.0 * screenSize) - 2.5 * screenSize;
+                for (auto& corner : t)
+                    corner = glm::dvec2(unit(random), unit(random)) * (6.0 * screenSize) -
+                             2.5 * screenSize;
                 break;
             default:
-                t = {a, glm::dvec2(unit(random), unit(random)) * screenSize, glm::dvec2(unit(random), unit(random)) * screenSize};
+                t = {a, glm::dvec2(unit(random), unit(random)) * screenSize,
+                     glm::dvec2(unit(random), unit(random)) * screenSize};
         }
         triangles.push_back(t);
     }
@@ -405,16 +421,20 @@ TEST(Coverage, EveryTouchedPixelPassesAndFarPixelsFail) {
                 const bool conservative = trianglePixelOverlapConservative(triangle, x, y);
                 touched += exact;
                 accepted += conservative;
-                ASSERT_TRUE(!exact || conservative) << "pixel " << x << "," << y << " of a touching triangle skipped";
+                ASSERT_TRUE(!exact || conservative)
+                    << "pixel " << x << "," << y << " of a touching triangle skipped";
                 const double e = 1e-6;
-                if (!triangleBoxOverlapExact(corners.data(), x - e, y - e, x + 1 + e, y + 1 + e)) farButAccepted += conservative;
+                if (!triangleBoxOverlapExact(corners.data(), x - e, y - e, x + 1 + e, y + 1 + e))
+                    farButAccepted += conservative;
             }
         }
     }
     EXPECT_GT(touched, 50000u);  // the test exercised coverage, not only empty screens
     EXPECT_EQ(farButAccepted, 0u);
-    std::printf("[          ] 2D coverage: %llu touched pixels, %llu accepted (overestimation %.4f%%)\n",
-                (unsigned long long)touched, (unsigned long long)accepted, 100.0 * double(accepted - touched) / double(touched));
+    std::printf(
+        "[          ] 2D coverage: %llu touched pixels, %llu accepted (overestimation %.4f%%)\n",
+        (unsigned long long)touched, (unsigned long long)accepted,
+        100.0 * double(accepted - touched) / double(touched));
 }
 
 TEST(Coverage, ProjectedTrianglesAreCoveredConservatively) {
@@ -463,30 +483,39 @@ TEST(Coverage, ProjectedTrianglesAreCoveredConservatively) {
                 accepted += conservative;
                 ASSERT_TRUE(!exact || conservative) << "pixel " << x << "," << y << " skipped";
                 const double e = 0.01;
-                if (!triangleBoxOverlapExact(projected, x - e, y - e, x + 1 + e, y + 1 + e)) farButAccepted += conservative;
+                if (!triangleBoxOverlapExact(projected, x - e, y - e, x + 1 + e, y + 1 + e))
+                    farButAccepted += conservative;
             }
         }
     }
     EXPECT_GT(touched, 50000u);
     EXPECT_EQ(farButAccepted, 0u);
-    std::printf("[          ] projected coverage: %llu touched pixels, %llu accepted (overestimation %.4f%%)\n",
-                (unsigned long long)touched, (unsigned long long)accepted, 100.0 * double(accepted - touched) / double(touched));
+    std::printf(
+        "[          ] projected coverage: %llu touched pixels, %llu accepted (overestimation "
+        "%.4f%%)\n",
+        (unsigned long long)touched, (unsigned long long)accepted,
+        100.0 * double(accepted - touched) / double(touched));
 
     std::uniform_real_distribution<float> around(-3.0f, 3.0f);
     for (int i = 0; i < 300; ++i) {
         // One corner behind the eye (negative depth), two in front, then random offsets.
-        glm::vec3 world[3] = {toWorld({unit(random) * kWidth, unit(random) * kHeight}, -0.5 - unit(random)),
-                              toWorld({unit(random) * kWidth, unit(random) * kHeight}, 0.2 + unit(random)),
-                              glm::vec3(around(random), around(random), around(random))};
+        glm::vec3 world[3] = {
+            toWorld({unit(random) * kWidth, unit(random) * kHeight}, -0.5 - unit(random)),
+            toWorld({unit(random) * kWidth, unit(random) * kHeight}, 0.2 + unit(random)),
+            glm::vec3(around(random), around(random), around(random))};
         const ScreenTriangle triangle = projectTriangle(projection, world);
         for (int y = 0; y < kHeight; ++y) {
             for (int x = 0; x < kWidth; ++x) {
                 for (int sample = 0; sample < 4; ++sample) {
-                    const Ray ray = projection.ray(float(x + unit(random)), float(y + unit(random)));
+                    const Ray ray =
+                        projection.ray(float(x + unit(random)), float(y + unit(random)));
                     double distance, b1, b2;
-                    if (!intersectTriangle(ray, world[0], world[1], world[2], 0.0, 1e30, distance, b1, b2)) continue;
+                    if (!intersectTriangle(ray, world[0], world[1], world[2], 0.0, 1e30, distance,
+                                           b1, b2))
+                        continue;
                     ++sampledHits;
-                    ASSERT_TRUE(trianglePixelOverlapConservative(triangle, x, y)) << "eye-crossing triangle " << i;
+                    ASSERT_TRUE(trianglePixelOverlapConservative(triangle, x, y))
+                        << "eye-crossing triangle " << i;
                 }
             }
         }
@@ -502,8 +531,9 @@ Scene stackedPlanesScene() {
     for (int z = 0; z < 16; ++z)
         for (int y = 0; y < 32; ++y)
             for (int x = 0; x < 32; ++x)
-                tile.at(x, y, z) = 0.5f * ((z + 0.5f) - (4.0f + 6.0f * std::sin(2 * kPi * (x + 0.5f) / 32) *
-                                                                    std::cos(2 * kPi * (y + 0.5f) / 32)));
+                tile.at(x, y, z) =
+                    0.5f * ((z + 0.5f) - (4.0f + 6.0f * std::sin(2 * kPi * (x + 0.5f) / 32) *
+                                                     std::cos(2 * kPi * (y + 0.5f) / 32)));
     const auto shared = std::make_shared<const Tile>(std::move(tile));
     Scene scene;
     scene.camera = {{0.3f, -1.6f, 1.2f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
@@ -511,7 +541,9 @@ Scene stackedPlanesScene() {
     for (int layer = 0; layer < 6; ++layer) {
         SceneObject plane;
         plane.mesh = makePlane(2.0f, 12);
-        applyTransform(plane.mesh, {{0.05f * layer, 0.0f, -0.5f * depthWorld * layer}, {0.0f, 0.0f, 7.0f * layer}, 1.0f});
+        applyTransform(
+            plane.mesh,
+            {{0.05f * layer, 0.0f, -0.5f * depthWorld * layer}, {0.0f, 0.0f, 7.0f * layer}, 1.0f});
         plane.material.tile = shared;
         plane.material.uvScale = {3.0f, 3.0f};
         plane.material.depthWorld = depthWorld;
@@ -528,7 +560,8 @@ TEST(ShellCulling, SameImageWithAndWithoutCullingAndThreads) {
     options.height = 60;
     options.samplesPerPixel = 2;
     options.outputAovs = true;
-    options.shadowFilter = ShadowFilter::None;  // shadow maps trace with the BVH: not under test here
+    options.shadowFilter =
+        ShadowFilter::None;  // shadow maps trace with the BVH: not under test here
     RenderResult reference;
     for (const bool culling : {false, true}) {
         for (const int threads : {1, 2}) {
@@ -541,23 +574,30 @@ TEST(ShellCulling, SameImageWithAndWithoutCullingAndThreads) {
             }
             // Culling only skips shells that cannot be strictly nearer than the hit in hand, so the
             // hits, hence the image and depths, are bit-identical.
-            EXPECT_EQ(result.image.rgbLinear, reference.image.rgbLinear) << culling << " " << threads;
-            EXPECT_EQ(result.aovs->depth.rgbLinear, reference.aovs->depth.rgbLinear) << culling << " " << threads;
+            EXPECT_EQ(result.image.rgbLinear, reference.image.rgbLinear)
+                << culling << " " << threads;
+            EXPECT_EQ(result.aovs->depth.rgbLinear, reference.aovs->depth.rgbLinear)
+                << culling << " " << threads;
             EXPECT_EQ(result.stats.baseHits, reference.stats.baseHits);
             if (!culling) {
                 EXPECT_EQ(result.stats.shellsTraced, reference.stats.shellsTraced);
                 continue;
             }
-            std::printf("[          ] shells tested %llu -> %llu, traced %llu -> %llu, march iterations %llu -> %llu\n",
-                        (unsigned long long)reference.stats.shellsTested, (unsigned long long)result.stats.shellsTested,
-                        (unsigned long long)reference.stats.shellsTraced, (unsigned long long)result.stats.shellsTraced,
-                        (unsigned long long)reference.stats.marchIterations,
-                        (unsigned long long)result.stats.marchIterations);
+            std::printf(
+                "[          ] shells tested %llu -> %llu, traced %llu -> %llu, march iterations "
+                "%llu -> %llu\n",
+                (unsigned long long)reference.stats.shellsTested,
+                (unsigned long long)result.stats.shellsTested,
+                (unsigned long long)reference.stats.shellsTraced,
+                (unsigned long long)result.stats.shellsTraced,
+                (unsigned long long)reference.stats.marchIterations,
+                (unsigned long long)result.stats.marchIterations);
             // Six layers overlap everywhere, but the solid floor of the second, a shell depth below
             // the top, hides the last four: only the top two (plus neighbours sharing the pixel)
             // need tracing, about 2/6 of the shells; measured 0.51, asserted below 0.6.
             EXPECT_LT(result.stats.shellsTraced * 5, reference.stats.shellsTraced * 3);
-            EXPECT_EQ(result.stats.shellsTested, reference.stats.shellsTested);  // coverage tests come first
+            EXPECT_EQ(result.stats.shellsTested,
+                      reference.stats.shellsTested);  // coverage tests come first
             EXPECT_LT(result.stats.marchIterations, reference.stats.marchIterations);
         }
     }
@@ -578,21 +618,26 @@ TEST(ShellCulling, BinsHoldEveryShellACameraRayEnters) {
     for (int y = 0; y < kHeight; ++y) {
         for (int x = 0; x < kWidth; ++x) {
             const Ray ray = projection.ray(x + unit(random), y + unit(random));
-            const auto bin = shells.tileShells(x / ScreenShells::kTilePixels, y / ScreenShells::kTilePixels);
+            const auto bin =
+                shells.tileShells(x / ScreenShells::kTilePixels, y / ScreenShells::kTilePixels);
             for (std::uint32_t shell = 0; shell < tracer.shellCount(); ++shell) {
                 glm::vec3 top[3], bottom[3];
                 tracer.shellCorners(shell, top, bottom);
                 double distance, b1, b2;
-                if (!intersectTriangle(ray, top[0], top[1], top[2], 0.0, 1e30, distance, b1, b2)) continue;
-                if (glm::dot(glm::cross(top[1] - top[0], top[2] - top[0]), ray.direction) >= 0.0f) continue;
+                if (!intersectTriangle(ray, top[0], top[1], top[2], 0.0, 1e30, distance, b1, b2))
+                    continue;
+                if (glm::dot(glm::cross(top[1] - top[0], top[2] - top[0]), ray.direction) >= 0.0f)
+                    continue;
                 ++entries;
-                ASSERT_NE(std::find(bin.begin(), bin.end(), shell), bin.end()) << x << "," << y << " shell " << shell;
+                ASSERT_NE(std::find(bin.begin(), bin.end(), shell), bin.end())
+                    << x << "," << y << " shell " << shell;
                 ASSERT_TRUE(trianglePixelOverlapConservative(shells.bounds(shell).top, x, y));
                 ASSERT_LE(shells.pixelDepthBound(shell, x, y), float(distance));
             }
         }
     }
-    EXPECT_GT(entries, std::uint64_t(kWidth * kHeight));  // layers overlap: more entries than pixels
+    EXPECT_GT(entries,
+              std::uint64_t(kWidth * kHeight));  // layers overlap: more entries than pixels
     // Bins are nearest first.
     for (int tileY = 0; tileY < shells.tilesY(); ++tileY) {
         for (int tileX = 0; tileX < shells.tilesX(); ++tileX) {
@@ -622,11 +667,13 @@ TEST(ShellCulling, MatchesTheBvhPathWhereShellsDoNotOverlap) {
             TraceCounters counters;
             ShellCounters shellCounters;
             const bool bvhFound = tracer.traceNearest(ray, 0.0f, bvhHit, counters);
-            const bool screenFound = shells.traceNearest(x, y, ray, true, screenHit, counters, shellCounters);
+            const bool screenFound =
+                shells.traceNearest(x, y, ray, true, screenHit, counters, shellCounters);
             ASSERT_EQ(bvhFound, screenFound) << x << "," << y;
             if (!bvhFound) continue;
             ++hits;
-            // Rays through a shared edge may enter either triangle: same point, frames a few ulps apart.
+            // Rays through a shared edge may enter either triangle: same point, frames a few ulps
+            // apart.
             EXPECT_NEAR(bvhHit.distanceWorld, screenHit.distanceWorld, 1e-5f) << x << "," << y;
         }
     }
@@ -653,7 +700,8 @@ TEST(Material, ColorTextureIsLookedUpBilinearlyAtTheBaseUvAndWraps) {
     const glm::vec3 middle = albedoAt(material, {0.5f, 0.9f});  // halfway between the centres
     EXPECT_FLOAT_EQ(middle.x, 0.5f);
     EXPECT_FLOAT_EQ(middle.z, 0.5f);
-    const glm::vec3 wrapped = albedoAt(material, {1.0f, 0.5f});  // u = 0 = 1: halfway across the wrap
+    const glm::vec3 wrapped =
+        albedoAt(material, {1.0f, 0.5f});  // u = 0 = 1: halfway across the wrap
     EXPECT_FLOAT_EQ(wrapped.x, 0.5f);
     EXPECT_FLOAT_EQ(wrapped.z, 0.5f);
     const glm::vec3 far = albedoAt(material, {3.25f, -7.5f});  // whole repeats away: the left texel
@@ -709,10 +757,12 @@ TEST(CompareRenders, KnownDepthOffsetNormalTurnAndMissingHit) {
     b.depth.at(3, 3) = glm::vec3(2.005f);
     // One pixel missed in B: one mismatch in 200 pixels.
     b.depth.at(7, 7) = glm::vec3(0.0f);
-    // Every normal of B turned 90 degrees (z -> x): mean normal error 90 degrees over both-hit pixels.
+    // Every normal of B turned 90 degrees (z -> x): mean normal error 90 degrees over both-hit
+    // pixels.
     for (glm::vec3& normal : b.normal.rgbLinear) normal = glm::vec3(1.0f, 0.5f, 0.5f);
     // Shaded difference of 0.1 in sRGB-encoded values everywhere: PSNR = 20 log10(1 / 0.1) = 20 dB.
-    for (glm::vec3& color : b.image.rgbLinear) color = glm::vec3(linearFromSrgb(srgbFromLinear(0.5f) + 0.1f));
+    for (glm::vec3& color : b.image.rgbLinear)
+        color = glm::vec3(linearFromSrgb(srgbFromLinear(0.5f) + 0.1f));
     Image difference;
     const RenderComparison c = compareRenders(a.view(), b.view(), &difference);
     EXPECT_EQ(c.coverageMismatches, 1u);
@@ -726,7 +776,7 @@ TEST(CompareRenders, KnownDepthOffsetNormalTurnAndMissingHit) {
     EXPECT_NEAR(c.psnrDb, 20.0, 0.01);  // the sRGB round trip is accurate to ~1e-6
     ASSERT_EQ(difference.width, 20);
     EXPECT_EQ(difference.at(7, 7), glm::vec3(1.0f, 0.0f, 1.0f));  // coverage mismatch in magenta
-    EXPECT_NE(difference.at(0, 0), heatColor(0.0f));               // a visible shaded difference
+    EXPECT_NE(difference.at(0, 0), heatColor(0.0f));              // a visible shaded difference
 }
 
 TEST(CompareRenders, RejectsLayersOfAnotherSize) {
@@ -735,7 +785,9 @@ TEST(CompareRenders, RejectsLayersOfAnotherSize) {
 }
 
 TEST(AnalyticFilter, DistanceAndGradientOfAPlane) {
-    const AnalyticFilter::DistanceFunction plane = [](const glm::dvec3& p) { return 0.6 * p.x + 0.8 * p.z - 3.0; };
+    const AnalyticFilter::DistanceFunction plane = [](const glm::dvec3& p) {
+        return 0.6 * p.x + 0.8 * p.z - 3.0;
+    };
     const AnalyticFilter filter(plane);
     EXPECT_FLOAT_EQ(filter.distanceTexels({5.0f, 1.0f, 2.0f}), 1.6f);
     // Central differences are exact for a linear function up to rounding (~1e-11 here).
@@ -775,7 +827,8 @@ Scene sheetScene() {
     sheet.material.depthWorld = 0.0625f;
     ProceduralOptions chainmail;
     chainmail.kind = ProceduralKind::Chainmail;
-    sheet.material.analyticDistance = proceduralDistance(chainmail, tile->size()).signedDistanceTexels;
+    sheet.material.analyticDistance =
+        proceduralDistance(chainmail, tile->size()).signedDistanceTexels;
     scene.objects.push_back(std::move(sheet));
     return scene;
 }
@@ -796,8 +849,9 @@ RenderComparison sheetAgainstReference(int iterations) {
     const RenderResult truth = renderScene(scene, options);
     // The reference converges on almost every ray within its budget (measured: all).
     EXPECT_GT(double(truth.stats.converged), 0.999 * double(truth.stats.baseHits));
-    return compareRenders({tested.image, tested.aovs->depth, tested.aovs->normal, tested.aovs->texelScale},
-                          {truth.image, truth.aovs->depth, truth.aovs->normal, truth.aovs->texelScale});
+    return compareRenders(
+        {tested.image, tested.aovs->depth, tested.aovs->normal, tested.aovs->texelScale},
+        {truth.image, truth.aovs->depth, truth.aovs->normal, truth.aovs->texelScale});
 }
 
 TEST(ReferenceRender, SheetWithAConvergedBudgetIsWithinAQuarterTexelOfTheAnalyticTruth) {

@@ -5,19 +5,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
 #include <random>
 #include <vector>
 
-#include <glm/geometric.hpp>
-#include <glm/mat3x3.hpp>
-
+#include "common/error.h"
 #include "sampler/bake.h"
+#include "sampler/conservative.h"
 #include "sampler/filters.h"
+#include "sampler/tile_error.h"
 #include "sampler/tricubic.h"
 #include "vdb/chainmail.h"
-#include "common/error.h"
-#include "sampler/conservative.h"
-#include "sampler/tile_error.h"
 #include "vdb/procedural.h"
 
 namespace distile {
@@ -29,7 +28,8 @@ Tile tileOf(const Size3& size, Function f) {
     Tile tile(size);
     for (int z = 0; z < size.depth; ++z)
         for (int y = 0; y < size.height; ++y)
-            for (int x = 0; x < size.width; ++x) tile.at(x, y, z) = float(f(glm::dvec3(x + 0.5, y + 0.5, z + 0.5)));
+            for (int x = 0; x < size.width; ++x)
+                tile.at(x, y, z) = float(f(glm::dvec3(x + 0.5, y + 0.5, z + 0.5)));
     return tile;
 }
 
@@ -43,7 +43,8 @@ TEST(TrilinearFilter, ReproducesAffineFunctionsAwayFromTheWrap) {
     std::mt19937 random(1);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     for (int i = 0; i < 2000; ++i) {
-        const glm::vec3 p{0.5f + unit(random) * 15.0f, 0.5f + unit(random) * 11.0f, 0.5f + unit(random) * 7.0f};
+        const glm::vec3 p{0.5f + unit(random) * 15.0f, 0.5f + unit(random) * 11.0f,
+                          0.5f + unit(random) * 7.0f};
         // Float arithmetic on values up to ~10: a few ulps.
         EXPECT_NEAR(filter.distanceTexels(p), affine(glm::dvec3(p)), 2e-5);
         const glm::vec3 gradient = filter.gradient(p);
@@ -59,7 +60,9 @@ TEST(TrilinearFilter, ReproducesAffineFunctionsAwayFromTheWrap) {
 
 TEST(TrilinearFilter, GradientMatchesFiniteDifferencesOfTheValue) {
     const Size3 size{8, 8, 8};
-    const Tile tile = tileOf(size, [](const glm::dvec3& p) { return std::sin(p.x) * std::cos(0.7 * p.y) + 0.1 * p.z * p.z; });
+    const Tile tile = tileOf(size, [](const glm::dvec3& p) {
+        return std::sin(p.x) * std::cos(0.7 * p.y) + 0.1 * p.z * p.z;
+    });
     const TrilinearFilter filter(tile);
     std::mt19937 random(2);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
@@ -67,13 +70,16 @@ TEST(TrilinearFilter, GradientMatchesFiniteDifferencesOfTheValue) {
     for (int i = 0; i < 500; ++i) {
         // Stay inside cells (between texel centres k + 0.5 and k + 1.5, fraction 0.3 to 0.7), away
         // from the cell faces where the derivative of a trilinear interpolant jumps.
-        auto coordinate = [&](int extent) { return 1.0f + std::floor(unit(random) * (extent - 3)) + 0.8f + 0.4f * unit(random); };
+        auto coordinate = [&](int extent) {
+            return 1.0f + std::floor(unit(random) * (extent - 3)) + 0.8f + 0.4f * unit(random);
+        };
         const glm::vec3 p{coordinate(8), coordinate(8), coordinate(8)};
         const glm::vec3 gradient = filter.gradient(p);
         for (int axis = 0; axis < 3; ++axis) {
             glm::vec3 step(0.0f);
             step[axis] = h;
-            const float difference = (filter.distanceTexels(p + step) - filter.distanceTexels(p - step)) / (2.0f * h);
+            const float difference =
+                (filter.distanceTexels(p + step) - filter.distanceTexels(p - step)) / (2.0f * h);
             EXPECT_NEAR(gradient[axis], difference, 2e-3) << "axis " << axis;
         }
     }
@@ -81,11 +87,13 @@ TEST(TrilinearFilter, GradientMatchesFiniteDifferencesOfTheValue) {
 
 TEST(NearestFilter, ReturnsTheTexelContainingThePoint) {
     const Size3 size{4, 4, 4};
-    const Tile tile = tileOf(size, [](const glm::dvec3& p) { return 100 * std::floor(p.z) + 10 * std::floor(p.y) + std::floor(p.x); });
+    const Tile tile = tileOf(size, [](const glm::dvec3& p) {
+        return 100 * std::floor(p.z) + 10 * std::floor(p.y) + std::floor(p.x);
+    });
     const NearestFilter filter(tile);
     EXPECT_FLOAT_EQ(filter.distanceTexels({1.9f, 2.1f, 3.5f}), 321.0f);
-    EXPECT_FLOAT_EQ(filter.distanceTexels({-0.5f, 4.5f, 0.2f}), 3.0f);  // wraps in x and y
-    EXPECT_FLOAT_EQ(filter.distanceTexels({0.5f, 0.5f, 9.0f}), 300.0f); // clamps in z
+    EXPECT_FLOAT_EQ(filter.distanceTexels({-0.5f, 4.5f, 0.2f}), 3.0f);   // wraps in x and y
+    EXPECT_FLOAT_EQ(filter.distanceTexels({0.5f, 0.5f, 9.0f}), 300.0f);  // clamps in z
 }
 
 /// The default chain-mail tile, baked once for the tests below (about 3 s).
@@ -109,8 +117,10 @@ TEST(BakedChainmail, SeamsAgreeAcrossTheTileEdges) {
     for (int i = 0; i < 5000; ++i) {
         const float a = unit(random) * 256.0f;
         const float z = unit(random) * 16.0f;
-        EXPECT_NEAR(filter.distanceTexels({0.0f, a, z}), filter.distanceTexels({256.0f, a, z}), 1e-5);
-        EXPECT_NEAR(filter.distanceTexels({a, 0.0f, z}), filter.distanceTexels({a, 256.0f, z}), 1e-5);
+        EXPECT_NEAR(filter.distanceTexels({0.0f, a, z}), filter.distanceTexels({256.0f, a, z}),
+                    1e-5);
+        EXPECT_NEAR(filter.distanceTexels({a, 0.0f, z}), filter.distanceTexels({a, 256.0f, z}),
+                    1e-5);
         // Stored texels on both sides of the seam are the analytic values of neighbours across
         // the wrap: the difference between the last and first column is a one-texel difference
         // of a distance field (|gradient| = 1), so at most one texel.
@@ -162,10 +172,14 @@ TEST(BakedChainmail, TrilinearTileMatchesTheAnalyticDistance) {
     std::sort(nearErrors.begin(), nearErrors.end());
     const double p999 = nearErrors[std::size_t(0.999 * (nearErrors.size() - 1))];
     const double rms = std::sqrt(sumSquares / kSamples);
-    std::printf("[ figures  ] near surface (|d| <= 2, %zu samples): p99.9 |error| = %.4f texel, max = %.4f\n",
-                nearErrors.size(), p999, nearErrors.back());
-    std::printf("[ figures  ] everywhere: RMS = %.4f texel, max = %.4f at (%.2f, %.2f, %.2f), true distance %.3f\n",
-                rms, maxError, maxAt.x, maxAt.y, maxAt.z, maxAtDistance);
+    std::printf(
+        "[ figures  ] near surface (|d| <= 2, %zu samples): p99.9 |error| = %.4f texel, max = "
+        "%.4f\n",
+        nearErrors.size(), p999, nearErrors.back());
+    std::printf(
+        "[ figures  ] everywhere: RMS = %.4f texel, max = %.4f at (%.2f, %.2f, %.2f), true "
+        "distance %.3f\n",
+        rms, maxError, maxAt.x, maxAt.y, maxAt.z, maxAtDistance);
     EXPECT_LE(p999, 0.5);
     EXPECT_LE(maxError, 0.5 + 3 * 0.06);
     EXPECT_LE(rms, 0.1);
@@ -181,20 +195,25 @@ TEST(TricubicBSplineFilter, EightFetchesEqualThe64TapSum) {
     const TricubicBSplineFilter filter(tile);
     std::mt19937 random(20);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    auto nearEdge = [&](float extent) { return (unit(random) < 0.5f ? 0.0f : extent) + 4.0f * (unit(random) - 0.5f); };
+    auto nearEdge = [&](float extent) {
+        return (unit(random) < 0.5f ? 0.0f : extent) + 4.0f * (unit(random) - 0.5f);
+    };
     double maxDifference = 0.0;
     for (int i = 0; i < 100000; ++i) {
         glm::vec3 p{unit(random) * 256.0f, unit(random) * 256.0f, unit(random) * 16.0f};
-        if (i % 4 == 1) p.x = nearEdge(256.0f);   // across the x wrap
-        if (i % 4 == 2) p.y = nearEdge(256.0f);   // across the y wrap
-        if (i % 4 == 3) p.z = nearEdge(16.0f);    // at and beyond the z clamp
-        const double difference = std::abs(double(filter.distanceTexels(p)) - double(filter.distanceTexels64Tap(p)));
+        if (i % 4 == 1) p.x = nearEdge(256.0f);  // across the x wrap
+        if (i % 4 == 2) p.y = nearEdge(256.0f);  // across the y wrap
+        if (i % 4 == 3) p.z = nearEdge(16.0f);   // at and beyond the z clamp
+        const double difference =
+            std::abs(double(filter.distanceTexels(p)) - double(filter.distanceTexels64Tap(p)));
         maxDifference = std::max(maxDifference, difference);
         ASSERT_LE(difference, 1e-5) << "at (" << p.x << ", " << p.y << ", " << p.z << ")";
     }
-    std::printf("[ figures  ] 8-fetch vs 64-tap B-spline: max |difference| = %.2e texel\n", maxDifference);
+    std::printf("[ figures  ] 8-fetch vs 64-tap B-spline: max |difference| = %.2e texel\n",
+                maxDifference);
     // Periodic: a shift by the tile size is the same value.
-    EXPECT_NEAR(filter.distanceTexels({0.3f, 17.2f, 7.7f}), filter.distanceTexels({256.3f, 273.2f, 7.7f}), 1e-5);
+    EXPECT_NEAR(filter.distanceTexels({0.3f, 17.2f, 7.7f}),
+                filter.distanceTexels({256.3f, 273.2f, 7.7f}), 1e-5);
 }
 
 TEST(TricubicBSplineFilter, ReproducesLinearFunctionsAndQuadraticHessians) {
@@ -204,7 +223,9 @@ TEST(TricubicBSplineFilter, ReproducesLinearFunctionsAndQuadraticHessians) {
     const Size3 size{12, 12, 8};
     auto affine = [](const glm::dvec3& p) { return 0.25 * p.x - 0.5 * p.y + 0.75 * p.z + 1.0; };
     const glm::dmat3 h(0.04, -0.03, 0.015, -0.03, 0.1, 0.04, 0.015, 0.04, -0.02);  // symmetric
-    auto quadratic = [&](const glm::dvec3& p) { return 0.5 * glm::dot(p, h * p) + 0.1 * p.x - 0.2 * p.z; };
+    auto quadratic = [&](const glm::dvec3& p) {
+        return 0.5 * glm::dot(p, h * p) + 0.1 * p.x - 0.2 * p.z;
+    };
     const Tile linearTile = tileOf(size, affine);
     const Tile quadraticTile = tileOf(size, quadratic);
     const TricubicBSplineFilter linearFilter(linearTile);
@@ -212,7 +233,8 @@ TEST(TricubicBSplineFilter, ReproducesLinearFunctionsAndQuadraticHessians) {
     std::mt19937 random(21);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     for (int i = 0; i < 2000; ++i) {
-        const glm::vec3 p{1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 4.99f};
+        const glm::vec3 p{1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 8.99f,
+                          1.5f + unit(random) * 4.99f};
         // Values up to ~10 in float: a few ulps (1e-6 each) over 64 products.
         EXPECT_NEAR(linearFilter.distanceTexels(p), affine(glm::dvec3(p)), 2e-5);
         const glm::vec3 gradient = linearFilter.gradient(p);
@@ -220,14 +242,16 @@ TEST(TricubicBSplineFilter, ReproducesLinearFunctionsAndQuadraticHessians) {
         EXPECT_NEAR(gradient.y, -0.5, 2e-5);
         EXPECT_NEAR(gradient.z, 0.75, 2e-5);
         const double trace = h[0][0] + h[1][1] + h[2][2];
-        EXPECT_NEAR(quadraticFilter.distanceTexels(p), quadratic(glm::dvec3(p)) + trace / 6.0, 2e-5);
+        EXPECT_NEAR(quadraticFilter.distanceTexels(p), quadratic(glm::dvec3(p)) + trace / 6.0,
+                    2e-5);
         const glm::vec3 quadraticGradient = quadraticFilter.gradient(p);
         const glm::dvec3 exactGradient = h * glm::dvec3(p) + glm::dvec3(0.1, 0.0, -0.2);
         const glm::mat3 hessian = quadraticFilter.hessian(p);
         for (int r = 0; r < 3; ++r) {
             EXPECT_NEAR(quadraticGradient[r], exactGradient[r], 2e-5);
             // Second differences of float values up to ~10 texels: cancellation leaves ~1e-5.
-            for (int c = 0; c < 3; ++c) EXPECT_NEAR(hessian[c][r], h[c][r], 5e-5) << "H[" << r << "][" << c << "]";
+            for (int c = 0; c < 3; ++c)
+                EXPECT_NEAR(hessian[c][r], h[c][r], 5e-5) << "H[" << r << "][" << c << "]";
         }
     }
 }
@@ -243,7 +267,8 @@ TEST(CatmullRomFilter, InterpolatesTexelCentresAndLinearFunctions) {
         const int x = i % 7 == 0 ? 255 : column(random);
         const int y = i % 5 == 0 ? 0 : column(random);
         const int z = i % 3 == 0 ? 15 * (i % 2) : slice(random);
-        ASSERT_EQ(filter.distanceTexels({x + 0.5f, y + 0.5f, z + 0.5f}), tile.at(x, y, z)) << x << " " << y << " " << z;
+        ASSERT_EQ(filter.distanceTexels({x + 0.5f, y + 0.5f, z + 0.5f}), tile.at(x, y, z))
+            << x << " " << y << " " << z;
     }
     // Linear functions are reproduced (Catmull-Rom has order 2), gradient included.
     const Size3 size{12, 12, 8};
@@ -252,8 +277,10 @@ TEST(CatmullRomFilter, InterpolatesTexelCentresAndLinearFunctions) {
     const CatmullRomFilter linearFilter(linearTile);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     for (int i = 0; i < 2000; ++i) {
-        const glm::vec3 p{1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 4.99f};
-        EXPECT_NEAR(linearFilter.distanceTexels(p), affine(glm::dvec3(p)), 2e-5);  // float, values < 10
+        const glm::vec3 p{1.5f + unit(random) * 8.99f, 1.5f + unit(random) * 8.99f,
+                          1.5f + unit(random) * 4.99f};
+        EXPECT_NEAR(linearFilter.distanceTexels(p), affine(glm::dvec3(p)),
+                    2e-5);  // float, values < 10
         const glm::vec3 gradient = linearFilter.gradient(p);
         EXPECT_NEAR(gradient.x, 0.25, 2e-5);
         EXPECT_NEAR(gradient.y, -0.5, 2e-5);
@@ -271,7 +298,8 @@ TEST(Curvature, ClosedFormCases) {
     EXPECT_NEAR(curvatureFromDerivatives(-up, -sphere).mean, -0.25f, 1e-6);
     EXPECT_NEAR(curvatureFromDerivatives(-up, -sphere).gaussian, 0.0625f, 1e-6);
     // Cylinder of radius 2 along y: k1 = 1/2, k2 = 0. Gradient length does not matter.
-    const Curvature cylinder = curvatureFromDerivatives(3.0f * up, glm::mat3(1.5f, 0, 0, 0, 0, 0, 0, 0, 0));
+    const Curvature cylinder =
+        curvatureFromDerivatives(3.0f * up, glm::mat3(1.5f, 0, 0, 0, 0, 0, 0, 0, 0));
     EXPECT_NEAR(cylinder.mean, 0.25f, 1e-6);
     EXPECT_NEAR(cylinder.gaussian, 0.0f, 1e-6);
     EXPECT_EQ(curvatureFromDerivatives(glm::vec3(0.0f), sphere).mean, 0.0f);
@@ -289,27 +317,32 @@ TEST(TricubicBSplineFilter, CurvatureOfASphereTile) {
     const Size3 size{32, 32, 16};
     const glm::dvec3 centre(16.0, 16.0, 8.0);
     constexpr double kRadius = 6.0;
-    const Tile tile = tileOf(size, [&](const glm::dvec3& p) { return glm::length(p - centre) - kRadius; });
+    const Tile tile =
+        tileOf(size, [&](const glm::dvec3& p) { return glm::length(p - centre) - kRadius; });
     const TricubicBSplineFilter filter(tile);
     std::mt19937 random(23);
     std::normal_distribution<double> gaussian(0.0, 1.0);
     double sumMean = 0.0, sumGaussian = 0.0, worstMean = 0.0, worstGaussian = 0.0;
     constexpr int kPoints = 2000;
     for (int i = 0; i < kPoints; ++i) {
-        const glm::dvec3 direction = glm::normalize(glm::dvec3(gaussian(random), gaussian(random), gaussian(random)));
+        const glm::dvec3 direction =
+            glm::normalize(glm::dvec3(gaussian(random), gaussian(random), gaussian(random)));
         const glm::vec3 p(centre + kRadius * direction);
         const Curvature curvature = curvatureFromDerivatives(filter.gradient(p), filter.hessian(p));
         sumMean += curvature.mean;
         sumGaussian += curvature.gaussian;
         worstMean = std::max(worstMean, std::abs(curvature.mean - 1.0 / kRadius));
-        worstGaussian = std::max(worstGaussian, std::abs(curvature.gaussian - 1.0 / (kRadius * kRadius)));
+        worstGaussian =
+            std::max(worstGaussian, std::abs(curvature.gaussian - 1.0 / (kRadius * kRadius)));
         EXPECT_NEAR(curvature.mean, 1.0 / kRadius, 0.03 / kRadius);
         EXPECT_NEAR(curvature.gaussian, 1.0 / (kRadius * kRadius), 0.05 / (kRadius * kRadius));
     }
-    std::printf("[ figures  ] sphere r = 6: mean curvature %.5f (exact %.5f, worst error %.5f), Gaussian %.6f "
-                "(exact %.6f, worst error %.6f), 1/texel\n",
-                sumMean / kPoints, 1.0 / kRadius, worstMean, sumGaussian / kPoints, 1.0 / (kRadius * kRadius),
-                worstGaussian);
+    std::printf(
+        "[ figures  ] sphere r = 6: mean curvature %.5f (exact %.5f, worst error %.5f), Gaussian "
+        "%.6f "
+        "(exact %.6f, worst error %.6f), 1/texel\n",
+        sumMean / kPoints, 1.0 / kRadius, worstMean, sumGaussian / kPoints,
+        1.0 / (kRadius * kRadius), worstGaussian);
 }
 
 /// Unit outward normal of the analytic chain mail: central differences in double, h = 1e-5
@@ -320,7 +353,9 @@ glm::dvec3 chainmailNormal(const Chainmail& chainmail, const glm::dvec3& p) {
     for (int axis = 0; axis < 3; ++axis) {
         glm::dvec3 step(0.0);
         step[axis] = h;
-        gradient[axis] = (chainmail.signedDistanceTexels(p + step) - chainmail.signedDistanceTexels(p - step)) / (2 * h);
+        gradient[axis] =
+            (chainmail.signedDistanceTexels(p + step) - chainmail.signedDistanceTexels(p - step)) /
+            (2 * h);
     }
     return glm::normalize(gradient);
 }
@@ -328,7 +363,8 @@ glm::dvec3 chainmailNormal(const Chainmail& chainmail, const glm::dvec3& p) {
 double angleDegrees(const glm::dvec3& unit, const glm::vec3& direction) {
     const double length = glm::length(glm::dvec3(direction));
     if (!(length > 0.0)) return 180.0;
-    return std::acos(std::clamp(glm::dot(unit, glm::dvec3(direction)) / length, -1.0, 1.0)) * 180.0 / 3.14159265358979;
+    return std::acos(std::clamp(glm::dot(unit, glm::dvec3(direction)) / length, -1.0, 1.0)) *
+           180.0 / 3.14159265358979;
 }
 
 TEST(TricubicBSplineFilter, NormalsBeatTrilinearCentralDifferencesOnChainmail) {
@@ -348,7 +384,8 @@ TEST(TricubicBSplineFilter, NormalsBeatTrilinearCentralDifferencesOnChainmail) {
         for (int axis = 0; axis < 3; ++axis) {
             glm::vec3 step(0.0f);
             step[axis] = h;
-            gradient[axis] = (trilinear.distanceTexels(p + step) - trilinear.distanceTexels(p - step)) / (2 * h);
+            gradient[axis] =
+                (trilinear.distanceTexels(p + step) - trilinear.distanceTexels(p - step)) / (2 * h);
         }
         return gradient;
     };
@@ -376,13 +413,16 @@ TEST(TricubicBSplineFilter, NormalsBeatTrilinearCentralDifferencesOnChainmail) {
     }
     // ~3% of the tile lies within 0.1 texel of the wire surface: ~9,000 of 300,000 points.
     ASSERT_GT(nearSurface.count, 1000);
-    for (const auto& [sums, name] : {std::pair{nearSurface, "|d| <= 0.1"}, std::pair{band, "|d| <= 1"}}) {
+    for (const auto& [sums, name] :
+         {std::pair{nearSurface, "|d| <= 0.1"}, std::pair{band, "|d| <= 1"}}) {
         const double tricubicMean = sums.tricubic / sums.count;
         const double halfMean = sums.trilinearHalf / sums.count;
         const double oneMean = sums.trilinearOne / sums.count;
-        std::printf("[ figures  ] mean normal angle error, %s (%d points): tricubic B-spline %.3f deg; trilinear "
-                    "central differences h = 0.5: %.3f deg, h = 1: %.3f deg\n",
-                    name, sums.count, tricubicMean, halfMean, oneMean);
+        std::printf(
+            "[ figures  ] mean normal angle error, %s (%d points): tricubic B-spline %.3f deg; "
+            "trilinear "
+            "central differences h = 0.5: %.3f deg, h = 1: %.3f deg\n",
+            name, sums.count, tricubicMean, halfMean, oneMean);
         EXPECT_LT(tricubicMean, std::min(halfMean, oneMean)) << name;
     }
 }
@@ -402,7 +442,9 @@ std::vector<std::pair<std::string, ProceduralOptions>> proceduralKinds() {
     japanese.chainmail = japanese4in1Defaults();
     ProceduralOptions grating;
     grating.kind = ProceduralKind::Grating;
-    return {{"european 4-in-1 chain mail", european}, {"japanese 4-in-1 chain mail", japanese}, {"grating", grating}};
+    return {{"european 4-in-1 chain mail", european},
+            {"japanese 4-in-1 chain mail", japanese},
+            {"grating", grating}};
 }
 
 TEST(ConservativeResampling, EveryProceduralTileMeetsTheOverestimateAndRmsTargets) {
@@ -420,10 +462,13 @@ TEST(ConservativeResampling, EveryProceduralTileMeetsTheOverestimateAndRmsTarget
         const ProceduralDistance truth = proceduralDistance(procedural, exact.tile.size());
         const TileErrorReport before = measureTileError(exact.tile, truth.signedDistanceTexels);
         const TileErrorReport after = measureTileError(conservative, truth.signedDistanceTexels);
-        std::printf("[ figures  ] %s: exact texels: %.3f%% overestimates > 0.05, RMS %.4f; conservative: %.3f%% "
-                    "(largest %.3f), RMS %.4f, near-surface max %.3f p99.9 %.3f\n",
-                    name.c_str(), 100.0 * before.overestimateShare, before.rmsTexels, 100.0 * after.overestimateShare,
-                    after.maxOverestimateTexels, after.rmsTexels, after.nearMaxAbsTexels, after.nearP999Texels);
+        std::printf(
+            "[ figures  ] %s: exact texels: %.3f%% overestimates > 0.05, RMS %.4f; conservative: "
+            "%.3f%% "
+            "(largest %.3f), RMS %.4f, near-surface max %.3f p99.9 %.3f\n",
+            name.c_str(), 100.0 * before.overestimateShare, before.rmsTexels,
+            100.0 * after.overestimateShare, after.maxOverestimateTexels, after.rmsTexels,
+            after.nearMaxAbsTexels, after.nearP999Texels);
         EXPECT_LT(after.overestimateShare, 0.001);
         EXPECT_LE(after.rmsTexels, 0.1);
         EXPECT_EQ(after.signErrors, 0);
@@ -456,7 +501,8 @@ TEST(ConservativeResampling, SeamsAgreeWithTheInteriorForEveryProceduralKind) {
         const ProceduralDistance pattern = proceduralDistance(procedural, size);
         const glm::dvec3 half(128.0, 128.0, 0.0);
         Tile tile = tileOf(size, pattern.signedDistanceTexels);
-        Tile shifted = tileOf(size, [&](const glm::dvec3& p) { return pattern.signedDistanceTexels(p + half); });
+        Tile shifted = tileOf(
+            size, [&](const glm::dvec3& p) { return pattern.signedDistanceTexels(p + half); });
         makeConservative(tile, ConservativeOptions{});
         makeConservative(shifted, ConservativeOptions{});
         const TrilinearFilter atSeam(tile);
@@ -470,12 +516,17 @@ TEST(ConservativeResampling, SeamsAgreeWithTheInteriorForEveryProceduralKind) {
             const float across = -1.0f + 2.0f * unit(random);  // within a texel of the seam
             const glm::vec3 xSeam{across, a, z};
             const glm::vec3 ySeam{a, across, z};
-            worst = std::max(worst, double(std::abs(atSeam.distanceTexels(xSeam) -
-                                                    inside.distanceTexels(xSeam + glm::vec3(128.0f, 128.0f, 0.0f)))));
-            worst = std::max(worst, double(std::abs(atSeam.distanceTexels(ySeam) -
-                                                    inside.distanceTexels(ySeam + glm::vec3(128.0f, 128.0f, 0.0f)))));
+            worst = std::max(
+                worst,
+                double(std::abs(atSeam.distanceTexels(xSeam) -
+                                inside.distanceTexels(xSeam + glm::vec3(128.0f, 128.0f, 0.0f)))));
+            worst = std::max(
+                worst,
+                double(std::abs(atSeam.distanceTexels(ySeam) -
+                                inside.distanceTexels(ySeam + glm::vec3(128.0f, 128.0f, 0.0f)))));
         }
-        std::printf("[ figures  ] %s: largest difference across the seams %.2g texel\n", name.c_str(), worst);
+        std::printf("[ figures  ] %s: largest difference across the seams %.2g texel\n",
+                    name.c_str(), worst);
         EXPECT_LE(worst, 0.01);
     }
 }
@@ -491,11 +542,13 @@ TEST(ConservativeResampling, LowersByTheCurvatureEstimateAndRejectsBadOptions) {
     for (std::size_t i = 0; i < plane.distancesTexels().size(); ++i) {
         EXPECT_FLOAT_EQ(plane.distancesTexels()[i], planeBefore.distancesTexels()[i]);
     }
-    Tile parabola = tileOf(Size3{64, 8, 8}, [](const glm::dvec3& p) { return 0.5 * (p.x - 32.0) * (p.x - 32.0); });
+    Tile parabola = tileOf(Size3{64, 8, 8},
+                           [](const glm::dvec3& p) { return 0.5 * (p.x - 32.0) * (p.x - 32.0); });
     const Tile parabolaBefore = parabola;
     makeConservative(parabola, ConservativeOptions{});
     // Interior columns (the wrap at x = 0/W breaks the parabola): float rounding of values < 600.
-    for (int x = 1; x < 63; ++x) EXPECT_NEAR(parabolaBefore.at(x, 3, 3) - parabola.at(x, 3, 3), 0.255f, 1e-4f);
+    for (int x = 1; x < 63; ++x)
+        EXPECT_NEAR(parabolaBefore.at(x, 3, 3) - parabola.at(x, 3, 3), 0.255f, 1e-4f);
     ConservativeOptions bad;
     bad.kinkFactor = -1.0f;
     EXPECT_THROW(makeConservative(parabola, bad), InputError);

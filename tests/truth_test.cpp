@@ -5,10 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <glm/geometric.hpp>
 #include <random>
 #include <vector>
-
-#include <glm/geometric.hpp>
 
 #include "common/error.h"
 #include "detail_meshes.h"
@@ -127,7 +126,8 @@ TEST(InspectMesh, ClosedOpenNonManifoldDegenerate) {
     TriangleSoup overlapping = makeBoxSoup(glm::dvec3(0.0), glm::dvec3(1.0));
     const TriangleSoup shifted = makeBoxSoup(glm::dvec3(0.5), glm::dvec3(1.5));
     for (const glm::dvec3& p : shifted.positions) overlapping.positions.push_back(p);
-    for (const glm::uvec3& t : shifted.triangles) overlapping.triangles.push_back(t + glm::uvec3(8u));
+    for (const glm::uvec3& t : shifted.triangles)
+        overlapping.triangles.push_back(t + glm::uvec3(8u));
     const MeshTopology overlappingTopology = inspectMesh(overlapping);
     EXPECT_TRUE(overlappingTopology.manifold);
     EXPECT_TRUE(overlappingTopology.selfIntersecting);
@@ -153,7 +153,8 @@ void expectLevelSetMatchesMesh(const char* name, const TriangleSoup& meshTexels,
     const LevelSet levelSet = levelSetFromMesh(meshTexels, tile, float(tile.depth), name, "{}", {},
                                                exactSign ? insideTest : InsideTest());
     std::mt19937 random(1234);
-    std::uniform_int_distribution<int> i(0, tile.width - 1), j(0, tile.height - 1), k(0, tile.depth - 1);
+    std::uniform_int_distribution<int> i(0, tile.width - 1), j(0, tile.height - 1),
+        k(0, tile.depth - 1);
     double maxErrorNear = 0.0, sumSquaredNear = 0.0;
     std::size_t near = 0, signErrors = 0, signErrorsFar = 0;
     for (int n = 0; n < samples; ++n) {
@@ -171,10 +172,11 @@ void expectLevelSetMatchesMesh(const char* name, const TriangleSoup& meshTexels,
             sumSquaredNear += (baked - exact) * (baked - exact);
         }
     }
-    std::printf("[ figures  ] %s %s vs mesh (CGAL), %d voxel centres, %s sign: within 2 texels (%zu): "
-                "max %.2e RMS %.2e texels; sign errors %zu (%zu farther than 0.1 texel)\n",
-                name, toString(tile).c_str(), samples, exactSign ? "exact" : "OpenVDB", near,
-                maxErrorNear, near ? std::sqrt(sumSquaredNear / near) : 0.0, signErrors, signErrorsFar);
+    std::printf(
+        "[ figures  ] %s %s vs mesh (CGAL), %d voxel centres, %s sign: within 2 texels (%zu): "
+        "max %.2e RMS %.2e texels; sign errors %zu (%zu farther than 0.1 texel)\n",
+        name, toString(tile).c_str(), samples, exactSign ? "exact" : "OpenVDB", near, maxErrorNear,
+        near ? std::sqrt(sumSquaredNear / near) : 0.0, signErrors, signErrorsFar);
     ASSERT_GT(near, 1000u);  // the test measures something
     EXPECT_LE(maxErrorNear, 0.5);
     EXPECT_EQ(signErrorsFar, 0u);
@@ -185,23 +187,26 @@ void expectLevelSetMatchesMesh(const char* name, const TriangleSoup& meshTexels,
 
 TEST(MeshBakeAcceptance, TorusMatchesMeshDistance) {
     const Size3 tile{64, 64, 16};
-    expectLevelSetMatchesMesh("torus", makeTorusSoup(glm::dvec3(32.3, 31.7, 8.1), 20.0, 5.0, 96, 48), tile);
+    expectLevelSetMatchesMesh("torus",
+                              makeTorusSoup(glm::dvec3(32.3, 31.7, 8.1), 20.0, 5.0, 96, 48), tile);
 }
 
 TEST(MeshBakeAcceptance, TorusWithOpenVdbSignHasNoFarSignErrors) {
     const Size3 tile{64, 64, 16};
-    expectLevelSetMatchesMesh("torus", makeTorusSoup(glm::dvec3(32.3, 31.7, 8.1), 20.0, 5.0, 96, 48), tile,
-                              20000, false);
+    expectLevelSetMatchesMesh(
+        "torus", makeTorusSoup(glm::dvec3(32.3, 31.7, 8.1), 20.0, 5.0, 96, 48), tile, 20000, false);
 }
 
 TEST(MeshBakeAcceptance, CubeMatchesMeshDistance) {
     const Size3 tile{64, 64, 16};
-    expectLevelSetMatchesMesh("cube", makeBoxSoup(glm::dvec3(20.2, 18.9, 3.3), glm::dvec3(41.7, 44.1, 12.6)), tile);
+    expectLevelSetMatchesMesh(
+        "cube", makeBoxSoup(glm::dvec3(20.2, 18.9, 3.3), glm::dvec3(41.7, 44.1, 12.6)), tile);
 }
 
 TEST(MeshBakeAcceptance, TorusAcrossTheTileEdgeMatchesPeriodicMeshDistance) {
     const Size3 tile{64, 64, 16};
-    expectLevelSetMatchesMesh("torus across x=0,y=0", makeTorusSoup(glm::dvec3(3.3, 60.2, 8.1), 14.0, 5.0, 96, 48), tile,
+    expectLevelSetMatchesMesh("torus across x=0,y=0",
+                              makeTorusSoup(glm::dvec3(3.3, 60.2, 8.1), 14.0, 5.0, 96, 48), tile,
                               20000);
 }
 
@@ -222,8 +227,10 @@ TEST(MeshBake, FitPlacementAndSign) {
 
     options.size = {40, 40, 6};  // 8 texels tall does not fit 6
     EXPECT_THROW(bakeMesh(torus, MeshPlacement{}, options), InputError);
-    EXPECT_THROW(placeMesh(torus, MeshPlacement{false, 0.0, glm::dvec3(0.0)}, options.size), InputError);
-    EXPECT_THROW(placeMesh(torus, MeshPlacement{false, 1e30, glm::dvec3(0.0)}, options.size), InputError);
+    EXPECT_THROW(placeMesh(torus, MeshPlacement{false, 0.0, glm::dvec3(0.0)}, options.size),
+                 InputError);
+    EXPECT_THROW(placeMesh(torus, MeshPlacement{false, 1e30, glm::dvec3(0.0)}, options.size),
+                 InputError);
 }
 
 TEST(HeightMapBake, MatchesBruteForceDistanceToTheTriangulatedSurface) {
@@ -256,8 +263,9 @@ TEST(HeightMapBake, MatchesBruteForceDistanceToTheTriangulatedSurface) {
             }
         }
     }
-    std::printf("[ figures  ] heightmap 16x16 on %s: %d voxels vs brute force, max error %.2e texels\n",
-                toString(tile).c_str(), compared, maxError);
+    std::printf(
+        "[ figures  ] heightmap 16x16 on %s: %d voxels vs brute force, max error %.2e texels\n",
+        toString(tile).c_str(), compared, maxError);
     ASSERT_GT(compared, 3000);
     // Exact up to storing the distance as a float (values up to 10 texels: ulp 1e-6).
     EXPECT_LT(maxError, 1e-4);

@@ -3,21 +3,20 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <glm/geometric.hpp>
 #include <numbers>
 #include <random>
-#include <cstdio>
-
-#include <glm/geometric.hpp>
 
 #include "common/error.h"
-#include "vdb/chainmail.h"
-#include "vdb/level_set.h"
-#include "vdb/mesh_level_set.h"
 #include "detail_meshes.h"
+#include "vdb/chainmail.h"
 #include "vdb/grating.h"
 #include "vdb/height_field.h"
+#include "vdb/level_set.h"
+#include "vdb/mesh_level_set.h"
 #include "vdb/procedural.h"
 
 namespace distile {
@@ -39,7 +38,8 @@ Ring ring(const ChainmailOptions& options, const Size3& tile, int column, int ro
     const bool odd = (row % 2 + 2) % 2 == 1;
     const double tilt = (odd ? -1.0 : 1.0) * options.tiltDeg * kPi / 180.0;
     Ring result;
-    result.centre = {column * spacing + (odd ? 0.5 * spacing : 0.0), row * rowSpacing, 0.5 * tile.depth};
+    result.centre = {column * spacing + (odd ? 0.5 * spacing : 0.0), row * rowSpacing,
+                     0.5 * tile.depth};
     result.axis = {std::sin(tilt), 0.0, std::cos(tilt)};
     result.u = {std::cos(tilt), 0.0, -std::sin(tilt)};
     result.v = {0.0, 1.0, 0.0};
@@ -63,8 +63,8 @@ TEST(Chainmail, CentrelineIsOneWireRadiusInsideAndTubeSurfaceIsZero) {
             EXPECT_NEAR(chainmail.signedDistanceTexels(centreline), -wireRadius, 1e-9);
             for (int j = 0; j < 12; ++j) {
                 const double tubeAngle = 2.0 * kPi * j / 12.0;
-                const glm::dvec3 surface =
-                    centreline + wireRadius * (std::cos(tubeAngle) * radial + std::sin(tubeAngle) * r.axis);
+                const glm::dvec3 surface = centreline + wireRadius * (std::cos(tubeAngle) * radial +
+                                                                      std::sin(tubeAngle) * r.axis);
                 EXPECT_NEAR(chainmail.signedDistanceTexels(surface), 0.0, 1e-9);
             }
         }
@@ -83,7 +83,8 @@ TEST(Chainmail, EachRingLinksItsFourDiagonalNeighbours) {
         constexpr int kSteps = 4000;
         auto point = [&](int step) {
             const double angle = 2.0 * kPi * step / kSteps;
-            return other.centre + ringRadius * (std::cos(angle) * other.u + std::sin(angle) * other.v);
+            return other.centre +
+                   ringRadius * (std::cos(angle) * other.u + std::sin(angle) * other.v);
         };
         for (int step = 0; step < kSteps; ++step) {
             const glm::dvec3 a = point(step);
@@ -124,14 +125,20 @@ TEST(Chainmail, MatchesBruteForceMinimumOverAllRingsAndIsPeriodic) {
                 const Ring r = ring(options, kDefaultTile, column, row);
                 const glm::dvec3 offset = p - r.centre;
                 const double inPlane = std::hypot(glm::dot(offset, r.u), glm::dot(offset, r.v));
-                expected = std::min(expected, std::hypot(inPlane - ringRadius, glm::dot(offset, r.axis)) - wireRadius);
+                expected =
+                    std::min(expected, std::hypot(inPlane - ringRadius, glm::dot(offset, r.axis)) -
+                                           wireRadius);
             }
         }
-        EXPECT_NEAR(chainmail.signedDistanceTexels(p), expected, 1e-9) << "at " << p.x << "," << p.y << "," << p.z;
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p), expected, 1e-9)
+            << "at " << p.x << "," << p.y << "," << p.z;
         // Periodic with the tile: shifting by W or H, or many tiles, changes nothing.
-        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(256.0, 0.0, 0.0)), expected, 1e-9);
-        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(0.0, -256.0, 0.0)), expected, 1e-9);
-        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(256.0 * 37, 256.0 * 11, 0.0)), expected, 1e-7);
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(256.0, 0.0, 0.0)), expected,
+                    1e-9);
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(0.0, -256.0, 0.0)), expected,
+                    1e-9);
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(256.0 * 37, 256.0 * 11, 0.0)),
+                    expected, 1e-7);
     }
 }
 
@@ -162,10 +169,11 @@ TEST(Chainmail, RejectsOptionsThatCannotWork) {
 }
 
 class LevelSetTest : public ::testing::Test {
-protected:
+  protected:
     void SetUp() override {
         folder_ = std::filesystem::temp_directory_path() /
-                  ("distile_vdb_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
+                  ("distile_vdb_test_" +
+                   std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
         std::filesystem::create_directories(folder_);
     }
@@ -178,8 +186,8 @@ TEST_F(LevelSetTest, StoresTheDistanceAtVoxelCentresWithinTheBand) {
     // (float of a double), and voxels beyond the band hold +/- the half band.
     const Size3 size{16, 8, 12};
     const float halfBand = 4.0f;
-    const LevelSet levelSet = LevelSet::fromDistance([](const glm::dvec3& p) { return p.z - 5.3; }, size, halfBand,
-                                                     "plane", "{}");
+    const LevelSet levelSet = LevelSet::fromDistance([](const glm::dvec3& p) { return p.z - 5.3; },
+                                                     size, halfBand, "plane", "{}");
     for (int k = -4; k < 16; ++k) {
         const double expected = std::clamp(k + 0.5 - 5.3, -double(halfBand), double(halfBand));
         EXPECT_FLOAT_EQ(levelSet.voxelDistanceTexels(3, 5, k), float(expected)) << "k=" << k;
@@ -193,7 +201,8 @@ TEST_F(LevelSetTest, StoresTheDistanceAtVoxelCentresWithinTheBand) {
 TEST_F(LevelSetTest, SavesAndLoadsAndCopiesTheTileVoxels) {
     const Size3 size{8, 8, 6};
     const LevelSet levelSet = LevelSet::fromDistance(
-        [](const glm::dvec3& p) { return glm::length(p - glm::dvec3(4, 4, 3)) - 2.0; }, size, 6.0f, "sphere", "{\"r\":2}");
+        [](const glm::dvec3& p) { return glm::length(p - glm::dvec3(4, 4, 3)) - 2.0; }, size, 6.0f,
+        "sphere", "{\"r\":2}");
     const auto file = folder_ / "sphere.vdb";
     levelSet.save(file);
     const LevelSet loaded = LevelSet::load(file);
@@ -205,7 +214,8 @@ TEST_F(LevelSetTest, SavesAndLoadsAndCopiesTheTileVoxels) {
     for (int k = 0; k < size.depth; ++k) {
         for (int j = 0; j < size.height; ++j) {
             for (int i = 0; i < size.width; ++i) {
-                const double expected = glm::length(glm::dvec3(i + 0.5, j + 0.5, k + 0.5) - glm::dvec3(4, 4, 3)) - 2.0;
+                const double expected =
+                    glm::length(glm::dvec3(i + 0.5, j + 0.5, k + 0.5) - glm::dvec3(4, 4, 3)) - 2.0;
                 EXPECT_FLOAT_EQ(texels[i + size.width * (j + size.height * k)], float(expected));
             }
         }
@@ -214,8 +224,8 @@ TEST_F(LevelSetTest, SavesAndLoadsAndCopiesTheTileVoxels) {
 
 TEST_F(LevelSetTest, RejectsMissingAndCorruptedFiles) {
     EXPECT_THROW(LevelSet::load(folder_ / "missing.vdb"), InputError);
-    const LevelSet levelSet =
-        LevelSet::fromDistance([](const glm::dvec3& p) { return p.z - 2.0; }, Size3{8, 8, 4}, 2.0f, "plane", "{}");
+    const LevelSet levelSet = LevelSet::fromDistance([](const glm::dvec3& p) { return p.z - 2.0; },
+                                                     Size3{8, 8, 4}, 2.0f, "plane", "{}");
     const auto file = folder_ / "plane.vdb";
     levelSet.save(file);
     const auto bytes = std::filesystem::file_size(file);
@@ -236,7 +246,8 @@ TEST(LevelSet, RejectsBadBands) {
 TEST(MeshLevelSet, BoxDistancesAreExact) {
     // Axis-aligned box, corners off the voxel grid: outside the faces the distance is exact.
     const Size3 tile{32, 32, 16};
-    const TriangleSoup box = test::makeBoxSoup(glm::dvec3(10.25, 9.75, 4.5), glm::dvec3(20.5, 22.25, 11.5));
+    const TriangleSoup box =
+        test::makeBoxSoup(glm::dvec3(10.25, 9.75, 4.5), glm::dvec3(20.5, 22.25, 11.5));
     const LevelSet levelSet = levelSetFromMesh(box, tile, 4.0f, "box", "{}");
     EXPECT_EQ(levelSet.tileSize(), tile);
     EXPECT_EQ(levelSet.source(), "box");
@@ -262,8 +273,8 @@ void expectShiftInvariant(const TriangleSoup& mesh, const Size3& tile, int shift
         for (int j = 0; j < tile.height; ++j) {
             for (int i = 0; i < tile.width; ++i) {
                 const int si = (i + shiftX) % tile.width, sj = (j + shiftY) % tile.height;
-                const double difference = std::abs(a.voxelDistanceTexels(i, j, k) -
-                                                   b.voxelDistanceTexels(si, sj, k));
+                const double difference =
+                    std::abs(a.voxelDistanceTexels(i, j, k) - b.voxelDistanceTexels(si, sj, k));
                 if (std::abs(a.voxelDistanceTexels(i, j, k)) <= 2.0f) {
                     worstNear = std::max(worstNear, difference);
                 }
@@ -274,16 +285,18 @@ void expectShiftInvariant(const TriangleSoup& mesh, const Size3& tile, int shift
             }
         }
     }
-    std::printf("[ figures  ] mesh level set shifted by (%d, %d) texels: max change %.3g texels "
-                "within 2 texels of the surface, %.3g anywhere\n", shiftX, shiftY, worstNear, worst);
+    std::printf(
+        "[ figures  ] mesh level set shifted by (%d, %d) texels: max change %.3g texels "
+        "within 2 texels of the surface, %.3g anywhere\n",
+        shiftX, shiftY, worstNear, worst);
     // OpenVDB's mesh-to-volume is exact near the triangles but propagates nearest triangles
     // approximately farther out (measured: up to ~0.25 texel at 4 texels), and the float
     // rounding of shifted positions changes which voxels it gets slightly wrong. Near the
     // surface (measured 2e-6) the issue's 0.01 seam tolerance holds; farther out OpenVDB's own
     // approximation (< 0.5 texel) is the bound.
     EXPECT_LE(worstNear, 0.01);
-    EXPECT_LE(worst, 0.5) << "at voxel " << worstAt.x << " " << worstAt.y << " " << worstAt.z << ": "
-                           << a.voxelDistanceTexels(worstAt.x, worstAt.y, worstAt.z);
+    EXPECT_LE(worst, 0.5) << "at voxel " << worstAt.x << " " << worstAt.y << " " << worstAt.z
+                          << ": " << a.voxelDistanceTexels(worstAt.x, worstAt.y, worstAt.z);
 }
 
 TEST(MeshLevelSet, MeshAcrossTheTileEdgeIsSeamless) {
@@ -338,17 +351,25 @@ double torusDistanceBruteForce(const Torus& torus, const glm::dvec3& p) {
     return std::hypot(inPlane - torus.ringRadius, along) - torus.wireRadius;
 }
 
-std::vector<Torus> japaneseRings(const ChainmailOptions& options, const Size3& tile, int reachCells) {
+std::vector<Torus> japaneseRings(const ChainmailOptions& options, const Size3& tile,
+                                 int reachCells) {
     const double s = double(tile.width) / options.ringsPerRow;
     const double t = double(tile.height) / options.rowsPerTile;
     const double z = 0.5 * tile.depth;
     std::vector<Torus> rings;
     for (int j = -reachCells; j < options.rowsPerTile + reachCells; ++j) {
         for (int i = -reachCells; i < options.ringsPerRow + reachCells; ++i) {
-            rings.push_back({{i * s, j * t, z}, {0, 0, 1}, options.ringRadiusSpacings * s, options.wireRadiusSpacings * s});
-            rings.push_back({{(i + 0.5) * s, j * t, z}, {0, 1, 0}, options.smallRingRadiusSpacings * s,
+            rings.push_back({{i * s, j * t, z},
+                             {0, 0, 1},
+                             options.ringRadiusSpacings * s,
+                             options.wireRadiusSpacings * s});
+            rings.push_back({{(i + 0.5) * s, j * t, z},
+                             {0, 1, 0},
+                             options.smallRingRadiusSpacings * s,
                              options.smallWireRadiusSpacings * s});
-            rings.push_back({{i * s, (j + 0.5) * t, z}, {1, 0, 0}, options.smallRingRadiusSpacings * s,
+            rings.push_back({{i * s, (j + 0.5) * t, z},
+                             {1, 0, 0},
+                             options.smallRingRadiusSpacings * s,
                              options.smallWireRadiusSpacings * s});
         }
     }
@@ -365,11 +386,15 @@ TEST(JapaneseChainmail, MatchesBruteForceMinimumOverAllRingsAndIsPeriodic) {
         // Includes points far above and below, where many rings are candidates.
         const glm::dvec3 p{unit(random) * 256.0, unit(random) * 256.0, -40.0 + unit(random) * 96.0};
         double expected = 1e300;
-        for (const Torus& ring : rings) expected = std::min(expected, torusDistanceBruteForce(ring, p));
+        for (const Torus& ring : rings)
+            expected = std::min(expected, torusDistanceBruteForce(ring, p));
         // Both are sums of a few double operations on values below 300: 1e-9 is ~1e5 ulps of slack.
-        EXPECT_NEAR(chainmail.signedDistanceTexels(p), expected, 1e-9) << p.x << "," << p.y << "," << p.z;
-        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(256.0, 0.0, 0.0)), expected, 1e-9);
-        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(-256.0 * 5, 256.0 * 9, 0.0)), expected, 1e-8);
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p), expected, 1e-9)
+            << p.x << "," << p.y << "," << p.z;
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(256.0, 0.0, 0.0)), expected,
+                    1e-9);
+        EXPECT_NEAR(chainmail.signedDistanceTexels(p + glm::dvec3(-256.0 * 5, 256.0 * 9, 0.0)),
+                    expected, 1e-8);
     }
 }
 
@@ -380,7 +405,8 @@ TEST(JapaneseChainmail, CentrelinesAreOneWireInsideRingsDoNotTouchAndFitTheDepth
     for (int i = 0; i < 360; ++i) {
         const double angle = 2.0 * kPi * i / 360.0;
         // Large ring (2, 3): centreline in the plane z = 8.
-        const glm::dvec3 large{2 * s + 13.75 * std::cos(angle), 3 * s + 13.75 * std::sin(angle), 8.0};
+        const glm::dvec3 large{2 * s + 13.75 * std::cos(angle), 3 * s + 13.75 * std::sin(angle),
+                               8.0};
         EXPECT_NEAR(chainmail.signedDistanceTexels(large), -1.5, 1e-9);
         // Small ring between (2, 3) and (3, 3): centreline in the x-z plane.
         const glm::dvec3 small{2.5 * s + 6.0 * std::cos(angle), 3 * s, 8.0 + 6.0 * std::sin(angle)};
@@ -394,7 +420,8 @@ TEST(JapaneseChainmail, CentrelinesAreOneWireInsideRingsDoNotTouchAndFitTheDepth
         for (int j = 0; j < 8; ++j) {
             const double tube = 2.0 * kPi * j / 8.0;
             const glm::dvec3 radial{std::cos(angle), 0.0, std::sin(angle)};
-            const glm::dvec3 onSmall = glm::dvec3(2.5 * s, 3 * s, 8.0) + (6.0 + 1.25 * std::cos(tube)) * radial +
+            const glm::dvec3 onSmall = glm::dvec3(2.5 * s, 3 * s, 8.0) +
+                                       (6.0 + 1.25 * std::cos(tube)) * radial +
                                        glm::dvec3(0.0, 1.25 * std::sin(tube), 0.0);
             EXPECT_NEAR(chainmail.signedDistanceTexels(onSmall), 0.0, 1e-9);
         }
@@ -434,7 +461,8 @@ TEST(JapaneseChainmail, SmallRingsThreadBothLargeRings) {
 double roundedRectangleBruteForce(double u, double v, double halfU, double halfV, double radius) {
     const double innerU = halfU - radius;
     const double innerV = halfV - radius;
-    const double toInner = std::hypot(u - std::clamp(u, -innerU, innerU), v - std::clamp(v, -innerV, innerV));
+    const double toInner =
+        std::hypot(u - std::clamp(u, -innerU, innerU), v - std::clamp(v, -innerV, innerV));
     if (toInner > 0.0) return toInner - radius;
     return -std::min(halfU - std::abs(u), halfV - std::abs(v));
 }
@@ -451,11 +479,15 @@ TEST(Grating, MatchesBruteForceOverAllBarsClosedFormPointsAndIsPeriodic) {
         double expected = 1e300;
         for (int k = -2; k < options.barsPerTile + 2; ++k) {
             const double centre = (k + 0.5) * spacing;
-            expected = std::min(expected, roundedRectangleBruteForce(p.y - centre, p.z - 8.0 - offset, 4.0, 3.0, 3.0));
-            expected = std::min(expected, roundedRectangleBruteForce(p.x - centre, p.z - 8.0 + offset, 4.0, 3.0, 3.0));
+            expected = std::min(expected, roundedRectangleBruteForce(
+                                              p.y - centre, p.z - 8.0 - offset, 4.0, 3.0, 3.0));
+            expected = std::min(expected, roundedRectangleBruteForce(
+                                              p.x - centre, p.z - 8.0 + offset, 4.0, 3.0, 3.0));
         }
-        EXPECT_NEAR(grating.signedDistanceTexels(p), expected, 1e-9) << p.x << "," << p.y << "," << p.z;
-        EXPECT_NEAR(grating.signedDistanceTexels(p + glm::dvec3(256.0 * 3, -256.0, 0.0)), expected, 1e-9);
+        EXPECT_NEAR(grating.signedDistanceTexels(p), expected, 1e-9)
+            << p.x << "," << p.y << "," << p.z;
+        EXPECT_NEAR(grating.signedDistanceTexels(p + glm::dvec3(256.0 * 3, -256.0, 0.0)), expected,
+                    1e-9);
     }
     // Closed form: the top face of an upper bar is at z = 8 + 0.5 + 6 = 14.5, its centre line at
     // y = 16; the bar's core is 3 texels (half the height) inside; the gap's middle is 0.5 away.
@@ -495,25 +527,30 @@ TEST(Procedural, GivesEachPatternsDistanceSourceAndParams) {
     EXPECT_EQ(grating.source, "grating");
     EXPECT_EQ(grating.paramsJson, Grating(GratingOptions{}, kDefaultTile).paramsJson());
     const glm::dvec3 p{12.3, 45.6, 7.8};
-    EXPECT_EQ(grating.signedDistanceTexels(p), Grating(GratingOptions{}, kDefaultTile).signedDistanceTexels(p));
+    EXPECT_EQ(grating.signedDistanceTexels(p),
+              Grating(GratingOptions{}, kDefaultTile).signedDistanceTexels(p));
     options.kind = ProceduralKind::Chainmail;
     options.chainmail = japanese4in1Defaults();
     const ProceduralDistance japanese = proceduralDistance(options, kDefaultTile);
     EXPECT_EQ(japanese.source, "chainmail");
     EXPECT_NE(japanese.paramsJson.find("\"weave\":\"japanese4in1\""), std::string::npos);
     EXPECT_NE(japanese.paramsJson.find("\"ring_radius_spacings\":0.4296875"), std::string::npos);
-    EXPECT_EQ(japanese.signedDistanceTexels(p), Chainmail(japanese4in1Defaults(), kDefaultTile).signedDistanceTexels(p));
+    EXPECT_EQ(japanese.signedDistanceTexels(p),
+              Chainmail(japanese4in1Defaults(), kDefaultTile).signedDistanceTexels(p));
     // The default European weave keeps its provenance text.
     EXPECT_EQ(Chainmail(ChainmailOptions{}, kDefaultTile).paramsJson(),
-              "{\"weave\":\"european4in1\",\"rings_per_row\":8,\"rows_per_tile\":10,\"ring_radius_spacings\":0.703125,"
+              "{\"weave\":\"european4in1\",\"rings_per_row\":8,\"rows_per_tile\":10,\"ring_radius_"
+              "spacings\":0.703125,"
               "\"wire_radius_spacings\":0.065625,\"tilt_deg\":12}");
 }
 
 TEST(LevelSetRepeat, CopiesTheTileWithOffsetsAndChecksTheCounts) {
     const Size3 size{8, 6, 4};
     const LevelSet levelSet = LevelSet::fromDistance(
-        [](const glm::dvec3& p) { return std::sin(0.7 * p.x) + std::cos(1.1 * p.y) + 0.3 * p.z - 1.0; }, size, 3.0f,
-        "wave", "{}");
+        [](const glm::dvec3& p) {
+            return std::sin(0.7 * p.x) + std::cos(1.1 * p.y) + 0.3 * p.z - 1.0;
+        },
+        size, 3.0f, "wave", "{}");
     const LevelSet repeated = levelSet.repeated(3, 2);
     EXPECT_EQ(repeated.tileSize(), (Size3{24, 12, 4}));
     EXPECT_EQ(repeated.source(), "wave");
@@ -521,7 +558,8 @@ TEST(LevelSetRepeat, CopiesTheTileWithOffsetsAndChecksTheCounts) {
     for (int k = -3; k < 7; ++k)
         for (int j = 0; j < 12; ++j)
             for (int i = 0; i < 24; ++i)
-                ASSERT_EQ(repeated.voxelDistanceTexels(i, j, k), levelSet.voxelDistanceTexels(i % 8, j % 6, k))
+                ASSERT_EQ(repeated.voxelDistanceTexels(i, j, k),
+                          levelSet.voxelDistanceTexels(i % 8, j % 6, k))
                     << i << "," << j << "," << k;
     EXPECT_THROW(levelSet.repeated(0, 2), InputError);
     EXPECT_THROW(levelSet.repeated(2, 65), InputError);
@@ -556,7 +594,8 @@ TEST(HeightFieldLevelSet, FlatFieldIsExactlyZMinusHeight) {
         for (int j = 0; j < tile.height; ++j) {
             for (int i = 0; i < tile.width; ++i) {
                 const double expected = std::clamp(k + 0.5 - 5.25, -double(band), double(band));
-                maxError = std::max(maxError, std::abs(levelSet.voxelDistanceTexels(i, j, k) - expected));
+                maxError =
+                    std::max(maxError, std::abs(levelSet.voxelDistanceTexels(i, j, k) - expected));
             }
         }
     }
@@ -571,11 +610,13 @@ TEST(HeightFieldLevelSet, SurfaceInterpolatesTheNodesPeriodically) {
     // At a node: the node; halfway along the diagonal of a cell: the mean of its two ends; one
     // period away: the same.
     EXPECT_DOUBLE_EQ(heightFieldSurfaceTexels(field, 3.5, 4.5), field.node(3, 4));
-    EXPECT_NEAR(heightFieldSurfaceTexels(field, 4.0, 5.0), 0.5 * (field.node(3, 4) + field.node(4, 5)), 1e-12);
-    EXPECT_NEAR(heightFieldSurfaceTexels(field, 4.0 + 8.0, 5.0 - 16.0), heightFieldSurfaceTexels(field, 4.0, 5.0),
-                1e-12);
+    EXPECT_NEAR(heightFieldSurfaceTexels(field, 4.0, 5.0),
+                0.5 * (field.node(3, 4) + field.node(4, 5)), 1e-12);
+    EXPECT_NEAR(heightFieldSurfaceTexels(field, 4.0 + 8.0, 5.0 - 16.0),
+                heightFieldSurfaceTexels(field, 4.0, 5.0), 1e-12);
     // Across the wrap: between node 7 and node 8 = node 0.
-    EXPECT_NEAR(heightFieldSurfaceTexels(field, 8.0, 0.5), 0.5 * (field.node(7, 0) + field.node(0, 0)), 1e-12);
+    EXPECT_NEAR(heightFieldSurfaceTexels(field, 8.0, 0.5),
+                0.5 * (field.node(7, 0) + field.node(0, 0)), 1e-12);
 }
 
 TEST(HeightFieldLevelSet, ShiftedFieldGivesTheShiftedLevelSetAcrossTheWrap) {
@@ -588,7 +629,8 @@ TEST(HeightFieldLevelSet, ShiftedFieldGivesTheShiftedLevelSetAcrossTheWrap) {
     const int s = 13, t = 7;
     for (int j = 0; j < tile.height; ++j) {
         for (int i = 0; i < tile.width; ++i) {
-            shifted.heightsTexels[std::size_t(i) + std::size_t(j) * tile.width] = field.node(i + s, j + t);
+            shifted.heightsTexels[std::size_t(i) + std::size_t(j) * tile.width] =
+                field.node(i + s, j + t);
         }
     }
     const LevelSet a = levelSetFromHeightField(field, tile, 16.0f, "heightmap", "{}");
@@ -597,15 +639,19 @@ TEST(HeightFieldLevelSet, ShiftedFieldGivesTheShiftedLevelSetAcrossTheWrap) {
     for (int k = 0; k < tile.depth; ++k) {
         for (int j = 0; j < tile.height; ++j) {
             for (int i = 0; i < tile.width; ++i) {
-                const float wrapped = a.voxelDistanceTexels((i + s) % tile.width, (j + t) % tile.height, k);
-                maxDifference = std::max(maxDifference, double(std::abs(b.voxelDistanceTexels(i, j, k) - wrapped)));
+                const float wrapped =
+                    a.voxelDistanceTexels((i + s) % tile.width, (j + t) % tile.height, k);
+                maxDifference = std::max(
+                    maxDifference, double(std::abs(b.voxelDistanceTexels(i, j, k) - wrapped)));
             }
         }
     }
     EXPECT_LE(maxDifference, 0.01);
     // The values on both sides of x = 0 (and y = 0) differ by at most the surface's slope.
     for (int j = 0; j < tile.height; ++j) {
-        EXPECT_LE(std::abs(a.voxelDistanceTexels(0, j, 8) - a.voxelDistanceTexels(tile.width - 1, j, 8)), 1.0);
+        EXPECT_LE(
+            std::abs(a.voxelDistanceTexels(0, j, 8) - a.voxelDistanceTexels(tile.width - 1, j, 8)),
+            1.0);
     }
 }
 

@@ -10,11 +10,10 @@
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
-#include <glm/geometric.hpp>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <limits>
 #include <map>
 #include <utility>
@@ -37,7 +36,9 @@ using Primitive = CGAL::AABB_triangle_primitive<Kernel, TriangleList::const_iter
 using Tree = CGAL::AABB_tree<CGAL::AABB_traits<Kernel, Primitive>>;
 using SideOfMesh = CGAL::Side_of_triangle_mesh<SurfaceMesh, Kernel>;
 
-Point toPoint(const glm::dvec3& p) { return Point(p.x, p.y, p.z); }
+Point toPoint(const glm::dvec3& p) {
+    return Point(p.x, p.y, p.z);
+}
 
 struct Soup {
     std::vector<Point> points;
@@ -117,8 +118,8 @@ MeshTopology inspectMesh(const TriangleSoup& triangleSoup) {
 struct MeshDistance::Impl {
     TriangleList triangles;
     Tree tree;
-    SurfaceMesh mesh;                   // only when closed
-    std::unique_ptr<SideOfMesh> side;   // only when closed
+    SurfaceMesh mesh;                  // only when closed
+    std::unique_ptr<SideOfMesh> side;  // only when closed
     std::optional<Periodic> periodic;
     Bounds3 box;
 
@@ -182,12 +183,15 @@ double MeshDistance::unsignedDistance(const glm::dvec3& point) const {
     return nearest <= firstReach ? nearest : nearestWithin(nearest);
 }
 
-bool MeshDistance::hasSign() const { return impl_->side != nullptr; }
+bool MeshDistance::hasSign() const {
+    return impl_->side != nullptr;
+}
 
 bool MeshDistance::isInside(const glm::dvec3& point) const {
     if (!hasSign()) {
-        throw InputError("mesh distance: the mesh is not closed, so it has no inside; "
-                         "signed distances need a closed mesh");
+        throw InputError(
+            "mesh distance: the mesh is not closed, so it has no inside; "
+            "signed distances need a closed mesh");
     }
     if (!impl_->periodic) return impl_->insideUnshifted(point);
     const Size3& tile = impl_->periodic->tile;
@@ -209,7 +213,8 @@ double MeshDistance::signedDistance(const glm::dvec3& point) const {
 
 bool MeshDistance::rayHit(const glm::dvec3& origin, const glm::dvec3& direction,
                           double& distance) const {
-    const Kernel::Ray_3 ray(toPoint(origin), Kernel::Vector_3(direction.x, direction.y, direction.z));
+    const Kernel::Ray_3 ray(toPoint(origin),
+                            Kernel::Vector_3(direction.x, direction.y, direction.z));
     const auto hit = impl_->tree.first_intersection(ray);
     if (!hit) return false;
     const double lengthSquared = glm::dot(direction, direction);
@@ -228,6 +233,8 @@ bool MeshDistance::rayHit(const glm::dvec3& origin, const glm::dvec3& direction,
     return true;
 }
 
-std::size_t MeshDistance::triangleCount() const { return impl_->triangles.size(); }
+std::size_t MeshDistance::triangleCount() const {
+    return impl_->triangles.size();
+}
 
 }  // namespace distile

@@ -6,10 +6,9 @@
 #pragma once
 
 #include <cstddef>
+#include <glm/vec3.hpp>
 #include <memory>
 #include <optional>
-
-#include <glm/vec3.hpp>
 
 #include "common/size3.h"
 #include "common/triangle_soup.h"
@@ -38,7 +37,7 @@ MeshTopology inspectMesh(const TriangleSoup& soup);
 
 /// Exact distances to a triangle mesh (CGAL AABB tree, double precision).
 class MeshDistance {
-public:
+  public:
     /// Periodic evaluation: measure against the union of the mesh's copies shifted by
     /// (m W, n H, 0) (common/triangle_soup.h, periodicShifts), the same truth as a periodic bake
     /// (vdb/mesh_level_set.h). Distances are exact for every query point; the sign is "inside any
@@ -50,7 +49,8 @@ public:
     /// Builds the tree. The inside test (signedDistance, isInside) is available only when the
     /// mesh is closed; hasSign() says so.
     /// @throws InputError the soup fails validateTriangleSoup.
-    explicit MeshDistance(const TriangleSoup& soup, std::optional<Periodic> periodic = std::nullopt);
+    explicit MeshDistance(const TriangleSoup& soup,
+                          std::optional<Periodic> periodic = std::nullopt);
     MeshDistance(MeshDistance&&) noexcept;
     MeshDistance& operator=(MeshDistance&&) noexcept;
     ~MeshDistance();
@@ -77,7 +77,7 @@ public:
     /// Number of triangles in the tree.
     std::size_t triangleCount() const;
 
-private:
+  private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

@@ -31,10 +31,10 @@ ChainmailOptions japanese4in1Defaults() {
     options.weave = ChainmailWeave::Japanese4in1;
     options.ringsPerRow = 8;
     options.rowsPerTile = 8;
-    options.ringRadiusSpacings = 0.4296875;      // 13.75 texels at 32-texel spacing
-    options.wireRadiusSpacings = 0.046875;       // 1.5 texels
-    options.smallRingRadiusSpacings = 0.1875;    // 6 texels
-    options.smallWireRadiusSpacings = 0.0390625; // 1.25 texels
+    options.ringRadiusSpacings = 0.4296875;       // 13.75 texels at 32-texel spacing
+    options.wireRadiusSpacings = 0.046875;        // 1.5 texels
+    options.smallRingRadiusSpacings = 0.1875;     // 6 texels
+    options.smallWireRadiusSpacings = 0.0390625;  // 1.25 texels
     options.tiltDeg = 0.0;
     return options;
 }
@@ -82,7 +82,8 @@ Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
     sinTilt_ = std::sin(options.tiltDeg * kPi / 180.0);
     if (japanese) {
         if (!(options.smallRingRadiusSpacings > 0.0 && options.smallRingRadiusSpacings <= 1.0)) {
-            reject("small ring radius", options.smallRingRadiusSpacings, "it must be in (0, 1] ring spacings");
+            reject("small ring radius", options.smallRingRadiusSpacings,
+                   "it must be in (0, 1] ring spacings");
         }
         if (!(options.smallWireRadiusSpacings > 0.0 &&
               options.smallWireRadiusSpacings < options.smallRingRadiusSpacings)) {
@@ -93,8 +94,9 @@ Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
         smallWireRadiusTexels_ = options.smallWireRadiusSpacings * ringSpacingTexels_;
         const double outerRadius = ringRadiusTexels_ + wireRadiusTexels_;
         if (2.0 * outerRadius >= std::min(ringSpacingTexels_, rowSpacingTexels_)) {
-            reject("ring radius", options.ringRadiusSpacings,
-                   "Japanese 4-in-1 large rings (ring + wire radius) must not touch their neighbours");
+            reject(
+                "ring radius", options.ringRadiusSpacings,
+                "Japanese 4-in-1 large rings (ring + wire radius) must not touch their neighbours");
         }
     }
 
@@ -128,7 +130,8 @@ double Chainmail::signedDistanceTexels(const glm::dvec3& texelPosition) const {
     auto ringDistance = [&](int row, int column) {
         const bool oddRow = (row % 2 + 2) % 2 == 1;
         const double sinTilt = oddRow ? -sinTilt_ : sinTilt_;
-        const double centreX = column * ringSpacingTexels_ + (oddRow ? 0.5 * ringSpacingTexels_ : 0.0);
+        const double centreX =
+            column * ringSpacingTexels_ + (oddRow ? 0.5 * ringSpacingTexels_ : 0.0);
         const glm::dvec3 offset{x - centreX, y - row * rowSpacingTexels_, z};
         // Rotate into the ring's frame (rotation about y by -tilt); the ring lies in local z = 0.
         const glm::dvec3 local{cosTilt_ * offset.x - sinTilt * offset.z, offset.y,
@@ -155,7 +158,8 @@ double Chainmail::signedDistanceTexels(const glm::dvec3& texelPosition) const {
         if (std::abs(dy) >= distance + extent) continue;
         const int centreColumn = nearestColumn(row);
         const double rowShift = (row % 2 + 2) % 2 == 1 ? 0.5 * ringSpacingTexels_ : 0.0;
-        for (int column = centreColumn - columnReach; column <= centreColumn + columnReach; ++column) {
+        for (int column = centreColumn - columnReach; column <= centreColumn + columnReach;
+             ++column) {
             const double dx = x - (column * ringSpacingTexels_ + rowShift);
             const double reachNow = distance + extent;
             if (dx * dx + dy * dy >= reachNow * reachNow) continue;
@@ -174,7 +178,7 @@ double Chainmail::japaneseDistanceTexels(double x, double y, double z) const {
     const double t = rowSpacingTexels_;
     struct Family {
         double offsetX, offsetY;  ///< centre of ring (0, 0), texels
-        double extentTexels;      ///< horizontal distance from the centre to the farthest surface point
+        double extentTexels;  ///< horizontal distance from the centre to the farthest surface point
     };
     const Family families[3] = {{0.0, 0.0, ringRadiusTexels_ + wireRadiusTexels_},
                                 {0.5 * s, 0.0, smallRingRadiusTexels_ + smallWireRadiusTexels_},
@@ -191,8 +195,9 @@ double Chainmail::japaneseDistanceTexels(double x, double y, double z) const {
     // its centre horizontally, so a point h away from the centre is at least h - extent away).
     double distance = std::numeric_limits<double>::infinity();
     for (int family = 0; family < 3; ++family) {
-        distance = std::min(distance, ringDistance(family, int(std::lround((x - families[family].offsetX) / s)),
-                                                   int(std::lround((y - families[family].offsetY) / t))));
+        distance = std::min(
+            distance, ringDistance(family, int(std::lround((x - families[family].offsetX) / s)),
+                                   int(std::lround((y - families[family].offsetY) / t))));
     }
     const double bound = std::abs(distance);
     for (int family = 0; family < 3; ++family) {
@@ -205,7 +210,8 @@ double Chainmail::japaneseDistanceTexels(double x, double y, double z) const {
         for (int row = rowBegin; row <= rowEnd; ++row) {
             const double dy = y - (row * t + f.offsetY);
             for (int column = columnBegin; column <= columnEnd; ++column) {
-                // Prune as the distance shrinks: a ring h away horizontally is at least h - extent away.
+                // Prune as the distance shrinks: a ring h away horizontally is at least h - extent
+                // away.
                 const double dx = x - (column * s + f.offsetX);
                 const double reachNow = distance + f.extentTexels;
                 if (reachNow > 0.0 && dx * dx + dy * dy >= reachNow * reachNow) continue;

@@ -25,9 +25,8 @@
 /// 0.75 texels of margin at the top and bottom; with non-intersecting rings the distance is exact.
 #pragma once
 
-#include <string>
-
 #include <glm/vec3.hpp>
+#include <string>
 
 #include "common/size3.h"
 
@@ -38,13 +37,13 @@ enum class ChainmailWeave { European4in1, Japanese4in1 };
 
 struct ChainmailOptions {
     ChainmailWeave weave = ChainmailWeave::European4in1;
-    int ringsPerRow = 8;               ///< rings along x per tile; ring spacing s = W / ringsPerRow
-    int rowsPerTile = 10;                  ///< rows along y per tile; even (tilts alternate)
+    int ringsPerRow = 8;   ///< rings along x per tile; ring spacing s = W / ringsPerRow
+    int rowsPerTile = 10;  ///< rows along y per tile; even (tilts alternate)
     double ringRadiusSpacings = 0.703125;  ///< torus centreline radius, in ring spacings s
     double wireRadiusSpacings = 0.065625;  ///< wire (tube) radius, in ring spacings s
     double tiltDeg = 12.0;                 ///< tilt of each ring's plane about the y axis, degrees
-    double smallRingRadiusSpacings = 0.1875;    ///< Japanese 4-in-1: small ring radius, spacings
-    double smallWireRadiusSpacings = 0.0390625; ///< Japanese 4-in-1: small ring wire, spacings
+    double smallRingRadiusSpacings = 0.1875;     ///< Japanese 4-in-1: small ring radius, spacings
+    double smallWireRadiusSpacings = 0.0390625;  ///< Japanese 4-in-1: small ring wire, spacings
 };
 
 /// The options of the Japanese 4-in-1 weave that fit a 16-texel-deep tile 256 texels wide (see
@@ -55,7 +54,7 @@ ChainmailOptions japanese4in1Defaults();
 const char* weaveName(ChainmailWeave weave);
 
 class Chainmail {
-public:
+  public:
     /// Throws InputError when the options are out of range (counts < 1, odd rowsPerTile, radii
     /// <= 0, wire thicker than the ring, tilt outside [0, 60] degrees; Japanese 4-in-1: small
     /// ring radius or wire out of (0, 1] spacings, large rings that touch each other) or when the
@@ -75,7 +74,7 @@ public:
     const ChainmailOptions& options() const { return options_; }
     const Size3& tileSize() const { return tile_; }
 
-private:
+  private:
     ChainmailOptions options_;
     Size3 tile_;
     double ringSpacingTexels_;

@@ -12,7 +12,8 @@ namespace {
 
 /// Exact signed distance to a rectangle of half extents (halfWidth, halfHeight) centred at the
 /// origin whose corners are rounded with `radius` (<= both half extents).
-double roundedRectangleDistance(double across, double up, double halfWidth, double halfHeight, double radius) {
+double roundedRectangleDistance(double across, double up, double halfWidth, double halfHeight,
+                                double radius) {
     const double qx = std::abs(across) - (halfWidth - radius);
     const double qy = std::abs(up) - (halfHeight - radius);
     const double outside = std::hypot(std::max(qx, 0.0), std::max(qy, 0.0));
@@ -28,7 +29,8 @@ double offsetFromNearestBar(double value, double spacing) {
 
 }  // namespace
 
-Grating::Grating(const GratingOptions& options, const Size3& tile) : options_(options), tile_(tile) {
+Grating::Grating(const GratingOptions& options, const Size3& tile)
+    : options_(options), tile_(tile) {
     validateTileSize(tile, "grating");
     auto reject = [](const std::string& field, double value, const std::string& accepted) {
         std::ostringstream message;
@@ -40,27 +42,33 @@ Grating::Grating(const GratingOptions& options, const Size3& tile) : options_(op
     }
     const double spacing = double(std::min(tile.width, tile.height)) / options.barsPerTile;
     if (!(options.barWidthTexels > 0.0 && options.barWidthTexels < spacing)) {
-        reject("bar width", options.barWidthTexels, "it must be positive and below the bar spacing (texels)");
+        reject("bar width", options.barWidthTexels,
+               "it must be positive and below the bar spacing (texels)");
     }
     if (!(options.barHeightTexels > 0.0 && std::isfinite(options.barHeightTexels))) {
         reject("bar height", options.barHeightTexels, "it must be a positive number of texels");
     }
     const double halfSmaller = 0.5 * std::min(options.barWidthTexels, options.barHeightTexels);
     if (!(options.edgeRadiusTexels >= 0.0 && options.edgeRadiusTexels <= halfSmaller)) {
-        reject("edge radius", options.edgeRadiusTexels, "it must be in [0, half the bar width and height]");
+        reject("edge radius", options.edgeRadiusTexels,
+               "it must be in [0, half the bar width and height]");
     }
     if (!(options.layerGapTexels > 0.0 && std::isfinite(options.layerGapTexels))) {
-        reject("layer gap", options.layerGapTexels, "it must be a positive number of texels (the layers must not touch)");
+        reject("layer gap", options.layerGapTexels,
+               "it must be a positive number of texels (the layers must not touch)");
     }
     if (heightTexels() > tile.depth - 1.0) {
         std::ostringstream message;
-        message << "grating: bars and gap are " << heightTexels() << " texels tall but the tile is " << tile.depth
+        message << "grating: bars and gap are " << heightTexels() << " texels tall but the tile is "
+                << tile.depth
                 << " deep; they need half a texel of margin at the top and the bottom";
         throw InputError(message.str());
     }
 }
 
-double Grating::heightTexels() const { return 2.0 * options_.barHeightTexels + options_.layerGapTexels; }
+double Grating::heightTexels() const {
+    return 2.0 * options_.barHeightTexels + options_.layerGapTexels;
+}
 
 double Grating::signedDistanceTexels(const glm::dvec3& p) const {
     const double halfWidth = 0.5 * options_.barWidthTexels;
@@ -69,19 +77,22 @@ double Grating::signedDistanceTexels(const glm::dvec3& p) const {
     const double z = p.z - 0.5 * tile_.depth;
     // Bars run infinitely along their axis, so each family's nearest bar is the one whose centre
     // line is nearest across: its cross-section distance is the family's distance.
-    const double upperAcross = offsetFromNearestBar(p.y, double(tile_.height) / options_.barsPerTile);
-    const double lowerAcross = offsetFromNearestBar(p.x, double(tile_.width) / options_.barsPerTile);
-    const double upper = roundedRectangleDistance(upperAcross, z - layerOffset, halfWidth, halfHeight,
-                                                  options_.edgeRadiusTexels);
-    const double lower = roundedRectangleDistance(lowerAcross, z + layerOffset, halfWidth, halfHeight,
-                                                  options_.edgeRadiusTexels);
+    const double upperAcross =
+        offsetFromNearestBar(p.y, double(tile_.height) / options_.barsPerTile);
+    const double lowerAcross =
+        offsetFromNearestBar(p.x, double(tile_.width) / options_.barsPerTile);
+    const double upper = roundedRectangleDistance(upperAcross, z - layerOffset, halfWidth,
+                                                  halfHeight, options_.edgeRadiusTexels);
+    const double lower = roundedRectangleDistance(lowerAcross, z + layerOffset, halfWidth,
+                                                  halfHeight, options_.edgeRadiusTexels);
     return std::min(upper, lower);
 }
 
 std::string Grating::paramsJson() const {
     std::ostringstream json;
     json.precision(15);
-    json << "{\"bars_per_tile\":" << options_.barsPerTile << ",\"bar_width_texels\":" << options_.barWidthTexels
+    json << "{\"bars_per_tile\":" << options_.barsPerTile
+         << ",\"bar_width_texels\":" << options_.barWidthTexels
          << ",\"bar_height_texels\":" << options_.barHeightTexels
          << ",\"edge_radius_texels\":" << options_.edgeRadiusTexels
          << ",\"layer_gap_texels\":" << options_.layerGapTexels << "}";

@@ -11,27 +11,26 @@
 /// over bars is the exact signed distance everywhere, inside and outside. Periodic in x and y.
 #pragma once
 
-#include <string>
-
 #include <glm/vec3.hpp>
+#include <string>
 
 #include "common/size3.h"
 
 namespace distile {
 
 struct GratingOptions {
-    int barsPerTile = 8;             ///< bars per layer across the tile (both layers)
-    double barWidthTexels = 8.0;     ///< bar width across its length, texels
-    double barHeightTexels = 6.0;    ///< bar thickness in z, texels
+    int barsPerTile = 8;           ///< bars per layer across the tile (both layers)
+    double barWidthTexels = 8.0;   ///< bar width across its length, texels
+    double barHeightTexels = 6.0;  ///< bar thickness in z, texels
     /// Rounding of the bars' long edges, texels (0: sharp). The default, half the bar height, gives
     /// a stadium cross-section: no sharp edge outside and no corner cone inside, which trilinear
     /// reconstruction would overestimate (sampler/conservative.h).
     double edgeRadiusTexels = 3.0;
-    double layerGapTexels = 1.0;     ///< gap between the layers in z, texels (> 0)
+    double layerGapTexels = 1.0;  ///< gap between the layers in z, texels (> 0)
 };
 
 class Grating {
-public:
+  public:
     /// Throws InputError when an option is out of range (barsPerTile < 1 or more than W/4 or H/4,
     /// width not below the bar spacing, sizes <= 0 or not finite, edge radius above half the
     /// width or height, gap <= 0) or when the two layers do not fit the tile depth with half a
@@ -50,7 +49,7 @@ public:
     const GratingOptions& options() const { return options_; }
     const Size3& tileSize() const { return tile_; }
 
-private:
+  private:
     GratingOptions options_;
     Size3 tile_;
 };

@@ -1,18 +1,16 @@
 #include "vdb/height_field.h"
 
-#include "vdb/detail/openvdb_mesh.h"
-
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
-
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
+#include <sstream>
 
 #include "common/error.h"
+#include "vdb/detail/openvdb_mesh.h"
 
 namespace distile {
 
@@ -56,8 +54,10 @@ double distanceToSurface(const HeightField& field, const std::vector<glm::dvec2>
                          const glm::dvec3& p, double bound) {
     double best = bound;
     // Cell (ci, cj) spans x in [ci + 0.5, ci + 1.5], y in [cj + 0.5, cj + 1.5].
-    const int ciBegin = int(std::floor(p.x - 1.5 - best)), ciEnd = int(std::floor(p.x - 0.5 + best));
-    const int cjBegin = int(std::floor(p.y - 1.5 - best)), cjEnd = int(std::floor(p.y - 0.5 + best));
+    const int ciBegin = int(std::floor(p.x - 1.5 - best)),
+              ciEnd = int(std::floor(p.x - 0.5 + best));
+    const int cjBegin = int(std::floor(p.y - 1.5 - best)),
+              cjEnd = int(std::floor(p.y - 0.5 + best));
     const auto gap = [](double value, double low, double high) {
         return value < low ? low - value : (value > high ? value - high : 0.0);
     };
@@ -66,8 +66,9 @@ double distanceToSurface(const HeightField& field, const std::vector<glm::dvec2>
         if (dy >= best) continue;
         for (int ci = ciBegin; ci <= ciEnd; ++ci) {
             const double dx = gap(p.x, ci + 0.5, ci + 1.5);
-            const glm::dvec2 range = cellHeightRange[std::size_t(wrap(ci, field.width)) +
-                                                     std::size_t(wrap(cj, field.height)) * std::size_t(field.width)];
+            const glm::dvec2 range =
+                cellHeightRange[std::size_t(wrap(ci, field.width)) +
+                                std::size_t(wrap(cj, field.height)) * std::size_t(field.width)];
             const double dz = gap(p.z, range.x, range.y);
             if (dx * dx + dy * dy + dz * dz >= best * best) continue;
             const glm::dvec3 n00(ci + 0.5, cj + 0.5, field.node(ci, cj));
@@ -85,7 +86,8 @@ double distanceToSurface(const HeightField& field, const std::vector<glm::dvec2>
 }  // namespace
 
 double HeightField::node(int i, int j) const {
-    return heightsTexels[std::size_t(wrap(i, width)) + std::size_t(wrap(j, height)) * std::size_t(width)];
+    return heightsTexels[std::size_t(wrap(i, width)) +
+                         std::size_t(wrap(j, height)) * std::size_t(width)];
 }
 
 void validateHeightField(const HeightField& field, const Size3& tile, const std::string& what) {
@@ -93,17 +95,18 @@ void validateHeightField(const HeightField& field, const Size3& tile, const std:
         field.heightsTexels.size() != std::size_t(field.width) * std::size_t(field.height)) {
         std::ostringstream message;
         message << what << ": height field of " << field.width << "x" << field.height << " nodes ("
-                << field.heightsTexels.size() << " heights) does not match the " << tile.width << "x"
-                << tile.height << " tile footprint; one height per texel column is expected";
+                << field.heightsTexels.size() << " heights) does not match the " << tile.width
+                << "x" << tile.height << " tile footprint; one height per texel column is expected";
         throw InputError(message.str());
     }
     for (std::size_t n = 0; n < field.heightsTexels.size(); ++n) {
         const double h = field.heightsTexels[n];
         if (!(std::isfinite(h) && h >= 0.0 && h <= double(tile.depth))) {
             std::ostringstream message;
-            message << what << ": height " << h << " at node (" << n % std::size_t(field.width) << ", "
-                    << n / std::size_t(field.width) << ") is not accepted; heights must be finite and in [0, "
-                    << tile.depth << "] texels";
+            message << what << ": height " << h << " at node (" << n % std::size_t(field.width)
+                    << ", " << n / std::size_t(field.width)
+                    << ") is not accepted; heights must be finite and in [0, " << tile.depth
+                    << "] texels";
             throw InputError(message.str());
         }
     }
@@ -116,7 +119,8 @@ double heightFieldSurfaceTexels(const HeightField& field, double x, double y) {
     const int i = int(iFloor), j = int(jFloor);
     const double h00 = field.node(i, j), h10 = field.node(i + 1, j);
     const double h01 = field.node(i, j + 1), h11 = field.node(i + 1, j + 1);
-    // Split along the (i, j)-(i+1, j+1) diagonal: triangle (00, 10, 11) below it, (00, 11, 01) above.
+    // Split along the (i, j)-(i+1, j+1) diagonal: triangle (00, 10, 11) below it, (00, 11, 01)
+    // above.
     if (fx >= fy) return h00 + fx * (h10 - h00) + fy * (h11 - h10);
     return h00 + fy * (h01 - h00) + fx * (h11 - h01);
 }
@@ -129,7 +133,8 @@ TriangleSoup heightFieldTriangles(const HeightField& field, int marginNodes) {
     soup.positions.reserve(std::size_t(columns) * std::size_t(rows));
     for (int j = 0; j < rows; ++j) {
         for (int i = 0; i < columns; ++i) {
-            soup.positions.emplace_back(first + i + 0.5, first + j + 0.5, field.node(first + i, first + j));
+            soup.positions.emplace_back(first + i + 0.5, first + j + 0.5,
+                                        field.node(first + i, first + j));
         }
     }
     const auto index = [columns](int i, int j) { return unsigned(i + j * columns); };
@@ -149,7 +154,8 @@ LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, fl
                                  const ProgressCallback& progress) {
     validateTileSize(tile, "height field level set");
     if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
-        throw InputError("height field level set: half band width " + std::to_string(halfBandTexels) +
+        throw InputError("height field level set: half band width " +
+                         std::to_string(halfBandTexels) +
                          " texels is not accepted; it must be in [1, 1024]");
     }
     validateHeightField(field, tile, "height field level set");
@@ -161,8 +167,9 @@ LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, fl
     const TriangleSoup surface = heightFieldTriangles(field, int(std::ceil(convertedBand)) + 2);
     const detail::OpenVdbMesh mesh = detail::toOpenVdbIndexSpace(surface);
     const auto transform = openvdb::math::Transform::createLinearTransform(1.0);
-    const openvdb::FloatGrid::Ptr unsignedGrid = openvdb::tools::meshToUnsignedDistanceField<openvdb::FloatGrid>(
-        *transform, mesh.points, mesh.triangles, std::vector<openvdb::Vec4I>(), convertedBand);
+    const openvdb::FloatGrid::Ptr unsignedGrid =
+        openvdb::tools::meshToUnsignedDistanceField<openvdb::FloatGrid>(
+            *transform, mesh.points, mesh.triangles, std::vector<openvdb::Vec4I>(), convertedBand);
     if (progress) progress(0.5);
 
     // OpenVDB's band expansion propagates the nearest triangle from neighbouring voxels, which is
@@ -174,21 +181,24 @@ LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, fl
             const double a = field.node(i, j), b = field.node(i + 1, j);
             const double c = field.node(i, j + 1), d = field.node(i + 1, j + 1);
             cellHeightRange[std::size_t(i) + std::size_t(j) * std::size_t(field.width)] =
-                glm::dvec2(std::min(std::min(a, b), std::min(c, d)), std::max(std::max(a, b), std::max(c, d)));
+                glm::dvec2(std::min(std::min(a, b), std::min(c, d)),
+                           std::max(std::max(a, b), std::max(c, d)));
         }
     }
     const openvdb::FloatTree& tree = unsignedGrid->tree();  // reads are thread-safe
     const auto distance = [&](const glm::dvec3& texel) {
-        const openvdb::Coord voxel(int(std::floor(texel.x)), int(std::floor(texel.y)), int(std::floor(texel.z)));
+        const openvdb::Coord voxel(int(std::floor(texel.x)), int(std::floor(texel.y)),
+                                   int(std::floor(texel.z)));
         const double surfaceHeight = heightFieldSurfaceTexels(field, texel.x, texel.y);
         // Bounds: OpenVDB's value (plus float rounding), the vertical distance, the band.
-        const double bound = std::min({double(tree.getValue(voxel)) + 1e-4, std::abs(texel.z - surfaceHeight),
-                                       double(convertedBand)});
+        const double bound = std::min({double(tree.getValue(voxel)) + 1e-4,
+                                       std::abs(texel.z - surfaceHeight), double(convertedBand)});
         const double unsignedDistance = distanceToSurface(field, cellHeightRange, texel, bound);
         return texel.z < surfaceHeight ? -unsignedDistance : unsignedDistance;
     };
     const ProgressCallback resampleProgress =
-        progress ? ProgressCallback([&](double done) { progress(0.5 + 0.5 * done); }) : ProgressCallback();
+        progress ? ProgressCallback([&](double done) { progress(0.5 + 0.5 * done); })
+                 : ProgressCallback();
     return LevelSet::fromDistance(distance, tile, halfBandTexels, source, params, resampleProgress);
 }
 

@@ -68,9 +68,9 @@ namespace {
 /// The sparse level set of a dense block of clamped distances: voxels at -halfBand lie deep inside
 /// and become inactive, like the background outside; grid class, name, transform and metadata as
 /// the file note of level_set.h says.
-openvdb::FloatGrid::Ptr sparseGrid(const openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ>& dense,
-                                   float halfBandTexels, const Size3& tile, const std::string& source,
-                                   const std::string& params) {
+openvdb::FloatGrid::Ptr sparseGrid(
+    const openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ>& dense, float halfBandTexels,
+    const Size3& tile, const std::string& source, const std::string& params) {
     auto grid = openvdb::FloatGrid::create(halfBandTexels);
     openvdb::tools::copyFromDense(dense, *grid, /*tolerance=*/0.0f);
     for (auto voxel = grid->tree().beginValueOn(); voxel; ++voxel) {
@@ -107,9 +107,9 @@ LevelSet LevelSet::fromDistance(const DistanceFunction& distance, const Size3& t
     // Fill a dense block, one z slab at a time (progress is reported between slabs, on this
     // thread), then let OpenVDB build the sparse tree from it.
     const int margin = int(std::ceil(halfBandTexels));
-    const openvdb::CoordBBox box(openvdb::Coord(0, 0, -margin),
-                                 openvdb::Coord(tile.width - 1, tile.height - 1,
-                                                tile.depth - 1 + margin));
+    const openvdb::CoordBBox box(
+        openvdb::Coord(0, 0, -margin),
+        openvdb::Coord(tile.width - 1, tile.height - 1, tile.depth - 1 + margin));
     const int slabs = box.dim().z();
     openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box);
     float* values = dense.data();
@@ -117,15 +117,16 @@ LevelSet LevelSet::fromDistance(const DistanceFunction& distance, const Size3& t
     for (int slab = 0; slab < slabs; ++slab) {
         const int k = box.min().z() + slab;
         float* slabValues = values + std::size_t(slab) * slabStride;
-        tbb::parallel_for(tbb::blocked_range<int>(0, tile.height), [&](const tbb::blocked_range<int>& rows) {
-            for (int j = rows.begin(); j != rows.end(); ++j) {
-                for (int i = 0; i < tile.width; ++i) {
-                    const double d = distance(glm::dvec3(i + 0.5, j + 0.5, k + 0.5));
-                    slabValues[std::size_t(j) * tile.width + i] =
-                        std::clamp(float(d), -halfBandTexels, halfBandTexels);
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, tile.height), [&](const tbb::blocked_range<int>& rows) {
+                for (int j = rows.begin(); j != rows.end(); ++j) {
+                    for (int i = 0; i < tile.width; ++i) {
+                        const double d = distance(glm::dvec3(i + 0.5, j + 0.5, k + 0.5));
+                        slabValues[std::size_t(j) * tile.width + i] =
+                            std::clamp(float(d), -halfBandTexels, halfBandTexels);
+                    }
                 }
-            }
-        });
+            });
         if (progress) progress(double(slab + 1) / slabs);
     }
 
@@ -141,36 +142,44 @@ LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
     const Size3& tile = impl_->tile;
     const float halfBand = impl_->grid->background();
     const int margin = int(std::ceil(halfBand));
-    const std::size_t voxels = std::size_t(tile.width) * std::size_t(std::max(repeatX, 1)) * std::size_t(tile.height) *
-                               std::size_t(std::max(repeatY, 1)) * std::size_t(tile.depth + 2 * margin);
-    if (repeatX < 1 || repeatX > 64 || repeatY < 1 || repeatY > 64 || voxels > (std::size_t(1) << 30)) {
+    const std::size_t voxels = std::size_t(tile.width) * std::size_t(std::max(repeatX, 1)) *
+                               std::size_t(tile.height) * std::size_t(std::max(repeatY, 1)) *
+                               std::size_t(tile.depth + 2 * margin);
+    if (repeatX < 1 || repeatX > 64 || repeatY < 1 || repeatY > 64 ||
+        voxels > (std::size_t(1) << 30)) {
         throw InputError("--repeat: " + std::to_string(repeatX) + "x" + std::to_string(repeatY) +
-                         " is not accepted; each count must be in [1, 64] and the repeated level set at most 2^30 voxels");
+                         " is not accepted; each count must be in [1, 64] and the repeated level "
+                         "set at most 2^30 voxels");
     }
-    const openvdb::CoordBBox source(openvdb::Coord(0, 0, -margin),
-                                    openvdb::Coord(tile.width - 1, tile.height - 1, tile.depth - 1 + margin));
+    const openvdb::CoordBBox source(
+        openvdb::Coord(0, 0, -margin),
+        openvdb::Coord(tile.width - 1, tile.height - 1, tile.depth - 1 + margin));
     openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> one(source);
     openvdb::tools::copyToDense(*impl_->grid, one);
     const Size3 repeatedTile{tile.width * repeatX, tile.height * repeatY, tile.depth};
-    const openvdb::CoordBBox box(openvdb::Coord(0, 0, -margin),
-                                 openvdb::Coord(repeatedTile.width - 1, repeatedTile.height - 1,
-                                                tile.depth - 1 + margin));
+    const openvdb::CoordBBox box(
+        openvdb::Coord(0, 0, -margin),
+        openvdb::Coord(repeatedTile.width - 1, repeatedTile.height - 1, tile.depth - 1 + margin));
     openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box);
     const float* from = one.data();
     float* to = dense.data();
     const std::size_t rows = std::size_t(tile.height) * std::size_t(tile.depth + 2 * margin);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows), [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t row = range.begin(); row != range.end(); ++row) {
-            const std::size_t j = row % std::size_t(tile.height);
-            const std::size_t k = row / std::size_t(tile.height);
-            const float* sourceRow = from + row * std::size_t(tile.width);
-            for (int n = 0; n < repeatY; ++n) {
-                float* targetRow = to + (k * std::size_t(repeatedTile.height) + std::size_t(n) * tile.height + j) *
-                                            std::size_t(repeatedTile.width);
-                for (int m = 0; m < repeatX; ++m) std::copy_n(sourceRow, tile.width, targetRow + std::size_t(m) * tile.width);
-            }
-        }
-    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t row = range.begin(); row != range.end(); ++row) {
+                              const std::size_t j = row % std::size_t(tile.height);
+                              const std::size_t k = row / std::size_t(tile.height);
+                              const float* sourceRow = from + row * std::size_t(tile.width);
+                              for (int n = 0; n < repeatY; ++n) {
+                                  float* targetRow = to + (k * std::size_t(repeatedTile.height) +
+                                                           std::size_t(n) * tile.height + j) *
+                                                              std::size_t(repeatedTile.width);
+                                  for (int m = 0; m < repeatX; ++m)
+                                      std::copy_n(sourceRow, tile.width,
+                                                  targetRow + std::size_t(m) * tile.width);
+                              }
+                          }
+                      });
     auto impl = std::make_unique<Impl>();
     impl->grid = sparseGrid(dense, halfBand, repeatedTile, impl_->source, impl_->params);
     impl->tile = repeatedTile;
@@ -226,11 +235,21 @@ void LevelSet::save(const std::filesystem::path& file) const {
     });
 }
 
-const Size3& LevelSet::tileSize() const { return impl_->tile; }
-float LevelSet::halfBandTexels() const { return impl_->grid->background(); }
-const std::string& LevelSet::source() const { return impl_->source; }
-const std::string& LevelSet::params() const { return impl_->params; }
-std::size_t LevelSet::activeVoxelCount() const { return impl_->grid->activeVoxelCount(); }
+const Size3& LevelSet::tileSize() const {
+    return impl_->tile;
+}
+float LevelSet::halfBandTexels() const {
+    return impl_->grid->background();
+}
+const std::string& LevelSet::source() const {
+    return impl_->source;
+}
+const std::string& LevelSet::params() const {
+    return impl_->params;
+}
+std::size_t LevelSet::activeVoxelCount() const {
+    return impl_->grid->activeVoxelCount();
+}
 
 float LevelSet::voxelDistanceTexels(int i, int j, int k) const {
     return impl_->grid->tree().getValue(openvdb::Coord(i, j, k));

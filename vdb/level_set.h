@@ -10,11 +10,10 @@
 
 #include <filesystem>
 #include <functional>
+#include <glm/vec3.hpp>
 #include <memory>
 #include <span>
 #include <string>
-
-#include <glm/vec3.hpp>
 
 #include "common/progress.h"
 #include "common/size3.h"
@@ -22,7 +21,7 @@
 namespace distile {
 
 class LevelSet {
-public:
+  public:
     /// Exact signed distance in texels at a texel-space position.
     using DistanceFunction = std::function<double(const glm::dvec3& texelPosition)>;
 
@@ -67,7 +66,7 @@ public:
     /// W*H*D, x fastest: the Tile layout). Precondition: texels.size() == tileSize().texelCount().
     void copyTileVoxels(std::span<float> texels) const;
 
-private:
+  private:
     struct Impl;
     explicit LevelSet(std::unique_ptr<Impl> impl);
     std::unique_ptr<Impl> impl_;

@@ -1,7 +1,5 @@
 #include "vdb/mesh_level_set.h"
 
-#include "vdb/detail/openvdb_mesh.h"
-
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 
@@ -11,6 +9,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "vdb/detail/openvdb_mesh.h"
 
 namespace distile {
 
@@ -30,9 +29,8 @@ LevelSet levelSetFromMesh(const TriangleSoup& meshTexels, const Size3& tile, flo
     // as background); converting with 2 texels more and clamping to the half band afterwards
     // (fromDistance does) makes every voxel inside the band exact.
     const auto transform = openvdb::math::Transform::createLinearTransform(1.0);
-    const openvdb::FloatGrid::Ptr meshGrid =
-        openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(*transform, mesh.points, mesh.triangles,
-                                                           halfBandTexels + 2.0f);
+    const openvdb::FloatGrid::Ptr meshGrid = openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(
+        *transform, mesh.points, mesh.triangles, halfBandTexels + 2.0f);
     if (progress) progress(0.5);
 
     // Tile voxel (i, j, k) takes the minimum over the copies shifted by (m W, n H) whose
@@ -62,8 +60,7 @@ LevelSet levelSetFromMesh(const TriangleSoup& meshTexels, const Size3& tile, flo
     const ProgressCallback resampleProgress =
         progress ? ProgressCallback([&](double done) { progress(0.5 + 0.5 * done); })
                  : ProgressCallback();
-    return LevelSet::fromDistance(distance, tile, halfBandTexels, source, params,
-                                  resampleProgress);
+    return LevelSet::fromDistance(distance, tile, halfBandTexels, source, params, resampleProgress);
 }
 
 }  // namespace distile

@@ -17,9 +17,8 @@
 #pragma once
 
 #include <functional>
-#include <string>
-
 #include <glm/vec3.hpp>
+#include <string>
 
 #include "common/progress.h"
 #include "common/size3.h"
@@ -46,7 +45,6 @@ using InsideTest = std::function<bool(const glm::dvec3& texelPosition)>;
 ///                    [1, 1024], or the mesh fails validateTriangleSoup.
 LevelSet levelSetFromMesh(const TriangleSoup& meshTexels, const Size3& tile, float halfBandTexels,
                           const std::string& source, const std::string& params,
-                          const ProgressCallback& progress = {},
-                          const InsideTest& insideTest = {});
+                          const ProgressCallback& progress = {}, const InsideTest& insideTest = {});
 
 }  // namespace distile

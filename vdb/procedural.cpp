@@ -14,11 +14,15 @@ ProceduralDistance proceduralDistance(const ProceduralOptions& options, const Si
     if (options.kind == ProceduralKind::Grating) {
         auto grating = std::make_shared<const Grating>(options.grating, tile);
         result.paramsJson = grating->paramsJson();
-        result.signedDistanceTexels = [grating](const glm::dvec3& p) { return grating->signedDistanceTexels(p); };
+        result.signedDistanceTexels = [grating](const glm::dvec3& p) {
+            return grating->signedDistanceTexels(p);
+        };
     } else {
         auto chainmail = std::make_shared<const Chainmail>(options.chainmail, tile);
         result.paramsJson = chainmail->paramsJson();
-        result.signedDistanceTexels = [chainmail](const glm::dvec3& p) { return chainmail->signedDistanceTexels(p); };
+        result.signedDistanceTexels = [chainmail](const glm::dvec3& p) {
+            return chainmail->signedDistanceTexels(p);
+        };
     }
     return result;
 }

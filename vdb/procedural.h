@@ -6,9 +6,8 @@
 #pragma once
 
 #include <functional>
-#include <string>
-
 #include <glm/vec3.hpp>
+#include <string>
 
 #include "common/size3.h"
 #include "vdb/chainmail.h"
