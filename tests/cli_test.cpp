@@ -274,38 +274,44 @@ TEST_F(Cli, RenderDoesNotDependOnTheThreadCount) {
 // Bad input: one line naming the problem, a non-zero exit, no output.
 
 TEST_F(Cli, RejectsMissingSceneFile) {
-    expectInputError({"render", "missing.json", "-o", "out.png"}, "out.png",
-                     {"missing.json", "no such file"});
+    ASSERT_NO_FATAL_FAILURE(expectInputError({"render", "missing.json", "-o", "out.png"}, "out.png",
+                                             {"missing.json", "no such file"}));
 }
 
 TEST_F(Cli, RejectsMissingTileFile) {
-    expectSceneError(planeScene(chainmailMaterial(R"("nope.exr")")),
-                     {"objects[0].material.tile", "nope.exr", "does not exist"});
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(planeScene(chainmailMaterial(R"("nope.exr")")),
+                         {"objects[0].material.tile", "nope.exr", "does not exist"}));
 }
 
 TEST_F(Cli, RejectsExrThatIsNotADistileTile) {
     Image plain(8, 8, glm::vec3(0.5f));
     writeImage(plain, path("plain.exr"));
-    expectSceneError(planeScene(chainmailMaterial(R"("plain.exr")")),
-                     {"plain.exr", "not a distile tile"});
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(planeScene(chainmailMaterial(R"("plain.exr")")),
+                                             {"plain.exr", "not a distile tile"}));
 }
 
 TEST_F(Cli, RejectsPngAsTile) {
     Image plain(8, 8, glm::vec3(0.5f));
     writeImage(plain, path("picture.png"));
-    expectSceneError(planeScene(chainmailMaterial(R"("picture.png")")), {"picture.png", "OpenEXR"});
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(planeScene(chainmailMaterial(R"("picture.png")")),
+                                             {"picture.png", "OpenEXR"}));
 }
 
 TEST_F(Cli, RejectsBadBakeSizes) {
-    expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "256x0x16"}, "tile.exr",
-                     {"--size", "256x0x16", "[2, 65536]"});
-    expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "100000x100000x100000"},
-                     "tile.exr", {"--size", "100000x100000x100000", "not accepted"});
-    expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "abc"}, "tile.exr",
-                     {"--size", "'abc'", "WxHxD"});
+    ASSERT_NO_FATAL_FAILURE(
+        expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "256x0x16"}, "tile.exr",
+                         {"--size", "256x0x16", "[2, 65536]"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "100000x100000x100000"},
+                         "tile.exr", {"--size", "100000x100000x100000", "not accepted"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "abc"}, "tile.exr",
+                         {"--size", "'abc'", "WxHxD"}));
     // Accepted as a size but too shallow for the default rings.
-    expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x4"}, "tile.exr",
-                     {"chainmail", "deep"});
+    ASSERT_NO_FATAL_FAILURE(
+        expectInputError({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x4"}, "tile.exr",
+                         {"chainmail", "deep"}));
 }
 
 TEST_F(Cli, RejectsBadBakeOutputs) {
@@ -321,41 +327,50 @@ TEST_F(Cli, RejectsBadBakeOutputs) {
 
 TEST_F(Cli, RejectsObjWithoutTextureCoordinates) {
     writeText(path("flat.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n");
-    expectSceneError(
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
         R"({"objects": [{"mesh": "flat.obj", "material": {"color": [0.8, 0.8, 0.8]}}]})",
-        {"flat.obj", "texture coordinates"});
+        {"flat.obj", "texture coordinates"}));
 }
 
 TEST_F(Cli, RejectsSceneJsonErrorsNamingTheField) {
-    expectSceneError(R"({"camera": {"fov_deg": 40}})", {"scene.json", "top level", "objects"});
-    expectSceneError(R"({"camrea": {"fov_deg": 40}, "objects": [{"mesh": "plane"}]})",
-                     {"scene.json", "camrea", "unknown field", "camera"});
-    expectSceneError(R"({"camera": {"fov_deg": "wide"}, "objects": [{"mesh": "plane"}]})",
-                     {"camera.fov_deg", "number"});
-    expectSceneError(R"({"objects": [{"mesh": "cube"}]})", {"objects[0].mesh", "'cube'", "plane"});
-    expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"depth": -1}}]})",
-                     {"objects[0].material.depth", "positive"});
-    expectSceneError(R"({"camera": {"eye": ["nan", 0, 1]}, "objects": [{"mesh": "plane"}]})",
-                     {"camera.eye[0]", "number"});
-    expectSceneError(
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"camera": {"fov_deg": 40}})", {"scene.json", "top level", "objects"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"camrea": {"fov_deg": 40}, "objects": [{"mesh": "plane"}]})",
+                         {"scene.json", "camrea", "unknown field", "camera"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"camera": {"fov_deg": "wide"}, "objects": [{"mesh": "plane"}]})",
+                         {"camera.fov_deg", "number"}));
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [{"mesh": "cube"}]})",
+                                             {"objects[0].mesh", "'cube'", "plane"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"depth": -1}}]})",
+                         {"objects[0].material.depth", "positive"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"camera": {"eye": ["nan", 0, 1]}, "objects": [{"mesh": "plane"}]})",
+                         {"camera.eye[0]", "number"}));
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
         R"({"objects": [{"mesh": "plane"}, {"mesh": "plane", "material": {"floor": "glass"}}]})",
-        {"objects[1].material.floor", "glass", "open"});
-    expectSceneError(R"({"objects": [{"mesh": "pla)", {"scene.json", "not valid JSON"});
-    expectSceneError("", {"scene.json", "not valid JSON"});
+        {"objects[1].material.floor", "glass", "open"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"objects": [{"mesh": "pla)", {"scene.json", "not valid JSON"}));
+    ASSERT_NO_FATAL_FAILURE(expectSceneError("", {"scene.json", "not valid JSON"}));
 }
 
 // Bug: nlohmann::json throws out_of_range (not parse_error) for a number that overflows a double;
 // the command prints the raw library message without the file, and exits 1 instead of 2.
 TEST_F(Cli, RejectsOverflowingJsonNumberNamingTheFile) {
-    expectSceneError(R"({"camera": {"eye": [1e400, 0, 1]}, "objects": [{"mesh": "plane"}]})",
-                     {"scene.json", "1e400"});
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"camera": {"eye": [1e400, 0, 1]}, "objects": [{"mesh": "plane"}]})",
+                         {"scene.json", "1e400"}));
 }
 
 // Bug: a folder given as the scene reaches std::ifstream and fails with
 // "basic_filebuf::underflow error reading the file: Is a directory", without the path.
 TEST_F(Cli, RejectsFolderAsSceneNamingIt) {
     fs::create_directories(path("scenes"));
-    expectInputError({"render", "scenes", "-o", "out.png"}, "out.png", {"scenes"});
+    ASSERT_NO_FATAL_FAILURE(
+        expectInputError({"render", "scenes", "-o", "out.png"}, "out.png", {"scenes"}));
 }
 
 TEST_F(Cli, RejectsZeroWidth) {
@@ -544,21 +559,21 @@ TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
                               std::initializer_list<std::string> keywords) {
         std::vector<std::string> arguments{"bake", "mesh", file, "-o", "tile.exr"};
         arguments.insert(arguments.end(), size.begin(), size.end());
-        expectInputError(arguments, "tile.exr", keywords);
+        ASSERT_NO_FATAL_FAILURE(expectInputError(arguments, "tile.exr", keywords));
     };
     writeText(path("nan.obj"),
               "v 0 0 0\nv 1 0 0\nv nan 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n");
-    bakeMesh("nan.obj", {"nan.obj"});
+    ASSERT_NO_FATAL_FAILURE(bakeMesh("nan.obj", {"nan.obj"}));
     writeText(path("inf.obj"),
               "v 0 0 0\nv 1 0 0\nv inf 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n");
-    bakeMesh("inf.obj", {"inf.obj"});
+    ASSERT_NO_FATAL_FAILURE(bakeMesh("inf.obj", {"inf.obj"}));
     writeText(path("empty.obj"), "# nothing\n");
-    bakeMesh("empty.obj", {"empty.obj"});
+    ASSERT_NO_FATAL_FAILURE(bakeMesh("empty.obj", {"empty.obj"}));
     writeText(path("range.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
-    bakeMesh("range.obj", {"range.obj", "9"});
+    ASSERT_NO_FATAL_FAILURE(bakeMesh("range.obj", {"range.obj", "9"}));
     writeText(path("huge.obj"),
               "v 0 0 0\nv 1e30 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
-    bakeMesh("huge.obj", {"huge.obj", "1e+30"});
+    ASSERT_NO_FATAL_FAILURE(bakeMesh("huge.obj", {"huge.obj", "1e+30"}));
     // Binary STL: 80-byte header, a count of 12 triangles, but only one triangle's 50 bytes.
     {
         std::string stl(80, ' ');
@@ -567,24 +582,25 @@ TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
         stl.append(50, '\0');
         std::ofstream(path("short.stl"), std::ios::binary) << stl;
     }
-    bakeMesh("short.stl", {"short.stl"});
+    ASSERT_NO_FATAL_FAILURE(bakeMesh("short.stl", {"short.stl"}));
     writeText(path("short.ply"),
               "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float "
               "y\nproperty float z\n"
               "element face 12\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 "
               "0\n1 1 0\n");
-    bakeMesh("short.ply", {"short.ply"});
+    ASSERT_NO_FATAL_FAILURE(bakeMesh("short.ply", {"short.ply"}));
     // Five faces of the cube: open, 4 boundary edges.
     writeText(path("open.obj"),
               "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
               "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\n");
-    bakeMesh("open.obj", {"open.obj", "open", "4 boundary edges", "closed, manifold"});
+    ASSERT_NO_FATAL_FAILURE(
+        bakeMesh("open.obj", {"open.obj", "open", "4 boundary edges", "closed, manifold"}));
 
     const auto bakeHeightMap = [&](const std::string& file,
                                    std::initializer_list<std::string> keywords) {
         std::vector<std::string> arguments{"bake", "heightmap", file, "-o", "tile.exr"};
         arguments.insert(arguments.end(), size.begin(), size.end());
-        expectInputError(arguments, "tile.exr", keywords);
+        ASSERT_NO_FATAL_FAILURE(expectInputError(arguments, "tile.exr", keywords));
     };
     writeText(path("zero.png"), "");
     bakeHeightMap("zero.png", {"zero.png"});

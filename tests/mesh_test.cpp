@@ -286,8 +286,8 @@ TEST(Torus, FrameErrorsShrinkWithTessellation) {
 TEST(BuiltIns, SmallestTessellationsAreValid) {
     for (const BaseMesh& mesh :
          {makePlane(1.0f, 1), makeUvSphere(1.0f, 3, 2), makeTorus(1.0f, 0.25f, 3, 3)}) {
-        expectValidFrames(mesh, true);
-        expectOutwardWinding(mesh);
+        ASSERT_NO_FATAL_FAILURE(expectValidFrames(mesh, true));
+        ASSERT_NO_FATAL_FAILURE(expectOutwardWinding(mesh));
     }
 }
 

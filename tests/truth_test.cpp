@@ -187,27 +187,28 @@ void expectLevelSetMatchesMesh(const char* name, const TriangleSoup& meshTexels,
 
 TEST(MeshBakeAcceptance, TorusMatchesMeshDistance) {
     const Size3 tile{64, 64, 16};
-    expectLevelSetMatchesMesh("torus",
-                              makeTorusSoup(glm::dvec3(32.3, 31.7, 8.1), 20.0, 5.0, 96, 48), tile);
+    ASSERT_NO_FATAL_FAILURE(expectLevelSetMatchesMesh(
+        "torus", makeTorusSoup(glm::dvec3(32.3, 31.7, 8.1), 20.0, 5.0, 96, 48), tile));
 }
 
 TEST(MeshBakeAcceptance, TorusWithOpenVdbSignHasNoFarSignErrors) {
     const Size3 tile{64, 64, 16};
-    expectLevelSetMatchesMesh(
-        "torus", makeTorusSoup(glm::dvec3(32.3, 31.7, 8.1), 20.0, 5.0, 96, 48), tile, 20000, false);
+    ASSERT_NO_FATAL_FAILURE(expectLevelSetMatchesMesh(
+        "torus", makeTorusSoup(glm::dvec3(32.3, 31.7, 8.1), 20.0, 5.0, 96, 48), tile, 20000,
+        false));
 }
 
 TEST(MeshBakeAcceptance, CubeMatchesMeshDistance) {
     const Size3 tile{64, 64, 16};
-    expectLevelSetMatchesMesh(
-        "cube", makeBoxSoup(glm::dvec3(20.2, 18.9, 3.3), glm::dvec3(41.7, 44.1, 12.6)), tile);
+    ASSERT_NO_FATAL_FAILURE(expectLevelSetMatchesMesh(
+        "cube", makeBoxSoup(glm::dvec3(20.2, 18.9, 3.3), glm::dvec3(41.7, 44.1, 12.6)), tile));
 }
 
 TEST(MeshBakeAcceptance, TorusAcrossTheTileEdgeMatchesPeriodicMeshDistance) {
     const Size3 tile{64, 64, 16};
-    expectLevelSetMatchesMesh("torus across x=0,y=0",
-                              makeTorusSoup(glm::dvec3(3.3, 60.2, 8.1), 14.0, 5.0, 96, 48), tile,
-                              20000);
+    ASSERT_NO_FATAL_FAILURE(expectLevelSetMatchesMesh(
+        "torus across x=0,y=0", makeTorusSoup(glm::dvec3(3.3, 60.2, 8.1), 14.0, 5.0, 96, 48), tile,
+        20000));
 }
 
 TEST(MeshBake, FitPlacementAndSign) {
