@@ -116,8 +116,7 @@ void demoShadowFilters(benchmark::State& state) {
         benchmark::DoNotOptimize(renderScene(scene, options).stats.rays);
         noMapSeconds += processCpuSeconds() - start;
         start = processCpuSeconds();
-        const SceneTracer tracer(
-            scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter});
+        const SceneTracer tracer(scene, TraceOptions{options.march, options.filter});
         benchmark::DoNotOptimize(ShadowMap(tracer, scene.lights[0]).width());
         buildSeconds += processCpuSeconds() - start;
         fullSamples = full.stats.shadowMapSamples;
@@ -254,8 +253,7 @@ void demoShellCulling(benchmark::State& state) {
         const RenderResult withoutCulling = renderScene(scene, options);
         unculledSeconds += processCpuSeconds() - start;
         start = processCpuSeconds();
-        const SceneTracer tracer(
-            scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter});
+        const SceneTracer tracer(scene, TraceOptions{options.march, options.filter});
         const PinholeProjection projection(scene.camera, options.width, options.height);
         TraceCounters counters;
         for (int y = 0; y < options.height; ++y) {

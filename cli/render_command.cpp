@@ -98,7 +98,7 @@ void runRender(RenderArguments arguments) {
         stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0,
         stats.meanIterations(),
         stats.baseHits ? 100.0 * double(stats.converged) / double(stats.baseHits) : 0.0,
-        options.reference ? RenderOptions::kReferenceIterations : options.maxIterations);
+        options.reference ? RenderOptions::kReferenceIterations : options.march.maxIterations);
     std::printf("shells: %llu coverage tests, %llu traced (%.2f per ray), culling %s\n",
                 static_cast<unsigned long long>(stats.shellsTested),
                 static_cast<unsigned long long>(stats.shellsTraced),
@@ -145,11 +145,30 @@ void addRenderCommand(CLI::App& app) {
                      "Samples per pixel (default: the scene's, else 1)")
         ->check(CLI::Range(1, 256));
     command
-        ->add_option("--iterations", arguments->options.maxIterations,
+        ->add_option("--iterations", arguments->options.march.maxIterations,
                      "Sphere-tracing budget per ray")
         ->capture_default_str()
         ->check(CLI::Range(1, 4096));
-    command->add_option("--epsilon", arguments->options.epsilonTexels, "Hit threshold in texels")
+    command
+        ->add_option("--epsilon", arguments->options.march.epsilonTexels, "Hit threshold in texels")
+        ->capture_default_str();
+    const std::map<std::string, MarchMethod> methods{{"sphere", MarchMethod::SphereTracing},
+                                                     {"relaxed", MarchMethod::OverRelaxed},
+                                                     {"budgeted", MarchMethod::Budgeted},
+                                                     {"relief", MarchMethod::Relief},
+                                                     {"fixed", MarchMethod::FixedSteps}};
+    command
+        ->add_option("--march", arguments->options.march.method,
+                     "March method: sphere (ch. 8 sphere tracing), relaxed (over-relaxed sphere "
+                     "tracing with a safe fallback), budgeted (sphere tracing with steps of at "
+                     "least the path left over the samples left, then regula falsi), relief "
+                     "(linear + binary search), fixed "
+                     "(fixed steps)")
+        ->transform(CLI::CheckedTransformer(methods, CLI::ignore_case))
+        ->default_str(marchMethodName(MarchSettings{}.method));
+    command
+        ->add_option("--relaxation", arguments->options.march.relaxation,
+                     "Step factor of --march relaxed, in [1, 2)")
         ->capture_default_str();
     const std::map<std::string, FilterKind> filters{{"nearest", FilterKind::Nearest},
                                                     {"trilinear", FilterKind::Trilinear},

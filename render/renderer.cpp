@@ -38,7 +38,7 @@ float lightVisibility(const Filter& filter, const glm::vec3& start, const glm::v
         if (position.z >= depthTexels) break;
         ++steps;
         const float distance = filter.distanceTexels(position);
-        if (distance < 0.5f * options.epsilonTexels) return 0.0f;
+        if (distance < 0.5f * options.march.epsilonTexels) return 0.0f;
         visibility = std::min(visibility, distance / (travel * tanHalfAngle));
         travel += std::max(distance, 0.05f);
     }
@@ -95,8 +95,8 @@ class Renderer {
     Renderer(const Scene& scene, const RenderOptions& options)
         : scene_(scene),
           options_(options),
-          tracer_(scene, TraceOptions{options.maxIterations, options.epsilonTexels, options.filter,
-                                      options.normalFilter, options.reference}),
+          tracer_(scene, TraceOptions{options.march, options.filter, options.normalFilter,
+                                      options.reference}),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
         shadowMaps_.resize(scene.lights.size());
@@ -225,7 +225,7 @@ class Renderer {
                 const float tanHalfAngle =
                     std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f);
                 const glm::vec3 start =
-                    texelPosition + texelNormal * (2.0f * options_.epsilonTexels);
+                    texelPosition + texelNormal * (2.0f * options_.march.epsilonTexels);
                 visibility = lightVisibility(filter, start, toLightTexel, depthTexels, tanHalfAngle,
                                              options_, sample.shadowSteps);
                 if (visibility <= 0.0f) continue;
@@ -263,11 +263,20 @@ void validateOptions(const RenderOptions& options) {
         reject("--width", std::to_string(options.width), "it must be in [1, 16384]");
     if (options.height < 1 || options.height > 16384)
         reject("--height", std::to_string(options.height), "it must be in [1, 16384]");
-    if (options.maxIterations < 1 || options.maxIterations > 4096) {
-        reject("--iterations", std::to_string(options.maxIterations), "it must be in [1, 4096]");
+    if (options.march.maxIterations < 1 || options.march.maxIterations > 4096) {
+        reject("--iterations", std::to_string(options.march.maxIterations),
+               "it must be in [1, 4096]");
     }
-    if (!(options.epsilonTexels > 0.0f && options.epsilonTexels <= 1.0f)) {
-        reject("--epsilon", std::to_string(options.epsilonTexels), "it must be in (0, 1] texels");
+    if (!(options.march.epsilonTexels > 0.0f && options.march.epsilonTexels <= 1.0f)) {
+        reject("--epsilon", std::to_string(options.march.epsilonTexels),
+               "it must be in (0, 1] texels");
+    }
+    if (!(options.march.relaxation >= 1.0f && options.march.relaxation < 2.0f)) {
+        reject("--relaxation", std::to_string(options.march.relaxation), "it must be in [1, 2)");
+    }
+    if (!(options.march.reliefLinearShare > 0.0f && options.march.reliefLinearShare <= 1.0f)) {
+        reject("relief linear share", std::to_string(options.march.reliefLinearShare),
+               "it must be in (0, 1]");
     }
     if (options.shadowIterations < 1 || options.shadowIterations > 4096) {
         reject("shadow iterations", std::to_string(options.shadowIterations),
@@ -317,8 +326,9 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
     RenderOptions options = requested;
     if (options.reference) {
         validateReference(scene);
-        options.maxIterations = RenderOptions::kReferenceIterations;
-        options.epsilonTexels = RenderOptions::kReferenceEpsilonTexels;
+        options.march.method = MarchMethod::SphereTracing;
+        options.march.maxIterations = RenderOptions::kReferenceIterations;
+        options.march.epsilonTexels = RenderOptions::kReferenceEpsilonTexels;
     }
     const Renderer renderer(scene, options);
     RenderResult result;
@@ -356,7 +366,7 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
                         result.aovs->normal.at(x, y) =
                             pixel.depth > 0.0f ? pixel.normal * 0.5f + 0.5f : glm::vec3(0.0f);
                         result.aovs->iterations.at(x, y) =
-                            heatColor(float(pixel.iterations) / float(options.maxIterations));
+                            heatColor(float(pixel.iterations) / float(options.march.maxIterations));
                         result.aovs->shadowSamples.at(x, y) =
                             heatColor(float(pixel.shadowSteps) / shadowBudget);
                         result.aovs->shadowMapSamples.at(x, y) =

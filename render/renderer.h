@@ -24,9 +24,8 @@ namespace distile {
 struct RenderOptions {
     int width = 1280;
     int height = 1024;
-    int samplesPerPixel = 1;      ///< camera rays per pixel (R2 low-discrepancy offsets), averaged
-    int maxIterations = 16;       ///< sphere-tracing budget per ray (ch. 8 uses 8 to 16)
-    float epsilonTexels = 0.02f;  ///< a ray closer than this to the surface has hit it
+    int samplesPerPixel = 1;  ///< camera rays per pixel (R2 low-discrepancy offsets), averaged
+    MarchSettings march;      ///< method, budget per ray (ch. 8 uses 8 to 16) and hit threshold
     FilterKind filter = FilterKind::Trilinear;  ///< the march's (and self-shadows') distances
     FilterKind normalFilter = FilterKind::TricubicBSpline;  ///< the shading normal's gradient
     bool selfShadows = true;    ///< trace shadow rays through the tile toward each light
@@ -41,8 +40,8 @@ struct RenderOptions {
     bool shellCulling = true;
     /// Reference render: march and shade every tiled material on its Material::analyticDistance
     /// (double precision, render/analytic_filter.h) instead of its tile, with kReferenceIterations
-    /// and kReferenceEpsilonTexels in place of maxIterations and epsilonTexels (filter and
-    /// normalFilter are unused). The truth against which ordinary renders are compared.
+    /// and kReferenceEpsilonTexels in place of march.maxIterations and march.epsilonTexels (filter
+    /// and normalFilter are unused). The truth against which ordinary renders are compared.
     bool reference = false;
     static constexpr int kReferenceIterations = 512;
     static constexpr float kReferenceEpsilonTexels = 1e-3f;

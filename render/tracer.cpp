@@ -183,8 +183,7 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
                           float((v - std::floor(v)) * size.height), float(size.depth));
     const bool done =
         withMarchFilter(options_.filter, material, options_.reference, [&](const auto& filter) {
-            hit.march = march(filter, start, direction, material.floor, options_.maxIterations,
-                              options_.epsilonTexels);
+            hit.march = march(filter, start, direction, material.floor, options_.march);
             ++counters.shellEntries;
             counters.marchIterations += std::uint64_t(hit.march.iterations);
             if (hit.march.converged) ++counters.converged;

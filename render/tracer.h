@@ -17,8 +17,7 @@
 namespace distile {
 
 struct TraceOptions {
-    int maxIterations = 16;       ///< sphere-tracing budget per ray (ch. 8 uses 8 to 16)
-    float epsilonTexels = 0.02f;  ///< a ray closer than this to the surface has hit it
+    MarchSettings march;  ///< method, budget per ray (ch. 8 uses 8 to 16) and hit threshold
     FilterKind filter = FilterKind::Trilinear;  ///< the march's distances (must not overestimate)
     /// The shading normal's gradient at the hit; the B-spline's is smooth (ch. 20).
     FilterKind normalFilter = FilterKind::TricubicBSpline;

@@ -62,6 +62,38 @@ TEST(March, LandsOnAFlatDetailPlane) {
     }
 }
 
+TEST(March, EveryMethodLandsOnAFlatDetailPlane) {
+    // The exact plane z = 4 (as above): over-relaxed and budgeted sphere tracing reach it within
+    // epsilon; fixed steps and relief mapping bracket it and refine linearly (exact on a linear
+    // field) or by bisection (halving a bracket of at most 28 texels 12 times: < 0.01 texel).
+    const Tile tile = flatTile({32, 32, 16}, 4.0f);
+    const TrilinearFilter filter(tile);
+    for (MarchMethod method :
+         {MarchMethod::SphereTracing, MarchMethod::OverRelaxed, MarchMethod::Budgeted,
+          MarchMethod::Relief, MarchMethod::FixedSteps}) {
+        for (float elevationDeg : {90.0f, 30.0f, 3.0f}) {
+            const float elevation = elevationDeg * kPi / 180.0f;
+            const glm::vec3 direction{std::cos(elevation) * 0.6f, std::cos(elevation) * 0.8f,
+                                      -std::sin(elevation)};
+            MarchSettings settings;
+            settings.method = method;
+            settings.maxIterations = method == MarchMethod::Relief ? 48 : 4096;
+            settings.epsilonTexels = 1e-3f;
+            const MarchResult result =
+                march(filter, glm::vec3{7.25f, 19.5f, 16.0f}, direction, Floor::Solid, settings);
+            const char* name = marchMethodName(method);
+            ASSERT_TRUE(result.converged) << name << " " << elevationDeg;
+            EXPECT_FALSE(result.onFloor) << name;
+            EXPECT_LE(result.iterations, settings.maxIterations) << name;
+            const float tolerance = method == MarchMethod::Relief ? 0.01f : 2e-3f;
+            EXPECT_NEAR(result.texelPosition.z, 4.0f, tolerance) << name << " " << elevationDeg;
+            EXPECT_NEAR(result.travelTexels, 12.0f / std::sin(elevation),
+                        tolerance / std::sin(elevation))
+                << name << " " << elevationDeg;
+        }
+    }
+}
+
 TEST(March, HitsTheSolidFloorExactlyOrPassesAnOpenOne) {
     // An empty tile (all distances 100): the first step crosses z = 0, where the floor is hit
     // exactly, in one iteration.
@@ -840,7 +872,7 @@ RenderComparison sheetAgainstReference(int iterations) {
     RenderOptions options;
     options.width = 320;
     options.height = 256;
-    options.maxIterations = iterations;
+    options.march.maxIterations = iterations;
     options.outputAovs = true;
     options.shadowFilter = ShadowFilter::None;
     options.selfShadows = false;
@@ -867,13 +899,12 @@ TEST(ReferenceRender, SheetWithAConvergedBudgetIsWithinAQuarterTexelOfTheAnalyti
     EXPECT_GT(c.meanHitErrorTexels, 0.0);
 }
 
-// The acceptance as the issue states it, for the DEFAULT budget of 16 iterations: it does not
-// hold today (measured at 320 x 256: mean 1.51 texels, p99 22 texels; at 1280 x 1024: 1.47),
-// because 19.5% of the rays do not converge within 16 steps and stop short of the surface.
-// Disabled until the march gets its early-out/over-relaxation work (issue 5, item 3); run with
-// --gtest_also_run_disabled_tests.
-TEST(ReferenceRender, DISABLED_DefaultSheetRenderIsWithinAQuarterTexelOfTheAnalyticTruth) {
-    const RenderComparison c = sheetAgainstReference(RenderOptions{}.maxIterations);
+// The acceptance as the issue states it, for the DEFAULT march (budgeted, 16 samples). Plain
+// sphere tracing (ch. 8) does not meet it: 19% of the rays creep along grazing wires and stop
+// short (measured at 1280 x 1024: mean 1.51 texels); the budgeted march reaches a crossing or the
+// floor on every ray (measured at 1280 x 1024: mean 0.214 texel, 100% converged).
+TEST(ReferenceRender, DefaultSheetRenderIsWithinAQuarterTexelOfTheAnalyticTruth) {
+    const RenderComparison c = sheetAgainstReference(RenderOptions{}.march.maxIterations);
     EXPECT_LE(c.meanHitErrorTexels, 0.25);
     EXPECT_LE(c.coverageMismatchShare, 0.005);
 }

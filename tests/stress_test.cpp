@@ -116,7 +116,8 @@ TEST(Stress, GrazingRaysStayAboveAFlatDetailPlaneWithABoundedError) {
     // at elevation a leaves the height above it at (D - h) (1 - sin a)^n after n steps (slower in
     // the clamped top half texel, an underestimate), so with the default 16 iterations grazing rays
     // stop short of the plane: never below it, at the predicted height above it, none converged.
-    // With a budget large enough (4096) they all converge within epsilon.
+    // With a budget large enough (4096) they all converge within epsilon. (Plain sphere tracing;
+    // the default budgeted march is the next test.)
     constexpr int kDepth = 8;
     constexpr float kHeight = 4.0f;
     Scene scene = planeScene(flatTile({32, 32, kDepth}, kHeight), kCubeDepth * kDepth / 16.0f);
@@ -124,7 +125,8 @@ TEST(Stress, GrazingRaysStayAboveAFlatDetailPlaneWithABoundedError) {
     const float planeWorldZ = -(kDepth - kHeight) / texelsPerWorldZ;
     for (int budget : {16, 4096}) {
         TraceOptions traceOptions;
-        traceOptions.maxIterations = budget;
+        traceOptions.march.method = MarchMethod::SphereTracing;
+        traceOptions.march.maxIterations = budget;
         const SceneTracer tracer(scene, traceOptions);
         for (double elevationDeg : {0.1, 0.5, 1.0, 2.0, 5.0}) {
             const double elevation = elevationDeg * kPi / 180.0;
@@ -135,7 +137,7 @@ TEST(Stress, GrazingRaysStayAboveAFlatDetailPlaneWithABoundedError) {
             for (int step = 0; step < budget; ++step) {
                 const double distance =
                     std::min(predicted, kDepth - 0.5) - kHeight;  // clamped top half texel
-                if (distance < traceOptions.epsilonTexels) {
+                if (distance < traceOptions.march.epsilonTexels) {
                     predictedConverged = true;
                     break;
                 }
@@ -174,7 +176,7 @@ TEST(Stress, GrazingRaysStayAboveAFlatDetailPlaneWithABoundedError) {
                         EXPECT_NEAR(marchError, predictedError, 1e-3) << elevationDeg;
                     } else {
                         EXPECT_TRUE(hit.march.converged) << elevationDeg;
-                        EXPECT_LE(marchError, traceOptions.epsilonTexels) << elevationDeg;
+                        EXPECT_LE(marchError, traceOptions.march.epsilonTexels) << elevationDeg;
                         // Thousands of steps accumulate float rounding: 1e-3 texel still bounds it.
                         EXPECT_NEAR(marchError, predictedError, 1e-3) << elevationDeg;
                     }
@@ -190,6 +192,48 @@ TEST(Stress, GrazingRaysStayAboveAFlatDetailPlaneWithABoundedError) {
                 "(predicted %.4f), converged %d/%d\n",
                 elevationDeg, budget, sumError / rays, maxError, predictedError, converged, rays);
         }
+    }
+}
+
+TEST(Stress, BudgetedMarchReachesAFlatDetailPlaneOnGrazingRaysWithinTheDefaultBudget) {
+    // The default march (budgeted) on the grazing rays of the previous test: every step is at
+    // least the path left to the floor over the samples left, so the ray crosses the plane
+    // z = h within 16 samples, and regula falsi on the plane's linear distance (exact below the
+    // clamped top half texel) lands on it: converged, within epsilon, never further below it.
+    constexpr int kDepth = 8;
+    constexpr float kHeight = 4.0f;
+    const Scene scene =
+        planeScene(flatTile({32, 32, kDepth}, kHeight), kCubeDepth * kDepth / 16.0f);
+    const TraceOptions traceOptions;
+    ASSERT_EQ(traceOptions.march.method, MarchMethod::Budgeted);
+    ASSERT_EQ(traceOptions.march.maxIterations, 16);
+    const SceneTracer tracer(scene, traceOptions);
+    for (double elevationDeg : {0.1, 0.5, 1.0, 2.0, 5.0, 30.0}) {
+        const double elevation = elevationDeg * kPi / 180.0;
+        double maxError = 0.0;
+        for (double azimuthDeg : {0.0, 37.0, 90.0, 161.0, 250.0, 313.0}) {
+            const double azimuth = azimuthDeg * kPi / 180.0;
+            const glm::vec3 direction(float(std::cos(elevation) * std::cos(azimuth)),
+                                      float(std::cos(elevation) * std::sin(azimuth)),
+                                      float(-std::sin(elevation)));
+            const Ray ray{-direction * (0.3f / -direction.z), glm::normalize(direction)};
+            SurfaceHit hit;
+            TraceCounters counters;
+            ASSERT_TRUE(tracer.traceNearest(ray, 0.0f, hit, counters)) << elevationDeg;
+            ASSERT_TRUE(hit.onDetail);
+            EXPECT_TRUE(hit.march.converged) << elevationDeg;
+            EXPECT_FALSE(hit.march.onFloor) << elevationDeg;
+            EXPECT_LE(hit.march.iterations, 16);
+            const double marchError = hit.march.texelPosition.z - kHeight;
+            // Float rounding of a secant over a path of up to 2300 texels (0.1 degree): 1e-3.
+            EXPECT_LE(std::abs(marchError), traceOptions.march.epsilonTexels + 1e-3)
+                << elevationDeg << " " << azimuthDeg;
+            maxError = std::max(maxError, std::abs(marchError));
+        }
+        std::printf(
+            "[ figures  ] budgeted march, grazing %.1f deg, 16 samples: max hit error %.4f "
+            "texels\n",
+            elevationDeg, maxError);
     }
 }
 
@@ -364,7 +408,7 @@ TEST(Stress, MirroredAndDegenerateUvTrianglesAndZeroAreaFacesStayFinite) {
             ASSERT_TRUE(onDetail) << "mirrored triangle " << t;
             // Straight down on an exact plane distance: one exact step, then below epsilon.
             EXPECT_GE(error, -1e-4);
-            EXPECT_LE(error, TraceOptions{}.epsilonTexels);
+            EXPECT_LE(error, TraceOptions{}.march.epsilonTexels);
             maxError = std::max(maxError, std::abs(error));
         } else {
             EXPECT_FALSE(onDetail) << "UV-degenerate triangle " << t;
@@ -482,7 +526,7 @@ TEST(Stress, ShellDepthsFrom1e4To1e2WorldUnitsStayFinite) {
         const double error = downwardHitError(tracer, 0.13f, -0.37f, kHeight, onDetail);
         ASSERT_TRUE(onDetail) << depthWorld;
         EXPECT_GE(error, -1e-4) << depthWorld;
-        EXPECT_LE(error, TraceOptions{}.epsilonTexels) << depthWorld;
+        EXPECT_LE(error, TraceOptions{}.march.epsilonTexels) << depthWorld;
         const RenderResult result = renderScene(scene, smallOptions());
         EXPECT_EQ(nonFinitePixels(result.image), 0u) << depthWorld;
         EXPECT_GT(result.stats.baseHits, 0u);
