@@ -39,6 +39,8 @@ inline const char* marchMethodName(MarchMethod method) {
             return "sphere";
         case MarchMethod::OverRelaxed:
             return "relaxed";
+        case MarchMethod::Budgeted:
+            return "budgeted";
         case MarchMethod::Relief:
             return "relief";
         case MarchMethod::FixedSteps:

@@ -8,11 +8,13 @@
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "mesh/base_mesh.h"
 #include "render/image.h"
 #include "sampler/tile.h"
+#include "vdb/procedural.h"
 
 namespace distile {
 
@@ -45,6 +47,9 @@ struct Material {
     /// periodic in x and y; safe to call from several threads): the truth a reference render
     /// (RenderOptions::reference) traces instead of the tile. Empty: no analytic truth.
     std::function<double(const glm::dvec3& texelPosition)> analyticDistance;
+    /// Optional: the procedural pattern the tile was baked from (the options behind
+    /// analyticDistance), so peers can rebuild the same detail their own way (bench/peers).
+    std::optional<ProceduralOptions> procedural;
 };
 
 /// The material's albedo at base-mesh uv: the colour texture there, else the constant colour.

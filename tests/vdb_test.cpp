@@ -154,6 +154,55 @@ TEST(Chainmail, DefaultRingsStayInsideTheTileDepth) {
     }
 }
 
+TEST(ChainmailTessellation, VerticesLieOnTheSurfaceAndFacesWithinTheChordBound) {
+    // Coarse segments, so the bound is large enough to be tested from both sides:
+    // (22.5 + 2.1)(1 - cos(pi/32)) + 2.1 (1 - cos(pi/8)) = 0.118 + 0.160 = 0.278 texel.
+    const Chainmail chainmail(ChainmailOptions{}, kDefaultTile);
+    const int around = 32, tube = 8;
+    const TriangleSoup soup = tessellateChainmail(chainmail, around, tube);
+    const double bound = chainmailTessellationErrorTexels(chainmail, around, tube);
+    EXPECT_NEAR(bound, 24.6 * (1.0 - std::cos(kPi / around)) + 2.1 * (1.0 - std::cos(kPi / tube)),
+                1e-12);
+    ASSERT_EQ(soup.positions.size(), std::size_t(8 * 10 * around * tube));
+    ASSERT_EQ(soup.triangles.size(), 2 * soup.positions.size());
+    ASSERT_NO_THROW(validateTriangleSoup(soup, "tessellated chain mail"));
+    // Vertices are points of the analytic tori: zero up to double rounding of ~25-texel values.
+    for (const glm::dvec3& position : soup.positions)
+        ASSERT_LT(std::abs(chainmail.signedDistanceTexels(position)), 1e-9) << position.x;
+    double largestCentroidError = 0.0;
+    for (const glm::uvec3& triangle : soup.triangles) {
+        const glm::dvec3 a = soup.positions[triangle[0]];
+        const glm::dvec3 b = soup.positions[triangle[1]];
+        const glm::dvec3 c = soup.positions[triangle[2]];
+        const glm::dvec3 centroid = (a + b + c) / 3.0;
+        const double distance = chainmail.signedDistanceTexels(centroid);
+        largestCentroidError = std::max(largestCentroidError, std::abs(distance));
+        ASSERT_LE(std::abs(distance), bound);
+        // Counter-clockwise seen from outside: the face normal points up the distance gradient.
+        const glm::dvec3 normal = glm::cross(b - a, c - a);
+        const double h = 1e-4;
+        const glm::dvec3 gradient{
+            chainmail.signedDistanceTexels(centroid + glm::dvec3(h, 0, 0)) -
+                chainmail.signedDistanceTexels(centroid - glm::dvec3(h, 0, 0)),
+            chainmail.signedDistanceTexels(centroid + glm::dvec3(0, h, 0)) -
+                chainmail.signedDistanceTexels(centroid - glm::dvec3(0, h, 0)),
+            chainmail.signedDistanceTexels(centroid + glm::dvec3(0, 0, h)) -
+                chainmail.signedDistanceTexels(centroid - glm::dvec3(0, 0, h))};
+        ASSERT_GT(glm::dot(normal, gradient), 0.0);
+    }
+    // The bound is not vacuous: centroids (not the faces' farthest points) reach over half of it.
+    EXPECT_GT(largestCentroidError, 0.5 * bound);
+}
+
+TEST(ChainmailTessellation, RejectsTheJapaneseWeaveAndBadSegmentCounts) {
+    EXPECT_THROW(tessellateChainmail(Chainmail(japanese4in1Defaults(), kDefaultTile), 64, 16),
+                 InputError);
+    const Chainmail chainmail(ChainmailOptions{}, kDefaultTile);
+    EXPECT_THROW(tessellateChainmail(chainmail, 2, 16), InputError);
+    EXPECT_THROW(tessellateChainmail(chainmail, 64, 4097), InputError);
+    EXPECT_THROW(chainmailTessellationErrorTexels(chainmail, 64, 0), InputError);
+}
+
 TEST(Chainmail, RejectsOptionsThatCannotWork) {
     ChainmailOptions odd;
     odd.rowsPerTile = 9;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <string>
 
 #include "common/error.h"
 
@@ -240,6 +241,87 @@ std::string Chainmail::paramsJson() const {
          << ",\"wire_radius_spacings\":" << options_.wireRadiusSpacings
          << ",\"tilt_deg\":" << options_.tiltDeg << "}";
     return json.str();
+}
+
+namespace {
+
+/// Throws InputError unless the weave and segment counts can be tessellated.
+void validateTessellation(const Chainmail& chainmail, int segmentsAround, int segmentsTube) {
+    if (chainmail.options().weave != ChainmailWeave::European4in1) {
+        throw InputError("chainmail tessellation: only the european4in1 weave is supported, not " +
+                         std::string(weaveName(chainmail.options().weave)));
+    }
+    for (const int segments : {segmentsAround, segmentsTube}) {
+        if (segments < 3 || segments > 4096) {
+            throw InputError("chainmail tessellation: " + std::to_string(segments) +
+                             " segments is not accepted; it must be in [3, 4096]");
+        }
+    }
+}
+
+}  // namespace
+
+TriangleSoup tessellateChainmail(const Chainmail& chainmail, int segmentsAround, int segmentsTube) {
+    validateTessellation(chainmail, segmentsAround, segmentsTube);
+    const ChainmailOptions& options = chainmail.options();
+    const Size3& tile = chainmail.tileSize();
+    const double spacing = double(tile.width) / options.ringsPerRow;
+    const double rowSpacing = double(tile.height) / options.rowsPerTile;
+    const double ringRadius = options.ringRadiusSpacings * spacing;
+    const double wireRadius = options.wireRadiusSpacings * spacing;
+    const auto verticesPerRing = std::size_t(segmentsAround) * std::size_t(segmentsTube);
+    const auto rings = std::size_t(options.rowsPerTile) * std::size_t(options.ringsPerRow);
+    TriangleSoup soup;
+    soup.positions.reserve(rings * verticesPerRing);
+    soup.triangles.reserve(2 * rings * verticesPerRing);
+    for (int row = 0; row < options.rowsPerTile; ++row) {
+        const bool oddRow = row % 2 == 1;
+        const double tilt = (oddRow ? -1.0 : 1.0) * options.tiltDeg * kPi / 180.0;
+        const double cosTilt = std::cos(tilt);
+        const double sinTilt = std::sin(tilt);
+        for (int column = 0; column < options.ringsPerRow; ++column) {
+            const glm::dvec3 centre{column * spacing + (oddRow ? 0.5 * spacing : 0.0),
+                                    row * rowSpacing, 0.5 * tile.depth};
+            const auto first = unsigned(soup.positions.size());
+            for (int i = 0; i < segmentsAround; ++i) {
+                const double around = 2.0 * kPi * i / segmentsAround;
+                for (int j = 0; j < segmentsTube; ++j) {
+                    const double tube = 2.0 * kPi * j / segmentsTube;
+                    // The torus in the ring's frame (axis local z), rotated about y by the tilt:
+                    // the inverse of the rotation in signedDistanceTexels().
+                    const double radial = ringRadius + wireRadius * std::cos(tube);
+                    const glm::dvec3 local{radial * std::cos(around), radial * std::sin(around),
+                                           wireRadius * std::sin(tube)};
+                    soup.positions.push_back(
+                        centre + glm::dvec3{cosTilt * local.x + sinTilt * local.z, local.y,
+                                            -sinTilt * local.x + cosTilt * local.z});
+                }
+            }
+            auto vertex = [&](int i, int j) {
+                return first + unsigned((i % segmentsAround) * segmentsTube + j % segmentsTube);
+            };
+            for (int i = 0; i < segmentsAround; ++i) {
+                for (int j = 0; j < segmentsTube; ++j) {
+                    soup.triangles.push_back(
+                        {vertex(i, j), vertex(i + 1, j), vertex(i + 1, j + 1)});
+                    soup.triangles.push_back(
+                        {vertex(i, j), vertex(i + 1, j + 1), vertex(i, j + 1)});
+                }
+            }
+        }
+    }
+    return soup;
+}
+
+double chainmailTessellationErrorTexels(const Chainmail& chainmail, int segmentsAround,
+                                        int segmentsTube) {
+    validateTessellation(chainmail, segmentsAround, segmentsTube);
+    const ChainmailOptions& options = chainmail.options();
+    const double spacing = double(chainmail.tileSize().width) / options.ringsPerRow;
+    const double ringRadius = options.ringRadiusSpacings * spacing;
+    const double wireRadius = options.wireRadiusSpacings * spacing;
+    return (ringRadius + wireRadius) * (1.0 - std::cos(kPi / segmentsAround)) +
+           wireRadius * (1.0 - std::cos(kPi / segmentsTube));
 }
 
 }  // namespace distile

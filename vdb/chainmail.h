@@ -29,6 +29,7 @@
 #include <string>
 
 #include "common/size3.h"
+#include "common/triangle_soup.h"
 
 namespace distile {
 
@@ -88,5 +89,25 @@ class Chainmail {
 
     double japaneseDistanceTexels(double x, double y, double z) const;
 };
+
+/// The European 4-in-1 rings of `chainmail` whose centres lie in the tile footprint
+/// ([0, W) x [0, H)) as a triangle mesh in texel space: each ring is the torus sampled at
+/// `segmentsAround` angles around the ring's axis times `segmentsTube` angles around the wire, two
+/// triangles per quad, counter-clockwise seen from outside. Rings that cross the footprint's edges
+/// are whole; their periodic copies (shifts by W, H) are the caller's business. Every vertex lies
+/// on the analytic surface (signedDistanceTexels = 0 up to rounding) and every point of every face
+/// within chainmailTessellationErrorTexels() of it.
+/// @throws InputError for the Japanese 4-in-1 weave (not supported) or a segment count outside
+///   [3, 4096].
+TriangleSoup tessellateChainmail(const Chainmail& chainmail, int segmentsAround, int segmentsTube);
+
+/// Bound (texels) on the distance from a face of tessellateChainmail(chainmail, segmentsAround,
+/// segmentsTube) to the ring it approximates: the chord sagitta of the outermost circle around the
+/// axis plus that of the wire's circle, (R + r)(1 - cos(pi / segmentsAround)) +
+/// r (1 - cos(pi / segmentsTube)) (each quad is a planar isosceles trapezoid whose points are
+/// chords between mirror-image points of two wire polygons). Same preconditions as
+/// tessellateChainmail().
+double chainmailTessellationErrorTexels(const Chainmail& chainmail, int segmentsAround,
+                                        int segmentsTube);
 
 }  // namespace distile

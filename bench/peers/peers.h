@@ -1,0 +1,69 @@
+/// @file
+/// Peer renderers for `distile bench` (DESIGN.md, Performance): the same scene, camera rays and
+/// thread count traced by other tools on the same detail, so distile's time and error can be put
+/// next to theirs in one run.
+///  - Embree 3 on the chain mail tessellated finely (vdb/chainmail.h tessellateChainmail) and
+///    placed on the sheet in world space, with the solid floor as two triangles.
+///  - OpenVDB's vdb_render (a separate program) on the chain mail's level set repeated over the
+///    sheet (vdb/level_set.h), with its camera converted to the level set's texel space.
+/// Both accept one kind of scene, a "sheet": one object, a planar base mesh with orthogonal,
+/// right-handed uv axes carrying a procedural European 4-in-1 chain-mail tile
+/// (Material::procedural). Anything else, or a peer that is not installed, gives a PeerRender
+/// with available = false and the reason; errors of the peer itself throw std::runtime_error.
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+
+#include "render/image.h"
+#include "render/scene.h"
+
+namespace distile {
+
+struct PeerRender {
+    std::string name;  ///< "embree", "vdb_render"
+    bool available = false;
+    std::string unavailableReason;  ///< "not available: ...", when !available
+    double setupSeconds = 0.0;      ///< tessellation + BVH build / level set build + write + read
+    double traceSeconds = 0.0;      ///< primary rays through every pixel centre, wall time
+    /// Embree: what the device allocated (vertex and index buffers and the BVH), from its memory
+    /// monitor; vdb_render: the level set's in-memory size (OpenVDB memUsage, file_mem_bytes).
+    std::size_t memoryBytes = 0;
+    /// Distance from the eye along the camera ray, world units, in all channels (0: miss): the
+    /// convention of RenderAovs::depth (render/renderer.h).
+    Image depth;
+    /// Geometric (Embree) or level-set gradient (vdb_render) normal facing the camera, world
+    /// space, n * 0.5 + 0.5 (0: miss).
+    Image normal;
+};
+
+/// Embree 3 on the sheet's chain mail, tessellated so that no face is more than
+/// kEmbreeTessellationErrorTexels from the analytic surface (vdb/chainmail.h), every tile repeat
+/// placed in world space, plus the solid floor at the bottom of the shell as two triangles. As in
+/// distile, only rays entering the shell through the base mesh's uv rectangle can hit, and beyond
+/// its edges the rings and the floor go on as far as those rays reach below the surface (distile's
+/// march does not stop at the mesh's edge either). One rtcIntersect1 per pixel centre (the
+/// renderer's camera rays, PinholeProjection) on `threads` threads. Not available when distile was
+/// built without Embree or the sheet would need more than 2^28 triangles.
+/// @throws InputError width, height or threads out of range ([1, 16384], [1, 16384], [1, 256]) or
+///   an invalid scene (validateScene); std::runtime_error when Embree fails.
+PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int threads);
+
+/// The bound on the tessellation error of renderSheetWithEmbree, texels.
+inline constexpr double kEmbreeTessellationErrorTexels = 0.02;
+
+/// /usr/bin/vdb_render on the sheet's chain-mail level set (half band 3 texels, the tile
+/// repeated uv_scale times; texels must be cubes and the uv footprint whole tiles) written to
+/// `workDir`, with its camera in texel space, shader "position" (for the depth) and "normal", on
+/// `threads` threads. The trace time is what vdb_render reports for its ray tracing (-v); reading
+/// the level set counts as setup. The level set has no floor (rays that reach distile's floor miss
+/// here) and ends at the uv rectangle's edges. Writes sheet.vdb, position.exr, normal.exr and the
+/// programs' output to `workDir`. Not available when vdb_render or vdb_print is missing.
+/// @throws InputError bad sizes or threads (as above), an invalid scene, or `workDir` is not an
+///   existing folder; std::runtime_error when vdb_render or vdb_print fails (stderr in the
+///   message).
+PeerRender renderSheetWithVdbRender(const Scene& scene, int width, int height, int threads,
+                                    const std::filesystem::path& workDir);
+
+}  // namespace distile
