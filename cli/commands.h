@@ -12,5 +12,6 @@ void addBakeCommand(CLI::App& app);
 void addRenderCommand(CLI::App& app);
 void addCheckCommand(CLI::App& app);
 void addCompareCommand(CLI::App& app);
+void addBenchCommand(CLI::App& app);
 
 }  // namespace distile::cli

@@ -40,6 +40,7 @@ int run(int argc, char** argv) {
     distile::cli::addRenderCommand(app);
     distile::cli::addCheckCommand(app);
     distile::cli::addCompareCommand(app);
+    distile::cli::addBenchCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::Success& success) {  // --help, --version

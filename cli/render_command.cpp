@@ -29,24 +29,6 @@ struct RenderArguments {
     bool noShellCulling = false;
 };
 
-/// For --reference: gives each tiled object whose tile was baked from procedural detail its
-/// analytic distance (from the tile's provenance). Others are left for the renderer to reject.
-void attachAnalyticDistances(Scene& scene) {
-    for (std::size_t index = 0; index < scene.objects.size(); ++index) {
-        Material& material = scene.objects[index].material;
-        if (!material.tile || material.analyticDistance) continue;
-        const TileProvenance& provenance = material.tile->provenance;
-        if (provenance.source != proceduralSourceName(ProceduralKind::Chainmail) &&
-            provenance.source != proceduralSourceName(ProceduralKind::Grating)) {
-            continue;
-        }
-        const std::string where = "objects[" + std::to_string(index) + "].material.tile";
-        material.analyticDistance =
-            proceduralDistance(proceduralFromProvenance(provenance, where), material.tile->size())
-                .signedDistanceTexels;
-    }
-}
-
 /// "out.png" + "depth" -> "out.depth.exr" (AOVs beside the image).
 fs::path aovPath(const fs::path& image, const std::string& name, const std::string& extension) {
     return image.parent_path() / (image.stem().string() + "." + name + extension);
@@ -65,7 +47,7 @@ void runRender(RenderArguments arguments) {
     if (arguments.noShadows) options.shadowFilter = ShadowFilter::None;
     options.shellCulling = !arguments.noShellCulling;
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
-    if (options.reference) attachAnalyticDistances(sceneFile.scene);
+    if (options.reference) attachProceduralTruth(sceneFile.scene);
 
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;

@@ -6,6 +6,7 @@
 #include <set>
 #include <sstream>
 
+#include "cli/provenance.h"
 #include "common/error.h"
 #include "mesh/base_mesh.h"
 #include "render/demo_scene.h"
@@ -318,6 +319,22 @@ SceneFile demoScene(TileCache& tiles) {
     SceneFile demo;
     demo.scene = distile::demoScene(tiles[key]);
     return demo;
+}
+
+void attachProceduralTruth(Scene& scene) {
+    for (std::size_t index = 0; index < scene.objects.size(); ++index) {
+        Material& material = scene.objects[index].material;
+        if (!material.tile || material.analyticDistance) continue;
+        const TileProvenance& provenance = material.tile->provenance;
+        if (provenance.source != proceduralSourceName(ProceduralKind::Chainmail) &&
+            provenance.source != proceduralSourceName(ProceduralKind::Grating)) {
+            continue;
+        }
+        const std::string where = "objects[" + std::to_string(index) + "].material.tile";
+        material.procedural = proceduralFromProvenance(provenance, where);
+        material.analyticDistance =
+            proceduralDistance(*material.procedural, material.tile->size()).signedDistanceTexels;
+    }
 }
 
 }  // namespace distile::cli

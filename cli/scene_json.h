@@ -33,4 +33,10 @@ SceneFile loadSceneFile(const std::filesystem::path& file, TileCache& tiles);
 /// The built-in demo: chain mail on a torus (curved) lying on a plane (flat).
 SceneFile demoScene(TileCache& tiles);
 
+/// Gives each tiled object whose tile was baked from procedural detail its procedural options and
+/// analytic distance (Material::procedural, analyticDistance), from the tile's provenance, for
+/// reference renders and peers. Others are left as they are (the renderer rejects a reference
+/// render of them). Throws FormatError for a procedural tile whose params cannot be read.
+void attachProceduralTruth(Scene& scene);
+
 }  // namespace distile::cli
