@@ -6,6 +6,7 @@
 #include <set>
 #include <sstream>
 
+#include "cli/bake_cache.h"
 #include "cli/provenance.h"
 #include "common/error.h"
 #include "mesh/base_mesh.h"
@@ -119,6 +120,22 @@ Size3 parseSize(const Field& field) {
     return size;
 }
 
+/// Everything a scene's chain-mail bake depends on (cli/bake_cache.h).
+std::string chainmailRecipe(const ChainmailOptions& chainmail, const BakeOptions& options) {
+    std::ostringstream recipe;
+    recipe.precision(17);
+    const ConservativeOptions& conservative = options.conservative;
+    recipe << "chainmail weave " << weaveName(chainmail.weave) << " rings " << chainmail.ringsPerRow
+           << " rows " << chainmail.rowsPerTile << " ring " << chainmail.ringRadiusSpacings
+           << " wire " << chainmail.wireRadiusSpacings << " tilt " << chainmail.tiltDeg
+           << " small ring " << chainmail.smallRingRadiusSpacings << " small wire "
+           << chainmail.smallWireRadiusSpacings << "\nsize " << options.size.width << "x"
+           << options.size.height << "x" << options.size.depth << " band " << options.halfBandTexels
+           << "\nconservative " << conservative.enabled << " " << conservative.toleranceTexels
+           << "\n";
+    return recipe.str();
+}
+
 std::shared_ptr<const Tile> bakedTile(const Field& spec, TileCache& tiles) {
     spec.requireObject({"bake", "size", "rings_per_row", "rows_per_tile", "ring_radius",
                         "wire_radius", "tilt_deg"});
@@ -138,7 +155,8 @@ std::shared_ptr<const Tile> bakedTile(const Field& spec, TileCache& tiles) {
     const std::string key = "bake:" + spec.value().dump();
     if (auto found = tiles.find(key); found != tiles.end()) return found->second;
     try {
-        auto tile = std::make_shared<const Tile>(bakeChainmail(chainmail, options).tile);
+        auto tile = cachedBake(chainmailRecipe(chainmail, options),
+                               [&] { return bakeChainmail(chainmail, options).tile; });
         tiles[key] = tile;
         return tile;
     } catch (const InputError& error) {
@@ -315,7 +333,9 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
 
 SceneFile demoScene(TileCache& tiles) {
     auto key = std::string("bake:demo-chainmail");
-    if (!tiles.count(key)) tiles[key] = std::make_shared<const Tile>(bakeChainmail({}, {}).tile);
+    if (!tiles.count(key)) {
+        tiles[key] = cachedBake(chainmailRecipe({}, {}), [] { return bakeChainmail({}, {}).tile; });
+    }
     SceneFile demo;
     demo.scene = distile::demoScene(tiles[key]);
     return demo;
