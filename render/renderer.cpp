@@ -104,7 +104,11 @@ class Renderer {
         for (std::size_t light = 0; light < scene.lights.size(); ++light) {
             if (!lightReachesVisibleSurface(scene, scene.lights[light]))
                 continue;  // no receiver would ask
-            shadowMaps_[light].emplace(tracer_, scene.lights[light], options.shadowMapResolution);
+            const int resolution =
+                options.shadowMapResolution > 0
+                    ? options.shadowMapResolution
+                    : std::clamp(3 * std::max(options.width, options.height) / 2, 256, 4096);
+            shadowMaps_[light].emplace(tracer_, scene.lights[light], resolution);
         }
     }
 
@@ -285,9 +289,10 @@ void validateOptions(const RenderOptions& options) {
     if (options.samplesPerPixel < 1 || options.samplesPerPixel > 256) {
         reject("--spp", std::to_string(options.samplesPerPixel), "it must be in [1, 256]");
     }
-    if (options.shadowMapResolution < 16 || options.shadowMapResolution > 16384) {
+    if (options.shadowMapResolution != 0 &&
+        (options.shadowMapResolution < 16 || options.shadowMapResolution > 16384)) {
         reject("shadow map resolution", std::to_string(options.shadowMapResolution),
-               "it must be in [16, 16384] texels");
+               "it must be 0 (automatic) or in [16, 16384] texels");
     }
 }
 

@@ -32,9 +32,10 @@ struct RenderOptions {
     int shadowIterations = 24;  ///< budget of each shadow ray
     /// Shadows cast between surfaces, from a shadow map per light; None builds no map.
     ShadowFilter shadowFilter = ShadowFilter::Adaptive;
-    int shadowMapResolution =
-        ShadowMap::kDefaultResolution;  ///< texels along the map's longer side
-    bool outputAovs = false;            ///< also produce the AOV images of RenderResult
+    /// Texels along each shadow map's longer side; 0 (default): from the image, 1.5 x its longer
+    /// side in [256, 4096], so a small image does not pay for a large map.
+    int shadowMapResolution = 0;
+    bool outputAovs = false;  ///< also produce the AOV images of RenderResult
     /// Camera rays skip detail shells whose conservative depth is not nearer than their best hit
     /// (render/coverage.h); the image is the same either way, only the work differs.
     bool shellCulling = true;
@@ -89,7 +90,7 @@ struct RenderResult {
 /// Renders `scene`. Throws InputError for an invalid scene (validateScene) or options; for a
 /// reference render, also for an object whose tile has no analytic distance (naming the object)
 /// (width/height in [1, 16384], iterations in [1, 4096], epsilon in (0, 1], samples per pixel
-/// in [1, 256], shadow-map resolution in [16, 16384]). `progress` is called on the calling
+/// in [1, 256], shadow-map resolution 0 or in [16, 16384]). `progress` is called on the calling
 /// thread; it is not called while the shadow maps are built, before the first row.
 RenderResult renderScene(const Scene& scene, const RenderOptions& options,
                          const ProgressCallback& progress = {});

@@ -298,7 +298,7 @@ TEST(ShadowMap, RejectsBadResolutions) {
     EXPECT_THROW(ShadowMap(tracer, scene.lights[0], 8), InputError);
     EXPECT_THROW(ShadowMap(tracer, scene.lights[0], 20000), InputError);
     RenderOptions options;
-    options.shadowMapResolution = 0;
+    options.shadowMapResolution = 8;  // 0 is automatic; below 16 is refused
     EXPECT_THROW(renderScene(scene, options), InputError);
 }
 
