@@ -9,7 +9,8 @@
 /// The B-spline is evaluated in the chapter's "8 trilinear fetches" form: on each axis the four
 /// tap weights form two same-sign pairs, and each pair is one linear fetch at the pair's weighted
 /// position, so the 64-tap tensor-product sum becomes 8 TrilinearFilter::fetch calls (24 for the
-/// gradient, 60 for the Hessian). distanceTexels64Tap() is the plain sum, kept as the reference.
+/// gradient8Fetch, 60 for the Hessian). distanceTexels64Tap() is the plain sum, kept as the
+/// reference; the gradient is computed from the 64 taps directly (faster on a CPU).
 ///
 /// Note: the B-spline smooths. It reproduces linear functions, and quadratics up to a constant,
 /// but on a distance field it may overestimate distances (by about Laplacian / 6 texels), so the
@@ -151,6 +152,30 @@ inline float sumOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y,
     return sum;
 }
 
+/// The gradient of a cubic filter in one pass over its 64 taps: value weights `w*` and
+/// derivative weights `d*` per axis.
+inline glm::vec3 gradientOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y,
+                                const CubicAxis& z, const CubicWeights& wx, const CubicWeights& wy,
+                                const CubicWeights& wz, const CubicWeights& dx,
+                                const CubicWeights& dy, const CubicWeights& dz) {
+    glm::vec3 sum(0.0f);
+    for (int k = 0; k < 4; ++k) {
+        for (int j = 0; j < 4; ++j) {
+            const float* row = &tile.distancesTexels()[tile.index(0, y.tap[j], z.tap[k])];
+            float rowValue = 0.0f;
+            float rowDerivative = 0.0f;
+            for (int i = 0; i < 4; ++i) {
+                rowValue += wx.w[i] * row[x.tap[i]];
+                rowDerivative += dx.w[i] * row[x.tap[i]];
+            }
+            sum.x += wy.w[j] * wz.w[k] * rowDerivative;
+            sum.y += dy.w[j] * wz.w[k] * rowValue;
+            sum.z += wy.w[j] * dz.w[k] * rowValue;
+        }
+    }
+    return sum;
+}
+
 }  // namespace detail
 
 /// Cubic B-spline reconstruction (approximating, C2), evaluated from trilinear fetches.
@@ -173,9 +198,23 @@ class TricubicBSplineFilter {
                                  detail::bsplineWeights(a.z.fraction));
     }
 
-    /// Exact first derivatives of the filtered field (texels per texel), continuous everywhere:
-    /// per component 8 trilinear fetches with the derivative weights on its own axis.
+    /// Exact first derivatives of the filtered field (texels per texel), continuous everywhere,
+    /// in one pass over the 64 taps: on a CPU that is about 4x faster than the chapter's 24 linear
+    /// fetches (bench/distile_bench: sampleGradient), which pay off only where the hardware
+    /// filters for free. gradient8Fetch() is the chapter's form, kept as the check.
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
+        const Axes a = axes(texelPosition);
+        return detail::gradientOfTaps(tile_, a.x, a.y, a.z, detail::bsplineWeights(a.x.fraction),
+                                      detail::bsplineWeights(a.y.fraction),
+                                      detail::bsplineWeights(a.z.fraction),
+                                      detail::bsplineDerivativeWeights(a.x.fraction),
+                                      detail::bsplineDerivativeWeights(a.y.fraction),
+                                      detail::bsplineDerivativeWeights(a.z.fraction));
+    }
+
+    /// The same gradient from 24 trilinear fetches (8 per component, the derivative weights on
+    /// its own axis), as ch. 20 evaluates it on a GPU.
+    glm::vec3 gradient8Fetch(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
         const detail::LinearFetches vx = value(a.x), vy = value(a.y), vz = value(a.z);
         const detail::LinearFetches dx = derivative(a.x), dy = derivative(a.y),
@@ -246,28 +285,12 @@ class CatmullRomFilter {
     /// Exact first derivatives of the interpolant (texels per texel), one pass over the 64 taps.
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
-        const detail::CubicWeights wx = detail::catmullRomWeights(a.x.fraction);
-        const detail::CubicWeights wy = detail::catmullRomWeights(a.y.fraction);
-        const detail::CubicWeights wz = detail::catmullRomWeights(a.z.fraction);
-        const detail::CubicWeights dx = detail::catmullRomDerivativeWeights(a.x.fraction);
-        const detail::CubicWeights dy = detail::catmullRomDerivativeWeights(a.y.fraction);
-        const detail::CubicWeights dz = detail::catmullRomDerivativeWeights(a.z.fraction);
-        glm::vec3 sum(0.0f);
-        for (int k = 0; k < 4; ++k) {
-            for (int j = 0; j < 4; ++j) {
-                const float* row = &tile_.distancesTexels()[tile_.index(0, a.y.tap[j], a.z.tap[k])];
-                float rowValue = 0.0f;
-                float rowDerivative = 0.0f;
-                for (int i = 0; i < 4; ++i) {
-                    rowValue += wx.w[i] * row[a.x.tap[i]];
-                    rowDerivative += dx.w[i] * row[a.x.tap[i]];
-                }
-                sum.x += wy.w[j] * wz.w[k] * rowDerivative;
-                sum.y += dy.w[j] * wz.w[k] * rowValue;
-                sum.z += wy.w[j] * dz.w[k] * rowValue;
-            }
-        }
-        return sum;
+        return detail::gradientOfTaps(tile_, a.x, a.y, a.z, detail::catmullRomWeights(a.x.fraction),
+                                      detail::catmullRomWeights(a.y.fraction),
+                                      detail::catmullRomWeights(a.z.fraction),
+                                      detail::catmullRomDerivativeWeights(a.x.fraction),
+                                      detail::catmullRomDerivativeWeights(a.y.fraction),
+                                      detail::catmullRomDerivativeWeights(a.z.fraction));
     }
 
   private:
