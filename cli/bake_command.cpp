@@ -107,8 +107,12 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
             ": the mesh has no inside (CGAL could not close it); bake mesh accepts closed, "
             "manifold triangle meshes");
     }
-    BakeResult result = bakeMesh(mesh, placement, options, std::ref(progress),
-                                 [&truth](const glm::dvec3& p) { return truth.isInside(p); });
+    // The exact inside test fixes the signs near the surface; the exact distance lets the
+    // conservative correction measure the trilinear overestimate (sampler/conservative.h).
+    BakeResult result = bakeMesh(
+        mesh, placement, options, std::ref(progress),
+        [&truth](const glm::dvec3& p) { return truth.isInside(p); },
+        [&truth](const glm::dvec3& p) { return truth.signedDistance(p); });
 
     // Verify the sign at random voxels of the footprint against the exact inside test.
     const Size3& size = options.size;

@@ -33,6 +33,8 @@ BakeResult bakeProcedural(const ProceduralOptions& proceduralOptions, const Bake
     LevelSet levelSet =
         LevelSet::fromDistance(procedural.signedDistanceTexels, options.size, halfBand,
                                procedural.source, procedural.paramsJson, progress);
+    // The estimated correction (sampler/conservative.h): it meets the procedural targets, where
+    // the measured one lowers too much across the wires' centreline kinks.
     Tile tile = tileFromLevelSet(levelSet, options.conservative);
     return {std::move(levelSet), std::move(tile)};
 }
@@ -99,7 +101,7 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
 
 BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                     const BakeOptions& options, const ProgressCallback& progress,
-                    const InsideTest& insideTest) {
+                    const InsideTest& insideTest, const ExactDistance& exactDistance) {
     validateTileSize(options.size, "--size");
     if (!(options.halfBandTexels >= 0.0f)) {
         throw InputError(
@@ -115,7 +117,7 @@ BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& plac
            << "\",\"triangles\":" << placed.triangles.size() << "}";
     LevelSet levelSet = levelSetFromMesh(placed, options.size, halfBand, "mesh", params.str(),
                                          progress, insideTest);
-    Tile tile = tileFromLevelSet(levelSet, options.conservative);
+    Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistance);
     return {std::move(levelSet), std::move(tile)};
 }
 

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "detail_meshes.h"
 #include "render/image.h"
 
 namespace distile {
@@ -535,6 +536,72 @@ TEST_F(Cli, BakesAClosedMeshWithVerifiedSignAndChecksItAgainstTheMesh) {
     expectInputError({"bake", "mesh", "cube.obj", "-o", "both.exr", "--fit", "--scale", "2"},
                      "both.exr", {"--fit", "--scale"});
     expectInputError({"bake", "mesh", "-o", "none.exr"}, "none.exr", {"mesh", "input file"});
+}
+
+/// The soup as an OBJ file (positions with 17 significant digits, 1-based faces).
+std::string objText(const TriangleSoup& soup) {
+    std::ostringstream out;
+    out.precision(17);
+    for (const glm::dvec3& p : soup.positions)
+        out << "v " << p.x << ' ' << p.y << ' ' << p.z << '\n';
+    for (const glm::uvec3& t : soup.triangles)
+        out << "f " << t.x + 1 << ' ' << t.y + 1 << ' ' << t.z + 1 << '\n';
+    return out.str();
+}
+
+TEST_F(Cli, ClosedMeshAcceptanceWithTheDefaultConservativeBake) {
+    /// `bake mesh` with the default (conservative) tile, then `check --against` the mesh at
+    /// 100,000 points: the check's JSON report.
+    const auto bakeAndCheckMesh = [this](const std::string& obj, const std::string& size,
+                                         const std::string& scale,
+                                         const std::vector<std::string>& offset) {
+        const std::string offsetList = offset[0] + "," + offset[1] + "," + offset[2];
+        const RunResult bake = run({"bake", "mesh", obj, "-o", "accept.exr", "--size", size,
+                                    "--scale", scale, "--offset", offsetList});
+        EXPECT_EQ(bake.status, 0) << bake.out << bake.err;
+        const RunResult check =
+            run({"check", "accept.exr", "--against", obj, "--scale", scale, "--offset", offset[0],
+                 offset[1], offset[2], "--samples", "100000", "--json", "--max-overestimate-share",
+                 "1", "--max-rms", "1"});
+        EXPECT_EQ(check.status, 0) << check.out << check.err;
+        const nlohmann::json report = nlohmann::json::parse(check.out);
+        std::printf(
+            "[ figures  ] %s x%s at (%s) in %s: near-surface max %.4f, sign errors %d, "
+            "overestimates %.3f%%, RMS %.4f\n",
+            obj.c_str(), scale.c_str(), offsetList.c_str(), size.c_str(),
+            report["near_max_abs"].get<double>(), report["sign_errors"].get<int>(),
+            100.0 * report["overestimate_share"].get<double>(), report["rms"].get<double>());
+        return report;
+    };
+    // Issue #3: `check --against` the mesh, 100,000 points, default bake: max |error| <= 0.5
+    // texel within 2 texels of the surface, no sign errors. The conservative correction measures
+    // the trilinear overestimate against the exact mesh distance (sampler/conservative.h), so the
+    // cube's sharp edges are lowered by what they overestimate (the estimate alone: 0.70).
+    writeText(path("cube.obj"), kCubeObj);
+    // A cube at a non-aligned offset, more than 2 texels from z = 0 and z = D (see below), and a
+    // torus (sagitta of the 64 x 32 tessellation: 12 (1 - cos(pi/64)) < 0.015 texel).
+    const nlohmann::json clear =
+        bakeAndCheckMesh("cube.obj", "32x32x16", "10.6", {"5.3", "6.7", "2.7"});
+    EXPECT_LE(clear["near_max_abs"].get<double>(), 0.5);
+    EXPECT_EQ(clear["sign_errors"].get<int>(), 0);
+    writeText(path("torus.obj"),
+              objText(test::makeTorusSoup(glm::dvec3(20.3, 19.7, 6.1), 12.0, 4.0, 64, 32)));
+    const nlohmann::json torus = bakeAndCheckMesh("torus.obj", "40x40x12", "1", {"0", "0", "0"});
+    EXPECT_LE(torus["near_max_abs"].get<double>(), 0.5);
+    EXPECT_EQ(torus["sign_errors"].get<int>(), 0);
+    // Cubes whose faces lie within 2 texels of z = 0 or z = D: there the filter clamps to the
+    // first/last slice (sampler/filters.h), which alone errs by up to 0.5 texel where the distance
+    // grows along z (measured with --exact-texels: 0.497, 0.499), and any lowering of those slices
+    // at the faces' edges adds to it (measured: 0.501 and 0.546). NOT the acceptance yet: it needs
+    // the filter to extrapolate in the half slabs instead of clamping; held here at the measured
+    // figures so a regression shows.
+    const nlohmann::json aligned = bakeAndCheckMesh("cube.obj", "32x32x16", "10", {"5", "5", "2"});
+    EXPECT_LE(aligned["near_max_abs"].get<double>(), 0.51);
+    EXPECT_EQ(aligned["sign_errors"].get<int>(), 0);
+    const nlohmann::json offset =
+        bakeAndCheckMesh("cube.obj", "32x32x16", "12", {"5.3", "6.7", "2.2"});
+    EXPECT_LE(offset["near_max_abs"].get<double>(), 0.55);
+    EXPECT_EQ(offset["sign_errors"].get<int>(), 0);
 }
 
 TEST_F(Cli, BakesAHeightMap) {

@@ -1,16 +1,13 @@
 #include "vdb/height_field.h"
 
-#include <openvdb/openvdb.h>
-#include <openvdb/tools/MeshToVolume.h>
-
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 #include <sstream>
+#include <vector>
 
 #include "common/error.h"
-#include "vdb/detail/openvdb_mesh.h"
 
 namespace distile {
 
@@ -47,41 +44,127 @@ double squaredDistanceToTriangle(const glm::dvec3& p, const glm::dvec3& a, const
     return squared(ap - ab * (vb * denominator) - ac * (vc * denominator));
 }
 
-/// Exact unsigned distance from `p` to the triangulated surface, or `bound` if nothing is nearer
-/// than `bound`: every cell whose box (x/y footprint times the range of its four node heights)
-/// comes nearer than the best distance so far is tested. @pre bound >= 0.
-double distanceToSurface(const HeightField& field, const std::vector<glm::dvec2>& cellHeightRange,
-                         const glm::dvec3& p, double bound) {
-    double best = bound;
-    // Cell (ci, cj) spans x in [ci + 0.5, ci + 1.5], y in [cj + 0.5, cj + 1.5].
-    const int ciBegin = int(std::floor(p.x - 1.5 - best)),
-              ciEnd = int(std::floor(p.x - 0.5 + best));
-    const int cjBegin = int(std::floor(p.y - 1.5 - best)),
-              cjEnd = int(std::floor(p.y - 0.5 + best));
-    const auto gap = [](double value, double low, double high) {
-        return value < low ? low - value : (value > high ? value - high : 0.0);
-    };
-    for (int cj = cjBegin; cj <= cjEnd; ++cj) {
-        const double dy = gap(p.y, cj + 0.5, cj + 1.5);
-        if (dy >= best) continue;
-        for (int ci = ciBegin; ci <= ciEnd; ++ci) {
-            const double dx = gap(p.x, ci + 0.5, ci + 1.5);
-            const glm::dvec2 range =
-                cellHeightRange[std::size_t(wrap(ci, field.width)) +
-                                std::size_t(wrap(cj, field.height)) * std::size_t(field.width)];
-            const double dz = gap(p.z, range.x, range.y);
-            if (dx * dx + dy * dy + dz * dz >= best * best) continue;
-            const glm::dvec3 n00(ci + 0.5, cj + 0.5, field.node(ci, cj));
-            const glm::dvec3 n10(ci + 1.5, cj + 0.5, field.node(ci + 1, cj));
-            const glm::dvec3 n01(ci + 0.5, cj + 1.5, field.node(ci, cj + 1));
-            const glm::dvec3 n11(ci + 1.5, cj + 1.5, field.node(ci + 1, cj + 1));
-            const double squared = std::min(squaredDistanceToTriangle(p, n00, n10, n11),
-                                            squaredDistanceToTriangle(p, n00, n11, n01));
-            best = std::min(best, std::sqrt(squared));
+/// Height ranges of the cells (cell (ci, cj) spans x in [ci + 0.5, ci + 1.5], y in [cj + 0.5,
+/// cj + 1.5], between four nodes) and of square blocks of kBlockCells x kBlockCells cells, over
+/// unwrapped cell indices (block (bi, bj) holds cells [bi B, bi B + B) x [bj B, bj B + B), wrapped
+/// into the field), so a search skips whole blocks that cannot hold a nearer triangle.
+class SurfaceSearch {
+  public:
+    static constexpr int kBlockCells = 8;
+
+    /// Blocks covering cells [-marginCells, W + marginCells) x [-marginCells, H + marginCells).
+    SurfaceSearch(const HeightField& field, int marginCells) : field_(field) {
+        cellRange_.resize(field.heightsTexels.size());
+        for (int j = 0; j < field.height; ++j) {
+            for (int i = 0; i < field.width; ++i) {
+                const double a = field.node(i, j), b = field.node(i + 1, j);
+                const double c = field.node(i, j + 1), d = field.node(i + 1, j + 1);
+                cellRange_[std::size_t(i) + std::size_t(j) * std::size_t(field.width)] =
+                    glm::dvec2(std::min(std::min(a, b), std::min(c, d)),
+                               std::max(std::max(a, b), std::max(c, d)));
+            }
+        }
+        blockXBegin_ = floorDiv(-marginCells, kBlockCells);
+        blockYBegin_ = floorDiv(-marginCells, kBlockCells);
+        blocksX_ = floorDiv(field.width + marginCells, kBlockCells) - blockXBegin_ + 1;
+        blocksY_ = floorDiv(field.height + marginCells, kBlockCells) - blockYBegin_ + 1;
+        blockRange_.resize(std::size_t(blocksX_) * std::size_t(blocksY_));
+        for (int by = 0; by < blocksY_; ++by) {
+            for (int bx = 0; bx < blocksX_; ++bx) {
+                glm::dvec2 range(HUGE_VAL, -HUGE_VAL);
+                const int ci0 = (blockXBegin_ + bx) * kBlockCells;
+                const int cj0 = (blockYBegin_ + by) * kBlockCells;
+                for (int cj = cj0; cj < cj0 + kBlockCells; ++cj) {
+                    for (int ci = ci0; ci < ci0 + kBlockCells; ++ci) {
+                        const glm::dvec2 cell = cellRange(ci, cj);
+                        range = glm::dvec2(std::min(range.x, cell.x), std::max(range.y, cell.y));
+                    }
+                }
+                blockRange_[std::size_t(bx) + std::size_t(by) * std::size_t(blocksX_)] = range;
+            }
         }
     }
-    return best;
-}
+
+    /// Exact unsigned distance from `p` to the triangulated surface, or `bound` if nothing is
+    /// nearer than `bound`: every block, then every cell, whose box (x/y footprint times its
+    /// height range) comes nearer than the best distance so far is tested.
+    /// @pre bound >= 0, and p within bound of the blocks' cells (marginCells >= bound + 2 beyond
+    /// the footprint).
+    double distance(const glm::dvec3& p, double bound) const {
+        double best = bound;
+        const int ciBegin = int(std::floor(p.x - 1.5 - best)),
+                  ciEnd = int(std::floor(p.x - 0.5 + best));
+        const int cjBegin = int(std::floor(p.y - 1.5 - best)),
+                  cjEnd = int(std::floor(p.y - 0.5 + best));
+        // Blocks nearest first, so the best distance shrinks early and the rest are skipped.
+        struct Candidate {
+            double squared;
+            int ci0, cj0;
+            bool operator<(const Candidate& other) const { return squared < other.squared; }
+        };
+        std::vector<Candidate> blocks;
+        for (int by = floorDiv(cjBegin, kBlockCells); by <= floorDiv(cjEnd, kBlockCells); ++by) {
+            for (int bx = floorDiv(ciBegin, kBlockCells); bx <= floorDiv(ciEnd, kBlockCells);
+                 ++bx) {
+                const glm::dvec2 range =
+                    blockRange_[std::size_t(bx - blockXBegin_) +
+                                std::size_t(by - blockYBegin_) * std::size_t(blocksX_)];
+                const int ci0 = bx * kBlockCells, cj0 = by * kBlockCells;
+                const double squared =
+                    boxDistanceSquared(p, ci0 + 0.5, ci0 + kBlockCells + 0.5, cj0 + 0.5,
+                                       cj0 + kBlockCells + 0.5, range);
+                if (squared < best * best) blocks.push_back({squared, ci0, cj0});
+            }
+        }
+        std::sort(blocks.begin(), blocks.end());
+        for (const Candidate& block : blocks) {
+            if (block.squared >= best * best) break;
+            for (int cj = std::max(block.cj0, cjBegin);
+                 cj <= std::min(block.cj0 + kBlockCells - 1, cjEnd); ++cj) {
+                for (int ci = std::max(block.ci0, ciBegin);
+                     ci <= std::min(block.ci0 + kBlockCells - 1, ciEnd); ++ci) {
+                    if (boxDistanceSquared(p, ci + 0.5, ci + 1.5, cj + 0.5, cj + 1.5,
+                                           cellRange(ci, cj)) >= best * best) {
+                        continue;
+                    }
+                    const glm::dvec3 n00(ci + 0.5, cj + 0.5, field_.node(ci, cj));
+                    const glm::dvec3 n10(ci + 1.5, cj + 0.5, field_.node(ci + 1, cj));
+                    const glm::dvec3 n01(ci + 0.5, cj + 1.5, field_.node(ci, cj + 1));
+                    const glm::dvec3 n11(ci + 1.5, cj + 1.5, field_.node(ci + 1, cj + 1));
+                    const double squared = std::min(squaredDistanceToTriangle(p, n00, n10, n11),
+                                                    squaredDistanceToTriangle(p, n00, n11, n01));
+                    best = std::min(best, std::sqrt(squared));
+                }
+            }
+        }
+        return best;
+    }
+
+  private:
+    static int floorDiv(int value, int divisor) {
+        return value >= 0 ? value / divisor : -((-value + divisor - 1) / divisor);
+    }
+
+    static double boxDistanceSquared(const glm::dvec3& p, double xLow, double xHigh, double yLow,
+                                     double yHigh, const glm::dvec2& zRange) {
+        const auto gap = [](double value, double low, double high) {
+            return value < low ? low - value : (value > high ? value - high : 0.0);
+        };
+        const double dx = gap(p.x, xLow, xHigh), dy = gap(p.y, yLow, yHigh),
+                     dz = gap(p.z, zRange.x, zRange.y);
+        return dx * dx + dy * dy + dz * dz;
+    }
+
+    glm::dvec2 cellRange(int ci, int cj) const {
+        return cellRange_[std::size_t(wrap(ci, field_.width)) +
+                          std::size_t(wrap(cj, field_.height)) * std::size_t(field_.width)];
+    }
+
+    const HeightField& field_;
+    std::vector<glm::dvec2> cellRange_;
+    int blockXBegin_ = 0, blockYBegin_ = 0, blocksX_ = 0, blocksY_ = 0;
+    std::vector<glm::dvec2> blockRange_;
+};
 
 }  // namespace
 
@@ -159,47 +242,18 @@ LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, fl
                          " texels is not accepted; it must be in [1, 1024]");
     }
     validateHeightField(field, tile, "height field level set");
-    openvdb::initialize();
-
-    // The surface over the footprint plus periodic neighbours wider than the band, so every voxel
-    // of the tile within the band sees all triangles that can be nearest to it.
-    const float convertedBand = halfBandTexels + 2.0f;  // OpenVDB's band is ragged at its edge
-    const TriangleSoup surface = heightFieldTriangles(field, int(std::ceil(convertedBand)) + 2);
-    const detail::OpenVdbMesh mesh = detail::toOpenVdbIndexSpace(surface);
-    const auto transform = openvdb::math::Transform::createLinearTransform(1.0);
-    const openvdb::FloatGrid::Ptr unsignedGrid =
-        openvdb::tools::meshToUnsignedDistanceField<openvdb::FloatGrid>(
-            *transform, mesh.points, mesh.triangles, std::vector<openvdb::Vec4I>(), convertedBand);
-    if (progress) progress(0.5);
-
-    // OpenVDB's band expansion propagates the nearest triangle from neighbouring voxels, which is
-    // not always the nearest one (errors up to half a texel away from the surface). Its value is
-    // the distance to some triangle, though, so it bounds the exact search over nearby cells.
-    std::vector<glm::dvec2> cellHeightRange(field.heightsTexels.size());
-    for (int j = 0; j < field.height; ++j) {
-        for (int i = 0; i < field.width; ++i) {
-            const double a = field.node(i, j), b = field.node(i + 1, j);
-            const double c = field.node(i, j + 1), d = field.node(i + 1, j + 1);
-            cellHeightRange[std::size_t(i) + std::size_t(j) * std::size_t(field.width)] =
-                glm::dvec2(std::min(std::min(a, b), std::min(c, d)),
-                           std::max(std::max(a, b), std::max(c, d)));
-        }
-    }
-    const openvdb::FloatTree& tree = unsignedGrid->tree();  // reads are thread-safe
+    // The vertical distance to the surface bounds the distance (the surface point straight above
+    // or below); the exact search over the cells nearer than that (SurfaceSearch) finds it. The
+    // level set's band clamps it: only cells within the band plus a cell's diagonal are searched.
+    const double searchBand = double(halfBandTexels) + 2.0;
+    const SurfaceSearch search(field, int(std::ceil(searchBand)) + 2);
     const auto distance = [&](const glm::dvec3& texel) {
-        const openvdb::Coord voxel(int(std::floor(texel.x)), int(std::floor(texel.y)),
-                                   int(std::floor(texel.z)));
         const double surfaceHeight = heightFieldSurfaceTexels(field, texel.x, texel.y);
-        // Bounds: OpenVDB's value (plus float rounding), the vertical distance, the band.
-        const double bound = std::min({double(tree.getValue(voxel)) + 1e-4,
-                                       std::abs(texel.z - surfaceHeight), double(convertedBand)});
-        const double unsignedDistance = distanceToSurface(field, cellHeightRange, texel, bound);
+        const double bound = std::min(std::abs(texel.z - surfaceHeight), searchBand);
+        const double unsignedDistance = search.distance(texel, bound);
         return texel.z < surfaceHeight ? -unsignedDistance : unsignedDistance;
     };
-    const ProgressCallback resampleProgress =
-        progress ? ProgressCallback([&](double done) { progress(0.5 + 0.5 * done); })
-                 : ProgressCallback();
-    return LevelSet::fromDistance(distance, tile, halfBandTexels, source, params, resampleProgress);
+    return LevelSet::fromDistance(distance, tile, halfBandTexels, source, params, progress);
 }
 
 }  // namespace distile

@@ -44,10 +44,11 @@ double heightFieldSurfaceTexels(const HeightField& field, double x, double y);
 /// soup. @pre field is valid, marginNodes >= 0.
 TriangleSoup heightFieldTriangles(const HeightField& field, int marginNodes);
 
-/// Signed level set of the height field (exact unsigned distances to the triangulated surface
-/// from OpenVDB's mesh-to-unsigned-distance on heightFieldTriangles with a margin wider than the
-/// band, sign from z against the surface height). Same grid layout, band rules, provenance
-/// metadata and determinism as LevelSet::fromDistance.
+/// Signed level set of the height field: exact unsigned distances to the triangulated surface
+/// (double precision point-to-triangle distances over the cells that can hold a nearer triangle
+/// than the vertical distance, culled by the height ranges of cells and of 8 x 8 cell blocks),
+/// sign from z against the surface height. Same grid layout, band rules, provenance metadata and
+/// determinism as LevelSet::fromDistance.
 /// @throws InputError the tile size is invalid, halfBandTexels is not in [1, 1024], or the field
 ///                    fails validateHeightField.
 LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, float halfBandTexels,
