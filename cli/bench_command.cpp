@@ -26,6 +26,9 @@
 #ifdef DISTILE_HAVE_PEERS
 #include "bench/peers/peers.h"
 #endif
+#ifdef DISTILE_HAVE_STRESS
+#include "bench/stress/stress_cases.h"
+#endif
 
 namespace distile::cli {
 
@@ -37,6 +40,8 @@ struct BenchArguments {
     fs::path outputDir = "bench-out";
     bool quick = false;
     bool peers = true;
+    /// The stress cases (bench/stress/stress_cases.h) instead of the sweep.
+    bool stress = false;
     int width = 0;  ///< 0: 1280 (640 with --quick)
     int height = 0;
 };
@@ -305,7 +310,88 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
     return md.str();
 }
 
+#ifdef DISTILE_HAVE_STRESS
+/// A CSV field: quoted, inner quotes doubled.
+std::string csvField(const std::string& text) {
+    std::string quoted = "\"";
+    for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return quoted + "\"";
+}
+
+/// A markdown table cell: '|' escaped.
+std::string tableCell(const std::string& text) {
+    std::string escaped;
+    for (char c : text) escaped += c == '|' ? std::string("\\|") : std::string(1, c);
+    return escaped;
+}
+
+/// `distile bench --stress -o DIR`: runs the stress cases of issue 5
+/// (bench/stress/stress_cases.h), writes DIR/stress.md and DIR/stress.csv, prints one line per
+/// case and exits with status 1 when a case failed.
+void runStressReport(const fs::path& outputDir) {
+    std::error_code error;
+    fs::create_directories(outputDir, error);
+    if (error)
+        throw InputError("-o: cannot create the folder '" + outputDir.string() +
+                         "': " + error.message());
+    std::printf("bench: stress cases (issue 5)\n");
+    std::fflush(stdout);
+    const std::vector<StressCase> cases = runStressCases();
+    std::ostringstream md, csv;
+    md << "# distile bench --stress\n\n"
+          "The numerical-stability stress cases of issue 5, each against a known answer (a "
+          "plane's exact hit, the same scene near the origin, the analytic chain mail). Error: "
+          "the case's figure against that answer, in texels; pass: error within tolerance, no "
+          "NaN/Inf pixel and every other expectation held (tests/stress_test.cpp asserts the "
+          "same).\n\n"
+          "| case | expected | measured | error (texels) | tolerance (texels) | non-finite | pass "
+          "|\n|---|---|---|---|---|---|---|\n";
+    csv << "case,expected,measured,error_texels,tolerance_texels,non_finite_pixels,passed\n";
+    csv.precision(6);
+    std::vector<std::string> failedChecks;
+    int failed = 0;
+    for (const StressCase& c : cases) {
+        char figures[96];
+        std::snprintf(figures, sizeof figures, "%.3g | %.3g", c.errorTexels, c.toleranceTexels);
+        md << "| " << tableCell(c.name) << " | " << tableCell(c.expected) << " | "
+           << tableCell(c.measured) << " | " << figures << " | " << c.nonFinitePixels << " | "
+           << (c.passed ? "yes" : "**no**") << " |\n";
+        csv << csvField(c.name) << "," << csvField(c.expected) << "," << csvField(c.measured) << ","
+            << c.errorTexels << "," << c.toleranceTexels << "," << c.nonFinitePixels << ","
+            << (c.passed ? 1 : 0) << "\n";
+        std::printf("  %-48s %s  error %.3g (tolerance %.3g) texels, %llu non-finite\n",
+                    c.name.c_str(), c.passed ? "pass" : "FAIL", c.errorTexels, c.toleranceTexels,
+                    (unsigned long long)c.nonFinitePixels);
+        failed += c.passed ? 0 : 1;
+        for (const StressCheck& check : c.checks)
+            if (!check.held) {
+                failedChecks.push_back(c.name + ": " + check.what);
+                std::printf("    failed: %s\n", check.what.c_str());
+            }
+    }
+    if (!failedChecks.empty()) {
+        md << "\n## Failed expectations\n\n";
+        for (const std::string& line : failedChecks) md << "- " << line << "\n";
+    }
+    writeText(outputDir / "stress.md", md.str());
+    writeText(outputDir / "stress.csv", csv.str());
+    std::printf("bench: %d of %zu stress cases passed; wrote %s, stress.csv\n",
+                int(cases.size()) - failed, cases.size(),
+                fs::absolute(outputDir / "stress.md").string().c_str());
+    std::fflush(stdout);
+    if (failed > 0) std::exit(1);  // a case failed: exit status 1 (bad input is 2, from main)
+}
+#endif
+
 void runBench(const BenchArguments& arguments) {
+    if (arguments.stress) {
+#ifdef DISTILE_HAVE_STRESS
+        runStressReport(arguments.outputDir);
+        return;
+#else
+        throw InputError("--stress: distile was built without bench/ (DISTILE_BUILD_BENCH=OFF)");
+#endif
+    }
     const int width = arguments.width > 0 ? arguments.width : (arguments.quick ? 640 : 1280);
     const int height = arguments.height > 0 ? arguments.height : (arguments.quick ? 512 : 1024);
     const int threads =
@@ -528,6 +614,9 @@ void addBenchCommand(CLI::App& app) {
     command->add_flag("--quick", arguments->quick,
                       "Reduced sweep at 640x512 (peers included), a few minutes on 2 cores");
     command->add_flag("!--no-peers", arguments->peers, "Skip Embree and vdb_render");
+    command->add_flag("--stress", arguments->stress,
+                      "Instead of the sweep: the numerical-stability stress cases, written as "
+                      "stress.md and stress.csv; exit 1 when a case fails");
     command->add_option("--width", arguments->width, "Image width (default 1280, quick 640)")
         ->check(CLI::Range(16, 16384));
     command->add_option("--height", arguments->height, "Image height (default 1024, quick 512)")
