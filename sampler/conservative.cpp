@@ -98,6 +98,10 @@ std::vector<float> measuredLowerings(const Tile& exact, const ExactDistance& exa
                         (double(exact.at(x0, y0, z0)) + exact.at(x1, y0, z0) +
                          exact.at(x0, y1, z0) + exact.at(x1, y1, z0) + exact.at(x0, y0, z1) +
                          exact.at(x1, y0, z1) + exact.at(x0, y1, z1) + exact.at(x1, y1, z1));
+                    const float nearest =
+                        std::min({std::abs(exact.at(x0, y0, z0)), std::abs(exact.at(x1, y1, z1)),
+                                  std::abs(exact.at(x1, y0, z0)), std::abs(exact.at(x0, y1, z1))});
+                    if (nearest > bandTexels) continue;  // far from the surface: estimated
                     const glm::dvec3 p(0.5 + 0.5 * a, 0.5 + 0.5 * b, 0.5 * m);
                     const double truth =
                         std::clamp(exactDistance(p), -double(clampTexels), double(clampTexels));
@@ -161,12 +165,16 @@ void makeConservative(Tile& tile, const ConservativeOptions& options,
 
     const float allowance = options.allowanceShare * options.toleranceTexels;
     std::vector<float> lowerings;
+    lowerings = estimatedOverestimates(tile, options);
+    for (float& lowering : lowerings) lowering = std::max(0.0f, lowering - allowance);
     if (exactDistance) {
-        lowerings = measuredLowerings(tile, exactDistance, options.toleranceTexels,
-                                      options.measuredBandTexels);
-    } else {
-        lowerings = estimatedOverestimates(tile, options);
-        for (float& lowering : lowerings) lowering = std::max(0.0f, lowering - allowance);
+        // Within the band the measured lowering replaces the estimate.
+        const std::vector<float> measured = measuredLowerings(
+            tile, exactDistance, options.toleranceTexels, options.measuredBandTexels);
+        const std::span<const float> exact = tile.distancesTexels();
+        for (std::size_t n = 0; n < lowerings.size(); ++n) {
+            if (std::abs(exact[n]) <= options.measuredBandTexels) lowerings[n] = measured[n];
+        }
     }
     std::span<float> texels = tile.distancesTexels();
     for (std::size_t n = 0; n < texels.size(); ++n) texels[n] -= lowerings[n];
