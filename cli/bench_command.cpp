@@ -4,6 +4,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -201,11 +202,13 @@ std::string gnuplotScript(const std::vector<Row>& rows, const fs::path& png) {
         if (std::find(groups.begin(), groups.end(), r.group) == groups.end())
             groups.push_back(r.group);
     gp << "plot ";
-    const char* kColors[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
-                             "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"};
+    constexpr std::array<const char*, 10> kColors{"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
+                                                  "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+                                                  "#000000", "#17becf"};
     for (std::size_t g = 0; g < groups.size(); ++g) {
-        gp << "'-' using 1:2 with points pt " << (groups[g] == "peer" ? 3 : 5 + 2 * int(g % 4)) << " ps 1.6 lc rgb '"
-           << kColors[g % 10] << "' title '" << groups[g] << "', ";
+        gp << "'-' using 1:2 with points pt " << (groups[g] == "peer" ? 3 : 5 + 2 * int(g % 4))
+           << " ps 1.6 lc rgb '" << kColors[g % kColors.size()] << "' title '" << groups[g]
+           << "', ";
     }
     gp << "'-' using 1:2 with lines lw 2 lc rgb '#444444' title 'distile Pareto front', "
        << "'-' using 1:2:3 with labels offset 0.8,0.6 left font 'Sans,8' noenhanced notitle\n";
