@@ -14,11 +14,10 @@
 ///   distance to the placed mesh). Every point of the half-texel grid is checked: trilinear minus
 ///   exact distance, beyond the tolerance, is removed by lowering the point's 1-8 interpolation
 ///   corners by that much (their trilinear weights sum to 1); each texel takes the largest
-///   lowering asked of it. Points midway between the first (last) slice and its inner neighbour
-///   lower the inner slice by twice as much instead: the first and last slice already carry the
-///   filter's clamp error in the half slabs z < 0.5 and z > D - 0.5 (up to half a texel).
-///   Sharp edges and corners (a cube) get lowered by what they overestimate, not more. Only
-///   points near the surface are checked (measuredBandTexels).
+///   lowering asked of it. Points on the faces z = 0 and z = D, where the filter extends the edge
+///   cell linearly (1.5 x the edge slice - 0.5 x its inner neighbour), are corrected by lowering
+///   the edge slice (see below). Sharp edges and corners (a cube) get lowered by what they
+///   overestimate, not more. Only points near the surface are checked (measuredBandTexels).
 /// - **Estimated**, otherwise: procedural detail and height maps (bakeProcedural, bakeHeightMap)
 ///   and library callers that only have a level set. The overestimate around a texel is
 ///   estimated from the positive parts of its second differences D_a along each axis a
@@ -29,10 +28,17 @@
 ///   edges (a cube: 0.70 texel near-surface error, measured path 0.50). The measured path was
 ///   tried on the procedural tiles too: it lowers more across the wires' centreline kinks
 ///   (Japanese 4-in-1 RMS 0.106 > 0.1 texel), so they keep the estimate.
-/// A lowered corner lowers the interpolant in its cells, so the tile never rises. Neither path
-/// bounds what happens between its samples (a feature smaller than half a texel is invisible to
-/// them); both are checked per baked kind against the truth (tests/sampler_test.cpp,
-/// tests/cli_test.cpp, `distile check`).
+/// Faces: the filter extends the edge cells linearly to z = 0 and z = D, so the face value is
+/// 1.5 x the edge slice - 0.5 x its inner neighbour. Both paths ask a removal R at each face
+/// point: measured there, or estimated (at least the edge slice's own lowering; 3/8 of a concave
+/// second difference in z; and where the field is concave in z nearby, where a kink the samples
+/// miss may lie right at the face, the face held at the edge slice's value, as the former clamp
+/// did). The edge slice is then lowered by at least (R + 0.5 L_inner) / 1.5, L_inner the lowering
+/// of the inner neighbour: the face drops by at least R and never rises. So a lowered corner
+/// lowers the interpolant in its cells, the outer half texels included, and the tile never
+/// rises. Neither path bounds what happens between its samples (a feature smaller than half a
+/// texel is invisible to them); both are checked per baked kind against the truth
+/// (tests/sampler_test.cpp, tests/cli_test.cpp, `distile check`).
 #pragma once
 
 #include <functional>

@@ -1,8 +1,11 @@
 /// @file
-/// Reconstruction filters over a distance tile, in texel space: periodic in x and y, clamped to
-/// the first and last slice in z. Positions are texel-space points (texel centres at i + 0.5);
-/// results are distances in texels and gradients in texels per texel (unit length near the
-/// surface of an exact distance field).
+/// Reconstruction filters over a distance tile, in texel space: periodic in x and y; in z the
+/// edge cells extend linearly over the outer half texels (z in [0, 0.5] and [D - 0.5, D]) up to
+/// the faces z = 0 and z = D, and positions beyond the slab take the value at the face. So a field
+/// linear in z is reproduced up to the faces instead of being held at the first/last slice's
+/// value (which erred by up to half a texel times the slope). Positions are texel-space points
+/// (texel centres at i + 0.5); results are distances in texels and gradients in texels per texel
+/// (unit length near the surface of an exact distance field).
 ///
 /// Filters are small value types holding a reference to the tile, meant to be passed as template
 /// arguments to the tracer (no virtual call per sample).
@@ -19,7 +22,10 @@ namespace distile {
 namespace detail {
 
 /// Integer texel index and fraction for a coordinate on an axis of `extent` texels: the sample at
-/// `position` lies between texels `lower` and `lower + 1` at fraction `weight` from `lower`.
+/// `position` lies between texels `lower` and `upper` at fraction `weight` from `lower`. The
+/// weight is in [0, 1] except on z in the outer half texels, where it extends the edge cell
+/// linearly (down to -0.5 at z = 0, up to 1.5 at z = D; the cubic filters' ghost taps reach -2
+/// and 3).
 struct AxisLerp {
     int lower;
     int upper;
@@ -40,9 +46,11 @@ inline AxisLerp periodicAxis(float position, int extent) {
     return {lower, lower + 1 == extent ? 0 : lower + 1, shifted - floorValue};
 }
 
-inline AxisLerp clampedAxis(float position, int extent) {
-    const float shifted = std::fmin(std::fmax(position - 0.5f, 0.0f), float(extent - 1));
-    const int lower = std::min(int(shifted), extent - 2);
+/// The z axis: the edge cells (slices 0-1 and D-2 to D-1) extend linearly to the faces z = 0 and
+/// z = D; positions beyond the faces are clamped to them (NaN to z = 0). Precondition: extent >= 2.
+inline AxisLerp extendedAxis(float position, int extent) {
+    const float shifted = std::fmin(std::fmax(position - 0.5f, -0.5f), float(extent) - 0.5f);
+    const int lower = std::clamp(int(std::floor(shifted)), 0, extent - 2);
     return {lower, lower + 1, shifted - float(lower)};
 }
 
@@ -81,8 +89,9 @@ class NearestFilter {
     const Tile& tile_;
 };
 
-/// Trilinear interpolation between the 8 surrounding texel centres. The gradient is the exact
-/// derivative of the trilinear interpolant (piecewise constant in each axis' own direction).
+/// Trilinear interpolation between the 8 surrounding texel centres, extended linearly in z over
+/// the outer half texels. The gradient is the exact derivative of the interpolant (piecewise
+/// constant in each axis' own direction); beyond the faces it is the one at the face.
 class TrilinearFilter {
   public:
     explicit TrilinearFilter(const Tile& tile) : tile_(tile) {}
@@ -91,13 +100,13 @@ class TrilinearFilter {
         const Size3& size = tile_.size();
         return fetch(detail::periodicAxis(texelPosition.x, size.width),
                      detail::periodicAxis(texelPosition.y, size.height),
-                     detail::clampedAxis(texelPosition.z, size.depth));
+                     detail::extendedAxis(texelPosition.z, size.depth));
     }
 
     /// One linear texture fetch: the trilinear interpolant between the two texels given on each
-    /// axis (indices already wrapped or clamped into the tile, weight = fraction toward `upper`).
-    /// The building block of the third-order filters of sampler/tricubic.h. Preconditions: the
-    /// indices are inside the tile; no checks.
+    /// axis (indices already wrapped or clamped into the tile, weight = fraction toward `upper`;
+    /// a z weight outside [0, 1] extrapolates linearly). The building block of the third-order
+    /// filters of sampler/tricubic.h. Preconditions: the indices are inside the tile; no checks.
     float fetch(const detail::AxisLerp& x, const detail::AxisLerp& y,
                 const detail::AxisLerp& z) const {
         const Corners c = corners(x, y, z);
@@ -138,7 +147,7 @@ class TrilinearFilter {
         const Size3& size = tile_.size();
         return corners(detail::periodicAxis(p.x, size.width),
                        detail::periodicAxis(p.y, size.height),
-                       detail::clampedAxis(p.z, size.depth));
+                       detail::extendedAxis(p.z, size.depth));
     }
 
     Corners corners(const detail::AxisLerp& x, const detail::AxisLerp& y,

@@ -2,9 +2,11 @@
 /// Third-order reconstruction filters over a distance tile (GPU Gems 2, ch. 20): the cubic
 /// B-spline (approximating, C2: continuous gradient and Hessian, for shading normals and
 /// curvature) and Catmull-Rom (interpolating: it returns the stored texels at texel centres).
-/// Same texel space and addressing as TrilinearFilter: periodic in x and y, clamped to the first
-/// and last slice in z (taps beyond them repeat the edge texel). Distances are in texels,
-/// gradients in texels per texel, Hessians in 1/texel, curvatures in 1/texel.
+/// Same texel space and addressing as TrilinearFilter: periodic in x and y; in z the taps beyond
+/// the first and last slice are linear ghost texels (tap -1 = 2 v0 - v1, tap -2 = 3 v0 - 2 v1, and
+/// alike above the last slice), so both filters reproduce fields linear in z up to the faces
+/// z = 0 and z = D, and positions beyond the faces take the value at the face. Distances are in
+/// texels, gradients in texels per texel, Hessians in 1/texel, curvatures in 1/texel.
 ///
 /// The B-spline is evaluated in the chapter's "8 trilinear fetches" form: on each axis the four
 /// tap weights form two same-sign pairs, and each pair is one linear fetch at the pair's weighted
@@ -31,12 +33,18 @@ namespace distile {
 
 namespace detail {
 
-/// The four taps of a cubic filter on one axis: texel indices (already wrapped or clamped into
-/// the tile) for the texels at offsets -1, 0, +1, +2 from the lower neighbour of the position,
-/// and the fraction of the position from tap 1 toward tap 2, in [0, 1).
+/// The four taps of a cubic filter on one axis, at offsets -1, 0, +1, +2 from the lower
+/// neighbour of the position, and the fraction of the position from tap 1 toward tap 2, in
+/// [0, 1). On a periodic axis (x, y) `tap` holds the taps' wrapped texel indices. On the extended
+/// axis (z) the taps have slice indices firstTap .. firstTap + 3, from -2 to D + 1: those outside
+/// [0, slices) are ghost texels on the line through the edge cell's two slices, and `tap` holds
+/// the (up to 4) consecutive stored slices the taps are made of (storedTapWeights() maps tap
+/// weights onto them; linearFetch() gives a pair of neighbouring taps as one linear fetch).
 struct CubicAxis {
     int tap[4];
     float fraction;
+    int firstTap = 0;  ///< extended axis: slice index of tap 0 (-2 .. D - 2)
+    int slices = 0;    ///< extended axis: the tile depth D; 0 on a periodic axis
 };
 
 /// Periodic axis of `extent` texels (x, y), reusing the trilinear filter's wrap.
@@ -47,16 +55,17 @@ inline CubicAxis periodicCubicAxis(float position, int extent) {
             middle.weight};
 }
 
-/// Clamped axis of `extent` texels (z): taps outside [0, extent) repeat the edge texel, as
-/// TrilinearFilter does by clamping the position (both are clamp-to-edge addressing).
-inline CubicAxis clampedCubicAxis(float position, int extent) {
-    // Beyond 2 texels outside, all four taps are the edge texel: clamping there changes nothing
-    // and keeps the integer conversion in range (NaN becomes -2).
-    const float shifted = std::fmin(std::fmax(position - 0.5f, -2.0f), float(extent + 1));
+/// Extended axis of `extent` slices (z), as TrilinearFilter's extendedAxis: positions are clamped
+/// to the faces [0, extent] (NaN to 0), taps beyond the slab are linear ghost texels.
+/// Precondition: extent >= 2.
+inline CubicAxis extendedCubicAxis(float position, int extent) {
+    const float shifted = std::fmin(std::fmax(position - 0.5f, -0.5f), float(extent) - 0.5f);
     const float floorValue = std::floor(shifted);
-    const int lower = int(floorValue);
-    CubicAxis axis{{}, shifted - floorValue};
-    for (int k = 0; k < 4; ++k) axis.tap[k] = std::clamp(lower - 1 + k, 0, extent - 1);
+    const int firstTap = int(floorValue) - 1;
+    // Four consecutive stored slices covering the real taps and the edge cell of the ghost taps.
+    const int firstStored = std::clamp(firstTap, 0, std::max(extent - 4, 0));
+    CubicAxis axis{{}, shifted - floorValue, firstTap, extent};
+    for (int k = 0; k < 4; ++k) axis.tap[k] = std::min(firstStored + k, extent - 1);
     return axis;
 }
 
@@ -88,6 +97,39 @@ inline CubicWeights catmullRomDerivativeWeights(float a) {
              0.5f * ((-9.0f * a + 8.0f) * a + 1.0f), 0.5f * (3.0f * a - 2.0f) * a}};
 }
 
+/// Weights on the stored texels `axis.tap` equivalent to `weights` on the axis' four taps: the
+/// same on a periodic axis; on the extended axis a ghost tap's weight goes to its edge cell's two
+/// slices (tap -1 = 2 v0 - v1 etc.). Sums over the taps then read stored texels only.
+inline CubicWeights storedTapWeights(const CubicAxis& axis, const CubicWeights& weights) {
+    if (axis.slices == 0) return weights;
+    CubicWeights stored{};
+    const int firstStored = axis.tap[0];
+    for (int k = 0; k < 4; ++k) {
+        const int slice = axis.firstTap + k;
+        if (slice >= 0 && slice < axis.slices) {
+            stored.w[slice - firstStored] += weights.w[k];
+            continue;
+        }
+        // A ghost: the edge cell's line at `beyond` slices from its lower slice.
+        const int cell = slice < 0 ? 0 : axis.slices - 2;
+        const float beyond = float(slice - cell);
+        stored.w[cell - firstStored] += weights.w[k] * (1.0f - beyond);
+        stored.w[cell + 1 - firstStored] += weights.w[k] * beyond;
+    }
+    return stored;
+}
+
+/// One linear fetch between taps `k` and `k + 1` of `axis` at `weight` in [0, 1] toward tap
+/// k + 1. On the extended axis a pair with a ghost tap lies on its edge cell's line: the fetch is
+/// on that cell with the weight extended (e.g. between taps -1 and 0 at weight t: the cell of
+/// slices 0 and 1 at weight t - 1).
+inline AxisLerp linearFetch(const CubicAxis& axis, int k, float weight) {
+    if (axis.slices == 0) return {axis.tap[k], axis.tap[k + 1], weight};
+    const int slice = axis.firstTap + k;
+    const int cell = std::clamp(slice, 0, axis.slices - 2);
+    return {cell, cell + 1, float(slice - cell) + weight};
+}
+
 /// The linear fetches that replace the four taps on one axis, with their weights.
 struct LinearFetches {
     AxisLerp fetch[3];
@@ -102,20 +144,17 @@ inline LinearFetches pairedFetches(const CubicAxis& axis, const CubicWeights& we
     const float low = weights.w[0] + weights.w[1];
     const float high = weights.w[2] + weights.w[3];
     assert(low != 0.0f && high != 0.0f);
-    return {{{axis.tap[0], axis.tap[1], weights.w[1] / low},
-             {axis.tap[2], axis.tap[3], weights.w[3] / high},
-             {}},
-            {low, high, 0.0f},
-            2};
+    return {
+        {linearFetch(axis, 0, weights.w[1] / low), linearFetch(axis, 2, weights.w[3] / high), {}},
+        {low, high, 0.0f},
+        2};
 }
 
 /// Three fetches for the B-spline's second derivative, whose weights (1 - a, 3a - 2, 1 - 3a, a)
 /// are the (1, -2, 1) difference of linear fetches one texel apart.
 inline LinearFetches secondDerivativeFetches(const CubicAxis& axis) {
     const float a = axis.fraction;
-    return {{{axis.tap[0], axis.tap[1], a},
-             {axis.tap[1], axis.tap[2], a},
-             {axis.tap[2], axis.tap[3], a}},
+    return {{linearFetch(axis, 0, a), linearFetch(axis, 1, a), linearFetch(axis, 2, a)},
             {1.0f, -2.0f, 1.0f},
             3};
 }
@@ -137,9 +176,12 @@ inline float sumOfFetches(const TrilinearFilter& linear, const LinearFetches& x,
     return sum;
 }
 
-/// The plain 4 x 4 x 4 tensor-product sum of the taps with per-axis weights (64 reads).
+/// The plain 4 x 4 x 4 tensor-product sum of the taps with per-axis weights (64 reads; the z
+/// weights are per tap, ghost taps included, and read through storedTapWeights).
 inline float sumOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y, const CubicAxis& z,
-                       const CubicWeights& wx, const CubicWeights& wy, const CubicWeights& wz) {
+                       const CubicWeights& wx, const CubicWeights& wy,
+                       const CubicWeights& tapWeightsZ) {
+    const CubicWeights wz = storedTapWeights(z, tapWeightsZ);
     float sum = 0.0f;
     for (int k = 0; k < 4; ++k) {
         for (int j = 0; j < 4; ++j) {
@@ -156,8 +198,10 @@ inline float sumOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y,
 /// derivative weights `d*` per axis.
 inline glm::vec3 gradientOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y,
                                 const CubicAxis& z, const CubicWeights& wx, const CubicWeights& wy,
-                                const CubicWeights& wz, const CubicWeights& dx,
-                                const CubicWeights& dy, const CubicWeights& dz) {
+                                const CubicWeights& tapWeightsZ, const CubicWeights& dx,
+                                const CubicWeights& dy, const CubicWeights& tapDerivativesZ) {
+    const CubicWeights wz = storedTapWeights(z, tapWeightsZ);
+    const CubicWeights dz = storedTapWeights(z, tapDerivativesZ);
     glm::vec3 sum(0.0f);
     for (int k = 0; k < 4; ++k) {
         for (int j = 0; j < 4; ++j) {
@@ -253,7 +297,7 @@ class TricubicBSplineFilter {
         const Size3& size = tile_.size();
         return {detail::periodicCubicAxis(p.x, size.width),
                 detail::periodicCubicAxis(p.y, size.height),
-                detail::clampedCubicAxis(p.z, size.depth)};
+                detail::extendedCubicAxis(p.z, size.depth)};
     }
     static detail::LinearFetches value(const detail::CubicAxis& axis) {
         return detail::pairedFetches(axis, detail::bsplineWeights(axis.fraction));
@@ -301,7 +345,7 @@ class CatmullRomFilter {
         const Size3& size = tile_.size();
         return {detail::periodicCubicAxis(p.x, size.width),
                 detail::periodicCubicAxis(p.y, size.height),
-                detail::clampedCubicAxis(p.z, size.depth)};
+                detail::extendedCubicAxis(p.z, size.depth)};
     }
 
     const Tile& tile_;

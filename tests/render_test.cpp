@@ -33,9 +33,9 @@ Tile flatTile(const Size3& size, float heightTexels) {
 }
 
 TEST(March, LandsOnAFlatDetailPlane) {
-    // The tile holds the exact distance to z = 4 (trilinear reproduces it below the top half
-    // texel, and underestimates it above, which is safe), so every step is exact along the ray:
-    // the march converges geometrically onto the plane, never through it.
+    // The tile holds the exact distance to z = 4 (trilinear reproduces it up to the top z = D,
+    // extending the top cell linearly), so every step is exact along the ray: the march converges
+    // geometrically onto the plane, never through it.
     const Tile tile = flatTile({32, 32, 16}, 4.0f);
     const TrilinearFilter filter(tile);
     for (float elevationDeg : {90.0f, 60.0f, 30.0f, 10.0f, 3.0f}) {

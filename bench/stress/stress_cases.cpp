@@ -56,8 +56,8 @@ class CaseRecord {
 };
 
 /// A tile whose detail is the horizontal plane z = heightTexels (solid below): exact distances,
-/// reproduced exactly by trilinear filtering except in the top half texel (clamped there, an
-/// underestimate, which only slows the march).
+/// reproduced exactly by trilinear filtering over the whole slab (the edge cells extend linearly
+/// to z = 0 and z = D).
 std::shared_ptr<const Tile> flatTile(const Size3& size, float heightTexels) {
     auto tile = std::make_shared<Tile>(size);
     for (int z = 0; z < size.depth; ++z)
@@ -162,10 +162,10 @@ constexpr float kFlatHeight = 4.0f;
 
 void grazingSphereTracingCases(std::vector<StressCase>& cases) {
     // Truth: the detail is the plane z = h in texel space. Sphere tracing towards an exact plane
-    // at elevation a leaves the height above it at (D - h) (1 - sin a)^n after n steps (slower in
-    // the clamped top half texel, an underestimate), so with 16 iterations grazing rays stop short
-    // of the plane: never below it, at the predicted height above it. With a budget large enough
-    // (4096) they all converge within epsilon.
+    // at elevation a leaves the height above it at (D - h) (1 - sin a)^n after n steps (the
+    // filter extends the top cell linearly, so the field is exact up to z = D), so with 16
+    // iterations grazing rays stop short of the plane: never below it, at the predicted height
+    // above it. With a budget large enough (4096) they all converge within epsilon.
     const Scene scene =
         planeScene(flatTile({32, 32, kFlatDepth}, kFlatHeight), kCubeDepth * kFlatDepth / 16.0f);
     const double texelsPerWorldZ = kFlatDepth / scene.objects[0].material.depthWorld;
@@ -182,7 +182,7 @@ void grazingSphereTracingCases(std::vector<StressCase>& cases) {
             double predicted = kFlatDepth;  // texel z after the predicted steps
             bool predictedConverged = false;
             for (int step = 0; step < budget; ++step) {
-                const double distance = std::min(predicted, kFlatDepth - 0.5) - kFlatHeight;
+                const double distance = predicted - kFlatHeight;
                 if (distance < epsilon) {
                     predictedConverged = true;
                     break;
@@ -266,8 +266,8 @@ void grazingSphereTracingCases(std::vector<StressCase>& cases) {
 void grazingBudgetedCases(std::vector<StressCase>& cases) {
     // The default march (budgeted) on the grazing rays: every step is at least the path left to
     // the floor over the samples left, so the ray crosses the plane z = h within 16 samples, and
-    // regula falsi on the plane's linear distance (exact below the clamped top half texel) lands
-    // on it: converged, within epsilon, never further below it.
+    // regula falsi on the plane's linear distance (exact up to z = D) lands on it: converged,
+    // within epsilon, never further below it.
     const Scene scene =
         planeScene(flatTile({32, 32, kFlatDepth}, kFlatHeight), kCubeDepth * kFlatDepth / 16.0f);
     const TraceOptions traceOptions;
