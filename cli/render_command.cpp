@@ -32,6 +32,8 @@ struct RenderArguments {
     /// --reference [analytic|world]: empty when given without a value (analytic).
     std::string referenceKind;
     bool referenceGiven = false;
+    /// --reference-voxels: world voxels per world texel of --reference world's level sets.
+    double referenceVoxelsPerTexel = DisplacedLevelSetOptions{}.voxelsPerTexel;
 };
 
 /// "out.png" + "depth" -> "out.depth.exr" (AOVs beside the image).
@@ -45,6 +47,7 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
     options.width = arguments.width.value_or(sceneFile.image.width);
     options.height = arguments.height.value_or(sceneFile.image.height);
     options.outputAovs = arguments.options.outputAovs;
+    options.levelSet.voxelsPerTexel = arguments.referenceVoxelsPerTexel;
     attachProceduralTruth(sceneFile.scene);  // analytic detail where there is one, else the tile
     const auto start = std::chrono::steady_clock::now();
     WorldReferenceResult result;
@@ -66,9 +69,11 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
         const DisplacedLevelSetStats& levelSet = result.levelSets[index];
         std::printf(
             "level set %zu: voxel %.3g world units (texel %.3g), %zu active voxels, %.1f MB, "
-            "from %zu polygons; chart wraps in u: %s, v: %s\n",
+            "from %zu polygons (%zu shared + %zu edge tile copies, %.2f s; meshToLevelSet "
+            "%.2f s); chart wraps in u: %s, v: %s\n",
             index, levelSet.voxelSizeWorld, levelSet.texelSizeWorld, levelSet.activeVoxels,
-            double(levelSet.memoryBytes) / 1e6, levelSet.meshPolygons,
+            double(levelSet.memoryBytes) / 1e6, levelSet.meshPolygons, levelSet.tileCopies,
+            levelSet.edgeCopies, levelSet.surfaceSeconds, levelSet.levelSetSeconds,
             levelSet.wrapsU ? "yes" : "no", levelSet.wrapsV ? "yes" : "no");
     }
     const RenderStats& stats = result.render.stats;
@@ -250,7 +255,7 @@ void addRenderCommand(CLI::App& app) {
                 "analytic (the default when given without a value): each tile's analytic "
                 "procedural detail in double precision with the planar tangent frame of ch. 8, "
                 "512 iterations, epsilon 0.001 texel; world: the detail mapped through the base "
-                "mesh's curved shell as a world-space OpenVDB level set (voxels of half a texel), "
+                "mesh's curved shell as a world-space OpenVDB level set (--reference-voxels), "
                 "traced with OpenVDB's level-set ray intersector")
             ->expected(0, 1)
             ->check(
@@ -260,6 +265,12 @@ void addRenderCommand(CLI::App& app) {
                                : "'" + kind + "' is not a reference: use analytic or world";
                 },
                 "analytic|world");
+    command
+        ->add_option("--reference-voxels", arguments->referenceVoxelsPerTexel,
+                     "With --reference world: world voxels per world size of a texel, in (0, 16] "
+                     "(2: voxels of half a texel)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 16.0));
     command->callback([arguments, reference] {
         arguments->referenceGiven = reference->count() > 0;
         runRender(*arguments);

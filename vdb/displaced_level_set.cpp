@@ -10,13 +10,16 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <initializer_list>
 #include <limits>
 #include <map>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "common/error.h"
@@ -91,6 +94,15 @@ bool chartWraps(const DisplacementShell& shell, int axis, double uvMin, double u
         if (std::abs(*high - *low - 1.0f) < 1e-5f) return true;
     }
     return false;
+}
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+long long positiveModulo(long long value, long long period) {
+    const long long remainder = value % period;
+    return remainder < 0 ? remainder + period : remainder;
 }
 
 /// Which base triangle holds a uv, through a uniform grid of cells over the chart's bounds.
@@ -203,33 +215,205 @@ double medianTexelSizeWorld(const DisplacementShell& shell, const Size3& tile) {
     return sizes[sizes.size() / 2];
 }
 
-/// One axis of the texel-space lattice: samples first + i * spacing for i in [0, count).
-struct LatticeAxis {
-    long long firstIndex = 0;  ///< first sample's position / spacing (an integer)
-    long long count = 0;
-    double capLow = -std::numeric_limits<double>::infinity();  ///< wall (texels), if any
-    double capHigh = std::numeric_limits<double>::infinity();
+/// The chart's extent along one texel axis and whether it wraps there (no wall).
+struct FootprintAxis {
+    double lowTexels = 0.0;  ///< the chart's edges, texels
+    double highTexels = 0.0;
+    bool wraps = false;
+    /// The walls of a chart that does not wrap sit a hair inside it, so their vertices map
+    /// inside the chart; a wrapping chart has none.
+    double wallLow() const { return wraps ? -kNoWall : lowTexels + kWallInset; }
+    double wallHigh() const { return wraps ? kNoWall : highTexels - kWallInset; }
+    /// Polygons are kept with their centroid in [ownLow, ownHigh): the chart, plus the walls.
+    double ownLow() const { return wraps ? lowTexels : lowTexels - kWallMargin; }
+    double ownHigh() const { return wraps ? highTexels : highTexels + kWallMargin; }
+
+    static constexpr double kNoWall = 1e300;
+    static constexpr double kWallInset = 1e-3;  ///< texels
+    static constexpr double kWallMargin = 2.0;  ///< texels beyond the wall that hold its polygons
 };
 
-LatticeAxis latticeAxis(double lowTexels, double highTexels, double spacing, bool wraps) {
-    LatticeAxis axis;
-    if (wraps) {  // seam vertices must coincide: samples exactly at both ends, no wall
-        axis.firstIndex = std::llround(lowTexels / spacing);
-        axis.count = std::llround(highTexels / spacing) - axis.firstIndex + 1;
-        return axis;
+/// Texel-space polygons of the detail's zero isosurface in one box of the footprint, in
+/// coordinates relative to the box's tile copy (texels).
+struct TexelMesh {
+    std::vector<openvdb::Vec3s> points;
+    std::vector<openvdb::Vec3I> triangles;
+    std::vector<openvdb::Vec4I> quads;
+};
+
+/// Which repeat of the tile: copy (i, j) has its origin at texel (i W, j H).
+using CopyIndex = glm::vec<2, long long>;
+
+/// One repeat of the tile in the footprint: its origin (texels) and the mesh placed there.
+struct TileCopy {
+    glm::dvec2 originTexels{0.0};
+    const TexelMesh* mesh = nullptr;
+};
+
+/// The detail on one tile's lattice (periodic in x and y), with the floor, top and walls applied
+/// where a box of the footprint is extracted.
+class TileLattice {
+  public:
+    /// Lattice samples below z = 0 and above z = D (texels): the field is positive there.
+    static constexpr int kMarginTexels = 2;
+    /// The solid floor's slab ends between lattice samples, so a sample inside it is negative.
+    static constexpr double kFloorSlabTexels = 1.5;
+
+    TileLattice(const DisplacedLevelSet::DistanceFunction& detail, const Size3& tile,
+                int samplesPerTexel, bool solidFloor)
+        : spacing_(1.0 / samplesPerTexel),
+          countX_((long long)(tile.width) * samplesPerTexel),
+          countY_((long long)(tile.height) * samplesPerTexel),
+          firstZ_(-kMarginTexels * samplesPerTexel),
+          countZ_((long long)(tile.depth + 2 * kMarginTexels) * samplesPerTexel + 1),
+          depthTexels_(tile.depth),
+          solidFloor_(solidFloor) {
+        if (double(countX_) * double(countY_) * double(countZ_) > double(1u << 31)) {
+            reject("tile lattice", "more than 2^31 samples; use fewer samples per texel");
+        }
+        distances_.resize(std::size_t(countX_ * countY_ * countZ_));
+        tbb::parallel_for(tbb::blocked_range<long long>(0, countZ_), [&](const auto& range) {
+            for (long long k = range.begin(); k != range.end(); ++k) {
+                for (long long j = 0; j < countY_; ++j) {
+                    for (long long i = 0; i < countX_; ++i) {
+                        const glm::dvec3 texel(i * spacing_, j * spacing_,
+                                               (firstZ_ + k) * spacing_);
+                        distances_[index(i, j, k)] = float(detail(texel));
+                    }
+                }
+            }
+        });
     }
-    constexpr int kPadding = 2;  // samples beyond the wall, so it is extracted
-    axis.firstIndex = (long long)(std::floor(lowTexels / spacing)) - kPadding;
-    axis.count = (long long)(std::ceil(highTexels / spacing)) + kPadding - axis.firstIndex + 1;
-    // The walls sit a hair inside the chart, so their vertices map inside it.
-    axis.capLow = lowTexels + 1e-3 * spacing;
-    axis.capHigh = highTexels - 1e-3 * spacing;
-    return axis;
+
+    double spacing() const { return spacing_; }
+
+    /// The isosurface's polygons whose centroid lies in [ownLow, ownHigh) (texels relative to
+    /// `originTexels`, a whole number of tiles), with the walls of `axisX`, `axisY` applied.
+    /// Extracted from the lattice padded by kPadSamples around that box, so every polygon in it
+    /// is complete and the padding's boundary effects are dropped.
+    TexelMesh extract(const glm::dvec2& originTexels, const glm::dvec2& ownLow,
+                      const glm::dvec2& ownHigh, const FootprintAxis& axisX,
+                      const FootprintAxis& axisY) const {
+        constexpr long long kPadSamples = 3;
+        const long long firstI = (long long)(std::floor(ownLow.x / spacing_)) - kPadSamples;
+        const long long lastI = (long long)(std::ceil(ownHigh.x / spacing_)) + kPadSamples;
+        const long long firstJ = (long long)(std::floor(ownLow.y / spacing_)) - kPadSamples;
+        const long long lastJ = (long long)(std::ceil(ownHigh.y / spacing_)) + kPadSamples;
+        const long long originI = std::llround(originTexels.x / spacing_);
+        const long long originJ = std::llround(originTexels.y / spacing_);
+        // Narrow band: every sign change between neighbouring samples has both ends active.
+        const float bandTexels = float(2.0 * spacing_);
+        auto grid = openvdb::FloatGrid::create(bandTexels);
+        grid->setTransform(openvdb::math::Transform::createLinearTransform(spacing_));
+        auto accessor = grid->getAccessor();
+        for (long long k = 0; k < countZ_; ++k) {
+            const double z = double(firstZ_ + k) * spacing_;
+            for (long long j = firstJ; j <= lastJ; ++j) {
+                const double y = double(originJ + j) * spacing_;
+                const double wallY = std::max(axisY.wallLow() - y, y - axisY.wallHigh());
+                const long long tileJ = positiveModulo(originJ + j, countY_);
+                for (long long i = firstI; i <= lastI; ++i) {
+                    const double x = double(originI + i) * spacing_;
+                    const double wall =
+                        std::max({axisX.wallLow() - x, x - axisX.wallHigh(), wallY});
+                    const long long tileI = positiveModulo(originI + i, countX_);
+                    const double field = clipped(distances_[index(tileI, tileJ, k)], z, wall);
+                    if (std::abs(field) < bandTexels) {
+                        accessor.setValue(openvdb::Coord(int(i), int(j), int(firstZ_ + k)),
+                                          float(field));
+                    }
+                }
+            }
+        }
+        openvdb::tools::signedFloodFill(grid->tree());
+        TexelMesh all;
+        openvdb::tools::volumeToMesh(*grid, all.points, all.triangles, all.quads, 0.0, 0.0);
+        grid.reset();
+        return keepOwned(std::move(all), ownLow, ownHigh);
+    }
+
+  private:
+    std::size_t index(long long i, long long j, long long k) const {
+        return std::size_t(i + countX_ * (j + countY_ * k));
+    }
+
+    /// The detail with the floor (a slab below z = 0, or open), the top (z = D) and the walls.
+    double clipped(double detail, double z, double wall) const {
+        double field = solidFloor_ ? std::max(std::min(detail, z), -(z + kFloorSlabTexels))
+                                   : std::max(detail, -z);
+        return std::max({field, z - depthTexels_, wall});
+    }
+
+    /// The polygons of `all` with their centroid in [ownLow, ownHigh) (a hair wider, so a
+    /// centroid on the line between two boxes is kept twice rather than lost to rounding; the
+    /// copies coincide), with only the points they use.
+    static TexelMesh keepOwned(TexelMesh all, const glm::dvec2& ownLow, const glm::dvec2& ownHigh) {
+        constexpr double kTieTexels = 1e-4;
+        const auto owned = [&](std::initializer_list<unsigned> corners) {
+            glm::dvec2 centroid(0.0);
+            for (unsigned corner : corners) {
+                centroid += glm::dvec2(all.points[corner].x(), all.points[corner].y());
+            }
+            centroid /= double(corners.size());
+            return centroid.x >= ownLow.x - kTieTexels && centroid.x < ownHigh.x + kTieTexels &&
+                   centroid.y >= ownLow.y - kTieTexels && centroid.y < ownHigh.y + kTieTexels;
+        };
+        TexelMesh kept;
+        std::vector<unsigned> newIndex(all.points.size(), ~0u);
+        const auto keep = [&](unsigned corner) {
+            if (newIndex[corner] == ~0u) {
+                newIndex[corner] = unsigned(kept.points.size());
+                kept.points.push_back(all.points[corner]);
+            }
+            return newIndex[corner];
+        };
+        for (const openvdb::Vec3I& t : all.triangles) {
+            if (owned({t[0], t[1], t[2]}))
+                kept.triangles.emplace_back(keep(t[0]), keep(t[1]), keep(t[2]));
+        }
+        for (const openvdb::Vec4I& q : all.quads) {
+            if (owned({q[0], q[1], q[2], q[3]})) {
+                kept.quads.emplace_back(keep(q[0]), keep(q[1]), keep(q[2]), keep(q[3]));
+            }
+        }
+        return kept;
+    }
+
+    double spacing_;
+    long long countX_, countY_;  ///< samples per tile period
+    long long firstZ_, countZ_;  ///< z = (firstZ_ + k) * spacing_ for k in [0, countZ_)
+    double depthTexels_;
+    bool solidFloor_;
+    std::vector<float> distances_;  ///< x fastest, then y, then z
+};
+
+/// The interval [first, end) of tile copies along one axis that meet the chart; the first and
+/// the last also hold the polygons of the walls just beyond it.
+std::pair<long long, long long> copyRange(const FootprintAxis& axis, double tileTexels) {
+    const auto first = (long long)(std::floor(axis.lowTexels / tileTexels));
+    return {first, std::max(first + 1, (long long)(std::ceil(axis.highTexels / tileTexels)))};
 }
 
-long long positiveModulo(long long value, long long period) {
-    const long long remainder = value % period;
-    return remainder < 0 ? remainder + period : remainder;
+/// The polygons copy `index` of [first, end) keeps along one axis, texels relative to its
+/// origin: its own tile, clipped to the chart, the first and last copies extended to the walls.
+std::pair<double, double> copyOwnership(const FootprintAxis& axis, long long index,
+                                        std::pair<long long, long long> range, double tileTexels) {
+    const double origin = double(index) * tileTexels;
+    const double low = index == range.first ? axis.ownLow() : std::max(origin, axis.ownLow());
+    const double high =
+        index + 1 == range.second ? axis.ownHigh() : std::min(origin + tileTexels, axis.ownHigh());
+    return {low - origin, high - origin};
+}
+
+/// Whether copy `index` (tile length `tileTexels`) can be the shared tile mesh placed as it is:
+/// it lies inside the kept range, and far enough from the walls that they change no sample
+/// its polygons depend on (the detail is a distance, so a sample next to a sign change is
+/// > -spacing; a wall more than a few samples away is below that).
+bool plainAlong(const FootprintAxis& axis, long long index, double tileTexels, double spacing) {
+    const double low = double(index) * tileTexels, high = low + tileTexels;
+    if (axis.wraps) return low >= axis.lowTexels && high <= axis.highTexels;
+    const double wallClearance = 4.0 * spacing + 1.0;
+    return low >= axis.wallLow() + wallClearance && high <= axis.wallHigh() - wallClearance;
 }
 
 }  // namespace
@@ -253,34 +437,13 @@ DisplacedLevelSet DisplacedLevelSet::build(const DistanceFunction& detail, const
                                            const DisplacementShell& shell,
                                            const DisplacedLevelSetOptions& options) {
     validateInput(tile, shell, options);
+    const auto start = std::chrono::steady_clock::now();
     openvdb::initialize();
     auto impl = std::make_unique<Impl>();
     DisplacedLevelSetStats& stats = impl->stats;
 
-    // 1. The detail on one tile's lattice (periodic in x and y), spacing 1 / samplesPerTexel.
-    const int samples = options.samplesPerTexel;
-    const double spacing = 1.0 / samples;
-    const long long tileX = (long long)(tile.width) * samples;
-    const long long tileY = (long long)(tile.height) * samples;
-    constexpr int kMarginTexels = 2;  // below the floor slab and above the top
-    // The solid floor's slab ends between lattice samples, so a sample inside it is negative.
-    constexpr double kFloorSlabTexels = 1.5;
-    const long long firstZ = -kMarginTexels * samples;
-    const long long countZ = (long long)(tile.depth + 2 * kMarginTexels) * samples + 1;
-    if (double(tileX) * double(tileY) * double(countZ) > double(1u << 31)) {
-        reject("tile lattice", "more than 2^31 samples; use fewer samples per texel");
-    }
-    std::vector<float> tileDistances(std::size_t(tileX * tileY * countZ));
-    tbb::parallel_for(tbb::blocked_range<long long>(0, countZ), [&](const auto& range) {
-        for (long long k = range.begin(); k != range.end(); ++k) {
-            for (long long j = 0; j < tileY; ++j) {
-                for (long long i = 0; i < tileX; ++i) {
-                    const glm::dvec3 texel(i * spacing, j * spacing, (firstZ + k) * spacing);
-                    tileDistances[std::size_t(i + tileX * (j + tileY * k))] = float(detail(texel));
-                }
-            }
-        }
-    });
+    // 1. The detail on one tile's lattice, sampled once (multi-threaded).
+    const TileLattice lattice(detail, tile, options.samplesPerTexel, shell.solidFloor);
 
     // 2. The footprint: the chart's uv bounds in texels, walls where it does not wrap.
     const UvLocator locator(shell);
@@ -289,65 +452,90 @@ DisplacedLevelSet DisplacedLevelSet::build(const DistanceFunction& detail, const
     if (!(uvMax.x > uvMin.x && uvMax.y > uvMin.y)) reject("base mesh uvs", "the chart has no area");
     stats.wrapsU = chartWraps(shell, 0, uvMin.x, uvMax.x);
     stats.wrapsV = chartWraps(shell, 1, uvMin.y, uvMax.y);
-    const LatticeAxis axisX =
-        latticeAxis(uvMin.x * texelsPerUv.x, uvMax.x * texelsPerUv.x, spacing, stats.wrapsU);
-    const LatticeAxis axisY =
-        latticeAxis(uvMin.y * texelsPerUv.y, uvMax.y * texelsPerUv.y, spacing, stats.wrapsV);
-    if (double(axisX.count) * double(axisY.count) * double(countZ) > double(1ull << 31)) {
-        reject("footprint lattice", "more than 2^31 samples; use a smaller uv scale");
-    }
+    const FootprintAxis axisX{uvMin.x * texelsPerUv.x, uvMax.x * texelsPerUv.x, stats.wrapsU};
+    const FootprintAxis axisY{uvMin.y * texelsPerUv.y, uvMax.y * texelsPerUv.y, stats.wrapsV};
 
-    // 3. The footprint's field as a narrow-band texel-space grid (index space: lattice indices).
-    const float bandTexels = float(2.0 * spacing);
-    auto texelGrid = openvdb::FloatGrid::create(bandTexels);
-    {
-        auto transform = openvdb::math::Transform::createLinearTransform(spacing);
-        transform->postTranslate(openvdb::Vec3d(double(axisX.firstIndex) * spacing,
-                                                double(axisY.firstIndex) * spacing,
-                                                double(firstZ) * spacing));
-        texelGrid->setTransform(transform);
+    // 3. The tile copies that cover it: the copies away from walls and chart edges share one
+    //    extracted tile mesh; the others are extracted with the walls and clipped to the chart.
+    const glm::dvec2 tileTexels(tile.width, tile.height);
+    const auto copiesX = copyRange(axisX, tileTexels.x);
+    const auto copiesY = copyRange(axisY, tileTexels.y);
+    const auto [firstCopyX, endCopyX] = copiesX;
+    const auto [firstCopyY, endCopyY] = copiesY;
+    const double copyCount = double(endCopyX - firstCopyX) * double(endCopyY - firstCopyY);
+    constexpr double kMaxCopies = 1 << 16;
+    if (copyCount > kMaxCopies) {
+        reject("uv scale", "the chart holds " + std::to_string(copyCount) +
+                               " tile repeats; at most 65536 are accepted");
     }
-    const double depthTexels = double(tile.depth);
-    {
-        auto accessor = texelGrid->getAccessor();
-        for (long long j = 0; j < axisY.count; ++j) {
-            const double y = double(axisY.firstIndex + j) * spacing;
-            const long long tileJ = positiveModulo(axisY.firstIndex + j, tileY);
-            for (long long i = 0; i < axisX.count; ++i) {
-                const double x = double(axisX.firstIndex + i) * spacing;
-                const long long tileI = positiveModulo(axisX.firstIndex + i, tileX);
-                const double wall = std::max(
-                    {axisX.capLow - x, x - axisX.capHigh, axisY.capLow - y, y - axisY.capHigh});
-                for (long long k = 0; k < countZ; ++k) {
-                    const double z = double(firstZ + k) * spacing;
-                    double field = tileDistances[std::size_t(tileI + tileX * (tileJ + tileY * k))];
-                    if (shell.solidFloor) {
-                        field = std::max(std::min(field, z), -(z + kFloorSlabTexels));
-                    } else {
-                        field = std::max(field, -z);
-                    }
-                    field = std::max({field, z - depthTexels, wall});
-                    if (std::abs(field) < bandTexels) {
-                        accessor.setValue(openvdb::Coord(int(i), int(j), int(k)), float(field));
-                    }
-                }
+    std::vector<CopyIndex> edgeCopies;
+    std::vector<TileCopy> copies;
+    for (long long copyY = firstCopyY; copyY < endCopyY; ++copyY) {
+        for (long long copyX = firstCopyX; copyX < endCopyX; ++copyX) {
+            const glm::dvec2 origin(double(copyX) * tileTexels.x, double(copyY) * tileTexels.y);
+            if (plainAlong(axisX, copyX, tileTexels.x, lattice.spacing()) &&
+                plainAlong(axisY, copyY, tileTexels.y, lattice.spacing())) {
+                copies.push_back({origin, nullptr});  // the shared tile mesh, set below
+            } else {
+                edgeCopies.push_back({copyX, copyY});
             }
         }
     }
-    tileDistances = {};
-    openvdb::tools::signedFloodFill(texelGrid->tree());
+    TexelMesh tileMesh;
+    if (!copies.empty()) {
+        const FootprintAxis unwalled{0.0, 0.0, true};
+        tileMesh =
+            lattice.extract(glm::dvec2(0.0), glm::dvec2(0.0), tileTexels, unwalled, unwalled);
+        for (TileCopy& copy : copies) copy.mesh = &tileMesh;
+    }
+    stats.tileCopies = copies.size();
+    stats.edgeCopies = edgeCopies.size();
+    std::vector<TexelMesh> edgeMeshes(edgeCopies.size());
+    tbb::parallel_for(std::size_t(0), edgeCopies.size(), [&](std::size_t index) {
+        const CopyIndex copy = edgeCopies[index];
+        const glm::dvec2 origin = glm::dvec2(copy) * tileTexels;
+        const auto [lowX, highX] = copyOwnership(axisX, copy.x, copiesX, tileTexels.x);
+        const auto [lowY, highY] = copyOwnership(axisY, copy.y, copiesY, tileTexels.y);
+        edgeMeshes[index] = lattice.extract(origin, {lowX, lowY}, {highX, highY}, axisX, axisY);
+    });
+    for (std::size_t index = 0; index < edgeCopies.size(); ++index) {
+        copies.push_back({glm::dvec2(edgeCopies[index]) * tileTexels, &edgeMeshes[index]});
+    }
 
-    // 4. Its zero isosurface (texel space), every vertex mapped through the shell.
-    std::vector<openvdb::Vec3s> points;
+    // 4. The copies' vertices mapped through the shell (a wrapping chart's coordinate taken
+    //    modulo one unit of uv, so vertices past the seam land beside it), their polygons joined.
+    std::vector<std::size_t> firstPoint(copies.size() + 1, 0);
+    std::size_t triangleCount = 0, quadCount = 0;
+    for (std::size_t index = 0; index < copies.size(); ++index) {
+        firstPoint[index + 1] = firstPoint[index] + copies[index].mesh->points.size();
+        triangleCount += copies[index].mesh->triangles.size();
+        quadCount += copies[index].mesh->quads.size();
+    }
+    std::vector<openvdb::Vec3s> points(firstPoint.back());
     std::vector<openvdb::Vec3I> triangles;
     std::vector<openvdb::Vec4I> quads;
-    openvdb::tools::volumeToMesh(*texelGrid, points, triangles, quads, 0.0, 0.0);
-    texelGrid.reset();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size()), [&](const auto& range) {
-        for (std::size_t index = range.begin(); index != range.end(); ++index) {
-            const openvdb::Vec3s texel = points[index];
-            const glm::dvec2 uv(double(texel.x()) / texelsPerUv.x,
-                                double(texel.y()) / texelsPerUv.y);
+    triangles.reserve(triangleCount);
+    quads.reserve(quadCount);
+    for (std::size_t index = 0; index < copies.size(); ++index) {
+        const auto offset = unsigned(firstPoint[index]);
+        for (const openvdb::Vec3I& t : copies[index].mesh->triangles) {
+            triangles.push_back(t + openvdb::Vec3I(offset));
+        }
+        for (const openvdb::Vec4I& q : copies[index].mesh->quads) {
+            quads.push_back(q + openvdb::Vec4I(offset));
+        }
+    }
+    const double depthTexels = double(tile.depth);
+    const auto wrapped = [](double uv, double uvLow, bool wraps) {
+        return wraps ? uvLow + (uv - uvLow - std::floor(uv - uvLow)) : uv;
+    };
+    for (std::size_t index = 0; index < copies.size(); ++index) {
+        const TileCopy& copy = copies[index];
+        tbb::parallel_for(std::size_t(0), copy.mesh->points.size(), [&](std::size_t point) {
+            const openvdb::Vec3s texel = copy.mesh->points[point];
+            const glm::dvec2 uv(
+                wrapped((copy.originTexels.x + texel.x()) / texelsPerUv.x, uvMin.x, stats.wrapsU),
+                wrapped((copy.originTexels.y + texel.y()) / texelsPerUv.y, uvMin.y, stats.wrapsV));
             std::uint32_t triangle = 0;
             glm::dvec3 weights(0.0);
             locator.locate(uv, triangle, weights);  // the chart has area (checked above)
@@ -358,11 +546,18 @@ DisplacedLevelSet DisplacedLevelSet::build(const DistanceFunction& detail, const
                 world += weights[corner] * (glm::dvec3(shell.positions[corners[corner]]) -
                                             glm::dvec3(shell.normals[corners[corner]]) * below);
             }
-            points[index] = openvdb::Vec3s(float(world.x), float(world.y), float(world.z));
-        }
-    });
+            points[firstPoint[index] + point] =
+                openvdb::Vec3s(float(world.x), float(world.y), float(world.z));
+        });
+    }
+    copies.clear();
+    edgeMeshes.clear();
+    tileMesh = {};
     stats.meshVertices = points.size();
     stats.meshPolygons = triangles.size() + quads.size();
+
+    stats.surfaceSeconds = secondsSince(start);
+    const auto levelSetStart = std::chrono::steady_clock::now();
 
     // 5. The world-space level set.
     stats.texelSizeWorld = medianTexelSizeWorld(shell, tile);
@@ -371,6 +566,7 @@ DisplacedLevelSet DisplacedLevelSet::build(const DistanceFunction& detail, const
         openvdb::math::Transform::createLinearTransform(stats.voxelSizeWorld);
     impl->grid = openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(
         *worldTransform, points, triangles, quads, options.halfBandVoxels);
+    stats.levelSetSeconds = secondsSince(levelSetStart);
     stats.activeVoxels = impl->grid->activeVoxelCount();
     stats.memoryBytes = impl->grid->memUsage();
     if (stats.activeVoxels == 0) reject("detail", "its surface is empty inside the shell");

@@ -4,17 +4,21 @@
 /// level-set ray intersector (issue 5: the planar approximation of ch. 8 then has a measured
 /// error).
 ///
-/// Construction: the detail's zero isosurface is extracted in texel space (OpenVDB volumeToMesh)
-/// over the whole uv footprint of the mesh (the tile repeated uvScale times per unit of uv), every
-/// vertex is mapped through the shell, and the world-space mesh becomes a narrow-band level set
-/// (OpenVDB meshToLevelSet). The shell is the renderer's (render/tracer.h shellCorners): texel
-/// (x, y, z) -> uv = (x / (uvScale.x W), y / (uvScale.y H)) -> the base triangle holding that uv,
-/// barycentrics b -> world = sum_i b_i (P_i - N_i depthWorld (1 - z / D)), with P_i the vertex
-/// positions and N_i the unit vertex normals (linear interpolation, as the shell prism's corners).
-/// The detail is clipped to 0 <= z <= D; a solid floor is a slab 1.5 texels thick below z = 0. Where
-/// the uv chart does not wrap (a plane's edges, a sphere's poles) the detail is cut by a wall at
-/// the chart's edge, so the surface is closed; a chart that wraps (the same position at u and
-/// u + 1, or v and v + 1, as the built-in torus and sphere) continues across the seam.
+/// Construction: the detail is sampled once on one tile's texel-space lattice (multi-threaded),
+/// and its zero isosurface is extracted once for a whole tile (OpenVDB volumeToMesh, the lattice
+/// being periodic). That tile mesh is placed at every repeat of the tile over the uv footprint of
+/// the mesh (the tile repeated uvScale times per unit of uv); only the repeats that meet a wall
+/// or the chart's edge are extracted on their own. Every vertex is mapped through the shell and
+/// the world-space mesh becomes a narrow-band level set (OpenVDB meshToLevelSet). The shell is
+/// the renderer's (render/tracer.h shellCorners): texel (x, y, z) -> uv = (x / (uvScale.x W),
+/// y / (uvScale.y H)) -> the base triangle holding that uv, barycentrics b -> world =
+/// sum_i b_i (P_i - N_i depthWorld (1 - z / D)), with P_i the vertex positions and N_i the unit
+/// vertex normals (linear interpolation, as the shell prism's corners). The detail is clipped to
+/// 0 <= z <= D; a solid floor is a slab 1.5 texels thick below z = 0. Where the uv chart does not
+/// wrap (a plane's edges, a sphere's poles) the detail is cut by a wall at the chart's edge, so
+/// the surface is closed; a chart that wraps (the same position at u and u + 1, or v and v + 1,
+/// as the built-in torus and sphere) continues across the seam (seamlessly when uvScale is a
+/// whole number along it).
 #pragma once
 
 #include <functional>
@@ -55,11 +59,15 @@ struct DisplacedLevelSetOptions {
 struct DisplacedLevelSetStats {
     double voxelSizeWorld = 0.0;
     double texelSizeWorld = 0.0;  ///< the median world size of a texel used to choose the voxel
+    std::size_t tileCopies = 0;   ///< tile repeats placed from the one shared tile mesh
+    std::size_t edgeCopies = 0;   ///< repeats at walls or chart edges, extracted on their own
     std::size_t meshVertices = 0;
     std::size_t meshPolygons = 0;  ///< triangles and quads of the world-space detail mesh
     std::size_t activeVoxels = 0;
-    std::size_t memoryBytes = 0;  ///< of the world level set (OpenVDB's memUsage)
-    bool wrapsU = false;          ///< the uv chart wraps in u (no wall at its edges)
+    std::size_t memoryBytes = 0;   ///< of the world level set (OpenVDB's memUsage)
+    double surfaceSeconds = 0.0;   ///< sampling the tile and placing its copies (wall time)
+    double levelSetSeconds = 0.0;  ///< OpenVDB meshToLevelSet (wall time)
+    bool wrapsU = false;           ///< the uv chart wraps in u (no wall at its edges)
     bool wrapsV = false;
 };
 
