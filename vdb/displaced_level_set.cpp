@@ -465,7 +465,7 @@ DisplacedLevelSet DisplacedLevelSet::build(const DistanceFunction& detail, const
     const double copyCount = double(endCopyX - firstCopyX) * double(endCopyY - firstCopyY);
     constexpr double kMaxCopies = 1 << 16;
     if (copyCount > kMaxCopies) {
-        reject("uv scale", "the chart holds " + std::to_string(copyCount) +
+        reject("uv scale", "the chart holds " + std::to_string((long long)(copyCount)) +
                                " tile repeats; at most 65536 are accepted");
     }
     std::vector<CopyIndex> edgeCopies;

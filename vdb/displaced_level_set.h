@@ -81,7 +81,8 @@ class DisplacedLevelSet {
     /// @throws InputError an invalid tile size, an empty or inconsistent shell (array sizes,
     ///         indices), non-finite data, uvScale or depthWorld not > 0, options out of range
     ///         (samplesPerTexel in [1, 8], voxelsPerTexel in (0, 16], halfBandVoxels in [2, 16]),
-    ///         a uv chart of zero area, or a level set that would exceed 2^31 lattice samples.
+    ///         a uv chart of zero area, a tile lattice of more than 2^31 samples, or a chart
+    ///         holding more than 65536 tile repeats.
     static DisplacedLevelSet build(const DistanceFunction& detail, const Size3& tile,
                                    const DisplacementShell& shell,
                                    const DisplacedLevelSetOptions& options = {});
