@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <memory>
 #include <optional>
+#include <string>
 
 #include "cli/arguments.h"
 #include "cli/commands.h"
@@ -11,6 +12,7 @@
 #include "cli/scene_json.h"
 #include "common/error.h"
 #include "render/renderer.h"
+#include "render/world_reference.h"
 
 namespace distile::cli {
 
@@ -27,6 +29,11 @@ struct RenderArguments {
     RenderOptions options;
     bool noShadows = false;
     bool noShellCulling = false;
+    /// --reference [analytic|world]: empty when given without a value (analytic).
+    std::string referenceKind;
+    bool referenceGiven = false;
+    /// --reference-voxels: world voxels per world texel of --reference world's level sets.
+    double referenceVoxelsPerTexel = DisplacedLevelSetOptions{}.voxelsPerTexel;
 };
 
 /// "out.png" + "depth" -> "out.depth.exr" (AOVs beside the image).
@@ -34,12 +41,68 @@ fs::path aovPath(const fs::path& image, const std::string& name, const std::stri
     return image.parent_path() / (image.stem().string() + "." + name + extension);
 }
 
+/// distile render --reference world: the scene against world-space level sets of its detail.
+void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
+    WorldReferenceOptions options;
+    options.width = arguments.width.value_or(sceneFile.image.width);
+    options.height = arguments.height.value_or(sceneFile.image.height);
+    options.outputAovs = arguments.options.outputAovs;
+    options.levelSet.voxelsPerTexel = arguments.referenceVoxelsPerTexel;
+    attachProceduralTruth(sceneFile.scene);  // analytic detail where there is one, else the tile
+    const auto start = std::chrono::steady_clock::now();
+    WorldReferenceResult result;
+    {
+        ProgressBar progress("world reference " + std::to_string(options.width) + "x" +
+                             std::to_string(options.height));
+        result = renderWorldReference(sceneFile.scene, options, std::ref(progress));
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    writeImage(result.render.image, arguments.output);
+    if (result.render.aovs) {
+        writeImage(result.render.aovs->depth, aovPath(arguments.output, "depth", ".exr"));
+        writeImage(result.render.aovs->normal, aovPath(arguments.output, "normal", ".png"));
+        writeImage(result.render.aovs->texelScale,
+                   aovPath(arguments.output, "texel_scale", ".exr"));
+    }
+    for (std::size_t index = 0; index < result.levelSets.size(); ++index) {
+        const DisplacedLevelSetStats& levelSet = result.levelSets[index];
+        std::printf(
+            "level set %zu: voxel %.3g world units (texel %.3g), %zu active voxels, %.1f MB, "
+            "from %zu polygons (%zu shared + %zu edge tile copies, %.2f s; meshToLevelSet "
+            "%.2f s); chart wraps in u: %s, v: %s\n",
+            index, levelSet.voxelSizeWorld, levelSet.texelSizeWorld, levelSet.activeVoxels,
+            double(levelSet.memoryBytes) / 1e6, levelSet.meshPolygons, levelSet.tileCopies,
+            levelSet.edgeCopies, levelSet.surfaceSeconds, levelSet.levelSetSeconds,
+            levelSet.wrapsU ? "yes" : "no", levelSet.wrapsV ? "yes" : "no");
+    }
+    const RenderStats& stats = result.render.stats;
+    std::printf("world reference (%dx%d) in %.2f s (level sets %.2f s): %.1f%% of %llu rays hit\n",
+                options.width, options.height, seconds, result.buildSeconds,
+                stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0,
+                static_cast<unsigned long long>(stats.rays));
+    if (result.render.aovs) {
+        std::printf(
+            "AOVs written beside it: %s, %s, %s (texel scale 0: compare takes the other "
+            "render's)\n",
+            aovPath(arguments.output, "depth", ".exr").c_str(),
+            aovPath(arguments.output, "normal", ".png").c_str(),
+            aovPath(arguments.output, "texel_scale", ".exr").c_str());
+    }
+    std::printf("image written to %s\n", fs::absolute(arguments.output).c_str());
+}
+
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
     TileCache tiles;
     SceneFile sceneFile =
         arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles);
+    if (arguments.referenceKind == "world") {
+        runWorldReference(arguments, std::move(sceneFile));
+        return;
+    }
     RenderOptions& options = arguments.options;
+    options.reference = arguments.referenceGiven;
     options.width = arguments.width.value_or(sceneFile.image.width);
     options.height = arguments.height.value_or(sceneFile.image.height);
     options.samplesPerPixel = arguments.samplesPerPixel.value_or(sceneFile.image.samplesPerPixel);
@@ -184,11 +247,34 @@ void addRenderCommand(CLI::App& app) {
     command->add_flag("--aovs", arguments->options.outputAovs,
                       "Also write depth (.exr), normal, iteration, shadow-sample and curvature "
                       "heat maps beside the image");
-    command->add_flag(
-        "--reference", arguments->options.reference,
-        "Trace the truth instead of the tiles: each tile's analytic procedural detail in double "
-        "precision, 512 iterations, epsilon 0.001 texel (the ground truth for distile compare)");
-    command->callback([arguments] { runRender(*arguments); });
+    CLI::Option* reference =
+        command
+            ->add_option(
+                "--reference", arguments->referenceKind,
+                "Trace the truth instead of the tiles (the ground truth for distile compare). "
+                "analytic (the default when given without a value): each tile's analytic "
+                "procedural detail in double precision with the planar tangent frame of ch. 8, "
+                "512 iterations, epsilon 0.001 texel; world: the detail mapped through the base "
+                "mesh's curved shell as a world-space OpenVDB level set (--reference-voxels), "
+                "traced with OpenVDB's level-set ray intersector")
+            ->expected(0, 1)
+            ->check(
+                [](const std::string& kind) {
+                    return kind.empty() || kind == "analytic" || kind == "world"
+                               ? std::string()
+                               : "'" + kind + "' is not a reference: use analytic or world";
+                },
+                "analytic|world");
+    command
+        ->add_option("--reference-voxels", arguments->referenceVoxelsPerTexel,
+                     "With --reference world: world voxels per world size of a texel, in (0, 16] "
+                     "(2: voxels of half a texel)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.0, 16.0));
+    command->callback([arguments, reference] {
+        arguments->referenceGiven = reference->count() > 0;
+        runRender(*arguments);
+    });
 }
 
 }  // namespace distile::cli
