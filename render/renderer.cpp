@@ -324,6 +324,11 @@ void validateReference(const Scene& scene) {
 
 }  // namespace
 
+RenderAovs RenderAovs::blank(int width, int height) {
+    const Image black(width, height);
+    return {black, black, black, black, black, black, black};
+}
+
 RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
                          const ProgressCallback& progress) {
     validateOptions(requested);
@@ -339,11 +344,7 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
     RenderResult result;
     result.image = Image(options.width, options.height);
     if (options.outputAovs) {
-        result.aovs.emplace(
-            RenderAovs{Image(options.width, options.height), Image(options.width, options.height),
-                       Image(options.width, options.height), Image(options.width, options.height),
-                       Image(options.width, options.height), Image(options.width, options.height),
-                       Image(options.width, options.height)});
+        result.aovs.emplace(RenderAovs::blank(options.width, options.height));
     }
     const float shadowBudget =
         float(options.shadowIterations * std::max<std::size_t>(scene.lights.size(), 1));

@@ -79,6 +79,9 @@ struct RenderAovs {
     /// frame), in all channels; 0 where the ray missed or hit no tile. Converts depth differences
     /// to texels (render/compare.h).
     Image texelScale;
+
+    /// Every layer black, `width` x `height` pixels.
+    static RenderAovs blank(int width, int height);
 };
 
 struct RenderResult {

@@ -83,11 +83,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     RenderResult& render = result.render;
     render.image = Image(options.width, options.height);
     if (options.outputAovs) {
-        render.aovs.emplace(
-            RenderAovs{Image(options.width, options.height), Image(options.width, options.height),
-                       Image(options.width, options.height), Image(options.width, options.height),
-                       Image(options.width, options.height), Image(options.width, options.height),
-                       Image(options.width, options.height)});
+        render.aovs.emplace(RenderAovs::blank(options.width, options.height));
     }
     std::atomic<std::uint64_t> hits{0};
     constexpr int kBlock = 16;
