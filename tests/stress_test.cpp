@@ -70,53 +70,55 @@ TEST(Stress, EveryCaseIsReportedOnceWithAFiniteErrorAndAVerdict) {
 TEST(Stress, GrazingRaysStayAboveAFlatDetailPlaneWithABoundedError) {
     // Plain sphere tracing at 0.1 to 5 degrees, 16 and 4096 steps, against the march on the exact
     // plane computed in double: float rounding over the steps stays within 1e-3 texel of it.
-    expectCases("grazing rays", "sphere tracing 16 steps", 5, 1e-3);
-    expectCases("grazing rays", "sphere tracing 4096 steps", 5, 1e-3);
+    ASSERT_NO_FATAL_FAILURE(expectCases("grazing rays", "sphere tracing 16 steps", 5, 1e-3));
+    ASSERT_NO_FATAL_FAILURE(expectCases("grazing rays", "sphere tracing 4096 steps", 5, 1e-3));
 }
 
 TEST(Stress, BudgetedMarchReachesAFlatDetailPlaneOnGrazingRaysWithinTheDefaultBudget) {
     // Float rounding of a secant over a path of up to 2300 texels (0.1 degree): 1e-3 past epsilon.
-    expectCases("grazing rays", "budgeted march 16 samples", 6, kEpsilonTexels + 1e-3);
+    ASSERT_NO_FATAL_FAILURE(
+        expectCases("grazing rays", "budgeted march 16 samples", 6, kEpsilonTexels + 1e-3));
 }
 
 TEST(Stress, UvsFarFromTheOriginRenderLikeSmallOnes) {
     // 1e-3 texel: well above the double-precision uv's rounding (1e-5), well below the 0.13 texel
     // of a float interpolation at 1e4.
-    expectCases("uvs far from the origin", "", 1, 1e-3);
+    ASSERT_NO_FATAL_FAILURE(expectCases("uvs far from the origin", "", 1, 1e-3));
 }
 
 TEST(Stress, BaseMeshFarFromTheWorldOriginRendersLikeNearIt) {
     // Depth may jump by the shell's 0.5 world units (16 texels) where a ray moved by float
     // rounding at 1e5 lands across a detail edge.
-    expectCases("base mesh far from the world origin", "", 1, 16.0);
+    ASSERT_NO_FATAL_FAILURE(expectCases("base mesh far from the world origin", "", 1, 16.0));
 }
 
 TEST(Stress, MirroredAndDegenerateUvTrianglesAndZeroAreaFacesStayFinite) {
     // Mirrored: straight down on an exact plane distance lands within epsilon. Degenerate: the bare
     // surface's hit 1 unit away is exact to float rounding (1e-4 texel).
-    expectCases("mirrored uv triangles", "", 1, kEpsilonTexels);
-    expectCases("degenerate uv triangles and zero-area faces", "", 1, 1e-4);
+    ASSERT_NO_FATAL_FAILURE(expectCases("mirrored uv triangles", "", 1, kEpsilonTexels));
+    ASSERT_NO_FATAL_FAILURE(
+        expectCases("degenerate uv triangles and zero-area faces", "", 1, 1e-4));
 }
 
 TEST(Stress, CameraInsideTheShellSeesBackFacesAndFinitePixels) {
     // Exact distances to the back face and the ground, to float rounding (1e-6 world, 32 texels
     // per world unit).
-    expectCases("camera inside the shell", "", 1, 32e-6);
+    ASSERT_NO_FATAL_FAILURE(expectCases("camera inside the shell", "", 1, 32e-6));
 }
 
 TEST(Stress, WiresThinnerThanATexelBakeAndRenderFinite) {
     // The conservative tile's overestimate of the analytic distance: rounding only (1e-3 texel).
-    expectCases("wires thinner than a texel", "", 1, 1e-3);
+    ASSERT_NO_FATAL_FAILURE(expectCases("wires thinner than a texel", "", 1, 1e-3));
 }
 
 TEST(Stress, ShellDepthsFrom1e4To1e2WorldUnitsStayFinite) {
     // Straight-down rays take exact steps at every depth: the hit is within epsilon.
-    expectCases("shell depth", "", 4, kEpsilonTexels);
+    ASSERT_NO_FATAL_FAILURE(expectCases("shell depth", "", 4, kEpsilonTexels));
 }
 
 TEST(Stress, NanAndInfRaysMissOrStayFinite) {
     // No geometric truth for a NaN ray: finiteness and the march's rejections are the checks.
-    expectCases("NaN and Inf rays", "", 1, 0.0);
+    ASSERT_NO_FATAL_FAILURE(expectCases("NaN and Inf rays", "", 1, 0.0));
 }
 
 }  // namespace
