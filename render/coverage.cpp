@@ -331,9 +331,14 @@ bool ScreenShells::traceNearest(int x, int y, const Ray& ray, bool shellCulling,
         ++count;
     }
     if (candidates != stackCandidates) candidates = heapCandidates.data();
-    std::stable_sort(candidates, candidates + count, [](const Candidate& a, const Candidate& b) {
-        return a.depthBound < b.depthBound;
-    });
+    // Insertion sort: stable, no allocation, and fast for the few candidates of a pixel.
+    for (std::size_t i = 1; i < count; ++i) {
+        const Candidate candidate = candidates[i];
+        std::size_t j = i;
+        for (; j > 0 && candidate.depthBound < candidates[j - 1].depthBound; --j)
+            candidates[j] = candidates[j - 1];
+        candidates[j] = candidate;
+    }
 
     constexpr float kFar = std::numeric_limits<float>::max();
     float nearest = kFar;

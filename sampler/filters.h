@@ -37,20 +37,49 @@ inline int wrapIndex(int index, int extent) {
     return wrapped < 0 ? wrapped + extent : wrapped;
 }
 
+/// `index` wrapped into [0, extent), cheap when it is at most one period outside (the march's
+/// case: positions stay near the tile), exact for any index.
+inline int wrapNearIndex(int index, int extent) {
+    if (index < 0) index += extent;
+    if (index >= extent) index -= extent;
+    return unsigned(index) < unsigned(extent) ? index : wrapIndex(index, extent);
+}
+
+/// floor(value) for finite |value| < 2^31 without a library call (SSE2 has no rounding
+/// instruction): truncate, then step down for negative non-integers.
+inline float floorFinite(float value) {
+    const float truncated = float(int(value));
+    return truncated > value ? truncated - 1.0f : truncated;
+}
+
 inline AxisLerp periodicAxis(float position, int extent) {
     const float shifted = position - 0.5f;
-    const float floorValue = std::floor(shifted);
-    // Wrap in floating point first so huge coordinates (far repeats) keep their fraction.
-    const float wrappedFloor = floorValue - float(extent) * std::floor(floorValue / float(extent));
-    const int lower = wrapIndex(int(wrappedFloor), extent);
+    if (!(std::abs(shifted) < 1.0e9f)) {
+        // Huge or not finite: wrap in floating point first so far repeats keep their fraction.
+        const float floorValue = std::floor(shifted);
+        const float wrappedFloor =
+            floorValue - float(extent) * std::floor(floorValue / float(extent));
+        const int lower = wrapIndex(int(wrappedFloor), extent);
+        return {lower, lower + 1 == extent ? 0 : lower + 1, shifted - floorValue};
+    }
+    const float floorValue = floorFinite(shifted);
+    const int lower = wrapNearIndex(int(floorValue), extent);
     return {lower, lower + 1 == extent ? 0 : lower + 1, shifted - floorValue};
+}
+
+/// `position` - 0.5 clamped to [-0.5, extent - 0.5] (NaN to -0.5): the z coordinate of the
+/// extended axes in units of slices from the first slice's centre.
+inline float clampedSliceCoordinate(float position, int extent) {
+    const float shifted = position - 0.5f;
+    if (!(shifted >= -0.5f)) return -0.5f;
+    return shifted < float(extent) - 0.5f ? shifted : float(extent) - 0.5f;
 }
 
 /// The z axis: the edge cells (slices 0-1 and D-2 to D-1) extend linearly to the faces z = 0 and
 /// z = D; positions beyond the faces are clamped to them (NaN to z = 0). Precondition: extent >= 2.
 inline AxisLerp extendedAxis(float position, int extent) {
-    const float shifted = std::fmin(std::fmax(position - 0.5f, -0.5f), float(extent) - 0.5f);
-    const int lower = std::clamp(int(std::floor(shifted)), 0, extent - 2);
+    const float shifted = clampedSliceCoordinate(position, extent);
+    const int lower = std::clamp(int(floorFinite(shifted)), 0, extent - 2);
     return {lower, lower + 1, shifted - float(lower)};
 }
 

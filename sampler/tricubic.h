@@ -59,8 +59,8 @@ inline CubicAxis periodicCubicAxis(float position, int extent) {
 /// to the faces [0, extent] (NaN to 0), taps beyond the slab are linear ghost texels.
 /// Precondition: extent >= 2.
 inline CubicAxis extendedCubicAxis(float position, int extent) {
-    const float shifted = std::fmin(std::fmax(position - 0.5f, -0.5f), float(extent) - 0.5f);
-    const float floorValue = std::floor(shifted);
+    const float shifted = clampedSliceCoordinate(position, extent);
+    const float floorValue = floorFinite(shifted);
     const int firstTap = int(floorValue) - 1;
     // Four consecutive stored slices covering the real taps and the edge cell of the ghost taps.
     const int firstStored = std::clamp(firstTap, 0, std::max(extent - 4, 0));
