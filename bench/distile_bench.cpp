@@ -244,11 +244,11 @@ void demoShellCulling(benchmark::State& state) {
     RenderStats culled, unculled;
     bool identical = true;
     for (auto _ : state) {
-        options.shellCulling = true;
+        options.skips.shellCulling = true;
         double start = processCpuSeconds();
         const RenderResult withCulling = renderScene(scene, options);
         culledSeconds += processCpuSeconds() - start;
-        options.shellCulling = false;
+        options.skips.shellCulling = false;
         start = processCpuSeconds();
         const RenderResult withoutCulling = renderScene(scene, options);
         unculledSeconds += processCpuSeconds() - start;

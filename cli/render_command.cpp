@@ -108,7 +108,7 @@ void runRender(RenderArguments arguments) {
     options.samplesPerPixel = arguments.samplesPerPixel.value_or(sceneFile.image.samplesPerPixel);
     // --no-shadows is --shadows none: neither shadow maps nor self-shadow rays.
     if (arguments.noShadows) options.shadowFilter = ShadowFilter::None;
-    options.shellCulling = !arguments.noShellCulling;
+    options.skips.shellCulling = !arguments.noShellCulling;
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachProceduralTruth(sceneFile.scene);
 
@@ -148,7 +148,7 @@ void runRender(RenderArguments arguments) {
                 static_cast<unsigned long long>(stats.shellsTested),
                 static_cast<unsigned long long>(stats.shellsTraced),
                 stats.rays ? double(stats.shellsTraced) / double(stats.rays) : 0.0,
-                options.shellCulling ? "on" : "off");
+                options.skips.shellCulling ? "on" : "off");
     if (options.shadowFilter != ShadowFilter::None) {
         std::printf("shadow maps: %llu samples (%.1f per surface hit)\n",
                     static_cast<unsigned long long>(stats.shadowMapSamples),

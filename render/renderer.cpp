@@ -96,7 +96,7 @@ class Renderer {
         : scene_(scene),
           options_(options),
           tracer_(scene, TraceOptions{options.march, options.filter, options.normalFilter,
-                                      options.reference}),
+                                      options.reference, options.skips}),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
         shadowMaps_.resize(scene.lights.size());
@@ -138,8 +138,8 @@ class Renderer {
         SurfaceHit hit;
         TraceCounters counters;
         ShellCounters shellCounters;
-        const bool found =
-            shells_.traceNearest(x, y, ray, options_.shellCulling, hit, counters, shellCounters);
+        const bool found = shells_.traceNearest(x, y, ray, options_.skips.shellCulling, hit,
+                                                counters, shellCounters);
         stats.shellsTested += shellCounters.tested;
         stats.shellsTraced += shellCounters.traced;
         stats.marchIterations += counters.marchIterations;

@@ -36,9 +36,7 @@ struct RenderOptions {
     /// side in [256, 4096], so a small image does not pay for a large map.
     int shadowMapResolution = 0;
     bool outputAovs = false;  ///< also produce the AOV images of RenderResult
-    /// Camera rays skip detail shells whose conservative depth is not nearer than their best hit
-    /// (render/coverage.h); the image is the same either way, only the work differs.
-    bool shellCulling = true;
+    RenderSkips skips;        ///< work left out where the scene does not need it (all on)
     /// Reference render: march and shade every tiled material on its Material::analyticDistance
     /// (double precision, render/analytic_filter.h) instead of its tile, with kReferenceIterations
     /// and kReferenceEpsilonTexels in place of march.maxIterations and march.epsilonTexels (filter

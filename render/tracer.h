@@ -16,6 +16,23 @@
 
 namespace distile {
 
+/// Work left out where a scene does not need it. Every switch is on by default and exists to
+/// measure its skip (`distile bench --speed`): off does the work anyway.
+struct RenderSkips {
+    /// Empty-space skipping: a ray starts its march where it first reaches the top of the
+    /// occupied layers of the tile columns it crosses (sampler/occupancy.h), not at the top face.
+    bool emptySpace = true;
+    /// Adaptive budget (ch. 8's future work): a ray gets the samples its path through the slab
+    /// needs at one sample per texel of descent... see RenderSkips::budgetFor.
+    bool adaptiveBudget = true;
+    /// Camera rays skip detail shells whose conservative depth is not nearer than their best hit
+    /// (render/coverage.h); the image is the same either way, only the work differs.
+    bool shellCulling = true;
+    /// No shadow work (self-shadow march, shadow-map lookups) for a light the detail's shading
+    /// normal faces away from: its direct light is zero anyway.
+    bool unlitShadows = true;
+};
+
 struct TraceOptions {
     MarchSettings march;  ///< method, budget per ray (ch. 8 uses 8 to 16) and hit threshold
     FilterKind filter = FilterKind::Trilinear;  ///< the march's distances (must not overestimate)
@@ -24,6 +41,7 @@ struct TraceOptions {
     /// March and normals on each material's analyticDistance instead of its tile (reference
     /// renders, render/analytic_filter.h). Precondition: every tiled material has one.
     bool reference = false;
+    RenderSkips skips;
 };
 
 /// The base surface where a ray enters an object's detail shell, with the linear map between

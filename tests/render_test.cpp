@@ -598,7 +598,7 @@ TEST(ShellCulling, SameImageWithAndWithoutCullingAndThreads) {
     for (const bool culling : {false, true}) {
         for (const int threads : {1, 2}) {
             tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-            options.shellCulling = culling;
+            options.skips.shellCulling = culling;
             const RenderResult result = renderScene(scene, options);
             if (!culling && threads == 1) {
                 reference = result;
