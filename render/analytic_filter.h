@@ -47,13 +47,14 @@ class AnalyticFilter {
 };
 
 /// Calls `function(filter)` with the filter a render uses for `material`: its analytic distance
-/// when `reference` is set, else withFilter(kind, *material.tile, ...). Preconditions: the
-/// material has a tile, and an analyticDistance when `reference` is set (the renderer checks).
+/// when `reference` is set, else withFilter(kind, columns, ...) over the material's tile in the
+/// renderer's layout. Preconditions: an analyticDistance when `reference` is set, else `columns`
+/// not null (the renderer checks).
 template <class Function>
-decltype(auto) withMarchFilter(FilterKind kind, const Material& material, bool reference,
-                               Function&& function) {
+decltype(auto) withMarchFilter(FilterKind kind, const Material& material,
+                               const TileColumns* columns, bool reference, Function&& function) {
     if (reference) return function(AnalyticFilter(material.analyticDistance));
-    return withFilter(kind, *material.tile, function);
+    return withFilter(kind, *columns, function);
 }
 
 }  // namespace distile

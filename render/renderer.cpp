@@ -160,14 +160,17 @@ class Renderer {
         } else if (!hit.onDetail) {
             sample.color = shadeBase(hit, material, ray.direction, seed, sample.shadowMapSamples);
         } else {
-            withMarchFilter(options_.filter, material, options_.reference, [&](const auto& filter) {
-                sample.color = shadeDetail(filter, hit, material, ray.direction, seed, sample);
-            });
+            withMarchFilter(options_.filter, material, tracer_.columns(hit.object),
+                            options_.reference, [&](const auto& filter) {
+                                sample.color =
+                                    shadeDetail(filter, hit, material, ray.direction, seed, sample);
+                            });
         }
         stats.shadowSteps += sample.shadowSteps;
         stats.shadowMapSamples += sample.shadowMapSamples;
         if (options_.outputAovs && hit.entry.frontFacing && hit.onDetail && !hit.march.onFloor) {
-            const TricubicBSplineFilter curvatureFilter(*material.tile);
+            const BasicTricubicBSplineFilter<ColumnTexels> curvatureFilter(
+                *tracer_.columns(hit.object));
             const glm::vec3 at = hit.march.texelPosition;
             sample.meanCurvature =
                 curvatureFromDerivatives(curvatureFilter.gradient(at), curvatureFilter.hessian(at))
@@ -218,6 +221,8 @@ class Renderer {
             // A base surface facing away from the light is in its own shadow: no work.
             const float facing = glm::dot(hit.entry.normal, toLight);
             if (facing <= 0.0f) continue;
+            // Detail facing away from the light gets no direct light: its shadows are not needed.
+            if (options_.skips.unlitShadows && glm::dot(hit.normal, toLight) <= 0.0f) continue;
             float visibility = 1.0f;
             if (options_.selfShadows) {
                 glm::vec3 texelNormal(0.0f, 0.0f, 1.0f);

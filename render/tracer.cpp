@@ -65,6 +65,29 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
         }
     }
     bvh_ = TriangleBvh(std::move(corners));
+
+    // Per tile (objects sharing one share these): its columns, and its empty space where the
+    // skip holds (for the filters whose support the occupancy bounds).
+    const bool skipEmptySpace =
+        options.skips.emptySpace && !options.reference &&
+        (options.filter == FilterKind::Trilinear || options.filter == FilterKind::Nearest);
+    columns_.resize(scene.objects.size());
+    occupancies_.resize(scene.objects.size());
+    for (std::size_t object = 0; object < scene.objects.size(); ++object) {
+        const Tile* tile = scene.objects[object].material.tile.get();
+        if (!tile) continue;
+        std::size_t first = 0;
+        while (scene.objects[first].material.tile.get() != tile) ++first;
+        if (first < object) {
+            columns_[object] = columns_[first];
+            occupancies_[object] = occupancies_[first];
+            continue;
+        }
+        columns_[object] = std::make_shared<const TileColumns>(*tile);
+        if (skipEmptySpace)
+            occupancies_[object] =
+                std::make_shared<const TileOccupancy>(*tile, options.march.epsilonTexels);
+    }
 }
 
 ShellEntry SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray) const {
@@ -181,24 +204,31 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
     const double v = interpolateUv(1) * material.uvScale.y;
     const glm::vec3 start(float((u - std::floor(u)) * size.width),
                           float((v - std::floor(v)) * size.height), float(size.depth));
+    // The empty path above the detail needs no samples: the march starts where it ends.
+    const TileOccupancy* occupancy = occupancies_[shell.object].get();
+    const float emptyTexels = occupancy ? occupancy->emptyTravelTexels(start, direction) : 0.0f;
     const bool done =
-        withMarchFilter(options_.filter, material, options_.reference, [&](const auto& filter) {
-            hit.march = march(filter, start, direction, material.floor, options_.march);
-            ++counters.shellEntries;
-            counters.marchIterations += std::uint64_t(hit.march.iterations);
-            if (hit.march.converged) ++counters.converged;
-            if (hit.march.exitedFloor) return false;
-            hit.onDetail = true;
-            hit.distanceWorld =
-                baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
-            hit.position = ray.origin + ray.direction * hit.distanceWorld;
-            return true;
-        });
+        withMarchFilter(options_.filter, material, columns(shell.object), options_.reference,
+                        [&](const auto& filter) {
+                            hit.march = march(filter, start + direction * emptyTexels, direction,
+                                              material.floor, options_.march);
+                            hit.march.travelTexels += emptyTexels;
+                            ++counters.shellEntries;
+                            counters.marchIterations += std::uint64_t(hit.march.iterations);
+                            if (hit.march.converged) ++counters.converged;
+                            if (hit.march.exitedFloor) return false;
+                            hit.onDetail = true;
+                            hit.distanceWorld = baseHit.distanceWorld +
+                                                hit.march.travelTexels / texelsPerWorldAlongRay;
+                            hit.position = ray.origin + ray.direction * hit.distanceWorld;
+                            return true;
+                        });
     if (done && !hit.march.onFloor) {
-        const glm::vec3 gradient = withMarchFilter(
-            options_.normalFilter, material, options_.reference, [&](const auto& normalFilter) {
-                return normalFilter.gradient(hit.march.texelPosition);
-            });
+        const glm::vec3 gradient =
+            withMarchFilter(options_.normalFilter, material, columns(shell.object),
+                            options_.reference, [&](const auto& normalFilter) {
+                                return normalFilter.gradient(hit.march.texelPosition);
+                            });
         if (glm::length(gradient) > 1e-6f)
             hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
     }

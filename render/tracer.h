@@ -7,12 +7,14 @@
 #include <cstdint>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <memory>
 #include <vector>
 
 #include "render/bvh.h"
 #include "render/march.h"
 #include "render/scene.h"
 #include "sampler/filter_choice.h"
+#include "sampler/occupancy.h"
 
 namespace distile {
 
@@ -22,9 +24,6 @@ struct RenderSkips {
     /// Empty-space skipping: a ray starts its march where it first reaches the top of the
     /// occupied layers of the tile columns it crosses (sampler/occupancy.h), not at the top face.
     bool emptySpace = true;
-    /// Adaptive budget (ch. 8's future work): a ray gets the samples its path through the slab
-    /// needs at one sample per texel of descent... see RenderSkips::budgetFor.
-    bool adaptiveBudget = true;
     /// Camera rays skip detail shells whose conservative depth is not nearer than their best hit
     /// (render/coverage.h); the image is the same either way, only the work differs.
     bool shellCulling = true;
@@ -104,6 +103,10 @@ class SceneTracer {
     bool traceShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
                     SurfaceHit& hit, TraceCounters& counters) const;
 
+    /// Object `object`'s tile in the layout the renderer samples (sampler/tile_columns.h); null
+    /// for an object without a tile. Objects sharing a tile share its columns.
+    const TileColumns* columns(std::uint32_t object) const { return columns_[object].get(); }
+
     const Scene& scene() const { return scene_; }
     const TraceOptions& options() const { return options_; }
 
@@ -122,6 +125,10 @@ class SceneTracer {
     const Scene& scene_;
     TraceOptions options_;
     std::vector<ShellTriangle> triangles_;
+    /// Per object: its tile's empty space for the march's filter and threshold; null when not
+    /// skipped (no tile, skip off, a reference render, or a cubic march filter).
+    std::vector<std::shared_ptr<const TileOccupancy>> occupancies_;
+    std::vector<std::shared_ptr<const TileColumns>> columns_;  ///< per object; null: no tile
     TriangleBvh bvh_;
 };
 

@@ -11,20 +11,33 @@ namespace distile {
 /// The reconstruction filters a renderer or a check can choose.
 enum class FilterKind { Nearest, Trilinear, TricubicBSpline, CatmullRom };
 
-/// Calls `function(filter)` with the filter of `kind` over `tile` and returns its result.
-template <class Function>
-decltype(auto) withFilter(FilterKind kind, const Tile& tile, Function&& function) {
+/// Calls `function(filter)` with the filter of `kind` reading `texels` (TileTexels or
+/// ColumnTexels, sampler/filters.h) and returns its result.
+template <class Texels, class Function>
+decltype(auto) withFilterOn(FilterKind kind, const Texels& texels, Function&& function) {
     switch (kind) {
         case FilterKind::Nearest:
-            return function(NearestFilter(tile));
+            return function(BasicNearestFilter<Texels>(texels));
         case FilterKind::TricubicBSpline:
-            return function(TricubicBSplineFilter(tile));
+            return function(BasicTricubicBSplineFilter<Texels>(texels));
         case FilterKind::CatmullRom:
-            return function(CatmullRomFilter(tile));
+            return function(BasicCatmullRomFilter<Texels>(texels));
         case FilterKind::Trilinear:
             break;
     }
-    return function(TrilinearFilter(tile));
+    return function(BasicTrilinearFilter<Texels>(texels));
+}
+
+/// Calls `function(filter)` with the filter of `kind` over `tile` and returns its result.
+template <class Function>
+decltype(auto) withFilter(FilterKind kind, const Tile& tile, Function&& function) {
+    return withFilterOn(kind, TileTexels(tile), function);
+}
+
+/// The same over a tile's columns (the renderer's layout).
+template <class Function>
+decltype(auto) withFilter(FilterKind kind, const TileColumns& columns, Function&& function) {
+    return withFilterOn(kind, ColumnTexels(columns), function);
 }
 
 }  // namespace distile

@@ -16,6 +16,7 @@
 #include <glm/vec3.hpp>
 
 #include "sampler/tile.h"
+#include "sampler/tile_columns.h"
 
 namespace distile {
 
@@ -85,48 +86,91 @@ inline AxisLerp extendedAxis(float position, int extent) {
 
 }  // namespace detail
 
-/// Nearest-texel lookup (the reference for "no filtering").
-class NearestFilter {
+/// Where filters read texels. TileTexels reads a Tile in its own layout (x fastest); ColumnTexels
+/// reads TileColumns (z fastest), the renderer's faster layout. Texel (x, y, z) is element
+/// column(x, y) + z * zStride(). Same values, so a filter gives the same results over either
+/// (up to the order of its sums). Both hold a pointer: the tile or columns must outlive them.
+class TileTexels {
   public:
-    explicit NearestFilter(const Tile& tile) : tile_(tile) {}
+    /// Implicit, so the filters over tiles construct from a Tile.
+    TileTexels(const Tile& tile) : data_(tile.distancesTexels().data()), size_(tile.size()) {}
+    const Size3& size() const { return size_; }
+    std::size_t column(int x, int y) const {
+        return std::size_t(x) + std::size_t(size_.width) * std::size_t(y);
+    }
+    std::size_t zStride() const { return std::size_t(size_.width) * std::size_t(size_.height); }
+    float operator[](std::size_t element) const { return data_[element]; }
+
+  private:
+    const float* data_;
+    Size3 size_;
+};
+
+class ColumnTexels {
+  public:
+    /// Implicit, so the filters over columns construct from TileColumns.
+    ColumnTexels(const TileColumns& columns) : data_(columns.data()), size_(columns.size()) {}
+    const Size3& size() const { return size_; }
+    std::size_t column(int x, int y) const {
+        return (std::size_t(x) + std::size_t(size_.width) * std::size_t(y)) *
+               std::size_t(size_.depth);
+    }
+    static constexpr std::size_t zStride() { return 1; }
+    float operator[](std::size_t element) const { return data_[element]; }
+
+  private:
+    const float* data_;
+    Size3 size_;
+};
+
+/// Nearest-texel lookup (the reference for "no filtering").
+template <class Texels>
+class BasicNearestFilter {
+  public:
+    explicit BasicNearestFilter(const Texels& texels) : texels_(texels) {}
 
     float distanceTexels(const glm::vec3& texelPosition) const {
-        const Size3& size = tile_.size();
+        const Size3& size = texels_.size();
         const int x = detail::wrapIndex(int(std::floor(texelPosition.x)), size.width);
         const int y = detail::wrapIndex(int(std::floor(texelPosition.y)), size.height);
         const int z = std::clamp(int(std::floor(texelPosition.z)), 0, size.depth - 1);
-        return tile_.at(x, y, z);
+        return at(x, y, z);
     }
 
     /// Central differences of the stored texels around the containing texel (one-sided at the
     /// first and last slice): the gradient of the grid, as a shading normal for this filter.
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
-        const Size3& size = tile_.size();
+        const Size3& size = texels_.size();
         const int x = detail::wrapIndex(int(std::floor(texelPosition.x)), size.width);
         const int y = detail::wrapIndex(int(std::floor(texelPosition.y)), size.height);
         const int z = std::clamp(int(std::floor(texelPosition.z)), 0, size.depth - 1);
         const int zLow = std::max(z - 1, 0);
         const int zHigh = std::min(z + 1, size.depth - 1);
-        return {0.5f * (tile_.at(detail::wrapIndex(x + 1, size.width), y, z) -
-                        tile_.at(detail::wrapIndex(x - 1, size.width), y, z)),
-                0.5f * (tile_.at(x, detail::wrapIndex(y + 1, size.height), z) -
-                        tile_.at(x, detail::wrapIndex(y - 1, size.height), z)),
-                (tile_.at(x, y, zHigh) - tile_.at(x, y, zLow)) / float(std::max(zHigh - zLow, 1))};
+        return {0.5f * (at(detail::wrapIndex(x + 1, size.width), y, z) -
+                        at(detail::wrapIndex(x - 1, size.width), y, z)),
+                0.5f * (at(x, detail::wrapIndex(y + 1, size.height), z) -
+                        at(x, detail::wrapIndex(y - 1, size.height), z)),
+                (at(x, y, zHigh) - at(x, y, zLow)) / float(std::max(zHigh - zLow, 1))};
     }
 
   private:
-    const Tile& tile_;
+    float at(int x, int y, int z) const {
+        return texels_[texels_.column(x, y) + std::size_t(z) * texels_.zStride()];
+    }
+
+    Texels texels_;
 };
 
 /// Trilinear interpolation between the 8 surrounding texel centres, extended linearly in z over
 /// the outer half texels. The gradient is the exact derivative of the interpolant (piecewise
 /// constant in each axis' own direction); beyond the faces it is the one at the face.
-class TrilinearFilter {
+template <class Texels>
+class BasicTrilinearFilter {
   public:
-    explicit TrilinearFilter(const Tile& tile) : tile_(tile) {}
+    explicit BasicTrilinearFilter(const Texels& texels) : texels_(texels) {}
 
     float distanceTexels(const glm::vec3& texelPosition) const {
-        const Size3& size = tile_.size();
+        const Size3& size = texels_.size();
         return fetch(detail::periodicAxis(texelPosition.x, size.width),
                      detail::periodicAxis(texelPosition.y, size.height),
                      detail::extendedAxis(texelPosition.z, size.depth));
@@ -139,21 +183,22 @@ class TrilinearFilter {
     float fetch(const detail::AxisLerp& x, const detail::AxisLerp& y,
                 const detail::AxisLerp& z) const {
         const Corners c = corners(x, y, z);
-        const float fx = c.x.weight;
-        const float fy = c.y.weight;
-        const float fz = c.z.weight;
-        const float v00 = lerp(c.v[0], c.v[1], fx);
-        const float v10 = lerp(c.v[2], c.v[3], fx);
-        const float v01 = lerp(c.v[4], c.v[5], fx);
-        const float v11 = lerp(c.v[6], c.v[7], fx);
-        return lerp(lerp(v00, v10, fy), lerp(v01, v11, fy), fz);
+        const float v00 = lerp(c.v[0], c.v[1], x.weight);
+        const float v10 = lerp(c.v[2], c.v[3], x.weight);
+        const float v01 = lerp(c.v[4], c.v[5], x.weight);
+        const float v11 = lerp(c.v[6], c.v[7], x.weight);
+        return lerp(lerp(v00, v10, y.weight), lerp(v01, v11, y.weight), z.weight);
     }
 
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
-        const Corners c = corners(texelPosition);
-        const float fx = c.x.weight;
-        const float fy = c.y.weight;
-        const float fz = c.z.weight;
+        const Size3& size = texels_.size();
+        const detail::AxisLerp x = detail::periodicAxis(texelPosition.x, size.width);
+        const detail::AxisLerp y = detail::periodicAxis(texelPosition.y, size.height);
+        const detail::AxisLerp z = detail::extendedAxis(texelPosition.z, size.depth);
+        const Corners c = corners(x, y, z);
+        const float fx = x.weight;
+        const float fy = y.weight;
+        const float fz = z.weight;
         // Differences along x at the four (y, z) corners, then interpolate, etc.
         const float dx = lerp(lerp(c.v[1] - c.v[0], c.v[3] - c.v[2], fy),
                               lerp(c.v[5] - c.v[4], c.v[7] - c.v[6], fy), fz);
@@ -165,39 +210,30 @@ class TrilinearFilter {
     }
 
   private:
+    /// Corner values, index bit 0: x upper, bit 1: y upper, bit 2: z upper.
     struct Corners {
-        detail::AxisLerp x, y, z;
-        float v[8];  ///< corner values, index bit 0: x upper, bit 1: y upper, bit 2: z upper
+        float v[8];
     };
 
     static float lerp(float a, float b, float t) { return a + (b - a) * t; }
 
-    Corners corners(const glm::vec3& p) const {
-        const Size3& size = tile_.size();
-        return corners(detail::periodicAxis(p.x, size.width),
-                       detail::periodicAxis(p.y, size.height),
-                       detail::extendedAxis(p.z, size.depth));
-    }
-
     Corners corners(const detail::AxisLerp& x, const detail::AxisLerp& y,
                     const detail::AxisLerp& z) const {
-        const Size3& size = tile_.size();
-        Corners c{x, y, z, {}};
-        const float* data = tile_.distancesTexels().data();
-        const std::size_t strideY = std::size_t(size.width);
-        const std::size_t strideZ = strideY * std::size_t(size.height);
-        const std::size_t rows[2] = {std::size_t(c.y.lower) * strideY,
-                                     std::size_t(c.y.upper) * strideY};
-        const std::size_t slabs[2] = {std::size_t(c.z.lower) * strideZ,
-                                      std::size_t(c.z.upper) * strideZ};
-        const std::size_t columns[2] = {std::size_t(c.x.lower), std::size_t(c.x.upper)};
-        for (int corner = 0; corner < 8; ++corner) {
-            c.v[corner] = data[columns[corner & 1] + rows[(corner >> 1) & 1] + slabs[corner >> 2]];
-        }
-        return c;
+        const std::size_t columns[4] = {
+            texels_.column(x.lower, y.lower), texels_.column(x.upper, y.lower),
+            texels_.column(x.lower, y.upper), texels_.column(x.upper, y.upper)};
+        const std::size_t lower = std::size_t(z.lower) * texels_.zStride();
+        const std::size_t upper = std::size_t(z.upper) * texels_.zStride();
+        return {{texels_[columns[0] + lower], texels_[columns[1] + lower],
+                 texels_[columns[2] + lower], texels_[columns[3] + lower],
+                 texels_[columns[0] + upper], texels_[columns[1] + upper],
+                 texels_[columns[2] + upper], texels_[columns[3] + upper]}};
     }
 
-    const Tile& tile_;
+    Texels texels_;
 };
+
+using NearestFilter = BasicNearestFilter<TileTexels>;
+using TrilinearFilter = BasicTrilinearFilter<TileTexels>;
 
 }  // namespace distile

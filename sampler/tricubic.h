@@ -160,8 +160,9 @@ inline LinearFetches secondDerivativeFetches(const CubicAxis& axis) {
 }
 
 /// The weighted sum of the fetches' tensor product: one filter output from linear fetches.
-inline float sumOfFetches(const TrilinearFilter& linear, const LinearFetches& x,
-                          const LinearFetches& y, const LinearFetches& z) {
+template <class Linear>
+float sumOfFetches(const Linear& linear, const LinearFetches& x, const LinearFetches& y,
+                   const LinearFetches& z) {
     float sum = 0.0f;
     for (int k = 0; k < z.count; ++k) {
         float plane = 0.0f;
@@ -176,45 +177,51 @@ inline float sumOfFetches(const TrilinearFilter& linear, const LinearFetches& x,
     return sum;
 }
 
-/// The plain 4 x 4 x 4 tensor-product sum of the taps with per-axis weights (64 reads; the z
-/// weights are per tap, ghost taps included, and read through storedTapWeights).
-inline float sumOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y, const CubicAxis& z,
-                       const CubicWeights& wx, const CubicWeights& wy,
-                       const CubicWeights& tapWeightsZ) {
+/// The plain 4 x 4 x 4 tensor-product sum of the taps with per-axis weights (64 reads, column by
+/// column; the z weights are per tap, ghost taps included, and read through storedTapWeights).
+template <class Texels>
+float sumOfTaps(const Texels& texels, const CubicAxis& x, const CubicAxis& y, const CubicAxis& z,
+                const CubicWeights& wx, const CubicWeights& wy, const CubicWeights& tapWeightsZ) {
     const CubicWeights wz = storedTapWeights(z, tapWeightsZ);
+    std::size_t slices[4];
+    for (int k = 0; k < 4; ++k) slices[k] = std::size_t(z.tap[k]) * texels.zStride();
     float sum = 0.0f;
-    for (int k = 0; k < 4; ++k) {
-        for (int j = 0; j < 4; ++j) {
-            const float* row = &tile.distancesTexels()[tile.index(0, y.tap[j], z.tap[k])];
-            float rowSum = 0.0f;
-            for (int i = 0; i < 4; ++i) rowSum += wx.w[i] * row[x.tap[i]];
-            sum += wy.w[j] * wz.w[k] * rowSum;
+    for (int j = 0; j < 4; ++j) {
+        for (int i = 0; i < 4; ++i) {
+            const std::size_t column = texels.column(x.tap[i], y.tap[j]);
+            float columnSum = 0.0f;
+            for (int k = 0; k < 4; ++k) columnSum += wz.w[k] * texels[column + slices[k]];
+            sum += wx.w[i] * wy.w[j] * columnSum;
         }
     }
     return sum;
 }
 
-/// The gradient of a cubic filter in one pass over its 64 taps: value weights `w*` and
-/// derivative weights `d*` per axis.
-inline glm::vec3 gradientOfTaps(const Tile& tile, const CubicAxis& x, const CubicAxis& y,
-                                const CubicAxis& z, const CubicWeights& wx, const CubicWeights& wy,
-                                const CubicWeights& tapWeightsZ, const CubicWeights& dx,
-                                const CubicWeights& dy, const CubicWeights& tapDerivativesZ) {
+/// The gradient of a cubic filter in one pass over its 64 taps, column by column: value weights
+/// `w*` and derivative weights `d*` per axis.
+template <class Texels>
+glm::vec3 gradientOfTaps(const Texels& texels, const CubicAxis& x, const CubicAxis& y,
+                         const CubicAxis& z, const CubicWeights& wx, const CubicWeights& wy,
+                         const CubicWeights& tapWeightsZ, const CubicWeights& dx,
+                         const CubicWeights& dy, const CubicWeights& tapDerivativesZ) {
     const CubicWeights wz = storedTapWeights(z, tapWeightsZ);
     const CubicWeights dz = storedTapWeights(z, tapDerivativesZ);
+    std::size_t slices[4];
+    for (int k = 0; k < 4; ++k) slices[k] = std::size_t(z.tap[k]) * texels.zStride();
     glm::vec3 sum(0.0f);
-    for (int k = 0; k < 4; ++k) {
-        for (int j = 0; j < 4; ++j) {
-            const float* row = &tile.distancesTexels()[tile.index(0, y.tap[j], z.tap[k])];
-            float rowValue = 0.0f;
-            float rowDerivative = 0.0f;
-            for (int i = 0; i < 4; ++i) {
-                rowValue += wx.w[i] * row[x.tap[i]];
-                rowDerivative += dx.w[i] * row[x.tap[i]];
+    for (int j = 0; j < 4; ++j) {
+        for (int i = 0; i < 4; ++i) {
+            const std::size_t column = texels.column(x.tap[i], y.tap[j]);
+            float columnValue = 0.0f;
+            float columnDerivative = 0.0f;
+            for (int k = 0; k < 4; ++k) {
+                const float texel = texels[column + slices[k]];
+                columnValue += wz.w[k] * texel;
+                columnDerivative += dz.w[k] * texel;
             }
-            sum.x += wy.w[j] * wz.w[k] * rowDerivative;
-            sum.y += dy.w[j] * wz.w[k] * rowValue;
-            sum.z += wy.w[j] * dz.w[k] * rowValue;
+            sum.x += dx.w[i] * wy.w[j] * columnValue;
+            sum.y += wx.w[i] * dy.w[j] * columnValue;
+            sum.z += wx.w[i] * wy.w[j] * columnDerivative;
         }
     }
     return sum;
@@ -223,10 +230,11 @@ inline glm::vec3 gradientOfTaps(const Tile& tile, const CubicAxis& x, const Cubi
 }  // namespace detail
 
 /// Cubic B-spline reconstruction (approximating, C2), evaluated from trilinear fetches.
-class TricubicBSplineFilter {
+template <class Texels>
+class BasicTricubicBSplineFilter {
   public:
-    /// Precondition: `tile` outlives the filter (validated tiles have every extent >= 2).
-    explicit TricubicBSplineFilter(const Tile& tile) : tile_(tile), linear_(tile) {}
+    /// Precondition: the texels outlive the filter (validated tiles have every extent >= 2).
+    explicit BasicTricubicBSplineFilter(const Texels& texels) : texels_(texels), linear_(texels) {}
 
     /// Filtered distance, texels, at a texel-space point: 8 trilinear fetches. Any finite point.
     float distanceTexels(const glm::vec3& texelPosition) const {
@@ -237,7 +245,7 @@ class TricubicBSplineFilter {
     /// The same value as the plain 64-tap weighted sum: the reference for distanceTexels().
     float distanceTexels64Tap(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
-        return detail::sumOfTaps(tile_, a.x, a.y, a.z, detail::bsplineWeights(a.x.fraction),
+        return detail::sumOfTaps(texels_, a.x, a.y, a.z, detail::bsplineWeights(a.x.fraction),
                                  detail::bsplineWeights(a.y.fraction),
                                  detail::bsplineWeights(a.z.fraction));
     }
@@ -248,7 +256,7 @@ class TricubicBSplineFilter {
     /// filters for free. gradient8Fetch() is the chapter's form, kept as the check.
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
-        return detail::gradientOfTaps(tile_, a.x, a.y, a.z, detail::bsplineWeights(a.x.fraction),
+        return detail::gradientOfTaps(texels_, a.x, a.y, a.z, detail::bsplineWeights(a.x.fraction),
                                       detail::bsplineWeights(a.y.fraction),
                                       detail::bsplineWeights(a.z.fraction),
                                       detail::bsplineDerivativeWeights(a.x.fraction),
@@ -294,7 +302,7 @@ class TricubicBSplineFilter {
     };
 
     Axes axes(const glm::vec3& p) const {
-        const Size3& size = tile_.size();
+        const Size3& size = texels_.size();
         return {detail::periodicCubicAxis(p.x, size.width),
                 detail::periodicCubicAxis(p.y, size.height),
                 detail::extendedCubicAxis(p.z, size.depth)};
@@ -306,22 +314,23 @@ class TricubicBSplineFilter {
         return detail::pairedFetches(axis, detail::bsplineDerivativeWeights(axis.fraction));
     }
 
-    const Tile& tile_;
-    TrilinearFilter linear_;
+    Texels texels_;
+    BasicTrilinearFilter<Texels> linear_;
 };
 
 /// Catmull-Rom reconstruction (interpolating cubic, C1): returns the stored distance at texel
 /// centres, reproduces linear functions, may overshoot between texels. Its outer tap weights are
 /// negative, so the pairing trick does not apply: it reads the 64 taps directly.
-class CatmullRomFilter {
+template <class Texels>
+class BasicCatmullRomFilter {
   public:
-    /// Precondition: `tile` outlives the filter.
-    explicit CatmullRomFilter(const Tile& tile) : tile_(tile) {}
+    /// Precondition: the texels outlive the filter.
+    explicit BasicCatmullRomFilter(const Texels& texels) : texels_(texels) {}
 
     /// Interpolated distance, texels, at a texel-space point. Any finite point.
     float distanceTexels(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
-        return detail::sumOfTaps(tile_, a.x, a.y, a.z, detail::catmullRomWeights(a.x.fraction),
+        return detail::sumOfTaps(texels_, a.x, a.y, a.z, detail::catmullRomWeights(a.x.fraction),
                                  detail::catmullRomWeights(a.y.fraction),
                                  detail::catmullRomWeights(a.z.fraction));
     }
@@ -329,12 +338,12 @@ class CatmullRomFilter {
     /// Exact first derivatives of the interpolant (texels per texel), one pass over the 64 taps.
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
-        return detail::gradientOfTaps(tile_, a.x, a.y, a.z, detail::catmullRomWeights(a.x.fraction),
-                                      detail::catmullRomWeights(a.y.fraction),
-                                      detail::catmullRomWeights(a.z.fraction),
-                                      detail::catmullRomDerivativeWeights(a.x.fraction),
-                                      detail::catmullRomDerivativeWeights(a.y.fraction),
-                                      detail::catmullRomDerivativeWeights(a.z.fraction));
+        return detail::gradientOfTaps(
+            texels_, a.x, a.y, a.z, detail::catmullRomWeights(a.x.fraction),
+            detail::catmullRomWeights(a.y.fraction), detail::catmullRomWeights(a.z.fraction),
+            detail::catmullRomDerivativeWeights(a.x.fraction),
+            detail::catmullRomDerivativeWeights(a.y.fraction),
+            detail::catmullRomDerivativeWeights(a.z.fraction));
     }
 
   private:
@@ -342,14 +351,17 @@ class CatmullRomFilter {
         detail::CubicAxis x, y, z;
     };
     Axes axes(const glm::vec3& p) const {
-        const Size3& size = tile_.size();
+        const Size3& size = texels_.size();
         return {detail::periodicCubicAxis(p.x, size.width),
                 detail::periodicCubicAxis(p.y, size.height),
                 detail::extendedCubicAxis(p.z, size.depth)};
     }
 
-    const Tile& tile_;
+    Texels texels_;
 };
+
+using TricubicBSplineFilter = BasicTricubicBSplineFilter<TileTexels>;
+using CatmullRomFilter = BasicCatmullRomFilter<TileTexels>;
 
 /// Curvatures of the isosurface of a field through a point, 1/texel.
 struct Curvature {

@@ -14,6 +14,8 @@
 #include "sampler/bake.h"
 #include "sampler/conservative.h"
 #include "sampler/filters.h"
+#include "sampler/occupancy.h"
+#include "sampler/tile_columns.h"
 #include "sampler/tile_error.h"
 #include "sampler/tricubic.h"
 #include "vdb/chainmail.h"
@@ -616,6 +618,83 @@ TEST(ConservativeResampling, LowersByTheCurvatureEstimateAndRejectsBadOptions) {
     bad = {};
     bad.toleranceTexels = std::nanf("");
     EXPECT_THROW(makeConservative(parabola, bad), InputError);
+}
+
+TEST(TileColumns, FiltersOverColumnsEqualFiltersOverTheTile) {
+    // The renderer samples TileColumns; the values must be those of the tile itself: trilinear
+    // bit for bit (same corners, same arithmetic), the cubic filters up to the order of their
+    // 64-term sums (float rounding, 1e-5 texel on distances of a few texels).
+    const Tile& tile = defaultChainmail().tile;
+    const TileColumns columns(tile);
+    const Size3& size = tile.size();
+    std::mt19937 random(11);
+    std::uniform_real_distribution<float> x(-3.0f, float(size.width) + 3.0f);
+    std::uniform_real_distribution<float> y(-3.0f, float(size.height) + 3.0f);
+    std::uniform_real_distribution<float> z(-1.0f, float(size.depth) + 1.0f);
+    const TrilinearFilter onTile(tile);
+    const BasicTrilinearFilter<ColumnTexels> onColumns(columns);
+    const TricubicBSplineFilter cubicOnTile(tile);
+    const BasicTricubicBSplineFilter<ColumnTexels> cubicOnColumns(columns);
+    const NearestFilter nearestOnTile(tile);
+    const BasicNearestFilter<ColumnTexels> nearestOnColumns(columns);
+    for (int i = 0; i < 20000; ++i) {
+        const glm::vec3 p(x(random), y(random), z(random));
+        ASSERT_EQ(onColumns.distanceTexels(p), onTile.distanceTexels(p)) << i;
+        ASSERT_EQ(onColumns.gradient(p), onTile.gradient(p)) << i;
+        ASSERT_EQ(nearestOnColumns.distanceTexels(p), nearestOnTile.distanceTexels(p)) << i;
+        ASSERT_NEAR(cubicOnColumns.distanceTexels(p), cubicOnTile.distanceTexels(p), 1e-5f) << i;
+        const glm::vec3 difference = cubicOnColumns.gradient(p) - cubicOnTile.gradient(p);
+        ASSERT_LE(glm::length(difference), 1e-5f) << i;
+    }
+}
+
+TEST(TileOccupancy, EverythingAboveABlockTopAndEverySkippedPathIsEmpty) {
+    // Empty-space skipping must never skip a hit: every trilinear value above a block's top is at
+    // least the threshold, and so is every point of the path emptyTravelTexels skips.
+    const Tile& tile = defaultChainmail().tile;
+    const Size3& size = tile.size();
+    constexpr float kThreshold = 0.02f;
+    const TileOccupancy occupancy(tile, kThreshold);
+    const TrilinearFilter filter(tile);
+    std::mt19937 random(5);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    int belowFace = 0;
+    for (int blockY = 0; blockY < occupancy.blocksY(); ++blockY) {
+        for (int blockX = 0; blockX < occupancy.blocksX(); ++blockX) {
+            const float top = occupancy.topTexels(blockX, blockY);
+            ASSERT_GE(top, 0.0f);
+            ASSERT_LE(top, float(size.depth));
+            if (top < float(size.depth)) ++belowFace;
+            for (int i = 0; i < 64; ++i) {
+                const glm::vec3 p(float(blockX * TileOccupancy::kBlockTexels) +
+                                      unit(random) * TileOccupancy::kBlockTexels,
+                                  float(blockY * TileOccupancy::kBlockTexels) +
+                                      unit(random) * TileOccupancy::kBlockTexels,
+                                  top + unit(random) * (float(size.depth) - top));
+                ASSERT_GE(filter.distanceTexels(p), kThreshold) << blockX << " " << blockY;
+            }
+        }
+    }
+    // The chain mail's rings do not reach the top face everywhere: some blocks have space to skip.
+    EXPECT_GT(belowFace, 0);
+
+    int skipped = 0;
+    for (int ray = 0; ray < 5000; ++ray) {
+        const glm::vec3 start(unit(random) * size.width, unit(random) * size.height,
+                              float(size.depth));
+        // Directions from steep to grazing (down to about 3 degrees below the horizontal).
+        const float azimuth = 6.2831853f * unit(random);
+        const float descent = 0.05f + 0.95f * unit(random);
+        const glm::vec3 direction =
+            glm::normalize(glm::vec3(std::cos(azimuth), std::sin(azimuth), -descent * 2.0f));
+        const float empty = occupancy.emptyTravelTexels(start, direction);
+        ASSERT_GE(empty, 0.0f);
+        ASSERT_LE(start.z + direction.z * empty, float(size.depth));
+        if (empty > 0.0f) ++skipped;
+        for (float t = 0.0f; t < empty; t += 0.05f)
+            ASSERT_GE(filter.distanceTexels(start + direction * t), kThreshold) << ray << " " << t;
+    }
+    EXPECT_GT(skipped, 100);
 }
 
 }  // namespace

@@ -1,0 +1,116 @@
+#include "sampler/occupancy.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "sampler/filters.h"
+
+namespace distile {
+
+TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
+    : width_(tile.size().width),
+      height_(tile.size().height),
+      blocksX_((tile.size().width + kBlockTexels - 1) / kBlockTexels),
+      blocksY_((tile.size().height + kBlockTexels - 1) / kBlockTexels),
+      tops_(std::size_t(blocksX_) * std::size_t(blocksY_), float(tile.size().depth)) {
+    const Size3& size = tile.size();
+    const int depth = size.depth;
+    // Per slice, the lowest value over each block's support (its columns and one more around).
+    std::vector<float> lowest(tops_.size() * std::size_t(depth));
+    for (int by = 0; by < blocksY_; ++by) {
+        for (int bx = 0; bx < blocksX_; ++bx) {
+            const int x0 = bx * kBlockTexels, x1 = std::min(x0 + kBlockTexels, size.width);
+            const int y0 = by * kBlockTexels, y1 = std::min(y0 + kBlockTexels, size.height);
+            float* blockLowest = &lowest[(std::size_t(by) * std::size_t(blocksX_) + bx) * depth];
+            for (int z = 0; z < depth; ++z) {
+                float low = tile.at(x0, y0, z);
+                for (int y = y0 - 1; y <= y1; ++y) {
+                    const int wrappedY = detail::wrapIndex(y, size.height);
+                    for (int x = x0 - 1; x <= x1; ++x)
+                        low = std::min(low, tile.at(detail::wrapIndex(x, size.width), wrappedY, z));
+                }
+                blockLowest[z] = low;
+            }
+            // The top edge cell, extrapolated to the face z = D: 1.5 v[D-1] - 0.5 v[D-2] per
+            // column; its lowest over the support bounds the whole outer half texel.
+            float faceLowest = blockLowest[depth - 1];
+            for (int y = y0 - 1; y <= y1; ++y) {
+                const int wrappedY = detail::wrapIndex(y, size.height);
+                for (int x = x0 - 1; x <= x1; ++x) {
+                    const int wrappedX = detail::wrapIndex(x, size.width);
+                    faceLowest =
+                        std::min(faceLowest, 1.5f * tile.at(wrappedX, wrappedY, depth - 1) -
+                                                 0.5f * tile.at(wrappedX, wrappedY, depth - 2));
+                }
+            }
+            float top = 0.0f;
+            if (!(faceLowest >= thresholdTexels)) {
+                top = float(depth);
+            } else {
+                int highestLow = -1;
+                for (int z = depth - 1; z >= 0; --z) {
+                    if (!(blockLowest[z] >= thresholdTexels)) {
+                        highestLow = z;
+                        break;
+                    }
+                }
+                // Above slice centre highestLow + 1 every cell's corners are at least the
+                // threshold; a column with no low slice is empty down to the bottom cell's centre
+                // (below it the bottom edge cell extrapolates, and the floor ends the ray there).
+                top = highestLow < 0 ? 0.5f : std::min(float(highestLow) + 1.5f, float(depth));
+            }
+            tops_[std::size_t(by) * std::size_t(blocksX_) + std::size_t(bx)] = top;
+        }
+    }
+}
+
+float TileOccupancy::emptyTravelTexels(const glm::vec3& start, const glm::vec3& direction) const {
+    if (!(std::isfinite(start.x) && std::isfinite(start.y) && std::isfinite(start.z) &&
+          direction.z < 0.0f && std::isfinite(direction.x) && std::isfinite(direction.y))) {
+        return 0.0f;
+    }
+    float travel = 0.0f;
+    float lookAhead = 0.0f;  // after a wall: which block the ray goes on over, just past the wall
+    // Bounded walk: a ray descending through a slab crosses few blocks unless it is grazing; after
+    // the bound the march simply starts where the walk stopped (still a safe point).
+    constexpr int kMaxBlocks = 64;
+    constexpr float kPastWallTexels = 1e-3f;
+    for (int step = 0; step < kMaxBlocks; ++step) {
+        const glm::vec3 position = start + direction * travel;
+        const glm::vec3 probe = start + direction * (travel + lookAhead);
+        const float x = probe.x - float(width_) * std::floor(probe.x / float(width_));
+        const float y = probe.y - float(height_) * std::floor(probe.y / float(height_));
+        const int blockX = std::clamp(int(x) / kBlockTexels, 0, blocksX_ - 1);
+        const int blockY = std::clamp(int(y) / kBlockTexels, 0, blocksY_ - 1);
+        const float top = topTexels(blockX, blockY);
+        if (position.z <= top) return travel;
+        const float toTop = (position.z - top) / -direction.z;
+        // Travel to the block's side walls (the last block may be narrower than kBlockTexels),
+        // measured from the probe, which is in the block.
+        auto toWall = [](float coordinate, float lower, float upper, float along) {
+            if (along > 0.0f) return (upper - coordinate) / along;
+            if (along < 0.0f) return (lower - coordinate) / along;
+            return std::numeric_limits<float>::infinity();
+        };
+        const float lowerX = float(blockX * kBlockTexels);
+        const float lowerY = float(blockY * kBlockTexels);
+        const float toSide =
+            lookAhead +
+            std::max(0.0f,
+                     std::min(toWall(x, lowerX, std::min(lowerX + kBlockTexels, float(width_)),
+                                     direction.x),
+                              toWall(y, lowerY, std::min(lowerY + kBlockTexels, float(height_)),
+                                     direction.y)));
+        if (toTop <= toSide) return travel + toTop;
+        // On to the wall; the next block is the one just past it. A step that does not advance
+        // (rounding at a huge coordinate) ends the walk safely here.
+        const float next = travel + toSide;
+        if (!(next > travel)) return travel;
+        travel = next;
+        lookAhead = kPastWallTexels;
+    }
+    return travel;
+}
+
+}  // namespace distile

@@ -1,0 +1,50 @@
+/// @file
+/// The empty space above a tile's detail, for empty-space skipping in the march (issue 6): per
+/// block of kBlockTexels x kBlockTexels texel columns, the height above which the trilinear (or
+/// nearest) reconstruction is at least a threshold everywhere over the block. A ray that descends
+/// through the top face crosses the blocks' empty parts in one step each (a 2D walk over the
+/// blocks it passes) and starts its march where it first reaches a block's top.
+///
+/// Why the tops are conservative: between slice centres (z in [k + 0.5, k + 1.5]) the trilinear
+/// value is a convex combination of the 8 corner texels of slices k and k + 1, and over a block's
+/// columns [x0, x1) those corners lie in the columns x0 - 1 .. x1 (same in y). So above the highest
+/// slice kTop holding a value below the threshold in those columns, z >= kTop + 1.5, every value
+/// is at least the threshold. The outer half texels extrapolate the edge cells (sampler/filters.h):
+/// the top one is checked at the face z = D, where it is lowest if anywhere.
+#pragma once
+
+#include <glm/vec3.hpp>
+#include <vector>
+
+#include "sampler/tile.h"
+
+namespace distile {
+
+class TileOccupancy {
+  public:
+    static constexpr int kBlockTexels = 8;
+
+    /// Tops of every block of `tile` for `thresholdTexels` (the march's hit threshold: a point
+    /// above a top is not a hit).
+    TileOccupancy(const Tile& tile, float thresholdTexels);
+
+    /// Height z (texels, in [0, D]) above which every trilinear value over block (blockX,
+    /// blockY) is at least the threshold. Preconditions: indices within blocksX(), blocksY().
+    float topTexels(int blockX, int blockY) const {
+        return tops_[std::size_t(blockY) * std::size_t(blocksX_) + std::size_t(blockX)];
+    }
+    int blocksX() const { return blocksX_; }
+    int blocksY() const { return blocksY_; }
+
+    /// Length (texels) of the empty path from `start` along `direction` (unit, direction.z < 0)
+    /// before the ray first reaches the top of the block it is over: the march can start there.
+    /// 0 when `start` is already at or below its block's top; not finite inputs give 0.
+    float emptyTravelTexels(const glm::vec3& start, const glm::vec3& direction) const;
+
+  private:
+    int width_, height_;
+    int blocksX_, blocksY_;
+    std::vector<float> tops_;
+};
+
+}  // namespace distile
