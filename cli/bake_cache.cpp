@@ -11,11 +11,9 @@ namespace distile::cli {
 
 namespace fs = std::filesystem;
 
-namespace {
-
-std::string recipeHash(const std::string& recipe) {
+std::string contentHash(std::string_view bytes) {
     std::uint64_t hash = 0xcbf29ce484222325ull;  // FNV-1a 64
-    for (unsigned char byte : recipe) {
+    for (unsigned char byte : bytes) {
         hash ^= byte;
         hash *= 0x100000001b3ull;
     }
@@ -23,8 +21,6 @@ std::string recipeHash(const std::string& recipe) {
     std::snprintf(digits, sizeof digits, "%016llx", static_cast<unsigned long long>(hash));
     return digits;
 }
-
-}  // namespace
 
 std::optional<fs::path> bakeCacheFolder() {
     if (const char* folder = std::getenv("DISTILE_CACHE"); folder && *folder) {
@@ -43,7 +39,7 @@ std::shared_ptr<const Tile> cachedBake(const std::string& recipe,
     const std::string fullRecipe = "revision " + std::to_string(kBakeRevision) + "\n" + recipe;
     const std::optional<fs::path> folder = bakeCacheFolder();
     const fs::path file =
-        folder ? *folder / ("tile-" + recipeHash(fullRecipe) + ".exr") : fs::path();
+        folder ? *folder / ("tile-" + contentHash(fullRecipe) + ".exr") : fs::path();
     std::error_code error;
     if (folder && fs::is_regular_file(file, error)) {
         try {

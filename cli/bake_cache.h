@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "sampler/tile.h"
 
@@ -23,6 +24,10 @@ namespace distile::cli {
 /// Bump when the bake's output for the same recipe changes (a new conservative correction, a
 /// different resampling): cached tiles of older revisions are then never read.
 inline constexpr int kBakeRevision = 2;
+
+/// FNV-1a 64 of `bytes` as 16 hex digits: names a recipe's cached tile, and stands for the
+/// content of an input file (a detail mesh) inside a recipe.
+std::string contentHash(std::string_view bytes);
 
 /// The cache folder as the file note says, or nothing when disabled or no home is known.
 std::optional<std::filesystem::path> bakeCacheFolder();

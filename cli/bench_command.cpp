@@ -415,7 +415,7 @@ void runBench(const BenchArguments& arguments) {
              std::to_string(size.depth) + ".json");
         writeText(file, sheetJson(size));
         SceneFile sheet = loadSceneFile(file, tiles);
-        attachProceduralTruth(sheet.scene);
+        attachTruth(sheet);
         return sheet.scene;
     };
 

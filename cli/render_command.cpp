@@ -48,7 +48,7 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
     options.height = arguments.height.value_or(sceneFile.image.height);
     options.outputAovs = arguments.options.outputAovs;
     options.levelSet.voxelsPerTexel = arguments.referenceVoxelsPerTexel;
-    attachProceduralTruth(sceneFile.scene);  // analytic detail where there is one, else the tile
+    attachTruth(sceneFile);  // analytic detail where there is one, else the tile
     const auto start = std::chrono::steady_clock::now();
     WorldReferenceResult result;
     {
@@ -110,7 +110,7 @@ void runRender(RenderArguments arguments) {
     if (arguments.noShadows) options.shadowFilter = ShadowFilter::None;
     options.skips.shellCulling = !arguments.noShellCulling;
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
-    if (options.reference) attachProceduralTruth(sceneFile.scene);
+    if (options.reference) attachTruth(sceneFile);
 
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;

@@ -2,11 +2,14 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
 #include "cli/bake_cache.h"
+#include "cli/mesh_bake.h"
 #include "cli/provenance.h"
 #include "common/error.h"
 #include "mesh/base_mesh.h"
@@ -14,6 +17,7 @@
 #include "render/image.h"
 #include "sampler/bake.h"
 #include "sampler/tile_io.h"
+#include "truth/mesh_truth.h"
 
 namespace distile::cli {
 
@@ -102,15 +106,23 @@ class Field {
     const std::string& file_;
 };
 
+/// A tile size written "WxHxD" or [W, H, D].
 Size3 parseSize(const Field& field) {
-    const std::string text = field.string();
     Size3 size{0, 0, 0};
-    char x1 = 0, x2 = 0;
-    std::istringstream in(text);
-    std::string rest;
-    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x' ||
-        (in >> rest)) {
-        field.fail("'" + text + "' is not a size; write WxHxD, e.g. 256x256x16");
+    if (field.value().is_array()) {
+        if (field.value().size() != 3)
+            field.fail("must be [W, H, D] (three whole numbers) or \"WxHxD\"");
+        size = {field[0].integer(1, 1 << 20), field[1].integer(1, 1 << 20),
+                field[2].integer(1, 1 << 20)};
+    } else {
+        const std::string text = field.string();
+        char x1 = 0, x2 = 0;
+        std::istringstream in(text);
+        std::string rest;
+        if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' ||
+            x2 != 'x' || (in >> rest)) {
+            field.fail("'" + text + "' is not a size; write WxHxD, e.g. 256x256x16");
+        }
     }
     try {
         validateTileSize(size, field.path());
@@ -136,12 +148,91 @@ std::string chainmailRecipe(const ChainmailOptions& chainmail, const BakeOptions
     return recipe.str();
 }
 
-std::shared_ptr<const Tile> bakedTile(const Field& spec, TileCache& tiles) {
+/// Everything a scene's mesh bake depends on (cli/bake_cache.h): the mesh file's bytes (by
+/// hash), the placement and the bake options.
+std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& placement,
+                       const BakeOptions& options) {
+    std::ostringstream recipe;
+    recipe.precision(17);
+    recipe << "mesh file fnv1a " << contentHash(meshFileBytes) << " bytes " << meshFileBytes.size()
+           << "\nplacement ";
+    if (placement.fit) {
+        recipe << "fit";
+    } else {
+        recipe << "scale " << placement.scale << " offset " << placement.offsetTexels.x << " "
+               << placement.offsetTexels.y << " " << placement.offsetTexels.z;
+    }
+    recipe << "\nsize " << options.size.width << "x" << options.size.height << "x"
+           << options.size.depth << " band " << options.halfBandTexels << "\nconservative "
+           << options.conservative.enabled << " " << options.conservative.toleranceTexels
+           << "\nexact inside test and exact distance (cli/mesh_bake.h)\n";
+    return recipe.str();
+}
+
+/// A tile a scene bakes, and for a mesh recipe the mesh placed in it (texels).
+struct BakedTile {
+    std::shared_ptr<const Tile> tile;
+    std::shared_ptr<const TriangleSoup> placedMesh;  ///< null unless "bake": "mesh"
+};
+
+/// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the closed
+/// mesh baked as `distile bake mesh` does (cli/mesh_bake.h), fitted to the footprint unless
+/// scale or offset is given.
+BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles) {
+    spec.requireObject({"bake", "file", "size", "scale", "offset"});
+    if (!spec.has("file"))
+        spec.fail("missing field 'file' (a closed detail mesh: OBJ, PLY, OFF or STL)");
+    const Field file = spec["file"];
+    const fs::path path = folder / file.string();
+    if (!fs::is_regular_file(path)) file.fail("mesh file '" + path.string() + "' does not exist");
+    BakeOptions options;
+    if (spec.has("size")) options.size = parseSize(spec["size"]);
+    MeshPlacement placement;
+    if (spec.has("scale") || spec.has("offset")) {
+        placement.fit = false;
+        if (spec.has("scale")) placement.scale = spec["scale"].number(1e-12, 1e12);
+        if (spec.has("offset")) {
+            const Field offset = spec["offset"];
+            if (!offset.value().is_array() || offset.value().size() != 3)
+                offset.fail("must be an array of 3 numbers (texels)");
+            for (int axis = 0; axis < 3; ++axis)
+                placement.offsetTexels[axis] = offset[std::size_t(axis)].number(-1e6, 1e6);
+        }
+    }
+    std::ifstream in(path, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (!in.good() && !in.eof()) file.fail("cannot read mesh file '" + path.string() + "'");
+    const std::string recipe = meshRecipe(bytes, placement, options);
+    BakedTile baked;
+    try {
+        const TriangleSoup mesh = loadSolidDetailMesh(path);
+        baked.placedMesh =
+            std::make_shared<const TriangleSoup>(placeMesh(mesh, placement, options.size));
+        const std::string key = "bake:" + recipe;
+        if (auto found = tiles.find(key); found != tiles.end()) {
+            baked.tile = found->second;
+        } else {
+            baked.tile = cachedBake(recipe, [&] {
+                return bakeSolidMesh(mesh, placement, options, path.string()).result.tile;
+            });
+            tiles[key] = baked.tile;
+        }
+    } catch (const InputError& error) {
+        file.fail(error.what());
+    } catch (const FormatError& error) {
+        file.fail(error.what());
+    }
+    return baked;
+}
+
+BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles) {
+    if (!spec.has("bake")) spec.fail("missing field 'bake' (the detail to bake: chainmail, mesh)");
+    const std::string kind = spec["bake"].string();
+    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles);
+    if (kind != "chainmail")
+        spec["bake"].fail("'" + kind + "' is not a known detail; accepted: chainmail, mesh");
     spec.requireObject({"bake", "size", "rings_per_row", "rows_per_tile", "ring_radius",
                         "wire_radius", "tilt_deg"});
-    const std::string kind = spec["bake"].string();
-    if (kind != "chainmail")
-        spec["bake"].fail("'" + kind + "' is not a known detail; accepted: chainmail");
     BakeOptions options;
     ChainmailOptions chainmail;
     if (spec.has("size")) options.size = parseSize(spec["size"]);
@@ -153,12 +244,12 @@ std::shared_ptr<const Tile> bakedTile(const Field& spec, TileCache& tiles) {
         chainmail.wireRadiusSpacings = spec["wire_radius"].number(0.0, 2.0);
     if (spec.has("tilt_deg")) chainmail.tiltDeg = spec["tilt_deg"].number(0.0, 60.0);
     const std::string key = "bake:" + spec.value().dump();
-    if (auto found = tiles.find(key); found != tiles.end()) return found->second;
+    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
     try {
         auto tile = cachedBake(chainmailRecipe(chainmail, options),
                                [&] { return bakeChainmail(chainmail, options).tile; });
         tiles[key] = tile;
-        return tile;
+        return {tile, nullptr};
     } catch (const InputError& error) {
         spec.fail(error.what());
     }
@@ -192,13 +283,20 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
     return loadBaseMesh(path);
 }
 
-Material loadMaterial(const Field& field, const fs::path& folder, TileCache& tiles) {
+/// The material of `field`; stores the placed mesh of a `"bake": "mesh"` tile in `placedMesh`.
+Material loadMaterial(const Field& field, const fs::path& folder, TileCache& tiles,
+                      std::shared_ptr<const TriangleSoup>& placedMesh) {
     field.requireObject({"tile", "uv_scale", "depth", "floor", "color"});
     Material material;
     if (field.has("tile")) {
         const Field tile = field["tile"];
-        material.tile =
-            tile.value().is_object() ? bakedTile(tile, tiles) : tileFile(tile, folder, tiles);
+        if (tile.value().is_object()) {
+            BakedTile baked = bakedTile(tile, folder, tiles);
+            material.tile = std::move(baked.tile);
+            placedMesh = std::move(baked.placedMesh);
+        } else {
+            material.tile = tileFile(tile, folder, tiles);
+        }
     }
     if (field.has("uv_scale")) material.uvScale = field["uv_scale"].vector<2>();
     if (material.uvScale.x <= 0.0f || material.uvScale.y <= 0.0f)
@@ -319,9 +417,11 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
                 placement.scale = float(transform["scale"].number(1e-12, 1e12));
             applyTransform(parsed.mesh, placement);
         }
+        std::shared_ptr<const TriangleSoup> placedMesh;
         if (object.has("material"))
-            parsed.material = loadMaterial(object["material"], folder, tiles);
+            parsed.material = loadMaterial(object["material"], folder, tiles, placedMesh);
         scene.objects.push_back(std::move(parsed));
+        result.placedDetailMeshes.push_back(std::move(placedMesh));
     }
     try {
         validateScene(scene);
@@ -341,10 +441,41 @@ SceneFile demoScene(TileCache& tiles) {
     return demo;
 }
 
-void attachProceduralTruth(Scene& scene) {
+namespace {
+
+/// The mesh truth of a `"bake": "mesh"` tile as the material's exact hit and analytic distance.
+void attachMeshTruth(Material& material, const TriangleSoup& placedMesh) {
+    auto truth = std::make_shared<const MeshDistance>(
+        placedMesh, MeshDistance::Periodic{material.tile->size()});
+    const double meshTopTexels = boundsOf(placedMesh).max.z;
+    material.analyticDistance = [truth](const glm::dvec3& texelPosition) {
+        return truth->signedDistance(texelPosition);
+    };
+    material.exactHit = [truth, meshTopTexels](const glm::dvec3& origin,
+                                               const glm::dvec3& direction,
+                                               double maxTravelTexels) -> std::optional<DetailHit> {
+        // A ray that starts inside the solid (a mesh cut by the top z = D) is in the detail at
+        // once; the surface there is the top plane, as sphere tracing finds it (distance < 0).
+        if (origin.z <= meshTopTexels && truth->isInside(origin))
+            return DetailHit{0.0, glm::dvec3(0.0, 0.0, 1.0)};
+        const std::optional<MeshDistance::RayHit> hit =
+            truth->firstHit(origin, direction, maxTravelTexels);
+        if (!hit) return std::nullopt;
+        return DetailHit{hit->distance, hit->normal};
+    };
+}
+
+}  // namespace
+
+void attachTruth(SceneFile& sceneFile) {
+    Scene& scene = sceneFile.scene;
     for (std::size_t index = 0; index < scene.objects.size(); ++index) {
         Material& material = scene.objects[index].material;
         if (!material.tile || material.analyticDistance) continue;
+        if (index < sceneFile.placedDetailMeshes.size() && sceneFile.placedDetailMeshes[index]) {
+            attachMeshTruth(material, *sceneFile.placedDetailMeshes[index]);
+            continue;
+        }
         const TileProvenance& provenance = material.tile->provenance;
         if (provenance.source != proceduralSourceName(ProceduralKind::Chainmail) &&
             provenance.source != proceduralSourceName(ProceduralKind::Grating)) {

@@ -312,18 +312,25 @@ glm::vec3 heatColor(float value) {
 
 namespace {
 
-/// Throws InputError for the first tiled object without an analytic distance.
+/// Throws InputError for the first tiled object without the truth a reference render needs: an
+/// analytic distance (the march, or the self-shadows when the material also has an exact hit).
 void validateReference(const Scene& scene) {
     for (std::size_t index = 0; index < scene.objects.size(); ++index) {
         const Material& material = scene.objects[index].material;
         if (!material.tile || material.analyticDistance) continue;
         const std::string source =
             material.tile->provenance.source.empty() ? "unknown" : material.tile->provenance.source;
-        throw InputError(
-            "objects[" + std::to_string(index) +
-            "].material.tile: a reference render needs procedural "
-            "detail with an analytic distance (chainmail, grating); this tile's source '" +
-            source + "' has none");
+        std::string message = "objects[" + std::to_string(index) +
+                              "].material.tile: a reference render needs the detail's exact "
+                              "truth: procedural detail (chainmail, grating) or a mesh the scene "
+                              "bakes (\"bake\": \"mesh\"); this tile's source '" +
+                              source + "' has none";
+        if (source == "mesh") {
+            message +=
+                " (a tile file baked from a mesh does not name its mesh: bake it in the scene "
+                "with {\"bake\": \"mesh\", \"file\": ...})";
+        }
+        throw InputError(message);
     }
 }
 

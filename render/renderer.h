@@ -40,7 +40,9 @@ struct RenderOptions {
     /// Reference render: march and shade every tiled material on its Material::analyticDistance
     /// (double precision, render/analytic_filter.h) instead of its tile, with kReferenceIterations
     /// and kReferenceEpsilonTexels in place of march.maxIterations and march.epsilonTexels (filter
-    /// and normalFilter are unused). The truth against which ordinary renders are compared.
+    /// and normalFilter are unused); a material with a Material::exactHit (mesh detail) takes its
+    /// hits and normals from it instead of the march. The truth against which ordinary renders
+    /// are compared.
     bool reference = false;
     static constexpr int kReferenceIterations = 512;
     static constexpr float kReferenceEpsilonTexels = 1e-3f;

@@ -33,6 +33,14 @@ struct DirectionalLight {
 
 enum class Floor { Solid, Open };
 
+/// Where a ray first meets a material's detail, from Material::exactHit.
+struct DetailHit {
+    double travelTexels = 0.0;  ///< along the ray from its origin, texels
+    /// Unit surface normal at the hit in texel space, facing the ray (outward for a ray that
+    /// arrives from outside the detail).
+    glm::dvec3 normalTexels{0.0, 0.0, 1.0};
+};
+
 struct Material {
     std::shared_ptr<const Tile> tile;  ///< null: the bare base surface, no detail
     glm::vec2 uvScale{1.0f, 1.0f};     ///< tile repeats per unit of u and v
@@ -47,6 +55,15 @@ struct Material {
     /// periodic in x and y; safe to call from several threads): the truth a reference render
     /// (RenderOptions::reference) traces instead of the tile. Empty: no analytic truth.
     std::function<double(const glm::dvec3& texelPosition)> analyticDistance;
+    /// Optional exact first hit of the same detail (texel space, double precision, periodic in x
+    /// and y; safe to call from several threads): the ray from `originTexels` along the unit
+    /// texel-space `direction`, hits with travel in [0, maxTravelTexels] only; nothing for a
+    /// miss. A reference render takes the hits and normals of camera and shadow-map rays from it
+    /// instead of sphere tracing analyticDistance, which it still needs for self-shadows. Empty:
+    /// the reference render sphere traces analyticDistance.
+    std::function<std::optional<DetailHit>(const glm::dvec3& originTexels,
+                                           const glm::dvec3& direction, double maxTravelTexels)>
+        exactHit;
     /// Optional: the procedural pattern the tile was baked from (the options behind
     /// analyticDistance), so peers can rebuild the same detail their own way (bench/peers).
     std::optional<ProceduralOptions> procedural;

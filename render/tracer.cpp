@@ -4,6 +4,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <optional>
 
 #include "render/analytic_filter.h"
 
@@ -30,6 +31,34 @@ glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle,
         return glm::vec2(0.0f);
     }
     return {tileSize.width * uvScale.x / worldPerU, tileSize.height * uvScale.y / worldPerV};
+}
+
+/// The march's result taken from the material's exact first hit (reference renders,
+/// Material::exactHit) instead of marching: the hit on the path to the floor z = 0, else the
+/// floor, ended as the march ends there (solid: a hit; open: the ray leaves). One query counts as
+/// one iteration. Stores the unit texel-space normal of a detail hit in `normalTexels`. A NaN/Inf
+/// start or direction returns at once, not converged, as march() does.
+MarchResult exactFirstHit(const Material& material, const glm::vec3& start,
+                          const glm::vec3& direction, glm::vec3& normalTexels) {
+    MarchResult result;
+    result.texelPosition = start;
+    if (!(std::isfinite(start.x) && std::isfinite(start.y) && std::isfinite(start.z) &&
+          std::isfinite(direction.x) && std::isfinite(direction.y) && std::isfinite(direction.z)))
+        return result;
+    result.iterations = 1;
+    const glm::dvec3 origin(start);
+    const glm::dvec3 unitDirection = glm::normalize(glm::dvec3(direction));
+    const double toFloor = origin.z / -unitDirection.z;
+    const std::optional<DetailHit> found = material.exactHit(origin, unitDirection, toFloor);
+    if (!found) {
+        detail::endOnFloor(result, start, direction, 0.0f, float(toFloor), material.floor);
+        return result;
+    }
+    result.converged = true;
+    result.travelTexels = float(found->travelTexels);
+    result.texelPosition = glm::vec3(origin + unitDirection * found->travelTexels);
+    normalTexels = glm::vec3(found->normalTexels);
+    return result;
 }
 
 }  // namespace
@@ -207,28 +236,36 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
     // The empty path above the detail needs no samples: the march starts where it ends.
     const TileOccupancy* occupancy = occupancies_[shell.object].get();
     const float emptyTexels = occupancy ? occupancy->emptyTravelTexels(start, direction) : 0.0f;
-    const bool done =
-        withMarchFilter(options_.filter, material, columns(shell.object), options_.reference,
-                        [&](const auto& filter) {
-                            hit.march = march(filter, start + direction * emptyTexels, direction,
-                                              material.floor, options_.march);
-                            hit.march.travelTexels += emptyTexels;
-                            ++counters.shellEntries;
-                            counters.marchIterations += std::uint64_t(hit.march.iterations);
-                            if (hit.march.converged) ++counters.converged;
-                            if (hit.march.exitedFloor) return false;
-                            hit.onDetail = true;
-                            hit.distanceWorld = baseHit.distanceWorld +
-                                                hit.march.travelTexels / texelsPerWorldAlongRay;
-                            hit.position = ray.origin + ray.direction * hit.distanceWorld;
-                            return true;
-                        });
+    // Reference renders of detail with an exact first hit (mesh truth) take it instead of marching.
+    const bool exact = options_.reference && material.exactHit;
+    glm::vec3 exactNormalTexels(0.0f);
+    const bool done = withMarchFilter(
+        options_.filter, material, columns(shell.object), options_.reference,
+        [&](const auto& filter) {
+            if (exact) {
+                hit.march = exactFirstHit(material, start, direction, exactNormalTexels);
+            } else {
+                hit.march = march(filter, start + direction * emptyTexels, direction,
+                                  material.floor, options_.march);
+                hit.march.travelTexels += emptyTexels;
+            }
+            ++counters.shellEntries;
+            counters.marchIterations += std::uint64_t(hit.march.iterations);
+            if (hit.march.converged) ++counters.converged;
+            if (hit.march.exitedFloor) return false;
+            hit.onDetail = true;
+            hit.distanceWorld =
+                baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
+            hit.position = ray.origin + ray.direction * hit.distanceWorld;
+            return true;
+        });
     if (done && !hit.march.onFloor) {
         const glm::vec3 gradient =
-            withMarchFilter(options_.normalFilter, material, columns(shell.object),
-                            options_.reference, [&](const auto& normalFilter) {
-                                return normalFilter.gradient(hit.march.texelPosition);
-                            });
+            exact ? exactNormalTexels
+                  : withMarchFilter(options_.normalFilter, material, columns(shell.object),
+                                    options_.reference, [&](const auto& normalFilter) {
+                                        return normalFilter.gradient(hit.march.texelPosition);
+                                    });
         if (glm::length(gradient) > 1e-6f)
             hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
     }

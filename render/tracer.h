@@ -38,7 +38,8 @@ struct TraceOptions {
     /// The shading normal's gradient at the hit; the B-spline's is smooth (ch. 20).
     FilterKind normalFilter = FilterKind::TricubicBSpline;
     /// March and normals on each material's analyticDistance instead of its tile (reference
-    /// renders, render/analytic_filter.h). Precondition: every tiled material has one.
+    /// renders, render/analytic_filter.h), or hits and normals from its exactHit when it has one.
+    /// Precondition: every tiled material has an analyticDistance.
     bool reference = false;
     RenderSkips skips;
 };

@@ -6,6 +6,9 @@
 #include <cmath>
 #include <cstdio>
 #include <glm/geometric.hpp>
+#include <limits>
+#include <numbers>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -80,6 +83,159 @@ TEST(MeshDistance, PeriodicSeesCopiesAcrossTheWrap) {
     EXPECT_NEAR(plain.signedDistance(p), 27.5, 1e-12);
     EXPECT_TRUE(periodic.isInside(glm::dvec3(1.0, 12.0, 4.0)));
     EXPECT_FALSE(plain.isInside(glm::dvec3(1.0, 12.0, 4.0)));
+}
+
+/// The nearest first hit over the copies (m W, n H, 0), m and n in [-reach, reach], by querying
+/// every copy (the brute force that MeshDistance::firstHit avoids).
+std::optional<MeshDistance::RayHit> bruteForceFirstHit(const MeshDistance& plain, const Size3& tile,
+                                                       int reach, const glm::dvec3& origin,
+                                                       const glm::dvec3& direction,
+                                                       double maxDistance) {
+    std::optional<MeshDistance::RayHit> best;
+    for (int m = -reach; m <= reach; ++m) {
+        for (int n = -reach; n <= reach; ++n) {
+            const glm::dvec3 shift(m * tile.width, n * tile.height, 0.0);
+            const auto hit = plain.firstHit(origin - shift, direction, maxDistance);
+            if (hit && (!best || hit->distance < best->distance)) best = hit;
+        }
+    }
+    return best;
+}
+
+TEST(MeshDistance, PeriodicFirstHitIsTheNearestOverAllCopies) {
+    // A torus across the x = 0 and y = 0 borders (R 9, r 3, centre (3, 2, 4) in 32 x 32 x 8).
+    // Rays enter at the top z = D and descend at elevations from 60 degrees down to 0.1 degree;
+    // each travels to the floor or until its xy path has covered 80 texels, so it stays inside
+    // the 7 x 7 block of copies the brute force queries (the block reaches 96 texels from the
+    // tile in x and y, minus the torus' 12-texel extent around its centre).
+    const Size3 tile{32, 32, 8};
+    const TriangleSoup torus = makeTorusSoup(glm::dvec3(3.0, 2.0, 4.0), 9.0, 3.0, 48, 16);
+    const MeshDistance periodic(torus, MeshDistance::Periodic{tile});
+    const MeshDistance plain(torus);
+    std::mt19937 random(5);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    const double elevationsDeg[] = {60.0, 30.0, 10.0, 3.0, 1.0, 0.3, 0.1};
+    int hits = 0, rays = 0;
+    for (const double elevationDeg : elevationsDeg) {
+        for (int n = 0; n < 60; ++n) {
+            const double azimuth = 2.0 * std::numbers::pi * unit(random);
+            const double elevation = elevationDeg * std::numbers::pi / 180.0;
+            const glm::dvec3 direction(std::cos(elevation) * std::cos(azimuth),
+                                       std::cos(elevation) * std::sin(azimuth),
+                                       -std::sin(elevation));
+            const glm::dvec3 origin(tile.width * unit(random), tile.height * unit(random),
+                                    tile.depth);
+            const double maxDistance =
+                std::min(origin.z / std::sin(elevation), 80.0 / std::cos(elevation));
+            const auto expected =
+                bruteForceFirstHit(plain, tile, 3, origin, direction, maxDistance);
+            const auto found = periodic.firstHit(origin, direction, maxDistance);
+            ++rays;
+            ASSERT_EQ(found.has_value(), expected.has_value())
+                << "elevation " << elevationDeg << " azimuth " << azimuth;
+            if (!found) continue;
+            ++hits;
+            // The same CGAL queries on the same shifted origins: only the order differs.
+            EXPECT_NEAR(found->distance, expected->distance, 1e-9);
+            EXPECT_NEAR(glm::dot(found->normal, expected->normal), 1.0, 1e-12);
+            EXPECT_LE(glm::dot(found->normal, direction), 0.0);  // faces the ray
+        }
+    }
+    // Enough of the rays meet the torus for the comparison to mean something.
+    EXPECT_GT(hits, rays / 3);
+    EXPECT_LT(hits, rays);
+    // A 0.1-degree ray along y = 2 (through the tori's centres) over its whole path to the floor
+    // (4584 texels, 143 tiles): above the tubes (z <= 7) for its first 573 texels, then into one.
+    // The brute force queries every copy along the strip it crosses.
+    const double elevation = 0.1 * std::numbers::pi / 180.0;
+    const glm::dvec3 grazing(std::cos(elevation), 0.0, -std::sin(elevation));
+    const glm::dvec3 start(16.0, 2.0, 8.0);
+    const double toFloor = 8.0 / std::sin(elevation);
+    std::optional<MeshDistance::RayHit> nearest;
+    for (int m = -1; m <= 145; ++m) {
+        const auto hit =
+            plain.firstHit(start - glm::dvec3(m * tile.width, 0.0, 0.0), grazing, toFloor);
+        if (hit && (!nearest || hit->distance < nearest->distance)) nearest = hit;
+    }
+    const auto found = periodic.firstHit(start, grazing, toFloor);
+    ASSERT_TRUE(nearest.has_value());
+    ASSERT_TRUE(found.has_value());
+    EXPECT_GT(found->distance, 1.0 / std::sin(elevation));
+    EXPECT_NEAR(found->distance, nearest->distance, 1e-9);
+    EXPECT_THROW(periodic.firstHit(glm::dvec3(16.0, 16.0, 8.0), grazing,
+                                   std::numeric_limits<double>::infinity()),
+                 InputError);
+}
+
+TEST(MeshDistance, PeriodicDistanceIsTheNearestOverAllCopies) {
+    // Points anywhere in the tile's slab and beyond it, against every copy of a 7 x 7 block (the
+    // torus spans 24 texels, so a copy farther than 3 tiles is never the nearest).
+    const Size3 tile{32, 32, 8};
+    const TriangleSoup torus = makeTorusSoup(glm::dvec3(3.0, 2.0, 4.0), 9.0, 3.0, 48, 16);
+    const MeshDistance periodic(torus, MeshDistance::Periodic{tile});
+    const MeshDistance plain(torus);
+    std::mt19937 random(9);
+    std::uniform_real_distribution<double> xy(-40.0, 72.0), z(-20.0, 28.0);
+    for (int n = 0; n < 300; ++n) {
+        const glm::dvec3 p(xy(random), xy(random), z(random));
+        double nearest = HUGE_VAL;
+        for (int i = -3; i <= 3; ++i)
+            for (int j = -3; j <= 3; ++j)
+                nearest = std::min(
+                    nearest,
+                    plain.unsignedDistance(p - glm::dvec3(i * tile.width, j * tile.height, 0)));
+        EXPECT_EQ(periodic.unsignedDistance(p), nearest) << p.x << " " << p.y << " " << p.z;
+    }
+}
+
+TEST(MeshDistance, PeriodicFirstHitFindsTheCopyAcrossTheBorder) {
+    // A box at x in [2, 6]; a ray from x = 30 heading +x meets its copy at x in [34, 38] after 4
+    // texels in x, on that copy's -x face. The unshifted box is behind the ray.
+    const Size3 tile{32, 32, 8};
+    const TriangleSoup box = makeBoxSoup(glm::dvec3(2.0, 14.0, 0.0), glm::dvec3(6.0, 18.0, 4.0));
+    const MeshDistance periodic(box, MeshDistance::Periodic{tile});
+    const MeshDistance plain(box);
+    const glm::dvec3 origin(30.0, 16.0, 3.0);
+    const glm::dvec3 direction = glm::normalize(glm::dvec3(1.0, 0.0, -0.01));
+    EXPECT_FALSE(plain.firstHit(origin, direction, 100.0).has_value());
+    const auto hit = periodic.firstHit(origin, direction, 100.0);
+    ASSERT_TRUE(hit.has_value());
+    EXPECT_NEAR(hit->distance, 4.0 / direction.x, 1e-12);
+    EXPECT_NEAR(glm::distance(hit->normal, glm::dvec3(-1.0, 0.0, 0.0)), 0.0, 1e-12);
+    // Beyond the max distance there is nothing.
+    EXPECT_FALSE(periodic.firstHit(origin, direction, 3.9).has_value());
+}
+
+TEST(MeshDistance, FirstHitNormalIsTheHitFaceNormal) {
+    // Rays from outside onto each face of the unit cube at random points: the normal is the
+    // face's outward normal, exactly (an axis-aligned triangle's cross product has one non-zero
+    // component), whichever way the triangles are wound.
+    const TriangleSoup cube = makeBoxSoup(glm::dvec3(0.0), glm::dvec3(1.0));
+    TriangleSoup inverted = cube;
+    for (glm::uvec3& triangle : inverted.triangles) std::swap(triangle.y, triangle.z);
+    std::mt19937 random(3);
+    std::uniform_real_distribution<double> inFace(0.05, 0.95), slant(-0.3, 0.3);
+    for (const TriangleSoup& soup : {cube, inverted}) {
+        const MeshDistance distance(soup);
+        for (int axis = 0; axis < 3; ++axis) {
+            for (const double side : {-1.0, 1.0}) {
+                glm::dvec3 faceNormal(0.0);
+                faceNormal[axis] = side;
+                for (int n = 0; n < 20; ++n) {
+                    glm::dvec3 onFace(inFace(random), inFace(random), inFace(random));
+                    onFace[axis] = side > 0.0 ? 1.0 : 0.0;
+                    glm::dvec3 direction(slant(random), slant(random), slant(random));
+                    direction[axis] = -side;
+                    direction = glm::normalize(direction);
+                    const glm::dvec3 origin = onFace - 2.0 * direction;
+                    const auto hit = distance.firstHit(origin, direction, 10.0);
+                    ASSERT_TRUE(hit.has_value());
+                    EXPECT_NEAR(hit->distance, 2.0, 1e-12);
+                    EXPECT_EQ(hit->normal, faceNormal);
+                }
+            }
+        }
+    }
 }
 
 TEST(MeshDistance, OpenMeshHasNoSign) {

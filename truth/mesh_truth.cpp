@@ -130,7 +130,44 @@ struct MeshDistance::Impl {
     bool insideUnshifted(const glm::dvec3& p) const {
         return (*side)(toPoint(p)) == CGAL::ON_BOUNDED_SIDE;
     }
+
+    /// The first hit of origin + t * direction, t >= 0, with the unshifted mesh.
+    std::optional<RayHit> firstHitUnshifted(const glm::dvec3& origin,
+                                            const glm::dvec3& direction) const;
 };
+
+std::optional<MeshDistance::RayHit> MeshDistance::Impl::firstHitUnshifted(
+    const glm::dvec3& origin, const glm::dvec3& direction) const {
+    const Kernel::Ray_3 ray(toPoint(origin),
+                            Kernel::Vector_3(direction.x, direction.y, direction.z));
+    const auto hit = tree.first_intersection(ray);
+    if (!hit) return std::nullopt;
+    const double lengthSquared = glm::dot(direction, direction);
+    const auto parameterOf = [&](const Point& p) {
+        const glm::dvec3 offset(p.x() - origin.x, p.y() - origin.y, p.z() - origin.z);
+        return glm::dot(offset, direction) / lengthSquared;
+    };
+    RayHit result;
+    if (const Point* point = boost::get<Point>(&hit->first)) {
+        result.distance = parameterOf(*point);
+    } else if (const Kernel::Segment_3* segment = boost::get<Kernel::Segment_3>(&hit->first)) {
+        result.distance = std::min(parameterOf(segment->source()), parameterOf(segment->target()));
+    } else {
+        return std::nullopt;
+    }
+    result.distance = std::max(result.distance, 0.0);
+    const Triangle& triangle = *hit->second;
+    const auto toVector = [](const Point& p) { return glm::dvec3(p.x(), p.y(), p.z()); };
+    const glm::dvec3 corner = toVector(triangle.vertex(0));
+    const glm::dvec3 normal =
+        glm::cross(toVector(triangle.vertex(1)) - corner, toVector(triangle.vertex(2)) - corner);
+    const double normalLength = glm::length(normal);
+    // A degenerate triangle has no plane; facing the ray is the only orientation left.
+    result.normal =
+        normalLength > 0.0 ? normal / normalLength : -direction / std::sqrt(lengthSquared);
+    if (glm::dot(result.normal, direction) > 0.0) result.normal = -result.normal;
+    return result;
+}
 
 MeshDistance::MeshDistance(const TriangleSoup& soup, std::optional<Periodic> periodic)
     : impl_(std::make_unique<Impl>()) {
@@ -165,22 +202,24 @@ MeshDistance::~MeshDistance() = default;
 double MeshDistance::unsignedDistance(const glm::dvec3& point) const {
     if (!impl_->periodic) return std::sqrt(impl_->squaredDistanceUnshifted(point));
     const Size3& tile = impl_->periodic->tile;
-    const auto nearestWithin = [&](double reach) {
-        double best = std::numeric_limits<double>::infinity();
-        const PeriodicShifts shifts = periodicShifts(point, impl_->box, tile, reach);
-        for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
-            for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
-                const glm::dvec3 shift(double(m) * tile.width, double(n) * tile.height, 0.0);
-                best = std::min(best, impl_->squaredDistanceUnshifted(point - shift));
-            }
-        }
-        return std::sqrt(best);
+    // The copy whose box centre is nearest in x and y bounds the distance; a copy nearer than
+    // that bound has its box within it, so only those copies are queried besides (usually one
+    // to four, where a fixed reach of a tile would query nine).
+    const glm::dvec3 centre = 0.5 * (impl_->box.min + impl_->box.max);
+    const int nearestM = int(std::lround((point.x - centre.x) / tile.width));
+    const int nearestN = int(std::lround((point.y - centre.y) / tile.height));
+    const auto shiftOf = [&](int m, int n) {
+        return glm::dvec3(double(m) * tile.width, double(n) * tile.height, 0.0);
     };
-    // A reach of max(W, H) always includes at least one copy in x and y. Copies left out are
-    // farther than that reach; if the nearest found is farther still, widen to it.
-    const double firstReach = std::max(tile.width, tile.height);
-    const double nearest = nearestWithin(firstReach);
-    return nearest <= firstReach ? nearest : nearestWithin(nearest);
+    double best = impl_->squaredDistanceUnshifted(point - shiftOf(nearestM, nearestN));
+    const PeriodicShifts shifts = periodicShifts(point, impl_->box, tile, std::sqrt(best));
+    for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
+        for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
+            if (m == nearestM && n == nearestN) continue;
+            best = std::min(best, impl_->squaredDistanceUnshifted(point - shiftOf(m, n)));
+        }
+    }
+    return std::sqrt(best);
 }
 
 bool MeshDistance::hasSign() const {
@@ -213,24 +252,101 @@ double MeshDistance::signedDistance(const glm::dvec3& point) const {
 
 bool MeshDistance::rayHit(const glm::dvec3& origin, const glm::dvec3& direction,
                           double& distance) const {
-    const Kernel::Ray_3 ray(toPoint(origin),
-                            Kernel::Vector_3(direction.x, direction.y, direction.z));
-    const auto hit = impl_->tree.first_intersection(ray);
-    if (!hit) return false;
-    const double lengthSquared = glm::dot(direction, direction);
-    const auto parameterOf = [&](const Point& p) {
-        const glm::dvec3 offset(p.x() - origin.x, p.y() - origin.y, p.z() - origin.z);
-        return glm::dot(offset, direction) / lengthSquared;
-    };
-    if (const Point* point = boost::get<Point>(&hit->first)) {
-        distance = parameterOf(*point);
-    } else if (const Kernel::Segment_3* segment = boost::get<Kernel::Segment_3>(&hit->first)) {
-        distance = std::min(parameterOf(segment->source()), parameterOf(segment->target()));
-    } else {
-        return false;
+    const std::optional<RayHit> hit = impl_->firstHitUnshifted(origin, direction);
+    if (hit) distance = hit->distance;
+    return hit.has_value();
+}
+
+namespace {
+
+/// The parameter range [entry, exit] of origin + t * direction inside `box` for t in
+/// [0, maxDistance]; empty (entry > exit) when the ray misses the box there.
+std::pair<double, double> rayBoxRange(const glm::dvec3& origin, const glm::dvec3& direction,
+                                      const Bounds3& box, double maxDistance) {
+    double entry = 0.0, exit = maxDistance;
+    for (int axis = 0; axis < 3; ++axis) {
+        if (direction[axis] == 0.0) {
+            if (origin[axis] < box.min[axis] || origin[axis] > box.max[axis]) return {1.0, 0.0};
+            continue;
+        }
+        double near = (box.min[axis] - origin[axis]) / direction[axis];
+        double far = (box.max[axis] - origin[axis]) / direction[axis];
+        if (near > far) std::swap(near, far);
+        entry = std::max(entry, near);
+        exit = std::min(exit, far);
     }
-    distance = std::max(distance, 0.0);
-    return true;
+    return {entry, exit};
+}
+
+/// Copy indices k whose interval [low + k period, high + k period] overlaps [from, to].
+std::pair<int, int> overlappingCopies(double from, double to, double low, double high,
+                                      double period) {
+    return {int(std::ceil((from - high) / period)), int(std::floor((to - low) / period))};
+}
+
+}  // namespace
+
+std::optional<MeshDistance::RayHit> MeshDistance::firstHit(const glm::dvec3& origin,
+                                                           const glm::dvec3& direction,
+                                                           double maxDistance) const {
+    const auto within = [&](std::optional<RayHit> hit) {
+        return hit && hit->distance <= maxDistance ? hit : std::nullopt;
+    };
+    if (!impl_->periodic) return within(impl_->firstHitUnshifted(origin, direction));
+    if (!std::isfinite(maxDistance)) {
+        throw InputError(
+            "mesh distance: a periodic first hit needs a finite maximum distance along the ray");
+    }
+    const double width = impl_->periodic->tile.width;
+    const double height = impl_->periodic->tile.height;
+    // The box grown by a hair, so a hit on a face of the box (a flat top, a cube's side) is not
+    // lost to the rounding of the slab test.
+    Bounds3 box = impl_->box;
+    const double pad = 1e-9 * (1.0 + glm::length(box.max - box.min));
+    box.min -= glm::dvec3(pad);
+    box.max += glm::dvec3(pad);
+
+    // The copies (m, n) whose shifted box the ray crosses within [0, maxDistance]: for each m
+    // whose box the xy path reaches in x, the stretch of the path inside that box's x range
+    // gives the n whose box it reaches in y. Work grows with the tiles the path crosses.
+    struct Candidate {
+        double entry;
+        glm::dvec3 shift;
+    };
+    std::vector<Candidate> candidates;
+    const glm::dvec3 end = origin + direction * maxDistance;
+    const auto [mBegin, mEnd] = overlappingCopies(
+        std::min(origin.x, end.x), std::max(origin.x, end.x), box.min.x, box.max.x, width);
+    for (int m = mBegin; m <= mEnd; ++m) {
+        double from = 0.0, to = maxDistance;
+        if (direction.x != 0.0) {
+            from = (box.min.x + m * width - origin.x) / direction.x;
+            to = (box.max.x + m * width - origin.x) / direction.x;
+            if (from > to) std::swap(from, to);
+            from = std::max(from, 0.0);
+            to = std::min(to, maxDistance);
+        }
+        if (from > to) continue;
+        const double yFrom = origin.y + direction.y * from, yTo = origin.y + direction.y * to;
+        const auto [nBegin, nEnd] = overlappingCopies(std::min(yFrom, yTo), std::max(yFrom, yTo),
+                                                      box.min.y, box.max.y, height);
+        for (int n = nBegin; n <= nEnd; ++n) {
+            const glm::dvec3 shift(m * width, n * height, 0.0);
+            const auto [entry, exit] = rayBoxRange(origin - shift, direction, box, maxDistance);
+            if (entry <= exit) candidates.push_back({entry, shift});
+        }
+    }
+    // Nearest box first; a copy whose box the ray enters beyond the best hit cannot beat it.
+    std::sort(candidates.begin(), candidates.end(),
+              [](const Candidate& a, const Candidate& b) { return a.entry < b.entry; });
+    std::optional<RayHit> best;
+    for (const Candidate& candidate : candidates) {
+        if (best && candidate.entry > best->distance) break;
+        const std::optional<RayHit> hit =
+            within(impl_->firstHitUnshifted(origin - candidate.shift, direction));
+        if (hit && (!best || hit->distance < best->distance)) best = hit;
+    }
+    return best;
 }
 
 std::size_t MeshDistance::triangleCount() const {

@@ -74,6 +74,25 @@ class MeshDistance {
     /// @pre direction is non-zero and finite.
     bool rayHit(const glm::dvec3& origin, const glm::dvec3& direction, double& distance) const;
 
+    /// A ray's first hit: how far along the ray and the hit triangle's plane.
+    struct RayHit {
+        double distance = 0.0;  ///< t of origin + t * direction, in units of |direction|
+        /// Unit normal of the hit triangle, oriented against the ray (dot(normal, direction)
+        /// <= 0): for a ray arriving from outside the solid, the outward normal, whatever the
+        /// winding of the file.
+        glm::dvec3 normal{0.0, 0.0, 1.0};
+    };
+
+    /// Nearest hit of origin + t * direction for t in [0, maxDistance] (t in units of
+    /// |direction|). Periodic MeshDistance: the nearest hit over all copies shifted by
+    /// (m W, n H, 0) that the ray meets within maxDistance; only the copies whose shifted
+    /// bounding box the ray's path crosses are queried, so the cost grows with the path's length
+    /// in tiles, not with its square. Otherwise the (unshifted) mesh only.
+    /// @pre direction is non-zero and finite; maxDistance >= 0.
+    /// @throws InputError periodic and maxDistance is not finite (the copies would not end).
+    std::optional<RayHit> firstHit(const glm::dvec3& origin, const glm::dvec3& direction,
+                                   double maxDistance) const;
+
     /// Number of triangles in the tree.
     std::size_t triangleCount() const;
 
