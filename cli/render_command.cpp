@@ -28,7 +28,8 @@ struct RenderArguments {
     std::optional<int> samplesPerPixel;
     RenderOptions options;
     bool noShadows = false;
-    bool noShellCulling = false;
+    /// --no-skip: names of RenderSkips switched off (the work done anyway, for measurements).
+    std::vector<std::string> noSkips;
     /// --reference [analytic|world]: empty when given without a value (analytic).
     std::string referenceKind;
     bool referenceGiven = false;
@@ -108,7 +109,12 @@ void runRender(RenderArguments arguments) {
     options.samplesPerPixel = arguments.samplesPerPixel.value_or(sceneFile.image.samplesPerPixel);
     // --no-shadows is --shadows none: neither shadow maps nor self-shadow rays.
     if (arguments.noShadows) options.shadowFilter = ShadowFilter::None;
-    options.skips.shellCulling = !arguments.noShellCulling;
+    for (const std::string& name : arguments.noSkips) {
+        if (name == "empty-space") options.skips.emptySpace = false;
+        if (name == "adaptive-budget") options.skips.adaptiveBudget = false;
+        if (name == "shell-culling") options.skips.shellCulling = false;
+        if (name == "unlit-shadows") options.skips.unlitShadows = false;
+    }
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachTruth(sceneFile);
 
@@ -240,10 +246,17 @@ void addRenderCommand(CLI::App& app) {
             ->default_str("adaptive");
     command->add_flag("--no-shadows", arguments->noShadows, "Same as --shadows none")
         ->excludes(shadows);
-    command->add_flag("--no-shell-culling", arguments->noShellCulling,
-                      "Trace every detail shell under a pixel, not only those that may be nearer "
-                      "than the best hit "
-                      "(same image, more work)");
+    command
+        ->add_option("--no-skip", arguments->noSkips,
+                     "Do work the renderer normally skips, to measure the skip (repeatable): "
+                     "empty-space (march from the top face, not from the top of the occupied "
+                     "layers), adaptive-budget (every ray gets --iterations samples), "
+                     "shell-culling (trace every detail shell under a pixel; same image), "
+                     "unlit-shadows (shadow work also where the detail faces away from the "
+                     "light; same image)")
+        ->check(CLI::IsMember({"empty-space", "adaptive-budget", "shell-culling", "unlit-shadows"}))
+        ->expected(1)
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
     command->add_flag("--aovs", arguments->options.outputAovs,
                       "Also write depth (.exr), normal, iteration, shadow-sample and curvature "
                       "heat maps beside the image");

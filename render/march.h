@@ -59,6 +59,19 @@ struct MarchSettings {
     float reliefLinearShare = 0.75f;
 };
 
+/// The adaptive budget (ch. 8's future work: iterations from the viewing angle): a ray gets one
+/// sample per kAdaptiveTexelsPerSample texels of its path to the floor, within [budget / 4,
+/// budget]. Steep rays and rays starting low (after empty-space skipping) need few samples; the
+/// cut never makes the budgeted march's forced steps (path left over samples left) longer than
+/// kAdaptiveTexelsPerSample, so thin detail is not stepped over for it.
+inline constexpr float kAdaptiveTexelsPerSample = 1.0f;
+
+inline int adaptiveBudget(int budget, float pathTexels) {
+    const float samples = std::ceil(pathTexels / kAdaptiveTexelsPerSample);
+    if (!(samples < float(budget))) return budget;  // also NaN
+    return std::max({int(samples), (budget + 3) / 4, 1});
+}
+
 /// Where a march ended. Positions in texel space, lengths in texels.
 struct MarchResult {
     glm::vec3 texelPosition;

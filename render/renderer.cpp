@@ -351,6 +351,7 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
         options.march.method = MarchMethod::SphereTracing;
         options.march.maxIterations = RenderOptions::kReferenceIterations;
         options.march.epsilonTexels = RenderOptions::kReferenceEpsilonTexels;
+        options.skips.adaptiveBudget = false;  // the truth gets the whole budget on every ray
     }
     const Renderer renderer(scene, options);
     RenderResult result;

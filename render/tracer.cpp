@@ -245,8 +245,12 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
             if (exact) {
                 hit.march = exactFirstHit(material, start, direction, exactNormalTexels);
             } else {
-                hit.march = march(filter, start + direction * emptyTexels, direction,
-                                  material.floor, options_.march);
+                const glm::vec3 marchStart = start + direction * emptyTexels;
+                MarchSettings settings = options_.march;
+                if (options_.skips.adaptiveBudget)
+                    settings.maxIterations =
+                        adaptiveBudget(settings.maxIterations, marchStart.z / -direction.z);
+                hit.march = march(filter, marchStart, direction, material.floor, settings);
                 hit.march.travelTexels += emptyTexels;
             }
             ++counters.shellEntries;

@@ -174,6 +174,9 @@ void grazingSphereTracingCases(std::vector<StressCase>& cases) {
         TraceOptions traceOptions;
         traceOptions.march.method = MarchMethod::SphereTracing;
         traceOptions.march.maxIterations = budget;
+        // Ch. 8's march from the top face, as predicted: no empty-space skipping, which would
+        // start the rays just above the plane.
+        traceOptions.skips.emptySpace = false;
         const double epsilon = traceOptions.march.epsilonTexels;
         const SceneTracer tracer(scene, traceOptions);
         for (double elevationDeg : {0.1, 0.5, 1.0, 2.0, 5.0}) {
