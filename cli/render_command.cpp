@@ -114,6 +114,7 @@ void runRender(RenderArguments arguments) {
         if (name == "adaptive-budget") options.skips.adaptiveBudget = false;
         if (name == "shell-culling") options.skips.shellCulling = false;
         if (name == "unlit-shadows") options.skips.unlitShadows = false;
+        if (name == "casterless-shadow-maps") options.skips.casterlessShadowMaps = false;
     }
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachTruth(sceneFile);
@@ -253,8 +254,10 @@ void addRenderCommand(CLI::App& app) {
                      "layers), adaptive-budget (every ray gets --iterations samples), "
                      "shell-culling (trace every detail shell under a pixel; same image), "
                      "unlit-shadows (shadow work also where the detail faces away from the "
-                     "light; same image)")
-        ->check(CLI::IsMember({"empty-space", "adaptive-budget", "shell-culling", "unlit-shadows"}))
+                     "light; same image), casterless-shadow-maps (shadow maps also for a scene "
+                     "of one flat object, where nothing can cast into them)")
+        ->check(CLI::IsMember({"empty-space", "adaptive-budget", "shell-culling", "unlit-shadows",
+                               "casterless-shadow-maps"}))
         ->expected(1)
         ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
     command->add_flag("--aovs", arguments->options.outputAovs,

@@ -225,4 +225,23 @@ bool lightReachesVisibleSurface(const Scene& scene, const DirectionalLight& ligh
     return false;
 }
 
+bool sceneCastsShadowsBetweenSurfaces(const Scene& scene) {
+    if (scene.objects.size() != 1) return true;
+    const BaseMesh& mesh = scene.objects[0].mesh;
+    if (mesh.positions.empty() || mesh.normals.size() != mesh.positions.size()) return true;
+    const glm::vec3 normal = mesh.normals[0];
+    glm::vec3 lower = mesh.positions[0], upper = mesh.positions[0];
+    for (const glm::vec3& position : mesh.positions) {
+        lower = glm::min(lower, position);
+        upper = glm::max(upper, position);
+    }
+    const float tolerance = 1e-5f * glm::length(upper - lower);
+    for (std::size_t vertex = 0; vertex < mesh.positions.size(); ++vertex) {
+        if (glm::dot(mesh.normals[vertex], normal) < 1.0f - 1e-6f) return true;
+        if (std::abs(glm::dot(mesh.positions[vertex] - mesh.positions[0], normal)) > tolerance)
+            return true;
+    }
+    return false;
+}
+
 }  // namespace distile

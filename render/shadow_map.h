@@ -93,4 +93,9 @@ class ShadowMap {
 /// for the light's shadow map and it need not be built.
 bool lightReachesVisibleSurface(const Scene& scene, const DirectionalLight& light);
 
+/// False when no surface of the scene can shadow another one: a single object on a planar base
+/// mesh with parallel vertex normals (its shell is a flat slab, whose detail shadows itself only
+/// inside the slab, which the self-shadow rays trace). Shadow maps of such a scene hold nothing.
+bool sceneCastsShadowsBetweenSurfaces(const Scene& scene);
+
 }  // namespace distile

@@ -33,6 +33,9 @@ struct RenderSkips {
     /// No shadow work (self-shadow march, shadow-map lookups) for a light the detail's shading
     /// normal faces away from: its direct light is zero anyway.
     bool unlitShadows = true;
+    /// No shadow maps when no surface can shadow another (render/shadow_map.h
+    /// sceneCastsShadowsBetweenSurfaces: one flat object); self-shadows are traced as ever.
+    bool casterlessShadowMaps = true;
 };
 
 struct TraceOptions {
