@@ -14,6 +14,9 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/vec3.hpp>
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
 
 #include "sampler/tile.h"
 #include "sampler/tile_columns.h"
@@ -99,7 +102,9 @@ class TileTexels {
         return std::size_t(x) + std::size_t(size_.width) * std::size_t(y);
     }
     std::size_t zStride() const { return std::size_t(size_.width) * std::size_t(size_.height); }
+    static constexpr bool kZContiguous = false;
     float operator[](std::size_t element) const { return data_[element]; }
+    const float* data() const { return data_; }
 
   private:
     const float* data_;
@@ -116,7 +121,10 @@ class ColumnTexels {
                std::size_t(size_.depth);
     }
     static constexpr std::size_t zStride() { return 1; }
+    /// Slices z and z + 1 of a column are adjacent: the filters load them as pairs (SSE2).
+    static constexpr bool kZContiguous = true;
     float operator[](std::size_t element) const { return data_[element]; }
+    const float* data() const { return data_; }
 
   private:
     const float* data_;
@@ -182,12 +190,32 @@ class BasicTrilinearFilter {
     /// filters of sampler/tricubic.h. Preconditions: the indices are inside the tile; no checks.
     float fetch(const detail::AxisLerp& x, const detail::AxisLerp& y,
                 const detail::AxisLerp& z) const {
-        const Corners c = corners(x, y, z);
-        const float v00 = lerp(c.v[0], c.v[1], x.weight);
-        const float v10 = lerp(c.v[2], c.v[3], x.weight);
-        const float v01 = lerp(c.v[4], c.v[5], x.weight);
-        const float v11 = lerp(c.v[6], c.v[7], x.weight);
-        return lerp(lerp(v00, v10, y.weight), lerp(v01, v11, y.weight), z.weight);
+        // Along z first (four columns at once where z is contiguous), then x, then y: the same
+        // operations in the same order on either layout, so the same result.
+        float alongZ[4];
+#if defined(__SSE2__)
+        if constexpr (Texels::kZContiguous) {
+            const float* data = texels_.data() + z.lower;
+            const auto pair = [&](int xIndex, int yIndex) {
+                return reinterpret_cast<const __m64*>(data + texels_.column(xIndex, yIndex));
+            };
+            const __m128 yLower = _mm_loadh_pi(
+                _mm_loadl_pi(_mm_setzero_ps(), pair(x.lower, y.lower)), pair(x.upper, y.lower));
+            const __m128 yUpper = _mm_loadh_pi(
+                _mm_loadl_pi(_mm_setzero_ps(), pair(x.lower, y.upper)), pair(x.upper, y.upper));
+            const __m128 zLower = _mm_shuffle_ps(yLower, yUpper, _MM_SHUFFLE(2, 0, 2, 0));
+            const __m128 zUpper = _mm_shuffle_ps(yLower, yUpper, _MM_SHUFFLE(3, 1, 3, 1));
+            _mm_storeu_ps(alongZ, _mm_add_ps(zLower, _mm_mul_ps(_mm_sub_ps(zUpper, zLower),
+                                                                _mm_set1_ps(z.weight))));
+        } else
+#endif
+        {
+            const Corners c = corners(x, y, z);
+            for (int column = 0; column < 4; ++column)
+                alongZ[column] = lerp(c.v[column], c.v[column + 4], z.weight);
+        }
+        return lerp(lerp(alongZ[0], alongZ[1], x.weight), lerp(alongZ[2], alongZ[3], x.weight),
+                    y.weight);
     }
 
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
@@ -215,7 +243,9 @@ class BasicTrilinearFilter {
         float v[8];
     };
 
-    static float lerp(float a, float b, float t) { return a + (b - a) * t; }
+    static float lerp(float a, float b, float t) {
+        return a + (b - a) * t;
+    }
 
     Corners corners(const detail::AxisLerp& x, const detail::AxisLerp& y,
                     const detail::AxisLerp& z) const {

@@ -197,8 +197,10 @@ float sumOfTaps(const Texels& texels, const CubicAxis& x, const CubicAxis& y, co
     return sum;
 }
 
-/// The gradient of a cubic filter in one pass over its 64 taps, column by column: value weights
-/// `w*` and derivative weights `d*` per axis.
+/// The gradient of a cubic filter in one pass over its 64 taps: value weights `w*` and derivative
+/// weights `d*` per axis. Factored by z tap: per stored slice k the columns' texels summed with
+/// the x-y weights of each component, then the z weights applied once. Where z is contiguous
+/// (ColumnTexels) the four slices of a column are one SSE load, with the same operations per lane.
 template <class Texels>
 glm::vec3 gradientOfTaps(const Texels& texels, const CubicAxis& x, const CubicAxis& y,
                          const CubicAxis& z, const CubicWeights& wx, const CubicWeights& wy,
@@ -206,23 +208,46 @@ glm::vec3 gradientOfTaps(const Texels& texels, const CubicAxis& x, const CubicAx
                          const CubicWeights& dy, const CubicWeights& tapDerivativesZ) {
     const CubicWeights wz = storedTapWeights(z, tapWeightsZ);
     const CubicWeights dz = storedTapWeights(z, tapDerivativesZ);
-    std::size_t slices[4];
-    for (int k = 0; k < 4; ++k) slices[k] = std::size_t(z.tap[k]) * texels.zStride();
-    glm::vec3 sum(0.0f);
-    for (int j = 0; j < 4; ++j) {
-        for (int i = 0; i < 4; ++i) {
-            const std::size_t column = texels.column(x.tap[i], y.tap[j]);
-            float columnValue = 0.0f;
-            float columnDerivative = 0.0f;
-            for (int k = 0; k < 4; ++k) {
-                const float texel = texels[column + slices[k]];
-                columnValue += wz.w[k] * texel;
-                columnDerivative += dz.w[k] * texel;
+    alignas(16) float value[4] = {};        // per slice: sum of wx wy texel
+    alignas(16) float xDerivative[4] = {};  // sum of dx wy texel
+    alignas(16) float yDerivative[4] = {};  // sum of wx dy texel
+#if defined(__SSE2__)
+    if (Texels::kZContiguous && z.tap[3] == z.tap[0] + 3) {
+        __m128 valueSum = _mm_setzero_ps(), xSum = _mm_setzero_ps(), ySum = _mm_setzero_ps();
+        const float* data = texels.data() + z.tap[0];
+        for (int j = 0; j < 4; ++j) {
+            for (int i = 0; i < 4; ++i) {
+                const __m128 column = _mm_loadu_ps(data + texels.column(x.tap[i], y.tap[j]));
+                valueSum = _mm_add_ps(valueSum, _mm_mul_ps(_mm_set1_ps(wx.w[i] * wy.w[j]), column));
+                xSum = _mm_add_ps(xSum, _mm_mul_ps(_mm_set1_ps(dx.w[i] * wy.w[j]), column));
+                ySum = _mm_add_ps(ySum, _mm_mul_ps(_mm_set1_ps(wx.w[i] * dy.w[j]), column));
             }
-            sum.x += dx.w[i] * wy.w[j] * columnValue;
-            sum.y += wx.w[i] * dy.w[j] * columnValue;
-            sum.z += wx.w[i] * wy.w[j] * columnDerivative;
         }
+        _mm_store_ps(value, valueSum);
+        _mm_store_ps(xDerivative, xSum);
+        _mm_store_ps(yDerivative, ySum);
+    } else
+#endif
+    {
+        std::size_t slices[4];
+        for (int k = 0; k < 4; ++k) slices[k] = std::size_t(z.tap[k]) * texels.zStride();
+        for (int j = 0; j < 4; ++j) {
+            for (int i = 0; i < 4; ++i) {
+                const std::size_t column = texels.column(x.tap[i], y.tap[j]);
+                for (int k = 0; k < 4; ++k) {
+                    const float texel = texels[column + slices[k]];
+                    value[k] += wx.w[i] * wy.w[j] * texel;
+                    xDerivative[k] += dx.w[i] * wy.w[j] * texel;
+                    yDerivative[k] += wx.w[i] * dy.w[j] * texel;
+                }
+            }
+        }
+    }
+    glm::vec3 sum(0.0f);
+    for (int k = 0; k < 4; ++k) {
+        sum.x += wz.w[k] * xDerivative[k];
+        sum.y += wz.w[k] * yDerivative[k];
+        sum.z += dz.w[k] * value[k];
     }
     return sum;
 }
