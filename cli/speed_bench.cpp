@@ -398,6 +398,9 @@ void runSpeedBench(const BenchArguments& arguments) {
         std::optional<PeerRender> vdbRender =
             renderSheetWithVdbRender(sheet, width, height, threads, work);
         peerRow("vdb_render", vdbRender);
+        notes.push_back("Embree: the fastest trace of " + std::to_string(runs) +
+                        " runs (each with its own set-up); vdb_render: one run (its set-up "
+                        "rebuilds the level set), which can only favour distile by the noise.");
         if (vdbRender->available) levelSetBytes = double(vdbRender->memoryBytes);
     } else {
         notes.push_back("peers: not run (--no-peers)");
@@ -597,8 +600,9 @@ void runSpeedBench(const BenchArguments& arguments) {
           "Pixels > 1 code: share of pixels where a channel of the 8-bit sRGB image differs by "
           "more than 1 code from the render with every skip on. Work saved: the renderer's work "
           "counter (RenderStats) the skip lowers most, deterministic where the times are not. A "
-          "skip saves time on a scene when it is more than 2% faster there (the spread of the "
-          "fastest of a few runs on this shared machine) and lowers a work counter.\n\n"
+          "skip saves time on a scene when it is more than 2% faster there and lowers a work "
+          "counter: on a busy shared machine the times of identical renders can differ by far "
+          "more than 2%, so a time alone does not count.\n\n"
           "| skip | scene | on s | off s | saving | work saved | pixels > 1 code | max codes |\n"
           "|---|---|---|---|---|---|---|---|\n";
     std::vector<std::string> verdicts;
