@@ -5,20 +5,18 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <functional>
 #include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "cli/arguments.h"
+#include "cli/bench_common.h"
 #include "cli/commands.h"
 #include "cli/scene_json.h"
-#include "common/atomic_file.h"
+#include "cli/speed_bench.h"
 #include "common/error.h"
 #include "render/compare.h"
 #include "render/renderer.h"
@@ -36,38 +34,6 @@ namespace distile::cli {
 namespace fs = std::filesystem;
 
 namespace {
-
-struct BenchArguments {
-    fs::path outputDir = "bench-out";
-    bool quick = false;
-    bool peers = true;
-    /// The stress cases (bench/stress/stress_cases.h) instead of the sweep.
-    bool stress = false;
-    int width = 0;  ///< 0: 1280 (640 with --quick)
-    int height = 0;
-};
-
-/// The flat chain-mail sheet of data/scenes/sheet.json (a plane of 4 x 4 tiles, camera about 35
-/// degrees above it), with the tile size given; written beside the results so every row can be
-/// reproduced with `distile render`.
-std::string sheetJson(const Size3& tile) {
-    std::ostringstream json;
-    json << R"({
-  "camera": {"eye": [0.0, -2.1, 1.47], "target": [0.0, 0.0, 0.0], "up": [0, 0, 1], "fov_deg": 40},
-  "image": {"width": 1280, "height": 1024, "spp": 1},
-  "lights": [{"type": "directional", "direction": [-0.4, 0.3, -1.0], "color": [1, 1, 1], "angle_deg": 2}],
-  "objects": [
-    {"mesh": "plane",
-     "transform": {"scale": 2.0},
-     "material": {"tile": {"bake": "chainmail", "size": ")"
-         << tile.width << "x" << tile.height << "x" << tile.depth
-         << R"("}, "uv_scale": [4, 4], "depth": 0.0625,
-                  "floor": "solid", "color": [0.8, 0.8, 0.85]}}
-  ]
-}
-)";
-    return json.str();
-}
 
 enum class Storage { Float32, Half16, Byte8 };
 
@@ -117,33 +83,6 @@ struct Row {
     bool peer = false;
     bool paretoFront = false;
 };
-
-RenderOptions benchRenderOptions(int width, int height) {
-    RenderOptions options;
-    options.width = width;
-    options.height = height;
-    options.outputAovs = true;
-    // Primary visibility and shading only: the peers neither shade nor shadow.
-    options.selfShadows = false;
-    options.shadowFilter = ShadowFilter::None;
-    return options;
-}
-
-struct TimedRender {
-    RenderResult result;
-    double seconds = 0.0;
-};
-
-TimedRender timedRender(const Scene& scene, const RenderOptions& options) {
-    const auto start = std::chrono::steady_clock::now();
-    TimedRender timed{renderScene(scene, options), 0.0};
-    timed.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return timed;
-}
-
-RenderLayersView layers(const RenderResult& result) {
-    return {result.image, result.aovs->depth, result.aovs->normal, result.aovs->texelScale};
-}
 
 double convergedShare(const RenderStats& stats) {
     return stats.baseHits ? double(stats.converged) / double(stats.baseHits) : 0.0;
@@ -239,14 +178,6 @@ std::string gnuplotScript(const std::vector<Row>& rows, const fs::path& png) {
 /// Runs a command line of our own making (quoted paths); true when it exits 0.
 bool runProgram(const std::string& commandLine) {
     return std::system(commandLine.c_str()) == 0;
-}
-
-void writeText(const fs::path& file, const std::string& text) {
-    writeAtomically(file, [&](const fs::path& temporary) {
-        std::ofstream out(temporary);
-        out << text;
-        if (!out.flush()) throw InputError(file.string() + ": could not be written");
-    });
 }
 
 struct ClaimRow {
@@ -395,6 +326,10 @@ void runBench(const BenchArguments& arguments) {
         throw InputError("--stress: distile was built without bench/ (DISTILE_BUILD_BENCH=OFF)");
 #endif
     }
+    if (arguments.speed) {
+        runSpeedBench(arguments);
+        return;
+    }
     const int width = arguments.width > 0 ? arguments.width : (arguments.quick ? 640 : 1280);
     const int height = arguments.height > 0 ? arguments.height : (arguments.quick ? 512 : 1024);
     const int threads =
@@ -508,19 +443,7 @@ void runBench(const BenchArguments& arguments) {
     // Ch. 8's smooth height field claim: the sheet with a smooth height-field tile.
     say("bench: smooth height field (ch. 8's 8-iteration claim)");
     {
-        // heights 0.5 + 0.25 sin(u) cos(2v) + 0.2 cos(u + v) in [0.05, 0.95], periodic.
-        HeightImage heights;
-        heights.width = heights.height = 128;
-        heights.values.resize(std::size_t(heights.width) * std::size_t(heights.height));
-        constexpr double kTwoPi = 6.283185307179586;
-        for (int y = 0; y < heights.height; ++y) {
-            for (int x = 0; x < heights.width; ++x) {
-                const double u = kTwoPi * x / heights.width;
-                const double v = kTwoPi * y / heights.height;
-                heights.values[std::size_t(y) * std::size_t(heights.width) + std::size_t(x)] =
-                    float(0.5 + 0.25 * std::sin(u) * std::cos(2.0 * v) + 0.2 * std::cos(u + v));
-            }
-        }
+        const HeightImage heights = smoothHeightImage(128);
         BakeOptions bake;
         bake.size = {128, 128, 8};
         Scene field = sheet;
@@ -620,6 +543,12 @@ void addBenchCommand(CLI::App& app) {
     command->add_flag("--stress", arguments->stress,
                       "Instead of the sweep: the numerical-stability stress cases, written as "
                       "stress.md and stress.csv; exit 1 when a case fails");
+    command
+        ->add_flag("--speed", arguments->speed,
+                   "Instead of the sweep: the speed report (issue 6): distile against the peers, "
+                   "repetition, every render skip on and off, bake cache, threads; writes "
+                   "speed.md and speed.csv")
+        ->excludes("--stress");
     command->add_option("--width", arguments->width, "Image width (default 1280, quick 640)")
         ->check(CLI::Range(16, 16384));
     command->add_option("--height", arguments->height, "Image height (default 1024, quick 512)")

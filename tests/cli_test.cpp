@@ -21,6 +21,7 @@
 
 #include "detail_meshes.h"
 #include "render/image.h"
+#include "render/tracer.h"
 
 namespace distile {
 namespace {
@@ -838,6 +839,54 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
     const RunResult bad = run({"bench", "--width", "0", "-o", path("bad").string()});
     EXPECT_NE(bad.status, 0);
     EXPECT_FALSE(fs::exists(path("bad/bench.csv")));
+}
+
+TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
+    // A tiny speed report (no peers): every RenderSkips switch (all bools) is measured on each of
+    // the four scenes, the bake cache and the thread check have their rows, the report has its
+    // verdicts, the scenes are kept; --speed and --stress together are refused.
+    const RunResult speed = run({"bench", "--speed", "--quick", "--no-peers", "--width", "64",
+                                 "--height", "48", "-o", path("speed").string()});
+    ASSERT_EQ(speed.status, 0) << speed.err;
+    std::istringstream csv(readText(path("speed/speed.csv")));
+    std::string line;
+    std::getline(csv, line);
+    EXPECT_EQ(line.rfind("section,scene,what,seconds,compared_seconds,ratio,", 0), 0u) << line;
+    std::set<std::string> skipRows;
+    std::set<std::string> sections;
+    while (std::getline(csv, line)) {
+        const std::string section = line.substr(0, line.find(','));
+        sections.insert(section);
+        if (section != "skip") continue;
+        // skip,S<n>,"<name>",<seconds on>,<seconds off>,...
+        const std::size_t sceneEnd = line.find(',', 5);
+        const std::size_t nameEnd = line.find('"', sceneEnd + 2);
+        const std::string scene = line.substr(5, sceneEnd - 5);
+        const std::string name = line.substr(sceneEnd + 2, nameEnd - sceneEnd - 2);
+        EXPECT_TRUE(skipRows.insert(name + " " + scene).second) << "twice: " << line;
+        std::istringstream times(line.substr(nameEnd + 2));
+        double on = 0.0, off = 0.0;
+        char comma = 0;
+        times >> on >> comma >> off;
+        EXPECT_GT(on, 0.0) << line;
+        EXPECT_GT(off, 0.0) << line;
+    }
+    const std::size_t skipCount = sizeof(RenderSkips) / sizeof(bool);
+    EXPECT_EQ(skipRows.size(), skipCount * 4u);
+    for (const char* scene : {"S1", "S2", "S3", "S4"}) {
+        EXPECT_TRUE(skipRows.count(std::string("shellCulling ") + scene)) << scene;
+        EXPECT_TRUE(skipRows.count(std::string("emptySpace ") + scene)) << scene;
+    }
+    for (const char* section : {"error", "repetition", "memory", "skip", "cache", "threads"})
+        EXPECT_TRUE(sections.count(section)) << section;
+    const std::string report = readText(path("speed/speed.md"));
+    EXPECT_NE(report.find("## Verdicts"), std::string::npos);
+    EXPECT_NE(report.find("threads: 1 thread and"), std::string::npos);
+    EXPECT_TRUE(fs::exists(path("speed/scenes/sheet_x16.json")));
+    EXPECT_TRUE(fs::exists(path("speed/scenes/low_height_field.exr")));
+    const RunResult both = run({"bench", "--speed", "--stress", "-o", path("both").string()});
+    EXPECT_NE(both.status, 0);
+    EXPECT_FALSE(fs::exists(path("both/speed.md")));
 }
 
 }  // namespace

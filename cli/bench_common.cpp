@@ -1,0 +1,94 @@
+#include "cli/bench_common.h"
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+
+namespace distile::cli {
+
+namespace fs = std::filesystem;
+
+std::string sheetJson(const Size3& tile, int tilesPerSide) {
+    std::ostringstream bake;
+    bake << R"({"bake": "chainmail", "size": ")" << tile.width << "x" << tile.height << "x"
+         << tile.depth << R"("})";
+    return sheetJsonWithTile(bake.str(), tilesPerSide);
+}
+
+std::string repeatedSheetJson(const Size3& tile, int tilesPerSide) {
+    std::ostringstream bake;
+    bake << R"({"bake": "chainmail", "size": ")" << tile.width << "x" << tile.height << "x"
+         << tile.depth << R"("})";
+    return sheetJsonWithTile(bake.str(), tilesPerSide, 0.0625 * 4.0 / tilesPerSide);
+}
+
+std::string sheetJsonWithTile(const std::string& tileJson, int tilesPerSide, double depthWorld) {
+    std::ostringstream json;
+    json << R"({
+  "camera": {"eye": [0.0, -2.1, 1.47], "target": [0.0, 0.0, 0.0], "up": [0, 0, 1], "fov_deg": 40},
+  "image": {"width": 1280, "height": 1024, "spp": 1},
+  "lights": [{"type": "directional", "direction": [-0.4, 0.3, -1.0], "color": [1, 1, 1], "angle_deg": 2}],
+  "objects": [
+    {"mesh": "plane",
+     "transform": {"scale": 2.0},
+     "material": {"tile": )"
+         << tileJson << R"(, "uv_scale": [)" << tilesPerSide << ", " << tilesPerSide
+         << R"(], "depth": )" << depthWorld << R"(,
+                  "floor": "solid", "color": [0.8, 0.8, 0.85]}}
+  ]
+}
+)";
+    return json.str();
+}
+
+HeightImage smoothHeightImage(int side) {
+    HeightImage heights;
+    heights.width = heights.height = side;
+    heights.values.resize(std::size_t(side) * std::size_t(side));
+    constexpr double kTwoPi = 6.283185307179586;
+    for (int y = 0; y < side; ++y) {
+        for (int x = 0; x < side; ++x) {
+            const double u = kTwoPi * x / side;
+            const double v = kTwoPi * y / side;
+            heights.values[std::size_t(y) * std::size_t(side) + std::size_t(x)] =
+                float(0.5 + 0.25 * std::sin(u) * std::cos(2.0 * v) + 0.2 * std::cos(u + v));
+        }
+    }
+    return heights;
+}
+
+RenderOptions benchRenderOptions(int width, int height) {
+    RenderOptions options;
+    options.width = width;
+    options.height = height;
+    options.outputAovs = true;
+    // Primary visibility and shading only: the peers neither shade nor shadow.
+    options.selfShadows = false;
+    options.shadowFilter = ShadowFilter::None;
+    return options;
+}
+
+TimedRender timedRender(const Scene& scene, const RenderOptions& options) {
+    const auto start = std::chrono::steady_clock::now();
+    TimedRender timed{renderScene(scene, options), 0.0};
+    timed.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return timed;
+}
+
+RenderLayersView layers(const RenderResult& result) {
+    return {result.image, result.aovs->depth, result.aovs->normal, result.aovs->texelScale};
+}
+
+void writeText(const fs::path& file, const std::string& text) {
+    writeAtomically(file, [&](const fs::path& temporary) {
+        std::ofstream out(temporary);
+        out << text;
+        if (!out.flush()) throw InputError(file.string() + ": could not be written");
+    });
+}
+
+}  // namespace distile::cli

@@ -1,0 +1,63 @@
+/// @file
+/// What `distile bench` (cli/bench_command.cpp) and `distile bench --speed` (cli/speed_bench.cpp)
+/// share: their arguments, the flat chain-mail sheet scene, the smooth height image, timed renders
+/// and text output. Internal to the command; the libraries never see it.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "render/compare.h"
+#include "render/renderer.h"
+#include "sampler/height_image.h"
+#include "sampler/tile.h"
+
+namespace distile::cli {
+
+struct BenchArguments {
+    std::filesystem::path outputDir = "bench-out";
+    bool quick = false;
+    bool peers = true;
+    /// The stress cases (bench/stress/stress_cases.h) instead of the sweep.
+    bool stress = false;
+    /// The speed report (cli/speed_bench.h) instead of the sweep.
+    bool speed = false;
+    int width = 0;  ///< 0: 1280 (640 with --quick)
+    int height = 0;
+};
+
+/// The flat chain-mail sheet of data/scenes/sheet.json (a plane of `tilesPerSide` x
+/// `tilesPerSide` tiles, 4 there, camera about 35 degrees above it), with the tile size given;
+/// written beside the results so every row can be reproduced with `distile render`.
+std::string sheetJson(const Size3& tile, int tilesPerSide = 4);
+
+/// The sheet of sheetJson with `tilesPerSide` tiles and the shell depth scaled by 4 / tilesPerSide,
+/// so texels stay cubes: the same detail, repeated more, smaller.
+std::string repeatedSheetJson(const Size3& tile, int tilesPerSide);
+
+/// The same sheet with `tileJson` (a JSON value: a tile file name or a bake object) as its tile.
+std::string sheetJsonWithTile(const std::string& tileJson, int tilesPerSide = 4,
+                              double depthWorld = 0.0625);
+
+/// A smooth periodic height image, `side` x `side` pixels: 0.5 + 0.25 sin(u) cos(2v) +
+/// 0.2 cos(u + v) with u, v = 2 pi x / side, 2 pi y / side, so every value is in [0.05, 0.95].
+HeightImage smoothHeightImage(int side);
+
+/// The bench's render options: `width` x `height`, AOVs on, no self-shadows and no shadow maps
+/// (primary visibility and shading only: the peers neither shade nor shadow).
+RenderOptions benchRenderOptions(int width, int height);
+
+struct TimedRender {
+    RenderResult result;
+    double seconds = 0.0;  ///< wall time of renderScene
+};
+
+TimedRender timedRender(const Scene& scene, const RenderOptions& options);
+
+/// The layers of `result` a comparison reads. Precondition: rendered with outputAovs.
+RenderLayersView layers(const RenderResult& result);
+
+/// Writes `text` to `file` atomically; throws InputError naming the file when it cannot.
+void writeText(const std::filesystem::path& file, const std::string& text);
+
+}  // namespace distile::cli
