@@ -59,6 +59,9 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
                 // threshold; a column with no low slice is empty down to the bottom cell's centre
                 // (below it the bottom edge cell extrapolates, and the floor ends the ray there).
                 top = highestLow < 0 ? 0.5f : std::min(float(highestLow) + 1.5f, float(depth));
+                // A sliver of empty space is not worth the walk (and moving the march's start
+                // changes where its budgeted steps land): such a block counts as full.
+                if (top > float(depth) - kMinimumSkipTexels) top = float(depth);
             }
             tops_[std::size_t(by) * std::size_t(blocksX_) + std::size_t(bx)] = top;
         }

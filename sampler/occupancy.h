@@ -23,6 +23,8 @@ namespace distile {
 class TileOccupancy {
   public:
     static constexpr int kBlockTexels = 8;
+    /// Blocks whose top is less than this far below the face z = D count as full (top = D).
+    static constexpr float kMinimumSkipTexels = 5.0f;
 
     /// Tops of every block of `tile` for `thresholdTexels` (the march's hit threshold: a point
     /// above a top is not a hit).
