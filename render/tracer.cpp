@@ -61,6 +61,24 @@ MarchResult exactFirstHit(const Material& material, const glm::vec3& start,
     return result;
 }
 
+/// The entry's unit frame from an interpolated vertex normal and tangent (xyz, w: handedness):
+/// N normalised, T the tangent made orthogonal to it, B = N x T with the tangent's handedness.
+void setFrame(ShellEntry& entry, const glm::vec3& normal, const glm::vec4& tangent) {
+    entry.normal = glm::normalize(normal);
+    const glm::vec3 inPlane =
+        glm::vec3(tangent) - entry.normal * glm::dot(glm::vec3(tangent), entry.normal);
+    const float inPlaneLength = glm::length(inPlane);
+    if (inPlaneLength > 1e-6f) {
+        entry.tangent = inPlane / inPlaneLength;
+    } else {  // the interpolated tangent vanished (opposite tangents across a seam): any valid
+              // frame
+        const glm::vec3 axis =
+            std::abs(entry.normal.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
+        entry.tangent = glm::normalize(glm::cross(entry.normal, axis));
+    }
+    entry.bitangent = glm::cross(entry.normal, entry.tangent) * (tangent.w < 0.0f ? -1.0f : 1.0f);
+}
+
 }  // namespace
 
 glm::vec3 ShellEntry::toTexel(const glm::vec3& world) const {
@@ -90,7 +108,23 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
             if (tile)
                 texelsPerWorld =
                     texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size());
-            triangles_.push_back({objectIndex, t, texelsPerWorld});
+            ShellTriangle shell{
+                objectIndex, t, texelsPerWorld,
+                glm::cross(mesh.positions[triangle[1]] - mesh.positions[triangle[0]],
+                           mesh.positions[triangle[2]] - mesh.positions[triangle[0]])};
+            const bool sameCorners = mesh.normals[triangle[0]] == mesh.normals[triangle[1]] &&
+                                     mesh.normals[triangle[0]] == mesh.normals[triangle[2]] &&
+                                     mesh.tangents[triangle[0]] == mesh.tangents[triangle[1]] &&
+                                     mesh.tangents[triangle[0]] == mesh.tangents[triangle[2]];
+            if (sameCorners) {
+                shell.flatFrame = true;
+                ShellEntry frame;
+                setFrame(frame, mesh.normals[triangle[0]], mesh.tangents[triangle[0]]);
+                shell.frameNormal = frame.normal;
+                shell.frameTangent = frame.tangent;
+                shell.frameBitangent = frame.bitangent;
+            }
+            triangles_.push_back(shell);
         }
     }
     bvh_ = TriangleBvh(std::move(corners));
@@ -131,25 +165,15 @@ ShellEntry SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray) const
     };
     ShellEntry entry;
     entry.position = ray.origin + ray.direction * hit.distanceWorld;
-    entry.normal = glm::normalize(interpolate(mesh.normals));
-    const glm::vec4 tangent = interpolate(mesh.tangents);
-    const glm::vec3 inPlane =
-        glm::vec3(tangent) - entry.normal * glm::dot(glm::vec3(tangent), entry.normal);
-    const float inPlaneLength = glm::length(inPlane);
-    if (inPlaneLength > 1e-6f) {
-        entry.tangent = inPlane / inPlaneLength;
-    } else {  // the interpolated tangent vanished (opposite tangents across a seam): any valid
-              // frame
-        const glm::vec3 axis =
-            std::abs(entry.normal.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
-        entry.tangent = glm::normalize(glm::cross(entry.normal, axis));
+    if (shell.flatFrame) {
+        entry.normal = shell.frameNormal;
+        entry.tangent = shell.frameTangent;
+        entry.bitangent = shell.frameBitangent;
+    } else {
+        setFrame(entry, interpolate(mesh.normals), interpolate(mesh.tangents));
     }
-    entry.bitangent = glm::cross(entry.normal, entry.tangent) * (tangent.w < 0.0f ? -1.0f : 1.0f);
     entry.uv = interpolate(mesh.uvs);
-    const glm::vec3 geometricNormal =
-        glm::cross(mesh.positions[triangle[1]] - mesh.positions[triangle[0]],
-                   mesh.positions[triangle[2]] - mesh.positions[triangle[0]]);
-    entry.frontFacing = glm::dot(geometricNormal, ray.direction) < 0.0f;
+    entry.frontFacing = glm::dot(shell.geometricNormal, ray.direction) < 0.0f;
     const Tile* tile = object.material.tile.get();
     const float depthTexels = tile ? float(tile->size().depth) : 1.0f;
     entry.texelsPerWorld = {shell.texelsPerWorldUv.x, shell.texelsPerWorldUv.y,

@@ -122,6 +122,11 @@ class SceneTracer {
         std::uint32_t object;
         std::uint32_t localTriangle;
         glm::vec2 texelsPerWorldUv;  ///< texels per world unit along T and B (0: degenerate UVs)
+        glm::vec3 geometricNormal;   ///< (p1 - p0) x (p2 - p0), not normalised
+        /// The corners share one normal and tangent (a flat face of a flat mesh): the frame is
+        /// the same at every point, computed once (frameNormal, frameTangent, frameBitangent).
+        bool flatFrame = false;
+        glm::vec3 frameNormal{0.0f}, frameTangent{0.0f}, frameBitangent{0.0f};
     };
     ShellEntry shellEntry(const TriangleHit& hit, const Ray& ray) const;
     /// The march of the shell the ray enters at `baseHit`: true with `hit` filled when the ray
