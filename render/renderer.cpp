@@ -107,6 +107,8 @@ class Renderer {
                                       options.reference, options.skips}),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
+        for (const DirectionalLight& light : scene.lights)
+            toLights_.push_back(-glm::normalize(light.direction));
         shadowMaps_.resize(scene.lights.size());
         if (options.shadowFilter == ShadowFilter::None) return;
         if (options.skips.casterlessShadowMaps && !sceneCastsShadowsBetweenSurfaces(scene)) return;
@@ -204,7 +206,7 @@ class Renderer {
         glm::vec3 color = albedo * kAmbientStrength;
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const DirectionalLight& light = scene_.lights[index];
-            const glm::vec3 toLight = -glm::normalize(light.direction);
+            const glm::vec3& toLight = toLights_[index];
             if (glm::dot(hit.entry.normal, toLight) <= 0.0f) continue;
             const float visibility =
                 castShadow(index, {hit.position, hit.entry.normal}, seed, shadowMapSamples);
@@ -226,7 +228,7 @@ class Renderer {
         glm::vec3 color = albedo * (kAmbientStrength * openness);
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const DirectionalLight& light = scene_.lights[index];
-            const glm::vec3 toLight = -glm::normalize(light.direction);
+            const glm::vec3& toLight = toLights_[index];
             // A base surface facing away from the light is in its own shadow: no work.
             const float facing = glm::dot(hit.entry.normal, toLight);
             if (facing <= 0.0f) continue;
@@ -269,6 +271,7 @@ class Renderer {
     std::vector<std::optional<ShadowMap>>
         shadowMaps_;  ///< per light; empty: no map needed or wanted
     PinholeProjection projection_;
+    std::vector<glm::vec3> toLights_;  ///< per light: unit direction toward it
     ScreenShells shells_;  ///< camera rays' shells per screen tile (the BVH serves the other rays)
 };
 

@@ -147,9 +147,12 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
             continue;
         }
         columns_[object] = std::make_shared<const TileColumns>(*tile);
-        if (skipEmptySpace)
-            occupancies_[object] =
+        if (skipEmptySpace) {
+            // Tiles without empty space to skip keep no occupancy: their rays pay nothing for it.
+            auto occupancy =
                 std::make_shared<const TileOccupancy>(*tile, options.march.epsilonTexels);
+            if (occupancy->hasEmptySpace()) occupancies_[object] = std::move(occupancy);
+        }
     }
 }
 

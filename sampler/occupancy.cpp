@@ -64,6 +64,7 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
                 if (top > float(depth) - kMinimumSkipTexels) top = float(depth);
             }
             tops_[std::size_t(by) * std::size_t(blocksX_) + std::size_t(bx)] = top;
+            if (top < float(depth)) hasEmptySpace_ = true;
         }
     }
 }

@@ -35,6 +35,8 @@ class TileOccupancy {
     float topTexels(int blockX, int blockY) const {
         return tops_[std::size_t(blockY) * std::size_t(blocksX_) + std::size_t(blockX)];
     }
+    /// False when every block is full (top = D): no ray can skip anything.
+    bool hasEmptySpace() const { return hasEmptySpace_; }
     int blocksX() const { return blocksX_; }
     int blocksY() const { return blocksY_; }
 
@@ -47,6 +49,7 @@ class TileOccupancy {
     int width_, height_;
     int blocksX_, blocksY_;
     std::vector<float> tops_;
+    bool hasEmptySpace_ = false;
 };
 
 }  // namespace distile

@@ -101,7 +101,8 @@ inline CubicWeights catmullRomDerivativeWeights(float a) {
 /// same on a periodic axis; on the extended axis a ghost tap's weight goes to its edge cell's two
 /// slices (tap -1 = 2 v0 - v1 etc.). Sums over the taps then read stored texels only.
 inline CubicWeights storedTapWeights(const CubicAxis& axis, const CubicWeights& weights) {
-    if (axis.slices == 0) return weights;
+    // A periodic axis, or all four taps stored (away from the faces): the weights as they are.
+    if (axis.slices == 0 || (axis.firstTap >= 0 && axis.firstTap + 3 < axis.slices)) return weights;
     CubicWeights stored{};
     const int firstStored = axis.tap[0];
     for (int k = 0; k < 4; ++k) {
