@@ -199,9 +199,10 @@ float sumOfTaps(const Texels& texels, const CubicAxis& x, const CubicAxis& y, co
 }
 
 /// The gradient of a cubic filter in one pass over its 64 taps: value weights `w*` and derivative
-/// weights `d*` per axis. Factored by z tap: per stored slice k the columns' texels summed with
-/// the x-y weights of each component, then the z weights applied once. Where z is contiguous
-/// (ColumnTexels) the four slices of a column are one SSE load, with the same operations per lane.
+/// weights `d*` per axis. Factored by z tap: per stored slice k, each row j of four columns is
+/// summed with the x weights (value and derivative), the rows with the y weights, then the z
+/// weights are applied once. Where z is contiguous (ColumnTexels) the four slices of a column are
+/// one SSE load, with the same operations per lane as the scalar path, so the same result.
 template <class Texels>
 glm::vec3 gradientOfTaps(const Texels& texels, const CubicAxis& x, const CubicAxis& y,
                          const CubicAxis& z, const CubicWeights& wx, const CubicWeights& wy,
@@ -209,20 +210,23 @@ glm::vec3 gradientOfTaps(const Texels& texels, const CubicAxis& x, const CubicAx
                          const CubicWeights& dy, const CubicWeights& tapDerivativesZ) {
     const CubicWeights wz = storedTapWeights(z, tapWeightsZ);
     const CubicWeights dz = storedTapWeights(z, tapDerivativesZ);
-    alignas(16) float value[4] = {};        // per slice: sum of wx wy texel
-    alignas(16) float xDerivative[4] = {};  // sum of dx wy texel
-    alignas(16) float yDerivative[4] = {};  // sum of wx dy texel
+    alignas(16) float value[4];        // per slice: sum over j of wy_j (sum over i of wx_i texel)
+    alignas(16) float xDerivative[4];  // wy_j (dx_i texel)
+    alignas(16) float yDerivative[4];  // dy_j (wx_i texel)
 #if defined(__SSE2__)
     if (Texels::kZContiguous && z.tap[3] == z.tap[0] + 3) {
-        __m128 valueSum = _mm_setzero_ps(), xSum = _mm_setzero_ps(), ySum = _mm_setzero_ps();
         const float* data = texels.data() + z.tap[0];
+        __m128 valueSum = _mm_setzero_ps(), xSum = _mm_setzero_ps(), ySum = _mm_setzero_ps();
         for (int j = 0; j < 4; ++j) {
+            __m128 rowValue = _mm_setzero_ps(), rowDerivative = _mm_setzero_ps();
             for (int i = 0; i < 4; ++i) {
                 const __m128 column = _mm_loadu_ps(data + texels.column(x.tap[i], y.tap[j]));
-                valueSum = _mm_add_ps(valueSum, _mm_mul_ps(_mm_set1_ps(wx.w[i] * wy.w[j]), column));
-                xSum = _mm_add_ps(xSum, _mm_mul_ps(_mm_set1_ps(dx.w[i] * wy.w[j]), column));
-                ySum = _mm_add_ps(ySum, _mm_mul_ps(_mm_set1_ps(wx.w[i] * dy.w[j]), column));
+                rowValue = _mm_add_ps(rowValue, _mm_mul_ps(_mm_set1_ps(wx.w[i]), column));
+                rowDerivative = _mm_add_ps(rowDerivative, _mm_mul_ps(_mm_set1_ps(dx.w[i]), column));
             }
+            valueSum = _mm_add_ps(valueSum, _mm_mul_ps(_mm_set1_ps(wy.w[j]), rowValue));
+            xSum = _mm_add_ps(xSum, _mm_mul_ps(_mm_set1_ps(wy.w[j]), rowDerivative));
+            ySum = _mm_add_ps(ySum, _mm_mul_ps(_mm_set1_ps(dy.w[j]), rowValue));
         }
         _mm_store_ps(value, valueSum);
         _mm_store_ps(xDerivative, xSum);
@@ -232,15 +236,18 @@ glm::vec3 gradientOfTaps(const Texels& texels, const CubicAxis& x, const CubicAx
     {
         std::size_t slices[4];
         for (int k = 0; k < 4; ++k) slices[k] = std::size_t(z.tap[k]) * texels.zStride();
-        for (int j = 0; j < 4; ++j) {
-            for (int i = 0; i < 4; ++i) {
-                const std::size_t column = texels.column(x.tap[i], y.tap[j]);
-                for (int k = 0; k < 4; ++k) {
-                    const float texel = texels[column + slices[k]];
-                    value[k] += wx.w[i] * wy.w[j] * texel;
-                    xDerivative[k] += dx.w[i] * wy.w[j] * texel;
-                    yDerivative[k] += wx.w[i] * dy.w[j] * texel;
+        for (int k = 0; k < 4; ++k) {
+            value[k] = xDerivative[k] = yDerivative[k] = 0.0f;
+            for (int j = 0; j < 4; ++j) {
+                float rowValue = 0.0f, rowDerivative = 0.0f;
+                for (int i = 0; i < 4; ++i) {
+                    const float texel = texels[texels.column(x.tap[i], y.tap[j]) + slices[k]];
+                    rowValue += wx.w[i] * texel;
+                    rowDerivative += dx.w[i] * texel;
                 }
+                value[k] += wy.w[j] * rowValue;
+                xDerivative[k] += wy.w[j] * rowDerivative;
+                yDerivative[k] += dy.w[j] * rowValue;
             }
         }
     }
