@@ -51,6 +51,8 @@ PinholeProjection::PinholeProjection(const Camera& camera, int widthPixels, int 
     const double tanX = double(tanHalfFov_) * (double(width_) / double(height_));
     slopePerPixel_ = {2.0 * tanX / width_, -2.0 * double(tanHalfFov_) / height_};
     slopeAtOrigin_ = {-tanX, double(tanHalfFov_)};
+    slopePerPixelFloat_ = glm::vec2(slopePerPixel_);
+    slopeAtOriginFloat_ = glm::vec2(slopeAtOrigin_);
     // Single-precision rays stray by a few ulps of direction (relative 1e-6 is a wide allowance,
     // basis vectors included); in pixels that is the slope error over the slope per pixel.
     const double slopeRange = 1.0 + tanX + double(tanHalfFov_);
@@ -58,10 +60,10 @@ PinholeProjection::PinholeProjection(const Camera& camera, int widthPixels, int 
 }
 
 Ray PinholeProjection::ray(float xPixels, float yPixels) const {
-    const float aspect = float(width_) / float(height_);
-    const float ndcX = (2.0f * xPixels / width_ - 1.0f) * tanHalfFov_ * aspect;
-    const float ndcY = (1.0f - 2.0f * yPixels / height_) * tanHalfFov_;
-    return {eye_, glm::normalize(forward_ + ndcX * right_ + ndcY * up_)};
+    // The view-space slopes are affine in the pixel position (slopePerPixel, slopeAtOrigin).
+    const float slopeX = xPixels * slopePerPixelFloat_.x + slopeAtOriginFloat_.x;
+    const float slopeY = yPixels * slopePerPixelFloat_.y + slopeAtOriginFloat_.y;
+    return {eye_, glm::normalize(forward_ + slopeX * right_ + slopeY * up_)};
 }
 
 glm::dvec3 PinholeProjection::toView(const glm::vec3& world) const {

@@ -54,6 +54,7 @@ class PinholeProjection {
     float tanHalfFov_;
     int width_, height_;
     glm::dvec2 slopePerPixel_, slopeAtOrigin_;
+    glm::vec2 slopePerPixelFloat_, slopeAtOriginFloat_;  ///< the same, for ray()
     double marginPixels_;
 };
 
