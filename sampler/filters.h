@@ -13,9 +13,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <glm/vec3.hpp>
 #if defined(__SSE2__)
-#include <xmmintrin.h>
+#include <emmintrin.h>
 #endif
 
 #include "sampler/tile.h"
@@ -104,7 +106,6 @@ class TileTexels {
     std::size_t zStride() const { return std::size_t(size_.width) * std::size_t(size_.height); }
     static constexpr bool kZContiguous = false;
     float operator[](std::size_t element) const { return data_[element]; }
-    const float* data() const { return data_; }
 
   private:
     const float* data_;
@@ -114,7 +115,8 @@ class TileTexels {
 class ColumnTexels {
   public:
     /// Implicit, so the filters over columns construct from TileColumns.
-    ColumnTexels(const TileColumns& columns) : data_(columns.data()), size_(columns.size()) {}
+    ColumnTexels(const TileColumns& columns)
+        : codes_(columns.codes()), texelsPerCode_(columns.texelsPerCode()), size_(columns.size()) {}
     const Size3& size() const { return size_; }
     std::size_t column(int x, int y) const {
         return (std::size_t(x) + std::size_t(size_.width) * std::size_t(y)) *
@@ -123,13 +125,28 @@ class ColumnTexels {
     static constexpr std::size_t zStride() { return 1; }
     /// Slices z and z + 1 of a column are adjacent: the filters load them as pairs (SSE2).
     static constexpr bool kZContiguous = true;
-    float operator[](std::size_t element) const { return data_[element]; }
-    const float* data() const { return data_; }
+    float operator[](std::size_t element) const { return float(codes_[element]) * texelsPerCode_; }
+    const std::int16_t* codes() const { return codes_; }
+    float texelsPerCode() const { return texelsPerCode_; }
 
   private:
-    const float* data_;
+    const std::int16_t* codes_;
+    float texelsPerCode_;
     Size3 size_;
 };
+
+#if defined(__SSE2__)
+namespace detail {
+
+/// Four 16-bit codes (the low 64 bits of `codes`) as texels: the same float(code) x texelsPerCode
+/// as ColumnTexels::operator[], per lane.
+inline __m128 texelsOfCodes(__m128i codes, __m128 texelsPerCode) {
+    const __m128i widened = _mm_srai_epi32(_mm_unpacklo_epi16(codes, codes), 16);
+    return _mm_mul_ps(_mm_cvtepi32_ps(widened), texelsPerCode);
+}
+
+}  // namespace detail
+#endif
 
 /// Nearest-texel lookup (the reference for "no filtering").
 template <class Texels>
@@ -195,14 +212,17 @@ class BasicTrilinearFilter {
         float alongZ[4];
 #if defined(__SSE2__)
         if constexpr (Texels::kZContiguous) {
-            const float* data = texels_.data() + z.lower;
-            const auto pair = [&](int xIndex, int yIndex) {
-                return reinterpret_cast<const __m64*>(data + texels_.column(xIndex, yIndex));
+            const std::int16_t* codes = texels_.codes() + z.lower;
+            const auto pair = [&](int xIndex, int yIndex) {  // codes of slices z, z + 1
+                std::int32_t bits;
+                std::memcpy(&bits, codes + texels_.column(xIndex, yIndex), sizeof bits);
+                return _mm_cvtsi32_si128(bits);
             };
-            const __m128 yLower = _mm_loadh_pi(
-                _mm_loadl_pi(_mm_setzero_ps(), pair(x.lower, y.lower)), pair(x.upper, y.lower));
-            const __m128 yUpper = _mm_loadh_pi(
-                _mm_loadl_pi(_mm_setzero_ps(), pair(x.lower, y.upper)), pair(x.upper, y.upper));
+            const __m128 scale = _mm_set1_ps(texels_.texelsPerCode());
+            const __m128 yLower = detail::texelsOfCodes(
+                _mm_unpacklo_epi32(pair(x.lower, y.lower), pair(x.upper, y.lower)), scale);
+            const __m128 yUpper = detail::texelsOfCodes(
+                _mm_unpacklo_epi32(pair(x.lower, y.upper), pair(x.upper, y.upper)), scale);
             const __m128 zLower = _mm_shuffle_ps(yLower, yUpper, _MM_SHUFFLE(2, 0, 2, 0));
             const __m128 zUpper = _mm_shuffle_ps(yLower, yUpper, _MM_SHUFFLE(3, 1, 3, 1));
             _mm_storeu_ps(alongZ, _mm_add_ps(zLower, _mm_mul_ps(_mm_sub_ps(zUpper, zLower),

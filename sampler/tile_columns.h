@@ -1,13 +1,19 @@
 /// @file
 /// A tile's texels re-laid in columns for sampling speed: texel (x, y, z) at (y W + x) D + z, z
-/// fastest, each column starting on a 64-byte boundary when D x 4 bytes is a multiple of 64. A
-/// march along a steep ray stays in the same few columns, and the z taps of a filter are adjacent,
-/// so the texels a ray needs share cache lines (the Tile's own layout, x fastest, puts every slice
-/// in other lines). The renderer samples its tiles through these (render/tracer.h); filters read
-/// either layout with the same results (sampler/filters.h, ColumnTexels).
+/// fastest, as 16-bit codes (distance = code x texelsPerCode), the data starting on a 64-byte
+/// boundary. A march along a steep ray stays in the same few columns, and the z taps of a filter
+/// are adjacent, so the texels a ray needs share cache lines; at 2 bytes a texel a 16-deep column
+/// is 32 bytes, two columns a line, and the default tile takes 2 MiB instead of 4. The renderer
+/// samples its tiles through these (render/tracer.h); filters read either layout
+/// (sampler/filters.h, ColumnTexels).
+///
+/// Codes are the tile's distances divided by texelsPerCode (the tile's largest |distance| over
+/// 32767: 0.5e-3 texel for a 16-texel band) rounded *down*, so a stored distance never exceeds
+/// the tile's (up to the rounding of one float product): a conservative tile stays conservative.
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "sampler/tile.h"
@@ -17,18 +23,21 @@ namespace distile {
 class TileColumns {
   public:
     explicit TileColumns(const Tile& tile);
-    TileColumns(const TileColumns&) = delete;  // data() points into storage_
+    TileColumns(const TileColumns&) = delete;  // codes() points into storage_
     TileColumns& operator=(const TileColumns&) = delete;
 
     const Size3& size() const { return size_; }
-    /// W x H x D floats, column by column.
-    const float* data() const { return data_; }
-    std::size_t bytes() const { return size_.texelCount() * sizeof(float); }
+    /// W x H x D codes, column by column.
+    const std::int16_t* codes() const { return codes_; }
+    /// Texels per code step (> 0).
+    float texelsPerCode() const { return texelsPerCode_; }
+    std::size_t bytes() const { return size_.texelCount() * sizeof(std::int16_t); }
 
   private:
     Size3 size_;
-    std::vector<float> storage_;  ///< the texels plus room to align data_
-    const float* data_ = nullptr;
+    float texelsPerCode_ = 1.0f;
+    std::vector<std::int16_t> storage_;  ///< the codes plus room to align codes_
+    const std::int16_t* codes_ = nullptr;
 };
 
 }  // namespace distile

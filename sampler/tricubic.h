@@ -213,27 +213,36 @@ glm::vec3 gradientOfTaps(const Texels& texels, const CubicAxis& x, const CubicAx
     alignas(16) float value[4];        // per slice: sum over j of wy_j (sum over i of wx_i texel)
     alignas(16) float xDerivative[4];  // wy_j (dx_i texel)
     alignas(16) float yDerivative[4];  // dy_j (wx_i texel)
+    bool summed = false;
 #if defined(__SSE2__)
-    if (Texels::kZContiguous && z.tap[3] == z.tap[0] + 3) {
-        const float* data = texels.data() + z.tap[0];
-        __m128 valueSum = _mm_setzero_ps(), xSum = _mm_setzero_ps(), ySum = _mm_setzero_ps();
-        for (int j = 0; j < 4; ++j) {
-            __m128 rowValue = _mm_setzero_ps(), rowDerivative = _mm_setzero_ps();
-            for (int i = 0; i < 4; ++i) {
-                const __m128 column = _mm_loadu_ps(data + texels.column(x.tap[i], y.tap[j]));
-                rowValue = _mm_add_ps(rowValue, _mm_mul_ps(_mm_set1_ps(wx.w[i]), column));
-                rowDerivative = _mm_add_ps(rowDerivative, _mm_mul_ps(_mm_set1_ps(dx.w[i]), column));
+    if constexpr (Texels::kZContiguous) {
+        if (z.tap[3] == z.tap[0] + 3) {
+            const std::int16_t* codes = texels.codes() + z.tap[0];
+            const __m128 scale = _mm_set1_ps(texels.texelsPerCode());
+            __m128 valueSum = _mm_setzero_ps(), xSum = _mm_setzero_ps(), ySum = _mm_setzero_ps();
+            for (int j = 0; j < 4; ++j) {
+                __m128 rowValue = _mm_setzero_ps(), rowDerivative = _mm_setzero_ps();
+                for (int i = 0; i < 4; ++i) {
+                    const __m128 column =
+                        texelsOfCodes(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(
+                                          codes + texels.column(x.tap[i], y.tap[j]))),
+                                      scale);
+                    rowValue = _mm_add_ps(rowValue, _mm_mul_ps(_mm_set1_ps(wx.w[i]), column));
+                    rowDerivative =
+                        _mm_add_ps(rowDerivative, _mm_mul_ps(_mm_set1_ps(dx.w[i]), column));
+                }
+                valueSum = _mm_add_ps(valueSum, _mm_mul_ps(_mm_set1_ps(wy.w[j]), rowValue));
+                xSum = _mm_add_ps(xSum, _mm_mul_ps(_mm_set1_ps(wy.w[j]), rowDerivative));
+                ySum = _mm_add_ps(ySum, _mm_mul_ps(_mm_set1_ps(dy.w[j]), rowValue));
             }
-            valueSum = _mm_add_ps(valueSum, _mm_mul_ps(_mm_set1_ps(wy.w[j]), rowValue));
-            xSum = _mm_add_ps(xSum, _mm_mul_ps(_mm_set1_ps(wy.w[j]), rowDerivative));
-            ySum = _mm_add_ps(ySum, _mm_mul_ps(_mm_set1_ps(dy.w[j]), rowValue));
+            _mm_store_ps(value, valueSum);
+            _mm_store_ps(xDerivative, xSum);
+            _mm_store_ps(yDerivative, ySum);
+            summed = true;
         }
-        _mm_store_ps(value, valueSum);
-        _mm_store_ps(xDerivative, xSum);
-        _mm_store_ps(yDerivative, ySum);
-    } else
+    }
 #endif
-    {
+    if (!summed) {
         std::size_t slices[4];
         for (int k = 0; k < 4; ++k) slices[k] = std::size_t(z.tap[k]) * texels.zStride();
         for (int k = 0; k < 4; ++k) {
