@@ -14,6 +14,7 @@
 #include "render/renderer.h"
 #include "sampler/bake.h"
 #include "sampler/filters.h"
+#include "sampler/tile_columns.h"
 
 namespace distile {
 namespace {
@@ -21,6 +22,11 @@ namespace {
 const Tile& chainmailTile() {
     static const Tile tile = bakeChainmail(ChainmailOptions{}, BakeOptions{}).tile;
     return tile;
+}
+
+const TileColumns& chainmailColumns() {
+    static const TileColumns columns(chainmailTile());
+    return columns;
 }
 
 std::vector<glm::vec3> randomPoints(std::size_t count) {
@@ -73,6 +79,47 @@ void marchChainmail(benchmark::State& state) {
         benchmark::Counter(double(iterations) / double(state.iterations()));
 }
 BENCHMARK(marchChainmail)->Arg(8)->Arg(16)->Arg(64);
+
+/// The same marches (budgeted, the renderer's default) in batches of 16 rays, one at a time
+/// (range 1 = 0) or interleaved (marchInterleaved, range 1 = 1): identical results, the time per
+/// ray is what interleaving saves.
+void marchChainmailBatch(benchmark::State& state) {
+    const BasicTrilinearFilter<ColumnTexels> filter(chainmailColumns());
+    auto entries = randomPoints(1 << 12);
+    for (auto& p : entries) p.z = 16.0f;
+    const glm::vec3 direction = glm::normalize(glm::vec3(0.6f, 0.55f, -0.58f));
+    MarchSettings settings;
+    settings.maxIterations = int(state.range(0));
+    const bool interleaved = state.range(1) != 0;
+    constexpr std::size_t kBatch = 16;
+    std::size_t i = 0;
+    std::int64_t iterations = 0;
+    for (auto _ : state) {
+        if (interleaved) {
+            detail::SphereTraceRay rays[kBatch];
+            detail::SphereTraceRay* pointers[kBatch];
+            for (std::size_t k = 0; k < kBatch; ++k) {
+                rays[k] = detail::sphereTraceRay(entries[(i + k) & 0xfff], direction, Floor::Solid,
+                                                 settings);
+                pointers[k] = &rays[k];
+            }
+            marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(pointers));
+            for (const auto& ray : rays) iterations += ray.result().iterations;
+        } else {
+            for (std::size_t k = 0; k < kBatch; ++k) {
+                const MarchResult result =
+                    march(filter, entries[(i + k) & 0xfff], direction, Floor::Solid, settings);
+                iterations += result.iterations;
+                benchmark::DoNotOptimize(result);
+            }
+        }
+        i += kBatch;
+    }
+    state.SetItemsProcessed(state.iterations() * kBatch);
+    state.counters["iterations/ray"] =
+        benchmark::Counter(double(iterations) / double(state.iterations() * kBatch));
+}
+BENCHMARK(marchChainmailBatch)->Args({16, 0})->Args({16, 1});
 
 void bakeDefaultChainmail(benchmark::State& state) {
     for (auto _ : state)

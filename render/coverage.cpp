@@ -303,66 +303,132 @@ float ScreenShells::pixelDepthBound(std::uint32_t shell, int x, int y) const {
     return std::max(bounds.zMinWorld, float((1.0 - kDepthSafety) / largestInverseDepth));
 }
 
+namespace {
+
+/// A shell that may cover a pixel, with its depth bound over the pixel.
+struct Candidate {
+    float depthBound;
+    std::uint32_t shell;
+};
+
+/// A pixel's candidates, nearest depth bound first: few per pixel, so a small buffer inline, the
+/// heap beyond it.
+class Candidates {
+  public:
+    void push(const Candidate& candidate) {
+        if (count_ < kInline) {
+            inline_[count_] = candidate;
+        } else {
+            if (count_ == kInline) heap_.assign(inline_, inline_ + kInline);
+            heap_.push_back(candidate);
+        }
+        ++count_;
+    }
+    /// Insertion sort by depth bound: stable (ties keep bin order, so the order is the same
+    /// whether or not shells are culled), no allocation, fast for a few candidates.
+    void sort() {
+        Candidate* all = data();
+        for (std::size_t i = 1; i < count_; ++i) {
+            const Candidate candidate = all[i];
+            std::size_t j = i;
+            for (; j > 0 && candidate.depthBound < all[j - 1].depthBound; --j) all[j] = all[j - 1];
+            all[j] = candidate;
+        }
+    }
+    std::size_t size() const { return count_; }
+    const Candidate& operator[](std::size_t index) const { return data()[index]; }
+
+  private:
+    static constexpr std::size_t kInline = 64;
+    Candidate* data() { return count_ <= kInline ? inline_ : heap_.data(); }
+    const Candidate* data() const { return count_ <= kInline ? inline_ : heap_.data(); }
+    Candidate inline_[kInline];
+    std::vector<Candidate> heap_;
+    std::size_t count_ = 0;
+};
+
+}  // namespace
+
 bool ScreenShells::traceNearest(int x, int y, const Ray& ray, bool shellCulling, SurfaceHit& hit,
                                 TraceCounters& counters, ShellCounters& shellCounters) const {
-    // The candidates of this pixel: the tile's shells that pass the pixel test, with their depth
-    // bound over the pixel, nearest first (ties in bin order, so the order is the same whether or
-    // not shells are culled). Few per pixel: a small buffer on the stack, the heap beyond it.
-    struct Candidate {
-        float depthBound;
-        std::uint32_t shell;
-    };
-    constexpr std::size_t kStackCandidates = 64;
-    Candidate stackCandidates[kStackCandidates];
-    std::vector<Candidate> heapCandidates;
-    Candidate* candidates = stackCandidates;
-    std::size_t count = 0;
-    for (const std::uint32_t shell : tileShells(x / kTilePixels, y / kTilePixels)) {
-        ++shellCounters.tested;
-        if (!trianglePixelOverlapConservative(bounds_[shell].top, x, y)) continue;
-        if (count == kStackCandidates && candidates == stackCandidates) {
-            heapCandidates.assign(stackCandidates, stackCandidates + count);
-            candidates = nullptr;
-        }
-        const Candidate candidate{pixelDepthBound(shell, x, y), shell};
-        if (candidates == stackCandidates) {
-            candidates[count] = candidate;
-        } else {
-            heapCandidates.push_back(candidate);
-        }
-        ++count;
-    }
-    if (candidates != stackCandidates) candidates = heapCandidates.data();
-    // Insertion sort: stable, no allocation, and fast for the few candidates of a pixel.
-    for (std::size_t i = 1; i < count; ++i) {
-        const Candidate candidate = candidates[i];
-        std::size_t j = i;
-        for (; j > 0 && candidate.depthBound < candidates[j - 1].depthBound; --j)
-            candidates[j] = candidates[j - 1];
-        candidates[j] = candidate;
-    }
+    const PixelRay rays[1] = {{x, y, ray}};
+    bool found[1] = {false};
+    traceNearestBatch(rays, shellCulling, std::span<SurfaceHit>(&hit, 1), found,
+                      std::span<TraceCounters>(&counters, 1), shellCounters);
+    return found[0];
+}
 
+void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellCulling,
+                                     std::span<SurfaceHit> hits, std::span<bool> found,
+                                     std::span<TraceCounters> counters,
+                                     ShellCounters& shellCounters) const {
     constexpr float kFar = std::numeric_limits<float>::max();
-    float nearest = kFar;
-    bool found = false;
-    SurfaceHit shellHit;
-    for (std::size_t i = 0; i < count; ++i) {
-        // A shell's hits are never nearer than its depth bound: once the bound is not nearer
-        // than the best hit, neither is any later candidate's.
-        if (shellCulling && candidates[i].depthBound >= nearest) break;
-        ++shellCounters.traced;
-        // With culling the top must also be nearer than the best hit; without, every top is
-        // traced and its hit compared afterwards, to the same result.
-        if (!tracer_.traceShell(candidates[i].shell, ray, 0.0f, shellCulling ? nearest : kFar,
-                                shellHit, counters)) {
-            continue;
+    const std::size_t count = rays.size();
+    // Per ray: its candidates (the tile's shells that pass the pixel test), the next one to trace
+    // and the nearest hit so far.
+    Candidates candidates[kMaxBatchRays];
+    std::size_t next[kMaxBatchRays];
+    float nearest[kMaxBatchRays];
+    for (std::size_t r = 0; r < count; ++r) {
+        const PixelRay& pixel = rays[r];
+        for (const std::uint32_t shell : tileShells(pixel.x / kTilePixels, pixel.y / kTilePixels)) {
+            ++shellCounters.tested;
+            if (!trianglePixelOverlapConservative(bounds_[shell].top, pixel.x, pixel.y)) continue;
+            candidates[r].push({pixelDepthBound(shell, pixel.x, pixel.y), shell});
         }
-        if (!shellHit.entry.frontFacing || !(shellHit.distanceWorld < nearest)) continue;
-        nearest = shellHit.distanceWorld;
-        hit = shellHit;
-        found = true;
+        candidates[r].sort();
+        next[r] = 0;
+        nearest[r] = kFar;
+        found[r] = false;
     }
-    return found;
+    // Rounds: each ray traces its candidates in order up to the next one it enters; the marches
+    // of the round are taken together; then each ray takes its march's end. A ray's steps are
+    // those of tracing it alone.
+    SurfaceHit shellHits[kMaxBatchRays];
+    ShellMarch marches[kMaxBatchRays];
+    ShellMarch* pending[kMaxBatchRays];
+    std::size_t pendingRay[kMaxBatchRays];
+    auto keepNearest = [&](std::size_t r) {
+        const SurfaceHit& shellHit = shellHits[r];
+        if (!shellHit.entry.frontFacing || !(shellHit.distanceWorld < nearest[r])) return;
+        nearest[r] = shellHit.distanceWorld;
+        hits[r] = shellHit;
+        found[r] = true;
+    };
+    for (;;) {
+        std::size_t pendingCount = 0;
+        for (std::size_t r = 0; r < count; ++r) {
+            for (; next[r] < candidates[r].size(); ++next[r]) {
+                const Candidate& candidate = candidates[r][next[r]];
+                // A shell's hits are never nearer than its depth bound: once the bound is not
+                // nearer than the best hit, neither is any later candidate's.
+                if (shellCulling && candidate.depthBound >= nearest[r]) {
+                    next[r] = candidates[r].size();
+                    break;
+                }
+                ++shellCounters.traced;
+                // With culling the top must also be nearer than the best hit; without, every
+                // top is traced and its hit compared afterwards, to the same result.
+                bool stopped = false;
+                if (tracer_.enterShell(candidate.shell, rays[r].ray, 0.0f,
+                                       shellCulling ? nearest[r] : kFar, shellHits[r], marches[r],
+                                       stopped)) {
+                    pending[pendingCount] = &marches[r];
+                    pendingRay[pendingCount++] = r;
+                    ++next[r];
+                    break;
+                }
+                if (stopped) keepNearest(r);
+            }
+        }
+        if (pendingCount == 0) return;
+        tracer_.marchShells(std::span<ShellMarch* const>(pending, pendingCount));
+        for (std::size_t p = 0; p < pendingCount; ++p) {
+            const std::size_t r = pendingRay[p];
+            if (tracer_.finishShell(rays[r].ray, marches[r], shellHits[r], counters[r]))
+                keepNearest(r);
+        }
+    }
 }
 
 }  // namespace distile

@@ -143,6 +143,22 @@ class ScreenShells {
     bool traceNearest(int x, int y, const Ray& ray, bool shellCulling, SurfaceHit& hit,
                       TraceCounters& counters, ShellCounters& shellCounters) const;
 
+    /// A camera ray through the square of pixel (x, y), for traceNearestBatch.
+    struct PixelRay {
+        int x = 0;
+        int y = 0;
+        Ray ray;
+    };
+    /// At most this many rays per traceNearestBatch call.
+    static constexpr std::size_t kMaxBatchRays = 32;
+
+    /// traceNearest for each of `rays` (at most kMaxBatchRays), their marches taken together
+    /// (SceneTracer::marchShells interleaves them): `found[i]`, `hits[i]` and `counters[i]` are
+    /// what traceNearest gives for rays[i] alone, bit for bit. Thread-safe.
+    void traceNearestBatch(std::span<const PixelRay> rays, bool shellCulling,
+                           std::span<SurfaceHit> hits, std::span<bool> found,
+                           std::span<TraceCounters> counters, ShellCounters& shellCounters) const;
+
   private:
     const SceneTracer& tracer_;
     const PinholeProjection& projection_;

@@ -24,6 +24,8 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/vec3.hpp>
+#include <optional>
+#include <span>
 
 #include "render/scene.h"
 
@@ -97,90 +99,148 @@ inline void endOnFloor(MarchResult& result, const glm::vec3& position, const glm
     }
 }
 
-/// Regula falsi between a point outside (travel `outside`, distance `outsideDistance` >= epsilon)
-/// and one inside (distance `insideDistance` < 0) with the budget left; ends converged at the last
-/// estimate.
-template <class Filter>
-void refineCrossing(const Filter& filter, const glm::vec3& start, const glm::vec3& direction,
-                    int maxIterations, float epsilonTexels, float outside, float outsideDistance,
-                    float inside, float insideDistance, MarchResult& result) {
-    float estimate =
-        outside + (inside - outside) * outsideDistance / (outsideDistance - insideDistance);
-    for (; result.iterations < maxIterations;) {
-        ++result.iterations;
-        const float distance = filter.distanceTexels(start + direction * estimate);
-        if (std::abs(distance) < epsilonTexels) break;
-        if (distance > 0.0f) {
-            outside = estimate;
-            outsideDistance = distance;
-        } else {
-            inside = estimate;
-            insideDistance = distance;
-        }
-        estimate =
-            outside + (inside - outside) * outsideDistance / (outsideDistance - insideDistance);
-    }
-    result.converged = true;
-    result.travelTexels = estimate;
-    result.texelPosition = start + direction * estimate;
-}
+/// One ray's sphere trace (SphereTracing, OverRelaxed, Budgeted; file note), taken a distance
+/// sample at a time, so that marchInterleaved() can alternate between rays whose sample chains are
+/// independent. The operations per ray are exactly those of one march, in the same order:
+/// interleaved and single marches give bit-identical results.
+class SphereTraceRay {
+  public:
+    SphereTraceRay() = default;
+    /// Preconditions as march(), and maxIterations >= 1.
+    SphereTraceRay(const glm::vec3& start, const glm::vec3& direction, Floor floor,
+                   int maxIterations, float epsilonTexels, float relaxation, bool budgeted)
+        : start_(start),
+          direction_(direction),
+          floor_(floor),
+          maxIterations_(maxIterations),
+          epsilonTexels_(epsilonTexels),
+          factor_(relaxation),
+          budgeted_(budgeted),
+          toFloorAtStart_(start.z / -direction.z) {}
 
-/// Sphere tracing: over-relaxed when relaxation > 1; budgeted when `budgeted` (each step at least
-/// the path left to the floor over the samples left, a step that lands inside refined by regula
-/// falsi). The floor z = 0 is hit exactly when a safe sphere reaches it: the sphere is empty of
-/// detail, so the floor crossing inside it is the first surface along the ray.
-template <class Filter>
-MarchResult sphereTrace(const Filter& filter, const glm::vec3& start, const glm::vec3& direction,
-                        Floor floor, int maxIterations, float epsilonTexels, float relaxation,
-                        bool budgeted) {
-    MarchResult result;
-    const float toFloorAtStart = start.z / -direction.z;
-    float travel = 0.0f;        // of the current point
-    float safeRadius = 0.0f;    // distance sampled at the previous point
-    float previousStep = 0.0f;  // from the previous point to the current one
-    float factor = relaxation;
-    for (result.iterations = 1; result.iterations <= maxIterations; ++result.iterations) {
-        const glm::vec3 position = start + direction * travel;
+    /// Takes the next distance sample from `filter`, the same filter on every call; false once
+    /// the march has ended (then result() is final).
+    template <class Filter>
+    bool step(const Filter& filter) {
+        return refining_ ? refineStep(filter) : traceStep(filter);
+    }
+
+    const MarchResult& result() const { return result_; }
+
+  private:
+    template <class Filter>
+    bool traceStep(const Filter& filter) {
+        ++result_.iterations;
+        const glm::vec3 position = start_ + direction_ * travel_;
         const float distance = filter.distanceTexels(position);
-        if (factor > 1.0f && previousStep > safeRadius && distance + safeRadius < previousStep) {
+        if (factor_ > 1.0f && previousStep_ > safeRadius_ &&
+            distance + safeRadius_ < previousStep_) {
             // The relaxed step left the previous sphere and this one does not reach back to it:
             // the gap between them is unverified. Back to the edge of the previous sphere, as
             // plain sphere tracing from here on.
-            travel -= previousStep - safeRadius;
-            previousStep = safeRadius;
-            factor = 1.0f;
-            continue;
+            travel_ -= previousStep_ - safeRadius_;
+            previousStep_ = safeRadius_;
+            factor_ = 1.0f;
+            return budgetLeft();
         }
-        if (distance < epsilonTexels) {
-            if (distance < 0.0f && previousStep > safeRadius) {
+        if (distance < epsilonTexels_) {
+            if (distance < 0.0f && previousStep_ > safeRadius_) {
                 // A budgeted step went past the surface: find the crossing in between.
-                refineCrossing(filter, start, direction, maxIterations, epsilonTexels,
-                               travel - previousStep, safeRadius, travel, distance, result);
-                return result;
+                return beginRefining(travel_ - previousStep_, safeRadius_, travel_, distance);
             }
-            result.converged = true;
-            result.texelPosition = position;
-            result.travelTexels = travel;
-            return result;
+            result_.converged = true;
+            result_.texelPosition = position;
+            result_.travelTexels = travel_;
+            return false;
         }
-        const float toFloor = toFloorAtStart - travel;
+        const float toFloor = toFloorAtStart_ - travel_;
         if (distance >= toFloor) {
-            endOnFloor(result, position, direction, travel, toFloor, floor);
-            return result;
+            endOnFloor(result_, position, direction_, travel_, toFloor, floor_);
+            return false;
         }
-        float step = factor * distance;
-        if (budgeted && result.iterations < maxIterations)
-            step = std::max(step, toFloor / float(maxIterations - result.iterations));
-        safeRadius = distance;
-        previousStep = std::min(step, toFloor);
-        travel += previousStep;
+        float step = factor_ * distance;
+        if (budgeted_ && result_.iterations < maxIterations_)
+            step = std::max(step, toFloor / float(maxIterations_ - result_.iterations));
+        safeRadius_ = distance;
+        previousStep_ = std::min(step, toFloor);
+        travel_ += previousStep_;
+        return budgetLeft();
     }
-    result.iterations = maxIterations;
-    // The budget ran out: the last safe point (a longer step beyond it is unverified).
-    if (previousStep > safeRadius) travel -= previousStep - safeRadius;
-    result.texelPosition = start + direction * travel;
-    result.travelTexels = travel;
-    return result;
+
+    /// After a sample that did not end the march: false, with the last safe point as the result,
+    /// when the budget has run out (a longer step beyond that point is unverified).
+    bool budgetLeft() {
+        if (result_.iterations < maxIterations_) return true;
+        if (previousStep_ > safeRadius_) travel_ -= previousStep_ - safeRadius_;
+        result_.texelPosition = start_ + direction_ * travel_;
+        result_.travelTexels = travel_;
+        return false;
+    }
+
+    /// Regula falsi between a point outside (travel `outside`, distance `outsideDistance` >=
+    /// epsilon) and one inside (distance `insideDistance` < 0) with the budget left; ends converged
+    /// at the last estimate.
+    bool beginRefining(float outside, float outsideDistance, float inside, float insideDistance) {
+        refining_ = true;
+        outside_ = outside;
+        outsideDistance_ = outsideDistance;
+        inside_ = inside;
+        insideDistance_ = insideDistance;
+        estimate_ = falsePosition();
+        return result_.iterations < maxIterations_ || endRefining();
+    }
+
+    template <class Filter>
+    bool refineStep(const Filter& filter) {
+        ++result_.iterations;
+        const float distance = filter.distanceTexels(start_ + direction_ * estimate_);
+        if (std::abs(distance) < epsilonTexels_) return endRefining();
+        if (distance > 0.0f) {
+            outside_ = estimate_;
+            outsideDistance_ = distance;
+        } else {
+            inside_ = estimate_;
+            insideDistance_ = distance;
+        }
+        estimate_ = falsePosition();
+        return result_.iterations < maxIterations_ || endRefining();
+    }
+
+    float falsePosition() const {
+        return outside_ +
+               (inside_ - outside_) * outsideDistance_ / (outsideDistance_ - insideDistance_);
+    }
+
+    bool endRefining() {
+        result_.converged = true;
+        result_.travelTexels = estimate_;
+        result_.texelPosition = start_ + direction_ * estimate_;
+        return false;
+    }
+
+    glm::vec3 start_{0.0f};
+    glm::vec3 direction_{0.0f, 0.0f, -1.0f};
+    Floor floor_ = Floor::Solid;
+    int maxIterations_ = 1;
+    float epsilonTexels_ = 0.0f;
+    float factor_ = 1.0f;
+    bool budgeted_ = false;
+    bool refining_ = false;
+    float toFloorAtStart_ = 0.0f;
+    float travel_ = 0.0f;        // of the current point
+    float safeRadius_ = 0.0f;    // distance sampled at the previous point
+    float previousStep_ = 0.0f;  // from the previous point to the current one
+    float outside_ = 0.0f, outsideDistance_ = 0.0f, inside_ = 0.0f, insideDistance_ = 0.0f;
+    float estimate_ = 0.0f;
+    MarchResult result_;
+};
+
+/// The sphere trace of march() for `settings` (method SphereTracing, OverRelaxed or Budgeted).
+inline SphereTraceRay sphereTraceRay(const glm::vec3& start, const glm::vec3& direction,
+                                     Floor floor, const MarchSettings& settings) {
+    return SphereTraceRay(start, direction, floor, settings.maxIterations, settings.epsilonTexels,
+                          settings.method == MarchMethod::OverRelaxed ? settings.relaxation : 1.0f,
+                          settings.method == MarchMethod::Budgeted);
 }
 
 /// Fixed linear steps from the top to the floor; at the first point inside (distance below
@@ -238,6 +298,24 @@ MarchResult stepThroughSlab(const Filter& filter, const glm::vec3& start,
 
 }  // namespace detail
 
+/// What march() returns at once, without a sample, for a ray outside its preconditions: a NaN/Inf
+/// position or direction, or no budget (not converged, no iterations, the position as given);
+/// nothing for a ray it marches.
+inline std::optional<MarchResult> refusedMarch(const glm::vec3& position,
+                                               const glm::vec3& direction,
+                                               const MarchSettings& settings) {
+    // Without this check a NaN coordinate reads a finite (clamped) texel and can report a converged
+    // hit at a NaN position (tests/stress_test.cpp). Once per ray, not per step.
+    if (std::isfinite(position.x) && std::isfinite(position.y) && std::isfinite(position.z) &&
+        std::isfinite(direction.x) && std::isfinite(direction.y) && std::isfinite(direction.z) &&
+        settings.maxIterations >= 1) {
+        return std::nullopt;
+    }
+    MarchResult result;
+    result.texelPosition = position;
+    return result;
+}
+
 /// Marches from `position` along `direction` with `settings` (file note). Preconditions:
 /// `direction` unit length with direction.z < 0; `position` inside the tile's slab. A NaN/Inf
 /// position or direction (outside the preconditions) returns at once: not converged, no
@@ -245,23 +323,17 @@ MarchResult stepThroughSlab(const Filter& filter, const glm::vec3& start,
 template <class Filter>
 MarchResult march(const Filter& filter, const glm::vec3& position, const glm::vec3& direction,
                   Floor floor, const MarchSettings& settings) {
-    // Without this check a NaN coordinate reads a finite (clamped) texel and can report a converged
-    // hit at a NaN position (tests/stress_test.cpp). Once per ray, not per step.
-    if (!(std::isfinite(position.x) && std::isfinite(position.y) && std::isfinite(position.z) &&
-          std::isfinite(direction.x) && std::isfinite(direction.y) && std::isfinite(direction.z))) {
-        MarchResult result;
-        result.texelPosition = position;
-        return result;
-    }
+    if (const std::optional<MarchResult> refused = refusedMarch(position, direction, settings))
+        return *refused;
     switch (settings.method) {
         case MarchMethod::SphereTracing:
         case MarchMethod::OverRelaxed:
-            return detail::sphereTrace(
-                filter, position, direction, floor, settings.maxIterations, settings.epsilonTexels,
-                settings.method == MarchMethod::OverRelaxed ? settings.relaxation : 1.0f, false);
-        case MarchMethod::Budgeted:
-            return detail::sphereTrace(filter, position, direction, floor, settings.maxIterations,
-                                       settings.epsilonTexels, 1.0f, true);
+        case MarchMethod::Budgeted: {
+            auto ray = detail::sphereTraceRay(position, direction, floor, settings);
+            while (ray.step(filter)) {
+            }
+            return ray.result();
+        }
         case MarchMethod::Relief:
         case MarchMethod::FixedSteps:
             return detail::stepThroughSlab(filter, position, direction, floor, settings);
@@ -278,6 +350,39 @@ MarchResult march(const Filter& filter, const glm::vec3& position, const glm::ve
     settings.maxIterations = maxIterations;
     settings.epsilonTexels = epsilonTexels;
     return march(filter, position, direction, floor, settings);
+}
+
+/// Sphere-tracing methods (SphereTracing, OverRelaxed, Budgeted) can be interleaved
+/// (marchInterleaved); the slab methods march one ray at a time.
+inline bool isSphereTracing(MarchMethod method) {
+    return method == MarchMethod::SphereTracing || method == MarchMethod::OverRelaxed ||
+           method == MarchMethod::Budgeted;
+}
+
+/// Runs the sphere traces `rays` (made by detail::sphereTraceRay, as march() makes them) to their
+/// ends over `filter`, a sample of one ray after a sample of the next: a sample's address depends
+/// on the previous sample of the same ray, so a single ray keeps the processor waiting on each
+/// fetch, while several rays' chains overlap. Every ray's result is bit-identical to its march()
+/// (the same operations in the same order), whatever the order of the rays.
+template <class Filter>
+void marchInterleaved(const Filter& filter, std::span<detail::SphereTraceRay* const> rays) {
+    // Beyond a handful of rays the processor overlaps no more; more lanes only cost bookkeeping.
+    constexpr std::size_t kLanes = 8;
+    detail::SphereTraceRay* lanes[kLanes];
+    std::size_t laneCount = 0;
+    std::size_t next = 0;
+    for (; next < rays.size() && laneCount < kLanes; ++next) lanes[laneCount++] = rays[next];
+    while (laneCount > 0) {
+        for (std::size_t lane = 0; lane < laneCount;) {
+            if (lanes[lane]->step(filter)) {
+                ++lane;
+            } else if (next < rays.size()) {
+                lanes[lane++] = rays[next++];
+            } else {
+                lanes[lane] = lanes[--laneCount];
+            }
+        }
+    }
 }
 
 }  // namespace distile

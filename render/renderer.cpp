@@ -125,34 +125,59 @@ class Renderer {
 
     Ray cameraRay(float x, float y) const { return projection_.ray(x, y); }
 
-    /// All samples of pixel (x, y): the mean colour, and the first sample's AOV values.
-    Sample renderPixel(int x, int y, RenderStats& stats) const {
-        Sample pixel;
+    /// Pixels x0 ... x1 - 1 of row y into `pixels`: each the mean colour of its samples, with the
+    /// first sample's AOV values. The camera rays are traced in batches, their marches
+    /// interleaved (ScreenShells::traceNearestBatch); each sample is what it would be alone.
+    void renderRun(int y, int x0, int x1, Sample* pixels, RenderStats& stats) const {
+        constexpr std::size_t kBatch = 16;
+        static_assert(kBatch <= ScreenShells::kMaxBatchRays);
+        const int samplesPerPixel = options_.samplesPerPixel;
+        const int total = (x1 - x0) * samplesPerPixel;
+        ScreenShells::PixelRay rays[kBatch];
+        int sampleIndices[kBatch];
+        SurfaceHit hits[kBatch];
+        bool found[kBatch];
+        TraceCounters counters[kBatch];
         glm::vec3 sum(0.0f);
-        for (int index = 0; index < options_.samplesPerPixel; ++index) {
-            const glm::vec2 offset = sampleOffset(index, options_.samplesPerPixel);
-            const Sample sample = renderSample(x, y, cameraRay(x + offset.x, y + offset.y),
-                                               shadowSeed(x, y, index), stats);
-            if (index == 0) pixel = sample;
-            sum += sample.color;
+        for (int first = 0; first < total; first += int(kBatch)) {
+            const std::size_t count = std::size_t(std::min(int(kBatch), total - first));
+            for (std::size_t k = 0; k < count; ++k) {
+                const int x = x0 + (first + int(k)) / samplesPerPixel;
+                const int index = (first + int(k)) % samplesPerPixel;
+                const glm::vec2 offset = sampleOffset(index, samplesPerPixel);
+                rays[k] = {x, y, cameraRay(x + offset.x, y + offset.y)};
+                sampleIndices[k] = index;
+                counters[k] = {};
+            }
+            ShellCounters shellCounters;
+            shells_.traceNearestBatch(std::span(rays, count), options_.skips.shellCulling,
+                                      std::span(hits, count), std::span(found, count),
+                                      std::span(counters, count), shellCounters);
+            stats.shellsTested += shellCounters.tested;
+            stats.shellsTraced += shellCounters.traced;
+            for (std::size_t k = 0; k < count; ++k) {
+                const int x = rays[k].x;
+                const int index = sampleIndices[k];
+                const Sample sample = shadeSample(rays[k].ray, found[k], hits[k], counters[k],
+                                                  shadowSeed(x, y, index), stats);
+                if (index == 0) {
+                    pixels[x - x0] = sample;
+                    sum = glm::vec3(0.0f);
+                }
+                sum += sample.color;
+                if (index == samplesPerPixel - 1)
+                    pixels[x - x0].color = sum / float(samplesPerPixel);
+            }
         }
-        pixel.color = sum / float(options_.samplesPerPixel);
-        return pixel;
     }
 
   private:
-    /// One camera ray through the square of pixel (x, y).
-    Sample renderSample(int x, int y, const Ray& ray, std::uint32_t seed,
-                        RenderStats& stats) const {
+    /// One camera ray through the square of pixel (x, y), traced: its colour and AOV values.
+    Sample shadeSample(const Ray& ray, bool found, const SurfaceHit& hit,
+                       const TraceCounters& counters, std::uint32_t seed,
+                       RenderStats& stats) const {
         ++stats.rays;
         Sample sample;
-        SurfaceHit hit;
-        TraceCounters counters;
-        ShellCounters shellCounters;
-        const bool found = shells_.traceNearest(x, y, ray, options_.skips.shellCulling, hit,
-                                                counters, shellCounters);
-        stats.shellsTested += shellCounters.tested;
-        stats.shellsTraced += shellCounters.traced;
         stats.marchIterations += counters.marchIterations;
         stats.converged += counters.converged;
         if (!found) {
@@ -388,23 +413,30 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
             tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
             [&](const tbb::blocked_range2d<int>& block) {
                 RenderStats local;
+                Sample run[kBlock];
                 for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
-                    for (int x = block.cols().begin(); x != block.cols().end(); ++x) {
-                        const Sample pixel = renderer.renderPixel(x, y, local);
-                        result.image.at(x, y) = pixel.color;
-                        if (!result.aovs) continue;
-                        result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
-                        result.aovs->normal.at(x, y) =
-                            pixel.depth > 0.0f ? pixel.normal * 0.5f + 0.5f : glm::vec3(0.0f);
-                        result.aovs->iterations.at(x, y) =
-                            heatColor(float(pixel.iterations) / float(options.march.maxIterations));
-                        result.aovs->shadowSamples.at(x, y) =
-                            heatColor(float(pixel.shadowSteps) / shadowBudget);
-                        result.aovs->shadowMapSamples.at(x, y) =
-                            heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
-                        result.aovs->texelScale.at(x, y) = glm::vec3(pixel.texelsPerWorldAlongRay);
-                        if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
-                            result.aovs->curvature.at(x, y) = heatColor(0.5f + pixel.meanCurvature);
+                    for (int x0 = block.cols().begin(); x0 < block.cols().end(); x0 += kBlock) {
+                        const int x1 = std::min(x0 + kBlock, block.cols().end());
+                        renderer.renderRun(y, x0, x1, run, local);
+                        for (int x = x0; x != x1; ++x) {
+                            const Sample& pixel = run[x - x0];
+                            result.image.at(x, y) = pixel.color;
+                            if (!result.aovs) continue;
+                            result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
+                            result.aovs->normal.at(x, y) =
+                                pixel.depth > 0.0f ? pixel.normal * 0.5f + 0.5f : glm::vec3(0.0f);
+                            result.aovs->iterations.at(x, y) = heatColor(
+                                float(pixel.iterations) / float(options.march.maxIterations));
+                            result.aovs->shadowSamples.at(x, y) =
+                                heatColor(float(pixel.shadowSteps) / shadowBudget);
+                            result.aovs->shadowMapSamples.at(x, y) =
+                                heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
+                            result.aovs->texelScale.at(x, y) =
+                                glm::vec3(pixel.texelsPerWorldAlongRay);
+                            if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
+                                result.aovs->curvature.at(x, y) =
+                                    heatColor(0.5f + pixel.meanCurvature);
+                            }
                         }
                     }
                 }

@@ -208,8 +208,10 @@ void SceneTracer::shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 
     }
 }
 
-bool SceneTracer::traceShell(std::uint32_t shell, const Ray& ray, float minDistance,
-                             float maxDistance, SurfaceHit& hit, TraceCounters& counters) const {
+bool SceneTracer::enterShell(std::uint32_t shell, const Ray& ray, float minDistance,
+                             float maxDistance, SurfaceHit& hit, ShellMarch& march,
+                             bool& stopped) const {
+    stopped = false;
     const ShellTriangle& triangle = triangles_[shell];
     const SceneObject& object = scene_.objects[triangle.object];
     const glm::uvec3 vertices = object.mesh.triangles[triangle.localTriangle];
@@ -219,13 +221,35 @@ bool SceneTracer::traceShell(std::uint32_t shell, const Ray& ray, float minDista
                            minDistance, maxDistance, distance, b1, b2)) {
         return false;
     }
-    float exitDistanceWorld = 0.0f;
-    return traceEntry(ray, {shell, float(distance), float(b1), float(b2)}, hit, counters,
-                      exitDistanceWorld);
+    if (enterAt(ray, {shell, float(distance), float(b1), float(b2)}, hit, march)) return true;
+    stopped = true;
+    return false;
+}
+
+bool SceneTracer::traceShell(std::uint32_t shell, const Ray& ray, float minDistance,
+                             float maxDistance, SurfaceHit& hit, TraceCounters& counters) const {
+    ShellMarch march;
+    bool stopped = false;
+    if (!enterShell(shell, ray, minDistance, maxDistance, hit, march, stopped)) return stopped;
+    ShellMarch* const marches[1] = {&march};
+    marchShells(marches);
+    return finishShell(ray, march, hit, counters);
 }
 
 bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
                              TraceCounters& counters, float& exitDistanceWorld) const {
+    ShellMarch march;
+    if (!enterAt(ray, baseHit, hit, march)) return true;
+    ShellMarch* const marches[1] = {&march};
+    marchShells(marches);
+    if (finishShell(ray, march, hit, counters)) return true;
+    exitDistanceWorld =
+        baseHit.distanceWorld + march.result.travelTexels / march.texelsPerWorldAlongRay;
+    return false;
+}
+
+bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
+                          ShellMarch& march) const {
     const ShellTriangle& shell = triangles_[baseHit.triangle];
     const Material& material = scene_.objects[shell.object].material;
     hit.object = shell.object;
@@ -235,8 +259,11 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
     hit.normal = hit.entry.normal;
     hit.onDetail = false;
     hit.texelsPerWorldAlongRay = 0.0f;
-    if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) return true;
+    if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) return false;
 
+    march.object = shell.object;
+    march.baseHit = baseHit;
+    march.marched = false;
     const Size3& size = material.tile->size();
     glm::vec3 direction = hit.entry.toTexel(ray.direction);
     // Silhouettes of smooth-shaded meshes can tilt the interpolated frame until the ray no
@@ -245,6 +272,8 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
     const float texelsPerWorldAlongRay = glm::length(direction);
     direction /= texelsPerWorldAlongRay;
     hit.texelsPerWorldAlongRay = texelsPerWorldAlongRay;
+    march.texelsPerWorldAlongRay = texelsPerWorldAlongRay;
+    march.directionTexels = direction;
     // Wrap the entry point into the tile in double precision: far repeats keep their
     // sub-texel position. The uv is interpolated here in double from the corners (as corner 0 plus
     // the weighted edge deltas), not taken from the float entry.uv: near uv 1e4 a float
@@ -260,49 +289,98 @@ bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, Surface
     const double v = interpolateUv(1) * material.uvScale.y;
     const glm::vec3 start(float((u - std::floor(u)) * size.width),
                           float((v - std::floor(v)) * size.height), float(size.depth));
+    // Reference renders of detail with an exact first hit (mesh truth) take it instead of marching.
+    if (options_.reference && material.exactHit) {
+        march.startTexels = start;
+        march.skippedTexels = 0.0f;
+        march.result = exactFirstHit(material, start, direction, march.exactNormalTexels);
+        march.marched = true;
+        return true;
+    }
     // The empty path above the detail needs no samples: the march starts where it ends.
     const TileOccupancy* occupancy = occupancies_[shell.object].get();
-    const float emptyTexels = occupancy ? occupancy->emptyTravelTexels(start, direction) : 0.0f;
-    // Reference renders of detail with an exact first hit (mesh truth) take it instead of marching.
-    const bool exact = options_.reference && material.exactHit;
-    glm::vec3 exactNormalTexels(0.0f);
-    const bool done = withMarchFilter(
-        options_.filter, material, columns(shell.object), options_.reference,
-        [&](const auto& filter) {
-            if (exact) {
-                hit.march = exactFirstHit(material, start, direction, exactNormalTexels);
-            } else {
-                const glm::vec3 marchStart = start + direction * emptyTexels;
-                MarchSettings settings = options_.march;
-                if (options_.skips.adaptiveBudget)
-                    settings.maxIterations =
-                        adaptiveBudget(settings.maxIterations, marchStart.z / -direction.z);
-                hit.march = march(filter, marchStart, direction, material.floor, settings);
-                hit.march.travelTexels += emptyTexels;
-            }
-            ++counters.shellEntries;
-            counters.marchIterations += std::uint64_t(hit.march.iterations);
-            if (hit.march.converged) ++counters.converged;
-            if (hit.march.exitedFloor) return false;
-            hit.onDetail = true;
-            hit.distanceWorld =
-                baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
-            hit.position = ray.origin + ray.direction * hit.distanceWorld;
-            return true;
-        });
-    if (done && !hit.march.onFloor) {
-        const glm::vec3 gradient =
-            exact ? exactNormalTexels
-                  : withMarchFilter(options_.normalFilter, material, columns(shell.object),
-                                    options_.reference, [&](const auto& normalFilter) {
-                                        return normalFilter.gradient(hit.march.texelPosition);
-                                    });
-        if (glm::length(gradient) > 1e-6f)
-            hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
+    march.skippedTexels = occupancy ? occupancy->emptyTravelTexels(start, direction) : 0.0f;
+    march.startTexels = start + direction * march.skippedTexels;
+    march.settings = options_.march;
+    if (options_.skips.adaptiveBudget) {
+        march.settings.maxIterations =
+            adaptiveBudget(march.settings.maxIterations, march.startTexels.z / -direction.z);
     }
-    if (!done)
-        exitDistanceWorld = baseHit.distanceWorld + hit.march.travelTexels / texelsPerWorldAlongRay;
-    return done;
+    if (const auto refused = refusedMarch(march.startTexels, direction, march.settings)) {
+        march.result = *refused;
+        march.marched = true;
+    } else if (isSphereTracing(march.settings.method)) {
+        march.trace =
+            detail::sphereTraceRay(march.startTexels, direction, material.floor, march.settings);
+    }
+    return true;
+}
+
+void SceneTracer::marchShells(std::span<ShellMarch* const> marches) const {
+    const bool interleave = !options_.reference && isSphereTracing(options_.march.method);
+    if (!interleave) {
+        for (ShellMarch* march : marches) {
+            if (march->marched) continue;
+            const Material& material = scene_.objects[march->object].material;
+            march->result = withMarchFilter(
+                options_.filter, material, columns(march->object), options_.reference,
+                [&](const auto& filter) {
+                    return distile::march(filter, march->startTexels, march->directionTexels,
+                                          material.floor, march->settings);
+                });
+            march->marched = true;
+        }
+        return;
+    }
+    // Interleave the rays of one tile at a time (a batch rarely holds more than one tile).
+    constexpr std::size_t kChunk = 32;
+    detail::SphereTraceRay* traces[kChunk];
+    ShellMarch* owners[kChunk];
+    for (std::size_t first = 0;;) {
+        while (first < marches.size() && marches[first]->marched) ++first;
+        if (first == marches.size()) return;
+        const TileColumns* tile = columns(marches[first]->object);
+        std::size_t count = 0;
+        for (std::size_t index = first; index < marches.size() && count < kChunk; ++index) {
+            ShellMarch* march = marches[index];
+            if (march->marched || columns(march->object) != tile) continue;
+            owners[count] = march;
+            traces[count++] = &march->trace;
+        }
+        withFilter(options_.filter, *tile, [&](const auto& filter) {
+            marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(traces, count));
+        });
+        for (std::size_t index = 0; index < count; ++index) {
+            owners[index]->result = owners[index]->trace.result();
+            owners[index]->marched = true;
+        }
+    }
+}
+
+bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHit& hit,
+                              TraceCounters& counters) const {
+    const Material& material = scene_.objects[march.object].material;
+    const bool exact = options_.reference && material.exactHit;
+    hit.march = march.result;
+    hit.march.travelTexels += march.skippedTexels;
+    ++counters.shellEntries;
+    counters.marchIterations += std::uint64_t(hit.march.iterations);
+    if (hit.march.converged) ++counters.converged;
+    if (hit.march.exitedFloor) return false;
+    hit.onDetail = true;
+    hit.distanceWorld =
+        march.baseHit.distanceWorld + hit.march.travelTexels / march.texelsPerWorldAlongRay;
+    hit.position = ray.origin + ray.direction * hit.distanceWorld;
+    if (hit.march.onFloor) return true;
+    const glm::vec3 gradient =
+        exact ? march.exactNormalTexels
+              : withMarchFilter(options_.normalFilter, material, columns(march.object),
+                                options_.reference, [&](const auto& normalFilter) {
+                                    return normalFilter.gradient(hit.march.texelPosition);
+                                });
+    if (glm::length(gradient) > 1e-6f)
+        hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
+    return true;
 }
 
 }  // namespace distile

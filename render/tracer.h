@@ -8,6 +8,7 @@
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "render/bvh.h"
@@ -80,6 +81,22 @@ struct SurfaceHit {
     float texelsPerWorldAlongRay = 0.0f;
 };
 
+/// A ray that entered a detail shell, between SceneTracer::enterShell and finishShell: its march
+/// in the tile's texel space, taken by marchShells (several at once, interleaved).
+struct ShellMarch {
+    std::uint32_t object = 0;
+    TriangleHit baseHit;          ///< where the ray met the shell's top
+    glm::vec3 startTexels{0.0f};  ///< where the march starts (after the skipped empty path)
+    glm::vec3 directionTexels{0.0f, 0.0f, -1.0f};  ///< unit in texel space
+    float skippedTexels = 0.0f;                    ///< empty path from the top face to startTexels
+    float texelsPerWorldAlongRay = 0.0f;
+    MarchSettings settings;        ///< the tracer's, with this ray's budget
+    detail::SphereTraceRay trace;  ///< the sphere-tracing methods' state
+    bool marched = false;          ///< result is final (exact reference hits are known at entry)
+    MarchResult result;
+    glm::vec3 exactNormalTexels{0.0f};  ///< exact reference hits: the unit texel-space normal
+};
+
 struct TraceCounters {
     std::uint64_t shellEntries = 0;     ///< rays that entered a detail shell and were marched
     std::uint64_t marchIterations = 0;  ///< sphere-tracing steps
@@ -110,6 +127,20 @@ class SceneTracer {
     bool traceShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
                     SurfaceHit& hit, TraceCounters& counters) const;
 
+    /// The ray against one shell's top, as traceShell, up to the march: true when the top is hit
+    /// in (minDistance, maxDistance) and the ray enters the tile, with `march` set up and `hit`
+    /// holding the entry; false with `stopped` set when the ray stops on the bare base surface (a
+    /// back face, no tile; `hit` filled) or cleared for a miss. Thread-safe.
+    bool enterShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
+                    SurfaceHit& hit, ShellMarch& march, bool& stopped) const;
+    /// Takes the marches of `marches` (from enterShell, not yet marched), several rays interleaved
+    /// where the march method allows: the results are those of one march at a time.
+    void marchShells(std::span<ShellMarch* const> marches) const;
+    /// After marchShells: the march's end into `hit`; true when the ray stops in this shell, false
+    /// when it leaves through an open floor. Counts the march in `counters`.
+    bool finishShell(const Ray& ray, const ShellMarch& march, SurfaceHit& hit,
+                     TraceCounters& counters) const;
+
     /// Object `object`'s tile in the layout the renderer samples (sampler/tile_columns.h); null
     /// for an object without a tile. Objects sharing a tile share its columns.
     const TileColumns* columns(std::uint32_t object) const { return columns_[object].get(); }
@@ -129,8 +160,12 @@ class SceneTracer {
         glm::vec3 frameNormal{0.0f}, frameTangent{0.0f}, frameBitangent{0.0f};
     };
     ShellEntry shellEntry(const TriangleHit& hit, const Ray& ray) const;
-    /// The march of the shell the ray enters at `baseHit`: true with `hit` filled when the ray
-    /// stops there, false when it leaves through an open floor at `exitDistanceWorld`.
+    /// The shell the ray enters at `baseHit`, up to its march: false when the ray stops on the
+    /// base surface (`hit` filled), true with `march` set up.
+    bool enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
+                 ShellMarch& march) const;
+    /// enterAt, the march and finishShell: true with `hit` filled when the ray stops in the shell
+    /// it enters at `baseHit`, false when it leaves through an open floor at `exitDistanceWorld`.
     bool traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
                     TraceCounters& counters, float& exitDistanceWorld) const;
 

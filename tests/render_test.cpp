@@ -17,6 +17,7 @@
 #include "render/renderer.h"
 #include "render/shadow_map.h"
 #include "sampler/filters.h"
+#include "sampler/tile_columns.h"
 
 namespace distile {
 namespace {
@@ -110,6 +111,79 @@ TEST(March, HitsTheSolidFloorExactlyOrPassesAnOpenOne) {
     const MarchResult open = march(filter, entry, direction, Floor::Open, 16, 0.01f);
     EXPECT_TRUE(open.exitedFloor);
     EXPECT_FALSE(open.converged);
+}
+
+TEST(March, InterleavedMarchesAreBitIdenticalToSingleOnes) {
+    // Spheres of radius 5 texels repeating every 16 texels (exact distances): rays at 2 to 80
+    // degrees, every sphere-tracing method, budgets small enough to run out and to force the
+    // budgeted march's long steps past the surface (regula falsi), and NaN rays. Interleaving
+    // only reorders independent rays, so every field of every result must be equal.
+    const Size3 size{32, 32, 16};
+    Tile tile(size);
+    for (int z = 0; z < size.depth; ++z)
+        for (int y = 0; y < size.height; ++y)
+            for (int x = 0; x < size.width; ++x) {
+                const glm::vec3 local(std::fmod(x + 0.5f, 16.0f), std::fmod(y + 0.5f, 16.0f),
+                                      z + 0.5f);
+                tile.at(x, y, z) = glm::length(local - glm::vec3(8.0f, 8.0f, 7.0f)) - 5.0f;
+            }
+    const TileColumns columns(tile);
+    const BasicTrilinearFilter<ColumnTexels> filter(columns);
+    std::mt19937 random(3);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    int converged = 0, outOfBudget = 0, refused = 0;
+    for (MarchMethod method :
+         {MarchMethod::SphereTracing, MarchMethod::OverRelaxed, MarchMethod::Budgeted}) {
+        for (int budget : {3, 8, 16}) {
+            MarchSettings settings;
+            settings.method = method;
+            settings.maxIterations = budget;
+            constexpr int kRays = 37;  // not a multiple of the lanes
+            std::vector<glm::vec3> starts, directions;
+            for (int i = 0; i < kRays; ++i) {
+                const float elevation = (2.0f + 78.0f * unit(random)) * kPi / 180.0f;
+                const float azimuth = 2.0f * kPi * unit(random);
+                directions.emplace_back(std::cos(elevation) * std::cos(azimuth),
+                                        std::cos(elevation) * std::sin(azimuth),
+                                        -std::sin(elevation));
+                starts.emplace_back(32.0f * unit(random), 32.0f * unit(random), 16.0f);
+            }
+            starts[5].x = std::nanf("");
+            std::vector<detail::SphereTraceRay> rays(kRays);
+            std::vector<detail::SphereTraceRay*> pointers;
+            std::vector<MarchResult> single;
+            for (int i = 0; i < kRays; ++i) {
+                single.push_back(march(filter, starts[i], directions[i], Floor::Solid, settings));
+                if (refusedMarch(starts[i], directions[i], settings)) {
+                    ++refused;
+                    continue;
+                }
+                rays[i] = detail::sphereTraceRay(starts[i], directions[i], Floor::Solid, settings);
+                pointers.push_back(&rays[i]);
+            }
+            marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(pointers));
+            for (int i = 0; i < kRays; ++i) {
+                if (i == 5) continue;
+                const MarchResult& a = single[i];
+                const MarchResult& b = rays[i].result();
+                const std::string what = std::string(marchMethodName(method)) + " budget " +
+                                         std::to_string(budget) + " ray " + std::to_string(i);
+                EXPECT_EQ(a.texelPosition.x, b.texelPosition.x) << what;
+                EXPECT_EQ(a.texelPosition.y, b.texelPosition.y) << what;
+                EXPECT_EQ(a.texelPosition.z, b.texelPosition.z) << what;
+                EXPECT_EQ(a.travelTexels, b.travelTexels) << what;
+                EXPECT_EQ(a.iterations, b.iterations) << what;
+                EXPECT_EQ(a.converged, b.converged) << what;
+                EXPECT_EQ(a.onFloor, b.onFloor) << what;
+                EXPECT_EQ(a.exitedFloor, b.exitedFloor) << what;
+                (a.converged ? converged : outOfBudget) += 1;
+            }
+        }
+    }
+    // The rays took both ends: converged (surface or floor) and out of budget.
+    EXPECT_GT(converged, 100);
+    EXPECT_GT(outOfBudget, 20);
+    EXPECT_EQ(refused, 9);
 }
 
 TEST(TriangleBvh, FindsTheSameNearestHitAsBruteForce) {
