@@ -65,6 +65,7 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
             }
             tops_[std::size_t(by) * std::size_t(blocksX_) + std::size_t(bx)] = top;
             if (top < float(depth)) hasEmptySpace_ = true;
+            highestTop_ = std::max(highestTop_, top);
         }
     }
 }
@@ -74,7 +75,26 @@ float TileOccupancy::emptyTravelTexels(const glm::vec3& start, const glm::vec3& 
           direction.z < 0.0f && std::isfinite(direction.x) && std::isfinite(direction.y))) {
         return 0.0f;
     }
-    float travel = 0.0f;
+    // Divisions once per ray, not per block: the walk runs for every ray before its march.
+    const float perDescent = 1.0f / -direction.z;
+    const float perAlongX = 1.0f / direction.x;  // infinite when the ray does not move in x
+    const float perAlongY = 1.0f / direction.y;
+    const float perWidth = 1.0f / float(width_);
+    const float perHeight = 1.0f / float(height_);
+    // `coordinate` wrapped into [0, extent) (up to rounding; the block index is clamped).
+    auto wrap = [](float coordinate, float extent, float perExtent) {
+        const float periods = coordinate * perExtent;
+        return coordinate - extent * (std::abs(periods) < 1.0e9f ? detail::floorFinite(periods)
+                                                                 : std::floor(periods));
+    };
+    // Travel from `coordinate` to the block's wall ahead, [lower, upper) along an axis.
+    auto toWall = [](float coordinate, float lower, float upper, float along, float perAlong) {
+        if (along > 0.0f) return (upper - coordinate) * perAlong;
+        if (along < 0.0f) return (lower - coordinate) * perAlong;
+        return std::numeric_limits<float>::infinity();
+    };
+    // No block reaches above the highest top: the path down to it is empty over every block.
+    float travel = start.z > highestTop_ ? (start.z - highestTop_) * perDescent : 0.0f;
     float lookAhead = 0.0f;  // after a wall: which block the ray goes on over, just past the wall
     // Bounded walk: a ray descending through a slab crosses few blocks unless it is grazing; after
     // the bound the march simply starts where the walk stopped (still a safe point).
@@ -83,29 +103,24 @@ float TileOccupancy::emptyTravelTexels(const glm::vec3& start, const glm::vec3& 
     for (int step = 0; step < kMaxBlocks; ++step) {
         const glm::vec3 position = start + direction * travel;
         const glm::vec3 probe = start + direction * (travel + lookAhead);
-        const float x = probe.x - float(width_) * std::floor(probe.x / float(width_));
-        const float y = probe.y - float(height_) * std::floor(probe.y / float(height_));
+        const float x = wrap(probe.x, float(width_), perWidth);
+        const float y = wrap(probe.y, float(height_), perHeight);
         const int blockX = std::clamp(int(x) / kBlockTexels, 0, blocksX_ - 1);
         const int blockY = std::clamp(int(y) / kBlockTexels, 0, blocksY_ - 1);
         const float top = topTexels(blockX, blockY);
         if (position.z <= top) return travel;
-        const float toTop = (position.z - top) / -direction.z;
+        const float toTop = (position.z - top) * perDescent;
         // Travel to the block's side walls (the last block may be narrower than kBlockTexels),
         // measured from the probe, which is in the block.
-        auto toWall = [](float coordinate, float lower, float upper, float along) {
-            if (along > 0.0f) return (upper - coordinate) / along;
-            if (along < 0.0f) return (lower - coordinate) / along;
-            return std::numeric_limits<float>::infinity();
-        };
         const float lowerX = float(blockX * kBlockTexels);
         const float lowerY = float(blockY * kBlockTexels);
         const float toSide =
             lookAhead +
             std::max(0.0f,
                      std::min(toWall(x, lowerX, std::min(lowerX + kBlockTexels, float(width_)),
-                                     direction.x),
+                                     direction.x, perAlongX),
                               toWall(y, lowerY, std::min(lowerY + kBlockTexels, float(height_)),
-                                     direction.y)));
+                                     direction.y, perAlongY)));
         if (toTop <= toSide) return travel + toTop;
         // On to the wall; the next block is the one just past it. A step that does not advance
         // (rounding at a huge coordinate) ends the walk safely here.

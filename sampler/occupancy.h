@@ -49,6 +49,7 @@ class TileOccupancy {
     int width_, height_;
     int blocksX_, blocksY_;
     std::vector<float> tops_;
+    float highestTop_ = 0.0f;  ///< of all blocks
     bool hasEmptySpace_ = false;
 };
 

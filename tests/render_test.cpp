@@ -755,6 +755,64 @@ TEST(ShellCulling, BinsHoldEveryShellACameraRayEnters) {
     }
 }
 
+TEST(ShellCulling, BatchesTraceEveryRayAsItsOwnTrace) {
+    // Six overlapping layers (an open floor on top): rays enter several shells one after another,
+    // so a batch takes several rounds of interleaved marches. Each ray's hit and counters must be
+    // those of tracing it alone, with and without culling, for any batch length.
+    const Scene scene = stackedPlanesScene();
+    const SceneTracer tracer(scene, TraceOptions{});
+    constexpr int kWidth = 64, kHeight = 48;
+    const PinholeProjection projection(scene.camera, kWidth, kHeight);
+    const ScreenShells shells(tracer, projection);
+    int multiRound = 0, hits = 0;
+    for (const bool culling : {true, false}) {
+        for (const std::size_t batch : {std::size_t(16), std::size_t(5)}) {
+            for (int y = 0; y < kHeight; ++y) {
+                for (int x0 = 0; x0 < kWidth; x0 += int(batch)) {
+                    const std::size_t count = std::min(batch, std::size_t(kWidth - x0));
+                    std::vector<ScreenShells::PixelRay> rays;
+                    for (std::size_t k = 0; k < count; ++k) {
+                        const int x = x0 + int(k);
+                        rays.push_back({x, y, projection.ray(x + 0.5f, y + 0.5f)});
+                    }
+                    std::vector<SurfaceHit> batchHits(count);
+                    bool batchFound[ScreenShells::kMaxBatchRays] = {};
+                    std::vector<TraceCounters> batchCounters(count);
+                    ShellCounters batchShells, singleShells;
+                    shells.traceNearestBatch(rays, culling, batchHits,
+                                             std::span<bool>(batchFound, count), batchCounters,
+                                             batchShells);
+                    for (std::size_t k = 0; k < count; ++k) {
+                        SurfaceHit hit;
+                        TraceCounters counters;
+                        const bool found = shells.traceNearest(rays[k].x, y, rays[k].ray, culling,
+                                                               hit, counters, singleShells);
+                        const std::string where =
+                            std::to_string(rays[k].x) + "," + std::to_string(y);
+                        ASSERT_EQ(found, batchFound[k]) << where;
+                        EXPECT_EQ(counters.shellEntries, batchCounters[k].shellEntries) << where;
+                        EXPECT_EQ(counters.marchIterations, batchCounters[k].marchIterations)
+                            << where;
+                        if (counters.shellEntries > 1) ++multiRound;
+                        if (!found) continue;
+                        ++hits;
+                        EXPECT_EQ(hit.object, batchHits[k].object) << where;
+                        EXPECT_EQ(hit.distanceWorld, batchHits[k].distanceWorld) << where;
+                        EXPECT_EQ(hit.normal.x, batchHits[k].normal.x) << where;
+                        EXPECT_EQ(hit.normal.y, batchHits[k].normal.y) << where;
+                        EXPECT_EQ(hit.normal.z, batchHits[k].normal.z) << where;
+                    }
+                    EXPECT_EQ(batchShells.tested, singleShells.tested);
+                    EXPECT_EQ(batchShells.traced, singleShells.traced);
+                    singleShells = {};
+                }
+            }
+        }
+    }
+    EXPECT_GT(hits, 4 * kWidth * kHeight / 2);
+    EXPECT_GT(multiRound, 1000);  // rays that marched through the open top layer into the next
+}
+
 TEST(ShellCulling, MatchesTheBvhPathWhereShellsDoNotOverlap) {
     // One plane: the nearest shell entered is the only one, so the screen-space path and the BVH
     // path run the same march from the same entry and must agree exactly.
