@@ -136,10 +136,10 @@ class ScreenShells {
 
     /// The nearest hit of camera ray `ray` (through the square of pixel (x, y)) over the shells
     /// binned to its tile: the shells whose pixel test passes, nearest pixelDepthBound first, are
-    /// traced (SceneTracer::traceShell) and the nearest front-facing hit is kept. With
-    /// `shellCulling`, shells whose bound is not nearer than the best hit so far are skipped; the
-    /// hit is the same either way.
-    /// Precondition: 0 <= x < width, 0 <= y < height. Thread-safe.
+    /// traced (SceneTracer::enterShell, marchShells, finishShell) and the nearest front-facing hit
+    /// is kept. With `shellCulling`, shells whose bound is not nearer than the best hit so far are
+    /// skipped; the hit is the same either way. Precondition: 0 <= x < width, 0 <= y < height.
+    /// Thread-safe.
     bool traceNearest(int x, int y, const Ray& ray, bool shellCulling, SurfaceHit& hit,
                       TraceCounters& counters, ShellCounters& shellCounters) const;
 

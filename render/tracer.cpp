@@ -226,16 +226,6 @@ bool SceneTracer::enterShell(std::uint32_t shell, const Ray& ray, float minDista
     return false;
 }
 
-bool SceneTracer::traceShell(std::uint32_t shell, const Ray& ray, float minDistance,
-                             float maxDistance, SurfaceHit& hit, TraceCounters& counters) const {
-    ShellMarch march;
-    bool stopped = false;
-    if (!enterShell(shell, ray, minDistance, maxDistance, hit, march, stopped)) return stopped;
-    ShellMarch* const marches[1] = {&march};
-    marchShells(marches);
-    return finishShell(ray, march, hit, counters);
-}
-
 bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
                              TraceCounters& counters, float& exitDistanceWorld) const {
     ShellMarch march;

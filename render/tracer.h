@@ -119,18 +119,13 @@ class SceneTracer {
     /// Precondition: shell < shellCount().
     void shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 bottom[3]) const;
 
-    /// The ray against one shell only: its top (intersectTriangle, as the BVH tests it), then the
-    /// march from there, as traceNearest does for the shell it enters. True with `hit` filled when
-    /// the top is hit in (minDistance, maxDistance) and the ray stops in this shell (detail, solid
-    /// floor, end of the budget, or the bare base surface: a back face, no tile); false for a
-    /// miss or when the ray leaves through an open floor. Thread-safe.
-    bool traceShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
-                    SurfaceHit& hit, TraceCounters& counters) const;
-
-    /// The ray against one shell's top, as traceShell, up to the march: true when the top is hit
-    /// in (minDistance, maxDistance) and the ray enters the tile, with `march` set up and `hit`
-    /// holding the entry; false with `stopped` set when the ray stops on the bare base surface (a
-    /// back face, no tile; `hit` filled) or cleared for a miss. Thread-safe.
+    /// A ray against one shell only, in three parts so that several rays' marches can be taken
+    /// together (render/coverage.h): enterShell, marchShells, finishShell do for that shell what
+    /// traceNearest does for the shell it enters.
+    /// enterShell: the shell's top (intersectTriangle, as the BVH tests it) up to the march: true
+    /// when the top is hit in (minDistance, maxDistance) and the ray enters the tile, with `march`
+    /// set up and `hit` holding the entry; false with `stopped` set when the ray stops on the bare
+    /// base surface (a back face, no tile; `hit` filled) or cleared for a miss. Thread-safe.
     bool enterShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
                     SurfaceHit& hit, ShellMarch& march, bool& stopped) const;
     /// Takes the marches of `marches` (from enterShell, not yet marched), several rays interleaved
