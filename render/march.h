@@ -102,7 +102,9 @@ inline void endOnFloor(MarchResult& result, const glm::vec3& position, const glm
 /// One ray's sphere trace (SphereTracing, OverRelaxed, Budgeted; file note), taken a distance
 /// sample at a time, so that marchInterleaved() can alternate between rays whose sample chains are
 /// independent. The operations per ray are exactly those of one march, in the same order:
-/// interleaved and single marches give bit-identical results.
+/// interleaved and single marches give bit-identical results. The floor z = 0 is hit exactly when
+/// a safe sphere reaches it: the sphere is empty of detail, so the floor crossing inside it is the
+/// first surface along the ray.
 class SphereTraceRay {
   public:
     SphereTraceRay() = default;
