@@ -28,6 +28,7 @@
 #include <span>
 
 #include "render/scene.h"
+#include "sampler/filters.h"
 
 namespace distile {
 
@@ -124,17 +125,22 @@ class SphereTraceRay {
     /// the march has ended (then result() is final).
     template <class Filter>
     bool step(const Filter& filter) {
-        return refining_ ? refineStep(filter) : traceStep(filter);
+        return advance(filter.distanceTexels(samplePosition()));
     }
+
+    /// step() in two halves, so the samples of several rays can be taken together: where the
+    /// next sample is, then the march's move given the distance sampled there.
+    glm::vec3 samplePosition() const {
+        return start_ + direction_ * (refining_ ? estimate_ : travel_);
+    }
+    bool advance(float distance) { return refining_ ? refineStep(distance) : traceStep(distance); }
 
     const MarchResult& result() const { return result_; }
 
   private:
-    template <class Filter>
-    bool traceStep(const Filter& filter) {
+    bool traceStep(float distance) {
         ++result_.iterations;
         const glm::vec3 position = start_ + direction_ * travel_;
-        const float distance = filter.distanceTexels(position);
         if (factor_ > 1.0f && previousStep_ > safeRadius_ &&
             distance + safeRadius_ < previousStep_) {
             // The relaxed step left the previous sphere and this one does not reach back to it:
@@ -192,10 +198,8 @@ class SphereTraceRay {
         return result_.iterations < maxIterations_ || endRefining();
     }
 
-    template <class Filter>
-    bool refineStep(const Filter& filter) {
+    bool refineStep(float distance) {
         ++result_.iterations;
-        const float distance = filter.distanceTexels(start_ + direction_ * estimate_);
         if (std::abs(distance) < epsilonTexels_) return endRefining();
         if (distance > 0.0f) {
             outside_ = estimate_;
@@ -362,28 +366,44 @@ inline bool isSphereTracing(MarchMethod method) {
 }
 
 /// Runs the sphere traces `rays` (made by detail::sphereTraceRay, as march() makes them) to their
-/// ends over `filter`, a sample of one ray after a sample of the next: a sample's address depends
-/// on the previous sample of the same ray, so a single ray keeps the processor waiting on each
-/// fetch, while several rays' chains overlap. Every ray's result is bit-identical to its march()
-/// (the same operations in the same order), whatever the order of the rays.
+/// ends over `filter`, up to kMarchLanes rays at a time, one sample of each per round: a sample's
+/// address depends on the previous sample of the same ray, so a single ray keeps the processor
+/// waiting on each fetch, while several rays' chains overlap, and a round's samples are taken
+/// together (distancesTexels4). Every ray's result is bit-identical to its march() (the same
+/// operations in the same order), whatever the order of the rays.
+inline constexpr std::size_t kMarchLanes = 8;
+
 template <class Filter>
 void marchInterleaved(const Filter& filter, std::span<detail::SphereTraceRay* const> rays) {
-    // Beyond a handful of rays the processor overlaps no more; more lanes only cost bookkeeping.
-    constexpr std::size_t kLanes = 8;
-    detail::SphereTraceRay* lanes[kLanes];
+    static_assert(kMarchLanes % 4 == 0);
+    detail::SphereTraceRay* lanes[kMarchLanes];
     std::size_t laneCount = 0;
     std::size_t next = 0;
-    for (; next < rays.size() && laneCount < kLanes; ++next) lanes[laneCount++] = rays[next];
+    for (; next < rays.size() && laneCount < kMarchLanes; ++next) lanes[laneCount++] = rays[next];
+    alignas(16) float x[kMarchLanes], y[kMarchLanes], z[kMarchLanes], distances[kMarchLanes];
     while (laneCount > 0) {
-        for (std::size_t lane = 0; lane < laneCount;) {
-            if (lanes[lane]->step(filter)) {
-                ++lane;
+        for (std::size_t lane = 0; lane < laneCount; ++lane) {
+            const glm::vec3 position = lanes[lane]->samplePosition();
+            x[lane] = position.x;
+            y[lane] = position.y;
+            z[lane] = position.z;
+        }
+        for (std::size_t lane = laneCount; lane % 4 != 0; ++lane) {  // pad the last four
+            x[lane] = x[0];
+            y[lane] = y[0];
+            z[lane] = z[0];
+        }
+        for (std::size_t first = 0; first < laneCount; first += 4)
+            distancesTexels4(filter, x + first, y + first, z + first, distances + first);
+        std::size_t kept = 0;
+        for (std::size_t lane = 0; lane < laneCount; ++lane) {
+            if (lanes[lane]->advance(distances[lane])) {
+                lanes[kept++] = lanes[lane];
             } else if (next < rays.size()) {
-                lanes[lane++] = rays[next++];
-            } else {
-                lanes[lane] = lanes[--laneCount];
+                lanes[kept++] = rays[next++];
             }
         }
+        laneCount = kept;
     }
 }
 

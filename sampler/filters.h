@@ -201,6 +201,18 @@ class BasicTrilinearFilter {
                      detail::extendedAxis(texelPosition.z, size.depth));
     }
 
+    /// distanceTexels() at the four points (xs[i], ys[i], zs[i]), bit for bit; over TileColumns
+    /// the axis set-up and the last two lerps are done for the four points at once (SSE2).
+    void distancesTexels4(const float* xs, const float* ys, const float* zs, float* out) const {
+#if defined(__SSE2__)
+        if constexpr (Texels::kZContiguous) {
+            fetch4(xs, ys, zs, out);
+            return;
+        }
+#endif
+        for (int i = 0; i < 4; ++i) out[i] = distanceTexels({xs[i], ys[i], zs[i]});
+    }
+
     /// One linear texture fetch: the trilinear interpolant between the two texels given on each
     /// axis (indices already wrapped or clamped into the tile, weight = fraction toward `upper`;
     /// a z weight outside [0, 1] extrapolates linearly). The building block of the third-order
@@ -263,6 +275,106 @@ class BasicTrilinearFilter {
         float v[8];
     };
 
+#if defined(__SSE2__)
+    /// distancesTexels4 over columns: detail::periodicAxis and detail::extendedAxis for four
+    /// points per instruction (the same operations lane by lane), the texel pairs fetched point by
+    /// point as fetch() does, then the x and y lerps four points at once. Points outside the
+    /// near case of periodicAxis (huge, not finite) are redone by distanceTexels().
+    void fetch4(const float* xs, const float* ys, const float* zs, float* out) const {
+        const Size3& size = texels_.size();
+        const __m128 half = _mm_set1_ps(0.5f);
+        const __m128 one = _mm_set1_ps(1.0f);
+        const __m128i zero = _mm_setzero_si128();
+        auto floorFinite = [&](__m128 value) {  // detail::floorFinite
+            const __m128 truncated = _mm_cvtepi32_ps(_mm_cvttps_epi32(value));
+            return _mm_sub_ps(truncated, _mm_and_ps(_mm_cmpgt_ps(truncated, value), one));
+        };
+        __m128i outside = zero;  // lanes periodicAxis does not take in its near case
+        // detail::periodicAxis: lower and upper index and the weight; `outside` collects lanes
+        // that are huge, not finite, or more than a period away.
+        auto periodic = [&](const float* positions, int extent, __m128i& lower, __m128i& upper) {
+            const __m128 shifted = _mm_sub_ps(_mm_loadu_ps(positions), half);
+            const __m128 magnitude =
+                _mm_and_ps(shifted, _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff)));
+            outside = _mm_or_si128(outside,
+                                   _mm_castps_si128(_mm_cmpnlt_ps(magnitude, _mm_set1_ps(1.0e9f))));
+            const __m128 floorValue = floorFinite(shifted);
+            const __m128i extentLanes = _mm_set1_epi32(extent);
+            __m128i index = _mm_cvttps_epi32(floorValue);
+            index = _mm_add_epi32(index, _mm_and_si128(_mm_cmplt_epi32(index, zero), extentLanes));
+            const __m128i last = _mm_set1_epi32(extent - 1);
+            index = _mm_sub_epi32(index, _mm_and_si128(_mm_cmpgt_epi32(index, last), extentLanes));
+            outside = _mm_or_si128(
+                outside, _mm_or_si128(_mm_cmplt_epi32(index, zero), _mm_cmpgt_epi32(index, last)));
+            lower = index;
+            const __m128i next = _mm_add_epi32(index, _mm_set1_epi32(1));
+            upper = _mm_andnot_si128(_mm_cmpeq_epi32(next, extentLanes), next);
+            return _mm_sub_ps(shifted, floorValue);
+        };
+        __m128i xLower, xUpper, yLower, yUpper;
+        const __m128 xWeight = periodic(xs, size.width, xLower, xUpper);
+        const __m128 yWeight = periodic(ys, size.height, yLower, yUpper);
+        // detail::extendedAxis (clampedSliceCoordinate, then the clamped lower slice).
+        __m128 zShifted = _mm_sub_ps(_mm_loadu_ps(zs), half);
+        const __m128 firstFace = _mm_set1_ps(-0.5f);
+        const __m128 lastFace = _mm_set1_ps(float(size.depth) - 0.5f);
+        const __m128 aboveFirst = _mm_cmpge_ps(zShifted, firstFace);  // false for NaN
+        zShifted =
+            _mm_or_ps(_mm_and_ps(aboveFirst, zShifted), _mm_andnot_ps(aboveFirst, firstFace));
+        const __m128 belowLast = _mm_cmplt_ps(zShifted, lastFace);
+        zShifted = _mm_or_ps(_mm_and_ps(belowLast, zShifted), _mm_andnot_ps(belowLast, lastFace));
+        __m128i zLower = _mm_cvttps_epi32(floorFinite(zShifted));
+        zLower = _mm_andnot_si128(_mm_cmplt_epi32(zLower, zero), zLower);
+        const __m128i lastLower = _mm_set1_epi32(size.depth - 2);
+        const __m128i aboveLast = _mm_cmpgt_epi32(zLower, lastLower);
+        zLower =
+            _mm_or_si128(_mm_and_si128(aboveLast, lastLower), _mm_andnot_si128(aboveLast, zLower));
+        const __m128 zWeight = _mm_sub_ps(zShifted, _mm_cvtepi32_ps(zLower));
+        // Lanes outside read texel 0; their results are replaced below.
+        alignas(16) std::int32_t indices[5][4];
+        _mm_store_si128(reinterpret_cast<__m128i*>(indices[0]), _mm_andnot_si128(outside, xLower));
+        _mm_store_si128(reinterpret_cast<__m128i*>(indices[1]), _mm_andnot_si128(outside, xUpper));
+        _mm_store_si128(reinterpret_cast<__m128i*>(indices[2]), _mm_andnot_si128(outside, yLower));
+        _mm_store_si128(reinterpret_cast<__m128i*>(indices[3]), _mm_andnot_si128(outside, yUpper));
+        _mm_store_si128(reinterpret_cast<__m128i*>(indices[4]), zLower);
+        alignas(16) float zWeights[4];
+        _mm_store_ps(zWeights, zWeight);
+        const __m128 scale = _mm_set1_ps(texels_.texelsPerCode());
+        __m128 alongZ[4];  // per point: the four columns' values at its z
+        for (int lane = 0; lane < 4; ++lane) {
+            const std::int16_t* codes = texels_.codes() + indices[4][lane];
+            const auto pair = [&](int xIndex, int yIndex) {  // codes of slices z, z + 1
+                std::int32_t bits;
+                std::memcpy(&bits, codes + texels_.column(xIndex, yIndex), sizeof bits);
+                return _mm_cvtsi32_si128(bits);
+            };
+            const int x0 = indices[0][lane], x1 = indices[1][lane];
+            const int y0 = indices[2][lane], y1 = indices[3][lane];
+            const __m128 rowLower =
+                detail::texelsOfCodes(_mm_unpacklo_epi32(pair(x0, y0), pair(x1, y0)), scale);
+            const __m128 rowUpper =
+                detail::texelsOfCodes(_mm_unpacklo_epi32(pair(x0, y1), pair(x1, y1)), scale);
+            const __m128 sliceLower = _mm_shuffle_ps(rowLower, rowUpper, _MM_SHUFFLE(2, 0, 2, 0));
+            const __m128 sliceUpper = _mm_shuffle_ps(rowLower, rowUpper, _MM_SHUFFLE(3, 1, 3, 1));
+            alongZ[lane] = _mm_add_ps(sliceLower, _mm_mul_ps(_mm_sub_ps(sliceUpper, sliceLower),
+                                                             _mm_set1_ps(zWeights[lane])));
+        }
+        // Column c of every point: alongZ[c] after the transpose.
+        _MM_TRANSPOSE4_PS(alongZ[0], alongZ[1], alongZ[2], alongZ[3]);
+        const auto lerp4 = [](__m128 a, __m128 b, __m128 t) {
+            return _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), t));
+        };
+        _mm_storeu_ps(out, lerp4(lerp4(alongZ[0], alongZ[1], xWeight),
+                                 lerp4(alongZ[2], alongZ[3], xWeight), yWeight));
+        const int outsideLanes = _mm_movemask_ps(_mm_castsi128_ps(outside));
+        if (outsideLanes != 0) {
+            for (int lane = 0; lane < 4; ++lane)
+                if (outsideLanes & (1 << lane))
+                    out[lane] = distanceTexels({xs[lane], ys[lane], zs[lane]});
+        }
+    }
+#endif
+
     static float lerp(float a, float b, float t) {
         return a + (b - a) * t;
     }
@@ -282,6 +394,18 @@ class BasicTrilinearFilter {
 
     Texels texels_;
 };
+
+/// `filter`'s distances at the four points (xs[i], ys[i], zs[i]) into out[i]: its
+/// distancesTexels4 where it has one, else four distanceTexels calls.
+template <class Filter>
+void distancesTexels4(const Filter& filter, const float* xs, const float* ys, const float* zs,
+                      float* out) {
+    if constexpr (requires { filter.distancesTexels4(xs, ys, zs, out); }) {
+        filter.distancesTexels4(xs, ys, zs, out);
+    } else {
+        for (int i = 0; i < 4; ++i) out[i] = filter.distanceTexels({xs[i], ys[i], zs[i]});
+    }
+}
 
 using NearestFilter = BasicNearestFilter<TileTexels>;
 using TrilinearFilter = BasicTrilinearFilter<TileTexels>;
