@@ -133,12 +133,14 @@ class SphereTraceRay {
     glm::vec3 samplePosition() const {
         return start_ + direction_ * (refining_ ? estimate_ : travel_);
     }
-    bool advance(float distance) { return refining_ ? refineStep(distance) : traceStep(distance); }
+    [[gnu::always_inline]] bool advance(float distance) {
+        return refining_ ? refineStep(distance) : traceStep(distance);
+    }
 
     const MarchResult& result() const { return result_; }
 
   private:
-    bool traceStep(float distance) {
+    [[gnu::always_inline]] bool traceStep(float distance) {
         ++result_.iterations;
         const glm::vec3 position = start_ + direction_ * travel_;
         if (factor_ > 1.0f && previousStep_ > safeRadius_ &&

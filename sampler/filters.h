@@ -330,30 +330,48 @@ class BasicTrilinearFilter {
         zLower =
             _mm_or_si128(_mm_and_si128(aboveLast, lastLower), _mm_andnot_si128(aboveLast, zLower));
         const __m128 zWeight = _mm_sub_ps(zShifted, _mm_cvtepi32_ps(zLower));
-        // Lanes outside read texel 0; their results are replaced below.
-        alignas(16) std::int32_t indices[5][4];
-        _mm_store_si128(reinterpret_cast<__m128i*>(indices[0]), _mm_andnot_si128(outside, xLower));
-        _mm_store_si128(reinterpret_cast<__m128i*>(indices[1]), _mm_andnot_si128(outside, xUpper));
-        _mm_store_si128(reinterpret_cast<__m128i*>(indices[2]), _mm_andnot_si128(outside, yLower));
-        _mm_store_si128(reinterpret_cast<__m128i*>(indices[3]), _mm_andnot_si128(outside, yUpper));
-        _mm_store_si128(reinterpret_cast<__m128i*>(indices[4]), zLower);
+        // The elements of the four columns' slice zLower: column(x, y) + z = x D + y W D + z
+        // (ColumnTexels), in 32 bits (a tile's texel count fits: TileColumns). Lanes outside read
+        // texel 0; their results are replaced below.
+        const auto times = [](__m128i value, std::uint32_t factor) {  // lane-wise, < 2^32
+            const __m128i factors = _mm_set1_epi32(std::int32_t(factor));
+            const __m128i even = _mm_mul_epu32(value, factors);
+            const __m128i odd = _mm_mul_epu32(_mm_srli_epi64(value, 32), factors);
+            return _mm_unpacklo_epi32(_mm_shuffle_epi32(even, _MM_SHUFFLE(0, 0, 2, 0)),
+                                      _mm_shuffle_epi32(odd, _MM_SHUFFLE(0, 0, 2, 0)));
+        };
+        const std::uint32_t columnStride = std::uint32_t(size.depth);
+        const std::uint32_t rowStride = std::uint32_t(size.width) * columnStride;
+        const __m128i xLowerStart = times(_mm_andnot_si128(outside, xLower), columnStride);
+        const __m128i xUpperStart = times(_mm_andnot_si128(outside, xUpper), columnStride);
+        const __m128i yLowerStart =
+            _mm_add_epi32(times(_mm_andnot_si128(outside, yLower), rowStride), zLower);
+        const __m128i yUpperStart =
+            _mm_add_epi32(times(_mm_andnot_si128(outside, yUpper), rowStride), zLower);
+        alignas(16) std::uint32_t elements[4][4];  // x, y lower or upper: 00, 10, 01, 11
+        _mm_store_si128(reinterpret_cast<__m128i*>(elements[0]),
+                        _mm_add_epi32(xLowerStart, yLowerStart));
+        _mm_store_si128(reinterpret_cast<__m128i*>(elements[1]),
+                        _mm_add_epi32(xUpperStart, yLowerStart));
+        _mm_store_si128(reinterpret_cast<__m128i*>(elements[2]),
+                        _mm_add_epi32(xLowerStart, yUpperStart));
+        _mm_store_si128(reinterpret_cast<__m128i*>(elements[3]),
+                        _mm_add_epi32(xUpperStart, yUpperStart));
         alignas(16) float zWeights[4];
         _mm_store_ps(zWeights, zWeight);
         const __m128 scale = _mm_set1_ps(texels_.texelsPerCode());
+        const std::int16_t* codes = texels_.codes();
         __m128 alongZ[4];  // per point: the four columns' values at its z
         for (int lane = 0; lane < 4; ++lane) {
-            const std::int16_t* codes = texels_.codes() + indices[4][lane];
-            const auto pair = [&](int xIndex, int yIndex) {  // codes of slices z, z + 1
+            const auto pair = [&](int column) {  // codes of slices z, z + 1
                 std::int32_t bits;
-                std::memcpy(&bits, codes + texels_.column(xIndex, yIndex), sizeof bits);
+                std::memcpy(&bits, codes + elements[column][lane], sizeof bits);
                 return _mm_cvtsi32_si128(bits);
             };
-            const int x0 = indices[0][lane], x1 = indices[1][lane];
-            const int y0 = indices[2][lane], y1 = indices[3][lane];
             const __m128 rowLower =
-                detail::texelsOfCodes(_mm_unpacklo_epi32(pair(x0, y0), pair(x1, y0)), scale);
+                detail::texelsOfCodes(_mm_unpacklo_epi32(pair(0), pair(1)), scale);
             const __m128 rowUpper =
-                detail::texelsOfCodes(_mm_unpacklo_epi32(pair(x0, y1), pair(x1, y1)), scale);
+                detail::texelsOfCodes(_mm_unpacklo_epi32(pair(2), pair(3)), scale);
             const __m128 sliceLower = _mm_shuffle_ps(rowLower, rowUpper, _MM_SHUFFLE(2, 0, 2, 0));
             const __m128 sliceUpper = _mm_shuffle_ps(rowLower, rowUpper, _MM_SHUFFLE(3, 1, 3, 1));
             alongZ[lane] = _mm_add_ps(sliceLower, _mm_mul_ps(_mm_sub_ps(sliceUpper, sliceLower),
