@@ -1,5 +1,8 @@
 #include "sampler/occupancy.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -18,55 +21,66 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
     const int depth = size.depth;
     // Per slice, the lowest value over each block's support (its columns and one more around).
     std::vector<float> lowest(tops_.size() * std::size_t(depth));
-    for (int by = 0; by < blocksY_; ++by) {
-        for (int bx = 0; bx < blocksX_; ++bx) {
-            const int x0 = bx * kBlockTexels, x1 = std::min(x0 + kBlockTexels, size.width);
-            const int y0 = by * kBlockTexels, y1 = std::min(y0 + kBlockTexels, size.height);
-            float* blockLowest = &lowest[(std::size_t(by) * std::size_t(blocksX_) + bx) * depth];
-            for (int z = 0; z < depth; ++z) {
-                float low = tile.at(x0, y0, z);
-                for (int y = y0 - 1; y <= y1; ++y) {
-                    const int wrappedY = detail::wrapIndex(y, size.height);
-                    for (int x = x0 - 1; x <= x1; ++x)
-                        low = std::min(low, tile.at(detail::wrapIndex(x, size.width), wrappedY, z));
-                }
-                blockLowest[z] = low;
-            }
-            // The top edge cell, extrapolated to the face z = D: 1.5 v[D-1] - 0.5 v[D-2] per
-            // column; its lowest over the support bounds the whole outer half texel.
-            float faceLowest = blockLowest[depth - 1];
-            for (int y = y0 - 1; y <= y1; ++y) {
-                const int wrappedY = detail::wrapIndex(y, size.height);
-                for (int x = x0 - 1; x <= x1; ++x) {
-                    const int wrappedX = detail::wrapIndex(x, size.width);
-                    faceLowest =
-                        std::min(faceLowest, 1.5f * tile.at(wrappedX, wrappedY, depth - 1) -
-                                                 0.5f * tile.at(wrappedX, wrappedY, depth - 2));
-                }
-            }
-            float top = 0.0f;
-            if (!(faceLowest >= thresholdTexels)) {
-                top = float(depth);
-            } else {
-                int highestLow = -1;
-                for (int z = depth - 1; z >= 0; --z) {
-                    if (!(blockLowest[z] >= thresholdTexels)) {
-                        highestLow = z;
-                        break;
+    // Rows of blocks in parallel: each block's top depends on its own texels only.
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, blocksY_), [&](const tbb::blocked_range<int>& rows) {
+            for (int by = rows.begin(); by != rows.end(); ++by) {
+                for (int bx = 0; bx < blocksX_; ++bx) {
+                    const int x0 = bx * kBlockTexels, x1 = std::min(x0 + kBlockTexels, size.width);
+                    const int y0 = by * kBlockTexels, y1 = std::min(y0 + kBlockTexels, size.height);
+                    float* blockLowest =
+                        &lowest[(std::size_t(by) * std::size_t(blocksX_) + bx) * depth];
+                    for (int z = 0; z < depth; ++z) {
+                        float low = tile.at(x0, y0, z);
+                        for (int y = y0 - 1; y <= y1; ++y) {
+                            const int wrappedY = detail::wrapIndex(y, size.height);
+                            for (int x = x0 - 1; x <= x1; ++x)
+                                low = std::min(
+                                    low, tile.at(detail::wrapIndex(x, size.width), wrappedY, z));
+                        }
+                        blockLowest[z] = low;
                     }
+                    // The top edge cell, extrapolated to the face z = D: 1.5 v[D-1] - 0.5 v[D-2]
+                    // per column; its lowest over the support bounds the whole outer half texel.
+                    float faceLowest = blockLowest[depth - 1];
+                    for (int y = y0 - 1; y <= y1; ++y) {
+                        const int wrappedY = detail::wrapIndex(y, size.height);
+                        for (int x = x0 - 1; x <= x1; ++x) {
+                            const int wrappedX = detail::wrapIndex(x, size.width);
+                            faceLowest = std::min(
+                                faceLowest, 1.5f * tile.at(wrappedX, wrappedY, depth - 1) -
+                                                0.5f * tile.at(wrappedX, wrappedY, depth - 2));
+                        }
+                    }
+                    float top = 0.0f;
+                    if (!(faceLowest >= thresholdTexels)) {
+                        top = float(depth);
+                    } else {
+                        int highestLow = -1;
+                        for (int z = depth - 1; z >= 0; --z) {
+                            if (!(blockLowest[z] >= thresholdTexels)) {
+                                highestLow = z;
+                                break;
+                            }
+                        }
+                        // Above slice centre highestLow + 1 every cell's corners are at least the
+                        // threshold; a column with no low slice is empty down to the bottom cell's
+                        // centre (below it the bottom edge cell extrapolates, and the floor ends
+                        // the ray there).
+                        top = highestLow < 0 ? 0.5f
+                                             : std::min(float(highestLow) + 1.5f, float(depth));
+                        // A sliver of empty space is not worth the walk (and moving the march's
+                        // start changes where its budgeted steps land): such a block counts as
+                        // full.
+                        if (top > float(depth) - kMinimumSkipTexels) top = float(depth);
+                    }
+                    tops_[std::size_t(by) * std::size_t(blocksX_) + std::size_t(bx)] = top;
                 }
-                // Above slice centre highestLow + 1 every cell's corners are at least the
-                // threshold; a column with no low slice is empty down to the bottom cell's centre
-                // (below it the bottom edge cell extrapolates, and the floor ends the ray there).
-                top = highestLow < 0 ? 0.5f : std::min(float(highestLow) + 1.5f, float(depth));
-                // A sliver of empty space is not worth the walk (and moving the march's start
-                // changes where its budgeted steps land): such a block counts as full.
-                if (top > float(depth) - kMinimumSkipTexels) top = float(depth);
             }
-            tops_[std::size_t(by) * std::size_t(blocksX_) + std::size_t(bx)] = top;
-            if (top < float(depth)) hasEmptySpace_ = true;
-            highestTop_ = std::max(highestTop_, top);
-        }
+        });
+    for (const float top : tops_) {
+        if (top < float(depth)) hasEmptySpace_ = true;
+        highestTop_ = std::max(highestTop_, top);
     }
 }
 

@@ -1,5 +1,8 @@
 #include "sampler/tile_columns.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -23,13 +26,18 @@ TileColumns::TileColumns(const Tile& tile) : size_(tile.size()) {
     std::int16_t* first = storage_.data();
     while (reinterpret_cast<std::uintptr_t>(first) % 64 != 0) ++first;
     const std::size_t depth = std::size_t(size_.depth);
-    for (int y = 0; y < size_.height; ++y) {
-        for (int x = 0; x < size_.width; ++x) {
-            std::int16_t* column =
-                first + (std::size_t(y) * std::size_t(size_.width) + std::size_t(x)) * depth;
-            for (int z = 0; z < size_.depth; ++z) column[z] = codeOf(tile.at(x, y, z));
-        }
-    }
+    // Rows in parallel: every code depends on its texel only (built once per render).
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, size_.height), [&](const tbb::blocked_range<int>& rows) {
+            for (int y = rows.begin(); y != rows.end(); ++y) {
+                for (int x = 0; x < size_.width; ++x) {
+                    std::int16_t* column =
+                        first +
+                        (std::size_t(y) * std::size_t(size_.width) + std::size_t(x)) * depth;
+                    for (int z = 0; z < size_.depth; ++z) column[z] = codeOf(tile.at(x, y, z));
+                }
+            }
+        });
     codes_ = first;
 }
 
