@@ -21,6 +21,10 @@ class ProgressBar {
         if (enabled_ && shownPercent_ >= 0) std::fprintf(stderr, "\r\033[K");
     }
 
+    /// False when standard error is not a terminal: then nobody needs the calls (work that
+    /// reports progress can skip what reporting costs).
+    bool enabled() const { return enabled_; }
+
     void operator()(double fractionDone) {
         if (!enabled_) return;
         const int percent = int(fractionDone * 100.0 + 0.5);

@@ -124,7 +124,9 @@ void runRender(RenderArguments arguments) {
     {
         ProgressBar progress("render " + std::to_string(options.width) + "x" +
                              std::to_string(options.height));
-        result = renderScene(sceneFile.scene, options, std::ref(progress));
+        result = renderScene(
+            sceneFile.scene, options,
+            progress.enabled() ? ProgressCallback(std::ref(progress)) : ProgressCallback());
     }
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -2,6 +2,8 @@
 
 #include <OpenImageIO/imageio.h>
 #include <OpenImageIO/strutil.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cctype>
@@ -88,7 +90,12 @@ Image::Image(int widthPixels, int heightPixels, glm::vec3 fill) {
     }
     width = widthPixels;
     height = heightPixels;
-    rgbLinear.assign(std::size_t(width) * std::size_t(height), fill);
+    rgbLinear.resize(std::size_t(width) * std::size_t(height));  // uninitialised
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rgbLinear.size()),
+                      [&](const tbb::blocked_range<std::size_t>& pixels) {
+                          std::fill(rgbLinear.begin() + std::ptrdiff_t(pixels.begin()),
+                                    rgbLinear.begin() + std::ptrdiff_t(pixels.end()), fill);
+                      });
 }
 
 float srgbFromLinear(float linear) {

@@ -5,18 +5,46 @@
 
 #include <filesystem>
 #include <glm/vec3.hpp>
+#include <memory>
+#include <utility>
 #include <vector>
 
 namespace distile {
 
+namespace detail {
+
+/// std::allocator that default-initialises new elements (a glm::vec3 stays uninitialised), so
+/// an image's pixels are written once, by the threads that fill it, not zeroed first.
+template <class T>
+struct DefaultInitAllocator : std::allocator<T> {
+    template <class U>
+    struct rebind {
+        using other = DefaultInitAllocator<U>;
+    };
+    DefaultInitAllocator() = default;
+    template <class U>
+    DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+    template <class U, class... Arguments>
+    void construct(U* element, Arguments&&... arguments) {
+        if constexpr (sizeof...(Arguments) == 0) {
+            ::new (static_cast<void*>(element)) U;
+        } else {
+            ::new (static_cast<void*>(element)) U(std::forward<Arguments>(arguments)...);
+        }
+    }
+};
+
+}  // namespace detail
+
 struct Image {
     int width = 0;
     int height = 0;
-    std::vector<glm::vec3> rgbLinear;  ///< linear RGB, row-major, row 0 at the top
+    /// Linear RGB, row-major, row 0 at the top.
+    std::vector<glm::vec3, detail::DefaultInitAllocator<glm::vec3>> rgbLinear;
 
     Image() = default;
-    /// A `widthPixels` x `heightPixels` image filled with `fill`. Throws InputError unless each
-    /// extent is in [1, 65536] and there are at most 2^28 pixels.
+    /// A `widthPixels` x `heightPixels` image filled with `fill` (in parallel). Throws InputError
+    /// unless each extent is in [1, 65536] and there are at most 2^28 pixels.
     Image(int widthPixels, int heightPixels, glm::vec3 fill = glm::vec3(0.0f));
 
     /// Pixel (x, y), x to the right, y down. Preconditions: 0 <= x < width, 0 <= y < height.

@@ -374,8 +374,8 @@ void validateReference(const Scene& scene) {
 }  // namespace
 
 RenderAovs RenderAovs::blank(int width, int height) {
-    const Image black(width, height);
-    return {black, black, black, black, black, black, black};
+    const auto black = [&] { return Image(width, height); };  // filled in parallel, not copied
+    return {black(), black(), black(), black(), black(), black(), black()};
 }
 
 RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
@@ -403,12 +403,13 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
     std::atomic<std::uint64_t> rays{0}, baseHits{0}, iterations{0}, converged{0}, shadowSteps{0},
         shadowMapSamples{0};
     std::atomic<std::uint64_t> shellsTested{0}, shellsTraced{0};
-    // Bands of rows, so progress can be reported from this thread between them; inside a band,
+    // Bands of rows, so progress can be reported from this thread between them (each band ends
+    // in a wait for its slowest block: one band when nobody asks for progress); inside a band,
     // 16 x 16 pixel blocks are shared among the threads. Every pixel is computed on its own.
     constexpr int kBlock = 16;
-    constexpr int kBandRows = 64;
-    for (int bandStart = 0; bandStart < options.height; bandStart += kBandRows) {
-        const int bandEnd = std::min(bandStart + kBandRows, options.height);
+    const int bandRows = progress ? 64 : options.height;
+    for (int bandStart = 0; bandStart < options.height; bandStart += bandRows) {
+        const int bandEnd = std::min(bandStart + bandRows, options.height);
         tbb::parallel_for(
             tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
             [&](const tbb::blocked_range2d<int>& block) {
