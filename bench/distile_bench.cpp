@@ -99,8 +99,7 @@ void marchChainmailBatch(benchmark::State& state) {
             detail::SphereTraceRay rays[kBatch];
             detail::SphereTraceRay* pointers[kBatch];
             for (std::size_t k = 0; k < kBatch; ++k) {
-                rays[k] = detail::sphereTraceRay(entries[(i + k) & 0xfff], direction, Floor::Solid,
-                                                 settings);
+                rays[k].start(entries[(i + k) & 0xfff], direction, Floor::Solid, settings);
                 pointers[k] = &rays[k];
             }
             marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(pointers));
@@ -339,8 +338,11 @@ void sheetRender(benchmark::State& state) {
         SceneObject plane;
         plane.mesh = makePlane(2.0f, 1);  // the scene file's built-in plane, scaled by 2
         applyTransform(plane.mesh, {{0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 2.0f});
-        plane.material = {std::make_shared<const Tile>(chainmailTile()), {4.0f, 4.0f}, 0.0625f,
-                          Floor::Solid, {0.8f, 0.8f, 0.85f}};
+        plane.material = {std::make_shared<const Tile>(chainmailTile()),
+                          {4.0f, 4.0f},
+                          0.0625f,
+                          Floor::Solid,
+                          {0.8f, 0.8f, 0.85f}};
         sheet.objects.push_back(std::move(plane));
         return sheet;
     }();

@@ -108,18 +108,25 @@ inline void endOnFloor(MarchResult& result, const glm::vec3& position, const glm
 /// first surface along the ray.
 class SphereTraceRay {
   public:
-    SphereTraceRay() = default;
-    /// Preconditions as march(), and maxIterations >= 1.
-    SphereTraceRay(const glm::vec3& start, const glm::vec3& direction, Floor floor,
-                   int maxIterations, float epsilonTexels, float relaxation, bool budgeted)
-        : start_(start),
-          direction_(direction),
-          floor_(floor),
-          maxIterations_(maxIterations),
-          epsilonTexels_(epsilonTexels),
-          factor_(relaxation),
-          budgeted_(budgeted),
-          toFloorAtStart_(start.z / -direction.z) {}
+    /// (Re)starts the march of march() for `settings` (method SphereTracing, OverRelaxed or
+    /// Budgeted) from `start` along `direction`, in place. Preconditions as march(), and
+    /// settings.maxIterations >= 1.
+    void start(const glm::vec3& start, const glm::vec3& direction, Floor floor,
+               const MarchSettings& settings) {
+        start_ = start;
+        direction_ = direction;
+        floor_ = floor;
+        maxIterations_ = settings.maxIterations;
+        epsilonTexels_ = settings.epsilonTexels;
+        factor_ = settings.method == MarchMethod::OverRelaxed ? settings.relaxation : 1.0f;
+        budgeted_ = settings.method == MarchMethod::Budgeted;
+        refining_ = false;
+        toFloorAtStart_ = start.z / -direction.z;
+        travel_ = safeRadius_ = previousStep_ = 0.0f;
+        result_.iterations = 0;
+        result_.travelTexels = 0.0f;
+        result_.converged = result_.onFloor = result_.exitedFloor = false;
+    }
 
     /// Takes the next distance sample from `filter`, the same filter on every call; false once
     /// the march has ended (then result() is final).
@@ -243,14 +250,6 @@ class SphereTraceRay {
     MarchResult result_;
 };
 
-/// The sphere trace of march() for `settings` (method SphereTracing, OverRelaxed or Budgeted).
-inline SphereTraceRay sphereTraceRay(const glm::vec3& start, const glm::vec3& direction,
-                                     Floor floor, const MarchSettings& settings) {
-    return SphereTraceRay(start, direction, floor, settings.maxIterations, settings.epsilonTexels,
-                          settings.method == MarchMethod::OverRelaxed ? settings.relaxation : 1.0f,
-                          settings.method == MarchMethod::Budgeted);
-}
-
 /// Fixed linear steps from the top to the floor; at the first point inside (distance below
 /// epsilon), Relief refines by binary search with the rest of the budget, FixedSteps by the
 /// linear zero crossing of the last two distances.
@@ -337,7 +336,8 @@ MarchResult march(const Filter& filter, const glm::vec3& position, const glm::ve
         case MarchMethod::SphereTracing:
         case MarchMethod::OverRelaxed:
         case MarchMethod::Budgeted: {
-            auto ray = detail::sphereTraceRay(position, direction, floor, settings);
+            detail::SphereTraceRay ray;
+            ray.start(position, direction, floor, settings);
             while (ray.step(filter)) {
             }
             return ray.result();
@@ -367,11 +367,11 @@ inline bool isSphereTracing(MarchMethod method) {
            method == MarchMethod::Budgeted;
 }
 
-/// Runs the sphere traces `rays` (made by detail::sphereTraceRay, as march() makes them) to their
-/// ends over `filter`, up to kMarchLanes rays at a time, one sample of each per round: a sample's
-/// address depends on the previous sample of the same ray, so a single ray keeps the processor
-/// waiting on each fetch, while several rays' chains overlap, and a round's samples are taken
-/// together (distancesTexels4). Every ray's result is bit-identical to its march() (the same
+/// Runs the sphere traces `rays` (started by SphereTraceRay::start, as march() starts them) to
+/// their ends over `filter`, up to kMarchLanes rays at a time, one sample of each per round: a
+/// sample's address depends on the previous sample of the same ray, so a single ray keeps the
+/// processor waiting on each fetch, while several rays' chains overlap, and a round's samples are
+/// taken together (distancesTexels4). Every ray's result is bit-identical to its march() (the same
 /// operations in the same order), whatever the order of the rays.
 inline constexpr std::size_t kMarchLanes = 8;
 

@@ -156,7 +156,7 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     }
 }
 
-ShellEntry SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray) const {
+void SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const {
     const ShellTriangle& shell = triangles_[hit.triangle];
     const SceneObject& object = scene_.objects[shell.object];
     const BaseMesh& mesh = object.mesh;
@@ -166,7 +166,6 @@ ShellEntry SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray) const
         return values[triangle[0]] * b0 + values[triangle[1]] * hit.b1 +
                values[triangle[2]] * hit.b2;
     };
-    ShellEntry entry;
     entry.position = ray.origin + ray.direction * hit.distanceWorld;
     if (shell.flatFrame) {
         entry.normal = shell.frameNormal;
@@ -181,7 +180,6 @@ ShellEntry SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray) const
     const float depthTexels = tile ? float(tile->size().depth) : 1.0f;
     entry.texelsPerWorld = {shell.texelsPerWorldUv.x, shell.texelsPerWorldUv.y,
                             depthTexels / object.material.depthWorld};
-    return entry;
 }
 
 bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit,
@@ -243,7 +241,7 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
     const ShellTriangle& shell = triangles_[baseHit.triangle];
     const Material& material = scene_.objects[shell.object].material;
     hit.object = shell.object;
-    hit.entry = shellEntry(baseHit, ray);
+    shellEntry(baseHit, ray, hit.entry);
     hit.distanceWorld = baseHit.distanceWorld;
     hit.position = hit.entry.position;
     hit.normal = hit.entry.normal;
@@ -300,8 +298,7 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
         march.result = *refused;
         march.marched = true;
     } else if (isSphereTracing(march.settings.method)) {
-        march.trace =
-            detail::sphereTraceRay(march.startTexels, direction, material.floor, march.settings);
+        march.trace.start(march.startTexels, direction, material.floor, march.settings);
     }
     return true;
 }

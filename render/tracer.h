@@ -154,7 +154,8 @@ class SceneTracer {
         bool flatFrame = false;
         glm::vec3 frameNormal{0.0f}, frameTangent{0.0f}, frameBitangent{0.0f};
     };
-    ShellEntry shellEntry(const TriangleHit& hit, const Ray& ray) const;
+    /// Fills `entry` (in place: the hit's own, no temporary) for the ray's hit on a shell's top.
+    void shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const;
     /// The shell the ray enters at `baseHit`, up to its march: false when the ray stops on the
     /// base surface (`hit` filled), true with `march` set up.
     bool enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,

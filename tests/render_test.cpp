@@ -158,7 +158,7 @@ TEST(March, InterleavedMarchesAreBitIdenticalToSingleOnes) {
                     ++refused;
                     continue;
                 }
-                rays[i] = detail::sphereTraceRay(starts[i], directions[i], Floor::Solid, settings);
+                rays[i].start(starts[i], directions[i], Floor::Solid, settings);
                 pointers.push_back(&rays[i]);
             }
             marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(pointers));
