@@ -348,22 +348,27 @@ bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHi
                               TraceCounters& counters) const {
     const Material& material = scene_.objects[march.object].material;
     const bool exact = options_.reference && material.exactHit;
-    hit.march = march.result;
-    hit.march.travelTexels += march.skippedTexels;
+    // Read from the march's result, not back from the hit just written (a load of a fresh,
+    // differently aligned store waits for it).
+    const MarchResult& result = march.result;
+    const float travelTexels = result.travelTexels + march.skippedTexels;
+    hit.march = result;
+    hit.march.travelTexels = travelTexels;
     ++counters.shellEntries;
-    counters.marchIterations += std::uint64_t(hit.march.iterations);
-    if (hit.march.converged) ++counters.converged;
-    if (hit.march.exitedFloor) return false;
+    counters.marchIterations += std::uint64_t(result.iterations);
+    if (result.converged) ++counters.converged;
+    if (result.exitedFloor) return false;
     hit.onDetail = true;
-    hit.distanceWorld =
-        march.baseHit.distanceWorld + hit.march.travelTexels / march.texelsPerWorldAlongRay;
-    hit.position = ray.origin + ray.direction * hit.distanceWorld;
-    if (hit.march.onFloor) return true;
+    const float distanceWorld =
+        march.baseHit.distanceWorld + travelTexels / march.texelsPerWorldAlongRay;
+    hit.distanceWorld = distanceWorld;
+    hit.position = ray.origin + ray.direction * distanceWorld;
+    if (result.onFloor) return true;
     const glm::vec3 gradient =
         exact ? march.exactNormalTexels
               : withMarchFilter(options_.normalFilter, material, columns(march.object),
                                 options_.reference, [&](const auto& normalFilter) {
-                                    return normalFilter.gradient(hit.march.texelPosition);
+                                    return normalFilter.gradient(result.texelPosition);
                                 });
     if (glm::length(gradient) > 1e-6f)
         hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
