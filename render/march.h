@@ -382,21 +382,15 @@ void marchInterleaved(const Filter& filter, std::span<detail::SphereTraceRay* co
     std::size_t laneCount = 0;
     std::size_t next = 0;
     for (; next < rays.size() && laneCount < kMarchLanes; ++next) lanes[laneCount++] = rays[next];
-    alignas(16) float x[kMarchLanes], y[kMarchLanes], z[kMarchLanes], distances[kMarchLanes];
+    glm::vec3 positions[kMarchLanes];
+    alignas(16) float distances[kMarchLanes];
     while (laneCount > 0) {
-        for (std::size_t lane = 0; lane < laneCount; ++lane) {
-            const glm::vec3 position = lanes[lane]->samplePosition();
-            x[lane] = position.x;
-            y[lane] = position.y;
-            z[lane] = position.z;
-        }
-        for (std::size_t lane = laneCount; lane % 4 != 0; ++lane) {  // pad the last four
-            x[lane] = x[0];
-            y[lane] = y[0];
-            z[lane] = z[0];
-        }
+        for (std::size_t lane = 0; lane < laneCount; ++lane)
+            positions[lane] = lanes[lane]->samplePosition();
+        for (std::size_t lane = laneCount; lane % 4 != 0; ++lane)  // pad the last four
+            positions[lane] = positions[0];
         for (std::size_t first = 0; first < laneCount; first += 4)
-            distancesTexels4(filter, x + first, y + first, z + first, distances + first);
+            distancesTexels4(filter, positions + first, distances + first);
         std::size_t kept = 0;
         for (std::size_t lane = 0; lane < laneCount; ++lane) {
             if (lanes[lane]->advance(distances[lane])) {

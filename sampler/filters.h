@@ -201,16 +201,16 @@ class BasicTrilinearFilter {
                      detail::extendedAxis(texelPosition.z, size.depth));
     }
 
-    /// distanceTexels() at the four points (xs[i], ys[i], zs[i]), bit for bit; over TileColumns
-    /// the axis set-up and the last two lerps are done for the four points at once (SSE2).
-    void distancesTexels4(const float* xs, const float* ys, const float* zs, float* out) const {
+    /// distanceTexels() at the four points `positions`, bit for bit; over TileColumns the axis
+    /// set-up and the last two lerps are done for the four points at once (SSE2).
+    void distancesTexels4(const glm::vec3* positions, float* out) const {
 #if defined(__SSE2__)
         if constexpr (Texels::kZContiguous) {
-            fetch4(xs, ys, zs, out);
+            fetch4(positions, out);
             return;
         }
 #endif
-        for (int i = 0; i < 4; ++i) out[i] = distanceTexels({xs[i], ys[i], zs[i]});
+        for (int i = 0; i < 4; ++i) out[i] = distanceTexels(positions[i]);
     }
 
     /// One linear texture fetch: the trilinear interpolant between the two texels given on each
@@ -280,7 +280,7 @@ class BasicTrilinearFilter {
     /// points per instruction (the same operations lane by lane), the texel pairs fetched point by
     /// point as fetch() does, then the x and y lerps four points at once. Points outside the
     /// near case of periodicAxis (huge, not finite) are redone by distanceTexels().
-    void fetch4(const float* xs, const float* ys, const float* zs, float* out) const {
+    void fetch4(const glm::vec3* positions, float* out) const {
         const Size3& size = texels_.size();
         const __m128 half = _mm_set1_ps(0.5f);
         const __m128 one = _mm_set1_ps(1.0f);
@@ -292,8 +292,14 @@ class BasicTrilinearFilter {
         __m128i outside = zero;  // lanes periodicAxis does not take in its near case
         // detail::periodicAxis: lower and upper index and the weight; `outside` collects lanes
         // that are huge, not finite, or more than a period away.
-        auto periodic = [&](const float* positions, int extent, __m128i& lower, __m128i& upper) {
-            const __m128 shifted = _mm_sub_ps(_mm_loadu_ps(positions), half);
+        // Lanes gathered from the points' scalars (a vector load of four separate stores would
+        // wait for them).
+        const auto lanes = [&](int axis) {
+            return _mm_setr_ps(positions[0][axis], positions[1][axis], positions[2][axis],
+                               positions[3][axis]);
+        };
+        auto periodic = [&](__m128 coordinates, int extent, __m128i& lower, __m128i& upper) {
+            const __m128 shifted = _mm_sub_ps(coordinates, half);
             const __m128 magnitude =
                 _mm_and_ps(shifted, _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff)));
             outside = _mm_or_si128(outside,
@@ -312,10 +318,10 @@ class BasicTrilinearFilter {
             return _mm_sub_ps(shifted, floorValue);
         };
         __m128i xLower, xUpper, yLower, yUpper;
-        const __m128 xWeight = periodic(xs, size.width, xLower, xUpper);
-        const __m128 yWeight = periodic(ys, size.height, yLower, yUpper);
+        const __m128 xWeight = periodic(lanes(0), size.width, xLower, xUpper);
+        const __m128 yWeight = periodic(lanes(1), size.height, yLower, yUpper);
         // detail::extendedAxis (clampedSliceCoordinate, then the clamped lower slice).
-        __m128 zShifted = _mm_sub_ps(_mm_loadu_ps(zs), half);
+        __m128 zShifted = _mm_sub_ps(lanes(2), half);
         const __m128 firstFace = _mm_set1_ps(-0.5f);
         const __m128 lastFace = _mm_set1_ps(float(size.depth) - 0.5f);
         const __m128 aboveFirst = _mm_cmpge_ps(zShifted, firstFace);  // false for NaN
@@ -387,8 +393,7 @@ class BasicTrilinearFilter {
         const int outsideLanes = _mm_movemask_ps(_mm_castsi128_ps(outside));
         if (outsideLanes != 0) {
             for (int lane = 0; lane < 4; ++lane)
-                if (outsideLanes & (1 << lane))
-                    out[lane] = distanceTexels({xs[lane], ys[lane], zs[lane]});
+                if (outsideLanes & (1 << lane)) out[lane] = distanceTexels(positions[lane]);
         }
     }
 #endif
@@ -413,15 +418,14 @@ class BasicTrilinearFilter {
     Texels texels_;
 };
 
-/// `filter`'s distances at the four points (xs[i], ys[i], zs[i]) into out[i]: its
-/// distancesTexels4 where it has one, else four distanceTexels calls.
+/// `filter`'s distances at the four points `positions` into out[i]: its distancesTexels4 where
+/// it has one, else four distanceTexels calls.
 template <class Filter>
-void distancesTexels4(const Filter& filter, const float* xs, const float* ys, const float* zs,
-                      float* out) {
-    if constexpr (requires { filter.distancesTexels4(xs, ys, zs, out); }) {
-        filter.distancesTexels4(xs, ys, zs, out);
+void distancesTexels4(const Filter& filter, const glm::vec3* positions, float* out) {
+    if constexpr (requires { filter.distancesTexels4(positions, out); }) {
+        filter.distancesTexels4(positions, out);
     } else {
-        for (int i = 0; i < 4; ++i) out[i] = filter.distanceTexels({xs[i], ys[i], zs[i]});
+        for (int i = 0; i < 4; ++i) out[i] = filter.distanceTexels(positions[i]);
     }
 }
 
