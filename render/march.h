@@ -389,8 +389,13 @@ void marchInterleaved(const Filter& filter, std::span<detail::SphereTraceRay* co
             positions[lane] = lanes[lane]->samplePosition();
         for (std::size_t lane = laneCount; lane % 4 != 0; ++lane)  // pad the last four
             positions[lane] = positions[0];
-        for (std::size_t first = 0; first < laneCount; first += 4)
-            distancesTexels4(filter, positions + first, distances + first);
+        for (std::size_t first = 0; first < laneCount; first += 4) {
+            if (laneCount - first == 1) {  // a lone ray (a single march): no padding lanes
+                distances[first] = filter.distanceTexels(positions[first]);
+            } else {
+                distancesTexels4(filter, positions + first, distances + first);
+            }
+        }
         std::size_t kept = 0;
         for (std::size_t lane = 0; lane < laneCount; ++lane) {
             if (lanes[lane]->advance(distances[lane])) {

@@ -113,15 +113,26 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
     tbb::parallel_for(tbb::blocked_range<int>(0, height_, 8), [&](const tbb::blocked_range<int>&
                                                                       rows) {
         TraceCounters counters;
+        constexpr int kBatch = int(SceneTracer::kMaxBatchRays);
+        Ray rays[kBatch];
+        SurfaceHit hits[kBatch];
+        bool found[kBatch];
         for (int y = rows.begin(); y != rows.end(); ++y) {
-            for (int x = 0; x < width_; ++x) {
-                const float across = originPlane_.x + (float(x) + 0.5f) * texelWorld_;
+            // Runs of a row traced together: their marches interleave (SceneTracer).
+            for (int x0 = 0; x0 < width_; x0 += kBatch) {
+                const int count = std::min(kBatch, width_ - x0);
                 const float along = originPlane_.y + (float(y) + 0.5f) * texelWorld_;
-                const Ray ray{axisX_ * across + axisY_ * along - toLight_ * startDepth, -toLight_};
-                SurfaceHit hit;
-                if (tracer.traceNearest(ray, 0.0f, hit, counters)) {
-                    depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)] =
-                        startDepth + hit.distanceWorld;
+                for (int k = 0; k < count; ++k) {
+                    const float across = originPlane_.x + (float(x0 + k) + 0.5f) * texelWorld_;
+                    rays[k] = {axisX_ * across + axisY_ * along - toLight_ * startDepth, -toLight_};
+                }
+                tracer.traceNearestBatch(std::span(rays, std::size_t(count)), 0.0f,
+                                         std::span(hits, std::size_t(count)),
+                                         std::span(found, std::size_t(count)), counters);
+                for (int k = 0; k < count; ++k) {
+                    if (!found[k]) continue;
+                    depths_[std::size_t(x0 + k) + std::size_t(width_) * std::size_t(y)] =
+                        startDepth + hits[k].distanceWorld;
                 }
             }
         }

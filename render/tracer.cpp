@@ -184,15 +184,63 @@ void SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry&
 
 bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit,
                                TraceCounters& counters) const {
-    // An open floor lets the ray leave a shell through a hole and go on; bounded by the object
-    // count so a ray cannot loop.
-    for (std::size_t pass = 0; pass <= scene_.objects.size() + 1; ++pass) {
-        TriangleHit baseHit;
-        if (!bvh_.intersect(ray, minDistance, std::numeric_limits<float>::max(), baseHit))
-            return false;
-        if (traceEntry(ray, baseHit, hit, counters, minDistance)) return true;
+    bool found = false;
+    traceNearestBatch(std::span<const Ray>(&ray, 1), minDistance, std::span<SurfaceHit>(&hit, 1),
+                      std::span<bool>(&found, 1), counters);
+    return found;
+}
+
+void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance,
+                                    std::span<SurfaceHit> hits, std::span<bool> found,
+                                    TraceCounters& counters) const {
+    const std::size_t count = rays.size();
+    // An open floor lets a ray leave a shell through a hole and go on (another pass from where
+    // it left); bounded by the object count so a ray cannot loop.
+    const std::size_t maxPasses = scene_.objects.size() + 2;
+    float from[kMaxBatchRays];
+    std::size_t passes[kMaxBatchRays];
+    bool active[kMaxBatchRays];
+    for (std::size_t r = 0; r < count; ++r) {
+        from[r] = minDistance;
+        passes[r] = 0;
+        active[r] = true;
+        found[r] = false;
     }
-    return false;
+    ShellMarch marches[kMaxBatchRays];
+    ShellMarch* pending[kMaxBatchRays];
+    std::size_t pendingRay[kMaxBatchRays];
+    for (;;) {
+        std::size_t pendingCount = 0;
+        for (std::size_t r = 0; r < count; ++r) {
+            if (!active[r]) continue;
+            TriangleHit baseHit;
+            if (passes[r]++ == maxPasses ||
+                !bvh_.intersect(rays[r], from[r], std::numeric_limits<float>::max(), baseHit)) {
+                active[r] = false;
+                continue;
+            }
+            if (!enterAt(rays[r], baseHit, hits[r], marches[r])) {  // stops on the base surface
+                found[r] = true;
+                active[r] = false;
+                continue;
+            }
+            pending[pendingCount] = &marches[r];
+            pendingRay[pendingCount++] = r;
+        }
+        if (pendingCount == 0) return;
+        marchShells(std::span<ShellMarch* const>(pending, pendingCount));
+        for (std::size_t p = 0; p < pendingCount; ++p) {
+            const std::size_t r = pendingRay[p];
+            const ShellMarch& march = marches[r];
+            if (finishShell(rays[r], march, hits[r], counters)) {
+                found[r] = true;
+                active[r] = false;
+            } else {  // out through an open floor: on from where it left
+                from[r] = march.baseHit.distanceWorld +
+                          march.result.travelTexels / march.texelsPerWorldAlongRay;
+            }
+        }
+    }
 }
 
 void SceneTracer::shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 bottom[3]) const {
@@ -221,18 +269,6 @@ bool SceneTracer::enterShell(std::uint32_t shell, const Ray& ray, float minDista
     }
     if (enterAt(ray, {shell, float(distance), float(b1), float(b2)}, hit, march)) return true;
     stopped = true;
-    return false;
-}
-
-bool SceneTracer::traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
-                             TraceCounters& counters, float& exitDistanceWorld) const {
-    ShellMarch march;
-    if (!enterAt(ray, baseHit, hit, march)) return true;
-    ShellMarch* const marches[1] = {&march};
-    marchShells(marches);
-    if (finishShell(ray, march, hit, counters)) return true;
-    exitDistanceWorld =
-        baseHit.distanceWorld + march.result.travelTexels / march.texelsPerWorldAlongRay;
     return false;
 }
 

@@ -112,6 +112,14 @@ class SceneTracer {
     bool traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit,
                       TraceCounters& counters) const;
 
+    /// At most this many rays per traceNearestBatch call.
+    static constexpr std::size_t kMaxBatchRays = 16;
+    /// traceNearest for each of `rays` (at most kMaxBatchRays), their marches taken together
+    /// (marchShells interleaves them): `found[i]` and `hits[i]` are what traceNearest gives for
+    /// rays[i] alone, bit for bit; the marches are counted in `counters`. Thread-safe.
+    void traceNearestBatch(std::span<const Ray> rays, float minDistance, std::span<SurfaceHit> hits,
+                           std::span<bool> found, TraceCounters& counters) const;
+
     /// Base triangles of all objects, in scene order: shell `s` is the detail shell of one of them.
     std::uint32_t shellCount() const { return std::uint32_t(triangles_.size()); }
     /// World corners of shell `shell`: its top (the base triangle) and its bottom, the top moved
@@ -160,10 +168,6 @@ class SceneTracer {
     /// base surface (`hit` filled), true with `march` set up.
     bool enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
                  ShellMarch& march) const;
-    /// enterAt, the march and finishShell: true with `hit` filled when the ray stops in the shell
-    /// it enters at `baseHit`, false when it leaves through an open floor at `exitDistanceWorld`.
-    bool traceEntry(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
-                    TraceCounters& counters, float& exitDistanceWorld) const;
 
     const Scene& scene_;
     TraceOptions options_;
