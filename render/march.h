@@ -368,17 +368,18 @@ inline bool isSphereTracing(MarchMethod method) {
 }
 
 /// Runs the sphere traces `rays` (started by SphereTraceRay::start, as march() starts them) to
-/// their ends over `filter`, up to kMarchLanes rays at a time, one sample of each per round: a
-/// sample's address depends on the previous sample of the same ray, so a single ray keeps the
+/// their ends over `filter`, up to kMarchLanes rays at a time, one sample of each per round (any
+/// `Marcher` with samplePosition() and advance(distance) that needs at least one more sample
+/// interleaves the same way, e.g. the renderer's self-shadow rays): a sample's address depends on the previous sample of the same ray, so a single ray keeps the
 /// processor waiting on each fetch, while several rays' chains overlap, and a round's samples are
 /// taken together (distancesTexels4). Every ray's result is bit-identical to its march() (the same
 /// operations in the same order), whatever the order of the rays.
 inline constexpr std::size_t kMarchLanes = 8;
 
-template <class Filter>
-void marchInterleaved(const Filter& filter, std::span<detail::SphereTraceRay* const> rays) {
+template <class Filter, class Marcher = detail::SphereTraceRay>
+void marchInterleaved(const Filter& filter, std::span<Marcher* const> rays) {
     static_assert(kMarchLanes % 4 == 0);
-    detail::SphereTraceRay* lanes[kMarchLanes];
+    Marcher* lanes[kMarchLanes];
     std::size_t laneCount = 0;
     std::size_t next = 0;
     for (; next < rays.size() && laneCount < kMarchLanes; ++next) lanes[laneCount++] = rays[next];

@@ -33,26 +33,63 @@ constexpr float kAmbientStrength = 0.18f;
 
 /// Visibility in [0, 1] of a light of angular radius atan(tanHalfAngle) from a texel-space
 /// point, by sphere tracing toward it until the ray leaves the top of the tile; the nearest miss
-/// relative to the distance travelled estimates how much of the light's disk is covered.
-template <class Filter>
-float lightVisibility(const Filter& filter, const glm::vec3& start, const glm::vec3& toLight,
-                      float depthTexels, float tanHalfAngle, const RenderOptions& options,
-                      std::uint64_t& steps) {
-    if (toLight.z <= 0.0f) return 0.0f;
-    float visibility = 1.0f;
-    float travel = 0.1f;
-    for (int i = 0; i < options.shadowIterations; ++i) {
-        const glm::vec3 position = start + toLight * travel;
-        if (position.z >= depthTexels) break;
-        ++steps;
-        const float distance = filter.distanceTexels(position);
-        if (distance < 0.5f * options.march.epsilonTexels) return 0.0f;
-        visibility = std::min(visibility, distance / (travel * tanHalfAngle));
-        travel += std::max(distance, 0.05f);
+/// relative to the distance travelled estimates how much of the light's disk is covered. Taken a
+/// sample at a time (samplePosition, advance), so the self-shadow rays of a batch of camera rays
+/// are marched together (marchInterleaved) with the operations of a single one.
+class LightVisibilityRay {
+  public:
+    /// Starts at `start` toward `toLight` (unit, texel space) with at most `maxSamples` samples;
+    /// a sample closer than half `epsilonTexels` to the detail blocks the light.
+    void start(const glm::vec3& start, const glm::vec3& toLight, float depthTexels,
+               float tanHalfAngle, int maxSamples, float epsilonTexels) {
+        start_ = start;
+        toLight_ = toLight;
+        depthTexels_ = depthTexels;
+        tanHalfAngle_ = tanHalfAngle;
+        samplesLeft_ = maxSamples;
+        blockingTexels_ = 0.5f * epsilonTexels;
+        visibility_ = 1.0f;
+        travel_ = 0.1f;
+        samples_ = 0;
+        blocked_ = toLight.z <= 0.0f;  // the light is below the base surface
+        needsSample_ = !blocked_ && nextSampleInside();
     }
-    visibility = std::clamp(visibility, 0.0f, 1.0f);
-    return visibility * visibility * (3.0f - 2.0f * visibility);
-}
+    bool needsSample() const { return needsSample_; }
+    glm::vec3 samplePosition() const { return start_ + toLight_ * travel_; }
+    /// Takes the distance sampled at samplePosition(); false when no more samples are needed.
+    bool advance(float distance) {
+        ++samples_;
+        if (distance < blockingTexels_) {
+            blocked_ = true;
+            return needsSample_ = false;
+        }
+        visibility_ = std::min(visibility_, distance / (travel_ * tanHalfAngle_));
+        travel_ += std::max(distance, 0.05f);
+        --samplesLeft_;
+        return needsSample_ = nextSampleInside();
+    }
+    /// Smoothstepped visibility, once needsSample() is false.
+    float visibility() const {
+        if (blocked_) return 0.0f;
+        const float clamped = std::clamp(visibility_, 0.0f, 1.0f);
+        return clamped * clamped * (3.0f - 2.0f * clamped);
+    }
+    std::uint64_t samples() const { return samples_; }
+
+  private:
+    /// The next sample is within the budget and below the top of the tile (NaN: sampled, as a
+    /// plain loop would).
+    bool nextSampleInside() const {
+        return samplesLeft_ > 0 && !(samplePosition().z >= depthTexels_);
+    }
+
+    glm::vec3 start_{0.0f}, toLight_{0.0f, 0.0f, 1.0f};
+    float depthTexels_ = 0.0f, tanHalfAngle_ = 1.0f, blockingTexels_ = 0.0f;
+    float visibility_ = 1.0f, travel_ = 0.1f;
+    int samplesLeft_ = 0;
+    std::uint64_t samples_ = 0;
+    bool blocked_ = false, needsSample_ = false;
+};
 
 glm::vec3 skyColor(const glm::vec3& direction) {
     const float t = 0.5f + 0.5f * direction.z;
@@ -100,6 +137,11 @@ std::uint32_t shadowSeed(int x, int y, int index) {
 
 class Renderer {
   public:
+    /// Camera rays traced together (a run of a screen tile's row).
+    static constexpr std::size_t kRunRays = 16;
+    /// Scenes with at most this many lights march their self-shadow rays together.
+    static constexpr std::size_t kInterleavedLights = 4;
+
     Renderer(const Scene& scene, const RenderOptions& options)
         : scene_(scene),
           options_(options),
@@ -129,8 +171,12 @@ class Renderer {
     /// first sample's AOV values. The camera rays are traced in batches, their marches
     /// interleaved (ScreenShells::traceNearestBatch); each sample is what it would be alone.
     void renderRun(int y, int x0, int x1, Sample* pixels, RenderStats& stats) const {
-        constexpr std::size_t kBatch = 16;
+        constexpr std::size_t kBatch = kRunRays;
         static_assert(kBatch <= ScreenShells::kMaxBatchRays);
+        // Self-shadow rays are marched together for scenes of a few lights (tile filters only).
+        const bool batchSelfShadows = options_.selfShadows && !options_.reference &&
+                                      scene_.lights.size() <= kInterleavedLights;
+        LightVisibilityRay selfShadows[kBatch][kInterleavedLights];
         const int samplesPerPixel = options_.samplesPerPixel;
         const int total = (x1 - x0) * samplesPerPixel;
         ScreenShells::PixelRay rays[kBatch];
@@ -155,11 +201,13 @@ class Renderer {
                                       std::span(counters, count), shellCounters);
             stats.shellsTested += shellCounters.tested;
             stats.shellsTraced += shellCounters.traced;
+            if (batchSelfShadows) marchSelfShadows(count, hits, found, selfShadows);
             for (std::size_t k = 0; k < count; ++k) {
                 const int x = rays[k].x;
                 const int index = sampleIndices[k];
-                const Sample sample = shadeSample(rays[k].ray, found[k], hits[k], counters[k],
-                                                  shadowSeed(x, y, index), stats);
+                const Sample sample = shadeSample(
+                    rays[k].ray, found[k], hits[k], counters[k], shadowSeed(x, y, index),
+                    batchSelfShadows ? selfShadows[k] : nullptr, stats);
                 if (index == 0) {
                     pixels[x - x0] = sample;
                     sum = glm::vec3(0.0f);
@@ -175,7 +223,7 @@ class Renderer {
     /// One camera ray through the square of pixel (x, y), traced: its colour and AOV values.
     Sample shadeSample(const Ray& ray, bool found, const SurfaceHit& hit,
                        const TraceCounters& counters, std::uint32_t seed,
-                       RenderStats& stats) const {
+                       const LightVisibilityRay* selfShadows, RenderStats& stats) const {
         ++stats.rays;
         Sample sample;
         stats.marchIterations += counters.marchIterations;
@@ -198,8 +246,8 @@ class Renderer {
         } else {
             withMarchFilter(options_.filter, material, tracer_.columns(hit.object),
                             options_.reference, [&](const auto& filter) {
-                                sample.color =
-                                    shadeDetail(filter, hit, material, ray.direction, seed, sample);
+                                sample.color = shadeDetail(filter, hit, material, ray.direction,
+                                                           seed, selfShadows, sample);
                             });
         }
         stats.shadowSteps += sample.shadowSteps;
@@ -241,9 +289,78 @@ class Renderer {
         return color;
     }
 
+    /// Whether light `index` needs a self-shadow ray from the detail hit `hit` (shadeDetail's
+    /// conditions): its base faces the light, and the detail does too unless unlit shadows are
+    /// not skipped.
+    bool needsSelfShadow(const SurfaceHit& hit, std::size_t index) const {
+        const glm::vec3& toLight = toLights_[index];
+        if (glm::dot(hit.entry.normal, toLight) <= 0.0f) return false;
+        return !(options_.skips.unlitShadows && glm::dot(hit.normal, toLight) <= 0.0f);
+    }
+
+    /// Starts the self-shadow ray toward light `index` from the detail hit `hit`: from just above
+    /// the surface (along the filter's gradient) toward the light, in texel space.
+    template <class Filter>
+    void startSelfShadow(const Filter& filter, const SurfaceHit& hit, float depthTexels,
+                         std::size_t index, LightVisibilityRay& ray) const {
+        const glm::vec3 texelPosition = hit.march.texelPosition;
+        glm::vec3 texelNormal(0.0f, 0.0f, 1.0f);
+        if (!hit.march.onFloor) {
+            const glm::vec3 gradient = filter.gradient(texelPosition);
+            if (glm::length(gradient) > 1e-6f) texelNormal = glm::normalize(gradient);
+        }
+        const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLights_[index]));
+        const float tanHalfAngle =
+            std::max(std::tan(0.5f * scene_.lights[index].angleDeg * kPi / 180.0f), 1e-3f);
+        const glm::vec3 start = texelPosition + texelNormal * (2.0f * options_.march.epsilonTexels);
+        ray.start(start, toLightTexel, depthTexels, tanHalfAngle, options_.shadowIterations,
+                  options_.march.epsilonTexels);
+    }
+
+    /// The self-shadow rays of a batch's detail hits (`rays[k][light]` for hits[k]), marched
+    /// together a tile at a time (marchInterleaved): the same visibilities as one at a time.
+    void marchSelfShadows(std::size_t count, const SurfaceHit* hits, const bool* found,
+                          LightVisibilityRay (*rays)[kInterleavedLights]) const {
+        LightVisibilityRay* pending[kRunRays * kInterleavedLights];
+        const TileColumns* tiles[kRunRays * kInterleavedLights];
+        std::size_t pendingCount = 0;
+        for (std::size_t k = 0; k < count; ++k) {
+            const SurfaceHit& hit = hits[k];
+            if (!found[k] || !hit.entry.frontFacing || !hit.onDetail) continue;
+            const TileColumns* tile = tracer_.columns(hit.object);
+            const float depthTexels = float(tile->size().depth);
+            withFilter(options_.filter, *tile, [&](const auto& filter) {
+                for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
+                    if (!needsSelfShadow(hit, index)) continue;
+                    startSelfShadow(filter, hit, depthTexels, index, rays[k][index]);
+                    if (!rays[k][index].needsSample()) continue;
+                    pending[pendingCount] = &rays[k][index];
+                    tiles[pendingCount++] = tile;
+                }
+            });
+        }
+        LightVisibilityRay* sameTile[kRunRays * kInterleavedLights];
+        for (std::size_t first = 0; first < pendingCount; ++first) {
+            const TileColumns* tile = tiles[first];
+            if (!tile) continue;  // marched with an earlier tile
+            std::size_t sameCount = 0;
+            for (std::size_t index = first; index < pendingCount; ++index) {
+                if (tiles[index] != tile) continue;
+                sameTile[sameCount++] = pending[index];
+                tiles[index] = nullptr;
+            }
+            withFilter(options_.filter, *tile, [&](const auto& filter) {
+                marchInterleaved(filter, std::span<LightVisibilityRay* const>(sameTile, sameCount));
+            });
+        }
+    }
+
+    /// The detail hit's colour. `selfShadows`: per light, its self-shadow ray already marched
+    /// (marchSelfShadows), or null to march them here.
     template <class Filter>
     glm::vec3 shadeDetail(const Filter& filter, const SurfaceHit& hit, const Material& material,
-                          const glm::vec3& view, std::uint32_t seed, Sample& sample) const {
+                          const glm::vec3& view, std::uint32_t seed,
+                          const LightVisibilityRay* selfShadows, Sample& sample) const {
         const float depthTexels = float(material.tile->size().depth);
         const glm::vec3 texelPosition = hit.march.texelPosition;
         // Cavities (low in the shell) see less of the sky.
@@ -261,18 +378,17 @@ class Renderer {
             if (options_.skips.unlitShadows && glm::dot(hit.normal, toLight) <= 0.0f) continue;
             float visibility = 1.0f;
             if (options_.selfShadows) {
-                glm::vec3 texelNormal(0.0f, 0.0f, 1.0f);
-                if (!hit.march.onFloor) {
-                    const glm::vec3 gradient = filter.gradient(texelPosition);
-                    if (glm::length(gradient) > 1e-6f) texelNormal = glm::normalize(gradient);
+                LightVisibilityRay own;
+                const LightVisibilityRay* ray = selfShadows ? &selfShadows[index] : &own;
+                if (!selfShadows) {
+                    startSelfShadow(filter, hit, depthTexels, index, own);
+                    if (own.needsSample()) {
+                        while (own.advance(filter.distanceTexels(own.samplePosition()))) {
+                        }
+                    }
                 }
-                const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLight));
-                const float tanHalfAngle =
-                    std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f);
-                const glm::vec3 start =
-                    texelPosition + texelNormal * (2.0f * options_.march.epsilonTexels);
-                visibility = lightVisibility(filter, start, toLightTexel, depthTexels, tanHalfAngle,
-                                             options_, sample.shadowSteps);
+                sample.shadowSteps += ray->samples();
+                visibility = ray->visibility();
                 if (visibility <= 0.0f) continue;
             }
             // Other surfaces, from the shadow map, asked where the light ray leaves this shell
