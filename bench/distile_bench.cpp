@@ -338,11 +338,10 @@ void sheetRender(benchmark::State& state) {
         SceneObject plane;
         plane.mesh = makePlane(2.0f, 1);  // the scene file's built-in plane, scaled by 2
         applyTransform(plane.mesh, {{0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 2.0f});
-        plane.material = {std::make_shared<const Tile>(chainmailTile()),
-                          {4.0f, 4.0f},
-                          0.0625f,
-                          Floor::Solid,
-                          {0.8f, 0.8f, 0.85f}};
+        plane.material.tile = std::make_shared<const Tile>(chainmailTile());
+        plane.material.uvScale = {4.0f, 4.0f};
+        plane.material.depthWorld = 0.0625f;
+        plane.material.color = {0.8f, 0.8f, 0.85f};
         sheet.objects.push_back(std::move(plane));
         return sheet;
     }();
