@@ -149,8 +149,11 @@ class Renderer {
                                       options.reference, options.skips}),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
-        for (const DirectionalLight& light : scene.lights)
+        for (const DirectionalLight& light : scene.lights) {
             toLights_.push_back(-glm::normalize(light.direction));
+            tanHalfAngles_.push_back(
+                std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f));
+        }
         shadowMaps_.resize(scene.lights.size());
         if (options.shadowFilter == ShadowFilter::None) return;
         if (options.skips.casterlessShadowMaps && !sceneCastsShadowsBetweenSurfaces(scene)) return;
@@ -310,11 +313,9 @@ class Renderer {
             if (glm::length(gradient) > 1e-6f) texelNormal = glm::normalize(gradient);
         }
         const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLights_[index]));
-        const float tanHalfAngle =
-            std::max(std::tan(0.5f * scene_.lights[index].angleDeg * kPi / 180.0f), 1e-3f);
         const glm::vec3 start = texelPosition + texelNormal * (2.0f * options_.march.epsilonTexels);
-        ray.start(start, toLightTexel, depthTexels, tanHalfAngle, options_.shadowIterations,
-                  options_.march.epsilonTexels);
+        ray.start(start, toLightTexel, depthTexels, tanHalfAngles_[index],
+                  options_.shadowIterations, options_.march.epsilonTexels);
     }
 
     /// The self-shadow rays of a batch's detail hits (`rays[k][light]` for hits[k]), marched
@@ -412,7 +413,8 @@ class Renderer {
     std::vector<std::optional<ShadowMap>>
         shadowMaps_;  ///< per light; empty: no map needed or wanted
     PinholeProjection projection_;
-    std::vector<glm::vec3> toLights_;  ///< per light: unit direction toward it
+    std::vector<glm::vec3> toLights_;   ///< per light: unit direction toward it
+    std::vector<float> tanHalfAngles_;  ///< per light: tan of its angular radius (at least 1e-3)
     ScreenShells shells_;  ///< camera rays' shells per screen tile (the BVH serves the other rays)
 };
 
