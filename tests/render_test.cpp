@@ -813,6 +813,52 @@ TEST(ShellCulling, BatchesTraceEveryRayAsItsOwnTrace) {
     EXPECT_GT(multiRound, 1000);  // rays that marched through the open top layer into the next
 }
 
+TEST(SceneTracer, BatchesTraceEveryRayAsItsOwnTrace) {
+    // The BVH path (shadow-map rays) in batches: six overlapping layers, the top one with an open
+    // floor, so rays leave a shell and go on (several passes per ray). Each ray's hit must be
+    // that of traceNearest alone, for any batch length; the counters sum over the batch.
+    const Scene scene = stackedPlanesScene();
+    const SceneTracer tracer(scene, TraceOptions{});
+    constexpr int kWidth = 64, kHeight = 48;
+    const PinholeProjection projection(scene.camera, kWidth, kHeight);
+    int passedThrough = 0, hits = 0;
+    for (const std::size_t batch : {SceneTracer::kMaxBatchRays, std::size_t(3)}) {
+        for (int y = 0; y < kHeight; ++y) {
+            for (int x0 = 0; x0 < kWidth; x0 += int(batch)) {
+                const std::size_t count = std::min(batch, std::size_t(kWidth - x0));
+                std::vector<Ray> rays;
+                for (std::size_t k = 0; k < count; ++k)
+                    rays.push_back(projection.ray(float(x0 + int(k)) + 0.5f, y + 0.5f));
+                std::vector<SurfaceHit> batchHits(count);
+                bool batchFound[SceneTracer::kMaxBatchRays] = {};
+                TraceCounters batchCounters, singleCounters;
+                tracer.traceNearestBatch(rays, 0.0f, batchHits, std::span<bool>(batchFound, count),
+                                         batchCounters);
+                for (std::size_t k = 0; k < count; ++k) {
+                    SurfaceHit hit;
+                    TraceCounters counters;
+                    const bool found = tracer.traceNearest(rays[k], 0.0f, hit, counters);
+                    const std::string where = std::to_string(x0 + int(k)) + "," + std::to_string(y);
+                    ASSERT_EQ(found, batchFound[k]) << where;
+                    singleCounters.shellEntries += counters.shellEntries;
+                    singleCounters.marchIterations += counters.marchIterations;
+                    if (counters.shellEntries > 1) ++passedThrough;
+                    if (!found) continue;
+                    ++hits;
+                    EXPECT_EQ(hit.object, batchHits[k].object) << where;
+                    EXPECT_EQ(hit.distanceWorld, batchHits[k].distanceWorld) << where;
+                    EXPECT_EQ(hit.normal.x, batchHits[k].normal.x) << where;
+                    EXPECT_EQ(hit.normal.z, batchHits[k].normal.z) << where;
+                }
+                EXPECT_EQ(batchCounters.shellEntries, singleCounters.shellEntries);
+                EXPECT_EQ(batchCounters.marchIterations, singleCounters.marchIterations);
+            }
+        }
+    }
+    EXPECT_GT(hits, kWidth * kHeight);  // most rays of both batch lengths hit
+    EXPECT_GT(passedThrough, 300);      // rays through the open top layer into the next (410)
+}
+
 TEST(ShellCulling, MatchesTheBvhPathWhereShellsDoNotOverlap) {
     // One plane: the nearest shell entered is the only one, so the screen-space path and the BVH
     // path run the same march from the same entry and must agree exactly.
