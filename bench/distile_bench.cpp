@@ -24,6 +24,14 @@ const Tile& chainmailTile() {
     return tile;
 }
 
+/// The trace options a render with `options` uses (march and filter; the rest defaulted).
+TraceOptions traceOptionsOf(const RenderOptions& options) {
+    TraceOptions trace;
+    trace.march = options.march;
+    trace.filter = options.filter;
+    return trace;
+}
+
 const TileColumns& chainmailColumns() {
     static const TileColumns columns(chainmailTile());
     return columns;
@@ -162,7 +170,7 @@ void demoShadowFilters(benchmark::State& state) {
         benchmark::DoNotOptimize(renderScene(scene, options).stats.rays);
         noMapSeconds += processCpuSeconds() - start;
         start = processCpuSeconds();
-        const SceneTracer tracer(scene, TraceOptions{options.march, options.filter});
+        const SceneTracer tracer(scene, traceOptionsOf(options));
         benchmark::DoNotOptimize(ShadowMap(tracer, scene.lights[0]).width());
         buildSeconds += processCpuSeconds() - start;
         fullSamples = full.stats.shadowMapSamples;
@@ -299,7 +307,7 @@ void demoShellCulling(benchmark::State& state) {
         const RenderResult withoutCulling = renderScene(scene, options);
         unculledSeconds += processCpuSeconds() - start;
         start = processCpuSeconds();
-        const SceneTracer tracer(scene, TraceOptions{options.march, options.filter});
+        const SceneTracer tracer(scene, traceOptionsOf(options));
         const PinholeProjection projection(scene.camera, options.width, options.height);
         TraceCounters counters;
         for (int y = 0; y < options.height; ++y) {
