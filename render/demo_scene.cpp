@@ -20,8 +20,10 @@ Scene demoScene(std::shared_ptr<const Tile> chainmail) {
 
     SceneObject floor;
     floor.mesh = makePlane(4.0f, 1);
-    floor.material = {
-        chainmail, {4.0f, 4.0f}, cubicDepth(1.0f), Floor::Solid, {0.62f, 0.63f, 0.66f}};
+    floor.material.tile = chainmail;
+    floor.material.uvScale = {4.0f, 4.0f};
+    floor.material.depthWorld = cubicDepth(1.0f);
+    floor.material.color = {0.62f, 0.63f, 0.66f};
     scene.objects.push_back(std::move(floor));
 
     SceneObject torus;
@@ -31,11 +33,10 @@ Scene demoScene(std::shared_ptr<const Tile> chainmail) {
     applyTransform(torus.mesh, {{0.0f, 0.2f, minorRadius + 0.02f}, {0.0f, 0.0f, 0.0f}, 1.0f});
     // 10 tiles around, 4 around the tube: tiles of about 0.5 world units on the tube's crown.
     const glm::vec2 uvScale(10.0f, 4.0f);
-    torus.material = {chainmail,
-                      uvScale,
-                      cubicDepth(2.0f * 3.14159265f * minorRadius / uvScale.y),
-                      Floor::Solid,
-                      {0.85f, 0.72f, 0.45f}};
+    torus.material.tile = chainmail;
+    torus.material.uvScale = uvScale;
+    torus.material.depthWorld = cubicDepth(2.0f * 3.14159265f * minorRadius / uvScale.y);
+    torus.material.color = {0.85f, 0.72f, 0.45f};
     scene.objects.push_back(std::move(torus));
     return scene;
 }
