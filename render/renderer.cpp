@@ -292,10 +292,10 @@ class Renderer {
         return color;
     }
 
-    /// Whether light `index` needs a self-shadow ray from the detail hit `hit` (shadeDetail's
-    /// conditions): its base faces the light, and the detail does too unless unlit shadows are
-    /// not skipped.
-    bool needsSelfShadow(const SurfaceHit& hit, std::size_t index) const {
+    /// Whether light `index` gets shading work at the detail hit `hit` (its direct light and
+    /// shadows): its base faces the light, and the detail does too unless unlit shadows are not
+    /// skipped (then detail facing away is shadowed only to measure the skip).
+    bool shadesLight(const SurfaceHit& hit, std::size_t index) const {
         const glm::vec3& toLight = toLights_[index];
         if (glm::dot(hit.entry.normal, toLight) <= 0.0f) return false;
         return !(options_.skips.unlitShadows && glm::dot(hit.normal, toLight) <= 0.0f);
@@ -332,7 +332,7 @@ class Renderer {
             const float depthTexels = float(tile->size().depth);
             withFilter(options_.filter, *tile, [&](const auto& filter) {
                 for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
-                    if (!needsSelfShadow(hit, index)) continue;
+                    if (!shadesLight(hit, index)) continue;
                     startSelfShadow(filter, hit, depthTexels, index, rays[k][index]);
                     if (!rays[k][index].needsSample()) continue;
                     pending[pendingCount] = &rays[k][index];
@@ -340,20 +340,9 @@ class Renderer {
                 }
             });
         }
-        LightVisibilityRay* sameTile[kRunRays * kInterleavedLights];
-        for (std::size_t first = 0; first < pendingCount; ++first) {
-            const TileColumns* tile = tiles[first];
-            if (!tile) continue;  // marched with an earlier tile
-            std::size_t sameCount = 0;
-            for (std::size_t index = first; index < pendingCount; ++index) {
-                if (tiles[index] != tile) continue;
-                sameTile[sameCount++] = pending[index];
-                tiles[index] = nullptr;
-            }
-            withFilter(options_.filter, *tile, [&](const auto& filter) {
-                marchInterleaved(filter, std::span<LightVisibilityRay* const>(sameTile, sameCount));
-            });
-        }
+        marchInterleavedByTile(options_.filter,
+                               std::span<LightVisibilityRay* const>(pending, pendingCount),
+                               std::span<const TileColumns* const>(tiles, pendingCount));
     }
 
     /// The detail hit's colour. `selfShadows`: per light, its self-shadow ray already marched
@@ -372,11 +361,10 @@ class Renderer {
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const DirectionalLight& light = scene_.lights[index];
             const glm::vec3& toLight = toLights_[index];
-            // A base surface facing away from the light is in its own shadow: no work.
+            // A base surface facing away from the light is in its own shadow, and detail facing
+            // away from it gets no direct light: no work.
+            if (!shadesLight(hit, index)) continue;
             const float facing = glm::dot(hit.entry.normal, toLight);
-            if (facing <= 0.0f) continue;
-            // Detail facing away from the light gets no direct light: its shadows are not needed.
-            if (options_.skips.unlitShadows && glm::dot(hit.normal, toLight) <= 0.0f) continue;
             float visibility = 1.0f;
             if (options_.selfShadows) {
                 LightVisibilityRay own;

@@ -237,7 +237,7 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
                 active[r] = false;
             } else {  // out through an open floor: on from where it left
                 from[r] = march.baseHit.distanceWorld +
-                          march.result.travelTexels / march.texelsPerWorldAlongRay;
+                          march.result.travelTexels / hits[r].texelsPerWorldAlongRay;
             }
         }
     }
@@ -296,7 +296,6 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
     const float texelsPerWorldAlongRay = glm::length(direction);
     direction /= texelsPerWorldAlongRay;
     hit.texelsPerWorldAlongRay = texelsPerWorldAlongRay;
-    march.texelsPerWorldAlongRay = texelsPerWorldAlongRay;
     march.directionTexels = direction;
     // Wrap the entry point into the tile in double precision: far repeats keep their
     // sub-texel position. The uv is interpolated here in double from the corners (as corner 0 plus
@@ -355,28 +354,21 @@ void SceneTracer::marchShells(std::span<ShellMarch* const> marches) const {
         }
         return;
     }
-    // Interleave the rays of one tile at a time (a batch rarely holds more than one tile).
-    constexpr std::size_t kChunk = 32;
-    detail::SphereTraceRay* traces[kChunk];
-    ShellMarch* owners[kChunk];
-    for (std::size_t first = 0;;) {
-        while (first < marches.size() && marches[first]->marched) ++first;
-        if (first == marches.size()) return;
-        const TileColumns* tile = columns(marches[first]->object);
-        std::size_t count = 0;
-        for (std::size_t index = first; index < marches.size() && count < kChunk; ++index) {
-            ShellMarch* march = marches[index];
-            if (march->marched || columns(march->object) != tile) continue;
-            owners[count] = march;
-            traces[count++] = &march->trace;
-        }
-        withFilter(options_.filter, *tile, [&](const auto& filter) {
-            marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(traces, count));
-        });
-        for (std::size_t index = 0; index < count; ++index) {
-            owners[index]->result = owners[index]->trace.result();
-            owners[index]->marched = true;
-        }
+    detail::SphereTraceRay* traces[kMaxBatchRays];
+    const TileColumns* tiles[kMaxBatchRays];
+    ShellMarch* owners[kMaxBatchRays];
+    std::size_t count = 0;
+    for (ShellMarch* march : marches) {
+        if (march->marched) continue;
+        owners[count] = march;
+        traces[count] = &march->trace;
+        tiles[count++] = columns(march->object);
+    }
+    marchInterleavedByTile(options_.filter, std::span<detail::SphereTraceRay* const>(traces, count),
+                           std::span<const TileColumns* const>(tiles, count));
+    for (std::size_t index = 0; index < count; ++index) {
+        owners[index]->result = owners[index]->trace.result();
+        owners[index]->marched = true;
     }
 }
 
@@ -396,7 +388,7 @@ bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHi
     if (result.exitedFloor) return false;
     hit.onDetail = true;
     const float distanceWorld =
-        march.baseHit.distanceWorld + travelTexels / march.texelsPerWorldAlongRay;
+        march.baseHit.distanceWorld + travelTexels / hit.texelsPerWorldAlongRay;
     hit.distanceWorld = distanceWorld;
     hit.position = ray.origin + ray.direction * distanceWorld;
     if (result.onFloor) return true;

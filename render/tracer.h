@@ -4,6 +4,7 @@
 /// rays by the renderer and for light rays by shadow maps; shading lives in renderer.cpp.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -89,13 +90,40 @@ struct ShellMarch {
     glm::vec3 startTexels{0.0f};  ///< where the march starts (after the skipped empty path)
     glm::vec3 directionTexels{0.0f, 0.0f, -1.0f};  ///< unit in texel space
     float skippedTexels = 0.0f;                    ///< empty path from the top face to startTexels
-    float texelsPerWorldAlongRay = 0.0f;
-    MarchSettings settings;        ///< the tracer's, with this ray's budget
-    detail::SphereTraceRay trace;  ///< the sphere-tracing methods' state
-    bool marched = false;          ///< result is final (exact reference hits are known at entry)
+    MarchSettings settings;                        ///< the tracer's, with this ray's budget
+    detail::SphereTraceRay trace;                  ///< the sphere-tracing methods' state
+    bool marched = false;  ///< result is final (exact reference hits are known at entry)
     MarchResult result;
     glm::vec3 exactNormalTexels{0.0f};  ///< exact reference hits: the unit texel-space normal
 };
+
+/// marchInterleaved over rays that may sample different tiles: rays[i] samples tiles[i] through
+/// the filter of `kind`; the rays of one tile are marched together. Each ray ends as it would
+/// marched alone. Preconditions: rays and tiles of the same size, no null tile.
+template <class Marcher>
+void marchInterleavedByTile(FilterKind kind, std::span<Marcher* const> rays,
+                            std::span<const TileColumns* const> tiles) {
+    constexpr std::size_t kChunk = 64;
+    for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
+        const std::size_t end = std::min(begin + kChunk, rays.size());
+        const TileColumns* left[kChunk];  // null once marched
+        std::copy(tiles.begin() + std::ptrdiff_t(begin), tiles.begin() + std::ptrdiff_t(end), left);
+        Marcher* sameTile[kChunk];
+        for (std::size_t first = 0; first < end - begin; ++first) {
+            const TileColumns* tile = left[first];
+            if (!tile) continue;  // marched with an earlier ray's tile
+            std::size_t count = 0;
+            for (std::size_t index = first; index < end - begin; ++index) {
+                if (left[index] != tile) continue;
+                sameTile[count++] = rays[begin + index];
+                left[index] = nullptr;
+            }
+            withFilter(kind, *tile, [&](const auto& filter) {
+                marchInterleaved(filter, std::span<Marcher* const>(sameTile, count));
+            });
+        }
+    }
+}
 
 struct TraceCounters {
     std::uint64_t shellEntries = 0;     ///< rays that entered a detail shell and were marched
@@ -136,8 +164,9 @@ class SceneTracer {
     /// base surface (a back face, no tile; `hit` filled) or cleared for a miss. Thread-safe.
     bool enterShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
                     SurfaceHit& hit, ShellMarch& march, bool& stopped) const;
-    /// Takes the marches of `marches` (from enterShell, not yet marched), several rays interleaved
-    /// where the march method allows: the results are those of one march at a time.
+    /// Takes the marches of `marches` (from enterShell, not yet marched; at most kMaxBatchRays),
+    /// several rays interleaved where the march method allows: the results are those of one march
+    /// at a time.
     void marchShells(std::span<ShellMarch* const> marches) const;
     /// After marchShells: the march's end into `hit`; true when the ray stops in this shell, false
     /// when it leaves through an open floor. Counts the march in `counters`.
