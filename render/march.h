@@ -372,30 +372,30 @@ inline bool isSphereTracing(MarchMethod method) {
 /// `Marcher` with samplePosition() and advance(distance) that needs at least one more sample
 /// interleaves the same way, e.g. the renderer's self-shadow rays): a sample's address depends on the previous sample of the same ray, so a single ray keeps the
 /// processor waiting on each fetch, while several rays' chains overlap, and a round's samples are
-/// taken together (distancesTexels4). Every ray's result is bit-identical to its march() (the same
+/// taken together (distancesTexels8, distancesTexels4). Every ray's result is bit-identical to its march() (the same
 /// operations in the same order), whatever the order of the rays.
 inline constexpr std::size_t kMarchLanes = 8;
 
 template <class Filter, class Marcher = detail::SphereTraceRay>
 void marchInterleaved(const Filter& filter, std::span<Marcher* const> rays) {
-    static_assert(kMarchLanes % 4 == 0);
+    static_assert(kMarchLanes == 8);
     Marcher* lanes[kMarchLanes];
     std::size_t laneCount = 0;
     std::size_t next = 0;
     for (; next < rays.size() && laneCount < kMarchLanes; ++next) lanes[laneCount++] = rays[next];
     glm::vec3 positions[kMarchLanes];
-    alignas(16) float distances[kMarchLanes];
+    alignas(32) float distances[kMarchLanes];
     while (laneCount > 0) {
         for (std::size_t lane = 0; lane < laneCount; ++lane)
             positions[lane] = lanes[lane]->samplePosition();
-        for (std::size_t lane = laneCount; lane % 4 != 0; ++lane)  // pad the last four
-            positions[lane] = positions[0];
-        for (std::size_t first = 0; first < laneCount; first += 4) {
-            if (laneCount - first == 1) {  // a lone ray (a single march): no padding lanes
-                distances[first] = filter.distanceTexels(positions[first]);
-            } else {
-                distancesTexels4(filter, positions + first, distances + first);
-            }
+        if (laneCount == 1) {  // a lone ray (a single march): no padding lanes
+            distances[0] = filter.distanceTexels(positions[0]);
+        } else if (laneCount <= 4) {
+            for (std::size_t lane = laneCount; lane < 4; ++lane) positions[lane] = positions[0];
+            distancesTexels4(filter, positions, distances);
+        } else {
+            for (std::size_t lane = laneCount; lane < 8; ++lane) positions[lane] = positions[0];
+            distancesTexels8(filter, positions, distances);
         }
         std::size_t kept = 0;
         for (std::size_t lane = 0; lane < laneCount; ++lane) {

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
+#include <limits>
 #include <cmath>
 #include <cstdio>
 #include <glm/geometric.hpp>
@@ -664,6 +666,44 @@ TEST(TileColumns, StoreTheTileRoundedDownAndFiltersAgreeWithinTheCodeStep) {
         ASSERT_LE(glm::length(cubicOnColumns.gradient(p) - cubicOnTile.gradient(p)),
                   8.0f * step + 1e-5f)
             << i;
+    }
+}
+
+TEST(TileColumns, GroupedTrilinearFetchesAreBitIdenticalToSingleOnes) {
+    // The march samples four or eight points per call (distancesTexels4: SSE2; distancesTexels8:
+    // AVX2 where the processor has it). Each lane must be distanceTexels at its point, bit for
+    // bit, also across the periodic wrap, beyond the faces, far away and for non-finite
+    // coordinates (those lanes are redone one at a time).
+    const TileColumns columns(defaultChainmail().tile);
+    const BasicTrilinearFilter<ColumnTexels> filter(columns);
+    const Size3& size = columns.size();
+    std::mt19937 random(17);
+    std::uniform_real_distribution<float> px(-3.0f, float(size.width) + 3.0f);
+    std::uniform_real_distribution<float> py(-3.0f, float(size.height) + 3.0f);
+    std::uniform_real_distribution<float> pz(-1.0f, float(size.depth) + 1.0f);
+    std::uniform_int_distribution<int> oddOne(0, 63);
+    const float odd[] = {std::numeric_limits<float>::quiet_NaN(),
+                         std::numeric_limits<float>::infinity(), -3.0e9f, 1.0e12f,
+                         -0.0f, float(size.width), -float(size.width) - 0.25f, 2.5e6f};
+    for (int round = 0; round < 4000; ++round) {
+        glm::vec3 points[8];
+        for (glm::vec3& p : points) {
+            p = glm::vec3(px(random), py(random), pz(random));
+            const int which = oddOne(random);  // now and then one odd coordinate
+            if (which < 24) p[which % 3] = odd[which / 3];
+        }
+        float four[8], eight[8];
+        distancesTexels4(filter, points, four);
+        distancesTexels4(filter, points + 4, four + 4);
+        distancesTexels8(filter, points, eight);
+        for (int lane = 0; lane < 8; ++lane) {
+            const float single = filter.distanceTexels(points[lane]);
+            ASSERT_EQ(std::bit_cast<std::uint32_t>(four[lane]), std::bit_cast<std::uint32_t>(single))
+                << round << " " << lane;
+            ASSERT_EQ(std::bit_cast<std::uint32_t>(eight[lane]),
+                      std::bit_cast<std::uint32_t>(single))
+                << round << " " << lane;
+        }
     }
 }
 

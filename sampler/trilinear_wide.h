@@ -1,0 +1,29 @@
+/// @file
+/// The trilinear filter over TileColumns at eight points per call with AVX2 (gathers), for the
+/// march (sampler/filters.h, BasicTrilinearFilter::distancesTexels8). Built in its own translation
+/// unit with AVX2 enabled and run only where the processor has it: the rest of distile stays
+/// SSE2. No FMA: every lane does the scalar filter's operations, in its order, bit for bit.
+#pragma once
+
+#include <cstdint>
+
+namespace distile::detail {
+
+/// A tile's columns as the wide kernel reads them (ColumnTexels' fields).
+struct WideColumns {
+    const std::int16_t* codes;  ///< W x H x D codes, z fastest
+    float texelsPerCode;
+    int width, height, depth;
+};
+
+/// Whether this processor runs trilinearColumns8 (x86-64 with AVX2), decided once.
+extern const bool kWideTrilinear;
+
+/// BasicTrilinearFilter<ColumnTexels>::distanceTexels at the eight points `xyz` (x, y, z of
+/// each, 24 floats) into out[0..8), bit for bit, for every lane whose x and y are in
+/// periodicAxis' near case. Returns the lanes that are not (huge or not finite coordinates; bit i
+/// for point i): their out[] is unspecified and must be computed one at a time.
+/// Precondition: kWideTrilinear.
+unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out);
+
+}  // namespace distile::detail
