@@ -12,11 +12,11 @@ namespace distile::cli {
 
 namespace fs = std::filesystem;
 
-std::string sheetJson(const Size3& tile, int tilesPerSide) {
+std::string sheetJson(const Size3& tile, int tilesPerSide, const SheetView& view) {
     std::ostringstream bake;
     bake << R"({"bake": "chainmail", "size": ")" << tile.width << "x" << tile.height << "x"
          << tile.depth << R"("})";
-    return sheetJsonWithTile(bake.str(), tilesPerSide);
+    return sheetJsonWithTile(bake.str(), tilesPerSide, 0.0625, view);
 }
 
 std::string repeatedSheetJson(const Size3& tile, int tilesPerSide) {
@@ -26,12 +26,15 @@ std::string repeatedSheetJson(const Size3& tile, int tilesPerSide) {
     return sheetJsonWithTile(bake.str(), tilesPerSide, 0.0625 * 4.0 / tilesPerSide);
 }
 
-std::string sheetJsonWithTile(const std::string& tileJson, int tilesPerSide, double depthWorld) {
+std::string sheetJsonWithTile(const std::string& tileJson, int tilesPerSide, double depthWorld,
+                              const SheetView& view) {
     std::ostringstream json;
     json << R"({
-  "camera": {"eye": [0.0, -2.1, 1.47], "target": [0.0, 0.0, 0.0], "up": [0, 0, 1], "fov_deg": 40},
+  "camera": {"eye": )"
+         << view.eyeJson << R"(, "target": [0.0, 0.0, 0.0], "up": [0, 0, 1], "fov_deg": 40},
   "image": {"width": 1280, "height": 1024, "spp": 1},
-  "lights": [{"type": "directional", "direction": [-0.4, 0.3, -1.0], "color": [1, 1, 1], "angle_deg": 2}],
+  "lights": )"
+         << view.lightsJson << R"(,
   "objects": [
     {"mesh": "plane",
      "transform": {"scale": 2.0},

@@ -26,10 +26,19 @@ struct BenchArguments {
     int height = 0;
 };
 
+/// The view of the sheet: camera eye and lights as JSON values ("eye" array, "lights" array).
+/// The defaults are data/scenes/sheet.json's: the camera about 35 degrees above the sheet, one
+/// light from above.
+struct SheetView {
+    std::string eyeJson = "[0.0, -2.1, 1.47]";
+    std::string lightsJson =
+        R"([{"type": "directional", "direction": [-0.4, 0.3, -1.0], "color": [1, 1, 1], "angle_deg": 2}])";
+};
+
 /// The flat chain-mail sheet of data/scenes/sheet.json (a plane of `tilesPerSide` x
-/// `tilesPerSide` tiles, 4 there, camera about 35 degrees above it), with the tile size given;
-/// written beside the results so every row can be reproduced with `distile render`.
-std::string sheetJson(const Size3& tile, int tilesPerSide = 4);
+/// `tilesPerSide` tiles, 4 there), with the tile size and view given; written beside the results
+/// so every row can be reproduced with `distile render`.
+std::string sheetJson(const Size3& tile, int tilesPerSide = 4, const SheetView& view = {});
 
 /// The sheet of sheetJson with `tilesPerSide` tiles and the shell depth scaled by 4 / tilesPerSide,
 /// so texels stay cubes: the same detail, repeated more, smaller.
@@ -37,7 +46,7 @@ std::string repeatedSheetJson(const Size3& tile, int tilesPerSide);
 
 /// The same sheet with `tileJson` (a JSON value: a tile file name or a bake object) as its tile.
 std::string sheetJsonWithTile(const std::string& tileJson, int tilesPerSide = 4,
-                              double depthWorld = 0.0625);
+                              double depthWorld = 0.0625, const SheetView& view = {});
 
 /// A smooth periodic height image, `side` x `side` pixels: 0.5 + 0.25 sin(u) cos(2v) +
 /// 0.2 cos(u + v) with u, v = 2 pi x / side, 2 pi y / side, so every value is in [0.05, 0.95].

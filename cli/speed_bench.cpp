@@ -57,7 +57,7 @@ constexpr std::array kSkipSwitches{
 static_assert(sizeof(RenderSkips) == kSkipSwitches.size() * sizeof(bool),
               "every RenderSkips field must be a bool listed in kSkipSwitches");
 
-/// A scene of the report: S1..S4.
+/// A scene of the report: S1..S6.
 struct SpeedScene {
     std::string id;
     std::string name;
@@ -76,13 +76,18 @@ constexpr double kSavingThreshold = 0.02;
 /// share of the pixels.
 constexpr double kMaxDifferingShare = 0.001;
 
+/// The two renders the skips are measured in: the default (shadows on) and the peers' (primary
+/// visibility and a normal, no shadows, no AOVs).
+constexpr const char* kShadowedRender = "shadows";
+constexpr const char* kUnshadowedRender = "no shadows";
+
 /// One line of speed.csv; fields that do not apply stay NaN (written empty).
 struct SpeedRow {
     SpeedRow(std::string sectionName, std::string sceneId, std::string measured)
         : section(std::move(sectionName)), scene(std::move(sceneId)), what(std::move(measured)) {}
 
     std::string section;  ///< peers, error, repetition, memory, skip, cache, threads
-    std::string scene;    ///< S1..S4
+    std::string scene;    ///< S1..S6
     std::string what;
     double seconds = std::nan("");          ///< distile; the skip on; warm cache; 1 thread
     double comparedSeconds = std::nan("");  ///< the peer; the skip off; no cache; all threads
@@ -98,6 +103,12 @@ struct SpeedRow {
     double workSavedShare = std::nan("");
     std::string note;
 };
+
+/// The `what` of a skip's row: the switch, and the render unless it is the default one.
+std::string skipRowName(const SkipSwitch& skip, const char* renderName) {
+    return renderName == std::string(kShadowedRender) ? std::string(skip.name)
+                                                      : std::string(skip.name) + ", " + renderName;
+}
 
 /// RenderStats counters of work a skip may save.
 struct WorkCounter {
@@ -323,6 +334,27 @@ void runSpeedBench(const BenchArguments& arguments) {
             {"S4", "low height field",
              loadJson("low_height_field.json",
                       sheetJsonWithTile("\"low_height_field.exr\"", kSheetTilesPerSide), tiles)});
+        // The same seen from about 12 degrees above the sheet, as terrain is: rays cross long
+        // empty paths above the detail before they reach it.
+        SheetView grazing;
+        grazing.eyeJson = "[0.0, -2.1, 0.45]";
+        scenes.push_back({"S5", "low height field, grazing view",
+                          loadJson("low_height_field_grazing.json",
+                                   sheetJsonWithTile("\"low_height_field.exr\"", kSheetTilesPerSide,
+                                                     0.0625, grazing),
+                                   tiles)});
+    }
+    {
+        // Three low lights around the sheet (key, fill and rim of a studio set-up): much of the
+        // detail faces away from one or two of them, where the unlit-shadow skip does its work.
+        SheetView threeLights;
+        threeLights.lightsJson =
+            R"([{"type": "directional", "direction": [-1.0, 0.3, -0.5], "color": [0.6, 0.6, 0.6], "angle_deg": 2},
+            {"type": "directional", "direction": [1.0, 0.3, -0.5], "color": [0.5, 0.5, 0.6], "angle_deg": 2},
+            {"type": "directional", "direction": [0.0, -1.0, -0.6], "color": [0.5, 0.5, 0.5], "angle_deg": 2}])";
+        scenes.push_back({"S6", "sheet, three lights",
+                          loadJson("sheet_three_lights.json",
+                                   sheetJson(sheetTile, kSheetTilesPerSide, threeLights), tiles)});
     }
     const Scene& sheet = scenes[0].scene;
     const Scene& repeated = scenes[1].scene;
@@ -451,32 +483,38 @@ void runSpeedBench(const BenchArguments& arguments) {
             true, "estimate: S1 x 256");
     }
 
-    // C. Skips.
-    say("bench --speed: C. every skip off, one at a time (shadows on)");
+    // C. Skips, in both renders: the march's skips weigh most where the march is most of the
+    // work (no shadows), the shadows' only with shadows.
+    say("bench --speed: C. every skip off, one at a time, with shadows and without");
+    const std::array<std::pair<const char*, const RenderOptions*>, 2> skipRenders{
+        std::pair{kShadowedRender, &shadowed}, std::pair{kUnshadowedRender, &unshadowed}};
     for (const SkipSwitch& skip : kSkipSwitches) {
-        for (std::size_t index = 0; index < scenes.size(); ++index) {
-            RenderOptions without = shadowed;
-            without.skips.*skip.enabled = false;
-            const Scene& scene = scenes[index].scene;
-            const FastestPair pair = fastestPair(scene, shadowed, scene, without, runs);
-            const CodeDifference difference =
-                codeDifference(pair.a.result.image, pair.b.result.image);
-            SpeedRow row{"skip", scenes[index].id, skip.name};
-            row.seconds = pair.a.seconds;
-            row.comparedSeconds = pair.b.seconds;
-            std::tie(row.workCounter, row.workSavedShare) =
-                largestWorkSaving(pair.a.result.stats, pair.b.result.stats);
-            row.differingShare = difference.differingShare;
-            row.maxDifferenceCodes = difference.maxCodes;
-            rows.push_back(row);
-            std::snprintf(line, sizeof line,
-                          "  %-15s %s on %8.4f s off %8.4f s saving %6.1f%%, %.4f%% pixels > 1 "
-                          "code, max %d; work: %s -%.1f%%",
-                          skip.name, scenes[index].id.c_str(), row.seconds, row.comparedSeconds,
-                          100.0 * (1.0 - row.seconds / row.comparedSeconds),
-                          100.0 * row.differingShare, difference.maxCodes, row.workCounter.c_str(),
-                          100.0 * row.workSavedShare);
-            say(line);
+        for (const auto& [renderName, render] : skipRenders) {
+            for (std::size_t index = 0; index < scenes.size(); ++index) {
+                RenderOptions without = *render;
+                without.skips.*skip.enabled = false;
+                const Scene& scene = scenes[index].scene;
+                const FastestPair pair = fastestPair(scene, *render, scene, without, runs);
+                const CodeDifference difference =
+                    codeDifference(pair.a.result.image, pair.b.result.image);
+                SpeedRow row{"skip", scenes[index].id, skipRowName(skip, renderName)};
+                row.seconds = pair.a.seconds;
+                row.comparedSeconds = pair.b.seconds;
+                std::tie(row.workCounter, row.workSavedShare) =
+                    largestWorkSaving(pair.a.result.stats, pair.b.result.stats);
+                row.differingShare = difference.differingShare;
+                row.maxDifferenceCodes = difference.maxCodes;
+                rows.push_back(row);
+                std::snprintf(
+                    line, sizeof line,
+                    "  %-20s %-10s %s on %8.4f s off %8.4f s saving %6.1f%%, %.4f%% pixels "
+                    "> 1 code, max %d; work: %s -%.1f%%",
+                    skip.name, renderName, scenes[index].id.c_str(), row.seconds,
+                    row.comparedSeconds, 100.0 * (1.0 - row.seconds / row.comparedSeconds),
+                    100.0 * row.differingShare, difference.maxCodes, row.workCounter.c_str(),
+                    100.0 * row.workSavedShare);
+                say(line);
+            }
         }
     }
 
@@ -560,7 +598,9 @@ void runSpeedBench(const BenchArguments& arguments) {
           "every texel 16:1 in z, a different, much taller detail seen at grazing texel-space "
           "angles), S3 the built-in demo (chain mail on a torus on a plane: "
           "misses, back faces, a curved mesh, shadows), S4 the sheet with a smooth height field "
-          "filling the lowest quarter of the slab.\n\n";
+          "filling the lowest quarter of the slab, S5 that height field seen from about 12 degrees "
+          "above (long empty paths above the detail), S6 the chain-mail sheet under three low "
+          "lights from three sides (much of the detail faces away from one of them).\n\n";
 
     md << "## A. Peers on S1 (primary visibility and a normal: distile without shadows or AOVs)"
           "\n\n| | trace s | distile s | ratio |\n|---|---|---|---|\n";
@@ -601,32 +641,36 @@ void runSpeedBench(const BenchArguments& arguments) {
         md << "| " << what << " | " << cell(s1) << " | " << cell(s2) << " |\n";
     }
 
-    md << "\n## C. Skips (default render with shadows; each skip off alone)\n\n"
+    md << "\n## C. Skips (each skip off alone; the default render with shadows, and primary "
+          "visibility without shadows as in A)\n\n"
           "Pixels > 1 code: share of pixels where a channel of the 8-bit sRGB image differs by "
           "more than 1 code from the render with every skip on. Work saved: the renderer's work "
           "counter (RenderStats) the skip lowers most, deterministic where the times are not. A "
           "skip saves time on a scene when it is more than 2% faster there and lowers a work "
           "counter: on a busy shared machine the times of identical renders can differ by far "
           "more than 2%, so a time alone does not count.\n\n"
-          "| skip | scene | on s | off s | saving | work saved | pixels > 1 code | max codes |\n"
-          "|---|---|---|---|---|---|---|---|\n";
+          "| skip | render | scene | on s | off s | saving | work saved | pixels > 1 code | max "
+          "codes |\n"
+          "|---|---|---|---|---|---|---|---|---|\n";
     std::vector<std::string> verdicts;
     for (const SkipSwitch& skip : kSkipSwitches) {
         bool savesSomewhere = false;
         bool imageKept = true;
-        for (const SpeedScene& s : scenes) {
-            const SpeedRow* r = findRow(rows, "skip", s.id, skip.name);
-            const double saving = 1.0 - r->seconds / r->comparedSeconds;
-            savesSomewhere =
-                savesSomewhere || (saving > kSavingThreshold && r->workSavedShare > 0.0);
-            imageKept = imageKept && r->differingShare <= kMaxDifferingShare;
-            md << "| " << skip.name << " | " << s.id << " " << s.name << " | "
-               << fixed(r->seconds, 4) << " | " << fixed(r->comparedSeconds, 4) << " | "
-               << fixed(100.0 * saving, 1) << "% | " << r->workCounter
-               << (r->workSavedShare > 0.0 ? " -" + fixed(100.0 * r->workSavedShare, 1) + "%" : "")
-               << " | " << fixed(100.0 * r->differingShare, 4) << "% | "
-               << fixed(r->maxDifferenceCodes, 0) << " |\n";
-        }
+        for (const char* renderName : {kShadowedRender, kUnshadowedRender})
+            for (const SpeedScene& s : scenes) {
+                const SpeedRow* r = findRow(rows, "skip", s.id, skipRowName(skip, renderName));
+                const double saving = 1.0 - r->seconds / r->comparedSeconds;
+                savesSomewhere =
+                    savesSomewhere || (saving > kSavingThreshold && r->workSavedShare > 0.0);
+                imageKept = imageKept && r->differingShare <= kMaxDifferingShare;
+                md << "| " << skip.name << " | " << renderName << " | " << s.id << " " << s.name
+                   << " | " << fixed(r->seconds, 4) << " | " << fixed(r->comparedSeconds, 4)
+                   << " | " << fixed(100.0 * saving, 1) << "% | " << r->workCounter
+                   << (r->workSavedShare > 0.0 ? " -" + fixed(100.0 * r->workSavedShare, 1) + "%"
+                                               : "")
+                   << " | " << fixed(100.0 * r->differingShare, 4) << "% | "
+                   << fixed(r->maxDifferenceCodes, 0) << " |\n";
+            }
         verdicts.push_back(verdict(savesSomewhere && imageKept) + " skip " + skip.name + " (" +
                            skip.skips + "): " +
                            (savesSomewhere ? "saves time (> 2%, less work) on at least one scene"

@@ -43,10 +43,10 @@ unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* 
         const __m256i extentLanes = _mm256_set1_epi32(extent);
         const __m256i last = _mm256_set1_epi32(extent - 1);
         __m256i index = _mm256_cvttps_epi32(floorValue);
-        index = _mm256_add_epi32(index,
-                                 _mm256_and_si256(_mm256_cmpgt_epi32(zero, index), extentLanes));
-        index = _mm256_sub_epi32(index,
-                                 _mm256_and_si256(_mm256_cmpgt_epi32(index, last), extentLanes));
+        index =
+            _mm256_add_epi32(index, _mm256_and_si256(_mm256_cmpgt_epi32(zero, index), extentLanes));
+        index =
+            _mm256_sub_epi32(index, _mm256_and_si256(_mm256_cmpgt_epi32(index, last), extentLanes));
         outside = _mm256_or_si256(outside, _mm256_or_si256(_mm256_cmpgt_epi32(zero, index),
                                                            _mm256_cmpgt_epi32(index, last)));
         lower = index;
@@ -62,8 +62,8 @@ unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* 
     __m256 zShifted = _mm256_sub_ps(lanes(2), half);
     const __m256 firstFace = _mm256_set1_ps(-0.5f);
     const __m256 lastFace = _mm256_set1_ps(float(columns.depth) - 0.5f);
-    zShifted = _mm256_blendv_ps(firstFace, zShifted,
-                                _mm256_cmp_ps(zShifted, firstFace, _CMP_GE_OQ));
+    zShifted =
+        _mm256_blendv_ps(firstFace, zShifted, _mm256_cmp_ps(zShifted, firstFace, _CMP_GE_OQ));
     zShifted = _mm256_blendv_ps(lastFace, zShifted, _mm256_cmp_ps(zShifted, lastFace, _CMP_LT_OQ));
     __m256i zLower = _mm256_cvttps_epi32(floorFinite(zShifted));
     zLower = _mm256_max_epi32(zLower, zero);
@@ -73,12 +73,14 @@ unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* 
     // tile's texel count fits: TileColumns). Outside lanes read texel 0.
     const __m256i columnStride = _mm256_set1_epi32(columns.depth);
     const __m256i rowStride = _mm256_set1_epi32(columns.width * columns.depth);
-    const __m256i xLowerStart = _mm256_mullo_epi32(_mm256_andnot_si256(outside, xLower), columnStride);
-    const __m256i xUpperStart = _mm256_mullo_epi32(_mm256_andnot_si256(outside, xUpper), columnStride);
-    const __m256i yLowerStart =
-        _mm256_add_epi32(_mm256_mullo_epi32(_mm256_andnot_si256(outside, yLower), rowStride), zLower);
-    const __m256i yUpperStart =
-        _mm256_add_epi32(_mm256_mullo_epi32(_mm256_andnot_si256(outside, yUpper), rowStride), zLower);
+    const __m256i xLowerStart =
+        _mm256_mullo_epi32(_mm256_andnot_si256(outside, xLower), columnStride);
+    const __m256i xUpperStart =
+        _mm256_mullo_epi32(_mm256_andnot_si256(outside, xUpper), columnStride);
+    const __m256i yLowerStart = _mm256_add_epi32(
+        _mm256_mullo_epi32(_mm256_andnot_si256(outside, yLower), rowStride), zLower);
+    const __m256i yUpperStart = _mm256_add_epi32(
+        _mm256_mullo_epi32(_mm256_andnot_si256(outside, yUpper), rowStride), zLower);
     const __m256 scale = _mm256_set1_ps(columns.texelsPerCode);
     const int* base = reinterpret_cast<const int*>(columns.codes);
     // One column's value at each point's z: codes of slices z and z + 1 as one 32-bit gather
@@ -105,7 +107,9 @@ unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* 
 
 const bool kWideTrilinear = false;
 
-unsigned trilinearColumns8(const WideColumns&, const float*, float*) { return 0xffu; }
+unsigned trilinearColumns8(const WideColumns&, const float*, float*) {
+    return 0xffu;
+}
 
 #endif
 
