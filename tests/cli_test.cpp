@@ -843,7 +843,7 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
 
 TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     // A tiny speed report (no peers): every RenderSkips switch (all bools) is measured on each of
-    // the four scenes, the bake cache and the thread check have their rows, the report has its
+    // the six scenes, with shadows and without, the bake cache and the thread check have their rows, the report has its
     // verdicts, the scenes are kept; --speed and --stress together are refused.
     const RunResult speed = run({"bench", "--speed", "--quick", "--no-peers", "--width", "64",
                                  "--height", "48", "-o", path("speed").string()});
@@ -872,10 +872,10 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
         EXPECT_GT(off, 0.0) << line;
     }
     const std::size_t skipCount = sizeof(RenderSkips) / sizeof(bool);
-    EXPECT_EQ(skipRows.size(), skipCount * 4u);
-    for (const char* scene : {"S1", "S2", "S3", "S4"}) {
+    EXPECT_EQ(skipRows.size(), skipCount * 6u * 2u);
+    for (const char* scene : {"S1", "S2", "S3", "S4", "S5", "S6"}) {
         EXPECT_TRUE(skipRows.count(std::string("shellCulling ") + scene)) << scene;
-        EXPECT_TRUE(skipRows.count(std::string("emptySpace ") + scene)) << scene;
+        EXPECT_TRUE(skipRows.count(std::string("emptySpace, no shadows ") + scene)) << scene;
     }
     for (const char* section : {"error", "repetition", "memory", "skip", "cache", "threads"})
         EXPECT_TRUE(sections.count(section)) << section;
@@ -884,6 +884,8 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     EXPECT_NE(report.find("threads: 1 thread and"), std::string::npos);
     EXPECT_TRUE(fs::exists(path("speed/scenes/sheet_x16.json")));
     EXPECT_TRUE(fs::exists(path("speed/scenes/low_height_field.exr")));
+    EXPECT_TRUE(fs::exists(path("speed/scenes/low_height_field_grazing.json")));
+    EXPECT_TRUE(fs::exists(path("speed/scenes/sheet_three_lights.json")));
     const RunResult both = run({"bench", "--speed", "--stress", "-o", path("both").string()});
     EXPECT_NE(both.status, 0);
     EXPECT_FALSE(fs::exists(path("both/speed.md")));
