@@ -150,7 +150,7 @@ class ScreenShells {
         Ray ray;
     };
     /// At most this many rays per traceNearestBatch call.
-    static constexpr std::size_t kMaxBatchRays = 16;
+    static constexpr std::size_t kMaxBatchRays = 64;
 
     /// traceNearest for each of `rays` (at most kMaxBatchRays), their marches taken together
     /// (SceneTracer::marchShells interleaves them): `found[i]`, `hits[i]` and `counters[i]` are

@@ -26,7 +26,9 @@
 #include <glm/vec3.hpp>
 #include <optional>
 #include <span>
+#include <type_traits>
 
+#include "render/march_wide.h"
 #include "render/scene.h"
 #include "sampler/filters.h"
 
@@ -145,6 +147,45 @@ class SphereTraceRay {
     }
 
     const MarchResult& result() const { return result_; }
+
+    /// Whether the wide kernel can take this ray's next steps (render/march_wide.h): it shares
+    /// `uniforms` (a relaxed march that took a step back goes on unrelaxed).
+    bool fitsLanes(const SphereTraceUniforms& uniforms) const {
+        return uniforms.epsilonTexels == epsilonTexels_ && uniforms.factor == factor_ &&
+               uniforms.budgeted == budgeted_;
+    }
+    SphereTraceUniforms uniforms() const { return {epsilonTexels_, factor_, budgeted_}; }
+    /// The state the wide kernel steps (fitsLanes), out to it and back.
+    void toLane(SphereTraceLane& lane) const {
+        for (int axis = 0; axis < 3; ++axis) {
+            lane.start[axis] = start_[axis];
+            lane.direction[axis] = direction_[axis];
+        }
+        lane.toFloorAtStart = toFloorAtStart_;
+        lane.travel = travel_;
+        lane.safeRadius = safeRadius_;
+        lane.previousStep = previousStep_;
+        lane.iterations = result_.iterations;
+        lane.maxIterations = maxIterations_;
+        lane.refining = refining_;
+        lane.outside = outside_;
+        lane.outsideDistance = outsideDistance_;
+        lane.inside = inside_;
+        lane.insideDistance = insideDistance_;
+        lane.estimate = estimate_;
+    }
+    void fromLane(const SphereTraceLane& lane) {
+        travel_ = lane.travel;
+        safeRadius_ = lane.safeRadius;
+        previousStep_ = lane.previousStep;
+        result_.iterations = lane.iterations;
+        refining_ = lane.refining;
+        outside_ = lane.outside;
+        outsideDistance_ = lane.outsideDistance;
+        inside_ = lane.inside;
+        insideDistance_ = lane.insideDistance;
+        estimate_ = lane.estimate;
+    }
 
   private:
     [[gnu::always_inline]] bool traceStep(float distance) {
@@ -370,14 +411,19 @@ inline bool isSphereTracing(MarchMethod method) {
 /// Runs the sphere traces `rays` (started by SphereTraceRay::start, as march() starts them) to
 /// their ends over `filter`, up to kMarchLanes rays at a time, one sample of each per round (any
 /// `Marcher` with samplePosition() and advance(distance) that needs at least one more sample
-/// interleaves the same way, e.g. the renderer's self-shadow rays): a sample's address depends on the previous sample of the same ray, so a single ray keeps the
-/// processor waiting on each fetch, while several rays' chains overlap, and a round's samples are
-/// taken together (distancesTexels8, distancesTexels4). Every ray's result is bit-identical to its march() (the same
-/// operations in the same order), whatever the order of the rays.
+/// interleaves the same way, e.g. the renderer's self-shadow rays): a sample's address depends on
+/// the previous sample of the same ray, so a single ray keeps the processor waiting on each fetch,
+/// while several rays' chains overlap, and a round's samples are taken together (distancesTexels8,
+/// distancesTexels4). Every ray's result is bit-identical to its march() (the same operations in
+/// the same order), whatever the order of the rays.
 inline constexpr std::size_t kMarchLanes = 8;
 
-template <class Filter, class Marcher = detail::SphereTraceRay>
-void marchInterleaved(const Filter& filter, std::span<Marcher* const> rays) {
+namespace detail {
+
+/// marchInterleaved one sample of each ray per round through the filter's distancesTexels8/4
+/// (the rays' own steppers; any Marcher).
+template <class Filter, class Marcher>
+void marchInterleavedScalar(const Filter& filter, std::span<Marcher* const> rays) {
     static_assert(kMarchLanes == 8);
     Marcher* lanes[kMarchLanes];
     std::size_t laneCount = 0;
@@ -407,6 +453,60 @@ void marchInterleaved(const Filter& filter, std::span<Marcher* const> rays) {
         }
         laneCount = kept;
     }
+}
+
+/// marchInterleaved for sphere traces over TileColumns' trilinear filter with the wide kernel
+/// (render/march_wide.h): the rays' steps that go on in SIMD lanes, the step that ends each march
+/// by the ray itself; the few rays that go on after it (a relaxed step taken back, a point the
+/// wide filter does not take) are marched by marchInterleavedScalar. Precondition:
+/// kWideTrilinear.
+template <class Filter>
+void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const> rays) {
+    constexpr std::size_t kChunk = 64;
+    const SphereTraceUniforms uniforms = rays[0]->uniforms();
+    const Size3& size = filter.texels().size();
+    const WideColumns columns{filter.texels().codes(), filter.texels().texelsPerCode(), size.width,
+                              size.height, size.depth};
+    for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
+        const std::size_t end = std::min(begin + kChunk, rays.size());
+        SphereTraceLane lanes[kChunk];
+        SphereTraceRay* laned[kChunk];
+        SphereTraceRay* scalar[kChunk];  // rays marchInterleavedScalar takes on
+        std::size_t laneCount = 0, scalarCount = 0;
+        for (std::size_t index = begin; index < end; ++index) {
+            SphereTraceRay* ray = rays[index];
+            if (ray->fitsLanes(uniforms)) {
+                ray->toLane(lanes[laneCount]);
+                laned[laneCount++] = ray;
+            } else {
+                scalar[scalarCount++] = ray;
+            }
+        }
+        sphereTraceOngoingSteps(columns, uniforms, lanes, int(laneCount));
+        for (std::size_t index = 0; index < laneCount; ++index) {
+            SphereTraceRay* ray = laned[index];
+            ray->fromLane(lanes[index]);
+            const float distance = lanes[index].distanceKnown
+                                       ? lanes[index].pendingDistance
+                                       : filter.distanceTexels(ray->samplePosition());
+            if (ray->advance(distance)) scalar[scalarCount++] = ray;
+        }
+        marchInterleavedScalar(filter, std::span<SphereTraceRay* const>(scalar, scalarCount));
+    }
+}
+
+}  // namespace detail
+
+template <class Filter, class Marcher = detail::SphereTraceRay>
+void marchInterleaved(const Filter& filter, std::span<Marcher* const> rays) {
+    if constexpr (std::is_same_v<Filter, BasicTrilinearFilter<ColumnTexels>> &&
+                  std::is_same_v<Marcher, detail::SphereTraceRay>) {
+        if (detail::kWideTrilinear && rays.size() > 1) {
+            detail::marchSphereTracesWide(filter, rays);
+            return;
+        }
+    }
+    detail::marchInterleavedScalar(filter, rays);
 }
 
 }  // namespace distile

@@ -137,8 +137,10 @@ std::uint32_t shadowSeed(int x, int y, int index) {
 
 class Renderer {
   public:
-    /// Camera rays traced together (a run of a screen tile's row).
-    static constexpr std::size_t kRunRays = 16;
+    /// Camera rays traced together: a run of kRunRows rows of a screen tile, so that enough
+    /// marches are in flight to hide the latency of their samples.
+    static constexpr std::size_t kRunRays = 64;
+    static constexpr int kRunRows = 4;
     /// Scenes with at most this many lights march their self-shadow rays together.
     static constexpr std::size_t kInterleavedLights = 4;
 
@@ -170,10 +172,11 @@ class Renderer {
 
     Ray cameraRay(float x, float y) const { return projection_.ray(x, y); }
 
-    /// Pixels x0 ... x1 - 1 of row y into `pixels`: each the mean colour of its samples, with the
-    /// first sample's AOV values. The camera rays are traced in batches, their marches
-    /// interleaved (ScreenShells::traceNearestBatch); each sample is what it would be alone.
-    void renderRun(int y, int x0, int x1, Sample* pixels, RenderStats& stats) const {
+    /// Pixels x0 ... x1 - 1 of rows y0 ... y1 - 1 into `pixels` (row by row): each the mean
+    /// colour of its samples, with the first sample's AOV values. The camera rays are traced in
+    /// batches, their marches interleaved (ScreenShells::traceNearestBatch); each sample is what
+    /// it would be alone.
+    void renderRun(int y0, int y1, int x0, int x1, Sample* pixels, RenderStats& stats) const {
         constexpr std::size_t kBatch = kRunRays;
         static_assert(kBatch <= ScreenShells::kMaxBatchRays);
         // Self-shadow rays are marched together for scenes of a few lights (tile filters only).
@@ -181,7 +184,8 @@ class Renderer {
                                       scene_.lights.size() <= kInterleavedLights;
         LightVisibilityRay selfShadows[kBatch][kInterleavedLights];
         const int samplesPerPixel = options_.samplesPerPixel;
-        const int total = (x1 - x0) * samplesPerPixel;
+        const int runWidth = x1 - x0;
+        const int total = runWidth * (y1 - y0) * samplesPerPixel;
         ScreenShells::PixelRay rays[kBatch];
         int sampleIndices[kBatch];
         SurfaceHit hits[kBatch];
@@ -191,7 +195,9 @@ class Renderer {
         for (int first = 0; first < total; first += int(kBatch)) {
             const std::size_t count = std::size_t(std::min(int(kBatch), total - first));
             for (std::size_t k = 0; k < count; ++k) {
-                const int x = x0 + (first + int(k)) / samplesPerPixel;
+                const int pixel = (first + int(k)) / samplesPerPixel;
+                const int x = x0 + pixel % runWidth;
+                const int y = y0 + pixel / runWidth;
                 const int index = (first + int(k)) % samplesPerPixel;
                 const glm::vec2 offset = sampleOffset(index, samplesPerPixel);
                 rays[k] = {x, y, cameraRay(x + offset.x, y + offset.y)};
@@ -207,17 +213,18 @@ class Renderer {
             if (batchSelfShadows) marchSelfShadows(count, hits, found, selfShadows);
             for (std::size_t k = 0; k < count; ++k) {
                 const int x = rays[k].x;
+                const int y = rays[k].y;
                 const int index = sampleIndices[k];
                 const Sample sample = shadeSample(
                     rays[k].ray, found[k], hits[k], counters[k], shadowSeed(x, y, index),
                     batchSelfShadows ? selfShadows[k] : nullptr, stats);
+                Sample& pixel = pixels[(y - y0) * runWidth + (x - x0)];
                 if (index == 0) {
-                    pixels[x - x0] = sample;
+                    pixel = sample;
                     sum = glm::vec3(0.0f);
                 }
                 sum += sample.color;
-                if (index == samplesPerPixel - 1)
-                    pixels[x - x0].color = sum / float(samplesPerPixel);
+                if (index == samplesPerPixel - 1) pixel.color = sum / float(samplesPerPixel);
             }
         }
     }
@@ -520,31 +527,35 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
             tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
             [&](const tbb::blocked_range2d<int>& block) {
                 RenderStats local;
-                Sample run[kBlock];
-                for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
+                constexpr int kRows = Renderer::kRunRows;
+                Sample run[kRows * kBlock];
+                for (int y0 = block.rows().begin(); y0 < block.rows().end(); y0 += kRows) {
+                    const int y1 = std::min(y0 + kRows, block.rows().end());
                     for (int x0 = block.cols().begin(); x0 < block.cols().end(); x0 += kBlock) {
                         const int x1 = std::min(x0 + kBlock, block.cols().end());
-                        renderer.renderRun(y, x0, x1, run, local);
-                        for (int x = x0; x != x1; ++x) {
-                            const Sample& pixel = run[x - x0];
-                            result.image.at(x, y) = pixel.color;
-                            if (!result.aovs) continue;
-                            result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
-                            result.aovs->normal.at(x, y) =
-                                pixel.depth > 0.0f ? pixel.normal * 0.5f + 0.5f : glm::vec3(0.0f);
-                            result.aovs->iterations.at(x, y) = heatColor(
-                                float(pixel.iterations) / float(options.march.maxIterations));
-                            result.aovs->shadowSamples.at(x, y) =
-                                heatColor(float(pixel.shadowSteps) / shadowBudget);
-                            result.aovs->shadowMapSamples.at(x, y) =
-                                heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
-                            result.aovs->texelScale.at(x, y) =
-                                glm::vec3(pixel.texelsPerWorldAlongRay);
-                            if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
-                                result.aovs->curvature.at(x, y) =
-                                    heatColor(0.5f + pixel.meanCurvature);
+                        renderer.renderRun(y0, y1, x0, x1, run, local);
+                        for (int y = y0; y != y1; ++y)
+                            for (int x = x0; x != x1; ++x) {
+                                const Sample& pixel = run[(y - y0) * (x1 - x0) + (x - x0)];
+                                result.image.at(x, y) = pixel.color;
+                                if (!result.aovs) continue;
+                                result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
+                                result.aovs->normal.at(x, y) = pixel.depth > 0.0f
+                                                                   ? pixel.normal * 0.5f + 0.5f
+                                                                   : glm::vec3(0.0f);
+                                result.aovs->iterations.at(x, y) = heatColor(
+                                    float(pixel.iterations) / float(options.march.maxIterations));
+                                result.aovs->shadowSamples.at(x, y) =
+                                    heatColor(float(pixel.shadowSteps) / shadowBudget);
+                                result.aovs->shadowMapSamples.at(x, y) =
+                                    heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
+                                result.aovs->texelScale.at(x, y) =
+                                    glm::vec3(pixel.texelsPerWorldAlongRay);
+                                if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
+                                    result.aovs->curvature.at(x, y) =
+                                        heatColor(0.5f + pixel.meanCurvature);
+                                }
                             }
-                        }
                     }
                 }
                 rays += local.rays;

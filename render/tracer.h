@@ -141,7 +141,7 @@ class SceneTracer {
                       TraceCounters& counters) const;
 
     /// At most this many rays per traceNearestBatch call.
-    static constexpr std::size_t kMaxBatchRays = 16;
+    static constexpr std::size_t kMaxBatchRays = 64;
     /// traceNearest for each of `rays` (at most kMaxBatchRays), their marches taken together
     /// (marchShells interleaves them): `found[i]` and `hits[i]` are what traceNearest gives for
     /// rays[i] alone, bit for bit; the marches are counted in `counters`. Thread-safe.

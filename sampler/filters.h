@@ -195,6 +195,8 @@ class BasicTrilinearFilter {
   public:
     explicit BasicTrilinearFilter(const Texels& texels) : texels_(texels) {}
 
+    const Texels& texels() const { return texels_; }
+
     float distanceTexels(const glm::vec3& texelPosition) const {
         const Size3& size = texels_.size();
         return fetch(detail::periodicAxis(texelPosition.x, size.width),

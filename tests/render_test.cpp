@@ -116,8 +116,10 @@ TEST(March, HitsTheSolidFloorExactlyOrPassesAnOpenOne) {
 TEST(March, InterleavedMarchesAreBitIdenticalToSingleOnes) {
     // Spheres of radius 5 texels repeating every 16 texels (exact distances): rays at 2 to 80
     // degrees, every sphere-tracing method, budgets small enough to run out and to force the
-    // budgeted march's long steps past the surface (regula falsi), and NaN rays. Interleaving
-    // only reorders independent rays, so every field of every result must be equal.
+    // budgeted march's long steps past the surface (regula falsi), NaN rays and a ray far out
+    // (x = 3e9, beyond the wide filter's near case). Interleaving only reorders independent rays,
+    // so every field of every result must be equal, through marchInterleaved (the AVX2 kernel of
+    // render/march_wide.h where the processor has it) and through the scalar interleave.
     const Size3 size{32, 32, 16};
     Tile tile(size);
     for (int z = 0; z < size.depth; ++z)
@@ -149,8 +151,9 @@ TEST(March, InterleavedMarchesAreBitIdenticalToSingleOnes) {
                 starts.emplace_back(32.0f * unit(random), 32.0f * unit(random), 16.0f);
             }
             starts[5].x = std::nanf("");
-            std::vector<detail::SphereTraceRay> rays(kRays);
-            std::vector<detail::SphereTraceRay*> pointers;
+            starts[11].x = 3.0e9f;
+            std::vector<detail::SphereTraceRay> rays(kRays), scalarRays(kRays);
+            std::vector<detail::SphereTraceRay*> pointers, scalarPointers;
             std::vector<MarchResult> single;
             for (int i = 0; i < kRays; ++i) {
                 single.push_back(march(filter, starts[i], directions[i], Floor::Solid, settings));
@@ -160,22 +163,27 @@ TEST(March, InterleavedMarchesAreBitIdenticalToSingleOnes) {
                 }
                 rays[i].start(starts[i], directions[i], Floor::Solid, settings);
                 pointers.push_back(&rays[i]);
+                scalarRays[i].start(starts[i], directions[i], Floor::Solid, settings);
+                scalarPointers.push_back(&scalarRays[i]);
             }
             marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(pointers));
+            detail::marchInterleavedScalar(
+                filter, std::span<detail::SphereTraceRay* const>(scalarPointers));
             for (int i = 0; i < kRays; ++i) {
                 if (i == 5) continue;
                 const MarchResult& a = single[i];
-                const MarchResult& b = rays[i].result();
-                const std::string what = std::string(marchMethodName(method)) + " budget " +
-                                         std::to_string(budget) + " ray " + std::to_string(i);
-                EXPECT_EQ(a.texelPosition.x, b.texelPosition.x) << what;
-                EXPECT_EQ(a.texelPosition.y, b.texelPosition.y) << what;
-                EXPECT_EQ(a.texelPosition.z, b.texelPosition.z) << what;
-                EXPECT_EQ(a.travelTexels, b.travelTexels) << what;
-                EXPECT_EQ(a.iterations, b.iterations) << what;
-                EXPECT_EQ(a.converged, b.converged) << what;
-                EXPECT_EQ(a.onFloor, b.onFloor) << what;
-                EXPECT_EQ(a.exitedFloor, b.exitedFloor) << what;
+                for (const MarchResult& b : {rays[i].result(), scalarRays[i].result()}) {
+                    const std::string what = std::string(marchMethodName(method)) + " budget " +
+                                             std::to_string(budget) + " ray " + std::to_string(i);
+                    EXPECT_EQ(a.texelPosition.x, b.texelPosition.x) << what;
+                    EXPECT_EQ(a.texelPosition.y, b.texelPosition.y) << what;
+                    EXPECT_EQ(a.texelPosition.z, b.texelPosition.z) << what;
+                    EXPECT_EQ(a.travelTexels, b.travelTexels) << what;
+                    EXPECT_EQ(a.iterations, b.iterations) << what;
+                    EXPECT_EQ(a.converged, b.converged) << what;
+                    EXPECT_EQ(a.onFloor, b.onFloor) << what;
+                    EXPECT_EQ(a.exitedFloor, b.exitedFloor) << what;
+                }
                 (a.converged ? converged : outOfBudget) += 1;
             }
         }

@@ -1,0 +1,51 @@
+/// @file
+/// The sphere trace's steps for eight rays at a time with AVX2 (render/march.h,
+/// marchInterleaved, over TileColumns' trilinear filter): the rays' states in SIMD lanes, one
+/// sample of each per round, the steps that go on (a sphere step, the start of the regula falsi
+/// refinement and its steps) taken in the lanes with the scalar operations in their order (no
+/// FMA), so bit for bit as detail::SphereTraceRay takes them. The step that ends a march (or
+/// takes back a relaxed step) is left to SphereTraceRay itself.
+/// Built in its own translation unit with AVX2; plain types only, as sampler/trilinear_wide.h.
+#pragma once
+
+#include "sampler/trilinear_wide.h"
+
+namespace distile::detail {
+
+/// A sphere trace between two samples: what detail::SphereTraceRay holds of it while it takes
+/// plain steps, in world-free texel-space floats.
+struct SphereTraceLane {
+    float start[3];
+    float direction[3];  ///< unit
+    float toFloorAtStart;
+    float travel;        ///< of the point to sample next
+    float safeRadius;    ///< distance sampled at the previous point
+    float previousStep;  ///< from the previous point to this one
+    int iterations;      ///< samples taken
+    int maxIterations;
+    /// Regula falsi between a point outside (travel, distance) and one inside, sampling at
+    /// `estimate` (SphereTraceRay::beginRefining); the fields below are valid when refining.
+    bool refining;
+    float outside, outsideDistance, inside, insideDistance, estimate;
+    /// Out: the distance sampled at `travel`, the step the kernel left to the scalar march
+    /// (valid when distanceKnown; false for a point outside the wide filter's near case).
+    float pendingDistance;
+    bool distanceKnown;
+};
+
+/// The march settings every lane of one call shares (detail::SphereTraceRay's).
+struct SphereTraceUniforms {
+    float epsilonTexels;
+    float factor;  ///< step factor: 1, or OverRelaxed's relaxation
+    bool budgeted;
+};
+
+/// Runs each of `count` lanes' steps that go on (budget left after the step; a sphere step: the
+/// distance at least epsilon and short of the floor, no relaxed step to take back; the start of
+/// the refinement: a step that went inside; a refinement step: not within epsilon) until the
+/// first other step, eight lanes at a time: each lane ends in the state before that step, with
+/// the distance sampled there. Precondition: kWideTrilinear; every lane needs a sample.
+void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
+                             SphereTraceLane* lanes, int count);
+
+}  // namespace distile::detail
