@@ -336,6 +336,7 @@ class Candidates {
         }
     }
     std::size_t size() const { return count_; }
+    void clear() { count_ = 0; }
     const Candidate& operator[](std::size_t index) const { return data()[index]; }
 
   private:
@@ -366,11 +367,22 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
     const std::size_t count = rays.size();
     // Per ray: its candidates (the tile's shells that pass the pixel test), the next one to trace
     // and the nearest hit so far.
-    Candidates candidates[kMaxBatchRays];
+    // Working memory, once per thread: constructing these arrays (tens of kB) for every batch
+    // cost several percent of a render. Every element is set before it is read.
+    struct Arrays {
+        Candidates candidates[kMaxBatchRays];
+        SurfaceHit shellHits[kMaxBatchRays];
+        ShellMarch marches[kMaxBatchRays];
+    };
+    thread_local Arrays arrays;
+    Candidates* candidates = arrays.candidates;
+    SurfaceHit* shellHits = arrays.shellHits;
+    ShellMarch* marches = arrays.marches;
     std::size_t next[kMaxBatchRays];
     float nearest[kMaxBatchRays];
     for (std::size_t r = 0; r < count; ++r) {
         const PixelRay& pixel = rays[r];
+        candidates[r].clear();
         for (const std::uint32_t shell : tileShells(pixel.x / kTilePixels, pixel.y / kTilePixels)) {
             ++shellCounters.tested;
             if (!trianglePixelOverlapConservative(bounds_[shell].top, pixel.x, pixel.y)) continue;
@@ -384,8 +396,6 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
     // Rounds: each ray traces its candidates in order up to the next one it enters; the marches
     // of the round are taken together; then each ray takes its march's end. A ray's steps are
     // those of tracing it alone.
-    SurfaceHit shellHits[kMaxBatchRays];
-    ShellMarch marches[kMaxBatchRays];
     ShellMarch* pending[kMaxBatchRays];
     std::size_t pendingRay[kMaxBatchRays];
     auto keepNearest = [&](std::size_t r) {

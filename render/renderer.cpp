@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -182,15 +183,21 @@ class Renderer {
         // Self-shadow rays are marched together for scenes of a few lights (tile filters only).
         const bool batchSelfShadows = options_.selfShadows && !options_.reference &&
                                       scene_.lights.size() <= kInterleavedLights;
-        LightVisibilityRay selfShadows[kBatch][kInterleavedLights];
+        // Working memory, once per thread: constructing these arrays for every run cost a few
+        // percent of a render. Every element is set before it is read.
+        struct Arrays {
+            std::array<LightVisibilityRay, kInterleavedLights> selfShadows[kBatch];
+            ScreenShells::PixelRay rays[kBatch];
+            int sampleIndices[kBatch];
+            SurfaceHit hits[kBatch];
+            bool found[kBatch];
+            TraceCounters counters[kBatch];
+        };
+        thread_local Arrays arrays;
+        auto& [selfShadows, rays, sampleIndices, hits, found, counters] = arrays;
         const int samplesPerPixel = options_.samplesPerPixel;
         const int runWidth = x1 - x0;
         const int total = runWidth * (y1 - y0) * samplesPerPixel;
-        ScreenShells::PixelRay rays[kBatch];
-        int sampleIndices[kBatch];
-        SurfaceHit hits[kBatch];
-        bool found[kBatch];
-        TraceCounters counters[kBatch];
         glm::vec3 sum(0.0f);
         for (int first = 0; first < total; first += int(kBatch)) {
             const std::size_t count = std::size_t(std::min(int(kBatch), total - first));
@@ -217,7 +224,7 @@ class Renderer {
                 const int index = sampleIndices[k];
                 const Sample sample = shadeSample(
                     rays[k].ray, found[k], hits[k], counters[k], shadowSeed(x, y, index),
-                    batchSelfShadows ? selfShadows[k] : nullptr, stats);
+                    batchSelfShadows ? selfShadows[k].data() : nullptr, stats);
                 Sample& pixel = pixels[(y - y0) * runWidth + (x - x0)];
                 if (index == 0) {
                     pixel = sample;
@@ -328,7 +335,7 @@ class Renderer {
     /// The self-shadow rays of a batch's detail hits (`rays[k][light]` for hits[k]), marched
     /// together a tile at a time (marchInterleaved): the same visibilities as one at a time.
     void marchSelfShadows(std::size_t count, const SurfaceHit* hits, const bool* found,
-                          LightVisibilityRay (*rays)[kInterleavedLights]) const {
+                          std::array<LightVisibilityRay, kInterleavedLights>* rays) const {
         LightVisibilityRay* pending[kRunRays * kInterleavedLights];
         const TileColumns* tiles[kRunRays * kInterleavedLights];
         std::size_t pendingCount = 0;

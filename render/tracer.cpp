@@ -283,7 +283,10 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
     hit.normal = hit.entry.normal;
     hit.onDetail = false;
     hit.texelsPerWorldAlongRay = 0.0f;
-    if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) return false;
+    if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) {
+        hit.march = MarchResult{};  // not marched (the hit may be working memory of a batch)
+        return false;
+    }
 
     march.object = shell.object;
     march.baseHit = baseHit;
