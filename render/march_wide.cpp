@@ -81,11 +81,11 @@ struct LaneSource {
                                _mm256_sub_ps(outsideDistance, insideDistance)));
 }
 
-/// One sample of every busy lane of `group`: the steps that go on taken in the lanes, the other
-/// lanes handed back to their rays (state before the step, distance sampled) and refilled.
+/// One sample of every busy lane of `group`: the steps that go on taken in the lanes; the lanes
+/// whose step does not go on park with the distance sampled (LaneGroup::parked). No branches, so
+/// the rounds of two groups overlap in the processor.
 [[gnu::always_inline]] inline void round(const WideColumns& columns,
-                                         const SphereTraceUniforms& uniforms, LaneGroup& group,
-                                         LaneSource& source) {
+                                         const SphereTraceUniforms& uniforms, LaneGroup& group) {
     const __m256 epsilon = _mm256_set1_ps(uniforms.epsilonTexels);
     const __m256i oneStep = _mm256_set1_epi32(1);
     const auto asFloat = [](__m256i mask) { return _mm256_castsi256_ps(mask); };
@@ -120,19 +120,21 @@ struct LaneSource {
     // A step that went inside the detail: refine between the previous point and this one.
     __m256 startsRefining = _mm256_and_ps(_mm256_cmp_ps(d, zero, _CMP_LT_OQ),
                                           _mm256_cmp_ps(previous, safe, _CMP_GT_OQ));
-    if (uniforms.factor > 1.0f) {  // a relaxed step whose sphere does not reach back is undone
-        const __m256 stepBack =
-            _mm256_and_ps(_mm256_cmp_ps(previous, safe, _CMP_GT_OQ),
-                          _mm256_cmp_ps(_mm256_add_ps(d, safe), previous, _CMP_LT_OQ));
-        sphereStep = _mm256_andnot_ps(stepBack, sphereStep);
-        startsRefining = _mm256_andnot_ps(stepBack, startsRefining);
-    }
-    __m256 step = _mm256_mul_ps(_mm256_set1_ps(uniforms.factor), d);
-    if (uniforms.budgeted) {  // std::max(step, toFloor / samples left)
-        const __m256 forced =
-            _mm256_div_ps(toFloor, _mm256_cvtepi32_ps(_mm256_sub_epi32(budget, newIterations)));
-        step = _mm256_blendv_ps(step, forced, _mm256_cmp_ps(step, forced, _CMP_LT_OQ));
-    }
+    const __m256 factor = _mm256_set1_ps(uniforms.factor);
+    // A relaxed step (factor > 1) whose sphere does not reach back is undone.
+    const __m256 stepBack =
+        _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(factor, _mm256_set1_ps(1.0f), _CMP_GT_OQ),
+                                    _mm256_cmp_ps(previous, safe, _CMP_GT_OQ)),
+                      _mm256_cmp_ps(_mm256_add_ps(d, safe), previous, _CMP_LT_OQ));
+    sphereStep = _mm256_andnot_ps(stepBack, sphereStep);
+    startsRefining = _mm256_andnot_ps(stepBack, startsRefining);
+    __m256 step = _mm256_mul_ps(factor, d);
+    // Budgeted: std::max(step, toFloor / samples left).
+    const __m256 forced =
+        _mm256_div_ps(toFloor, _mm256_cvtepi32_ps(_mm256_sub_epi32(budget, newIterations)));
+    const __m256 budgeted = asFloat(_mm256_set1_epi32(uniforms.budgeted ? -1 : 0));
+    step = _mm256_blendv_ps(step, forced,
+                            _mm256_and_ps(budgeted, _mm256_cmp_ps(step, forced, _CMP_LT_OQ)));
     // std::min(step, toFloor)
     const __m256 taken = _mm256_blendv_ps(step, toFloor, _mm256_cmp_ps(toFloor, step, _CMP_LT_OQ));
     sphereStep = _mm256_andnot_ps(refining, _mm256_and_ps(sphereStep, budgetLeft));
@@ -198,6 +200,11 @@ struct LaneSource {
     const unsigned left = unsigned(_mm256_movemask_ps(leaving));
     group.parked |= left;
     group.busy -= __builtin_popcount(left);
+}
+
+/// The parked lanes of `group` handed back to their rays (state before the step, distance
+/// sampled) and refilled, once enough have parked or the group has no other ray.
+inline void handBack(LaneGroup& group, LaneSource& source) {
     if (__builtin_popcount(group.parked) < kParkedBeforeRefill && group.busy > 0) return;
     for (unsigned parked = group.parked; parked != 0; parked &= parked - 1) {
         const int slot = __builtin_ctz(parked);
@@ -226,18 +233,20 @@ void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUnifor
     // Two groups of eight lanes, sampled in turn: while one group's gathers wait on memory, the
     // other's arithmetic runs (a round depends on the one before it in the same group only).
     LaneSource source{lanes, count};
-    constexpr int kGroups = 2;
-    LaneGroup groups[kGroups];
+    LaneGroup groups[2];
     for (LaneGroup& group : groups)
         for (int slot = 0; slot < kWidth; ++slot) source.take(group, slot);
-    for (bool busy = true; busy;) {
-        busy = false;
-        for (LaneGroup& group : groups) {
-            if (group.busy == 0) continue;
-            round(columns, uniforms, group, source);
-            busy = true;
-        }
+    while (groups[0].busy + groups[1].busy > 0) {
+        round(columns, uniforms, groups[0]);  // a group without rays samples idle lanes only
+        round(columns, uniforms, groups[1]);
+        handBack(groups[0], source);
+        handBack(groups[1], source);
     }
+    handBack(groups[0], source);
+    handBack(groups[1], source);
+    // Back to SSE code: with the upper halves of the ymm registers dirty, every SSE instruction
+    // after this would pay for merging them (the compiler does not always clear them itself).
+    _mm256_zeroupper();
 }
 
 #else
