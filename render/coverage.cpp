@@ -398,11 +398,14 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
     // those of tracing it alone.
     ShellMarch* pending[kMaxBatchRays];
     std::size_t pendingRay[kMaxBatchRays];
+    // Where ray r's current shell is traced: straight into its output until it has a hit (most
+    // rays have one candidate: no copy), then into working memory, copied when nearer.
+    SurfaceHit* into[kMaxBatchRays];
     auto keepNearest = [&](std::size_t r) {
-        const SurfaceHit& shellHit = shellHits[r];
+        const SurfaceHit& shellHit = *into[r];
         if (!shellHit.entry.frontFacing || !(shellHit.distanceWorld < nearest[r])) return;
         nearest[r] = shellHit.distanceWorld;
-        hits[r] = shellHit;
+        if (into[r] != &hits[r]) hits[r] = shellHit;
         found[r] = true;
     };
     for (;;) {
@@ -420,8 +423,9 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
                 // With culling the top must also be nearer than the best hit; without, every
                 // top is traced and its hit compared afterwards, to the same result.
                 bool stopped = false;
+                into[r] = found[r] ? &shellHits[r] : &hits[r];
                 if (tracer_.enterShell(candidate.shell, rays[r].ray, 0.0f,
-                                       shellCulling ? nearest[r] : kFar, shellHits[r], marches[r],
+                                       shellCulling ? nearest[r] : kFar, *into[r], marches[r],
                                        stopped)) {
                     pending[pendingCount] = &marches[r];
                     pendingRay[pendingCount++] = r;
@@ -435,7 +439,7 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
         tracer_.marchShells(std::span<ShellMarch* const>(pending, pendingCount));
         for (std::size_t p = 0; p < pendingCount; ++p) {
             const std::size_t r = pendingRay[p];
-            if (tracer_.finishShell(rays[r].ray, marches[r], shellHits[r], counters[r]))
+            if (tracer_.finishShell(rays[r].ray, marches[r], *into[r], counters[r]))
                 keepNearest(r);
         }
     }

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <memory>
@@ -63,7 +64,11 @@ struct ShellEntry {
     glm::vec3 texelsPerWorld;  ///< scale of the T, B, N components into texels
     bool frontFacing = true;
 
-    glm::vec3 toTexel(const glm::vec3& world) const;
+    glm::vec3 toTexel(const glm::vec3& world) const {
+        return {glm::dot(world, tangent) * texelsPerWorld.x,
+                glm::dot(world, bitangent) * texelsPerWorld.y,
+                glm::dot(world, normal) * texelsPerWorld.z};
+    }
     /// A texel-space gradient as a world-space normal direction (not normalised).
     glm::vec3 gradientToWorld(const glm::vec3& gradient) const;
 };
