@@ -196,6 +196,22 @@ bool triangleRectOverlapConservative(const ScreenTriangle& triangle, double x0, 
     return true;
 }
 
+bool triangleCoversRect(const ScreenTriangle& triangle, double x0, double y0, double x1,
+                        double y1) {
+    if (!triangle.hasEdges || x0 < triangle.boundsMin.x || x1 > triangle.boundsMax.x ||
+        y0 < triangle.boundsMin.y || y1 > triangle.boundsMax.y) {
+        return false;
+    }
+    // Each edge at the rectangle's corner least inside it (the per-pixel test, with its margin
+    // and tolerance, allows less: a pixel's most inside corner is at least as far inside).
+    for (const glm::dvec3& edge : triangle.edges) {
+        const double x = edge.x > 0.0 ? x0 : x1;
+        const double y = edge.y > 0.0 ? y0 : y1;
+        if (!(edge.x * x + edge.y * y + edge.z >= 0.0)) return false;
+    }
+    return true;
+}
+
 ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& projection)
     : tracer_(tracer), projection_(projection) {
     tilesX_ = (projection.width() + kTilePixels - 1) / kTilePixels;
@@ -252,6 +268,7 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     });
     std::vector<std::uint32_t> tileOfEntry;
     std::vector<std::uint32_t> shellOfEntry;
+    std::vector<bool> coversOfEntry;
     for (const std::uint32_t shell : visible) {
         const ScreenTriangle& top = bounds_[shell].top;
         const int tileX0 =
@@ -271,6 +288,7 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
                 if (!triangleRectOverlapConservative(top, x0, y0, x1, y1)) continue;
                 tileOfEntry.push_back(std::uint32_t(tileY * tilesX_ + tileX));
                 shellOfEntry.push_back(shell);
+                coversOfEntry.push_back(triangleCoversRect(top, x0, y0, x1, y1));
             }
         }
     }
@@ -279,9 +297,13 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     for (const std::uint32_t tile : tileOfEntry) ++tileStart_[tile + 1];
     std::partial_sum(tileStart_.begin(), tileStart_.end(), tileStart_.begin());
     shellsByTile_.resize(shellOfEntry.size());
+    coversTile_.resize(shellOfEntry.size());
     std::vector<std::uint32_t> fill(tileStart_.begin(), tileStart_.end() - 1);
-    for (std::size_t i = 0; i < shellOfEntry.size(); ++i)
-        shellsByTile_[fill[tileOfEntry[i]]++] = shellOfEntry[i];
+    for (std::size_t i = 0; i < shellOfEntry.size(); ++i) {
+        const std::uint32_t entry = fill[tileOfEntry[i]]++;
+        shellsByTile_[entry] = shellOfEntry[i];
+        coversTile_[entry] = coversOfEntry[i];
+    }
 }
 
 std::span<const std::uint32_t> ScreenShells::tileShells(int tileX, int tileY) const {
@@ -383,9 +405,15 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
     for (std::size_t r = 0; r < count; ++r) {
         const PixelRay& pixel = rays[r];
         candidates[r].clear();
-        for (const std::uint32_t shell : tileShells(pixel.x / kTilePixels, pixel.y / kTilePixels)) {
+        const std::size_t tile =
+            std::size_t(pixel.y / kTilePixels) * tilesX_ + std::size_t(pixel.x / kTilePixels);
+        for (std::uint32_t entry = tileStart_[tile]; entry < tileStart_[tile + 1]; ++entry) {
+            const std::uint32_t shell = shellsByTile_[entry];
             ++shellCounters.tested;
-            if (!trianglePixelOverlapConservative(bounds_[shell].top, pixel.x, pixel.y)) continue;
+            if (!coversTile_[entry] &&
+                !trianglePixelOverlapConservative(bounds_[shell].top, pixel.x, pixel.y)) {
+                continue;
+            }
             candidates[r].push({pixelDepthBound(shell, pixel.x, pixel.y), shell});
         }
         candidates[r].sort();
@@ -439,8 +467,7 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
         tracer_.marchShells(std::span<ShellMarch* const>(pending, pendingCount));
         for (std::size_t p = 0; p < pendingCount; ++p) {
             const std::size_t r = pendingRay[p];
-            if (tracer_.finishShell(rays[r].ray, marches[r], *into[r], counters[r]))
-                keepNearest(r);
+            if (tracer_.finishShell(rays[r].ray, marches[r], *into[r], counters[r])) keepNearest(r);
         }
     }
 }

@@ -89,6 +89,10 @@ ScreenTriangle projectTriangle(const PinholeProjection& projection,
 bool triangleRectOverlapConservative(const ScreenTriangle& triangle, double x0, double y0,
                                      double x1, double y1);
 
+/// True when every pixel square inside [x0, x1] x [y0, y1] certainly passes the per-pixel test
+/// (trianglePixelOverlapConservative): the rectangle lies inside the bounds and inside every edge.
+bool triangleCoversRect(const ScreenTriangle& triangle, double x0, double y0, double x1, double y1);
+
 /// The per-pixel test: false only when the square of pixel (x, y) certainly misses the triangle.
 inline bool trianglePixelOverlapConservative(const ScreenTriangle& triangle, int x, int y) {
     return triangleRectOverlapConservative(triangle, x, y, x + 1.0, y + 1.0);
@@ -166,6 +170,9 @@ class ScreenShells {
     std::vector<ShellBounds> bounds_;
     std::vector<std::uint32_t> tileStart_;     ///< per tile (row-major), then one past the end
     std::vector<std::uint32_t> shellsByTile_;  ///< shell indices, grouped by tile
+    /// Per entry of shellsByTile_: its shell's top covers every pixel of the tile (the per-pixel
+    /// test would pass everywhere there, so it is skipped).
+    std::vector<bool> coversTile_;
 };
 
 }  // namespace distile

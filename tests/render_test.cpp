@@ -551,6 +551,37 @@ TEST(Coverage, EveryTouchedPixelPassesAndFarPixelsFail) {
         100.0 * double(accepted - touched) / double(touched));
 }
 
+TEST(Coverage, ACoveredRectangleHasOnlyPixelsThatPass) {
+    // triangleCoversRect lets the camera rays of a screen tile skip the per-pixel test: for 4000
+    // random triangles and 4 x 4 pixel rectangles on a 32 x 32 screen, every pixel of a covered
+    // rectangle must pass the per-pixel test and lie inside the triangle (exact test on the
+    // pixel shrunk by 1e-6); and coverage must be found where the triangle is large.
+    std::mt19937 random(43);
+    constexpr int kScreen = 32;
+    constexpr int kRect = 4;
+    int covered = 0;
+    for (const auto& corners : randomScreenTriangles(4000, kScreen, random)) {
+        const ScreenTriangle triangle = screenTriangle(corners.data());
+        for (int y0 = 0; y0 < kScreen; y0 += kRect) {
+            for (int x0 = 0; x0 < kScreen; x0 += kRect) {
+                if (!triangleCoversRect(triangle, x0, y0, x0 + kRect, y0 + kRect)) continue;
+                ++covered;
+                for (int y = y0; y < y0 + kRect; ++y) {
+                    for (int x = x0; x < x0 + kRect; ++x) {
+                        ASSERT_TRUE(trianglePixelOverlapConservative(triangle, x, y))
+                            << x << "," << y;
+                        const double e = 1e-6;
+                        ASSERT_TRUE(triangleBoxOverlapExact(corners.data(), x + e, y + e, x + 1 - e,
+                                                            y + 1 - e))
+                            << x << "," << y;
+                    }
+                }
+            }
+        }
+    }
+    EXPECT_GT(covered, 1000);
+}
+
 TEST(Coverage, ProjectedTrianglesAreCoveredConservatively) {
     // The same triangles placed in 3D in front of a pinhole camera (each corner at its own depth),
     // and triangles crossing the plane of the eye. Truth for the first kind: the exact overlap of
