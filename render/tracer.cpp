@@ -150,7 +150,8 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     }
 }
 
-void SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const {
+[[gnu::always_inline]] inline void SceneTracer::shellEntry(const TriangleHit& hit, const Ray& ray,
+                                                           ShellEntry& entry) const {
     const ShellTriangle& shell = triangles_[hit.triangle];
     const SceneObject& object = scene_.objects[shell.object];
     const BaseMesh& mesh = object.mesh;
@@ -289,8 +290,12 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
     glm::vec3 direction = hit.entry.toTexel(ray.direction);
     // Silhouettes of smooth-shaded meshes can tilt the interpolated frame until the ray no
     // longer descends; keep it descending so the march stays in the shell.
-    direction.z = std::min(direction.z, -1e-3f * glm::length(direction));
-    const float texelsPerWorldAlongRay = glm::length(direction);
+    float texelsPerWorldAlongRay = glm::length(direction);
+    const float steepest = -1e-3f * texelsPerWorldAlongRay;
+    if (steepest < direction.z) {  // std::min(direction.z, steepest), the length anew
+        direction.z = steepest;
+        texelsPerWorldAlongRay = glm::length(direction);
+    }
     direction /= texelsPerWorldAlongRay;
     hit.texelsPerWorldAlongRay = texelsPerWorldAlongRay;
     march.directionTexels = direction;

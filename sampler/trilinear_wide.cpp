@@ -24,7 +24,9 @@ unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* 
     };
     __m256i outside = _mm256_setzero_si256();
     _mm256_storeu_ps(out, trilinearColumnsAvx2(columns, lanes(0), lanes(1), lanes(2), outside));
-    return unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(outside)));
+    const unsigned unknown = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(outside)));
+    _mm256_zeroupper();  // back to SSE code (see render/march_wide.cpp)
+    return unknown;
 }
 
 #else
