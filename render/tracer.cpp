@@ -81,6 +81,12 @@ void setFrame(ShellEntry& entry, const glm::vec3& normal, const glm::vec4& tange
 
 }  // namespace
 
+glm::vec3 ShellEntry::toTexel(const glm::vec3& world) const {
+    return {glm::dot(world, tangent) * texelsPerWorld.x,
+            glm::dot(world, bitangent) * texelsPerWorld.y,
+            glm::dot(world, normal) * texelsPerWorld.z};
+}
+
 glm::vec3 ShellEntry::gradientToWorld(const glm::vec3& gradient) const {
     // Texel = M world with M's rows T sx, B sy, N sz; gradients transform with M transposed.
     return tangent * (gradient.x * texelsPerWorld.x) + bitangent * (gradient.y * texelsPerWorld.y) +

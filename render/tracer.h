@@ -64,11 +64,7 @@ struct ShellEntry {
     glm::vec3 texelsPerWorld;  ///< scale of the T, B, N components into texels
     bool frontFacing = true;
 
-    glm::vec3 toTexel(const glm::vec3& world) const {
-        return {glm::dot(world, tangent) * texelsPerWorld.x,
-                glm::dot(world, bitangent) * texelsPerWorld.y,
-                glm::dot(world, normal) * texelsPerWorld.z};
-    }
+    glm::vec3 toTexel(const glm::vec3& world) const;
     /// A texel-space gradient as a world-space normal direction (not normalised).
     glm::vec3 gradientToWorld(const glm::vec3& gradient) const;
 };
