@@ -76,10 +76,13 @@ constexpr double kSavingThreshold = 0.02;
 /// share of the pixels.
 constexpr double kMaxDifferingShare = 0.001;
 
-/// The two renders the skips are measured in: the default (shadows on) and the peers' (primary
-/// visibility and a normal, no shadows, no AOVs).
+/// The renders the skips are measured in: the default (shadows on), the peers' (primary
+/// visibility and a normal, no shadows, no AOVs), and that with the tricubic B-spline as the
+/// march's filter (64 taps a sample: what the march's skips save weighs more).
 constexpr const char* kShadowedRender = "shadows";
 constexpr const char* kUnshadowedRender = "no shadows";
+constexpr const char* kTricubicRender = "tricubic march";
+constexpr std::array kSkipRenders{kShadowedRender, kUnshadowedRender, kTricubicRender};
 
 /// One line of speed.csv; fields that do not apply stay NaN (written empty).
 struct SpeedRow {
@@ -483,11 +486,15 @@ void runSpeedBench(const BenchArguments& arguments) {
             true, "estimate: S1 x 256");
     }
 
-    // C. Skips, in both renders: the march's skips weigh most where the march is most of the
-    // work (no shadows), the shadows' only with shadows.
-    say("bench --speed: C. every skip off, one at a time, with shadows and without");
-    const std::array<std::pair<const char*, const RenderOptions*>, 2> skipRenders{
-        std::pair{kShadowedRender, &shadowed}, std::pair{kUnshadowedRender, &unshadowed}};
+    // C. Skips, in every render of kSkipRenders: the march's skips weigh most where the march is
+    // most of the work (no shadows, a costly march filter), the shadows' only with shadows.
+    say("bench --speed: C. every skip off, one at a time, with shadows, without, and with the "
+        "tricubic march");
+    RenderOptions tricubicMarch = unshadowed;
+    tricubicMarch.filter = FilterKind::TricubicBSpline;
+    const std::array<std::pair<const char*, const RenderOptions*>, kSkipRenders.size()> skipRenders{
+        std::pair{kShadowedRender, &shadowed}, std::pair{kUnshadowedRender, &unshadowed},
+        std::pair{kTricubicRender, &tricubicMarch}};
     for (const SkipSwitch& skip : kSkipSwitches) {
         for (const auto& [renderName, render] : skipRenders) {
             for (std::size_t index = 0; index < scenes.size(); ++index) {
@@ -641,8 +648,9 @@ void runSpeedBench(const BenchArguments& arguments) {
         md << "| " << what << " | " << cell(s1) << " | " << cell(s2) << " |\n";
     }
 
-    md << "\n## C. Skips (each skip off alone; the default render with shadows, and primary "
-          "visibility without shadows as in A)\n\n"
+    md << "\n## C. Skips (each skip off alone; the default render with shadows, primary "
+          "visibility without shadows as in A, and that with the tricubic B-spline as the march's "
+          "filter)\n\n"
           "Pixels > 1 code: share of pixels where a channel of the 8-bit sRGB image differs by "
           "more than 1 code from the render with every skip on. Work saved: the renderer's work "
           "counter (RenderStats) the skip lowers most, deterministic where the times are not. A "
@@ -656,7 +664,7 @@ void runSpeedBench(const BenchArguments& arguments) {
     for (const SkipSwitch& skip : kSkipSwitches) {
         bool savesSomewhere = false;
         bool imageKept = true;
-        for (const char* renderName : {kShadowedRender, kUnshadowedRender})
+        for (const char* renderName : kSkipRenders)
             for (const SpeedScene& s : scenes) {
                 const SpeedRow* r = findRow(rows, "skip", s.id, skipRowName(skip, renderName));
                 const double saving = 1.0 - r->seconds / r->comparedSeconds;

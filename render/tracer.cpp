@@ -133,7 +133,11 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     // skip holds (for the filters whose support the occupancy bounds).
     const bool skipEmptySpace =
         options.skips.emptySpace && !options.reference &&
-        (options.filter == FilterKind::Trilinear || options.filter == FilterKind::Nearest);
+        (options.filter == FilterKind::Trilinear || options.filter == FilterKind::Nearest ||
+         options.filter == FilterKind::TricubicBSpline);
+    const OccupancySupport support = options.filter == FilterKind::TricubicBSpline
+                                         ? OccupancySupport::CubicBSpline
+                                         : OccupancySupport::Linear;
     columns_.resize(scene.objects.size());
     occupancies_.resize(scene.objects.size());
     for (std::size_t object = 0; object < scene.objects.size(); ++object) {
@@ -150,7 +154,7 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
         if (skipEmptySpace) {
             // Tiles without empty space to skip keep no occupancy: their rays pay nothing for it.
             auto occupancy =
-                std::make_shared<const TileOccupancy>(*tile, options.march.epsilonTexels);
+                std::make_shared<const TileOccupancy>(*tile, options.march.epsilonTexels, support);
             if (occupancy->hasEmptySpace()) occupancies_[object] = std::move(occupancy);
         }
     }

@@ -203,7 +203,7 @@ class SceneTracer {
     TraceOptions options_;
     std::vector<ShellTriangle> triangles_;
     /// Per object: its tile's empty space for the march's filter and threshold; null when not
-    /// skipped (no tile, skip off, a reference render, or a cubic march filter).
+    /// skipped (no tile, skip off, a reference render, or a Catmull-Rom march filter).
     std::vector<std::shared_ptr<const TileOccupancy>> occupancies_;
     std::vector<std::shared_ptr<const TileColumns>> columns_;  ///< per object; null: no tile
     TriangleBvh bvh_;

@@ -11,7 +11,7 @@
 
 namespace distile {
 
-TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
+TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancySupport support)
     : width_(tile.size().width),
       height_(tile.size().height),
       blocksX_((tile.size().width + kBlockTexels - 1) / kBlockTexels),
@@ -19,7 +19,11 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
       tops_(std::size_t(blocksX_) * std::size_t(blocksY_), float(tile.size().depth)) {
     const Size3& size = tile.size();
     const int depth = size.depth;
-    // Per slice, the lowest value over each block's support (its columns and one more around).
+    const bool cubic = support == OccupancySupport::CubicBSpline;
+    // The support's columns around a block (file note): x0 - before .. x1 - 1 + after.
+    const int before = cubic ? 2 : 1;
+    const int after = cubic ? 2 : 1;
+    // Per slice, the lowest value over each block's support.
     std::vector<float> lowest(tops_.size() * std::size_t(depth));
     // Rows of blocks in parallel: each block's top depends on its own texels only.
     tbb::parallel_for(
@@ -32,24 +36,31 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
                         &lowest[(std::size_t(by) * std::size_t(blocksX_) + bx) * depth];
                     for (int z = 0; z < depth; ++z) {
                         float low = tile.at(x0, y0, z);
-                        for (int y = y0 - 1; y <= y1; ++y) {
+                        for (int y = y0 - before; y < y1 + after; ++y) {
                             const int wrappedY = detail::wrapIndex(y, size.height);
-                            for (int x = x0 - 1; x <= x1; ++x)
+                            for (int x = x0 - before; x < x1 + after; ++x)
                                 low = std::min(
                                     low, tile.at(detail::wrapIndex(x, size.width), wrappedY, z));
                         }
                         blockLowest[z] = low;
                     }
-                    // The top edge cell, extrapolated to the face z = D: 1.5 v[D-1] - 0.5 v[D-2]
-                    // per column; its lowest over the support bounds the whole outer half texel.
+                    // Above the top slice: the trilinear filter's edge cell extrapolated to the
+                    // face z = D, 1.5 v[D-1] - 0.5 v[D-2] per column (its lowest over the support
+                    // bounds the whole outer half texel); the cubic filter's ghost taps at slices
+                    // D and D + 1, 2 v[D-1] - v[D-2] and 3 v[D-1] - 2 v[D-2].
                     float faceLowest = blockLowest[depth - 1];
-                    for (int y = y0 - 1; y <= y1; ++y) {
+                    for (int y = y0 - before; y < y1 + after; ++y) {
                         const int wrappedY = detail::wrapIndex(y, size.height);
-                        for (int x = x0 - 1; x <= x1; ++x) {
+                        for (int x = x0 - before; x < x1 + after; ++x) {
                             const int wrappedX = detail::wrapIndex(x, size.width);
-                            faceLowest = std::min(
-                                faceLowest, 1.5f * tile.at(wrappedX, wrappedY, depth - 1) -
-                                                0.5f * tile.at(wrappedX, wrappedY, depth - 2));
+                            const float last = tile.at(wrappedX, wrappedY, depth - 1);
+                            const float belowLast = tile.at(wrappedX, wrappedY, depth - 2);
+                            if (cubic) {
+                                faceLowest = std::min({faceLowest, 2.0f * last - belowLast,
+                                                       3.0f * last - 2.0f * belowLast});
+                            } else {
+                                faceLowest = std::min(faceLowest, 1.5f * last - 0.5f * belowLast);
+                            }
                         }
                     }
                     float top = 0.0f;
@@ -63,12 +74,13 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels)
                                 break;
                             }
                         }
-                        // Above slice centre highestLow + 1 every cell's corners are at least the
-                        // threshold; a column with no low slice is empty down to the bottom cell's
-                        // centre (below it the bottom edge cell extrapolates, and the floor ends
-                        // the ray there).
-                        top = highestLow < 0 ? 0.5f
-                                             : std::min(float(highestLow) + 1.5f, float(depth));
+                        // Above slice centre highestLow + 1 (+ 2 for the cubic filter) every tap
+                        // is at least the threshold; a column with no low slice is empty down to
+                        // where the taps reach below the bottom slice (there the filters
+                        // extrapolate, and the floor ends the ray).
+                        const float reach = cubic ? 2.5f : 1.5f;
+                        top = highestLow < 0 ? reach - 1.0f
+                                             : std::min(float(highestLow) + reach, float(depth));
                         // A sliver of empty space is not worth the walk (and moving the march's
                         // start changes where its budgeted steps land): such a block counts as
                         // full.

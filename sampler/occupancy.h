@@ -10,7 +10,13 @@
 /// columns [x0, x1) those corners lie in the columns x0 - 1 .. x1 (same in y). So above the highest
 /// slice kTop holding a value below the threshold in those columns, z >= kTop + 1.5, every value
 /// is at least the threshold. The outer half texels extrapolate the edge cells (sampler/filters.h):
-/// the top one is checked at the face z = D, where it is lowest if anywhere.
+/// the top one is checked at the face z = D, where it is lowest if anywhere. The nearest filter
+/// reads a subset of the same texels.
+///
+/// The cubic B-spline's weights are never negative and sum to one, so its value too is a convex
+/// combination, of its 4 x 4 x 4 taps: columns x0 - 2 .. x1 + 1 and slices from two below to one
+/// above, so everything is at least the threshold above kTop + 2.5; its ghost taps above the top
+/// slice (the edge cell's line at slices D and D + 1) are checked like stored ones.
 #pragma once
 
 #include <glm/vec3.hpp>
@@ -20,6 +26,12 @@
 
 namespace distile {
 
+/// The filters whose support an occupancy bounds.
+enum class OccupancySupport {
+    Linear,        ///< trilinear and nearest
+    CubicBSpline,  ///< the tricubic B-spline (not Catmull-Rom: its weights go negative)
+};
+
 class TileOccupancy {
   public:
     static constexpr int kBlockTexels = 8;
@@ -28,9 +40,10 @@ class TileOccupancy {
 
     /// Tops of every block of `tile` for `thresholdTexels` (the march's hit threshold: a point
     /// above a top is not a hit).
-    TileOccupancy(const Tile& tile, float thresholdTexels);
+    TileOccupancy(const Tile& tile, float thresholdTexels,
+                  OccupancySupport support = OccupancySupport::Linear);
 
-    /// Height z (texels, in [0, D]) above which every trilinear value over block (blockX,
+    /// Height z (texels, in [0, D]) above which every value of the filter over block (blockX,
     /// blockY) is at least the threshold. Preconditions: indices within blocksX(), blocksY().
     float topTexels(int blockX, int blockY) const {
         return tops_[std::size_t(blockY) * std::size_t(blocksX_) + std::size_t(blockX)];

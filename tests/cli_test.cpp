@@ -843,8 +843,9 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
 
 TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     // A tiny speed report (no peers): every RenderSkips switch (all bools) is measured on each of
-    // the six scenes, with shadows and without, the bake cache and the thread check have their rows, the report has its
-    // verdicts, the scenes are kept; --speed and --stress together are refused.
+    // the six scenes in three renders (shadows, none, tricubic march), the bake cache and the
+    // thread check have their rows, the report has its verdicts, the scenes are kept; --speed and
+    // --stress together are refused.
     const RunResult speed = run({"bench", "--speed", "--quick", "--no-peers", "--width", "64",
                                  "--height", "48", "-o", path("speed").string()});
     ASSERT_EQ(speed.status, 0) << speed.err;
@@ -872,10 +873,12 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
         EXPECT_GT(off, 0.0) << line;
     }
     const std::size_t skipCount = sizeof(RenderSkips) / sizeof(bool);
-    EXPECT_EQ(skipRows.size(), skipCount * 6u * 2u);
+    EXPECT_EQ(skipRows.size(), skipCount * 6u * 3u);
     for (const char* scene : {"S1", "S2", "S3", "S4", "S5", "S6"}) {
         EXPECT_TRUE(skipRows.count(std::string("shellCulling ") + scene)) << scene;
         EXPECT_TRUE(skipRows.count(std::string("emptySpace, no shadows ") + scene)) << scene;
+        EXPECT_TRUE(skipRows.count(std::string("adaptiveBudget, tricubic march ") + scene))
+            << scene;
     }
     for (const char* section : {"error", "repetition", "memory", "skip", "cache", "threads"})
         EXPECT_TRUE(sections.count(section)) << section;

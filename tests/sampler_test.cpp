@@ -4,11 +4,11 @@
 
 #include <algorithm>
 #include <bit>
-#include <limits>
 #include <cmath>
 #include <cstdio>
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -683,8 +683,13 @@ TEST(TileColumns, GroupedTrilinearFetchesAreBitIdenticalToSingleOnes) {
     std::uniform_real_distribution<float> pz(-1.0f, float(size.depth) + 1.0f);
     std::uniform_int_distribution<int> oddOne(0, 63);
     const float odd[] = {std::numeric_limits<float>::quiet_NaN(),
-                         std::numeric_limits<float>::infinity(), -3.0e9f, 1.0e12f,
-                         -0.0f, float(size.width), -float(size.width) - 0.25f, 2.5e6f};
+                         std::numeric_limits<float>::infinity(),
+                         -3.0e9f,
+                         1.0e12f,
+                         -0.0f,
+                         float(size.width),
+                         -float(size.width) - 0.25f,
+                         2.5e6f};
     for (int round = 0; round < 4000; ++round) {
         glm::vec3 points[8];
         for (glm::vec3& p : points) {
@@ -698,7 +703,8 @@ TEST(TileColumns, GroupedTrilinearFetchesAreBitIdenticalToSingleOnes) {
         distancesTexels8(filter, points, eight);
         for (int lane = 0; lane < 8; ++lane) {
             const float single = filter.distanceTexels(points[lane]);
-            ASSERT_EQ(std::bit_cast<std::uint32_t>(four[lane]), std::bit_cast<std::uint32_t>(single))
+            ASSERT_EQ(std::bit_cast<std::uint32_t>(four[lane]),
+                      std::bit_cast<std::uint32_t>(single))
                 << round << " " << lane;
             ASSERT_EQ(std::bit_cast<std::uint32_t>(eight[lane]),
                       std::bit_cast<std::uint32_t>(single))
@@ -707,14 +713,16 @@ TEST(TileColumns, GroupedTrilinearFetchesAreBitIdenticalToSingleOnes) {
     }
 }
 
-/// Checks TileOccupancy on `tile`: every trilinear value above a block's top and every point of
-/// every path emptyTravelTexels skips is at least the threshold. Returns the number of blocks
-/// with a top below the face and of rays that skipped something.
-std::pair<int, int> checkOccupancy(const Tile& tile) {
+/// Checks TileOccupancy on `tile` for the filters of `support`: every value of `filter` above a
+/// block's top and at every point of every path emptyTravelTexels skips is at least the
+/// threshold. Returns the number of blocks with a top below the face and of rays that skipped
+/// something.
+template <class Filter>
+std::pair<int, int> checkOccupancy(const Tile& tile, OccupancySupport support,
+                                   const Filter& filter) {
     const Size3& size = tile.size();
     constexpr float kThreshold = 0.02f;
-    const TileOccupancy occupancy(tile, kThreshold);
-    const TrilinearFilter filter(tile);
+    const TileOccupancy occupancy(tile, kThreshold, support);
     std::mt19937 random(5);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
     int belowFace = 0;
@@ -760,17 +768,56 @@ std::pair<int, int> checkOccupancy(const Tile& tile) {
 }
 
 TEST(TileOccupancy, EverythingAboveABlockTopAndEverySkippedPathIsEmpty) {
-    // Empty-space skipping must never skip a hit. On the chain mail (rings up to near the face:
-    // at most a sliver is empty, kMinimumSkipTexels) and on bumps filling the lowest third of a
-    // slab, whose empty upper part the rays must cross in one step per block.
-    ASSERT_NO_FATAL_FAILURE(checkOccupancy(defaultChainmail().tile));
+    // Empty-space skipping must never skip a hit, for the trilinear, nearest and tricubic
+    // B-spline filters. On the chain mail (rings up to near the face: at most a sliver is empty,
+    // kMinimumSkipTexels) and on bumps filling the lowest third of a slab, whose empty upper part
+    // the rays must cross in one step per block.
+    const Tile& chainmail = defaultChainmail().tile;
+    ASSERT_NO_FATAL_FAILURE(
+        checkOccupancy(chainmail, OccupancySupport::Linear, TrilinearFilter(chainmail)));
+    ASSERT_NO_FATAL_FAILURE(
+        checkOccupancy(chainmail, OccupancySupport::Linear, NearestFilter(chainmail)));
+    ASSERT_NO_FATAL_FAILURE(checkOccupancy(chainmail, OccupancySupport::CubicBSpline,
+                                           TricubicBSplineFilter(chainmail)));
     const Tile bumps = tileOf({64, 48, 16}, [](const glm::dvec3& p) {
         const double height = 3.0 + 1.5 * std::sin(p.x * 0.3) * std::cos(p.y * 0.2);
         return (p.z - height) * 0.8;  // a conservative distance to the bumpy surface
     });
-    const auto [belowFace, skipped] = checkOccupancy(bumps);
+    const auto [belowFace, skipped] =
+        checkOccupancy(bumps, OccupancySupport::Linear, TrilinearFilter(bumps));
     EXPECT_EQ(belowFace, (64 / 8) * (48 / 8));  // every block has empty space above the bumps
     EXPECT_GT(skipped, 4000);
+    const auto [nearestBelowFace, nearestSkipped] =
+        checkOccupancy(bumps, OccupancySupport::Linear, NearestFilter(bumps));
+    EXPECT_EQ(nearestBelowFace, belowFace);
+    const auto [cubicBelowFace, cubicSkipped] =
+        checkOccupancy(bumps, OccupancySupport::CubicBSpline, TricubicBSplineFilter(bumps));
+    EXPECT_EQ(cubicBelowFace, belowFace);
+    EXPECT_GT(cubicSkipped, 4000);
+    // Walls one column thick (7 texels high, values far below the threshold: not a distance
+    // field, but the bound holds for any texels) in every other block, two columns before the
+    // next block's first column, over a floor 2 texels high: that block's cubic support reaches
+    // them, its linear one does not.
+    const Tile walls = tileOf({64, 48, 16}, [](const glm::dvec3& p) {
+        const double x = std::fmod(p.x, 16.0);
+        return x > 14.0 && x < 15.0 && p.z < 7.0 ? -1.0e4 : p.z - 2.0;
+    });
+    for (const OccupancySupport support :
+         {OccupancySupport::Linear, OccupancySupport::CubicBSpline}) {
+        const bool cubic = support == OccupancySupport::CubicBSpline;
+        const auto [wallBelowFace, wallSkipped] =
+            cubic ? checkOccupancy(walls, support, TricubicBSplineFilter(walls))
+                  : checkOccupancy(walls, support, TrilinearFilter(walls));
+        EXPECT_GT(wallBelowFace, 0) << cubic;
+        EXPECT_GT(wallSkipped, 1000) << cubic;
+    }
+    // The cubic support is wider and reaches a slice higher: its tops are not below the linear
+    // ones.
+    const TileOccupancy linear(bumps, 0.02f, OccupancySupport::Linear);
+    const TileOccupancy cubicTops(bumps, 0.02f, OccupancySupport::CubicBSpline);
+    for (int by = 0; by < linear.blocksY(); ++by)
+        for (int bx = 0; bx < linear.blocksX(); ++bx)
+            EXPECT_GE(cubicTops.topTexels(bx, by), linear.topTexels(bx, by) + 0.99f);
 }
 
 }  // namespace
