@@ -205,6 +205,7 @@ class SceneTracer {
     /// Per object: its tile's empty space for the march's filter and threshold; null when not
     /// skipped (no tile, skip off, a reference render, or a Catmull-Rom march filter).
     std::vector<std::shared_ptr<const TileOccupancy>> occupancies_;
+    bool walkBlocks_ = true;  ///< empty-space skipping walks the blocks, not only the highest top
     std::vector<std::shared_ptr<const TileColumns>> columns_;  ///< per object; null: no tile
     TriangleBvh bvh_;
 };

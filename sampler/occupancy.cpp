@@ -96,7 +96,8 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
     }
 }
 
-float TileOccupancy::emptyTravelTexels(const glm::vec3& start, const glm::vec3& direction) const {
+float TileOccupancy::emptyTravelTexels(const glm::vec3& start, const glm::vec3& direction,
+                                       bool walkBlocks) const {
     if (!(std::isfinite(start.x) && std::isfinite(start.y) && std::isfinite(start.z) &&
           direction.z < 0.0f && std::isfinite(direction.x) && std::isfinite(direction.y))) {
         return 0.0f;
@@ -121,6 +122,7 @@ float TileOccupancy::emptyTravelTexels(const glm::vec3& start, const glm::vec3& 
     };
     // No block reaches above the highest top: the path down to it is empty over every block.
     float travel = start.z > highestTop_ ? (start.z - highestTop_) * perDescent : 0.0f;
+    if (!walkBlocks) return travel;
     float lookAhead = 0.0f;  // after a wall: which block the ray goes on over, just past the wall
     // Bounded walk: a ray descending through a slab crosses few blocks unless it is grazing; after
     // the bound the march simply starts where the walk stopped (still a safe point).

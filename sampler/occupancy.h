@@ -55,8 +55,11 @@ class TileOccupancy {
 
     /// Length (texels) of the empty path from `start` along `direction` (unit, direction.z < 0)
     /// before the ray first reaches the top of the block it is over: the march can start there.
-    /// 0 when `start` is already at or below its block's top; not finite inputs give 0.
-    float emptyTravelTexels(const glm::vec3& start, const glm::vec3& direction) const;
+    /// 0 when `start` is already at or below its block's top; not finite inputs give 0. With
+    /// `walkBlocks` false only the path down to the highest top of all blocks (one step, no walk;
+    /// for marches whose samples cost less than the walk).
+    float emptyTravelTexels(const glm::vec3& start, const glm::vec3& direction,
+                            bool walkBlocks = true) const;
 
   private:
     int width_, height_;

@@ -753,6 +753,10 @@ std::pair<int, int> checkOccupancy(const Tile& tile, OccupancySupport support,
             glm::normalize(glm::vec3(std::cos(azimuth), std::sin(azimuth), -descent * 2.0f));
         const float empty = occupancy.emptyTravelTexels(start, direction);
         EXPECT_GE(empty, 0.0f);
+        // Without the walk, only the path above the highest top: never longer.
+        const float jump = occupancy.emptyTravelTexels(start, direction, false);
+        EXPECT_GE(jump, 0.0f);
+        EXPECT_LE(jump, empty);
         EXPECT_LE(start.z + direction.z * empty, float(size.depth));
         if (empty > 0.0f) ++skipped;
         for (float t = 0.0f; t < empty; t += 0.05f) {
