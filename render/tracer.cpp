@@ -135,11 +135,11 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
         options.skips.emptySpace && !options.reference &&
         (options.filter == FilterKind::Trilinear || options.filter == FilterKind::Nearest ||
          options.filter == FilterKind::TricubicBSpline);
-    // The block walk costs about what a few samples do: with the AVX2 trilinear march
-    // (sampler/trilinear_wide.h) more than the samples it saves (bench --speed: -4% on S4), with
-    // the scalar march and the 64-tap tricubic one much less. The jump to the highest top is
-    // always worth it.
-    walkBlocks_ = !(detail::kWideTrilinear && options.filter == FilterKind::Trilinear);
+    // The block walk costs about what a few samples do: for the trilinear march (8 samples per
+    // AVX2 call, sampler/trilinear_wide.h) more than the samples it saves (bench --speed: -4% on
+    // S4), for the nearest and the 64-tap tricubic marches much less. The jump to the highest top
+    // is always worth it. Not decided by the processor, so every machine gives the same image.
+    walkBlocks_ = options.filter != FilterKind::Trilinear;
     const OccupancySupport support = options.filter == FilterKind::TricubicBSpline
                                          ? OccupancySupport::CubicBSpline
                                          : OccupancySupport::Linear;

@@ -3,6 +3,9 @@
 // distile also instantiates, so no AVX2 code can stand in for theirs.
 #include "sampler/trilinear_wide.h"
 
+#include <cstdlib>
+#include <cstring>
+
 #if defined(__x86_64__) && defined(__AVX2__) && !defined(__FMA__)
 #include "sampler/trilinear_avx2.h"
 #endif
@@ -12,6 +15,9 @@ namespace distile::detail {
 #if defined(__x86_64__) && defined(__AVX2__) && !defined(__FMA__)
 
 const bool kWideTrilinear = [] {
+    // DISTILE_SIMD=sse2 keeps to the SSE2 paths (the same results; to compare or reproduce).
+    const char* simd = std::getenv("DISTILE_SIMD");
+    if (simd && std::strcmp(simd, "sse2") == 0) return false;
     __builtin_cpu_init();  // may run before libgcc's own initialisation
     return __builtin_cpu_supports("avx2") != 0;
 }();

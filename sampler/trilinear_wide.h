@@ -16,7 +16,8 @@ struct WideColumns {
     int width, height, depth;
 };
 
-/// Whether this processor runs trilinearColumns8 (x86-64 with AVX2), decided once.
+/// Whether this processor runs trilinearColumns8 (x86-64 with AVX2), decided once; the
+/// environment variable DISTILE_SIMD=sse2 turns the wide paths off (same results).
 extern const bool kWideTrilinear;
 
 /// BasicTrilinearFilter<ColumnTexels>::distanceTexels at the eight points `xyz` (x, y, z of
