@@ -24,11 +24,11 @@ struct LaneGroup {
     alignas(32) int refining[kWidth];  ///< -1: refining
     alignas(32) float outside[kWidth], outsideDistance[kWidth], inside[kWidth],
         insideDistance[kWidth], estimate[kWidth];
-    alignas(32) int idle[kWidth];  ///< -1: no ray in the lane
-    alignas(32) float distance[kWidth];
-    alignas(32) int unknown[kWidth];  ///< -1: the distance was not sampled (outside the filter)
-    int laneOf[kWidth];               ///< which of the call's lanes each SIMD lane holds
-    int busy = 0;                     ///< lanes with a ray that goes on
+    alignas(32) int idle[kWidth];          ///< -1: no ray in the lane
+    alignas(32) float distance[kWidth]{};  ///< of the parked lanes
+    alignas(32) int unknown[kWidth]{};  ///< -1: the distance was not sampled (outside the filter)
+    int laneOf[kWidth];                 ///< which of the call's lanes each SIMD lane holds
+    int busy = 0;                       ///< lanes with a ray that goes on
     unsigned parked = 0;  ///< lanes whose ray has left, not yet handed back (bit per lane)
 };
 
