@@ -14,20 +14,21 @@ namespace {
 
 constexpr int kWidth = 8;
 
-/// Eight rays in flight, one per SIMD lane, in memory between rounds.
+/// Eight rays in flight, one per SIMD lane, in memory between rounds. Zeroed, so idle lanes
+/// compute on plain numbers (no NaN or denormal garbage).
 struct LaneGroup {
-    alignas(32) float startX[kWidth], startY[kWidth], startZ[kWidth];
-    alignas(32) float directionX[kWidth], directionY[kWidth], directionZ[kWidth];
-    alignas(32) float toFloorAtStart[kWidth], travel[kWidth], safeRadius[kWidth],
-        previousStep[kWidth];
-    alignas(32) int iterations[kWidth], maxIterations[kWidth];
-    alignas(32) int refining[kWidth];  ///< -1: refining
-    alignas(32) float outside[kWidth], outsideDistance[kWidth], inside[kWidth],
-        insideDistance[kWidth], estimate[kWidth];
-    alignas(32) int idle[kWidth];          ///< -1: no ray in the lane
+    alignas(32) float startX[kWidth]{}, startY[kWidth]{}, startZ[kWidth]{};
+    alignas(32) float directionX[kWidth]{}, directionY[kWidth]{}, directionZ[kWidth]{};
+    alignas(32) float toFloorAtStart[kWidth]{}, travel[kWidth]{}, safeRadius[kWidth]{},
+        previousStep[kWidth]{};
+    alignas(32) int iterations[kWidth]{}, maxIterations[kWidth]{};
+    alignas(32) int refining[kWidth]{};  ///< -1: refining
+    alignas(32) float outside[kWidth]{}, outsideDistance[kWidth]{}, inside[kWidth]{},
+        insideDistance[kWidth]{}, estimate[kWidth]{};
+    alignas(32) int idle[kWidth]{};        ///< -1: no ray in the lane
     alignas(32) float distance[kWidth]{};  ///< of the parked lanes
     alignas(32) int unknown[kWidth]{};  ///< -1: the distance was not sampled (outside the filter)
-    int laneOf[kWidth];                 ///< which of the call's lanes each SIMD lane holds
+    int laneOf[kWidth]{};               ///< which of the call's lanes each SIMD lane holds
     int busy = 0;                       ///< lanes with a ray that goes on
     unsigned parked = 0;  ///< lanes whose ray has left, not yet handed back (bit per lane)
 };
