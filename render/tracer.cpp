@@ -301,6 +301,7 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
     march.object = shell.object;
     march.baseHit = baseHit;
     march.marched = false;
+    march.gradientKnown = false;
     const Size3& size = material.tile->size();
     glm::vec3 direction = hit.entry.toTexel(ray.direction);
     // Silhouettes of smooth-shaded meshes can tilt the interpolated frame until the ray no
@@ -333,7 +334,8 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
     if (options_.reference && material.exactHit) {
         march.startTexels = start;
         march.skippedTexels = 0.0f;
-        march.result = exactFirstHit(material, start, direction, march.exactNormalTexels);
+        march.result = exactFirstHit(material, start, direction, march.gradientTexels);
+        march.gradientKnown = true;
         march.marched = true;
         return true;
     }
@@ -357,6 +359,48 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
 }
 
 void SceneTracer::marchShells(std::span<ShellMarch* const> marches) const {
+    takeMarches(marches);
+    takeGradients(marches);
+}
+
+void SceneTracer::takeGradients(std::span<ShellMarch* const> marches) const {
+    if (options_.reference || options_.normalFilter != FilterKind::TricubicBSpline) return;
+    // The marches that end on detail (finishShell takes a gradient there), by tile.
+    ShellMarch* left[kMaxBatchRays];
+    std::size_t leftCount = 0;
+    for (ShellMarch* march : marches) {
+        if (march->gradientKnown || march->result.exitedFloor || march->result.onFloor) continue;
+        left[leftCount++] = march;
+    }
+    for (std::size_t first = 0; first < leftCount; ++first) {
+        if (!left[first]) continue;  // taken with an earlier march's tile
+        const TileColumns* tile = columns(left[first]->object);
+        ShellMarch* group[8];
+        glm::vec3 positions[8];
+        glm::vec3 gradients[8];
+        std::size_t count = 0;
+        const BasicTricubicBSplineFilter<ColumnTexels> filter(*tile);
+        const auto take = [&] {
+            for (std::size_t lane = count; lane < 8; ++lane) positions[lane] = positions[0];
+            filter.gradients8(positions, gradients);
+            for (std::size_t lane = 0; lane < count; ++lane) {
+                group[lane]->gradientTexels = gradients[lane];
+                group[lane]->gradientKnown = true;
+            }
+            count = 0;
+        };
+        for (std::size_t index = first; index < leftCount; ++index) {
+            if (!left[index] || columns(left[index]->object) != tile) continue;
+            group[count] = left[index];
+            positions[count++] = left[index]->result.texelPosition;
+            left[index] = nullptr;
+            if (count == 8) take();
+        }
+        if (count > 0) take();
+    }
+}
+
+void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {
     const bool interleave = !options_.reference && isSphereTracing(options_.march.method);
     if (!interleave) {
         for (ShellMarch* march : marches) {
@@ -393,7 +437,6 @@ void SceneTracer::marchShells(std::span<ShellMarch* const> marches) const {
 bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHit& hit,
                               TraceCounters& counters) const {
     const Material& material = scene_.objects[march.object].material;
-    const bool exact = options_.reference && material.exactHit;
     // Read from the march's result, not back from the hit just written (a load of a fresh,
     // differently aligned store waits for it).
     const MarchResult& result = march.result;
@@ -411,11 +454,12 @@ bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHi
     hit.position = ray.origin + ray.direction * distanceWorld;
     if (result.onFloor) return true;
     const glm::vec3 gradient =
-        exact ? march.exactNormalTexels
-              : withMarchFilter(options_.normalFilter, material, columns(march.object),
-                                options_.reference, [&](const auto& normalFilter) {
-                                    return normalFilter.gradient(result.texelPosition);
-                                });
+        march.gradientKnown
+            ? march.gradientTexels
+            : withMarchFilter(options_.normalFilter, material, columns(march.object),
+                              options_.reference, [&](const auto& normalFilter) {
+                                  return normalFilter.gradient(result.texelPosition);
+                              });
     if (glm::length(gradient) > 1e-6f)
         hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
     return true;

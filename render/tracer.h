@@ -95,7 +95,11 @@ struct ShellMarch {
     detail::SphereTraceRay trace;                  ///< the sphere-tracing methods' state
     bool marched = false;  ///< result is final (exact reference hits are known at entry)
     MarchResult result;
-    glm::vec3 exactNormalTexels{0.0f};  ///< exact reference hits: the unit texel-space normal
+    /// The texel-space gradient finishShell turns into the normal, when known before it: the
+    /// unit normal of an exact reference hit, or the normal filter's gradient taken for several
+    /// rays at once (marchShells).
+    glm::vec3 gradientTexels{0.0f};
+    bool gradientKnown = false;
 };
 
 /// marchInterleaved over rays that may sample different tiles: rays[i] samples tiles[i] through
@@ -167,7 +171,8 @@ class SceneTracer {
                     SurfaceHit& hit, ShellMarch& march, bool& stopped) const;
     /// Takes the marches of `marches` (from enterShell, not yet marched; at most kMaxBatchRays),
     /// several rays interleaved where the march method allows: the results are those of one march
-    /// at a time.
+    /// at a time. Then the normal gradients of the marches that end on detail, eight at a time
+    /// where the normal filter allows (BasicTricubicBSplineFilter::gradients8): the same values.
     void marchShells(std::span<ShellMarch* const> marches) const;
     /// After marchShells: the march's end into `hit`; true when the ray stops in this shell, false
     /// when it leaves through an open floor. Counts the march in `counters`.
@@ -194,6 +199,9 @@ class SceneTracer {
     };
     /// Fills `entry` (in place: the hit's own, no temporary) for the ray's hit on a shell's top.
     void shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const;
+    /// marchShells' two parts: the marches, then the normal gradients.
+    void takeMarches(std::span<ShellMarch* const> marches) const;
+    void takeGradients(std::span<ShellMarch* const> marches) const;
     /// The shell the ray enters at `baseHit`, up to its march: false when the ray stops on the
     /// base surface (`hit` filled), true with `march` set up.
     bool enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,

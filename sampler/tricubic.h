@@ -306,6 +306,23 @@ class BasicTricubicBSplineFilter {
                                       detail::bsplineDerivativeWeights(a.z.fraction));
     }
 
+    /// gradient() at the eight points `positions`, bit for bit: over TileColumns on a processor
+    /// with AVX2 the eight points' weights and taps in SIMD lanes (sampler/trilinear_wide.h;
+    /// points within 1.5 texels of a face, or far out, one at a time), else one at a time.
+    void gradients8(const glm::vec3* positions, glm::vec3* out) const {
+        unsigned redo = 0xffu;
+        if constexpr (Texels::kZContiguous) {
+            if (detail::kWideTrilinear) {
+                const Size3& size = texels_.size();
+                const detail::WideColumns columns{texels_.codes(), texels_.texelsPerCode(),
+                                                  size.width, size.height, size.depth};
+                redo = detail::tricubicGradientColumns8(columns, &positions[0].x, &out[0].x);
+            }
+        }
+        for (int lane = 0; lane < 8; ++lane)
+            if (redo & (1u << lane)) out[lane] = gradient(positions[lane]);
+    }
+
     /// The same gradient from 24 trilinear fetches (8 per component, the derivative weights on
     /// its own axis), as ch. 20 evaluates it on a GPU.
     glm::vec3 gradient8Fetch(const glm::vec3& texelPosition) const {

@@ -27,4 +27,11 @@ extern const bool kWideTrilinear;
 /// Precondition: kWideTrilinear.
 unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out);
 
+/// BasicTricubicBSplineFilter<ColumnTexels>::gradient at the eight points `xyz` into
+/// `gradients` (x, y, z of each, 24 floats), bit for bit, for every lane whose x and y are in
+/// periodicAxis' near case and whose z taps are all stored slices (z - 0.5 in [1, D - 2)).
+/// Returns the other lanes (bit i for point i): their gradients are unspecified and must be
+/// computed one at a time. Precondition: kWideTrilinear.
+unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, float* gradients);
+
 }  // namespace distile::detail

@@ -713,6 +713,46 @@ TEST(TileColumns, GroupedTrilinearFetchesAreBitIdenticalToSingleOnes) {
     }
 }
 
+TEST(TileColumns, GroupedTricubicGradientsAreBitIdenticalToSingleOnes) {
+    // The renderer's normals take eight hits at a time (gradients8: AVX2 where the processor has
+    // it); each must be gradient() at its point, bit for bit, also across the wrap, near and
+    // beyond the faces (ghost taps, done one at a time), far away and for non-finite points.
+    const TileColumns columns(defaultChainmail().tile);
+    const BasicTricubicBSplineFilter<ColumnTexels> filter(columns);
+    const Size3& size = columns.size();
+    std::mt19937 random(19);
+    std::uniform_real_distribution<float> px(-3.0f, float(size.width) + 3.0f);
+    std::uniform_real_distribution<float> py(-3.0f, float(size.height) + 3.0f);
+    std::uniform_real_distribution<float> pz(-1.0f, float(size.depth) + 1.0f);
+    std::uniform_int_distribution<int> oddOne(0, 63);
+    const float odd[] = {std::numeric_limits<float>::quiet_NaN(),
+                         std::numeric_limits<float>::infinity(),
+                         -3.0e9f,
+                         1.0e12f,
+                         -0.0f,
+                         float(size.width),
+                         -float(size.width) - 0.25f,
+                         2.5e6f};
+    for (int round = 0; round < 4000; ++round) {
+        glm::vec3 points[8];
+        for (glm::vec3& p : points) {
+            p = glm::vec3(px(random), py(random), pz(random));
+            const int which = oddOne(random);
+            if (which < 24) p[which % 3] = odd[which / 3];
+        }
+        glm::vec3 eight[8];
+        filter.gradients8(points, eight);
+        for (int lane = 0; lane < 8; ++lane) {
+            const glm::vec3 single = filter.gradient(points[lane]);
+            for (int axis = 0; axis < 3; ++axis) {
+                ASSERT_EQ(std::bit_cast<std::uint32_t>(eight[lane][axis]),
+                          std::bit_cast<std::uint32_t>(single[axis]))
+                    << round << " " << lane << " " << axis;
+            }
+        }
+    }
+}
+
 /// Checks TileOccupancy on `tile` for the filters of `support`: every value of `filter` above a
 /// block's top and at every point of every path emptyTravelTexels skips is at least the
 /// threshold. Returns the number of blocks with a top below the face and of rays that skipped
