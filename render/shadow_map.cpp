@@ -126,9 +126,11 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
                     const float across = originPlane_.x + (float(x0 + k) + 0.5f) * texelWorld_;
                     rays[k] = {axisX_ * across + axisY_ * along - toLight_ * startDepth, -toLight_};
                 }
+                // Only where the rays stop matters here: no detail normals.
                 tracer.traceNearestBatch(std::span(rays, std::size_t(count)), 0.0f,
                                          std::span(hits, std::size_t(count)),
-                                         std::span(found, std::size_t(count)), counters);
+                                         std::span(found, std::size_t(count)), counters,
+                                         /*withNormals=*/false);
                 for (int k = 0; k < count; ++k) {
                     if (!found[k]) continue;
                     depths_[std::size_t(x0 + k) + std::size_t(width_) * std::size_t(y)] =

@@ -202,7 +202,7 @@ bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hi
 
 void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance,
                                     std::span<SurfaceHit> hits, std::span<bool> found,
-                                    TraceCounters& counters) const {
+                                    TraceCounters& counters, bool withNormals) const {
     const std::size_t count = rays.size();
     // An open floor lets a ray leave a shell through a hole and go on (another pass from where
     // it left); bounded by the object count so a ray cannot loop.
@@ -238,11 +238,13 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
             pendingRay[pendingCount++] = r;
         }
         if (pendingCount == 0) return;
-        marchShells(std::span<ShellMarch* const>(pending, pendingCount));
+        const std::span<ShellMarch* const> taken(pending, pendingCount);
+        takeMarches(taken);
+        if (withNormals) takeGradients(taken);
         for (std::size_t p = 0; p < pendingCount; ++p) {
             const std::size_t r = pendingRay[p];
             const ShellMarch& march = marches[r];
-            if (finishShell(rays[r], march, hits[r], counters)) {
+            if (finishShell(rays[r], march, hits[r], counters, withNormals)) {
                 found[r] = true;
                 active[r] = false;
             } else {  // out through an open floor: on from where it left
@@ -435,7 +437,7 @@ void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {
 }
 
 bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHit& hit,
-                              TraceCounters& counters) const {
+                              TraceCounters& counters, bool withNormal) const {
     const Material& material = scene_.objects[march.object].material;
     // Read from the march's result, not back from the hit just written (a load of a fresh,
     // differently aligned store waits for it).
@@ -452,7 +454,7 @@ bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHi
         march.baseHit.distanceWorld + travelTexels / hit.texelsPerWorldAlongRay;
     hit.distanceWorld = distanceWorld;
     hit.position = ray.origin + ray.direction * distanceWorld;
-    if (result.onFloor) return true;
+    if (result.onFloor || !withNormal) return true;
     const glm::vec3 gradient =
         march.gradientKnown
             ? march.gradientTexels

@@ -149,9 +149,12 @@ class SceneTracer {
     static constexpr std::size_t kMaxBatchRays = 64;
     /// traceNearest for each of `rays` (at most kMaxBatchRays), their marches taken together
     /// (marchShells interleaves them): `found[i]` and `hits[i]` are what traceNearest gives for
-    /// rays[i] alone, bit for bit; the marches are counted in `counters`. Thread-safe.
+    /// rays[i] alone, bit for bit; the marches are counted in `counters`. With `withNormals`
+    /// false the detail's normal is not computed (hits[i].normal stays the base surface's): for
+    /// rays that need only where they stop, such as shadow maps'. Thread-safe.
     void traceNearestBatch(std::span<const Ray> rays, float minDistance, std::span<SurfaceHit> hits,
-                           std::span<bool> found, TraceCounters& counters) const;
+                           std::span<bool> found, TraceCounters& counters,
+                           bool withNormals = true) const;
 
     /// Base triangles of all objects, in scene order: shell `s` is the detail shell of one of them.
     std::uint32_t shellCount() const { return std::uint32_t(triangles_.size()); }
@@ -175,9 +178,10 @@ class SceneTracer {
     /// where the normal filter allows (BasicTricubicBSplineFilter::gradients8): the same values.
     void marchShells(std::span<ShellMarch* const> marches) const;
     /// After marchShells: the march's end into `hit`; true when the ray stops in this shell, false
-    /// when it leaves through an open floor. Counts the march in `counters`.
+    /// when it leaves through an open floor. Counts the march in `counters`. Without
+    /// `withNormal` the hit keeps the base surface's normal (traceNearestBatch).
     bool finishShell(const Ray& ray, const ShellMarch& march, SurfaceHit& hit,
-                     TraceCounters& counters) const;
+                     TraceCounters& counters, bool withNormal = true) const;
 
     /// Object `object`'s tile in the layout the renderer samples (sampler/tile_columns.h); null
     /// for an object without a tile. Objects sharing a tile share its columns.

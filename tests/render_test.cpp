@@ -829,6 +829,8 @@ TEST(ShellCulling, BatchesTraceEveryRayAsItsOwnTrace) {
                         const std::string where =
                             std::to_string(rays[k].x) + "," + std::to_string(y);
                         ASSERT_EQ(found, batchFound[k]) << where;
+                        ASSERT_EQ(found, bareFound[k]) << where;
+                        if (found) EXPECT_EQ(hit.distanceWorld, bareHits[k].distanceWorld) << where;
                         EXPECT_EQ(counters.shellEntries, batchCounters[k].shellEntries) << where;
                         EXPECT_EQ(counters.marchIterations, batchCounters[k].marchIterations)
                             << where;
@@ -855,7 +857,8 @@ TEST(ShellCulling, BatchesTraceEveryRayAsItsOwnTrace) {
 TEST(SceneTracer, BatchesTraceEveryRayAsItsOwnTrace) {
     // The BVH path (shadow-map rays) in batches: six overlapping layers, the top one with an open
     // floor, so rays leave a shell and go on (several passes per ray). Each ray's hit must be
-    // that of traceNearest alone, for any batch length; the counters sum over the batch.
+    // that of traceNearest alone, for any batch length; the counters sum over the batch. Without
+    // normals (shadow maps) the rays stop at the same places with the same work.
     const Scene scene = stackedPlanesScene();
     const SceneTracer tracer(scene, TraceOptions{});
     constexpr int kWidth = 64, kHeight = 48;
@@ -873,12 +876,20 @@ TEST(SceneTracer, BatchesTraceEveryRayAsItsOwnTrace) {
                 TraceCounters batchCounters, singleCounters;
                 tracer.traceNearestBatch(rays, 0.0f, batchHits, std::span<bool>(batchFound, count),
                                          batchCounters);
+                std::vector<SurfaceHit> bareHits(count);
+                bool bareFound[SceneTracer::kMaxBatchRays] = {};
+                TraceCounters bareCounters;
+                tracer.traceNearestBatch(rays, 0.0f, bareHits, std::span<bool>(bareFound, count),
+                                         bareCounters, /*withNormals=*/false);
+                EXPECT_EQ(bareCounters.marchIterations, batchCounters.marchIterations);
                 for (std::size_t k = 0; k < count; ++k) {
                     SurfaceHit hit;
                     TraceCounters counters;
                     const bool found = tracer.traceNearest(rays[k], 0.0f, hit, counters);
                     const std::string where = std::to_string(x0 + int(k)) + "," + std::to_string(y);
                     ASSERT_EQ(found, batchFound[k]) << where;
+                    ASSERT_EQ(found, bareFound[k]) << where;
+                    if (found) EXPECT_EQ(hit.distanceWorld, bareHits[k].distanceWorld) << where;
                     singleCounters.shellEntries += counters.shellEntries;
                     singleCounters.marchIterations += counters.marchIterations;
                     if (counters.shellEntries > 1) ++passedThrough;
