@@ -829,8 +829,6 @@ TEST(ShellCulling, BatchesTraceEveryRayAsItsOwnTrace) {
                         const std::string where =
                             std::to_string(rays[k].x) + "," + std::to_string(y);
                         ASSERT_EQ(found, batchFound[k]) << where;
-                        ASSERT_EQ(found, bareFound[k]) << where;
-                        if (found) EXPECT_EQ(hit.distanceWorld, bareHits[k].distanceWorld) << where;
                         EXPECT_EQ(counters.shellEntries, batchCounters[k].shellEntries) << where;
                         EXPECT_EQ(counters.marchIterations, batchCounters[k].marchIterations)
                             << where;
@@ -889,7 +887,9 @@ TEST(SceneTracer, BatchesTraceEveryRayAsItsOwnTrace) {
                     const std::string where = std::to_string(x0 + int(k)) + "," + std::to_string(y);
                     ASSERT_EQ(found, batchFound[k]) << where;
                     ASSERT_EQ(found, bareFound[k]) << where;
-                    if (found) EXPECT_EQ(hit.distanceWorld, bareHits[k].distanceWorld) << where;
+                    if (found) {
+                        EXPECT_EQ(hit.distanceWorld, bareHits[k].distanceWorld) << where;
+                    }
                     singleCounters.shellEntries += counters.shellEntries;
                     singleCounters.marchIterations += counters.marchIterations;
                     if (counters.shellEntries > 1) ++passedThrough;
