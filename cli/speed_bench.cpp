@@ -76,13 +76,9 @@ constexpr double kSavingThreshold = 0.02;
 /// share of the pixels.
 constexpr double kMaxDifferingShare = 0.001;
 
-/// The renders the skips are measured in: the default (shadows on), the peers' (primary
-/// visibility and a normal, no shadows, no AOVs), and that with the tricubic B-spline as the
-/// march's filter (64 taps a sample: what the march's skips save weighs more).
+/// The default render's name among those the skips are measured in (runSpeedBench, C.): its
+/// rows are named after the skip alone.
 constexpr const char* kShadowedRender = "shadows";
-constexpr const char* kUnshadowedRender = "no shadows";
-constexpr const char* kTricubicRender = "tricubic march";
-constexpr std::array kSkipRenders{kShadowedRender, kUnshadowedRender, kTricubicRender};
 
 /// One line of speed.csv; fields that do not apply stay NaN (written empty).
 struct SpeedRow {
@@ -486,15 +482,17 @@ void runSpeedBench(const BenchArguments& arguments) {
             true, "estimate: S1 x 256");
     }
 
-    // C. Skips, in every render of kSkipRenders: the march's skips weigh most where the march is
-    // most of the work (no shadows, a costly march filter), the shadows' only with shadows.
+    // C. Skips, in three renders: the default (shadows on), the peers' (primary visibility and a
+    // normal), and that with the tricubic B-spline as the march's filter (64 taps a sample). The
+    // march's skips weigh most where the march is most of the work, the shadows' only with
+    // shadows.
     say("bench --speed: C. every skip off, one at a time, with shadows, without, and with the "
         "tricubic march");
     RenderOptions tricubicMarch = unshadowed;
     tricubicMarch.filter = FilterKind::TricubicBSpline;
-    const std::array<std::pair<const char*, const RenderOptions*>, kSkipRenders.size()> skipRenders{
-        std::pair{kShadowedRender, &shadowed}, std::pair{kUnshadowedRender, &unshadowed},
-        std::pair{kTricubicRender, &tricubicMarch}};
+    const std::array<std::pair<const char*, const RenderOptions*>, 3> skipRenders{
+        std::pair{kShadowedRender, &shadowed}, std::pair{"no shadows", &unshadowed},
+        std::pair{"tricubic march", &tricubicMarch}};
     for (const SkipSwitch& skip : kSkipSwitches) {
         for (const auto& [renderName, render] : skipRenders) {
             for (std::size_t index = 0; index < scenes.size(); ++index) {
@@ -664,7 +662,7 @@ void runSpeedBench(const BenchArguments& arguments) {
     for (const SkipSwitch& skip : kSkipSwitches) {
         bool savesSomewhere = false;
         bool imageKept = true;
-        for (const char* renderName : kSkipRenders)
+        for (const auto& [renderName, render] : skipRenders)
             for (const SpeedScene& s : scenes) {
                 const SpeedRow* r = findRow(rows, "skip", s.id, skipRowName(skip, renderName));
                 const double saving = 1.0 - r->seconds / r->comparedSeconds;

@@ -464,9 +464,7 @@ template <class Filter>
 void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const> rays) {
     constexpr std::size_t kChunk = 64;
     const SphereTraceUniforms uniforms = rays[0]->uniforms();
-    const Size3& size = filter.texels().size();
-    const WideColumns columns{filter.texels().codes(), filter.texels().texelsPerCode(), size.width,
-                              size.height, size.depth};
+    const WideColumns columns = filter.texels().wide();
     for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
         const std::size_t end = std::min(begin + kChunk, rays.size());
         SphereTraceLane lanes[kChunk];

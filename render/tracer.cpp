@@ -135,11 +135,6 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
         options.skips.emptySpace && !options.reference &&
         (options.filter == FilterKind::Trilinear || options.filter == FilterKind::Nearest ||
          options.filter == FilterKind::TricubicBSpline);
-    // The block walk costs about what a few samples do: for the trilinear march (8 samples per
-    // AVX2 call, sampler/trilinear_wide.h) more than the samples it saves (bench --speed: -4% on
-    // S4), for the nearest and the 64-tap tricubic marches much less. The jump to the highest top
-    // is always worth it. Not decided by the processor, so every machine gives the same image.
-    walkBlocks_ = options.filter != FilterKind::Trilinear;
     const OccupancySupport support = options.filter == FilterKind::TricubicBSpline
                                          ? OccupancySupport::CubicBSpline
                                          : OccupancySupport::Linear;
@@ -343,8 +338,13 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
     }
     // The empty path above the detail needs no samples: the march starts where it ends.
     const TileOccupancy* occupancy = occupancies_[shell.object].get();
+    // The block walk costs about what a few samples do: for the trilinear march (8 samples per
+    // AVX2 call, sampler/trilinear_wide.h) more than the samples it saves (bench --speed: -4% on
+    // S4), for the nearest and the 64-tap tricubic marches much less. The jump to the highest top
+    // is always worth it. Not decided by the processor, so every machine gives the same image.
+    const bool walkBlocks = options_.filter != FilterKind::Trilinear;
     march.skippedTexels =
-        occupancy ? occupancy->emptyTravelTexels(start, direction, walkBlocks_) : 0.0f;
+        occupancy ? occupancy->emptyTravelTexels(start, direction, walkBlocks) : 0.0f;
     march.startTexels = start + direction * march.skippedTexels;
     march.settings = options_.march;
     if (options_.skips.adaptiveBudget) {
@@ -367,39 +367,33 @@ void SceneTracer::marchShells(std::span<ShellMarch* const> marches) const {
 
 void SceneTracer::takeGradients(std::span<ShellMarch* const> marches) const {
     if (options_.reference || options_.normalFilter != FilterKind::TricubicBSpline) return;
-    // The marches that end on detail (finishShell takes a gradient there), by tile.
-    ShellMarch* left[kMaxBatchRays];
-    std::size_t leftCount = 0;
+    // The marches that end on detail (finishShell takes a gradient there), eight of a tile at a
+    // time.
+    ShellMarch* onDetail[kMaxBatchRays];
+    const TileColumns* tiles[kMaxBatchRays];
+    std::size_t count = 0;
     for (ShellMarch* march : marches) {
         if (march->gradientKnown || march->result.exitedFloor || march->result.onFloor) continue;
-        left[leftCount++] = march;
+        tiles[count] = columns(march->object);
+        onDetail[count++] = march;
     }
-    for (std::size_t first = 0; first < leftCount; ++first) {
-        if (!left[first]) continue;  // taken with an earlier march's tile
-        const TileColumns* tile = columns(left[first]->object);
-        ShellMarch* group[8];
-        glm::vec3 positions[8];
-        glm::vec3 gradients[8];
-        std::size_t count = 0;
-        const BasicTricubicBSplineFilter<ColumnTexels> filter(*tile);
-        const auto take = [&] {
-            for (std::size_t lane = count; lane < 8; ++lane) positions[lane] = positions[0];
-            filter.gradients8(positions, gradients);
-            for (std::size_t lane = 0; lane < count; ++lane) {
-                group[lane]->gradientTexels = gradients[lane];
-                group[lane]->gradientKnown = true;
-            }
-            count = 0;
-        };
-        for (std::size_t index = first; index < leftCount; ++index) {
-            if (!left[index] || columns(left[index]->object) != tile) continue;
-            group[count] = left[index];
-            positions[count++] = left[index]->result.texelPosition;
-            left[index] = nullptr;
-            if (count == 8) take();
-        }
-        if (count > 0) take();
-    }
+    forEachTile(std::span<ShellMarch* const>(onDetail, count),
+                std::span<const TileColumns* const>(tiles, count),
+                [](const TileColumns& tile, std::span<ShellMarch* const> sameTile) {
+                    const BasicTricubicBSplineFilter<ColumnTexels> filter(tile);
+                    for (std::size_t first = 0; first < sameTile.size(); first += 8) {
+                        const std::size_t lanes = std::min<std::size_t>(8, sameTile.size() - first);
+                        glm::vec3 positions[8], gradients[8];
+                        for (std::size_t lane = 0; lane < 8; ++lane)  // padded with the first
+                            positions[lane] =
+                                sameTile[first + (lane < lanes ? lane : 0)]->result.texelPosition;
+                        filter.gradients8(positions, gradients);
+                        for (std::size_t lane = 0; lane < lanes; ++lane) {
+                            sameTile[first + lane]->gradientTexels = gradients[lane];
+                            sameTile[first + lane]->gradientKnown = true;
+                        }
+                    }
+                });
 }
 
 void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {

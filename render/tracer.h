@@ -102,6 +102,29 @@ struct ShellMarch {
     bool gradientKnown = false;
 };
 
+/// Calls function(tile, items) once per distinct tile of `tiles`, in order of first appearance,
+/// with the items (in order) whose tile it is: items[i] belongs to tiles[i]. Precondition: items
+/// and tiles of the same size, at most 64, no null tile.
+template <class Item, class Function>
+void forEachTile(std::span<Item* const> items, std::span<const TileColumns* const> tiles,
+                 Function&& function) {
+    constexpr std::size_t kMaxItems = 64;
+    const TileColumns* left[kMaxItems];  // null once handed over
+    std::copy(tiles.begin(), tiles.end(), left);
+    Item* sameTile[kMaxItems];
+    for (std::size_t first = 0; first < items.size(); ++first) {
+        const TileColumns* tile = left[first];
+        if (!tile) continue;  // handed over with an earlier item's tile
+        std::size_t count = 0;
+        for (std::size_t index = first; index < items.size(); ++index) {
+            if (left[index] != tile) continue;
+            sameTile[count++] = items[index];
+            left[index] = nullptr;
+        }
+        function(*tile, std::span<Item* const>(sameTile, count));
+    }
+}
+
 /// marchInterleaved over rays that may sample different tiles: rays[i] samples tiles[i] through
 /// the filter of `kind`; the rays of one tile are marched together. Each ray ends as it would
 /// marched alone. Preconditions: rays and tiles of the same size, no null tile.
@@ -110,23 +133,12 @@ void marchInterleavedByTile(FilterKind kind, std::span<Marcher* const> rays,
                             std::span<const TileColumns* const> tiles) {
     constexpr std::size_t kChunk = 64;
     for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
-        const std::size_t end = std::min(begin + kChunk, rays.size());
-        const TileColumns* left[kChunk];  // null once marched
-        std::copy(tiles.begin() + std::ptrdiff_t(begin), tiles.begin() + std::ptrdiff_t(end), left);
-        Marcher* sameTile[kChunk];
-        for (std::size_t first = 0; first < end - begin; ++first) {
-            const TileColumns* tile = left[first];
-            if (!tile) continue;  // marched with an earlier ray's tile
-            std::size_t count = 0;
-            for (std::size_t index = first; index < end - begin; ++index) {
-                if (left[index] != tile) continue;
-                sameTile[count++] = rays[begin + index];
-                left[index] = nullptr;
-            }
-            withFilter(kind, *tile, [&](const auto& filter) {
-                marchInterleaved(filter, std::span<Marcher* const>(sameTile, count));
-            });
-        }
+        const std::size_t count = std::min(kChunk, rays.size() - begin);
+        forEachTile(rays.subspan(begin, count), tiles.subspan(begin, count),
+                    [&](const TileColumns& tile, std::span<Marcher* const> sameTile) {
+                        withFilter(kind, tile,
+                                   [&](const auto& filter) { marchInterleaved(filter, sameTile); });
+                    });
     }
 }
 
@@ -217,7 +229,6 @@ class SceneTracer {
     /// Per object: its tile's empty space for the march's filter and threshold; null when not
     /// skipped (no tile, skip off, a reference render, or a Catmull-Rom march filter).
     std::vector<std::shared_ptr<const TileOccupancy>> occupancies_;
-    bool walkBlocks_ = true;  ///< empty-space skipping walks the blocks, not only the highest top
     std::vector<std::shared_ptr<const TileColumns>> columns_;  ///< per object; null: no tile
     TriangleBvh bvh_;
 };

@@ -129,6 +129,10 @@ class ColumnTexels {
     float operator[](std::size_t element) const { return float(codes_[element]) * texelsPerCode_; }
     const std::int16_t* codes() const { return codes_; }
     float texelsPerCode() const { return texelsPerCode_; }
+    /// The same columns as the AVX2 kernels read them (sampler/trilinear_wide.h).
+    detail::WideColumns wide() const {
+        return {codes_, texelsPerCode_, size_.width, size_.height, size_.depth};
+    }
 
   private:
     const std::int16_t* codes_;
@@ -222,10 +226,8 @@ class BasicTrilinearFilter {
     void distancesTexels8(const glm::vec3* positions, float* out) const {
         if constexpr (Texels::kZContiguous) {
             if (detail::kWideTrilinear) {
-                const Size3& size = texels_.size();
-                const detail::WideColumns columns{texels_.codes(), texels_.texelsPerCode(),
-                                                  size.width, size.height, size.depth};
-                const unsigned redo = detail::trilinearColumns8(columns, &positions[0].x, out);
+                const unsigned redo =
+                    detail::trilinearColumns8(texels_.wide(), &positions[0].x, out);
                 if (redo != 0) {
                     for (int lane = 0; lane < 8; ++lane)
                         if (redo & (1u << lane)) out[lane] = distanceTexels(positions[lane]);

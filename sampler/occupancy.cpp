@@ -20,9 +20,8 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
     const Size3& size = tile.size();
     const int depth = size.depth;
     const bool cubic = support == OccupancySupport::CubicBSpline;
-    // The support's columns around a block (file note): x0 - before .. x1 - 1 + after.
-    const int before = cubic ? 2 : 1;
-    const int after = cubic ? 2 : 1;
+    // The support's columns around a block (file note): x0 - around .. x1 - 1 + around.
+    const int around = cubic ? 2 : 1;
     // Per slice, the lowest value over each block's support.
     std::vector<float> lowest(tops_.size() * std::size_t(depth));
     // Rows of blocks in parallel: each block's top depends on its own texels only.
@@ -36,9 +35,9 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
                         &lowest[(std::size_t(by) * std::size_t(blocksX_) + bx) * depth];
                     for (int z = 0; z < depth; ++z) {
                         float low = tile.at(x0, y0, z);
-                        for (int y = y0 - before; y < y1 + after; ++y) {
+                        for (int y = y0 - around; y < y1 + around; ++y) {
                             const int wrappedY = detail::wrapIndex(y, size.height);
-                            for (int x = x0 - before; x < x1 + after; ++x)
+                            for (int x = x0 - around; x < x1 + around; ++x)
                                 low = std::min(
                                     low, tile.at(detail::wrapIndex(x, size.width), wrappedY, z));
                         }
@@ -49,9 +48,9 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
                     // bounds the whole outer half texel); the cubic filter's ghost taps at slices
                     // D and D + 1, 2 v[D-1] - v[D-2] and 3 v[D-1] - 2 v[D-2].
                     float faceLowest = blockLowest[depth - 1];
-                    for (int y = y0 - before; y < y1 + after; ++y) {
+                    for (int y = y0 - around; y < y1 + around; ++y) {
                         const int wrappedY = detail::wrapIndex(y, size.height);
-                        for (int x = x0 - before; x < x1 + after; ++x) {
+                        for (int x = x0 - around; x < x1 + around; ++x) {
                             const int wrappedX = detail::wrapIndex(x, size.width);
                             const float last = tile.at(wrappedX, wrappedY, depth - 1);
                             const float belowLast = tile.at(wrappedX, wrappedY, depth - 2);

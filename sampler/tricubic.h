@@ -313,10 +313,7 @@ class BasicTricubicBSplineFilter {
         unsigned redo = 0xffu;
         if constexpr (Texels::kZContiguous) {
             if (detail::kWideTrilinear) {
-                const Size3& size = texels_.size();
-                const detail::WideColumns columns{texels_.codes(), texels_.texelsPerCode(),
-                                                  size.width, size.height, size.depth};
-                redo = detail::tricubicGradientColumns8(columns, &positions[0].x, &out[0].x);
+                redo = detail::tricubicGradientColumns8(texels_.wide(), &positions[0].x, &out[0].x);
             }
         }
         for (int lane = 0; lane < 8; ++lane)

@@ -22,20 +22,14 @@ const bool kWideTrilinear = [] {
     return __builtin_cpu_supports("avx2") != 0;
 }();
 
-unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out) {
-    // Lanes from the points' scalars (a vector load over eight separate stores would wait).
-    const auto lanes = [&](int axis) {
-        return _mm256_setr_ps(xyz[axis], xyz[3 + axis], xyz[6 + axis], xyz[9 + axis],
-                              xyz[12 + axis], xyz[15 + axis], xyz[18 + axis], xyz[21 + axis]);
-    };
-    __m256i outside = _mm256_setzero_si256();
-    _mm256_storeu_ps(out, trilinearColumnsAvx2(columns, lanes(0), lanes(1), lanes(2), outside));
-    const unsigned unknown = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(outside)));
-    _mm256_zeroupper();  // back to SSE code (see render/march_wide.cpp)
-    return unknown;
-}
-
 namespace {
+
+/// Axis `axis` of eight points (x, y, z of each) as lanes, from the points' scalars (a vector
+/// load over eight separate stores would wait for them).
+__m256 lanes(const float* xyz, int axis) {
+    return _mm256_setr_ps(xyz[axis], xyz[3 + axis], xyz[6 + axis], xyz[9 + axis], xyz[12 + axis],
+                          xyz[15 + axis], xyz[18 + axis], xyz[21 + axis]);
+}
 
 /// detail::bsplineWeights and bsplineDerivativeWeights of the fractions `a`, lane by lane, the
 /// same operations in the same order.
@@ -72,17 +66,22 @@ CubicWeights8 bsplineDerivativeWeights8(__m256 a) {
 
 }  // namespace
 
+unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out) {
+    __m256i outside = _mm256_setzero_si256();
+    _mm256_storeu_ps(
+        out, trilinearColumnsAvx2(columns, lanes(xyz, 0), lanes(xyz, 1), lanes(xyz, 2), outside));
+    const unsigned unknown = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(outside)));
+    _mm256_zeroupper();  // back to SSE code (see render/march_wide.cpp)
+    return unknown;
+}
+
 unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, float* gradients) {
-    const auto lanes = [&](int axis) {
-        return _mm256_setr_ps(xyz[axis], xyz[3 + axis], xyz[6 + axis], xyz[9 + axis],
-                              xyz[12 + axis], xyz[15 + axis], xyz[18 + axis], xyz[21 + axis]);
-    };
     // The axes (detail::periodicCubicAxis, extendedCubicAxis): taps x, y at lower - 1 .. upper
     // + 1 wrapped; z taps firstTap .. firstTap + 3, all stored for the lanes taken here.
     __m256i outside = _mm256_setzero_si256();
     __m256i xTap[4], yTap[4];
-    const __m256 fx = periodicAxisAvx2(lanes(0), columns.width, xTap[1], xTap[2], outside);
-    const __m256 fy = periodicAxisAvx2(lanes(1), columns.height, yTap[1], yTap[2], outside);
+    const __m256 fx = periodicAxisAvx2(lanes(xyz, 0), columns.width, xTap[1], xTap[2], outside);
+    const __m256 fy = periodicAxisAvx2(lanes(xyz, 1), columns.height, yTap[1], yTap[2], outside);
     const auto outerTaps = [](__m256i tap[4], int extent) {
         const __m256i zero = _mm256_setzero_si256();
         const __m256i extentLanes = _mm256_set1_epi32(extent);
@@ -95,7 +94,7 @@ unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, 
     };
     outerTaps(xTap, columns.width);
     outerTaps(yTap, columns.height);
-    const __m256 zShifted = clampedSliceCoordinateAvx2(lanes(2), columns.depth);
+    const __m256 zShifted = clampedSliceCoordinateAvx2(lanes(xyz, 2), columns.depth);
     const __m256 zFloor = floorFiniteAvx2(zShifted);
     const __m256 fz = _mm256_sub_ps(zShifted, zFloor);
     const __m256i firstTap = _mm256_sub_epi32(_mm256_cvttps_epi32(zFloor), _mm256_set1_epi32(1));

@@ -669,6 +669,40 @@ TEST(TileColumns, StoreTheTileRoundedDownAndFiltersAgreeWithinTheCodeStep) {
     }
 }
 
+/// Eight texel-space points at a time for the tests of the grouped filters: uniform over the
+/// tile and a little beyond it, now and then one coordinate odd (not finite, far out, -0, on
+/// the wrap).
+class GroupedTestPoints {
+  public:
+    GroupedTestPoints(const Size3& size, unsigned seed)
+        : random_(seed),
+          x_(-3.0f, float(size.width) + 3.0f),
+          y_(-3.0f, float(size.height) + 3.0f),
+          z_(-1.0f, float(size.depth) + 1.0f),
+          odd_{std::numeric_limits<float>::quiet_NaN(),
+               std::numeric_limits<float>::infinity(),
+               -3.0e9f,
+               1.0e12f,
+               -0.0f,
+               float(size.width),
+               -float(size.width) - 0.25f,
+               2.5e6f} {}
+
+    void next(glm::vec3 (&points)[8]) {
+        for (glm::vec3& p : points) {
+            p = glm::vec3(x_(random_), y_(random_), z_(random_));
+            const int which = oddOne_(random_);  // three points in eight
+            if (which < 24) p[which % 3] = odd_[which / 3];
+        }
+    }
+
+  private:
+    std::mt19937 random_;
+    std::uniform_real_distribution<float> x_, y_, z_;
+    std::uniform_int_distribution<int> oddOne_{0, 63};
+    float odd_[8];
+};
+
 TEST(TileColumns, GroupedTrilinearFetchesAreBitIdenticalToSingleOnes) {
     // The march samples four or eight points per call (distancesTexels4: SSE2; distancesTexels8:
     // AVX2 where the processor has it). Each lane must be distanceTexels at its point, bit for
@@ -676,27 +710,10 @@ TEST(TileColumns, GroupedTrilinearFetchesAreBitIdenticalToSingleOnes) {
     // coordinates (those lanes are redone one at a time).
     const TileColumns columns(defaultChainmail().tile);
     const BasicTrilinearFilter<ColumnTexels> filter(columns);
-    const Size3& size = columns.size();
-    std::mt19937 random(17);
-    std::uniform_real_distribution<float> px(-3.0f, float(size.width) + 3.0f);
-    std::uniform_real_distribution<float> py(-3.0f, float(size.height) + 3.0f);
-    std::uniform_real_distribution<float> pz(-1.0f, float(size.depth) + 1.0f);
-    std::uniform_int_distribution<int> oddOne(0, 63);
-    const float odd[] = {std::numeric_limits<float>::quiet_NaN(),
-                         std::numeric_limits<float>::infinity(),
-                         -3.0e9f,
-                         1.0e12f,
-                         -0.0f,
-                         float(size.width),
-                         -float(size.width) - 0.25f,
-                         2.5e6f};
+    GroupedTestPoints pointsOf(columns.size(), 17);
     for (int round = 0; round < 4000; ++round) {
         glm::vec3 points[8];
-        for (glm::vec3& p : points) {
-            p = glm::vec3(px(random), py(random), pz(random));
-            const int which = oddOne(random);  // now and then one odd coordinate
-            if (which < 24) p[which % 3] = odd[which / 3];
-        }
+        pointsOf.next(points);
         float four[8], eight[8];
         distancesTexels4(filter, points, four);
         distancesTexels4(filter, points + 4, four + 4);
@@ -719,27 +736,10 @@ TEST(TileColumns, GroupedTricubicGradientsAreBitIdenticalToSingleOnes) {
     // beyond the faces (ghost taps, done one at a time), far away and for non-finite points.
     const TileColumns columns(defaultChainmail().tile);
     const BasicTricubicBSplineFilter<ColumnTexels> filter(columns);
-    const Size3& size = columns.size();
-    std::mt19937 random(19);
-    std::uniform_real_distribution<float> px(-3.0f, float(size.width) + 3.0f);
-    std::uniform_real_distribution<float> py(-3.0f, float(size.height) + 3.0f);
-    std::uniform_real_distribution<float> pz(-1.0f, float(size.depth) + 1.0f);
-    std::uniform_int_distribution<int> oddOne(0, 63);
-    const float odd[] = {std::numeric_limits<float>::quiet_NaN(),
-                         std::numeric_limits<float>::infinity(),
-                         -3.0e9f,
-                         1.0e12f,
-                         -0.0f,
-                         float(size.width),
-                         -float(size.width) - 0.25f,
-                         2.5e6f};
+    GroupedTestPoints pointsOf(columns.size(), 19);
     for (int round = 0; round < 4000; ++round) {
         glm::vec3 points[8];
-        for (glm::vec3& p : points) {
-            p = glm::vec3(px(random), py(random), pz(random));
-            const int which = oddOne(random);
-            if (which < 24) p[which % 3] = odd[which / 3];
-        }
+        pointsOf.next(points);
         glm::vec3 eight[8];
         filter.gradients8(points, eight);
         for (int lane = 0; lane < 8; ++lane) {
