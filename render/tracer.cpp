@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "render/analytic_filter.h"
+#include "render/entry_wide.h"
 
 namespace distile {
 
@@ -38,7 +39,10 @@ glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle,
 /// floor, ended as the march ends there (solid: a hit; open: the ray leaves). One query counts as
 /// one iteration. Stores the unit texel-space normal of a detail hit in `normalTexels`. A NaN/Inf
 /// start or direction returns at once, not converged, as march() does.
-MarchResult exactFirstHit(const Material& material, const glm::vec3& start,
+/// Not inlined: GCC 12 inlined into the caller that computes `start` in double (takeEntry) gave
+/// the query the double values from before their rounding to float in some builds (the origin
+/// of a reference query was not a float), so reference renders changed with unrelated edits.
+[[gnu::noinline]] MarchResult exactFirstHit(const Material& material, const glm::vec3& start,
                           const glm::vec3& direction, glm::vec3& normalTexels) {
     MarchResult result;
     result.texelPosition = start;
@@ -234,6 +238,7 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
         }
         if (pendingCount == 0) return;
         const std::span<ShellMarch* const> taken(pending, pendingCount);
+        takeEntries(taken);
         takeMarches(taken);
         if (withNormals) takeGradients(taken);
         for (std::size_t p = 0; p < pendingCount; ++p) {
@@ -279,26 +284,44 @@ bool SceneTracer::enterShell(std::uint32_t shell, const Ray& ray, float minDista
     return false;
 }
 
-bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
-                          ShellMarch& march) const {
-    const ShellTriangle& shell = triangles_[baseHit.triangle];
-    const Material& material = scene_.objects[shell.object].material;
-    hit.object = shell.object;
+void SceneTracer::baseSurfaceHit(const Ray& ray, const TriangleHit& baseHit,
+                                 SurfaceHit& hit) const {
+    hit.object = triangles_[baseHit.triangle].object;
     shellEntry(baseHit, ray, hit.entry);
     hit.distanceWorld = baseHit.distanceWorld;
     hit.position = hit.entry.position;
     hit.normal = hit.entry.normal;
     hit.onDetail = false;
     hit.texelsPerWorldAlongRay = 0.0f;
-    if (!hit.entry.frontFacing || !material.tile || shell.texelsPerWorldUv.x == 0.0f) {
+}
+
+bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
+                          ShellMarch& march) const {
+    const ShellTriangle& shell = triangles_[baseHit.triangle];
+    const Material& material = scene_.objects[shell.object].material;
+    // shellEntry's frontFacing: a back face, or a base surface without detail, stops the ray.
+    if (!(glm::dot(shell.geometricNormal, ray.direction) < 0.0f) || !material.tile ||
+        shell.texelsPerWorldUv.x == 0.0f) {
+        baseSurfaceHit(ray, baseHit, hit);
         hit.march = MarchResult{};  // not marched (the hit may be working memory of a batch)
         return false;
     }
-
     march.object = shell.object;
     march.baseHit = baseHit;
+    march.ray = &ray;
+    march.hit = &hit;
     march.marched = false;
     march.gradientKnown = false;
+    return true;
+}
+
+void SceneTracer::takeEntry(ShellMarch& march) const {
+    const Ray& ray = *march.ray;
+    SurfaceHit& hit = *march.hit;
+    const TriangleHit& baseHit = march.baseHit;
+    const ShellTriangle& shell = triangles_[baseHit.triangle];
+    const Material& material = scene_.objects[shell.object].material;
+    baseSurfaceHit(ray, baseHit, hit);
     const Size3& size = material.tile->size();
     glm::vec3 direction = hit.entry.toTexel(ray.direction);
     // Silhouettes of smooth-shaded meshes can tilt the interpolated frame until the ray no
@@ -334,7 +357,7 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
         march.result = exactFirstHit(material, start, direction, march.gradientTexels);
         march.gradientKnown = true;
         march.marched = true;
-        return true;
+        return;
     }
     // The empty path above the detail needs no samples: the march starts where it ends.
     const TileOccupancy* occupancy = occupancies_[shell.object].get();
@@ -346,21 +369,122 @@ bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit
     march.skippedTexels =
         occupancy ? occupancy->emptyTravelTexels(start, direction, walkBlocks) : 0.0f;
     march.startTexels = start + direction * march.skippedTexels;
+    int maxIterations = options_.march.maxIterations;
+    if (options_.skips.adaptiveBudget)
+        maxIterations = adaptiveBudget(maxIterations, march.startTexels.z / -direction.z);
+    beginMarch(march, maxIterations);
+}
+
+void SceneTracer::beginMarch(ShellMarch& march, int maxIterations) const {
     march.settings = options_.march;
-    if (options_.skips.adaptiveBudget) {
-        march.settings.maxIterations =
-            adaptiveBudget(march.settings.maxIterations, march.startTexels.z / -direction.z);
-    }
-    if (const auto refused = refusedMarch(march.startTexels, direction, march.settings)) {
+    march.settings.maxIterations = maxIterations;
+    if (const auto refused =
+            refusedMarch(march.startTexels, march.directionTexels, march.settings)) {
         march.result = *refused;
         march.marched = true;
     } else if (isSphereTracing(march.settings.method)) {
-        march.trace.start(march.startTexels, direction, material.floor, march.settings);
+        march.trace.start(march.startTexels, march.directionTexels,
+                          scene_.objects[march.object].material.floor, march.settings);
     }
-    return true;
+}
+
+bool SceneTracer::entersFlatShell(const ShellMarch& march) const {
+    // takeEntry's jump over the empty layers without the block walk (trilinear), or no occupancy.
+    return detail::kWideTrilinear && triangles_[march.baseHit.triangle].flatFrame &&
+           !options_.reference &&
+           (options_.filter == FilterKind::Trilinear || !occupancies_[march.object]);
+}
+
+void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
+    ShellMarch* flat[kMaxBatchRays];
+    std::uint32_t shells[kMaxBatchRays];
+    std::size_t flatCount = 0;
+    for (ShellMarch* march : marches) {
+        if (entersFlatShell(*march)) {
+            shells[flatCount] = march->baseHit.triangle;
+            flat[flatCount++] = march;
+        } else {
+            takeEntry(*march);
+        }
+    }
+    forEachGroup(std::span<ShellMarch* const>(flat, flatCount),
+                 std::span<const std::uint32_t>(shells, flatCount),
+                 [&](std::uint32_t, std::span<ShellMarch* const> sameShell) {
+                     for (std::size_t first = 0; first < sameShell.size(); first += 8)
+                         takeFlatEntries(sameShell.subspan(
+                             first, std::min<std::size_t>(8, sameShell.size() - first)));
+                 });
+}
+
+void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const {
+    const TriangleHit& firstHit = sameShell[0]->baseHit;
+    const ShellTriangle& shell = triangles_[firstHit.triangle];
+    const SceneObject& object = scene_.objects[shell.object];
+    const Material& material = object.material;
+    const Size3& size = material.tile->size();
+    // The entry every ray of this shell shares (shellEntry's flat frame), and the kernel's
+    // constants from it.
+    ShellEntry shared;
+    shellEntry(firstHit, *sameShell[0]->ray, shared);
+    detail::FlatShellConstants constants;
+    for (int axis = 0; axis < 3; ++axis) {
+        constants.tangent[axis] = shared.tangent[axis];
+        constants.bitangent[axis] = shared.bitangent[axis];
+        constants.normal[axis] = shared.normal[axis];
+        constants.texelsPerWorld[axis] = shared.texelsPerWorld[axis];
+    }
+    const glm::uvec3 corners = object.mesh.triangles[shell.localTriangle];
+    for (int corner = 0; corner < 3; ++corner) {
+        constants.uvCorners[corner][0] = object.mesh.uvs[corners[corner]].x;
+        constants.uvCorners[corner][1] = object.mesh.uvs[corners[corner]].y;
+    }
+    constants.uvScale[0] = material.uvScale.x;
+    constants.uvScale[1] = material.uvScale.y;
+    constants.tileWidth = size.width;
+    constants.tileHeight = size.height;
+    constants.tileDepth = size.depth;
+    const TileOccupancy* occupancy = occupancies_[shell.object].get();
+    constants.highestTopTexels =
+        occupancy ? occupancy->highestTopTexels() : std::numeric_limits<float>::infinity();
+    constants.budget = options_.march.maxIterations;
+    constants.adaptiveBudget = options_.skips.adaptiveBudget;
+
+    detail::EntryLanes lanes;
+    for (std::size_t lane = 0; lane < 8; ++lane) {
+        const ShellMarch& march = *sameShell[lane < sameShell.size() ? lane : 0];  // padded
+        for (int axis = 0; axis < 3; ++axis) {
+            lanes.origin[axis][lane] = march.ray->origin[axis];
+            lanes.direction[axis][lane] = march.ray->direction[axis];
+        }
+        lanes.distanceWorld[lane] = march.baseHit.distanceWorld;
+        lanes.b1[lane] = march.baseHit.b1;
+        lanes.b2[lane] = march.baseHit.b2;
+    }
+    detail::enterFlatShell8(constants, lanes);
+    for (std::size_t lane = 0; lane < sameShell.size(); ++lane) {
+        ShellMarch& march = *sameShell[lane];
+        SurfaceHit& hit = *march.hit;
+        hit.object = shell.object;
+        hit.entry = shared;
+        hit.entry.position = {lanes.position[0][lane], lanes.position[1][lane],
+                              lanes.position[2][lane]};
+        hit.entry.uv = {lanes.uv[0][lane], lanes.uv[1][lane]};
+        hit.distanceWorld = march.baseHit.distanceWorld;
+        hit.position = hit.entry.position;
+        hit.normal = hit.entry.normal;
+        hit.onDetail = false;
+        hit.texelsPerWorldAlongRay = lanes.texelsPerWorldAlongRay[lane];
+        march.directionTexels = {lanes.directionTexels[0][lane], lanes.directionTexels[1][lane],
+                                 lanes.directionTexels[2][lane]};
+        march.skippedTexels = lanes.skippedTexels[lane];
+        march.startTexels = {lanes.startTexels[0][lane], lanes.startTexels[1][lane],
+                             lanes.startTexels[2][lane]};
+        beginMarch(march, lanes.maxIterations[lane]);
+    }
 }
 
 void SceneTracer::marchShells(std::span<ShellMarch* const> marches) const {
+    takeEntries(marches);
     takeMarches(marches);
     takeGradients(marches);
 }

@@ -83,11 +83,13 @@ struct SurfaceHit {
     float texelsPerWorldAlongRay = 0.0f;
 };
 
-/// A ray that entered a detail shell, between SceneTracer::enterShell and finishShell: its march
-/// in the tile's texel space, taken by marchShells (several at once, interleaved).
+/// A ray that entered a detail shell, between SceneTracer::enterShell and finishShell: its entry
+/// and its march in the tile's texel space, both taken by marchShells (several at once).
 struct ShellMarch {
     std::uint32_t object = 0;
     TriangleHit baseHit;          ///< where the ray met the shell's top
+    const Ray* ray = nullptr;     ///< the ray, and the hit its entry goes into (enterShell's)
+    SurfaceHit* hit = nullptr;
     glm::vec3 startTexels{0.0f};  ///< where the march starts (after the skipped empty path)
     glm::vec3 directionTexels{0.0f, 0.0f, -1.0f};  ///< unit in texel space
     float skippedTexels = 0.0f;                    ///< empty path from the top face to startTexels
@@ -102,27 +104,33 @@ struct ShellMarch {
     bool gradientKnown = false;
 };
 
-/// Calls function(tile, items) once per distinct tile of `tiles`, in order of first appearance,
-/// with the items (in order) whose tile it is: items[i] belongs to tiles[i]. Precondition: items
-/// and tiles of the same size, at most 64, no null tile.
+/// Calls function(key, items) once per distinct key of `keys`, in order of first appearance, with
+/// the items (in order) whose key it is: items[i] has keys[i]. Precondition: items and keys of the
+/// same size, at most 64.
+template <class Item, class Key, class Function>
+void forEachGroup(std::span<Item* const> items, std::span<const Key> keys, Function&& function) {
+    constexpr std::size_t kMaxItems = 64;
+    bool handedOver[kMaxItems] = {};
+    Item* sameKey[kMaxItems];
+    for (std::size_t first = 0; first < items.size(); ++first) {
+        if (handedOver[first]) continue;  // with an earlier item's key
+        std::size_t count = 0;
+        for (std::size_t index = first; index < items.size(); ++index) {
+            if (handedOver[index] || !(keys[index] == keys[first])) continue;
+            sameKey[count++] = items[index];
+            handedOver[index] = true;
+        }
+        function(keys[first], std::span<Item* const>(sameKey, count));
+    }
+}
+
+/// forEachGroup by tile: function(tile, items). Precondition: no null tile.
 template <class Item, class Function>
 void forEachTile(std::span<Item* const> items, std::span<const TileColumns* const> tiles,
                  Function&& function) {
-    constexpr std::size_t kMaxItems = 64;
-    const TileColumns* left[kMaxItems];  // null once handed over
-    std::copy(tiles.begin(), tiles.end(), left);
-    Item* sameTile[kMaxItems];
-    for (std::size_t first = 0; first < items.size(); ++first) {
-        const TileColumns* tile = left[first];
-        if (!tile) continue;  // handed over with an earlier item's tile
-        std::size_t count = 0;
-        for (std::size_t index = first; index < items.size(); ++index) {
-            if (left[index] != tile) continue;
-            sameTile[count++] = items[index];
-            left[index] = nullptr;
-        }
-        function(*tile, std::span<Item* const>(sameTile, count));
-    }
+    forEachGroup(items, tiles, [&](const TileColumns* tile, std::span<Item* const> sameTile) {
+        function(*tile, sameTile);
+    });
 }
 
 /// marchInterleaved over rays that may sample different tiles: rays[i] samples tiles[i] through
@@ -178,16 +186,19 @@ class SceneTracer {
     /// A ray against one shell only, in three parts so that several rays' marches can be taken
     /// together (render/coverage.h): enterShell, marchShells, finishShell do for that shell what
     /// traceNearest does for the shell it enters.
-    /// enterShell: the shell's top (intersectTriangle, as the BVH tests it) up to the march: true
-    /// when the top is hit in (minDistance, maxDistance) and the ray enters the tile, with `march`
-    /// set up and `hit` holding the entry; false with `stopped` set when the ray stops on the bare
-    /// base surface (a back face, no tile; `hit` filled) or cleared for a miss. Thread-safe.
+    /// enterShell: the shell's top (intersectTriangle, as the BVH tests it): true when the top is
+    /// hit in (minDistance, maxDistance) and the ray enters the tile, with `march` holding where
+    /// (`ray` and `hit` must outlive marchShells, which fills `hit` with the entry); false with
+    /// `stopped` set when the ray stops on the bare base surface (a back face, no tile; `hit`
+    /// filled) or cleared for a miss. Thread-safe.
     bool enterShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
                     SurfaceHit& hit, ShellMarch& march, bool& stopped) const;
-    /// Takes the marches of `marches` (from enterShell, not yet marched; at most kMaxBatchRays),
-    /// several rays interleaved where the march method allows: the results are those of one march
-    /// at a time. Then the normal gradients of the marches that end on detail, eight at a time
-    /// where the normal filter allows (BasicTricubicBSplineFilter::gradients8): the same values.
+    /// Takes the entries and the marches of `marches` (from enterShell; at most kMaxBatchRays):
+    /// the entries of rays into the same flat shell eight at a time where AVX2 allows
+    /// (render/entry_wide.h), the marches of several rays interleaved where the march method
+    /// allows; the results are those of one ray at a time. Then the normal gradients of the
+    /// marches that end on detail, eight at a time where the normal filter allows
+    /// (BasicTricubicBSplineFilter::gradients8): the same values.
     void marchShells(std::span<ShellMarch* const> marches) const;
     /// After marchShells: the march's end into `hit`; true when the ray stops in this shell, false
     /// when it leaves through an open floor. Counts the march in `counters`. Without
@@ -215,13 +226,25 @@ class SceneTracer {
     };
     /// Fills `entry` (in place: the hit's own, no temporary) for the ray's hit on a shell's top.
     void shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const;
-    /// marchShells' two parts: the marches, then the normal gradients.
+    /// marchShells' three parts: the entries, the marches, then the normal gradients.
+    void takeEntries(std::span<ShellMarch* const> marches) const;
     void takeMarches(std::span<ShellMarch* const> marches) const;
     void takeGradients(std::span<ShellMarch* const> marches) const;
-    /// The shell the ray enters at `baseHit`, up to its march: false when the ray stops on the
-    /// base surface (`hit` filled), true with `march` set up.
+    /// The shell the ray enters at `baseHit`: false when the ray stops on the base surface (`hit`
+    /// filled), true with `march` holding the ray, its hit and `baseHit` for takeEntries.
     bool enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
                  ShellMarch& march) const;
+    /// `hit` as the ray's stop on the base surface at `baseHit` (no march).
+    void baseSurfaceHit(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit) const;
+    /// The entry of one ray (takeEntries): its hit's entry and its march set up.
+    void takeEntry(ShellMarch& march) const;
+    /// The entries of up to eight rays into the same flat shell at once (enterFlatShell8).
+    void takeFlatEntries(std::span<ShellMarch* const> sameShell) const;
+    /// Sets up `march` from its start (settings with `maxIterations`): a refused march's result,
+    /// or the sphere trace's start.
+    void beginMarch(ShellMarch& march, int maxIterations) const;
+    /// Whether takeFlatEntries takes the entry of `march`.
+    bool entersFlatShell(const ShellMarch& march) const;
 
     const Scene& scene_;
     TraceOptions options_;

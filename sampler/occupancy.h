@@ -50,6 +50,8 @@ class TileOccupancy {
     }
     /// False when every block is full (top = D): no ray can skip anything.
     bool hasEmptySpace() const { return hasEmptySpace_; }
+    /// The highest top of all blocks (texels): emptyTravelTexels without the walk descends to it.
+    float highestTopTexels() const { return highestTop_; }
     int blocksX() const { return blocksX_; }
     int blocksY() const { return blocksY_; }
 

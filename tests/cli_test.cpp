@@ -274,24 +274,42 @@ TEST_F(Cli, RenderDoesNotDependOnTheThreadCount) {
 
 TEST_F(Cli, RenderIsTheSameWithAndWithoutAvx2) {
     // DISTILE_SIMD=sse2 keeps to the SSE2 paths; where the processor has AVX2 the default takes
-    // the wide march and filter kernels (render/march_wide.h). Same operations per ray: the
-    // same floats. With shadows (self-shadow rays interleave too) and the AOVs' depth.
-    writeText(path("scene.json"),
+    // the wide entry, march and filter kernels (render/entry_wide.h, render/march_wide.h). Same
+    // operations per ray: the same floats. With shadows (self-shadow rays interleave too) and the
+    // AOVs' depth. Two scenes: the chain mail seen from above; and a low grating (empty space
+    // above it: the entry's jump to the highest top) seen at a grazing angle, with tiles repeated
+    // thousands of times (the entry's uv wrapped in double precision).
+    writeText(path("above.json"),
               planeScene(chainmailMaterial(R"({"bake": "chainmail", "size": "64x64x8"})")));
-    for (const bool wide : {true, false}) {
-        if (!wide) setenv("DISTILE_SIMD", "sse2", 1);
-        const RunResult result =
-            run({"render", "scene.json", "-o", std::string(wide ? "wide" : "sse2") + ".exr",
-                 "--width", "128", "--height", "96", "--aovs"});
-        unsetenv("DISTILE_SIMD");
-        ASSERT_EQ(result.status, 0) << result.err;
-    }
-    for (const std::string layer : {".exr", ".depth.exr"}) {
-        const Image wide = readImage(path("wide" + layer));
-        const Image sse2 = readImage(path("sse2" + layer));
-        ASSERT_EQ(wide.rgbLinear.size(), sse2.rgbLinear.size());
-        for (std::size_t i = 0; i < wide.rgbLinear.size(); ++i)
-            ASSERT_EQ(wide.rgbLinear[i], sse2.rgbLinear[i]) << layer << " pixel " << i;
+    ASSERT_EQ(run({"bake", "grating", "-o", "grating.exr", "--size", "64x64x16", "--bars", "4",
+                   "--bar-width", "6", "--bar-height", "2", "--edge-radius", "0.5",
+                   "--layer-gap", "0.5"})
+                  .status,
+              0);
+    writeText(path("grazing.json"),
+              R"({"camera": {"eye": [0.1, -1.8, 0.25], "target": [0, -0.8, 0], "up": [0, 0, 1], "fov_deg": 40},
+ "lights": [{"type": "directional", "direction": [-1, 0.3, -0.4], "angle_deg": 2}],
+ "objects": [{"mesh": "plane", "material": {"tile": "grating.exr", "uv_scale": [3001, 2999], "depth": 0.0005}}]})");
+    for (const std::string scene : {"above", "grazing"}) {
+        for (const bool wide : {true, false}) {
+            if (!wide) setenv("DISTILE_SIMD", "sse2", 1);
+            const RunResult result = run({"render", scene + ".json", "-o",
+                                          scene + (wide ? "_wide" : "_sse2") + ".exr", "--width",
+                                          "128", "--height", "96", "--aovs"});
+            unsetenv("DISTILE_SIMD");
+            ASSERT_EQ(result.status, 0) << result.err;
+        }
+        std::size_t hits = 0;
+        for (const std::string layer : {".exr", ".depth.exr"}) {
+            const Image wide = readImage(path(scene + "_wide" + layer));
+            const Image sse2 = readImage(path(scene + "_sse2" + layer));
+            ASSERT_EQ(wide.rgbLinear.size(), sse2.rgbLinear.size());
+            for (std::size_t i = 0; i < wide.rgbLinear.size(); ++i) {
+                ASSERT_EQ(wide.rgbLinear[i], sse2.rgbLinear[i]) << scene << layer << " pixel " << i;
+                if (layer == ".depth.exr" && wide.rgbLinear[i].x > 0.0f) ++hits;
+            }
+        }
+        EXPECT_GT(hits, std::size_t(128 * 96 / 4)) << scene << ": the detail covers the image";
     }
 }
 
