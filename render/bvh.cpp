@@ -82,28 +82,6 @@ std::uint32_t TriangleBvh::build(std::uint32_t first, std::uint32_t count, int d
     return nodeIndex;
 }
 
-bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1,
-                       const glm::vec3& p2, double minDistance, double maxDistance,
-                       double& distanceWorld, double& b1, double& b2) {
-    const glm::dvec3 origin(ray.origin);
-    const glm::dvec3 direction(ray.direction);
-    const glm::dvec3 corner0(p0);
-    const glm::dvec3 edge1 = glm::dvec3(p1) - corner0;
-    const glm::dvec3 edge2 = glm::dvec3(p2) - corner0;
-    const glm::dvec3 pvec = glm::cross(direction, edge2);
-    const double determinant = glm::dot(edge1, pvec);
-    if (determinant == 0.0 || !std::isfinite(determinant)) return false;
-    const double inverse = 1.0 / determinant;
-    const glm::dvec3 tvec = origin - corner0;
-    b1 = glm::dot(tvec, pvec) * inverse;
-    if (b1 < 0.0 || b1 > 1.0) return false;
-    const glm::dvec3 qvec = glm::cross(tvec, edge1);
-    b2 = glm::dot(direction, qvec) * inverse;
-    if (b2 < 0.0 || b1 + b2 > 1.0) return false;
-    distanceWorld = glm::dot(edge2, qvec) * inverse;
-    return distanceWorld > minDistance && distanceWorld < maxDistance;
-}
-
 bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance,
                             TriangleHit& hit) const {
     if (nodes_.empty()) return false;

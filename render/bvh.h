@@ -3,7 +3,9 @@
 /// of the base surfaces (the tops of the detail shells), where the sphere tracer starts.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 #include <vector>
 
@@ -21,12 +23,43 @@ struct TriangleHit {
     float b2 = 0.0f;             ///< barycentric weight of the third vertex
 };
 
+/// A triangle as Moeller-Trumbore takes it, in double precision: corner p0 and the edges p1 - p0,
+/// p2 - p0 (computed in double from the float corners).
+struct DoubleTriangle {
+    glm::dvec3 corner0, edge1, edge2;
+
+    DoubleTriangle() = default;
+    DoubleTriangle(const glm::vec3& p0, const glm::vec3& p1, const glm::vec3& p2)
+        : corner0(p0), edge1(glm::dvec3(p1) - corner0), edge2(glm::dvec3(p2) - corner0) {}
+};
+
 /// The ray against one triangle (Moeller-Trumbore in double precision, the test TriangleBvh uses):
 /// true when it hits at a distance in (minDistance, maxDistance) world units, with the
 /// barycentric weights b1, b2 of p1, p2. Degenerate triangles and rays in their plane miss.
-bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1,
-                       const glm::vec3& p2, double minDistance, double maxDistance,
-                       double& distanceWorld, double& b1, double& b2);
+inline bool intersectTriangle(const Ray& ray, const DoubleTriangle& triangle, double minDistance,
+                              double maxDistance, double& distanceWorld, double& b1, double& b2) {
+    const glm::dvec3 origin(ray.origin);
+    const glm::dvec3 direction(ray.direction);
+    const glm::dvec3 pvec = glm::cross(direction, triangle.edge2);
+    const double determinant = glm::dot(triangle.edge1, pvec);
+    if (determinant == 0.0 || !std::isfinite(determinant)) return false;
+    const double inverse = 1.0 / determinant;
+    const glm::dvec3 tvec = origin - triangle.corner0;
+    b1 = glm::dot(tvec, pvec) * inverse;
+    if (b1 < 0.0 || b1 > 1.0) return false;
+    const glm::dvec3 qvec = glm::cross(tvec, triangle.edge1);
+    b2 = glm::dot(direction, qvec) * inverse;
+    if (b2 < 0.0 || b1 + b2 > 1.0) return false;
+    distanceWorld = glm::dot(triangle.edge2, qvec) * inverse;
+    return distanceWorld > minDistance && distanceWorld < maxDistance;
+}
+
+inline bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1,
+                              const glm::vec3& p2, double minDistance, double maxDistance,
+                              double& distanceWorld, double& b1, double& b2) {
+    return intersectTriangle(ray, DoubleTriangle(p0, p1, p2), minDistance, maxDistance,
+                             distanceWorld, b1, b2);
+}
 
 class TriangleBvh {
   public:

@@ -59,13 +59,6 @@ PinholeProjection::PinholeProjection(const Camera& camera, int widthPixels, int 
     marginPixels_ = 1e-4 + 1e-6 * slopeRange / std::min(slopePerPixel_.x, -slopePerPixel_.y);
 }
 
-Ray PinholeProjection::ray(float xPixels, float yPixels) const {
-    // The view-space slopes are affine in the pixel position (slopePerPixel, slopeAtOrigin).
-    const float slopeX = xPixels * slopePerPixelFloat_.x + slopeAtOriginFloat_.x;
-    const float slopeY = yPixels * slopePerPixelFloat_.y + slopeAtOriginFloat_.y;
-    return {eye_, glm::normalize(forward_ + slopeX * right_ + slopeY * up_)};
-}
-
 glm::dvec3 PinholeProjection::toView(const glm::vec3& world) const {
     const glm::dvec3 relative = glm::dvec3(world) - glm::dvec3(eye_);
     return {glm::dot(relative, glm::dvec3(right_)), glm::dot(relative, glm::dvec3(up_)),

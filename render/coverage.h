@@ -31,7 +31,12 @@ class PinholeProjection {
     PinholeProjection(const Camera& camera, int widthPixels, int heightPixels);
 
     /// The camera ray through pixel position (x, y) (pixels, y down); direction unit length.
-    Ray ray(float xPixels, float yPixels) const;
+    Ray ray(float xPixels, float yPixels) const {
+        // The view-space slopes are affine in the pixel position (slopePerPixel, slopeAtOrigin).
+        const float slopeX = xPixels * slopePerPixelFloat_.x + slopeAtOriginFloat_.x;
+        const float slopeY = yPixels * slopePerPixelFloat_.y + slopeAtOriginFloat_.y;
+        return {eye_, glm::normalize(forward_ + slopeX * right_ + slopeY * up_)};
+    }
 
     /// `world` relative to the eye in the camera basis: x right, y up, z forward (world units).
     glm::dvec3 toView(const glm::vec3& world) const;

@@ -222,32 +222,33 @@ class Renderer {
                 const int x = rays[k].x;
                 const int y = rays[k].y;
                 const int index = sampleIndices[k];
-                const Sample sample = shadeSample(
-                    rays[k].ray, found[k], hits[k], counters[k], shadowSeed(x, y, index),
-                    batchSelfShadows ? selfShadows[k].data() : nullptr, stats);
+                // The first sample straight into the pixel (its AOV values), the others aside.
                 Sample& pixel = pixels[(y - y0) * runWidth + (x - x0)];
-                if (index == 0) {
-                    pixel = sample;
-                    sum = glm::vec3(0.0f);
-                }
-                sum += sample.color;
+                Sample other;
+                Sample& sample = index == 0 ? pixel : other;
+                shadeSample(rays[k].ray, found[k], hits[k], counters[k], shadowSeed(x, y, index),
+                            batchSelfShadows ? selfShadows[k].data() : nullptr, stats, sample);
+                if (samplesPerPixel == 1) continue;
+                sum = index == 0 ? sample.color : sum + sample.color;
                 if (index == samplesPerPixel - 1) pixel.color = sum / float(samplesPerPixel);
             }
         }
     }
 
   private:
-    /// One camera ray through the square of pixel (x, y), traced: its colour and AOV values.
-    Sample shadeSample(const Ray& ray, bool found, const SurfaceHit& hit,
-                       const TraceCounters& counters, std::uint32_t seed,
-                       const LightVisibilityRay* selfShadows, RenderStats& stats) const {
+    /// One camera ray through the square of pixel (x, y), traced: its colour and AOV values into
+    /// `sample`.
+    void shadeSample(const Ray& ray, bool found, const SurfaceHit& hit,
+                     const TraceCounters& counters, std::uint32_t seed,
+                     const LightVisibilityRay* selfShadows, RenderStats& stats,
+                     Sample& sample) const {
         ++stats.rays;
-        Sample sample;
+        sample = Sample{};
         stats.marchIterations += counters.marchIterations;
         stats.converged += counters.converged;
         if (!found) {
             sample.color = skyColor(ray.direction);
-            return sample;
+            return;
         }
         ++stats.baseHits;
         sample.depth = hit.distanceWorld;
@@ -278,7 +279,6 @@ class Renderer {
                     .mean;
             sample.hasCurvature = true;
         }
-        return sample;
     }
 
     /// Fraction of light `lightIndex` reaching `receiver` past other surfaces (1 without a map).
@@ -398,12 +398,14 @@ class Renderer {
             // (its own detail is the self-shadow's job). The two sets of blockers are disjoint,
             // so their covered parts of the light's disk are uncorrelated: the visible share is
             // the product (min would assume they always overlap and under-darken penumbrae).
-            const float belowSurfaceWorld =
-                (depthTexels - texelPosition.z) / depthTexels * material.depthWorld;
-            const ShadowReceiver receiver{hit.position + toLight * (belowSurfaceWorld / facing),
-                                          hit.entry.normal};
-            visibility *= castShadow(index, receiver, seed, sample.shadowMapSamples);
-            if (visibility <= 0.0f) continue;
+            if (shadowMaps_[index]) {
+                const float belowSurfaceWorld =
+                    (depthTexels - texelPosition.z) / depthTexels * material.depthWorld;
+                const ShadowReceiver receiver{
+                    hit.position + toLight * (belowSurfaceWorld / facing), hit.entry.normal};
+                visibility *= castShadow(index, receiver, seed, sample.shadowMapSamples);
+                if (visibility <= 0.0f) continue;
+            }
             color += directLight(hit.normal, toLight, view, albedo) * light.color * visibility;
         }
         return color;

@@ -112,10 +112,12 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
             if (tile)
                 texelsPerWorld =
                     texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size());
-            ShellTriangle shell{
-                objectIndex, t, texelsPerWorld,
-                glm::cross(mesh.positions[triangle[1]] - mesh.positions[triangle[0]],
-                           mesh.positions[triangle[2]] - mesh.positions[triangle[0]])};
+            const glm::vec3& p0 = mesh.positions[triangle[0]];
+            const glm::vec3& p1 = mesh.positions[triangle[1]];
+            const glm::vec3& p2 = mesh.positions[triangle[2]];
+            ShellTriangle shell{objectIndex, t, texelsPerWorld, glm::cross(p1 - p0, p2 - p0),
+                                DoubleTriangle(p0, p1, p2)};
+            shell.hasDetail = tile && texelsPerWorld.x != 0.0f;
             const bool sameCorners = mesh.normals[triangle[0]] == mesh.normals[triangle[1]] &&
                                      mesh.normals[triangle[0]] == mesh.normals[triangle[2]] &&
                                      mesh.tangents[triangle[0]] == mesh.tangents[triangle[1]] &&
@@ -270,15 +272,9 @@ bool SceneTracer::enterShell(std::uint32_t shell, const Ray& ray, float minDista
                              float maxDistance, SurfaceHit& hit, ShellMarch& march,
                              bool& stopped) const {
     stopped = false;
-    const ShellTriangle& triangle = triangles_[shell];
-    const SceneObject& object = scene_.objects[triangle.object];
-    const glm::uvec3 vertices = object.mesh.triangles[triangle.localTriangle];
     double distance = 0.0, b1 = 0.0, b2 = 0.0;
-    if (!intersectTriangle(ray, object.mesh.positions[vertices[0]],
-                           object.mesh.positions[vertices[1]], object.mesh.positions[vertices[2]],
-                           minDistance, maxDistance, distance, b1, b2)) {
+    if (!intersectTriangle(ray, triangles_[shell].top, minDistance, maxDistance, distance, b1, b2))
         return false;
-    }
     if (enterAt(ray, {shell, float(distance), float(b1), float(b2)}, hit, march)) return true;
     stopped = true;
     return false;
@@ -298,10 +294,8 @@ void SceneTracer::baseSurfaceHit(const Ray& ray, const TriangleHit& baseHit,
 bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
                           ShellMarch& march) const {
     const ShellTriangle& shell = triangles_[baseHit.triangle];
-    const Material& material = scene_.objects[shell.object].material;
     // shellEntry's frontFacing: a back face, or a base surface without detail, stops the ray.
-    if (!(glm::dot(shell.geometricNormal, ray.direction) < 0.0f) || !material.tile ||
-        shell.texelsPerWorldUv.x == 0.0f) {
+    if (!(glm::dot(shell.geometricNormal, ray.direction) < 0.0f) || !shell.hasDetail) {
         baseSurfaceHit(ray, baseHit, hit);
         hit.march = MarchResult{};  // not marched (the hit may be working memory of a batch)
         return false;

@@ -219,6 +219,9 @@ class SceneTracer {
         std::uint32_t localTriangle;
         glm::vec2 texelsPerWorldUv;  ///< texels per world unit along T and B (0: degenerate UVs)
         glm::vec3 geometricNormal;   ///< (p1 - p0) x (p2 - p0), not normalised
+        DoubleTriangle top;          ///< the base triangle, for intersectTriangle
+        /// A tile over non-degenerate UVs: a front-facing ray enters the detail here.
+        bool hasDetail = false;
         /// The corners share one normal and tangent (a flat face of a flat mesh): the frame is
         /// the same at every point, computed once (frameNormal, frameTangent, frameBitangent).
         bool flatFrame = false;
