@@ -85,6 +85,7 @@ struct LaneSource {
 /// One sample of every busy lane of `group`: the steps that go on taken in the lanes; the lanes
 /// whose step does not go on park with the distance sampled (LaneGroup::parked). No branches, so
 /// the rounds of two groups overlap in the processor.
+template <bool kRelaxed>
 [[gnu::always_inline]] inline void round(const WideColumns& columns,
                                          const SphereTraceUniforms& uniforms, LaneGroup& group) {
     const __m256 epsilon = _mm256_set1_ps(uniforms.epsilonTexels);
@@ -121,15 +122,19 @@ struct LaneSource {
     // A step that went inside the detail: refine between the previous point and this one.
     __m256 startsRefining = _mm256_and_ps(_mm256_cmp_ps(d, zero, _CMP_LT_OQ),
                                           _mm256_cmp_ps(previous, safe, _CMP_GT_OQ));
-    const __m256 factor = _mm256_set1_ps(uniforms.factor);
-    // A relaxed step (factor > 1) whose sphere does not reach back is undone.
-    const __m256 stepBack =
-        _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(factor, _mm256_set1_ps(1.0f), _CMP_GT_OQ),
-                                    _mm256_cmp_ps(previous, safe, _CMP_GT_OQ)),
-                      _mm256_cmp_ps(_mm256_add_ps(d, safe), previous, _CMP_LT_OQ));
-    sphereStep = _mm256_andnot_ps(stepBack, sphereStep);
-    startsRefining = _mm256_andnot_ps(stepBack, startsRefining);
-    __m256 step = _mm256_mul_ps(factor, d);
+    // A relaxed step (factor > 1) whose sphere does not reach back is undone. Unrelaxed (factor
+    // 1): none, and the step is the distance (1 x d is d).
+    __m256 step = d;
+    if constexpr (kRelaxed) {
+        const __m256 factor = _mm256_set1_ps(uniforms.factor);
+        const __m256 stepBack =
+            _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(factor, _mm256_set1_ps(1.0f), _CMP_GT_OQ),
+                                        _mm256_cmp_ps(previous, safe, _CMP_GT_OQ)),
+                          _mm256_cmp_ps(_mm256_add_ps(d, safe), previous, _CMP_LT_OQ));
+        sphereStep = _mm256_andnot_ps(stepBack, sphereStep);
+        startsRefining = _mm256_andnot_ps(stepBack, startsRefining);
+        step = _mm256_mul_ps(factor, d);
+    }
     // Budgeted: std::max(step, toFloor / samples left).
     const __m256 forced =
         _mm256_div_ps(toFloor, _mm256_cvtepi32_ps(_mm256_sub_epi32(budget, newIterations)));
@@ -229,8 +234,11 @@ inline void handBack(LaneGroup& group, LaneSource& source) {
 
 }  // namespace
 
-void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
-                             SphereTraceLane* lanes, int count) {
+namespace {
+
+template <bool kRelaxed>
+void sphereTraceOngoingStepsOf(const WideColumns& columns, const SphereTraceUniforms& uniforms,
+                               SphereTraceLane* lanes, int count) {
     // Two groups of eight lanes, sampled in turn: while one group's gathers wait on memory, the
     // other's arithmetic runs (a round depends on the one before it in the same group only).
     LaneSource source{lanes, count};
@@ -238,8 +246,8 @@ void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUnifor
     for (LaneGroup& group : groups)
         for (int slot = 0; slot < kWidth; ++slot) source.take(group, slot);
     while (groups[0].busy + groups[1].busy > 0) {
-        round(columns, uniforms, groups[0]);  // a group without rays samples idle lanes only
-        round(columns, uniforms, groups[1]);
+        round<kRelaxed>(columns, uniforms, groups[0]);  // without rays: idle lanes only
+        round<kRelaxed>(columns, uniforms, groups[1]);
         handBack(groups[0], source);
         handBack(groups[1], source);
     }
@@ -248,6 +256,16 @@ void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUnifor
     // Back to SSE code: with the upper halves of the ymm registers dirty, every SSE instruction
     // after this would pay for merging them (the compiler does not always clear them itself).
     _mm256_zeroupper();
+}
+
+}  // namespace
+
+void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
+                             SphereTraceLane* lanes, int count) {
+    if (uniforms.factor > 1.0f)
+        sphereTraceOngoingStepsOf<true>(columns, uniforms, lanes, count);
+    else
+        sphereTraceOngoingStepsOf<false>(columns, uniforms, lanes, count);
 }
 
 #else
