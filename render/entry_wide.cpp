@@ -20,8 +20,8 @@ __m256 dot3(__m256 x, __m256 y, __m256 z, float a, float b, float c) {
 }
 
 __m256 lengthOf(__m256 x, __m256 y, __m256 z) {
-    return _mm256_sqrt_ps(
-        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, x), _mm256_mul_ps(y, y)), _mm256_mul_ps(z, z)));
+    return _mm256_sqrt_ps(_mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(x, x), _mm256_mul_ps(y, y)),
+                                        _mm256_mul_ps(z, z)));
 }
 
 /// All bits set where the lane is finite.
@@ -48,12 +48,12 @@ __m128 wrappedTexels(__m128 b1, __m128 b2, float corner0, float corner1, float c
 
 __m256 wrappedTexels8(__m256 b1, __m256 b2, const float (&corners)[3][2], int axis, double scale,
                       int extent) {
-    const __m128 low = wrappedTexels(_mm256_castps256_ps128(b1), _mm256_castps256_ps128(b2),
-                                     corners[0][axis], corners[1][axis], corners[2][axis], scale,
-                                     extent);
-    const __m128 high = wrappedTexels(_mm256_extractf128_ps(b1, 1), _mm256_extractf128_ps(b2, 1),
-                                      corners[0][axis], corners[1][axis], corners[2][axis], scale,
-                                      extent);
+    const __m128 low =
+        wrappedTexels(_mm256_castps256_ps128(b1), _mm256_castps256_ps128(b2), corners[0][axis],
+                      corners[1][axis], corners[2][axis], scale, extent);
+    const __m128 high =
+        wrappedTexels(_mm256_extractf128_ps(b1, 1), _mm256_extractf128_ps(b2, 1), corners[0][axis],
+                      corners[1][axis], corners[2][axis], scale, extent);
     return _mm256_insertf128_ps(_mm256_castps128_ps256(low), high, 1);
 }
 
@@ -62,8 +62,7 @@ __m256 wrappedTexels8(__m256 b1, __m256 b2, const float (&corners)[3][2], int ax
 void enterFlatShell8(const FlatShellConstants& shell, EntryLanes& lanes) {
     const __m256 ox = _mm256_loadu_ps(lanes.origin[0]), oy = _mm256_loadu_ps(lanes.origin[1]),
                  oz = _mm256_loadu_ps(lanes.origin[2]);
-    const __m256 dx = _mm256_loadu_ps(lanes.direction[0]),
-                 dy = _mm256_loadu_ps(lanes.direction[1]),
+    const __m256 dx = _mm256_loadu_ps(lanes.direction[0]), dy = _mm256_loadu_ps(lanes.direction[1]),
                  dz = _mm256_loadu_ps(lanes.direction[2]);
     const __m256 t = _mm256_loadu_ps(lanes.distanceWorld);
     const __m256 b1 = _mm256_loadu_ps(lanes.b1), b2 = _mm256_loadu_ps(lanes.b2);
@@ -80,15 +79,14 @@ void enterFlatShell8(const FlatShellConstants& shell, EntryLanes& lanes) {
         _mm256_storeu_ps(lanes.uv[axis], uv);
     }
     // The direction in texel space (ShellEntry::toTexel), kept descending, made unit.
-    const __m256 x = _mm256_mul_ps(dot3(dx, dy, dz, shell.tangent[0], shell.tangent[1],
-                                        shell.tangent[2]),
-                                   _mm256_set1_ps(shell.texelsPerWorld[0]));
-    const __m256 y = _mm256_mul_ps(dot3(dx, dy, dz, shell.bitangent[0], shell.bitangent[1],
-                                        shell.bitangent[2]),
-                                   _mm256_set1_ps(shell.texelsPerWorld[1]));
-    __m256 z = _mm256_mul_ps(
-        dot3(dx, dy, dz, shell.normal[0], shell.normal[1], shell.normal[2]),
-        _mm256_set1_ps(shell.texelsPerWorld[2]));
+    const __m256 x =
+        _mm256_mul_ps(dot3(dx, dy, dz, shell.tangent[0], shell.tangent[1], shell.tangent[2]),
+                      _mm256_set1_ps(shell.texelsPerWorld[0]));
+    const __m256 y =
+        _mm256_mul_ps(dot3(dx, dy, dz, shell.bitangent[0], shell.bitangent[1], shell.bitangent[2]),
+                      _mm256_set1_ps(shell.texelsPerWorld[1]));
+    __m256 z = _mm256_mul_ps(dot3(dx, dy, dz, shell.normal[0], shell.normal[1], shell.normal[2]),
+                             _mm256_set1_ps(shell.texelsPerWorld[2]));
     __m256 length = lengthOf(x, y, z);
     const __m256 steepest = _mm256_mul_ps(_mm256_set1_ps(-1e-3f), length);
     const __m256 tooFlat = _mm256_cmp_ps(steepest, z, _CMP_LT_OQ);
@@ -115,8 +113,7 @@ void enterFlatShell8(const FlatShellConstants& shell, EntryLanes& lanes) {
         _mm256_and_ps(_mm256_and_ps(finite(uy), _mm256_cmp_ps(uz, _mm256_setzero_ps(), _CMP_LT_OQ)),
                       _mm256_cmp_ps(sz, top, _CMP_GT_OQ)));
     const __m256 perDescent = _mm256_div_ps(_mm256_set1_ps(1.0f), descent);
-    const __m256 skipped =
-        _mm256_and_ps(jumps, _mm256_mul_ps(_mm256_sub_ps(sz, top), perDescent));
+    const __m256 skipped = _mm256_and_ps(jumps, _mm256_mul_ps(_mm256_sub_ps(sz, top), perDescent));
     _mm256_storeu_ps(lanes.skippedTexels, skipped);
     const __m256 startZ = _mm256_add_ps(sz, _mm256_mul_ps(uz, skipped));
     _mm256_storeu_ps(lanes.startTexels[0], _mm256_add_ps(sx, _mm256_mul_ps(ux, skipped)));

@@ -115,17 +115,19 @@ class SphereTraceRay {
     /// settings.maxIterations >= 1.
     void start(const glm::vec3& start, const glm::vec3& direction, Floor floor,
                const MarchSettings& settings) {
-        start_ = start;
-        direction_ = direction;
+        for (int axis = 0; axis < 3; ++axis) {
+            lane_.start[axis] = start[axis];
+            lane_.direction[axis] = direction[axis];
+        }
         floor_ = floor;
-        maxIterations_ = settings.maxIterations;
+        lane_.maxIterations = settings.maxIterations;
         epsilonTexels_ = settings.epsilonTexels;
         factor_ = settings.method == MarchMethod::OverRelaxed ? settings.relaxation : 1.0f;
         budgeted_ = settings.method == MarchMethod::Budgeted;
-        refining_ = false;
-        toFloorAtStart_ = start.z / -direction.z;
-        travel_ = safeRadius_ = previousStep_ = 0.0f;
-        result_.iterations = 0;
+        lane_.refining = false;
+        lane_.toFloorAtStart = start.z / -direction.z;
+        lane_.travel = lane_.safeRadius = lane_.previousStep = 0.0f;
+        lane_.iterations = 0;
         result_.travelTexels = 0.0f;
         result_.converged = result_.onFloor = result_.exitedFloor = false;
     }
@@ -140,13 +142,17 @@ class SphereTraceRay {
     /// step() in two halves, so the samples of several rays can be taken together: where the
     /// next sample is, then the march's move given the distance sampled there.
     glm::vec3 samplePosition() const {
-        return start_ + direction_ * (refining_ ? estimate_ : travel_);
+        return origin() + direction() * (lane_.refining ? lane_.estimate : lane_.travel);
     }
     [[gnu::always_inline]] bool advance(float distance) {
-        return refining_ ? refineStep(distance) : traceStep(distance);
+        return lane_.refining ? refineStep(distance) : traceStep(distance);
     }
 
-    const MarchResult& result() const { return result_; }
+    MarchResult result() const {
+        MarchResult result = result_;
+        result.iterations = lane_.iterations;
+        return result;
+    }
 
     /// Whether the wide kernel can take this ray's next steps (render/march_wide.h): it shares
     /// `uniforms` (a relaxed march that took a step back goes on unrelaxed).
@@ -155,83 +161,56 @@ class SphereTraceRay {
                uniforms.budgeted == budgeted_;
     }
     SphereTraceUniforms uniforms() const { return {epsilonTexels_, factor_, budgeted_}; }
-    /// The state the wide kernel steps (fitsLanes), out to it and back.
-    void toLane(SphereTraceLane& lane) const {
-        for (int axis = 0; axis < 3; ++axis) {
-            lane.start[axis] = start_[axis];
-            lane.direction[axis] = direction_[axis];
-        }
-        lane.toFloorAtStart = toFloorAtStart_;
-        lane.travel = travel_;
-        lane.safeRadius = safeRadius_;
-        lane.previousStep = previousStep_;
-        lane.iterations = result_.iterations;
-        lane.maxIterations = maxIterations_;
-        lane.refining = refining_;
-        lane.outside = outside_;
-        lane.outsideDistance = outsideDistance_;
-        lane.inside = inside_;
-        lane.insideDistance = insideDistance_;
-        lane.estimate = estimate_;
-    }
-    void fromLane(const SphereTraceLane& lane) {
-        travel_ = lane.travel;
-        safeRadius_ = lane.safeRadius;
-        previousStep_ = lane.previousStep;
-        result_.iterations = lane.iterations;
-        refining_ = lane.refining;
-        outside_ = lane.outside;
-        outsideDistance_ = lane.outsideDistance;
-        inside_ = lane.inside;
-        insideDistance_ = lane.insideDistance;
-        estimate_ = lane.estimate;
-    }
+    /// The state the wide kernel steps (fitsLanes), in place.
+    SphereTraceLane& lane() { return lane_; }
 
   private:
     [[gnu::always_inline]] bool traceStep(float distance) {
-        ++result_.iterations;
-        const glm::vec3 position = start_ + direction_ * travel_;
-        if (factor_ > 1.0f && previousStep_ > safeRadius_ &&
-            distance + safeRadius_ < previousStep_) {
+        ++lane_.iterations;
+        const glm::vec3 position = origin() + direction() * lane_.travel;
+        if (factor_ > 1.0f && lane_.previousStep > lane_.safeRadius &&
+            distance + lane_.safeRadius < lane_.previousStep) {
             // The relaxed step left the previous sphere and this one does not reach back to it:
             // the gap between them is unverified. Back to the edge of the previous sphere, as
             // plain sphere tracing from here on.
-            travel_ -= previousStep_ - safeRadius_;
-            previousStep_ = safeRadius_;
+            lane_.travel -= lane_.previousStep - lane_.safeRadius;
+            lane_.previousStep = lane_.safeRadius;
             factor_ = 1.0f;
             return budgetLeft();
         }
         if (distance < epsilonTexels_) {
-            if (distance < 0.0f && previousStep_ > safeRadius_) {
+            if (distance < 0.0f && lane_.previousStep > lane_.safeRadius) {
                 // A budgeted step went past the surface: find the crossing in between.
-                return beginRefining(travel_ - previousStep_, safeRadius_, travel_, distance);
+                return beginRefining(lane_.travel - lane_.previousStep, lane_.safeRadius,
+                                     lane_.travel, distance);
             }
             result_.converged = true;
             result_.texelPosition = position;
-            result_.travelTexels = travel_;
+            result_.travelTexels = lane_.travel;
             return false;
         }
-        const float toFloor = toFloorAtStart_ - travel_;
+        const float toFloor = lane_.toFloorAtStart - lane_.travel;
         if (distance >= toFloor) {
-            endOnFloor(result_, position, direction_, travel_, toFloor, floor_);
+            endOnFloor(result_, position, direction(), lane_.travel, toFloor, floor_);
             return false;
         }
         float step = factor_ * distance;
-        if (budgeted_ && result_.iterations < maxIterations_)
-            step = std::max(step, toFloor / float(maxIterations_ - result_.iterations));
-        safeRadius_ = distance;
-        previousStep_ = std::min(step, toFloor);
-        travel_ += previousStep_;
+        if (budgeted_ && lane_.iterations < lane_.maxIterations)
+            step = std::max(step, toFloor / float(lane_.maxIterations - lane_.iterations));
+        lane_.safeRadius = distance;
+        lane_.previousStep = std::min(step, toFloor);
+        lane_.travel += lane_.previousStep;
         return budgetLeft();
     }
 
     /// After a sample that did not end the march: false, with the last safe point as the result,
     /// when the budget has run out (a longer step beyond that point is unverified).
     bool budgetLeft() {
-        if (result_.iterations < maxIterations_) return true;
-        if (previousStep_ > safeRadius_) travel_ -= previousStep_ - safeRadius_;
-        result_.texelPosition = start_ + direction_ * travel_;
-        result_.travelTexels = travel_;
+        if (lane_.iterations < lane_.maxIterations) return true;
+        if (lane_.previousStep > lane_.safeRadius)
+            lane_.travel -= lane_.previousStep - lane_.safeRadius;
+        result_.texelPosition = origin() + direction() * lane_.travel;
+        result_.travelTexels = lane_.travel;
         return false;
     }
 
@@ -239,56 +218,55 @@ class SphereTraceRay {
     /// epsilon) and one inside (distance `insideDistance` < 0) with the budget left; ends converged
     /// at the last estimate.
     bool beginRefining(float outside, float outsideDistance, float inside, float insideDistance) {
-        refining_ = true;
-        outside_ = outside;
-        outsideDistance_ = outsideDistance;
-        inside_ = inside;
-        insideDistance_ = insideDistance;
-        estimate_ = falsePosition();
-        return result_.iterations < maxIterations_ || endRefining();
+        lane_.refining = true;
+        lane_.outside = outside;
+        lane_.outsideDistance = outsideDistance;
+        lane_.inside = inside;
+        lane_.insideDistance = insideDistance;
+        lane_.estimate = falsePosition();
+        return lane_.iterations < lane_.maxIterations || endRefining();
     }
 
     bool refineStep(float distance) {
-        ++result_.iterations;
+        ++lane_.iterations;
         if (std::abs(distance) < epsilonTexels_) return endRefining();
         if (distance > 0.0f) {
-            outside_ = estimate_;
-            outsideDistance_ = distance;
+            lane_.outside = lane_.estimate;
+            lane_.outsideDistance = distance;
         } else {
-            inside_ = estimate_;
-            insideDistance_ = distance;
+            lane_.inside = lane_.estimate;
+            lane_.insideDistance = distance;
         }
-        estimate_ = falsePosition();
-        return result_.iterations < maxIterations_ || endRefining();
+        lane_.estimate = falsePosition();
+        return lane_.iterations < lane_.maxIterations || endRefining();
     }
 
     float falsePosition() const {
-        return outside_ +
-               (inside_ - outside_) * outsideDistance_ / (outsideDistance_ - insideDistance_);
+        return lane_.outside + (lane_.inside - lane_.outside) * lane_.outsideDistance /
+                                   (lane_.outsideDistance - lane_.insideDistance);
     }
 
     bool endRefining() {
         result_.converged = true;
-        result_.travelTexels = estimate_;
-        result_.texelPosition = start_ + direction_ * estimate_;
+        result_.travelTexels = lane_.estimate;
+        result_.texelPosition = origin() + direction() * lane_.estimate;
         return false;
     }
 
-    glm::vec3 start_{0.0f};
-    glm::vec3 direction_{0.0f, 0.0f, -1.0f};
+    /// start, direction, toFloorAtStart, travel (of the current point), safeRadius (distance
+    /// sampled at the previous point), previousStep (from the previous point to the current one),
+    /// iterations, maxIterations and the refinement's state, as the wide kernel takes them.
+    SphereTraceLane lane_{};
     Floor floor_ = Floor::Solid;
-    int maxIterations_ = 1;
     float epsilonTexels_ = 0.0f;
     float factor_ = 1.0f;
     bool budgeted_ = false;
-    bool refining_ = false;
-    float toFloorAtStart_ = 0.0f;
-    float travel_ = 0.0f;        // of the current point
-    float safeRadius_ = 0.0f;    // distance sampled at the previous point
-    float previousStep_ = 0.0f;  // from the previous point to the current one
-    float outside_ = 0.0f, outsideDistance_ = 0.0f, inside_ = 0.0f, insideDistance_ = 0.0f;
-    float estimate_ = 0.0f;
-    MarchResult result_;
+    MarchResult result_;  ///< its iterations are lane_'s
+
+    glm::vec3 origin() const { return {lane_.start[0], lane_.start[1], lane_.start[2]}; }
+    glm::vec3 direction() const {
+        return {lane_.direction[0], lane_.direction[1], lane_.direction[2]};
+    }
 };
 
 /// Fixed linear steps from the top to the floor; at the first point inside (distance below
@@ -467,14 +445,14 @@ void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const
     const WideColumns columns = filter.texels().wide();
     for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
         const std::size_t end = std::min(begin + kChunk, rays.size());
-        SphereTraceLane lanes[kChunk];
+        SphereTraceLane* lanes[kChunk];
         SphereTraceRay* laned[kChunk];
         SphereTraceRay* scalar[kChunk];  // rays marchInterleavedScalar takes on
         std::size_t laneCount = 0, scalarCount = 0;
         for (std::size_t index = begin; index < end; ++index) {
             SphereTraceRay* ray = rays[index];
             if (ray->fitsLanes(uniforms)) {
-                ray->toLane(lanes[laneCount]);
+                lanes[laneCount] = &ray->lane();
                 laned[laneCount++] = ray;
             } else {
                 scalar[scalarCount++] = ray;
@@ -483,9 +461,8 @@ void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const
         sphereTraceOngoingSteps(columns, uniforms, lanes, int(laneCount));
         for (std::size_t index = 0; index < laneCount; ++index) {
             SphereTraceRay* ray = laned[index];
-            ray->fromLane(lanes[index]);
-            const float distance = lanes[index].distanceKnown
-                                       ? lanes[index].pendingDistance
+            const float distance = lanes[index]->distanceKnown
+                                       ? lanes[index]->pendingDistance
                                        : filter.distanceTexels(ray->samplePosition());
             if (ray->advance(distance)) scalar[scalarCount++] = ray;
         }

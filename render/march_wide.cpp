@@ -39,7 +39,7 @@ constexpr int kParkedBeforeRefill = 4;
 
 /// The call's rays, handed to the groups' lanes in order.
 struct LaneSource {
-    SphereTraceLane* lanes;
+    SphereTraceLane* const* lanes;
     int count;
     int next = 0;
 
@@ -49,7 +49,7 @@ struct LaneSource {
             group.idle[slot] = -1;
             return;
         }
-        const SphereTraceLane& lane = lanes[next];
+        const SphereTraceLane& lane = *lanes[next];
         group.startX[slot] = lane.start[0];
         group.startY[slot] = lane.start[1];
         group.startZ[slot] = lane.start[2];
@@ -214,7 +214,7 @@ inline void handBack(LaneGroup& group, LaneSource& source) {
     if (__builtin_popcount(group.parked) < kParkedBeforeRefill && group.busy > 0) return;
     for (unsigned parked = group.parked; parked != 0; parked &= parked - 1) {
         const int slot = __builtin_ctz(parked);
-        SphereTraceLane& lane = source.lanes[group.laneOf[slot]];
+        SphereTraceLane& lane = *source.lanes[group.laneOf[slot]];
         lane.travel = group.travel[slot];
         lane.safeRadius = group.safeRadius[slot];
         lane.previousStep = group.previousStep[slot];
@@ -238,7 +238,7 @@ namespace {
 
 template <bool kRelaxed>
 void sphereTraceOngoingStepsOf(const WideColumns& columns, const SphereTraceUniforms& uniforms,
-                               SphereTraceLane* lanes, int count) {
+                               SphereTraceLane* const* lanes, int count) {
     // Two groups of eight lanes, sampled in turn: while one group's gathers wait on memory, the
     // other's arithmetic runs (a round depends on the one before it in the same group only).
     LaneSource source{lanes, count};
@@ -261,7 +261,7 @@ void sphereTraceOngoingStepsOf(const WideColumns& columns, const SphereTraceUnif
 }  // namespace
 
 void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
-                             SphereTraceLane* lanes, int count) {
+                             SphereTraceLane* const* lanes, int count) {
     if (uniforms.factor > 1.0f)
         sphereTraceOngoingStepsOf<true>(columns, uniforms, lanes, count);
     else
@@ -270,9 +270,9 @@ void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUnifor
 
 #else
 
-void sphereTraceOngoingSteps(const WideColumns&, const SphereTraceUniforms&, SphereTraceLane* lanes,
-                             int count) {
-    for (int i = 0; i < count; ++i) lanes[i].distanceKnown = false;  // never called: no AVX2
+void sphereTraceOngoingSteps(const WideColumns&, const SphereTraceUniforms&,
+                             SphereTraceLane* const* lanes, int count) {
+    for (int i = 0; i < count; ++i) lanes[i]->distanceKnown = false;  // never called: no AVX2
 }
 
 #endif

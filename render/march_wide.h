@@ -12,8 +12,8 @@
 
 namespace distile::detail {
 
-/// A sphere trace between two samples: what detail::SphereTraceRay holds of it while it takes
-/// plain steps, in world-free texel-space floats.
+/// A sphere trace between two samples: the state detail::SphereTraceRay keeps (in this form, so
+/// the kernel reads and writes it in place), in world-free texel-space floats.
 struct SphereTraceLane {
     float start[3];
     float direction[3];  ///< unit
@@ -46,6 +46,6 @@ struct SphereTraceUniforms {
 /// first other step, eight lanes at a time: each lane ends in the state before that step, with
 /// the distance sampled there. Precondition: kWideTrilinear; every lane needs a sample.
 void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
-                             SphereTraceLane* lanes, int count);
+                             SphereTraceLane* const* lanes, int count);
 
 }  // namespace distile::detail

@@ -401,8 +401,8 @@ class Renderer {
             if (shadowMaps_[index]) {
                 const float belowSurfaceWorld =
                     (depthTexels - texelPosition.z) / depthTexels * material.depthWorld;
-                const ShadowReceiver receiver{
-                    hit.position + toLight * (belowSurfaceWorld / facing), hit.entry.normal};
+                const ShadowReceiver receiver{hit.position + toLight * (belowSurfaceWorld / facing),
+                                              hit.entry.normal};
                 visibility *= castShadow(index, receiver, seed, sample.shadowMapSamples);
                 if (visibility <= 0.0f) continue;
             }

@@ -43,7 +43,7 @@ glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle,
 /// the query the double values from before their rounding to float in some builds (the origin
 /// of a reference query was not a float), so reference renders changed with unrelated edits.
 [[gnu::noinline]] MarchResult exactFirstHit(const Material& material, const glm::vec3& start,
-                          const glm::vec3& direction, glm::vec3& normalTexels) {
+                                            const glm::vec3& direction, glm::vec3& normalTexels) {
     MarchResult result;
     result.texelPosition = start;
     if (!(std::isfinite(start.x) && std::isfinite(start.y) && std::isfinite(start.z) &&

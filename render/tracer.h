@@ -87,8 +87,8 @@ struct SurfaceHit {
 /// and its march in the tile's texel space, both taken by marchShells (several at once).
 struct ShellMarch {
     std::uint32_t object = 0;
-    TriangleHit baseHit;          ///< where the ray met the shell's top
-    const Ray* ray = nullptr;     ///< the ray, and the hit its entry goes into (enterShell's)
+    TriangleHit baseHit;       ///< where the ray met the shell's top
+    const Ray* ray = nullptr;  ///< the ray, and the hit its entry goes into (enterShell's)
     SurfaceHit* hit = nullptr;
     glm::vec3 startTexels{0.0f};  ///< where the march starts (after the skipped empty path)
     glm::vec3 directionTexels{0.0f, 0.0f, -1.0f};  ///< unit in texel space

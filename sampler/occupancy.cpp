@@ -33,7 +33,7 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
                     const int y0 = by * kBlockTexels, y1 = std::min(y0 + kBlockTexels, size.height);
                     float* blockLowest =
                         &lowest[(std::size_t(by) * std::size_t(blocksX_) + bx) * depth];
-                    for (int z = 0; z < depth; ++z) {
+                    const auto lowestOfSlice = [&](int z) {
                         float low = tile.at(x0, y0, z);
                         for (int y = y0 - around; y < y1 + around; ++y) {
                             const int wrappedY = detail::wrapIndex(y, size.height);
@@ -41,8 +41,9 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
                                 low = std::min(
                                     low, tile.at(detail::wrapIndex(x, size.width), wrappedY, z));
                         }
-                        blockLowest[z] = low;
-                    }
+                        return low;
+                    };
+                    blockLowest[depth - 1] = lowestOfSlice(depth - 1);
                     // Above the top slice: the trilinear filter's edge cell extrapolated to the
                     // face z = D, 1.5 v[D-1] - 0.5 v[D-2] per column (its lowest over the support
                     // bounds the whole outer half texel); the cubic filter's ghost taps at slices
@@ -64,8 +65,9 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
                     }
                     float top = 0.0f;
                     if (!(faceLowest >= thresholdTexels)) {
-                        top = float(depth);
+                        top = float(depth);  // the slices below do not matter
                     } else {
+                        for (int z = 0; z < depth - 1; ++z) blockLowest[z] = lowestOfSlice(z);
                         int highestLow = -1;
                         for (int z = depth - 1; z >= 0; --z) {
                             if (!(blockLowest[z] >= thresholdTexels)) {

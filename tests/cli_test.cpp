@@ -281,21 +281,22 @@ TEST_F(Cli, RenderIsTheSameWithAndWithoutAvx2) {
     // thousands of times (the entry's uv wrapped in double precision).
     writeText(path("above.json"),
               planeScene(chainmailMaterial(R"({"bake": "chainmail", "size": "64x64x8"})")));
-    ASSERT_EQ(run({"bake", "grating", "-o", "grating.exr", "--size", "64x64x16", "--bars", "4",
-                   "--bar-width", "6", "--bar-height", "2", "--edge-radius", "0.5",
-                   "--layer-gap", "0.5"})
-                  .status,
-              0);
-    writeText(path("grazing.json"),
-              R"({"camera": {"eye": [0.1, -1.8, 0.25], "target": [0, -0.8, 0], "up": [0, 0, 1], "fov_deg": 40},
+    ASSERT_EQ(
+        run({"bake", "grating", "-o", "grating.exr", "--size", "64x64x16", "--bars", "4",
+             "--bar-width", "6", "--bar-height", "2", "--edge-radius", "0.5", "--layer-gap", "0.5"})
+            .status,
+        0);
+    writeText(
+        path("grazing.json"),
+        R"({"camera": {"eye": [0.1, -1.8, 0.25], "target": [0, -0.8, 0], "up": [0, 0, 1], "fov_deg": 40},
  "lights": [{"type": "directional", "direction": [-1, 0.3, -0.4], "angle_deg": 2}],
  "objects": [{"mesh": "plane", "material": {"tile": "grating.exr", "uv_scale": [3001, 2999], "depth": 0.0005}}]})");
     for (const std::string scene : {"above", "grazing"}) {
         for (const bool wide : {true, false}) {
             if (!wide) setenv("DISTILE_SIMD", "sse2", 1);
-            const RunResult result = run({"render", scene + ".json", "-o",
-                                          scene + (wide ? "_wide" : "_sse2") + ".exr", "--width",
-                                          "128", "--height", "96", "--aovs"});
+            const RunResult result =
+                run({"render", scene + ".json", "-o", scene + (wide ? "_wide" : "_sse2") + ".exr",
+                     "--width", "128", "--height", "96", "--aovs"});
             unsetenv("DISTILE_SIMD");
             ASSERT_EQ(result.status, 0) << result.err;
         }
