@@ -245,7 +245,9 @@ class Renderer {
         ++stats.rays;
         sample = Sample{};
         stats.marchIterations += counters.marchIterations;
-        stats.converged += counters.converged;
+        // Per camera ray, from the march of its nearest hit (counters.converged counts every
+        // shell the ray marched).
+        if (found && hit.onDetail && hit.march.converged) ++stats.converged;
         if (!found) {
             sample.color = skyColor(ray.direction);
             return;

@@ -724,6 +724,11 @@ TEST(ShellCulling, SameImageWithAndWithoutCullingAndThreads) {
             EXPECT_EQ(result.aovs->depth.rgbLinear, reference.aovs->depth.rgbLinear)
                 << culling << " " << threads;
             EXPECT_EQ(result.stats.baseHits, reference.stats.baseHits);
+            // Converged rays are counted per ray, by their nearest hit: culling (fewer marches)
+            // leaves the count as it is, and no more rays converge than hit.
+            EXPECT_EQ(result.stats.converged, reference.stats.converged);
+            EXPECT_LE(reference.stats.converged, reference.stats.baseHits);
+            EXPECT_GT(reference.stats.converged, reference.stats.baseHits / 2);
             if (!culling) {
                 EXPECT_EQ(result.stats.shellsTraced, reference.stats.shellsTraced);
                 continue;
