@@ -350,6 +350,12 @@ class Candidates {
             all[j] = candidate;
         }
     }
+    /// Sets each candidate's depth bound to depthBound(shell).
+    template <class DepthBound>
+    void bound(DepthBound&& depthBound) {
+        Candidate* all = data();
+        for (std::size_t i = 0; i < count_; ++i) all[i].depthBound = depthBound(all[i].shell);
+    }
     std::size_t size() const { return count_; }
     void clear() { count_ = 0; }
     const Candidate& operator[](std::size_t index) const { return data()[index]; }
@@ -407,9 +413,15 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
                 !trianglePixelOverlapConservative(bounds_[shell].top, pixel.x, pixel.y)) {
                 continue;
             }
-            candidates[r].push({pixelDepthBound(shell, pixel.x, pixel.y), shell});
+            candidates[r].push({-std::numeric_limits<float>::infinity(), shell});
         }
-        candidates[r].sort();
+        // Depth bounds order several candidates and cull the later ones; a lone candidate is
+        // traced whatever its bound.
+        if (candidates[r].size() > 1) {
+            candidates[r].bound(
+                [&](std::uint32_t shell) { return pixelDepthBound(shell, pixel.x, pixel.y); });
+            candidates[r].sort();
+        }
         next[r] = 0;
         nearest[r] = kFar;
         found[r] = false;
