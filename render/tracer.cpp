@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <glm/geometric.hpp>
 #include <limits>
 #include <optional>
+#include <string>
 
+#include "common/error.h"
 #include "render/analytic_filter.h"
 #include "render/entry_wide.h"
 
@@ -32,6 +35,22 @@ glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle,
         return glm::vec2(0.0f);
     }
     return {tileSize.width * uvScale.x / worldPerU, tileSize.height * uvScale.y / worldPerV};
+}
+
+/// The most texels per world unit along any axis of a shell's texel space: a texel-space ray
+/// direction's squared length must stay finite in float (about 1e38), with room to spare.
+constexpr float kMaxTexelsPerWorld = 1e15f;
+
+/// Throws InputError naming object `index`'s material when its texel space is denser than
+/// kMaxTexelsPerWorld along `axis` (`texelsPerWorld` on one of its triangles, or on all).
+void requireTexelDensity(std::size_t index, float texelsPerWorld, const char* axis,
+                         const char* remedy) {
+    if (texelsPerWorld <= kMaxTexelsPerWorld) return;
+    char value[32];
+    std::snprintf(value, sizeof value, "%.3g", double(texelsPerWorld));
+    throw InputError("objects[" + std::to_string(index) + "].material: " + value +
+                     " texels per world unit along " + axis + " is not accepted; at most 1e15 " +
+                     "(" + remedy + ")");
 }
 
 /// The march's result taken from the material's exact first hit (reference renders,
@@ -104,14 +123,22 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
         const SceneObject& object = scene.objects[objectIndex];
         const BaseMesh& mesh = object.mesh;
         const Tile* tile = object.material.tile.get();
+        if (tile) {
+            requireTexelDensity(objectIndex, float(tile->size().depth) / object.material.depthWorld,
+                                "depth", "a larger depth");
+        }
         for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
             const glm::uvec3 triangle = mesh.triangles[t];
             for (int corner = 0; corner < 3; ++corner)
                 corners.push_back(mesh.positions[triangle[corner]]);
             glm::vec2 texelsPerWorld(0.0f);
-            if (tile)
+            if (tile) {
                 texelsPerWorld =
                     texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size());
+                const char* remedy = "a smaller uv_scale or a larger mesh";
+                requireTexelDensity(objectIndex, texelsPerWorld.x, "u", remedy);
+                requireTexelDensity(objectIndex, texelsPerWorld.y, "v", remedy);
+            }
             const glm::vec3& p0 = mesh.positions[triangle[0]];
             const glm::vec3& p1 = mesh.positions[triangle[1]];
             const glm::vec3& p2 = mesh.positions[triangle[2]];

@@ -453,6 +453,40 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
     EXPECT_THROW(renderScene(badDepth, RenderOptions{}), InputError);
 }
 
+TEST(Renderer, RejectsTexelSpacesTooDenseForFloatAndRendersTheDensestAccepted) {
+    // Texels per world unit square into a texel-space ray's length: 1e20 along u (uv scale 2.5e19
+    // on the 2-unit plane's 8 texels) overflowed to NaN pixels; now refused, naming the object
+    // and the axis. Just below the limit the image is finite.
+    RenderOptions options;
+    options.width = 24;
+    options.height = 16;
+    const auto message = [&](const Scene& scene) {
+        try {
+            renderScene(scene, options);
+        } catch (const InputError& error) {
+            return std::string(error.what());
+        }
+        return std::string("accepted");
+    };
+    const Scene scene = planeScene(std::make_shared<const Tile>(Size3{8, 8, 4}, 1.0f));
+    Scene denseU = scene;
+    denseU.objects[0].material.uvScale.x = 2.5e19f;
+    EXPECT_NE(message(denseU).find("objects[0].material: 1e+20 texels per world unit along u"),
+              std::string::npos)
+        << message(denseU);
+    Scene thinDepth = scene;
+    thinDepth.objects[0].material.depthWorld = 1e-20f;
+    EXPECT_NE(message(thinDepth).find("texels per world unit along depth"), std::string::npos)
+        << message(thinDepth);
+    Scene densest = scene;
+    densest.objects[0].material.uvScale = {2.4e14f, 2.4e14f};  // 9.6e14 texels per world unit
+    densest.objects[0].material.depthWorld = 4.5e-15f;
+    const RenderResult result = renderScene(densest, options);
+    for (const glm::vec3& pixel : result.image.rgbLinear)
+        ASSERT_TRUE(std::isfinite(pixel.x) && std::isfinite(pixel.y) && std::isfinite(pixel.z));
+    EXPECT_GT(result.stats.baseHits, result.stats.rays / 2);
+}
+
 // ---- Conservative rasterization (ch. 42): coverage and shell culling -------------------------
 
 /// Exact overlap of a closed triangle and the closed box [x0, x1] x [y0, y1] in double precision,
