@@ -87,6 +87,18 @@ class Field {
         if (!value_.is_string()) fail("must be a string, not " + std::string(value_.type_name()));
         return value_.get<std::string>();
     }
+    /// A colour: three numbers, none negative (light and albedo add up, they do not subtract).
+    glm::vec3 colour() const {
+        const glm::vec3 result = vector<3>();
+        for (int i = 0; i < 3; ++i) {
+            if (result[i] < 0.0f) {
+                std::ostringstream message;
+                message << result[i] << " is not accepted; colour components must be at least 0";
+                (*this)[std::size_t(i)].fail(message.str());
+            }
+        }
+        return result;
+    }
     template <int N>
     glm::vec<N, float> vector() const {
         if (!value_.is_array() || value_.size() != N)
@@ -332,7 +344,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
                 color.fail(error.what());
             }
         } else {
-            material.color = color.vector<3>();
+            material.color = color.colour();
         }
     }
     return material;
@@ -387,7 +399,7 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
                                    "' is not accepted; accepted: directional");
             }
             if (light.has("direction")) parsed.direction = light["direction"].vector<3>();
-            if (light.has("color")) parsed.color = light["color"].vector<3>();
+            if (light.has("color")) parsed.color = light["color"].colour();
             if (light.has("angle_deg"))
                 parsed.angleDeg = float(light["angle_deg"].number(0.0, 89.0));
             scene.lights.push_back(parsed);

@@ -335,6 +335,17 @@ TEST_F(Cli, RejectsExrThatIsNotADistileTile) {
                                              {"plain.exr", "not a distile tile"}));
 }
 
+TEST_F(Cli, RejectsNegativeColours) {
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
+        planeScene(R"({"tile": {"bake": "chainmail", "size": "64x64x8"}, "uv_scale": [1, 1],
+                       "depth": 0.25, "color": [0.5, -0.25, 0.5]})"),
+        {"objects[0].material.color[1]", "-0.25", "at least 0"}));
+    std::string scene =
+        planeScene(chainmailMaterial(R"({"bake": "chainmail", "size": "64x64x8"})"));
+    scene.insert(scene.find(R"("angle_deg")"), R"("color": [1, 1, -2], )");  // the light's
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(scene, {"lights[0].color[2]", "-2", "at least 0"}));
+}
+
 TEST_F(Cli, RejectsPngAsTile) {
     Image plain(8, 8, glm::vec3(0.5f));
     writeImage(plain, path("picture.png"));
