@@ -213,7 +213,7 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
         setFrame(entry, interpolate(mesh.normals), interpolate(mesh.tangents));
     }
     entry.uv = interpolate(mesh.uvs);
-    entry.frontFacing = glm::dot(shell.geometricNormal, ray.direction) < 0.0f;
+    entry.frontFacing = shell.frontFacing(ray.direction);
     const Tile* tile = object.material.tile.get();
     const float depthTexels = tile ? float(tile->size().depth) : 1.0f;
     entry.texelsPerWorld = {shell.texelsPerWorldUv.x, shell.texelsPerWorldUv.y,
@@ -321,8 +321,8 @@ void SceneTracer::baseSurfaceHit(const Ray& ray, const TriangleHit& baseHit,
 bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
                           ShellMarch& march) const {
     const ShellTriangle& shell = triangles_[baseHit.triangle];
-    // shellEntry's frontFacing: a back face, or a base surface without detail, stops the ray.
-    if (!(glm::dot(shell.geometricNormal, ray.direction) < 0.0f) || !shell.hasDetail) {
+    // A back face, or a base surface without detail, stops the ray.
+    if (!shell.frontFacing(ray.direction) || !shell.hasDetail) {
         baseSurfaceHit(ray, baseHit, hit);
         hit.march = MarchResult{};  // not marched (the hit may be working memory of a batch)
         return false;

@@ -222,6 +222,10 @@ class SceneTracer {
         DoubleTriangle top;          ///< the base triangle, for intersectTriangle
         /// A tile over non-degenerate UVs: a front-facing ray enters the detail here.
         bool hasDetail = false;
+        /// A ray along `direction` meets the front of the base triangle.
+        bool frontFacing(const glm::vec3& direction) const {
+            return glm::dot(geometricNormal, direction) < 0.0f;
+        }
         /// The corners share one normal and tangent (a flat face of a flat mesh): the frame is
         /// the same at every point, computed once (frameNormal, frameTangent, frameBitangent).
         bool flatFrame = false;
