@@ -263,4 +263,36 @@ class SceneTracer {
     TriangleBvh bvh_;
 };
 
+// enterShell and enterAt inline: they run for every camera ray's shell, most of them a plain hit.
+
+inline bool SceneTracer::enterShell(std::uint32_t shell, const Ray& ray, float minDistance,
+                                    float maxDistance, SurfaceHit& hit, ShellMarch& march,
+                                    bool& stopped) const {
+    stopped = false;
+    double distance = 0.0, b1 = 0.0, b2 = 0.0;
+    if (!intersectTriangle(ray, triangles_[shell].top, minDistance, maxDistance, distance, b1, b2))
+        return false;
+    if (enterAt(ray, {shell, float(distance), float(b1), float(b2)}, hit, march)) return true;
+    stopped = true;
+    return false;
+}
+
+inline bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
+                                 ShellMarch& march) const {
+    const ShellTriangle& shell = triangles_[baseHit.triangle];
+    // A back face, or a base surface without detail, stops the ray.
+    if (!shell.frontFacing(ray.direction) || !shell.hasDetail) {
+        baseSurfaceHit(ray, baseHit, hit);
+        hit.march = MarchResult{};  // not marched (the hit may be working memory of a batch)
+        return false;
+    }
+    march.object = shell.object;
+    march.baseHit = baseHit;
+    march.ray = &ray;
+    march.hit = &hit;
+    march.marched = false;
+    march.gradientKnown = false;
+    return true;
+}
+
 }  // namespace distile
