@@ -171,8 +171,6 @@ class Renderer {
         }
     }
 
-    Ray cameraRay(float x, float y) const { return projection_.ray(x, y); }
-
     /// Pixels x0 ... x1 - 1 of rows y0 ... y1 - 1 into `pixels` (row by row): each the mean
     /// colour of its samples, with the first sample's AOV values. The camera rays are traced in
     /// batches, their marches interleaved (ScreenShells::traceNearestBatch); each sample is what
@@ -201,15 +199,26 @@ class Renderer {
         glm::vec3 sum(0.0f);
         for (int first = 0; first < total; first += int(kBatch)) {
             const std::size_t count = std::size_t(std::min(int(kBatch), total - first));
+            // The camera rays' pixel positions, then their directions all at once.
+            float xPixels[kBatch], yPixels[kBatch], directions[3][kBatch];
             for (std::size_t k = 0; k < count; ++k) {
                 const int pixel = (first + int(k)) / samplesPerPixel;
                 const int x = x0 + pixel % runWidth;
                 const int y = y0 + pixel / runWidth;
                 const int index = (first + int(k)) % samplesPerPixel;
                 const glm::vec2 offset = sampleOffset(index, samplesPerPixel);
-                rays[k] = {x, y, cameraRay(x + offset.x, y + offset.y)};
+                xPixels[k] = float(x) + offset.x;
+                yPixels[k] = float(y) + offset.y;
+                rays[k].x = x;
+                rays[k].y = y;
                 sampleIndices[k] = index;
                 counters[k] = {};
+            }
+            projection_.directions(xPixels, yPixels, count, directions[0], directions[1],
+                                   directions[2]);
+            for (std::size_t k = 0; k < count; ++k) {
+                rays[k].ray = {projection_.eye(),
+                               {directions[0][k], directions[1][k], directions[2][k]}};
             }
             ShellCounters shellCounters;
             shells_.traceNearestBatch(std::span(rays, count), options_.skips.shellCulling,

@@ -554,6 +554,32 @@ std::vector<std::array<glm::dvec2, 3>> randomScreenTriangles(int count, double s
     return triangles;
 }
 
+TEST(Coverage, CameraRaysInBulkAreTheRaysOneAtATime) {
+    // directions() takes four rays at a time (SSE2) and the rest one at a time; ray() takes one.
+    // Bit for bit the same, and unit length and through the pixel within float rounding.
+    const Camera camera{{0.2f, -2.5f, 1.3f}, {0.0f, 0.1f, 0.2f}, {0.0f, 0.0f, 1.0f}, 50.0f};
+    const PinholeProjection projection(camera, 1280, 1024);
+    std::mt19937 random(3);
+    std::uniform_real_distribution<float> pixel(-2000.0f, 3000.0f);
+    constexpr std::size_t kCount = 67;  // 16 groups of four, and three alone
+    float xPixels[kCount], yPixels[kCount], x[kCount], y[kCount], z[kCount];
+    for (std::size_t i = 0; i < kCount; ++i) {
+        xPixels[i] = pixel(random);
+        yPixels[i] = pixel(random);
+    }
+    projection.directions(xPixels, yPixels, kCount, x, y, z);
+    for (std::size_t i = 0; i < kCount; ++i) {
+        const Ray single = projection.ray(xPixels[i], yPixels[i]);
+        ASSERT_EQ(single.direction, glm::vec3(x[i], y[i], z[i])) << i;
+        ASSERT_EQ(single.origin, camera.eye);
+        EXPECT_NEAR(glm::length(single.direction), 1.0f, 1e-6f);
+        const glm::dvec2 back = projection.toPixels(
+            projection.toView(camera.eye + single.direction) - projection.toView(camera.eye));
+        EXPECT_NEAR(back.x, xPixels[i], 1e-3 * (1.0 + std::abs(xPixels[i])));
+        EXPECT_NEAR(back.y, yPixels[i], 1e-3 * (1.0 + std::abs(yPixels[i])));
+    }
+}
+
 TEST(Coverage, EveryTouchedPixelPassesAndFarPixelsFail) {
     // 4000 random triangles on a 32 x 32 screen, every pixel tested against the exact overlap.
     // The 2D test is the separating axis test itself, up to a 1e-12 relative rounding allowance,
