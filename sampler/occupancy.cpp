@@ -22,8 +22,6 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
     const bool cubic = support == OccupancySupport::CubicBSpline;
     // The support's columns around a block (file note): x0 - around .. x1 - 1 + around.
     const int around = cubic ? 2 : 1;
-    // Per slice, the lowest value over each block's support.
-    std::vector<float> lowest(tops_.size() * std::size_t(depth));
     // Rows of blocks in parallel: each block's top depends on its own texels only.
     tbb::parallel_for(
         tbb::blocked_range<int>(0, blocksY_), [&](const tbb::blocked_range<int>& rows) {
@@ -31,8 +29,7 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
                 for (int bx = 0; bx < blocksX_; ++bx) {
                     const int x0 = bx * kBlockTexels, x1 = std::min(x0 + kBlockTexels, size.width);
                     const int y0 = by * kBlockTexels, y1 = std::min(y0 + kBlockTexels, size.height);
-                    float* blockLowest =
-                        &lowest[(std::size_t(by) * std::size_t(blocksX_) + bx) * depth];
+                    // The lowest value over the block's support in slice z.
                     const auto lowestOfSlice = [&](int z) {
                         float low = tile.at(x0, y0, z);
                         for (int y = y0 - around; y < y1 + around; ++y) {
@@ -43,12 +40,12 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
                         }
                         return low;
                     };
-                    blockLowest[depth - 1] = lowestOfSlice(depth - 1);
+                    const float topSliceLowest = lowestOfSlice(depth - 1);
                     // Above the top slice: the trilinear filter's edge cell extrapolated to the
                     // face z = D, 1.5 v[D-1] - 0.5 v[D-2] per column (its lowest over the support
                     // bounds the whole outer half texel); the cubic filter's ghost taps at slices
                     // D and D + 1, 2 v[D-1] - v[D-2] and 3 v[D-1] - 2 v[D-2].
-                    float faceLowest = blockLowest[depth - 1];
+                    float faceLowest = topSliceLowest;
                     for (int y = y0 - around; y < y1 + around; ++y) {
                         const int wrappedY = detail::wrapIndex(y, size.height);
                         for (int x = x0 - around; x < x1 + around; ++x) {
@@ -67,10 +64,12 @@ TileOccupancy::TileOccupancy(const Tile& tile, float thresholdTexels, OccupancyS
                     if (!(faceLowest >= thresholdTexels)) {
                         top = float(depth);  // the slices below do not matter
                     } else {
-                        for (int z = 0; z < depth - 1; ++z) blockLowest[z] = lowestOfSlice(z);
+                        // The highest slice with a value below the threshold, from the top
+                        // down (the slices below it do not matter).
                         int highestLow = -1;
                         for (int z = depth - 1; z >= 0; --z) {
-                            if (!(blockLowest[z] >= thresholdTexels)) {
+                            const float low = z == depth - 1 ? topSliceLowest : lowestOfSlice(z);
+                            if (!(low >= thresholdTexels)) {
                                 highestLow = z;
                                 break;
                             }
