@@ -14,6 +14,7 @@
 #include <initializer_list>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <set>
 #include <sstream>
 #include <string>
@@ -278,7 +279,8 @@ TEST_F(Cli, RenderIsTheSameWithAndWithoutAvx2) {
     // operations per ray: the same floats. With shadows (self-shadow rays interleave too) and the
     // AOVs' depth. Two scenes: the chain mail seen from above; and a low grating (empty space
     // above it: the entry's jump to the highest top) seen at a grazing angle, with tiles repeated
-    // thousands of times (the entry's uv wrapped in double precision).
+    // thousands of times (the entry's uv wrapped in double precision), under a colour texture
+    // (the entry's float uv: bilinear albedo there).
     writeText(path("above.json"),
               planeScene(chainmailMaterial(R"({"bake": "chainmail", "size": "64x64x8"})")));
     ASSERT_EQ(
@@ -286,11 +288,16 @@ TEST_F(Cli, RenderIsTheSameWithAndWithoutAvx2) {
              "--bar-width", "6", "--bar-height", "2", "--edge-radius", "0.5", "--layer-gap", "0.5"})
             .status,
         0);
+    Image albedo(32, 32);
+    std::mt19937 noise(11);
+    std::uniform_real_distribution<float> shade(0.2f, 0.9f);
+    for (glm::vec3& texel : albedo.rgbLinear) texel = glm::vec3(shade(noise));
+    writeImage(albedo, path("albedo.png"));
     writeText(
         path("grazing.json"),
         R"({"camera": {"eye": [0.1, -1.8, 0.25], "target": [0, -0.8, 0], "up": [0, 0, 1], "fov_deg": 40},
  "lights": [{"type": "directional", "direction": [-1, 0.3, -0.4], "angle_deg": 2}],
- "objects": [{"mesh": "plane", "material": {"tile": "grating.exr", "uv_scale": [3001, 2999], "depth": 0.0005}}]})");
+ "objects": [{"mesh": "plane", "material": {"tile": "grating.exr", "uv_scale": [3001, 2999], "depth": 0.0005, "color": "albedo.png"}}]})");
     for (const std::string scene : {"above", "grazing"}) {
         for (const bool wide : {true, false}) {
             if (!wide) setenv("DISTILE_SIMD", "sse2", 1);
