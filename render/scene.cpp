@@ -75,6 +75,11 @@ void validateScene(const Scene& scene) {
     const glm::vec3 forward = camera.target - camera.eye;
     if (glm::length(forward) <= 0.0f)
         throw InputError("camera.target: equals camera.eye; the camera needs a view direction");
+    if (!std::isfinite(glm::length(forward))) {  // its square overflows single precision
+        throw InputError(
+            "camera.target: too far from camera.eye for single precision; they must be within "
+            "1e18 world units of each other");
+    }
     if (glm::length(glm::cross(glm::normalize(forward), camera.up)) < 1e-6f) {
         throw InputError(
             "camera.up: parallel to the view direction (or zero); it must point sideways of it");

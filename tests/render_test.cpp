@@ -451,6 +451,17 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
     Scene badDepth = scene;
     badDepth.objects[0].material.depthWorld = -1.0f;
     EXPECT_THROW(renderScene(badDepth, RenderOptions{}), InputError);
+    // An eye so far away that the view direction's squared length overflows: refused as such
+    // (it used to be reported as an up vector parallel to the view).
+    Scene farEye = scene;
+    farEye.camera.eye = {0.0f, -1e30f, 1e30f};
+    try {
+        renderScene(farEye, RenderOptions{});
+        ADD_FAILURE() << "an eye at 1e30 was accepted";
+    } catch (const InputError& error) {
+        EXPECT_NE(std::string(error.what()).find("too far from camera.eye"), std::string::npos)
+            << error.what();
+    }
 }
 
 TEST(Renderer, RejectsTexelSpacesTooDenseForFloatAndRendersTheDensestAccepted) {
