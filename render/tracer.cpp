@@ -297,8 +297,12 @@ void SceneTracer::shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 
 
 void SceneTracer::baseSurfaceHit(const Ray& ray, const TriangleHit& baseHit,
                                  SurfaceHit& hit) const {
-    hit.object = triangles_[baseHit.triangle].object;
     shellEntry(baseHit, ray, hit.entry);
+    atEntry(baseHit, hit);
+}
+
+void SceneTracer::atEntry(const TriangleHit& baseHit, SurfaceHit& hit) const {
+    hit.object = triangles_[baseHit.triangle].object;
     hit.distanceWorld = baseHit.distanceWorld;
     hit.position = hit.entry.position;
     hit.normal = hit.entry.normal;
@@ -455,15 +459,11 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
     for (std::size_t lane = 0; lane < sameShell.size(); ++lane) {
         ShellMarch& march = *sameShell[lane];
         SurfaceHit& hit = *march.hit;
-        hit.object = shell.object;
         hit.entry = shared;
         hit.entry.position = {lanes.position[0][lane], lanes.position[1][lane],
                               lanes.position[2][lane]};
         hit.entry.uv = {lanes.uv[0][lane], lanes.uv[1][lane]};
-        hit.distanceWorld = march.baseHit.distanceWorld;
-        hit.position = hit.entry.position;
-        hit.normal = hit.entry.normal;
-        hit.onDetail = false;
+        atEntry(march.baseHit, hit);
         hit.texelsPerWorldAlongRay = lanes.texelsPerWorldAlongRay[lane];
         march.directionTexels = {lanes.directionTexels[0][lane], lanes.directionTexels[1][lane],
                                  lanes.directionTexels[2][lane]};
