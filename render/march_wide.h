@@ -1,11 +1,13 @@
 /// @file
-/// The sphere trace's steps for eight rays at a time with AVX2 (render/march.h,
+/// The sphere trace's steps for eight rays at a time with AVX2, or sixteen with AVX-512
+/// (render/march.h,
 /// marchInterleaved, over TileColumns' trilinear filter): the rays' states in SIMD lanes, one
 /// sample of each per round, the steps that go on (a sphere step, the start of the regula falsi
 /// refinement and its steps) taken in the lanes with the scalar operations in their order (no
 /// FMA), so bit for bit as detail::SphereTraceRay takes them. The step that ends a march (or
 /// takes back a relaxed step) is left to SphereTraceRay itself.
-/// Built in its own translation unit with AVX2; plain types only, as sampler/trilinear_wide.h.
+/// Built in their own translation units with AVX2 and AVX-512 (render/march_lanes.h); plain types
+/// only, as sampler/trilinear_wide.h.
 #pragma once
 
 #include "sampler/trilinear_wide.h"
@@ -43,9 +45,14 @@ struct SphereTraceUniforms {
 /// Runs each of `count` lanes' steps that go on (budget left after the step; a sphere step: the
 /// distance at least epsilon and short of the floor, no relaxed step to take back; the start of
 /// the refinement: a step that went inside; a refinement step: not within epsilon) until the
-/// first other step, eight lanes at a time: each lane ends in the state before that step, with
+/// first other step, eight or sixteen lanes at a time: each lane ends in the state before that step, with
 /// the distance sampled there. Precondition: kWideTrilinear; every lane needs a sample.
 void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                              SphereTraceLane* const* lanes, int count);
+
+/// sphereTraceOngoingSteps sixteen lanes at a time (render/march_wide16.cpp, AVX-512), which it
+/// calls where kSixteenLanes. Precondition: kSixteenLanes.
+void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUniforms& uniforms,
+                               SphereTraceLane* const* lanes, int count);
 
 }  // namespace distile::detail

@@ -7,7 +7,7 @@
 #include <cstring>
 
 #if defined(__x86_64__) && defined(__AVX2__) && !defined(__FMA__)
-#include "sampler/trilinear_avx2.h"
+#include "sampler/trilinear_lanes.h"
 #endif
 
 namespace distile::detail {
@@ -20,6 +20,13 @@ const bool kWideTrilinear = [] {
     if (simd && std::strcmp(simd, "sse2") == 0) return false;
     __builtin_cpu_init();  // may run before libgcc's own initialisation
     return __builtin_cpu_supports("avx2") != 0;
+}();
+
+const bool kSixteenLanes = [] {
+    const char* simd = std::getenv("DISTILE_SIMD");
+    if (!kWideTrilinear || (simd && std::strcmp(simd, "avx2") == 0)) return false;
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx512f") != 0;
 }();
 
 namespace {
@@ -67,21 +74,23 @@ CubicWeights8 bsplineDerivativeWeights8(__m256 a) {
 }  // namespace
 
 unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out) {
-    __m256i outside = _mm256_setzero_si256();
-    _mm256_storeu_ps(
-        out, trilinearColumnsAvx2(columns, lanes(xyz, 0), lanes(xyz, 1), lanes(xyz, 2), outside));
-    const unsigned unknown = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(outside)));
-    _mm256_zeroupper();  // back to SSE code (see render/march_wide.cpp)
+    Lanes8::M outside = _mm256_setzero_ps();
+    _mm256_storeu_ps(out, trilinearColumnsLanes<Lanes8>(columns, lanes(xyz, 0), lanes(xyz, 1),
+                                                        lanes(xyz, 2), outside));
+    const unsigned unknown = Lanes8::bits(outside);
+    Lanes8::leave();
     return unknown;
 }
 
 unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, float* gradients) {
     // The axes (detail::periodicCubicAxis, extendedCubicAxis): taps x, y at lower - 1 .. upper
     // + 1 wrapped; z taps firstTap .. firstTap + 3, all stored for the lanes taken here.
-    __m256i outside = _mm256_setzero_si256();
+    Lanes8::M outside = _mm256_setzero_ps();
     __m256i xTap[4], yTap[4];
-    const __m256 fx = periodicAxisAvx2(lanes(xyz, 0), columns.width, xTap[1], xTap[2], outside);
-    const __m256 fy = periodicAxisAvx2(lanes(xyz, 1), columns.height, yTap[1], yTap[2], outside);
+    const __m256 fx =
+        periodicAxisLanes<Lanes8>(lanes(xyz, 0), columns.width, xTap[1], xTap[2], outside);
+    const __m256 fy =
+        periodicAxisLanes<Lanes8>(lanes(xyz, 1), columns.height, yTap[1], yTap[2], outside);
     const auto outerTaps = [](__m256i tap[4], int extent) {
         const __m256i zero = _mm256_setzero_si256();
         const __m256i extentLanes = _mm256_set1_epi32(extent);
@@ -94,16 +103,15 @@ unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, 
     };
     outerTaps(xTap, columns.width);
     outerTaps(yTap, columns.height);
-    const __m256 zShifted = clampedSliceCoordinateAvx2(lanes(xyz, 2), columns.depth);
-    const __m256 zFloor = floorFiniteAvx2(zShifted);
+    const __m256 zShifted = clampedSliceCoordinateLanes<Lanes8>(lanes(xyz, 2), columns.depth);
+    const __m256 zFloor = floorFiniteLanes<Lanes8>(zShifted);
     const __m256 fz = _mm256_sub_ps(zShifted, zFloor);
     const __m256i firstTap = _mm256_sub_epi32(_mm256_cvttps_epi32(zFloor), _mm256_set1_epi32(1));
     // Ghost taps (firstTap < 0 or firstTap + 3 >= D): left to the scalar filter.
-    outside = _mm256_or_si256(
-        outside,
-        _mm256_or_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), firstTap),
-                        _mm256_cmpgt_epi32(_mm256_add_epi32(firstTap, _mm256_set1_epi32(3)),
-                                           _mm256_set1_epi32(columns.depth - 1))));
+    outside = Lanes8::either(
+        outside, Lanes8::either(Lanes8::greater(_mm256_setzero_si256(), firstTap),
+                                Lanes8::greater(_mm256_add_epi32(firstTap, _mm256_set1_epi32(3)),
+                                                _mm256_set1_epi32(columns.depth - 1))));
     const CubicWeights8 wx = bsplineWeights8(fx), wy = bsplineWeights8(fy),
                         wz = bsplineWeights8(fz);
     const CubicWeights8 dx = bsplineDerivativeWeights8(fx), dy = bsplineDerivativeWeights8(fy),
@@ -113,10 +121,10 @@ unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, 
     const __m256i rowStride = _mm256_set1_epi32(columns.width * columns.depth);
     __m256i xStart[4], yStart[4];
     for (int i = 0; i < 4; ++i) {
-        xStart[i] = _mm256_mullo_epi32(_mm256_andnot_si256(outside, xTap[i]), columnStride);
-        yStart[i] =
-            _mm256_add_epi32(_mm256_mullo_epi32(_mm256_andnot_si256(outside, yTap[i]), rowStride),
-                             _mm256_andnot_si256(outside, firstTap));
+        xStart[i] = _mm256_mullo_epi32(Lanes8::zeroWhere(outside, xTap[i]), columnStride);
+        yStart[i] = _mm256_add_epi32(
+            _mm256_mullo_epi32(Lanes8::zeroWhere(outside, yTap[i]), rowStride),
+            Lanes8::zeroWhere(outside, firstTap));
     }
     const __m256 scale = _mm256_set1_ps(columns.texelsPerCode);
     const int* base = reinterpret_cast<const int*>(columns.codes);
@@ -166,14 +174,15 @@ unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, 
         gradients[3 * lane + 1] = gy[lane];
         gradients[3 * lane + 2] = gz[lane];
     }
-    const unsigned redo = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(outside)));
-    _mm256_zeroupper();
+    const unsigned redo = Lanes8::bits(outside);
+    Lanes8::leave();
     return redo;
 }
 
 #else
 
 const bool kWideTrilinear = false;
+const bool kSixteenLanes = false;
 
 unsigned tricubicGradientColumns8(const WideColumns&, const float*, float*) {
     return 0xffu;

@@ -20,6 +20,11 @@ struct WideColumns {
 /// environment variable DISTILE_SIMD=sse2 turns the wide paths off (same results).
 extern const bool kWideTrilinear;
 
+/// Whether the march kernel (render/march_wide.h) takes sixteen lanes at a time: kWideTrilinear
+/// and the processor has AVX-512F, decided once; DISTILE_SIMD=avx2 keeps it to eight (same
+/// results).
+extern const bool kSixteenLanes;
+
 /// BasicTrilinearFilter<ColumnTexels>::distanceTexels at the eight points `xyz` (x, y, z of
 /// each, 24 floats) into out[0..8), bit for bit, for every lane whose x and y are in
 /// periodicAxis' near case. Returns the lanes that are not (huge or not finite coordinates; bit i

@@ -1,0 +1,27 @@
+// The kernel of render/march_wide.h with AVX-512 (sixteen lanes). Compiled with -mavx512f and
+// without FMA, and run only where the processor has AVX-512F (kSixteenLanes).
+#include "render/march_wide.h"
+
+#if defined(__x86_64__) && defined(__AVX512F__) && !defined(__FMA__)
+#include "render/march_lanes.h"
+#endif
+
+namespace distile::detail {
+
+#if defined(__x86_64__) && defined(__AVX512F__) && !defined(__FMA__)
+
+void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUniforms& uniforms,
+                               SphereTraceLane* const* lanes, int count) {
+    sphereTraceOngoingStepsInLanes<Lanes16>(columns, uniforms, lanes, count);
+}
+
+#else
+
+void sphereTraceOngoingSteps16(const WideColumns&, const SphereTraceUniforms&,
+                               SphereTraceLane* const* lanes, int count) {
+    for (int i = 0; i < count; ++i) lanes[i]->distanceKnown = false;  // never called
+}
+
+#endif
+
+}  // namespace distile::detail
