@@ -495,14 +495,16 @@ void SceneTracer::takeGradients(std::span<ShellMarch* const> marches) const {
     forEachTile(std::span<ShellMarch* const>(onDetail, count),
                 std::span<const TileColumns* const>(tiles, count),
                 [](const TileColumns& tile, std::span<ShellMarch* const> sameTile) {
-                    const BasicTricubicBSplineFilter<ColumnTexels> filter(tile);
-                    for (std::size_t first = 0; first < sameTile.size(); first += 8) {
-                        const std::size_t lanes = std::min<std::size_t>(8, sameTile.size() - first);
-                        glm::vec3 positions[8], gradients[8];
-                        for (std::size_t lane = 0; lane < 8; ++lane)  // padded with the first
+                    using Filter = BasicTricubicBSplineFilter<ColumnTexels>;
+                    constexpr std::size_t kGroup = Filter::kGroupedGradients;
+                    const Filter filter(tile);
+                    for (std::size_t first = 0; first < sameTile.size(); first += kGroup) {
+                        const std::size_t lanes = std::min(kGroup, sameTile.size() - first);
+                        glm::vec3 positions[kGroup], gradients[kGroup];
+                        for (std::size_t lane = 0; lane < kGroup; ++lane)  // padded with the first
                             positions[lane] =
                                 sameTile[first + (lane < lanes ? lane : 0)]->result.texelPosition;
-                        filter.gradients8(positions, gradients);
+                        filter.gradients(positions, int(lanes), gradients);
                         for (std::size_t lane = 0; lane < lanes; ++lane) {
                             sameTile[first + lane]->gradientTexels = gradients[lane];
                             sameTile[first + lane]->gradientKnown = true;

@@ -197,8 +197,8 @@ class SceneTracer {
     /// the entries of rays into the same flat shell eight at a time where AVX2 allows
     /// (render/entry_wide.h), the marches of several rays interleaved where the march method
     /// allows; the results are those of one ray at a time. Then the normal gradients of the
-    /// marches that end on detail, eight at a time where the normal filter allows
-    /// (BasicTricubicBSplineFilter::gradients8): the same values.
+    /// marches that end on detail, sixteen at a time where the normal filter allows
+    /// (BasicTricubicBSplineFilter::gradients): the same values.
     void marchShells(std::span<ShellMarch* const> marches) const;
     /// After marchShells: the march's end into `hit`; true when the ray stops in this shell, false
     /// when it leaves through an open floor. Counts the march in `counters`. Without

@@ -39,6 +39,12 @@ struct Lanes8 {
     DISTILE_LANES_INLINE M loadMask(const int* values) { return _mm256_castsi256_ps(loadInt(values)); }
     DISTILE_LANES_INLINE void storeMask(int* values, M m) { storeInt(values, _mm256_castps_si256(m)); }
 
+    /// Axis `axis` of kWidth points stored x, y, z, from the points' scalars (a vector load over
+    /// separate stores would wait for them).
+    DISTILE_LANES_INLINE F strided3(const float* xyz, int axis) {
+        return _mm256_setr_ps(xyz[axis], xyz[3 + axis], xyz[6 + axis], xyz[9 + axis],
+                              xyz[12 + axis], xyz[15 + axis], xyz[18 + axis], xyz[21 + axis]);
+    }
     DISTILE_LANES_INLINE F set1(float value) { return _mm256_set1_ps(value); }
     DISTILE_LANES_INLINE I set1(int value) { return _mm256_set1_epi32(value); }
     DISTILE_LANES_INLINE F add(F a, F b) { return _mm256_add_ps(a, b); }
@@ -127,6 +133,12 @@ struct Lanes16 {
         storeInt(values, _mm512_maskz_mov_epi32(m, _mm512_set1_epi32(-1)));
     }
 
+    DISTILE_LANES_INLINE F strided3(const float* xyz, int axis) {
+        return _mm512_setr_ps(xyz[axis], xyz[3 + axis], xyz[6 + axis], xyz[9 + axis],
+                              xyz[12 + axis], xyz[15 + axis], xyz[18 + axis], xyz[21 + axis],
+                              xyz[24 + axis], xyz[27 + axis], xyz[30 + axis], xyz[33 + axis],
+                              xyz[36 + axis], xyz[39 + axis], xyz[42 + axis], xyz[45 + axis]);
+    }
     DISTILE_LANES_INLINE F set1(float value) { return _mm512_set1_ps(value); }
     DISTILE_LANES_INLINE I set1(int value) { return _mm512_set1_epi32(value); }
     DISTILE_LANES_INLINE F add(F a, F b) { return _mm512_add_ps(a, b); }

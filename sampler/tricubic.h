@@ -306,17 +306,33 @@ class BasicTricubicBSplineFilter {
                                       detail::bsplineDerivativeWeights(a.z.fraction));
     }
 
-    /// gradient() at the eight points `positions`, bit for bit: over TileColumns on a processor
-    /// with AVX2 the eight points' weights and taps in SIMD lanes (sampler/trilinear_wide.h;
-    /// points within 1.5 texels of a face, or far out, one at a time), else one at a time.
-    void gradients8(const glm::vec3* positions, glm::vec3* out) const {
-        unsigned redo = 0xffu;
+    /// Points per gradients() call.
+    static constexpr int kGroupedGradients = 16;
+
+    /// gradient() at the first `count` (1 .. kGroupedGradients) of the kGroupedGradients points
+    /// `positions` into out[0 .. count), bit for bit; the points past `count` must be finite (a
+    /// copy of the first, say) and `out` must have room for all. Over TileColumns on a processor
+    /// with AVX2 the points' weights and taps are in SIMD lanes, sixteen (AVX-512) or eight at a
+    /// time (sampler/trilinear_wide.h; points within 1.5 texels of a face, or far out, one at a
+    /// time); else one at a time.
+    void gradients(const glm::vec3* positions, int count, glm::vec3* out) const {
+        unsigned redo = (1u << count) - 1u;
         if constexpr (Texels::kZContiguous) {
-            if (detail::kWideTrilinear) {
-                redo = detail::tricubicGradientColumns8(texels_.wide(), &positions[0].x, &out[0].x);
+            if (detail::kSixteenLanes) {
+                redo &= detail::tricubicGradientColumns16(texels_.wide(), &positions[0].x,
+                                                           &out[0].x);
+            } else if (detail::kWideTrilinear) {
+                unsigned wide = detail::tricubicGradientColumns8(texels_.wide(), &positions[0].x,
+                                                                 &out[0].x);
+                if (count > 8) {
+                    wide |= detail::tricubicGradientColumns8(texels_.wide(), &positions[8].x,
+                                                             &out[8].x)
+                            << 8;
+                }
+                redo &= wide;
             }
         }
-        for (int lane = 0; lane < 8; ++lane)
+        for (int lane = 0; lane < count; ++lane)
             if (redo & (1u << lane)) out[lane] = gradient(positions[lane]);
     }
 

@@ -107,5 +107,136 @@ template <class V>
     return lerp(rowLower, rowUpper, yWeight);
 }
 
+
+/// detail::bsplineWeights and bsplineDerivativeWeights of the fractions `a`, lane by lane, the
+/// same operations in the same order.
+template <class V>
+struct CubicWeightLanes {
+    typename V::F w[4];
+};
+
+template <class V>
+[[gnu::always_inline]] inline CubicWeightLanes<V> bsplineWeightLanes(typename V::F a) {
+    using F = typename V::F;
+    const F one = V::set1(1.0f), three = V::set1(3.0f), six = V::set1(6.0f);
+    const F b = V::sub(one, a);
+    const auto times = [](F u, F v) { return V::mul(u, v); };
+    const auto plus = [](F u, F v) { return V::add(u, v); };
+    return {{V::div(times(times(b, b), b), six),
+             V::div(plus(times(times(V::sub(times(three, a), six), a), a), V::set1(4.0f)), six),
+             V::div(plus(times(plus(times(plus(times(V::set1(-3.0f), a), three), a), three), a),
+                         one),
+                    six),
+             V::div(times(times(a, a), a), six)}};
+}
+
+template <class V>
+[[gnu::always_inline]] inline CubicWeightLanes<V> bsplineDerivativeWeightLanes(typename V::F a) {
+    using F = typename V::F;
+    const F half = V::set1(0.5f), three = V::set1(3.0f);
+    const F b = V::sub(V::set1(1.0f), a);
+    const auto times = [](F u, F v) { return V::mul(u, v); };
+    return {{times(times(V::set1(-0.5f), b), b),
+             times(times(half, a), V::sub(times(three, a), V::set1(4.0f))),
+             times(times(half, b), V::add(times(three, a), V::set1(1.0f))),
+             times(times(half, a), a)}};
+}
+
+/// BasicTricubicBSplineFilter<ColumnTexels>::gradient at the V::kWidth points `xyz` (x, y, z of
+/// each) into `gradients` (the same layout), bit for bit, for the lanes in periodicAxis' near
+/// case whose z taps are all stored slices. Returns the other lanes, one bit each (their
+/// gradients are unspecified).
+template <class V>
+inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const float* xyz,
+                                             float* gradients) {
+    using F = typename V::F;
+    using I = typename V::I;
+    using M = typename V::M;
+    // The axes (detail::periodicCubicAxis, extendedCubicAxis): taps x, y at lower - 1 .. upper
+    // + 1 wrapped; z taps firstTap .. firstTap + 3, all stored for the lanes taken here.
+    M outside = V::uniformMask(false);
+    I xTap[4], yTap[4];
+    const F fx =
+        periodicAxisLanes<V>(V::strided3(xyz, 0), columns.width, xTap[1], xTap[2], outside);
+    const F fy =
+        periodicAxisLanes<V>(V::strided3(xyz, 1), columns.height, yTap[1], yTap[2], outside);
+    const auto outerTaps = [](I tap[4], int extent) {
+        const I extentLanes = V::set1(extent);
+        const I one = V::set1(1);
+        // lower == 0 ? extent - 1 : lower - 1;  upper + 1 == extent ? 0 : upper + 1
+        tap[0] = V::add(V::sub(tap[1], one), V::onlyWhere(V::equal(tap[1], V::set1(0)), extentLanes));
+        const I next = V::add(tap[2], one);
+        tap[3] = V::zeroWhere(V::equal(next, extentLanes), next);
+    };
+    outerTaps(xTap, columns.width);
+    outerTaps(yTap, columns.height);
+    const F zShifted = clampedSliceCoordinateLanes<V>(V::strided3(xyz, 2), columns.depth);
+    const F zFloor = floorFiniteLanes<V>(zShifted);
+    const F fz = V::sub(zShifted, zFloor);
+    const I firstTap = V::sub(V::truncate(zFloor), V::set1(1));
+    // Ghost taps (firstTap < 0 or firstTap + 3 >= D): left to the scalar filter.
+    outside = V::either(outside,
+                        V::either(V::greater(V::set1(0), firstTap),
+                                  V::greater(V::add(firstTap, V::set1(3)), V::set1(columns.depth - 1))));
+    const CubicWeightLanes<V> wx = bsplineWeightLanes<V>(fx), wy = bsplineWeightLanes<V>(fy),
+                              wz = bsplineWeightLanes<V>(fz);
+    const CubicWeightLanes<V> dx = bsplineDerivativeWeightLanes<V>(fx),
+                              dy = bsplineDerivativeWeightLanes<V>(fy),
+                              dz = bsplineDerivativeWeightLanes<V>(fz);
+    // detail::gradientOfTaps' sums, per lane in its order: per slice k, rows j of columns i.
+    const I columnStride = V::set1(columns.depth);
+    const I rowStride = V::set1(columns.width * columns.depth);
+    I xStart[4], yStart[4];
+    for (int i = 0; i < 4; ++i) {
+        xStart[i] = V::mullo(V::zeroWhere(outside, xTap[i]), columnStride);
+        yStart[i] = V::add(V::mullo(V::zeroWhere(outside, yTap[i]), rowStride),
+                           V::zeroWhere(outside, firstTap));
+    }
+    const F scale = V::set1(columns.texelsPerCode);
+    const F zero = V::set1(0.0f);
+    F value[4], xDerivative[4], yDerivative[4];
+    for (int k = 0; k < 4; ++k) value[k] = xDerivative[k] = yDerivative[k] = zero;
+    for (int j = 0; j < 4; ++j) {
+        F rowValue[4], rowDerivative[4];
+        for (int k = 0; k < 4; ++k) rowValue[k] = rowDerivative[k] = zero;
+        for (int i = 0; i < 4; ++i) {
+            const I element = V::add(xStart[i], yStart[j]);
+            const I low = V::gatherCodePairs(columns.codes, element);  // slices 0, 1
+            const I high = V::gatherCodePairs(columns.codes, V::add(element, V::set1(2)));
+            const F texel[4] = {V::mul(V::toFloat(V::lowHalf(low)), scale),
+                                V::mul(V::toFloat(V::highHalf(low)), scale),
+                                V::mul(V::toFloat(V::lowHalf(high)), scale),
+                                V::mul(V::toFloat(V::highHalf(high)), scale)};
+            for (int k = 0; k < 4; ++k) {
+                rowValue[k] = V::add(rowValue[k], V::mul(wx.w[i], texel[k]));
+                rowDerivative[k] = V::add(rowDerivative[k], V::mul(dx.w[i], texel[k]));
+            }
+        }
+        for (int k = 0; k < 4; ++k) {
+            value[k] = V::add(value[k], V::mul(wy.w[j], rowValue[k]));
+            xDerivative[k] = V::add(xDerivative[k], V::mul(wy.w[j], rowDerivative[k]));
+            yDerivative[k] = V::add(yDerivative[k], V::mul(dy.w[j], rowValue[k]));
+        }
+    }
+    F sumX = zero, sumY = zero, sumZ = zero;
+    for (int k = 0; k < 4; ++k) {
+        sumX = V::add(sumX, V::mul(wz.w[k], xDerivative[k]));
+        sumY = V::add(sumY, V::mul(wz.w[k], yDerivative[k]));
+        sumZ = V::add(sumZ, V::mul(dz.w[k], value[k]));
+    }
+    alignas(64) float gx[V::kWidth], gy[V::kWidth], gz[V::kWidth];
+    V::store(gx, sumX);
+    V::store(gy, sumY);
+    V::store(gz, sumZ);
+    for (int lane = 0; lane < V::kWidth; ++lane) {
+        gradients[3 * lane] = gx[lane];
+        gradients[3 * lane + 1] = gy[lane];
+        gradients[3 * lane + 2] = gz[lane];
+    }
+    const unsigned redo = V::bits(outside);
+    V::leave();
+    return redo;
+}
+
 }  // namespace
 }  // namespace distile::detail

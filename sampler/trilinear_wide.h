@@ -20,9 +20,9 @@ struct WideColumns {
 /// environment variable DISTILE_SIMD=sse2 turns the wide paths off (same results).
 extern const bool kWideTrilinear;
 
-/// Whether the march kernel (render/march_wide.h) takes sixteen lanes at a time: kWideTrilinear
-/// and the processor has AVX-512F, decided once; DISTILE_SIMD=avx2 keeps it to eight (same
-/// results).
+/// Whether the march kernel (render/march_wide.h) and the gradients take sixteen lanes at a
+/// time: kWideTrilinear and the processor has AVX-512F, decided once; DISTILE_SIMD=avx2 keeps
+/// them to eight (same results).
 extern const bool kSixteenLanes;
 
 /// BasicTrilinearFilter<ColumnTexels>::distanceTexels at the eight points `xyz` (x, y, z of
@@ -38,5 +38,10 @@ unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* 
 /// Returns the other lanes (bit i for point i): their gradients are unspecified and must be
 /// computed one at a time. Precondition: kWideTrilinear.
 unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, float* gradients);
+
+/// tricubicGradientColumns8 at sixteen points (48 floats in and out; bit i of the result for
+/// point i), with AVX-512 (sampler/trilinear_wide16.cpp). Precondition: kSixteenLanes.
+unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz,
+                                   float* gradients);
 
 }  // namespace distile::detail

@@ -731,21 +731,27 @@ TEST(TileColumns, GroupedTrilinearFetchesAreBitIdenticalToSingleOnes) {
 }
 
 TEST(TileColumns, GroupedTricubicGradientsAreBitIdenticalToSingleOnes) {
-    // The renderer's normals take eight hits at a time (gradients8: AVX2 where the processor has
-    // it); each must be gradient() at its point, bit for bit, also across the wrap, near and
-    // beyond the faces (ghost taps, done one at a time), far away and for non-finite points.
+    // The renderer's normals take up to sixteen hits at a time (gradients: AVX-512 or AVX2 where
+    // the processor has it); each must be gradient() at its point, bit for bit, also across the
+    // wrap, near and beyond the faces (ghost taps, done one at a time), far away and for
+    // non-finite points, in groups of every size.
     const TileColumns columns(defaultChainmail().tile);
-    const BasicTricubicBSplineFilter<ColumnTexels> filter(columns);
+    using Filter = BasicTricubicBSplineFilter<ColumnTexels>;
+    static_assert(Filter::kGroupedGradients == 16);
+    const Filter filter(columns);
     GroupedTestPoints pointsOf(columns.size(), 19);
     for (int round = 0; round < 4000; ++round) {
-        glm::vec3 points[8];
-        pointsOf.next(points);
-        glm::vec3 eight[8];
-        filter.gradients8(points, eight);
-        for (int lane = 0; lane < 8; ++lane) {
+        glm::vec3 points[16];
+        pointsOf.next(reinterpret_cast<glm::vec3(&)[8]>(points[0]));
+        pointsOf.next(reinterpret_cast<glm::vec3(&)[8]>(points[8]));
+        const int count = 1 + round % 16;
+        for (int lane = count; lane < 16; ++lane) points[lane] = glm::vec3(1.5f, 2.5f, 3.5f);
+        glm::vec3 grouped[16];
+        filter.gradients(points, count, grouped);
+        for (int lane = 0; lane < count; ++lane) {
             const glm::vec3 single = filter.gradient(points[lane]);
             for (int axis = 0; axis < 3; ++axis) {
-                ASSERT_EQ(std::bit_cast<std::uint32_t>(eight[lane][axis]),
+                ASSERT_EQ(std::bit_cast<std::uint32_t>(grouped[lane][axis]),
                           std::bit_cast<std::uint32_t>(single[axis]))
                     << round << " " << lane << " " << axis;
             }

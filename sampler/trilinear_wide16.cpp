@@ -1,0 +1,26 @@
+// The sixteen-lane (AVX-512) kernels of sampler/trilinear_wide.h. Compiled with -mavx512f and
+// without FMA, and run only where the processor has AVX-512F (kSixteenLanes).
+#include "sampler/trilinear_wide.h"
+
+#if defined(__x86_64__) && defined(__AVX512F__) && !defined(__FMA__)
+#include "sampler/trilinear_lanes.h"
+#endif
+
+namespace distile::detail {
+
+#if defined(__x86_64__) && defined(__AVX512F__) && !defined(__FMA__)
+
+unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz,
+                                   float* gradients) {
+    return tricubicGradientColumnsLanes<Lanes16>(columns, xyz, gradients);
+}
+
+#else
+
+unsigned tricubicGradientColumns16(const WideColumns&, const float*, float*) {
+    return 0xffffu;  // never called
+}
+
+#endif
+
+}  // namespace distile::detail
