@@ -157,12 +157,15 @@ struct Lanes16 {
     DISTILE_LANES_INLINE I blend(I a, I b, M m) { return _mm512_mask_blend_epi32(m, a, b); }
     DISTILE_LANES_INLINE F onlyWhere(M m, F v) { return _mm512_maskz_mov_ps(m, v); }
     DISTILE_LANES_INLINE I onlyWhere(M m, I v) { return _mm512_maskz_mov_epi32(m, v); }
-    DISTILE_LANES_INLINE I zeroWhere(M m, I v) { return _mm512_maskz_mov_epi32(M(~m), v); }
+    DISTILE_LANES_INLINE I zeroWhere(M m, I v) { return _mm512_maskz_mov_epi32(_knot_mask16(m), v); }
 
-    DISTILE_LANES_INLINE M both(M a, M b) { return M(a & b); }
-    DISTILE_LANES_INLINE M either(M a, M b) { return M(a | b); }
-    DISTILE_LANES_INLINE M butNot(M a, M b) { return M(~a & b); }
-    DISTILE_LANES_INLINE M blendMasks(M a, M b, M m) { return M((a & ~m) | (b & m)); }
+    // In the mask registers (plain integer operations would move masks to and from them).
+    DISTILE_LANES_INLINE M both(M a, M b) { return _kand_mask16(a, b); }
+    DISTILE_LANES_INLINE M either(M a, M b) { return _kor_mask16(a, b); }
+    DISTILE_LANES_INLINE M butNot(M a, M b) { return _kandn_mask16(a, b); }
+    DISTILE_LANES_INLINE M blendMasks(M a, M b, M m) {
+        return _kor_mask16(_kandn_mask16(m, a), _kand_mask16(b, m));
+    }
     DISTILE_LANES_INLINE M allLanes() { return M(0xffff); }
     DISTILE_LANES_INLINE M uniformMask(bool on) { return on ? M(0xffff) : M(0); }
     DISTILE_LANES_INLINE unsigned bits(M m) { return unsigned(m); }
