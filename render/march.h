@@ -128,6 +128,7 @@ class SphereTraceRay {
         lane_.toFloorAtStart = start.z / -direction.z;
         lane_.travel = lane_.safeRadius = lane_.previousStep = 0.0f;
         lane_.iterations = 0;
+        result_.iterations = 0;
         result_.travelTexels = 0.0f;
         result_.converged = result_.onFloor = result_.exitedFloor = false;
     }
@@ -145,14 +146,13 @@ class SphereTraceRay {
         return origin() + direction() * (lane_.refining ? lane_.estimate : lane_.travel);
     }
     [[gnu::always_inline]] bool advance(float distance) {
-        return lane_.refining ? refineStep(distance) : traceStep(distance);
+        const bool goesOn = lane_.refining ? refineStep(distance) : traceStep(distance);
+        if (!goesOn) result_.iterations = lane_.iterations;
+        return goesOn;
     }
 
-    MarchResult result() const {
-        MarchResult result = result_;
-        result.iterations = lane_.iterations;
-        return result;
-    }
+    /// Final once step() or advance() returned false.
+    const MarchResult& result() const { return result_; }
 
     /// Whether the wide kernel can take this ray's next steps (render/march_wide.h): it shares
     /// `uniforms` (a relaxed march that took a step back goes on unrelaxed).
@@ -261,7 +261,7 @@ class SphereTraceRay {
     float epsilonTexels_ = 0.0f;
     float factor_ = 1.0f;
     bool budgeted_ = false;
-    MarchResult result_;  ///< its iterations are lane_'s
+    MarchResult result_;  ///< its iterations lane_'s once the march has ended
 
     glm::vec3 origin() const { return {lane_.start[0], lane_.start[1], lane_.start[2]}; }
     glm::vec3 direction() const {

@@ -297,15 +297,18 @@ void SceneTracer::shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 
 
 void SceneTracer::baseSurfaceHit(const Ray& ray, const TriangleHit& baseHit,
                                  SurfaceHit& hit) const {
-    shellEntry(baseHit, ray, hit.entry);
-    atEntry(baseHit, hit);
+    ShellEntry entry;
+    shellEntry(baseHit, ray, entry);
+    hit.entry = entry;
+    atEntry(baseHit, entry.position, entry.normal, hit);
 }
 
-void SceneTracer::atEntry(const TriangleHit& baseHit, SurfaceHit& hit) const {
+void SceneTracer::atEntry(const TriangleHit& baseHit, const glm::vec3& position,
+                          const glm::vec3& normal, SurfaceHit& hit) const {
     hit.object = triangles_[baseHit.triangle].object;
     hit.distanceWorld = baseHit.distanceWorld;
-    hit.position = hit.entry.position;
-    hit.normal = hit.entry.normal;
+    hit.position = position;
+    hit.normal = normal;
     hit.onDetail = false;
     hit.texelsPerWorldAlongRay = 0.0f;
 }
@@ -459,11 +462,12 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
     for (std::size_t lane = 0; lane < sameShell.size(); ++lane) {
         ShellMarch& march = *sameShell[lane];
         SurfaceHit& hit = *march.hit;
+        const glm::vec3 position(lanes.position[0][lane], lanes.position[1][lane],
+                                 lanes.position[2][lane]);
         hit.entry = shared;
-        hit.entry.position = {lanes.position[0][lane], lanes.position[1][lane],
-                              lanes.position[2][lane]};
+        hit.entry.position = position;
         hit.entry.uv = {lanes.uv[0][lane], lanes.uv[1][lane]};
-        atEntry(march.baseHit, hit);
+        atEntry(march.baseHit, position, shared.normal, hit);
         hit.texelsPerWorldAlongRay = lanes.texelsPerWorldAlongRay[lane];
         march.directionTexels = {lanes.directionTexels[0][lane], lanes.directionTexels[1][lane],
                                  lanes.directionTexels[2][lane]};

@@ -243,8 +243,10 @@ class SceneTracer {
                  ShellMarch& march) const;
     /// `hit` as the ray's stop on the base surface at `baseHit` (no march).
     void baseSurfaceHit(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit) const;
-    /// baseSurfaceHit for a hit whose entry is already set: the rest from it.
-    void atEntry(const TriangleHit& baseHit, SurfaceHit& hit) const;
+    /// baseSurfaceHit for a hit whose entry is already set: the rest from it, its `position` and
+    /// `normal` passed in (read back from the entry just written, they would wait for its stores).
+    void atEntry(const TriangleHit& baseHit, const glm::vec3& position, const glm::vec3& normal,
+                 SurfaceHit& hit) const;
     /// The entry of one ray (takeEntries): its hit's entry and its march set up.
     void takeEntry(ShellMarch& march) const;
     /// The entries of up to eight rays into the same flat shell at once (enterFlatShell8).
