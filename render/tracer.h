@@ -291,7 +291,12 @@ inline bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, Sur
         return false;
     }
     march.object = shell.object;
-    march.baseHit = baseHit;
+    // Field by field: `baseHit` is often a temporary whose fields were just stored one by one, and
+    // a copy of the whole would load them as one, waiting for those stores.
+    march.baseHit.triangle = baseHit.triangle;
+    march.baseHit.distanceWorld = baseHit.distanceWorld;
+    march.baseHit.b1 = baseHit.b1;
+    march.baseHit.b2 = baseHit.b2;
     march.ray = &ray;
     march.hit = &hit;
     march.marched = false;
