@@ -273,11 +273,7 @@ class Renderer {
         } else if (!hit.onDetail) {
             sample.color = shadeBase(hit, material, ray.direction, seed, sample.shadowMapSamples);
         } else {
-            withMarchFilter(options_.filter, material, tracer_.columns(hit.object),
-                            options_.reference, [&](const auto& filter) {
-                                sample.color = shadeDetail(filter, hit, material, ray.direction,
-                                                           seed, selfShadows, sample);
-                            });
+            sample.color = shadeDetail(hit, material, ray.direction, seed, selfShadows, sample);
         }
         stats.shadowSteps += sample.shadowSteps;
         stats.shadowMapSamples += sample.shadowMapSamples;
@@ -372,10 +368,9 @@ class Renderer {
 
     /// The detail hit's colour. `selfShadows`: per light, its self-shadow ray already marched
     /// (marchSelfShadows), or null to march them here.
-    template <class Filter>
-    glm::vec3 shadeDetail(const Filter& filter, const SurfaceHit& hit, const Material& material,
-                          const glm::vec3& view, std::uint32_t seed,
-                          const LightVisibilityRay* selfShadows, Sample& sample) const {
+    glm::vec3 shadeDetail(const SurfaceHit& hit, const Material& material, const glm::vec3& view,
+                          std::uint32_t seed, const LightVisibilityRay* selfShadows,
+                          Sample& sample) const {
         const float depthTexels = float(material.tile->size().depth);
         const glm::vec3 texelPosition = hit.march.texelPosition;
         // Cavities (low in the shell) see less of the sky.
@@ -395,11 +390,14 @@ class Renderer {
                 LightVisibilityRay own;
                 const LightVisibilityRay* ray = selfShadows ? &selfShadows[index] : &own;
                 if (!selfShadows) {
-                    startSelfShadow(filter, hit, depthTexels, index, own);
-                    if (own.needsSample()) {
-                        while (own.advance(filter.distanceTexels(own.samplePosition()))) {
-                        }
-                    }
+                    withMarchFilter(options_.filter, material, tracer_.columns(hit.object),
+                                    options_.reference, [&](const auto& filter) {
+                                        startSelfShadow(filter, hit, depthTexels, index, own);
+                                        if (!own.needsSample()) return;
+                                        while (own.advance(
+                                            filter.distanceTexels(own.samplePosition()))) {
+                                        }
+                                    });
                 }
                 sample.shadowSteps += ray->samples();
                 visibility = ray->visibility();
