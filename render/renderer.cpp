@@ -97,8 +97,10 @@ glm::vec3 skyColor(const glm::vec3& direction) {
     return glm::mix(glm::vec3(0.18f, 0.19f, 0.21f), glm::vec3(0.55f, 0.62f, 0.72f), t);
 }
 
-glm::vec3 directLight(const glm::vec3& normal, const glm::vec3& toLight, const glm::vec3& view,
-                      const glm::vec3& albedo) {
+[[gnu::always_inline]] inline glm::vec3 directLight(const glm::vec3& normal,
+                                                    const glm::vec3& toLight,
+                                                    const glm::vec3& view,
+                                                    const glm::vec3& albedo) {
     const float diffuse = std::max(glm::dot(normal, toLight), 0.0f);
     if (diffuse <= 0.0f) return glm::vec3(0.0f);
     const glm::vec3 halfway = glm::normalize(toLight - view);

@@ -46,12 +46,10 @@ void applyTransform(BaseMesh& mesh, const Transform& transform) {
     }
 }
 
-glm::vec3 albedoAt(const Material& material, const glm::vec2& uv) {
-    const Image* texture = material.colorTexture.get();
-    if (!texture) return material.color;
+glm::vec3 textureAlbedoAt(const Image& colorTexture, const glm::vec2& uv) {
     // Texel centres at (i + 0.5) / width, row 0 at the top (v = 1), wrapping in both directions.
-    const float x = uv.x * float(texture->width) - 0.5f;
-    const float y = (1.0f - uv.y) * float(texture->height) - 0.5f;
+    const float x = uv.x * float(colorTexture.width) - 0.5f;
+    const float y = (1.0f - uv.y) * float(colorTexture.height) - 0.5f;
     const float x0 = std::floor(x);
     const float y0 = std::floor(y);
     const float fx = x - x0;
@@ -60,10 +58,10 @@ glm::vec3 albedoAt(const Material& material, const glm::vec2& uv) {
         const int wrapped = int(std::fmod(index, float(extent)));
         return wrapped < 0 ? wrapped + extent : wrapped;
     };
-    const int ix0 = wrap(x0, texture->width), ix1 = wrap(x0 + 1.0f, texture->width);
-    const int iy0 = wrap(y0, texture->height), iy1 = wrap(y0 + 1.0f, texture->height);
-    const glm::vec3 top = glm::mix(texture->at(ix0, iy0), texture->at(ix1, iy0), fx);
-    const glm::vec3 bottom = glm::mix(texture->at(ix0, iy1), texture->at(ix1, iy1), fx);
+    const int ix0 = wrap(x0, colorTexture.width), ix1 = wrap(x0 + 1.0f, colorTexture.width);
+    const int iy0 = wrap(y0, colorTexture.height), iy1 = wrap(y0 + 1.0f, colorTexture.height);
+    const glm::vec3 top = glm::mix(colorTexture.at(ix0, iy0), colorTexture.at(ix1, iy0), fx);
+    const glm::vec3 bottom = glm::mix(colorTexture.at(ix0, iy1), colorTexture.at(ix1, iy1), fx);
     return glm::mix(top, bottom, fy);
 }
 

@@ -69,8 +69,14 @@ struct Material {
     std::optional<ProceduralOptions> procedural;
 };
 
+/// A colour texture's bilinear albedo at base-mesh uv (texel centres at (i + 0.5) / size, row 0
+/// at v = 1, wrapping in both directions).
+glm::vec3 textureAlbedoAt(const Image& colorTexture, const glm::vec2& uv);
+
 /// The material's albedo at base-mesh uv: the colour texture there, else the constant colour.
-glm::vec3 albedoAt(const Material& material, const glm::vec2& uv);
+inline glm::vec3 albedoAt(const Material& material, const glm::vec2& uv) {
+    return material.colorTexture ? textureAlbedoAt(*material.colorTexture, uv) : material.color;
+}
 
 struct SceneObject {
     BaseMesh mesh;  ///< in world space (transforms already applied)
