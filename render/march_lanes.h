@@ -189,10 +189,11 @@ template <class V, bool kRelaxed>
 }
 
 /// The parked lanes of `group` handed back to their rays (state before the step, distance
-/// sampled) and refilled, once enough have parked or the group has no other ray.
+/// sampled) and refilled, once enough have parked or the group has no other ray (or `now`).
 template <class V>
-inline void handBack(LaneGroup<V>& group, LaneSource& source) {
-    if (__builtin_popcount(group.parked) < kParkedBeforeRefill<V> && group.busy > 0) return;
+inline void handBack(LaneGroup<V>& group, LaneSource& source, bool now = false) {
+    if (!now && __builtin_popcount(group.parked) < kParkedBeforeRefill<V> && group.busy > 0)
+        return;
     for (unsigned parked = group.parked; parked != 0; parked &= parked - 1) {
         const int slot = __builtin_ctz(parked);
         SphereTraceLane& lane = *source.lanes[group.laneOf[slot]];
@@ -213,6 +214,40 @@ inline void handBack(LaneGroup<V>& group, LaneSource& source) {
     group.parked = 0;
 }
 
+/// The busy lanes of `from` moved into idle lanes of `to` (which must have enough), `from`'s
+/// parked lanes already handed back.
+template <class V>
+void moveBusyLanes(LaneGroup<V>& from, LaneGroup<V>& to) {
+    int slot = 0;
+    for (int fromSlot = 0; fromSlot < V::kWidth; ++fromSlot) {
+        if (from.idle[fromSlot] != 0) continue;
+        while (to.idle[slot] == 0) ++slot;
+        to.startX[slot] = from.startX[fromSlot];
+        to.startY[slot] = from.startY[fromSlot];
+        to.startZ[slot] = from.startZ[fromSlot];
+        to.directionX[slot] = from.directionX[fromSlot];
+        to.directionY[slot] = from.directionY[fromSlot];
+        to.directionZ[slot] = from.directionZ[fromSlot];
+        to.toFloorAtStart[slot] = from.toFloorAtStart[fromSlot];
+        to.travel[slot] = from.travel[fromSlot];
+        to.safeRadius[slot] = from.safeRadius[fromSlot];
+        to.previousStep[slot] = from.previousStep[fromSlot];
+        to.iterations[slot] = from.iterations[fromSlot];
+        to.maxIterations[slot] = from.maxIterations[fromSlot];
+        to.refining[slot] = from.refining[fromSlot];
+        to.outside[slot] = from.outside[fromSlot];
+        to.outsideDistance[slot] = from.outsideDistance[fromSlot];
+        to.inside[slot] = from.inside[fromSlot];
+        to.insideDistance[slot] = from.insideDistance[fromSlot];
+        to.estimate[slot] = from.estimate[fromSlot];
+        to.laneOf[slot] = from.laneOf[fromSlot];
+        to.idle[slot] = 0;
+        from.idle[fromSlot] = -1;
+        ++to.busy;
+        --from.busy;
+    }
+}
+
 template <class V, bool kRelaxed>
 void sphereTraceOngoingStepsOf(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                                SphereTraceLane* const* lanes, int count) {
@@ -222,14 +257,22 @@ void sphereTraceOngoingStepsOf(const WideColumns& columns, const SphereTraceUnif
     LaneGroup<V> groups[2];
     for (LaneGroup<V>& group : groups)
         for (int slot = 0; slot < V::kWidth; ++slot) source.take(group, slot);
-    while (groups[0].busy + groups[1].busy > 0) {
+    while (source.next < source.count || groups[0].busy + groups[1].busy > V::kWidth) {
         round<V, kRelaxed>(columns, uniforms, groups[0]);  // without rays: idle lanes only
         round<V, kRelaxed>(columns, uniforms, groups[1]);
         handBack(groups[0], source);
         handBack(groups[1], source);
     }
+    // The last rays, once they fit, in one group: two mostly idle groups would cost two rounds
+    // for the samples of one (a call's last rounds hold most of its idle lanes).
+    handBack(groups[0], source, true);
+    handBack(groups[1], source, true);
+    moveBusyLanes(groups[1], groups[0]);
+    while (groups[0].busy > 0) {
+        round<V, kRelaxed>(columns, uniforms, groups[0]);
+        handBack(groups[0], source);
+    }
     handBack(groups[0], source);
-    handBack(groups[1], source);
     V::leave();
 }
 
