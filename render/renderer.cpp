@@ -154,6 +154,8 @@ class Renderer {
                                       options.reference, options.skips}),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
+        for (int index = 0; index < options.samplesPerPixel; ++index)
+            sampleOffsets_.push_back(sampleOffset(index, options.samplesPerPixel));
         for (const DirectionalLight& light : scene.lights) {
             toLights_.push_back(-glm::normalize(light.direction));
             tanHalfAngles_.push_back(
@@ -203,18 +205,25 @@ class Renderer {
             const std::size_t count = std::size_t(std::min(int(kBatch), total - first));
             // The camera rays' pixel positions, then their directions all at once.
             float xPixels[kBatch], yPixels[kBatch], directions[3][kBatch];
+            // Sample `index` of pixel (x, y) first, then counted on: the samples of a pixel,
+            // pixel by pixel along the run's rows.
+            int index = first % samplesPerPixel;
+            int x = x0 + (first / samplesPerPixel) % runWidth;
+            int y = y0 + (first / samplesPerPixel) / runWidth;
             for (std::size_t k = 0; k < count; ++k) {
-                const int pixel = (first + int(k)) / samplesPerPixel;
-                const int x = x0 + pixel % runWidth;
-                const int y = y0 + pixel / runWidth;
-                const int index = (first + int(k)) % samplesPerPixel;
-                const glm::vec2 offset = sampleOffset(index, samplesPerPixel);
+                const glm::vec2 offset = sampleOffsets_[std::size_t(index)];
                 xPixels[k] = float(x) + offset.x;
                 yPixels[k] = float(y) + offset.y;
                 rays[k].x = x;
                 rays[k].y = y;
                 sampleIndices[k] = index;
                 counters[k] = {};
+                if (++index < samplesPerPixel) continue;
+                index = 0;
+                if (++x == x1) {
+                    x = x0;
+                    ++y;
+                }
             }
             projection_.directions(xPixels, yPixels, count, directions[0], directions[1],
                                    directions[2]);
@@ -430,6 +439,7 @@ class Renderer {
     PinholeProjection projection_;
     std::vector<glm::vec3> toLights_;   ///< per light: unit direction toward it
     std::vector<float> tanHalfAngles_;  ///< per light: tan of its angular radius (at least 1e-3)
+    std::vector<glm::vec2> sampleOffsets_;  ///< per sample of a pixel: sampleOffset()
     ScreenShells shells_;  ///< camera rays' shells per screen tile (the BVH serves the other rays)
 };
 
