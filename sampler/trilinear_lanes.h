@@ -187,6 +187,7 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
     const I columnStride = V::set1(columns.depth);
     const I rowStride = V::set1(columns.width * columns.depth);
     I xStart[4], yStart[4];
+    #pragma GCC unroll 4
     for (int i = 0; i < 4; ++i) {
         xStart[i] = V::mullo(V::zeroWhere(outside, xTap[i]), columnStride);
         yStart[i] = V::add(V::mullo(V::zeroWhere(outside, yTap[i]), rowStride),
@@ -195,10 +196,14 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
     const F scale = V::set1(columns.texelsPerCode);
     const F zero = V::set1(0.0f);
     F value[4], xDerivative[4], yDerivative[4];
+    #pragma GCC unroll 4
     for (int k = 0; k < 4; ++k) value[k] = xDerivative[k] = yDerivative[k] = zero;
+    #pragma GCC unroll 4
     for (int j = 0; j < 4; ++j) {
         F rowValue[4], rowDerivative[4];
+        #pragma GCC unroll 4
         for (int k = 0; k < 4; ++k) rowValue[k] = rowDerivative[k] = zero;
+        #pragma GCC unroll 4
         for (int i = 0; i < 4; ++i) {
             const I element = V::add(xStart[i], yStart[j]);
             const I low = V::gatherCodePairs(columns.codes, element);  // slices 0, 1
@@ -207,11 +212,13 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
                                 V::mul(V::toFloat(V::highHalf(low)), scale),
                                 V::mul(V::toFloat(V::lowHalf(high)), scale),
                                 V::mul(V::toFloat(V::highHalf(high)), scale)};
+            #pragma GCC unroll 4
             for (int k = 0; k < 4; ++k) {
                 rowValue[k] = V::add(rowValue[k], V::mul(wx.w[i], texel[k]));
                 rowDerivative[k] = V::add(rowDerivative[k], V::mul(dx.w[i], texel[k]));
             }
         }
+        #pragma GCC unroll 4
         for (int k = 0; k < 4; ++k) {
             value[k] = V::add(value[k], V::mul(wy.w[j], rowValue[k]));
             xDerivative[k] = V::add(xDerivative[k], V::mul(wy.w[j], rowDerivative[k]));
@@ -219,6 +226,7 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
         }
     }
     F sumX = zero, sumY = zero, sumZ = zero;
+    #pragma GCC unroll 4
     for (int k = 0; k < 4; ++k) {
         sumX = V::add(sumX, V::mul(wz.w[k], xDerivative[k]));
         sumY = V::add(sumY, V::mul(wz.w[k], yDerivative[k]));
