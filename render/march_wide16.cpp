@@ -1,14 +1,14 @@
-// The kernel of render/march_wide.h with AVX-512 (sixteen lanes). Compiled with -mavx512f and
-// without FMA, and run only where the processor has AVX-512F (kSixteenLanes).
+// The kernel of render/march_wide.h with AVX-512 (sixteen lanes). Compiled with -mavx512f
+// -mavx512bw and without FMA, and run only where the processor has both (kSixteenLanes).
 #include "render/march_wide.h"
 
-#if defined(__x86_64__) && defined(__AVX512F__) && !defined(__FMA__)
+#if defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512BW__) && !defined(__FMA__)
 #include "render/march_lanes.h"
 #endif
 
 namespace distile::detail {
 
-#if defined(__x86_64__) && defined(__AVX512F__) && !defined(__FMA__)
+#if defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512BW__) && !defined(__FMA__)
 
 void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                                SphereTraceLane* const* lanes, int count) {

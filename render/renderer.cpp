@@ -205,24 +205,24 @@ class Renderer {
             const std::size_t count = std::size_t(std::min(int(kBatch), total - first));
             // The camera rays' pixel positions, then their directions all at once.
             float xPixels[kBatch], yPixels[kBatch], directions[3][kBatch];
-            // Sample `index` of pixel (x, y) first, then counted on: the samples of a pixel,
-            // pixel by pixel along the run's rows.
-            int index = first % samplesPerPixel;
-            int x = x0 + (first / samplesPerPixel) % runWidth;
-            int y = y0 + (first / samplesPerPixel) / runWidth;
+            // Sample `nextIndex` of pixel (nextX, nextY) first, then counted on: the samples of
+            // a pixel, pixel by pixel along the run's rows.
+            int nextIndex = first % samplesPerPixel;
+            int nextX = x0 + (first / samplesPerPixel) % runWidth;
+            int nextY = y0 + (first / samplesPerPixel) / runWidth;
             for (std::size_t k = 0; k < count; ++k) {
-                const glm::vec2 offset = sampleOffsets_[std::size_t(index)];
-                xPixels[k] = float(x) + offset.x;
-                yPixels[k] = float(y) + offset.y;
-                rays[k].x = x;
-                rays[k].y = y;
-                sampleIndices[k] = index;
+                const glm::vec2 offset = sampleOffsets_[std::size_t(nextIndex)];
+                xPixels[k] = float(nextX) + offset.x;
+                yPixels[k] = float(nextY) + offset.y;
+                rays[k].x = nextX;
+                rays[k].y = nextY;
+                sampleIndices[k] = nextIndex;
                 counters[k] = {};
-                if (++index < samplesPerPixel) continue;
-                index = 0;
-                if (++x == x1) {
-                    x = x0;
-                    ++y;
+                if (++nextIndex < samplesPerPixel) continue;
+                nextIndex = 0;
+                if (++nextX == x1) {
+                    nextX = x0;
+                    ++nextY;
                 }
             }
             projection_.directions(xPixels, yPixels, count, directions[0], directions[1],

@@ -106,15 +106,25 @@ struct Lanes8 {
     DISTILE_LANES_INLINE I gatherCodePairs(const std::int16_t* base, I elements) {
         return _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), elements, 2);
     }
+    /// The codes of four consecutive slices from base + element onwards, lane by lane, as
+    /// sign-extended 32-bit lanes in slices[0 .. 4): two code-pair gathers.
+    DISTILE_LANES_INLINE void gatherCodes4(const std::int16_t* base, I elements, I slices[4]) {
+        const I low = gatherCodePairs(base, elements);
+        const I high = gatherCodePairs(base, add(elements, set1(2)));
+        slices[0] = lowHalf(low);
+        slices[1] = highHalf(low);
+        slices[2] = lowHalf(high);
+        slices[3] = highHalf(high);
+    }
     /// Back to code without these lanes: with dirty upper halves of the vector registers, every
     /// SSE instruction after this would pay for merging them (the compiler does not always clear
     /// them itself).
     DISTILE_LANES_INLINE void leave() { _mm256_zeroupper(); }
 };
 
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) && defined(__AVX512BW__)
 
-/// Sixteen lanes (AVX-512F). A mask is a bit per lane.
+/// Sixteen lanes (AVX-512F and BW). A mask is a bit per lane.
 struct Lanes16 {
     static constexpr int kWidth = 16;
     using F = __m512;
@@ -183,6 +193,28 @@ struct Lanes16 {
     DISTILE_LANES_INLINE I highHalf(I v) { return _mm512_srai_epi32(v, 16); }
     DISTILE_LANES_INLINE I gatherCodePairs(const std::int16_t* base, I elements) {
         return _mm512_i32gather_epi32(elements, base, 2);
+    }
+    /// Lanes8::gatherCodes4 as two 64-bit gathers of eight lanes each (half the loads of four
+    /// code-pair gathers), the codes sorted into slices with two word permutes (AVX-512BW).
+    DISTILE_LANES_INLINE void gatherCodes4(const std::int16_t* base, I elements, I slices[4]) {
+        const __m512i first = _mm512_i32gather_epi64(_mm512_castsi512_si256(elements), base, 2);
+        const __m512i second =
+            _mm512_i32gather_epi64(_mm512_extracti64x4_epi64(elements, 1), base, 2);
+        // Word 4 l + s of `first` is slice s of lane l (lanes 0-7), of `second` lane l + 8.
+        alignas(64) static constexpr short kSlices01[32] = {
+            0,  4,  8,  12, 16, 20, 24, 28, 32, 36, 40, 44, 48, 52, 56, 60,
+            1,  5,  9,  13, 17, 21, 25, 29, 33, 37, 41, 45, 49, 53, 57, 61};
+        alignas(64) static constexpr short kSlices23[32] = {
+            2,  6,  10, 14, 18, 22, 26, 30, 34, 38, 42, 46, 50, 54, 58, 62,
+            3,  7,  11, 15, 19, 23, 27, 31, 35, 39, 43, 47, 51, 55, 59, 63};
+        const __m512i slices01 =
+            _mm512_permutex2var_epi16(first, _mm512_load_si512(kSlices01), second);
+        const __m512i slices23 =
+            _mm512_permutex2var_epi16(first, _mm512_load_si512(kSlices23), second);
+        slices[0] = _mm512_cvtepi16_epi32(_mm512_castsi512_si256(slices01));
+        slices[1] = _mm512_cvtepi16_epi32(_mm512_extracti64x4_epi64(slices01, 1));
+        slices[2] = _mm512_cvtepi16_epi32(_mm512_castsi512_si256(slices23));
+        slices[3] = _mm512_cvtepi16_epi32(_mm512_extracti64x4_epi64(slices23, 1));
     }
     DISTILE_LANES_INLINE void leave() { _mm256_zeroupper(); }
 };

@@ -205,13 +205,12 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
         for (int k = 0; k < 4; ++k) rowValue[k] = rowDerivative[k] = zero;
         #pragma GCC unroll 4
         for (int i = 0; i < 4; ++i) {
-            const I element = V::add(xStart[i], yStart[j]);
-            const I low = V::gatherCodePairs(columns.codes, element);  // slices 0, 1
-            const I high = V::gatherCodePairs(columns.codes, V::add(element, V::set1(2)));
-            const F texel[4] = {V::mul(V::toFloat(V::lowHalf(low)), scale),
-                                V::mul(V::toFloat(V::highHalf(low)), scale),
-                                V::mul(V::toFloat(V::lowHalf(high)), scale),
-                                V::mul(V::toFloat(V::highHalf(high)), scale)};
+            I codes[4];
+            V::gatherCodes4(columns.codes, V::add(xStart[i], yStart[j]), codes);
+            const F texel[4] = {V::mul(V::toFloat(codes[0]), scale),
+                                V::mul(V::toFloat(codes[1]), scale),
+                                V::mul(V::toFloat(codes[2]), scale),
+                                V::mul(V::toFloat(codes[3]), scale)};
             #pragma GCC unroll 4
             for (int k = 0; k < 4; ++k) {
                 rowValue[k] = V::add(rowValue[k], V::mul(wx.w[i], texel[k]));

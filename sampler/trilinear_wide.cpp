@@ -26,7 +26,7 @@ const bool kSixteenLanes = [] {
     const char* simd = std::getenv("DISTILE_SIMD");
     if (!kWideTrilinear || (simd && std::strcmp(simd, "avx2") == 0)) return false;
     __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") != 0;
+    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw");
 }();
 
 unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out) {

@@ -21,7 +21,7 @@ struct WideColumns {
 extern const bool kWideTrilinear;
 
 /// Whether the march kernel (render/march_wide.h) and the gradients take sixteen lanes at a
-/// time: kWideTrilinear and the processor has AVX-512F, decided once; DISTILE_SIMD=avx2 keeps
+/// time: kWideTrilinear and the processor has AVX-512F and BW, decided once; DISTILE_SIMD=avx2 keeps
 /// them to eight (same results).
 extern const bool kSixteenLanes;
 

@@ -1,14 +1,14 @@
-// The sixteen-lane (AVX-512) kernels of sampler/trilinear_wide.h. Compiled with -mavx512f and
-// without FMA, and run only where the processor has AVX-512F (kSixteenLanes).
+// The sixteen-lane (AVX-512) kernels of sampler/trilinear_wide.h. Compiled with -mavx512f
+// -mavx512bw and without FMA, and run only where the processor has both (kSixteenLanes).
 #include "sampler/trilinear_wide.h"
 
-#if defined(__x86_64__) && defined(__AVX512F__) && !defined(__FMA__)
+#if defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512BW__) && !defined(__FMA__)
 #include "sampler/trilinear_lanes.h"
 #endif
 
 namespace distile::detail {
 
-#if defined(__x86_64__) && defined(__AVX512F__) && !defined(__FMA__)
+#if defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512BW__) && !defined(__FMA__)
 
 unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz,
                                    float* gradients) {
