@@ -448,10 +448,13 @@ void runSpeedBench(const BenchArguments& arguments) {
         say(line);
         peerRow("embree", embree);
         peerRow("vdb_render", vdbRender);
-        notes.push_back("distile and each peer: the fastest of their runs, distile's alternating "
-                        "with the peer's (" + std::to_string(runs) + " runs of each peer, each "
-                        "with its own set-up; distile's fastest of all its " +
-                        std::to_string(distileRuns) + " runs after one untimed warm-up render).");
+        notes.push_back(
+            "distile and each peer: the fastest of their runs, distile's alternating "
+            "with the peer's (" +
+            std::to_string(runs) +
+            " runs of each peer, each "
+            "with its own set-up; distile's fastest of all its " +
+            std::to_string(distileRuns) + " runs after one untimed warm-up render).");
         if (embree && embree->available) embreeBytes = double(embree->memoryBytes);
         if (vdbRender && vdbRender->available) levelSetBytes = double(vdbRender->memoryBytes);
     } else {

@@ -90,8 +90,7 @@ template <class V>
 /// the rounds of two groups overlap in the processor.
 template <class V, bool kRelaxed>
 [[gnu::always_inline]] inline void round(const WideColumns& columns,
-                                         const SphereTraceUniforms& uniforms,
-                                         LaneGroup<V>& group) {
+                                         const SphereTraceUniforms& uniforms, LaneGroup<V>& group) {
     using F = typename V::F;
     using I = typename V::I;
     using M = typename V::M;
@@ -134,7 +133,8 @@ template <class V, bool kRelaxed>
     }
     // Budgeted: std::max(step, toFloor / samples left).
     const F forced = V::div(toFloor, V::toFloat(V::sub(budget, newIterations)));
-    step = V::blend(step, forced, V::both(V::uniformMask(uniforms.budgeted), V::less(step, forced)));
+    step =
+        V::blend(step, forced, V::both(V::uniformMask(uniforms.budgeted), V::less(step, forced)));
     // std::min(step, toFloor)
     const F taken = V::blend(step, toFloor, V::less(toFloor, step));
     sphereStep = V::butNot(refining, V::both(sphereStep, budgetLeft));
@@ -171,10 +171,10 @@ template <class V, bool kRelaxed>
     V::store(group.outsideDistance, outsideDistance);
     V::store(group.inside, inside);
     V::store(group.insideDistance, insideDistance);
-    V::store(group.estimate,
-             V::blend(estimate,
-                      falsePositionLanes<V>(outside, outsideDistance, inside, insideDistance),
-                      changed));
+    V::store(
+        group.estimate,
+        V::blend(estimate, falsePositionLanes<V>(outside, outsideDistance, inside, insideDistance),
+                 changed));
     V::storeMask(group.refining, V::either(refining, startsRefining));
     V::storeInt(group.iterations, V::blend(samples, newIterations, goesOn));
     // Busy lanes whose step does not go on leave with the distance sampled: they park (idle,
@@ -192,8 +192,7 @@ template <class V, bool kRelaxed>
 /// sampled) and refilled, once enough have parked or the group has no other ray (or `now`).
 template <class V>
 inline void handBack(LaneGroup<V>& group, LaneSource& source, bool now = false) {
-    if (!now && __builtin_popcount(group.parked) < kParkedBeforeRefill<V> && group.busy > 0)
-        return;
+    if (!now && __builtin_popcount(group.parked) < kParkedBeforeRefill<V> && group.busy > 0) return;
     for (unsigned parked = group.parked; parked != 0; parked &= parked - 1) {
         const int slot = __builtin_ctz(parked);
         SphereTraceLane& lane = *source.lanes[group.laneOf[slot]];
@@ -278,8 +277,7 @@ void sphereTraceOngoingStepsOf(const WideColumns& columns, const SphereTraceUnif
 
 /// sphereTraceOngoingSteps (render/march_wide.h) in lanes V.
 template <class V>
-void sphereTraceOngoingStepsInLanes(const WideColumns& columns,
-                                    const SphereTraceUniforms& uniforms,
+void sphereTraceOngoingStepsInLanes(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                                     SphereTraceLane* const* lanes, int count) {
     if (uniforms.factor > 1.0f)
         sphereTraceOngoingStepsOf<V, true>(columns, uniforms, lanes, count);

@@ -45,8 +45,8 @@ struct SphereTraceUniforms {
 /// Runs each of `count` lanes' steps that go on (budget left after the step; a sphere step: the
 /// distance at least epsilon and short of the floor, no relaxed step to take back; the start of
 /// the refinement: a step that went inside; a refinement step: not within epsilon) until the
-/// first other step, eight or sixteen lanes at a time: each lane ends in the state before that step, with
-/// the distance sampled there. Precondition: kWideTrilinear; every lane needs a sample.
+/// first other step, eight or sixteen lanes at a time: each lane ends in the state before that
+/// step, with the distance sampled there. Precondition: kWideTrilinear; every lane needs a sample.
 void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                              SphereTraceLane* const* lanes, int count);
 

@@ -98,8 +98,7 @@ glm::vec3 skyColor(const glm::vec3& direction) {
 }
 
 [[gnu::always_inline]] inline glm::vec3 directLight(const glm::vec3& normal,
-                                                    const glm::vec3& toLight,
-                                                    const glm::vec3& view,
+                                                    const glm::vec3& toLight, const glm::vec3& view,
                                                     const glm::vec3& albedo) {
     const float diffuse = std::max(glm::dot(normal, toLight), 0.0f);
     if (diffuse <= 0.0f) return glm::vec3(0.0f);
@@ -401,14 +400,14 @@ class Renderer {
                 LightVisibilityRay own;
                 const LightVisibilityRay* ray = selfShadows ? &selfShadows[index] : &own;
                 if (!selfShadows) {
-                    withMarchFilter(options_.filter, material, tracer_.columns(hit.object),
-                                    options_.reference, [&](const auto& filter) {
-                                        startSelfShadow(filter, hit, depthTexels, index, own);
-                                        if (!own.needsSample()) return;
-                                        while (own.advance(
-                                            filter.distanceTexels(own.samplePosition()))) {
-                                        }
-                                    });
+                    withMarchFilter(
+                        options_.filter, material, tracer_.columns(hit.object), options_.reference,
+                        [&](const auto& filter) {
+                            startSelfShadow(filter, hit, depthTexels, index, own);
+                            if (!own.needsSample()) return;
+                            while (own.advance(filter.distanceTexels(own.samplePosition()))) {
+                            }
+                        });
                 }
                 sample.shadowSteps += ray->samples();
                 visibility = ray->visibility();

@@ -36,8 +36,12 @@ struct Lanes8 {
         _mm256_store_si256(reinterpret_cast<__m256i*>(values), v);
     }
     /// Masks kept in memory as ints: -1 set, 0 clear.
-    DISTILE_LANES_INLINE M loadMask(const int* values) { return _mm256_castsi256_ps(loadInt(values)); }
-    DISTILE_LANES_INLINE void storeMask(int* values, M m) { storeInt(values, _mm256_castps_si256(m)); }
+    DISTILE_LANES_INLINE M loadMask(const int* values) {
+        return _mm256_castsi256_ps(loadInt(values));
+    }
+    DISTILE_LANES_INLINE void storeMask(int* values, M m) {
+        storeInt(values, _mm256_castps_si256(m));
+    }
 
     /// Axis `axis` of kWidth points stored x, y, z, from the points' scalars (a vector load over
     /// separate stores would wait for them).
@@ -80,9 +84,7 @@ struct Lanes8 {
     DISTILE_LANES_INLINE M butNot(M a, M b) { return _mm256_andnot_ps(a, b); }
     /// Lanes of mask b where m is set, of mask a elsewhere.
     DISTILE_LANES_INLINE M blendMasks(M a, M b, M m) { return _mm256_blendv_ps(a, b, m); }
-    DISTILE_LANES_INLINE M allLanes() {
-        return _mm256_castsi256_ps(_mm256_set1_epi32(-1));
-    }
+    DISTILE_LANES_INLINE M allLanes() { return _mm256_castsi256_ps(_mm256_set1_epi32(-1)); }
     DISTILE_LANES_INLINE M uniformMask(bool on) {
         return _mm256_castsi256_ps(_mm256_set1_epi32(on ? -1 : 0));
     }
@@ -167,7 +169,9 @@ struct Lanes16 {
     DISTILE_LANES_INLINE I blend(I a, I b, M m) { return _mm512_mask_blend_epi32(m, a, b); }
     DISTILE_LANES_INLINE F onlyWhere(M m, F v) { return _mm512_maskz_mov_ps(m, v); }
     DISTILE_LANES_INLINE I onlyWhere(M m, I v) { return _mm512_maskz_mov_epi32(m, v); }
-    DISTILE_LANES_INLINE I zeroWhere(M m, I v) { return _mm512_maskz_mov_epi32(_knot_mask16(m), v); }
+    DISTILE_LANES_INLINE I zeroWhere(M m, I v) {
+        return _mm512_maskz_mov_epi32(_knot_mask16(m), v);
+    }
 
     // In the mask registers (plain integer operations would move masks to and from them).
     DISTILE_LANES_INLINE M both(M a, M b) { return _kand_mask16(a, b); }
@@ -202,11 +206,11 @@ struct Lanes16 {
             _mm512_i32gather_epi64(_mm512_extracti64x4_epi64(elements, 1), base, 2);
         // Word 4 l + s of `first` is slice s of lane l (lanes 0-7), of `second` lane l + 8.
         alignas(64) static constexpr short kSlices01[32] = {
-            0,  4,  8,  12, 16, 20, 24, 28, 32, 36, 40, 44, 48, 52, 56, 60,
-            1,  5,  9,  13, 17, 21, 25, 29, 33, 37, 41, 45, 49, 53, 57, 61};
+            0, 4, 8, 12, 16, 20, 24, 28, 32, 36, 40, 44, 48, 52, 56, 60,
+            1, 5, 9, 13, 17, 21, 25, 29, 33, 37, 41, 45, 49, 53, 57, 61};
         alignas(64) static constexpr short kSlices23[32] = {
-            2,  6,  10, 14, 18, 22, 26, 30, 34, 38, 42, 46, 50, 54, 58, 62,
-            3,  7,  11, 15, 19, 23, 27, 31, 35, 39, 43, 47, 51, 55, 59, 63};
+            2, 6, 10, 14, 18, 22, 26, 30, 34, 38, 42, 46, 50, 54, 58, 62,
+            3, 7, 11, 15, 19, 23, 27, 31, 35, 39, 43, 47, 51, 55, 59, 63};
         const __m512i slices01 =
             _mm512_permutex2var_epi16(first, _mm512_load_si512(kSlices01), second);
         const __m512i slices23 =

@@ -319,15 +319,15 @@ class BasicTricubicBSplineFilter {
         unsigned redo = (1u << count) - 1u;
         if constexpr (Texels::kZContiguous) {
             if (detail::kSixteenLanes) {
-                redo &= detail::tricubicGradientColumns16(texels_.wide(), &positions[0].x,
-                                                           &out[0].x);
+                redo &=
+                    detail::tricubicGradientColumns16(texels_.wide(), &positions[0].x, &out[0].x);
             } else if (detail::kWideTrilinear) {
-                unsigned wide = detail::tricubicGradientColumns8(texels_.wide(), &positions[0].x,
-                                                                 &out[0].x);
+                unsigned wide =
+                    detail::tricubicGradientColumns8(texels_.wide(), &positions[0].x, &out[0].x);
                 if (count > 8) {
-                    wide |= detail::tricubicGradientColumns8(texels_.wide(), &positions[8].x,
-                                                             &out[8].x)
-                            << 8;
+                    wide |=
+                        detail::tricubicGradientColumns8(texels_.wide(), &positions[8].x, &out[8].x)
+                        << 8;
                 }
                 redo &= wide;
             }

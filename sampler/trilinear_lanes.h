@@ -22,8 +22,8 @@ template <class V>
 /// (returned). Lanes outside the near case (huge or not finite, or more than a period away) are
 /// added to `outside`; their indices are unspecified.
 template <class V>
-[[gnu::always_inline]] inline typename V::F periodicAxisLanes(typename V::F coordinates,
-                                                              int extent, typename V::I& lower,
+[[gnu::always_inline]] inline typename V::F periodicAxisLanes(typename V::F coordinates, int extent,
+                                                              typename V::I& lower,
                                                               typename V::I& upper,
                                                               typename V::M& outside) {
     using I = typename V::I;
@@ -73,8 +73,7 @@ template <class V>
 /// unspecified value.
 template <class V>
 [[gnu::always_inline]] inline typename V::F trilinearColumnsLanes(const WideColumns& columns,
-                                                                  typename V::F x,
-                                                                  typename V::F y,
+                                                                  typename V::F x, typename V::F y,
                                                                   typename V::F z,
                                                                   typename V::M& outside) {
     using F = typename V::F;
@@ -107,7 +106,6 @@ template <class V>
     return lerp(rowLower, rowUpper, yWeight);
 }
 
-
 /// detail::bsplineWeights and bsplineDerivativeWeights of the fractions `a`, lane by lane, the
 /// same operations in the same order.
 template <class V>
@@ -122,12 +120,12 @@ template <class V>
     const F b = V::sub(one, a);
     const auto times = [](F u, F v) { return V::mul(u, v); };
     const auto plus = [](F u, F v) { return V::add(u, v); };
-    return {{V::div(times(times(b, b), b), six),
-             V::div(plus(times(times(V::sub(times(three, a), six), a), a), V::set1(4.0f)), six),
-             V::div(plus(times(plus(times(plus(times(V::set1(-3.0f), a), three), a), three), a),
-                         one),
-                    six),
-             V::div(times(times(a, a), a), six)}};
+    return {
+        {V::div(times(times(b, b), b), six),
+         V::div(plus(times(times(V::sub(times(three, a), six), a), a), V::set1(4.0f)), six),
+         V::div(plus(times(plus(times(plus(times(V::set1(-3.0f), a), three), a), three), a), one),
+                six),
+         V::div(times(times(a, a), a), six)}};
 }
 
 template <class V>
@@ -164,7 +162,8 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
         const I extentLanes = V::set1(extent);
         const I one = V::set1(1);
         // lower == 0 ? extent - 1 : lower - 1;  upper + 1 == extent ? 0 : upper + 1
-        tap[0] = V::add(V::sub(tap[1], one), V::onlyWhere(V::equal(tap[1], V::set1(0)), extentLanes));
+        tap[0] =
+            V::add(V::sub(tap[1], one), V::onlyWhere(V::equal(tap[1], V::set1(0)), extentLanes));
         const I next = V::add(tap[2], one);
         tap[3] = V::zeroWhere(V::equal(next, extentLanes), next);
     };
@@ -175,9 +174,9 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
     const F fz = V::sub(zShifted, zFloor);
     const I firstTap = V::sub(V::truncate(zFloor), V::set1(1));
     // Ghost taps (firstTap < 0 or firstTap + 3 >= D): left to the scalar filter.
-    outside = V::either(outside,
-                        V::either(V::greater(V::set1(0), firstTap),
-                                  V::greater(V::add(firstTap, V::set1(3)), V::set1(columns.depth - 1))));
+    outside = V::either(
+        outside, V::either(V::greater(V::set1(0), firstTap),
+                           V::greater(V::add(firstTap, V::set1(3)), V::set1(columns.depth - 1))));
     const CubicWeightLanes<V> wx = bsplineWeightLanes<V>(fx), wy = bsplineWeightLanes<V>(fy),
                               wz = bsplineWeightLanes<V>(fz);
     const CubicWeightLanes<V> dx = bsplineDerivativeWeightLanes<V>(fx),
@@ -187,7 +186,7 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
     const I columnStride = V::set1(columns.depth);
     const I rowStride = V::set1(columns.width * columns.depth);
     I xStart[4], yStart[4];
-    #pragma GCC unroll 4
+#pragma GCC unroll 4
     for (int i = 0; i < 4; ++i) {
         xStart[i] = V::mullo(V::zeroWhere(outside, xTap[i]), columnStride);
         yStart[i] = V::add(V::mullo(V::zeroWhere(outside, yTap[i]), rowStride),
@@ -196,28 +195,27 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
     const F scale = V::set1(columns.texelsPerCode);
     const F zero = V::set1(0.0f);
     F value[4], xDerivative[4], yDerivative[4];
-    #pragma GCC unroll 4
+#pragma GCC unroll 4
     for (int k = 0; k < 4; ++k) value[k] = xDerivative[k] = yDerivative[k] = zero;
-    #pragma GCC unroll 4
+#pragma GCC unroll 4
     for (int j = 0; j < 4; ++j) {
         F rowValue[4], rowDerivative[4];
-        #pragma GCC unroll 4
+#pragma GCC unroll 4
         for (int k = 0; k < 4; ++k) rowValue[k] = rowDerivative[k] = zero;
-        #pragma GCC unroll 4
+#pragma GCC unroll 4
         for (int i = 0; i < 4; ++i) {
             I codes[4];
             V::gatherCodes4(columns.codes, V::add(xStart[i], yStart[j]), codes);
-            const F texel[4] = {V::mul(V::toFloat(codes[0]), scale),
-                                V::mul(V::toFloat(codes[1]), scale),
-                                V::mul(V::toFloat(codes[2]), scale),
-                                V::mul(V::toFloat(codes[3]), scale)};
-            #pragma GCC unroll 4
+            const F texel[4] = {
+                V::mul(V::toFloat(codes[0]), scale), V::mul(V::toFloat(codes[1]), scale),
+                V::mul(V::toFloat(codes[2]), scale), V::mul(V::toFloat(codes[3]), scale)};
+#pragma GCC unroll 4
             for (int k = 0; k < 4; ++k) {
                 rowValue[k] = V::add(rowValue[k], V::mul(wx.w[i], texel[k]));
                 rowDerivative[k] = V::add(rowDerivative[k], V::mul(dx.w[i], texel[k]));
             }
         }
-        #pragma GCC unroll 4
+#pragma GCC unroll 4
         for (int k = 0; k < 4; ++k) {
             value[k] = V::add(value[k], V::mul(wy.w[j], rowValue[k]));
             xDerivative[k] = V::add(xDerivative[k], V::mul(wy.w[j], rowDerivative[k]));
@@ -225,7 +223,7 @@ inline unsigned tricubicGradientColumnsLanes(const WideColumns& columns, const f
         }
     }
     F sumX = zero, sumY = zero, sumZ = zero;
-    #pragma GCC unroll 4
+#pragma GCC unroll 4
     for (int k = 0; k < 4; ++k) {
         sumX = V::add(sumX, V::mul(wz.w[k], xDerivative[k]));
         sumY = V::add(sumY, V::mul(wz.w[k], yDerivative[k]));

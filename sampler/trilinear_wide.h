@@ -21,8 +21,8 @@ struct WideColumns {
 extern const bool kWideTrilinear;
 
 /// Whether the march kernel (render/march_wide.h) and the gradients take sixteen lanes at a
-/// time: kWideTrilinear and the processor has AVX-512F and BW, decided once; DISTILE_SIMD=avx2 keeps
-/// them to eight (same results).
+/// time: kWideTrilinear and the processor has AVX-512F and BW, decided once; DISTILE_SIMD=avx2
+/// keeps them to eight (same results).
 extern const bool kSixteenLanes;
 
 /// BasicTrilinearFilter<ColumnTexels>::distanceTexels at the eight points `xyz` (x, y, z of
@@ -41,7 +41,6 @@ unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, 
 
 /// tricubicGradientColumns8 at sixteen points (48 floats in and out; bit i of the result for
 /// point i), with AVX-512 (sampler/trilinear_wide16.cpp). Precondition: kSixteenLanes.
-unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz,
-                                   float* gradients);
+unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz, float* gradients);
 
 }  // namespace distile::detail

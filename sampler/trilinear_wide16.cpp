@@ -10,8 +10,7 @@ namespace distile::detail {
 
 #if defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512BW__) && !defined(__FMA__)
 
-unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz,
-                                   float* gradients) {
+unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz, float* gradients) {
     return tricubicGradientColumnsLanes<Lanes16>(columns, xyz, gradients);
 }
 

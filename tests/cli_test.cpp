@@ -277,8 +277,8 @@ TEST_F(Cli, RenderIsTheSameOnEverySimdPath) {
     // DISTILE_SIMD=sse2 keeps to the SSE2 paths; where the processor has AVX2 the default takes
     // the wide entry, march and filter kernels (render/entry_wide.h, render/march_wide.h), and
     // where it has AVX-512 the march's sixteen lanes, which DISTILE_SIMD=avx2 keeps to eight.
-    // Same operations per ray: the same floats. With shadows (self-shadow rays interleave too) and the
-    // AOVs' depth. Two scenes: the chain mail seen from above; and a low grating (empty space
+    // Same operations per ray: the same floats. With shadows (self-shadow rays interleave too) and
+    // the AOVs' depth. Two scenes: the chain mail seen from above; and a low grating (empty space
     // above it: the entry's jump to the highest top) seen at a grazing angle, with tiles repeated
     // thousands of times (the entry's uv wrapped in double precision), under a colour texture
     // (the entry's float uv: bilinear albedo there).
@@ -303,8 +303,8 @@ TEST_F(Cli, RenderIsTheSameOnEverySimdPath) {
         for (const std::string simd : {"default", "avx2", "sse2"}) {
             if (simd != "default") setenv("DISTILE_SIMD", simd.c_str(), 1);
             const RunResult result =
-                run({"render", scene + ".json", "-o", scene + "_" + simd + ".exr", "--width",
-                     "128", "--height", "96", "--aovs"});
+                run({"render", scene + ".json", "-o", scene + "_" + simd + ".exr", "--width", "128",
+                     "--height", "96", "--aovs"});
             unsetenv("DISTILE_SIMD");
             ASSERT_EQ(result.status, 0) << result.err;
         }
