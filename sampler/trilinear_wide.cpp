@@ -3,6 +3,7 @@
 // distile also instantiates, so no AVX2 code can stand in for theirs.
 #include "sampler/trilinear_wide.h"
 
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 
@@ -17,6 +18,12 @@ namespace distile::detail {
 const bool kWideTrilinear = [] {
     // DISTILE_SIMD=sse2 keeps to the SSE2 paths (the same results; to compare or reproduce).
     const char* simd = std::getenv("DISTILE_SIMD");
+    if (simd && std::strcmp(simd, "sse2") != 0 && std::strcmp(simd, "avx2") != 0) {
+        std::fprintf(stderr,
+                     "distile: warning: DISTILE_SIMD=%s is not one of sse2, avx2; the widest "
+                     "lanes the processor has are used\n",
+                     simd);
+    }
     if (simd && std::strcmp(simd, "sse2") == 0) return false;
     __builtin_cpu_init();  // may run before libgcc's own initialisation
     return __builtin_cpu_supports("avx2") != 0;
