@@ -129,7 +129,7 @@ class ColumnTexels {
     float operator[](std::size_t element) const { return float(codes_[element]) * texelsPerCode_; }
     const std::int16_t* codes() const { return codes_; }
     float texelsPerCode() const { return texelsPerCode_; }
-    /// The same columns as the AVX2 kernels read them (sampler/trilinear_wide.h).
+    /// The same columns as the wide (AVX2, AVX-512) kernels read them (sampler/trilinear_wide.h).
     detail::WideColumns wide() const {
         return {codes_, texelsPerCode_, size_.width, size_.height, size_.depth};
     }

@@ -1,5 +1,6 @@
-// The AVX2 kernel of sampler/trilinear_wide.h. This file is compiled with -mavx2 (and without FMA,
-// so no product is fused into a sum): it includes nothing with inline functions that the rest of
+// The eight-lane (AVX2) kernels of sampler/trilinear_wide.h, and the choice of lanes
+// (kWideTrilinear, kSixteenLanes). This file is compiled with -mavx2 (and without FMA, so no
+// product is fused into a sum): it includes nothing with inline functions that the rest of
 // distile also instantiates, so no AVX2 code can stand in for theirs.
 #include "sampler/trilinear_wide.h"
 

@@ -1,8 +1,10 @@
 /// @file
 /// The trilinear filter over TileColumns at eight points per call with AVX2 (gathers), for the
-/// march (sampler/filters.h, BasicTrilinearFilter::distancesTexels8). Built in its own translation
-/// unit with AVX2 enabled and run only where the processor has it: the rest of distile stays
-/// SSE2. No FMA: every lane does the scalar filter's operations, in its order, bit for bit.
+/// march (sampler/filters.h, BasicTrilinearFilter::distancesTexels8), and the B-spline gradient
+/// at eight (AVX2) or sixteen (AVX-512) points. Built in their own translation units with those
+/// instruction sets enabled (sampler/trilinear_wide.cpp, trilinear_wide16.cpp) and run only where
+/// the processor has them: the rest of distile stays SSE2. No FMA: every lane does the scalar
+/// filter's operations, in its order, bit for bit.
 #pragma once
 
 #include <cstdint>

@@ -118,7 +118,7 @@ TEST(March, InterleavedMarchesAreBitIdenticalToSingleOnes) {
     // degrees, every sphere-tracing method, budgets small enough to run out and to force the
     // budgeted march's long steps past the surface (regula falsi), NaN rays and a ray far out
     // (x = 3e9, beyond the wide filter's near case). Interleaving only reorders independent rays,
-    // so every field of every result must be equal, through marchInterleaved (the AVX2 kernel of
+    // so every field of every result must be equal, through marchInterleaved (the wide kernel of
     // render/march_wide.h where the processor has it) and through the scalar interleave.
     const Size3 size{32, 32, 16};
     Tile tile(size);
