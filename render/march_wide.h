@@ -1,13 +1,12 @@
 /// @file
 /// The sphere trace's steps for eight rays at a time with AVX2, or sixteen with AVX-512
-/// (render/march.h,
-/// marchInterleaved, over TileColumns' trilinear filter): the rays' states in SIMD lanes, one
-/// sample of each per round, the steps that go on (a sphere step, the start of the regula falsi
-/// refinement and its steps) taken in the lanes with the scalar operations in their order (no
-/// FMA), so bit for bit as detail::SphereTraceRay takes them. The step that ends a march (or
-/// takes back a relaxed step) is left to SphereTraceRay itself.
-/// Built in their own translation units with AVX2 and AVX-512 (render/march_lanes.h); plain types
-/// only, as sampler/trilinear_wide.h.
+/// (render/march.h, marchInterleaved, over TileColumns' trilinear filter): the rays' states in
+/// SIMD lanes, one sample of each per round, the steps that go on (a sphere step, the start of
+/// the regula falsi refinement and its steps) taken in the lanes with the scalar operations in
+/// their order (no FMA), so bit for bit as detail::SphereTraceRay takes them. The step that ends
+/// a march (or takes back a relaxed step) is left to SphereTraceRay itself. Built in their own
+/// translation units with AVX2 and AVX-512 (render/march_lanes.h); plain types only, as
+/// sampler/trilinear_wide.h.
 #pragma once
 
 #include "sampler/trilinear_wide.h"

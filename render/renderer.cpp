@@ -264,8 +264,7 @@ class Renderer {
         ++stats.rays;
         sample = Sample{};
         stats.marchIterations += counters.marchIterations;
-        // Per camera ray, from the march of its nearest hit (counters.converged counts every
-        // shell the ray marched).
+        // Per camera ray, from the march of its nearest hit.
         if (found && hit.onDetail && hit.march.converged) ++stats.converged;
         if (!found) {
             sample.color = skyColor(ray.direction);
@@ -298,10 +297,10 @@ class Renderer {
         }
     }
 
-    /// Fraction of light `lightIndex` reaching `receiver` past other surfaces (1 without a map).
+    /// Fraction of light `lightIndex` reaching `receiver` past other surfaces. Precondition: the
+    /// light has a shadow map (without one nothing is asked: the callers skip the receiver too).
     float castShadow(std::size_t lightIndex, const ShadowReceiver& receiver, std::uint32_t seed,
                      std::uint64_t& samples) const {
-        if (!shadowMaps_[lightIndex]) return 1.0f;
         return shadowMaps_[lightIndex]->visibility(
             receiver, options_.shadowFilter, seed ^ (0x27d4eb2fU * std::uint32_t(lightIndex + 1)),
             samples);
@@ -315,9 +314,12 @@ class Renderer {
             const DirectionalLight& light = scene_.lights[index];
             const glm::vec3& toLight = toLights_[index];
             if (glm::dot(hit.entry.normal, toLight) <= 0.0f) continue;
-            const float visibility =
-                castShadow(index, {hit.position, hit.entry.normal}, seed, shadowMapSamples);
-            if (visibility <= 0.0f) continue;
+            float visibility = 1.0f;
+            if (shadowMaps_[index]) {
+                visibility =
+                    castShadow(index, {hit.position, hit.entry.normal}, seed, shadowMapSamples);
+                if (visibility <= 0.0f) continue;
+            }
             color += directLight(hit.normal, toLight, view, albedo) * light.color * visibility;
         }
         return color;

@@ -144,7 +144,6 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
             const glm::vec3& p2 = mesh.positions[triangle[2]];
             ShellTriangle shell{objectIndex, t, texelsPerWorld, glm::cross(p1 - p0, p2 - p0),
                                 DoubleTriangle(p0, p1, p2)};
-            shell.hasDetail = tile && texelsPerWorld.x != 0.0f;
             const bool sameCorners = mesh.normals[triangle[0]] == mesh.normals[triangle[1]] &&
                                      mesh.normals[triangle[0]] == mesh.normals[triangle[2]] &&
                                      mesh.tangents[triangle[0]] == mesh.tangents[triangle[1]] &&
@@ -562,7 +561,6 @@ bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHi
     hit.march.travelTexels = travelTexels;
     ++counters.shellEntries;
     counters.marchIterations += std::uint64_t(result.iterations);
-    if (result.converged) ++counters.converged;
     if (result.exitedFloor) return false;
     hit.onDetail = true;
     const float distanceWorld =

@@ -153,7 +153,6 @@ void marchInterleavedByTile(FilterKind kind, std::span<Marcher* const> rays,
 struct TraceCounters {
     std::uint64_t shellEntries = 0;     ///< rays that entered a detail shell and were marched
     std::uint64_t marchIterations = 0;  ///< sphere-tracing steps
-    std::uint64_t converged = 0;        ///< marches that hit detail or floor within the budget
 };
 
 class SceneTracer {
@@ -220,8 +219,9 @@ class SceneTracer {
         glm::vec2 texelsPerWorldUv;  ///< texels per world unit along T and B (0: degenerate UVs)
         glm::vec3 geometricNormal;   ///< (p1 - p0) x (p2 - p0), not normalised
         DoubleTriangle top;          ///< the base triangle, for intersectTriangle
-        /// A tile over non-degenerate UVs: a front-facing ray enters the detail here.
-        bool hasDetail = false;
+        /// A tile over non-degenerate UVs (texelsPerWorldUv is 0 without a tile): a front-facing
+        /// ray enters the detail here.
+        bool hasDetail() const { return texelsPerWorldUv.x != 0.0f; }
         /// A ray along `direction` meets the front of the base triangle.
         bool frontFacing(const glm::vec3& direction) const {
             return glm::dot(geometricNormal, direction) < 0.0f;
@@ -285,7 +285,7 @@ inline bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, Sur
                                  ShellMarch& march) const {
     const ShellTriangle& shell = triangles_[baseHit.triangle];
     // A back face, or a base surface without detail, stops the ray.
-    if (!shell.frontFacing(ray.direction) || !shell.hasDetail) {
+    if (!shell.frontFacing(ray.direction) || !shell.hasDetail()) {
         baseSurfaceHit(ray, baseHit, hit);
         hit.march = MarchResult{};  // not marched (the hit may be working memory of a batch)
         return false;
