@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <glm/geometric.hpp>
 #include <limits>
 #include <numeric>
@@ -57,6 +60,56 @@ PinholeProjection::PinholeProjection(const Camera& camera, int widthPixels, int 
     // basis vectors included); in pixels that is the slope error over the slope per pixel.
     const double slopeRange = 1.0 + tanX + double(tanHalfFov_);
     marginPixels_ = 1e-4 + 1e-6 * slopeRange / std::min(slopePerPixel_.x, -slopePerPixel_.y);
+}
+
+void PinholeProjection::directions(const float* xPixels, const float* yPixels, std::size_t count,
+                                   float* x, float* y, float* z) const {
+    // The view-space slopes are affine in the pixel position (slopePerPixel, slopeAtOrigin);
+    // the direction is glm::normalize's: v times 1 / sqrt(v . v).
+#if defined(__SSE2__)
+    // Four at a time; the last four padded with their first position.
+    const auto at = [](float value) { return _mm_set1_ps(value); };
+    const auto sum = [](__m128 a, __m128 b) { return _mm_add_ps(a, b); };
+    const auto product = [](__m128 a, __m128 b) { return _mm_mul_ps(a, b); };
+    for (std::size_t first = 0; first < count; first += 4) {
+        const std::size_t lanes = std::min<std::size_t>(4, count - first);
+        alignas(16) float xs[4], ys[4];
+        for (std::size_t lane = 0; lane < 4; ++lane) {
+            xs[lane] = xPixels[first + (lane < lanes ? lane : 0)];
+            ys[lane] = yPixels[first + (lane < lanes ? lane : 0)];
+        }
+        const __m128 slopeX =
+            sum(product(_mm_load_ps(xs), at(slopePerPixelFloat_.x)), at(slopeAtOriginFloat_.x));
+        const __m128 slopeY =
+            sum(product(_mm_load_ps(ys), at(slopePerPixelFloat_.y)), at(slopeAtOriginFloat_.y));
+        __m128 v[3];
+        for (int axis = 0; axis < 3; ++axis) {
+            v[axis] = sum(sum(at(forward_[axis]), product(slopeX, at(right_[axis]))),
+                          product(slopeY, at(up_[axis])));
+        }
+        const __m128 inverseLength = _mm_div_ps(
+            at(1.0f),
+            _mm_sqrt_ps(sum(sum(product(v[0], v[0]), product(v[1], v[1])), product(v[2], v[2]))));
+        alignas(16) float out[3][4];
+        for (int axis = 0; axis < 3; ++axis)
+            _mm_store_ps(out[axis], product(v[axis], inverseLength));
+        for (std::size_t lane = 0; lane < lanes; ++lane) {
+            x[first + lane] = out[0][lane];
+            y[first + lane] = out[1][lane];
+            z[first + lane] = out[2][lane];
+        }
+    }
+#else
+    for (std::size_t i = 0; i < count; ++i) {
+        const float slopeX = xPixels[i] * slopePerPixelFloat_.x + slopeAtOriginFloat_.x;
+        const float slopeY = yPixels[i] * slopePerPixelFloat_.y + slopeAtOriginFloat_.y;
+        const glm::vec3 v = forward_ + slopeX * right_ + slopeY * up_;
+        const glm::vec3 unit = v * (1.0f / std::sqrt(glm::dot(v, v)));
+        x[i] = unit.x;
+        y[i] = unit.y;
+        z[i] = unit.z;
+    }
+#endif
 }
 
 glm::dvec3 PinholeProjection::toView(const glm::vec3& world) const {

@@ -12,11 +12,7 @@
 /// along camera rays, world units.
 #pragma once
 
-#include <cmath>
 #include <cstdint>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <span>
@@ -41,76 +37,25 @@ class PinholeProjection {
         return {eye_, direction};
     }
     /// The directions of ray() for `count` pixel positions, x, y and z components apart, four at
-    /// a time with SSE2 in the operations of one at a time: the same floats.
+    /// a time with SSE2 (ray() is the one-position case: the same floats either way).
     void directions(const float* xPixels, const float* yPixels, std::size_t count, float* x,
-                    float* y, float* z) const {
-        // The view-space slopes are affine in the pixel position (slopePerPixel, slopeAtOrigin);
-        // the direction is glm::normalize's: v times 1 / sqrt(v . v).
-        std::size_t first = 0;
-#if defined(__SSE2__)
-        const auto at = [](float value) { return _mm_set1_ps(value); };
-        const auto sum = [](__m128 a, __m128 b) { return _mm_add_ps(a, b); };
-        const auto product = [](__m128 a, __m128 b) { return _mm_mul_ps(a, b); };
-        for (; first + 4 <= count; first += 4) {
-            const __m128 slopeX =
-                sum(product(_mm_loadu_ps(xPixels + first), at(slopePerPixelFloat_.x)),
-                    at(slopeAtOriginFloat_.x));
-            const __m128 slopeY =
-                sum(product(_mm_loadu_ps(yPixels + first), at(slopePerPixelFloat_.y)),
-                    at(slopeAtOriginFloat_.y));
-            __m128 v[3];
-            for (int axis = 0; axis < 3; ++axis) {
-                v[axis] = sum(sum(at(forward_[axis]), product(slopeX, at(right_[axis]))),
-                              product(slopeY, at(up_[axis])));
-            }
-            const __m128 inverseLength =
-                _mm_div_ps(at(1.0f), _mm_sqrt_ps(sum(sum(product(v[0], v[0]), product(v[1], v[1])),
-                                                     product(v[2], v[2]))));
-            _mm_storeu_ps(x + first, product(v[0], inverseLength));
-            _mm_storeu_ps(y + first, product(v[1], inverseLength));
-            _mm_storeu_ps(z + first, product(v[2], inverseLength));
-        }
-#endif
-        for (std::size_t i = first; i < count; ++i) {
-            const float slopeX = xPixels[i] * slopePerPixelFloat_.x + slopeAtOriginFloat_.x;
-            const float slopeY = yPixels[i] * slopePerPixelFloat_.y + slopeAtOriginFloat_.y;
-            const float vx = forward_.x + slopeX * right_.x + slopeY * up_.x;
-            const float vy = forward_.y + slopeX * right_.y + slopeY * up_.y;
-            const float vz = forward_.z + slopeX * right_.z + slopeY * up_.z;
-            const float inverseLength = 1.0f / std::sqrt(vx * vx + vy * vy + vz * vz);
-            x[i] = vx * inverseLength;
-            y[i] = vy * inverseLength;
-            z[i] = vz * inverseLength;
-        }
-    }
+                    float* y, float* z) const;
 
     /// `world` relative to the eye in the camera basis: x right, y up, z forward (world units).
     glm::dvec3 toView(const glm::vec3& world) const;
     /// The view-space direction (x, y, 1) of the camera ray through pixel position (x, y) is an
     /// affine function of it: x = slopePerPixel.x * xPixels + slopeAtOrigin.x, same for y.
-    glm::dvec2 slopePerPixel() const {
-        return slopePerPixel_;
-    }
-    glm::dvec2 slopeAtOrigin() const {
-        return slopeAtOrigin_;
-    }
+    glm::dvec2 slopePerPixel() const { return slopePerPixel_; }
+    glm::dvec2 slopeAtOrigin() const { return slopeAtOrigin_; }
     /// Pixel position of a view-space point; precondition: view.z > 0.
     glm::dvec2 toPixels(const glm::dvec3& view) const;
 
-    glm::vec3 eye() const {
-        return eye_;
-    }
-    int width() const {
-        return width_;
-    }
-    int height() const {
-        return height_;
-    }
+    glm::vec3 eye() const { return eye_; }
+    int width() const { return width_; }
+    int height() const { return height_; }
     /// How far (pixels) a camera ray computed in single precision may stray from the pixel
     /// position it was asked for; coverage tests grow pixel squares by this much.
-    double marginPixels() const {
-        return marginPixels_;
-    }
+    double marginPixels() const { return marginPixels_; }
 
   private:
     glm::vec3 eye_, forward_, right_, up_;

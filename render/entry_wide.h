@@ -1,8 +1,8 @@
 /// @file
 /// Eight rays entering one flat detail shell at a time with AVX2: SceneTracer's entry arithmetic
-/// (render/tracer.cpp, SceneTracer::takeEntry) in SIMD lanes, with the scalar operations in their order and
-/// precision (no FMA), so bit for bit as one ray at a time: the entry point and uv on the shell's
-/// top, the ray's direction in texel space, its start in the tile (the uv wrapped in double
+/// (render/tracer.cpp, SceneTracer::takeEntry) in SIMD lanes, with the scalar operations in their
+/// order and precision (no FMA), so bit for bit as one ray at a time: the entry point and uv on the
+/// shell's top, the ray's direction in texel space, its start in the tile (the uv wrapped in double
 /// precision), the jump over the empty layers above the highest occupied top, and the adaptive
 /// budget. A flat shell's frame is the same at every point of it, so it is one set of constants.
 /// Built in its own translation unit with AVX2; plain types only, as sampler/trilinear_wide.h.
