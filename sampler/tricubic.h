@@ -318,18 +318,9 @@ class BasicTricubicBSplineFilter {
     void gradients(const glm::vec3* positions, int count, glm::vec3* out) const {
         unsigned redo = (1u << count) - 1u;
         if constexpr (Texels::kZContiguous) {
-            if (detail::kSixteenLanes) {
-                redo &=
-                    detail::tricubicGradientColumns16(texels_.wide(), &positions[0].x, &out[0].x);
-            } else if (detail::kWideTrilinear) {
-                unsigned wide =
-                    detail::tricubicGradientColumns8(texels_.wide(), &positions[0].x, &out[0].x);
-                if (count > 8) {
-                    wide |=
-                        detail::tricubicGradientColumns8(texels_.wide(), &positions[8].x, &out[8].x)
-                        << 8;
-                }
-                redo &= wide;
+            if (detail::kWideTrilinear) {
+                redo = detail::tricubicGradientColumns(texels_.wide(), &positions[0].x, count,
+                                                       &out[0].x);
             }
         }
         for (int lane = 0; lane < count; ++lane)

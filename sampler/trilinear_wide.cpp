@@ -47,8 +47,14 @@ unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* 
     return unknown;
 }
 
-unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, float* gradients) {
-    return tricubicGradientColumnsLanes<Lanes8>(columns, xyz, gradients);
+unsigned tricubicGradientColumns(const WideColumns& columns, const float* xyz, int count,
+                                 float* gradients) {
+    const unsigned points = (1u << count) - 1u;
+    if (kSixteenLanes) return points & tricubicGradientColumns16(columns, xyz, gradients);
+    unsigned redo = tricubicGradientColumnsLanes<Lanes8>(columns, xyz, gradients);
+    if (count > 8)
+        redo |= tricubicGradientColumnsLanes<Lanes8>(columns, xyz + 24, gradients + 24) << 8;
+    return points & redo;
 }
 
 #else
@@ -56,8 +62,8 @@ unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, 
 const bool kWideTrilinear = false;
 const bool kSixteenLanes = false;
 
-unsigned tricubicGradientColumns8(const WideColumns&, const float*, float*) {
-    return 0xffu;
+unsigned tricubicGradientColumns(const WideColumns&, const float*, int count, float*) {
+    return (1u << count) - 1u;  // never called: no AVX2
 }
 
 unsigned trilinearColumns8(const WideColumns&, const float*, float*) {

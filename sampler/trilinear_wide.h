@@ -34,15 +34,18 @@ extern const bool kSixteenLanes;
 /// Precondition: kWideTrilinear.
 unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out);
 
-/// BasicTricubicBSplineFilter<ColumnTexels>::gradient at the eight points `xyz` into
-/// `gradients` (x, y, z of each, 24 floats), bit for bit, for every lane whose x and y are in
-/// periodicAxis' near case and whose z taps are all stored slices (z - 0.5 in [1, D - 2)).
-/// Returns the other lanes (bit i for point i): their gradients are unspecified and must be
-/// computed one at a time. Precondition: kWideTrilinear.
-unsigned tricubicGradientColumns8(const WideColumns& columns, const float* xyz, float* gradients);
+/// BasicTricubicBSplineFilter<ColumnTexels>::gradient at the first `count` (1 .. 16) of the
+/// sixteen points `xyz` into `gradients` (x, y, z of each, 48 floats in and out; the points past
+/// `count` finite), bit for bit, for every point whose x and y are in periodicAxis' near case and
+/// whose z taps are all stored slices (z - 0.5 in [1, D - 2)): sixteen at a time where
+/// kSixteenLanes, else eight. Returns the other points among the first `count` (bit i for point
+/// i): their gradients are unspecified and must be computed one at a time. Precondition:
+/// kWideTrilinear.
+unsigned tricubicGradientColumns(const WideColumns& columns, const float* xyz, int count,
+                                 float* gradients);
 
-/// tricubicGradientColumns8 at sixteen points (48 floats in and out; bit i of the result for
-/// point i), with AVX-512 (sampler/trilinear_wide16.cpp). Precondition: kSixteenLanes.
+/// tricubicGradientColumns for all sixteen points with AVX-512 (sampler/trilinear_wide16.cpp),
+/// which it calls where kSixteenLanes. Precondition: kSixteenLanes.
 unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz, float* gradients);
 
 }  // namespace distile::detail
