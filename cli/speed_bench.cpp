@@ -374,6 +374,12 @@ void runSpeedBench(const BenchArguments& arguments) {
     // fresh pages (the peers' times exclude their start too: set-up, reading the level set).
     timedRender(sheet, unshadowed);
     TimedRender sheetUnshadowed = fastestRender(sheet, unshadowed, runs);
+    // Said once distile's runs are over (with the peers, after theirs).
+    auto sayDistileTime = [&] {
+        std::snprintf(line, sizeof line, "  S1 distile, no shadows, no AOVs       %8.4f s",
+                      sheetUnshadowed.seconds);
+        say(line);
+    };
     {
         RenderOptions referenceOptions = benchRenderOptions(width, height);
         referenceOptions.reference = true;
@@ -443,30 +449,22 @@ void runSpeedBench(const BenchArguments& arguments) {
         fs::create_directories(work);
         const std::optional<PeerRender> vdbRender = fastestPeer(
             [&] { return renderSheetWithVdbRender(sheet, width, height, threads, work); });
-        std::snprintf(line, sizeof line, "  S1 distile, no shadows, no AOVs       %8.4f s",
-                      sheetUnshadowed.seconds);
-        say(line);
+        sayDistileTime();
         peerRow("embree", embree);
         peerRow("vdb_render", vdbRender);
-        notes.push_back(
-            "distile and each peer: the fastest of their runs, distile's alternating "
-            "with the peer's (" +
-            std::to_string(runs) +
-            " runs of each peer, each "
-            "with its own set-up; distile's fastest of all its " +
-            std::to_string(distileRuns) + " runs after one untimed warm-up render).");
+        std::string note = "distile and each peer: the fastest of their runs, distile's ";
+        note += "alternating with the peer's (" + std::to_string(runs) + " runs of each peer, ";
+        note += "each with its own set-up; distile's fastest of all its ";
+        note += std::to_string(distileRuns) + " runs after one untimed warm-up render).";
+        notes.push_back(note);
         if (embree && embree->available) embreeBytes = double(embree->memoryBytes);
         if (vdbRender && vdbRender->available) levelSetBytes = double(vdbRender->memoryBytes);
     } else {
-        std::snprintf(line, sizeof line, "  S1 distile, no shadows, no AOVs       %8.4f s",
-                      sheetUnshadowed.seconds);
-        say(line);
+        sayDistileTime();
         notes.push_back("peers: not run (--no-peers)");
     }
 #else
-    std::snprintf(line, sizeof line, "  S1 distile, no shadows, no AOVs       %8.4f s",
-                  sheetUnshadowed.seconds);
-    say(line);
+    sayDistileTime();
     notes.push_back("peers: distile was built without bench/ (DISTILE_BUILD_BENCH=OFF)");
 #endif
 
