@@ -50,7 +50,13 @@ struct LaneSource {
             group.idle[slot] = -1;
             return;
         }
-        const SphereTraceLane& lane = *lanes[next];
+        load(group, slot, next++);
+    }
+
+    /// Ray `index` of the call into lane `slot` of `group`, as the ray holds its state.
+    template <class V>
+    void load(LaneGroup<V>& group, int slot, int index) const {
+        const SphereTraceLane& lane = *lanes[index];
         group.startX[slot] = lane.start[0];
         group.startY[slot] = lane.start[1];
         group.startZ[slot] = lane.start[2];
@@ -70,8 +76,24 @@ struct LaneSource {
         group.insideDistance[slot] = lane.insideDistance;
         group.estimate[slot] = lane.estimate;
         group.idle[slot] = 0;
-        group.laneOf[slot] = next++;
+        group.laneOf[slot] = index;
         ++group.busy;
+    }
+
+    /// The state the steps of lane `slot` of `group` changed, back into its ray.
+    template <class V>
+    void store(const LaneGroup<V>& group, int slot) const {
+        SphereTraceLane& lane = *lanes[group.laneOf[slot]];
+        lane.travel = group.travel[slot];
+        lane.safeRadius = group.safeRadius[slot];
+        lane.previousStep = group.previousStep[slot];
+        lane.iterations = group.iterations[slot];
+        lane.refining = group.refining[slot] != 0;
+        lane.outside = group.outside[slot];
+        lane.outsideDistance = group.outsideDistance[slot];
+        lane.inside = group.inside[slot];
+        lane.insideDistance = group.insideDistance[slot];
+        lane.estimate = group.estimate[slot];
     }
 };
 
@@ -195,17 +217,8 @@ inline void handBack(LaneGroup<V>& group, LaneSource& source, bool now = false) 
     if (!now && __builtin_popcount(group.parked) < kParkedBeforeRefill<V> && group.busy > 0) return;
     for (unsigned parked = group.parked; parked != 0; parked &= parked - 1) {
         const int slot = __builtin_ctz(parked);
+        source.store(group, slot);
         SphereTraceLane& lane = *source.lanes[group.laneOf[slot]];
-        lane.travel = group.travel[slot];
-        lane.safeRadius = group.safeRadius[slot];
-        lane.previousStep = group.previousStep[slot];
-        lane.iterations = group.iterations[slot];
-        lane.refining = group.refining[slot] != 0;
-        lane.outside = group.outside[slot];
-        lane.outsideDistance = group.outsideDistance[slot];
-        lane.inside = group.inside[slot];
-        lane.insideDistance = group.insideDistance[slot];
-        lane.estimate = group.estimate[slot];
         lane.pendingDistance = group.distance[slot];
         lane.distanceKnown = group.unknown[slot] == 0;
         source.take(group, slot);
@@ -213,36 +226,17 @@ inline void handBack(LaneGroup<V>& group, LaneSource& source, bool now = false) 
     group.parked = 0;
 }
 
-/// The busy lanes of `from` moved into idle lanes of `to` (which must have enough), `from`'s
-/// parked lanes already handed back.
+/// The busy lanes of `from` moved into idle lanes of `to` (which must have enough), through
+/// their rays; `from`'s parked lanes already handed back.
 template <class V>
-void moveBusyLanes(LaneGroup<V>& from, LaneGroup<V>& to) {
+void moveBusyLanes(LaneGroup<V>& from, LaneGroup<V>& to, const LaneSource& source) {
     int slot = 0;
     for (int fromSlot = 0; fromSlot < V::kWidth; ++fromSlot) {
         if (from.idle[fromSlot] != 0) continue;
         while (to.idle[slot] == 0) ++slot;
-        to.startX[slot] = from.startX[fromSlot];
-        to.startY[slot] = from.startY[fromSlot];
-        to.startZ[slot] = from.startZ[fromSlot];
-        to.directionX[slot] = from.directionX[fromSlot];
-        to.directionY[slot] = from.directionY[fromSlot];
-        to.directionZ[slot] = from.directionZ[fromSlot];
-        to.toFloorAtStart[slot] = from.toFloorAtStart[fromSlot];
-        to.travel[slot] = from.travel[fromSlot];
-        to.safeRadius[slot] = from.safeRadius[fromSlot];
-        to.previousStep[slot] = from.previousStep[fromSlot];
-        to.iterations[slot] = from.iterations[fromSlot];
-        to.maxIterations[slot] = from.maxIterations[fromSlot];
-        to.refining[slot] = from.refining[fromSlot];
-        to.outside[slot] = from.outside[fromSlot];
-        to.outsideDistance[slot] = from.outsideDistance[fromSlot];
-        to.inside[slot] = from.inside[fromSlot];
-        to.insideDistance[slot] = from.insideDistance[fromSlot];
-        to.estimate[slot] = from.estimate[fromSlot];
-        to.laneOf[slot] = from.laneOf[fromSlot];
-        to.idle[slot] = 0;
+        source.store(from, fromSlot);
+        source.load(to, slot, from.laneOf[fromSlot]);
         from.idle[fromSlot] = -1;
-        ++to.busy;
         --from.busy;
     }
 }
@@ -266,7 +260,7 @@ void sphereTraceOngoingStepsOf(const WideColumns& columns, const SphereTraceUnif
     // for the samples of one (a call's last rounds hold most of its idle lanes).
     handBack(groups[0], source, true);
     handBack(groups[1], source, true);
-    moveBusyLanes(groups[1], groups[0]);
+    moveBusyLanes(groups[1], groups[0], source);
     while (groups[0].busy > 0) {
         round<V, kRelaxed>(columns, uniforms, groups[0]);
         handBack(groups[0], source);
