@@ -130,6 +130,8 @@ void runRender(RenderArguments arguments) {
     }
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    for (const std::string& warning : result.warnings)
+        std::fprintf(stderr, "warning: %s\n", warning.c_str());
     writeImage(result.image, arguments.output);
     if (result.aovs) {
         writeImage(result.aovs->depth, aovPath(arguments.output, "depth", ".exr"));
@@ -236,6 +238,17 @@ void addRenderCommand(CLI::App& app) {
                      "Filter whose gradient gives the shading normal (same names as --filter)")
         ->transform(CLI::CheckedTransformer(filters, CLI::ignore_case))
         ->default_str("tricubic");
+    const std::map<std::string, ShellMapping> shellMappings{{"curved", ShellMapping::Curved},
+                                                            {"planar", ShellMapping::Planar}};
+    command
+        ->add_option("--shell", arguments->options.shellMapping,
+                     "How rays cross the detail shell of a curved base mesh: curved (follow the "
+                     "shell map from prism to prism: the ray bends in texel space, silhouettes "
+                     "are the detail's) or planar (ch. 8: the ray mapped into texel space once "
+                     "at its entry and marched straight; faster, wrong by texels on curved "
+                     "bases). Flat faces take the planar march either way (exact there)")
+        ->transform(CLI::CheckedTransformer(shellMappings, CLI::ignore_case))
+        ->default_str("curved");
     const std::map<std::string, ShadowFilter> shadowFilters{{"none", ShadowFilter::None},
                                                             {"full", ShadowFilter::Full},
                                                             {"adaptive", ShadowFilter::Adaptive}};

@@ -150,7 +150,7 @@ class Renderer {
         : scene_(scene),
           options_(options),
           tracer_(scene, TraceOptions{options.march, options.filter, options.normalFilter,
-                                      options.reference, options.skips}),
+                                      options.reference, options.skips, options.shellMapping}),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
         for (int index = 0; index < options.samplesPerPixel; ++index)
@@ -173,6 +173,8 @@ class Renderer {
             shadowMaps_[light].emplace(tracer_, scene.lights[light], resolution);
         }
     }
+
+    const std::vector<std::string>& warnings() const { return tracer_.warnings(); }
 
     /// Pixels x0 ... x1 - 1 of rows y0 ... y1 - 1 into `pixels` (row by row): each the mean
     /// colour of its samples, with the first sample's AOV values. The camera rays are traced in
@@ -603,6 +605,7 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
     result.stats = {rays, baseHits, iterations, converged, shadowSteps, shadowMapSamples};
     result.stats.shellsTested = shellsTested;
     result.stats.shellsTraced = shellsTraced;
+    result.warnings = renderer.warnings();
     return result;
 }
 

@@ -12,6 +12,8 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "common/progress.h"
 #include "render/image.h"
@@ -37,6 +39,8 @@ struct RenderOptions {
     int shadowMapResolution = 0;
     bool outputAovs = false;  ///< also produce the AOV images of RenderResult
     RenderSkips skips;        ///< work left out where the scene does not need it (all on)
+    /// Curved bases: follow the shell map prism by prism (default), or ch. 8's planar march.
+    ShellMapping shellMapping = ShellMapping::Curved;
     /// Reference render: march and shade every tiled material on its Material::analyticDistance
     /// (double precision, render/analytic_filter.h) instead of its tile, with kReferenceIterations
     /// and kReferenceEpsilonTexels in place of march.maxIterations and march.epsilonTexels (filter
@@ -88,6 +92,9 @@ struct RenderResult {
     Image image;
     std::optional<RenderAovs> aovs;
     RenderStats stats;
+    /// What the user should know about the scene as rendered (SceneTracer::warnings), one line
+    /// each.
+    std::vector<std::string> warnings;
 };
 
 /// Renders `scene`. Throws InputError for an invalid scene (validateScene) or options; for a

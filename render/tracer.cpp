@@ -5,8 +5,10 @@
 #include <cstdio>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <map>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "common/error.h"
 #include "render/analytic_filter.h"
@@ -105,6 +107,7 @@ void setFrame(ShellEntry& entry, const glm::vec3& normal, const glm::vec4& tange
 }  // namespace
 
 glm::vec3 ShellEntry::toTexel(const glm::vec3& world) const {
+    if (curved) return texelFromWorld * world;
     return {glm::dot(world, tangent) * texelsPerWorld.x,
             glm::dot(world, bitangent) * texelsPerWorld.y,
             glm::dot(world, normal) * texelsPerWorld.z};
@@ -112,6 +115,7 @@ glm::vec3 ShellEntry::toTexel(const glm::vec3& world) const {
 
 glm::vec3 ShellEntry::gradientToWorld(const glm::vec3& gradient) const {
     // Texel = M world with M's rows T sx, B sy, N sz; gradients transform with M transposed.
+    if (curved) return glm::transpose(texelFromWorld) * gradient;
     return tangent * (gradient.x * texelsPerWorld.x) + bitangent * (gradient.y * texelsPerWorld.y) +
            normal * (gradient.z * texelsPerWorld.z);
 }
@@ -156,10 +160,13 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
                 shell.frameTangent = frame.tangent;
                 shell.frameBitangent = frame.bitangent;
             }
+            shell.curved = shell.hasDetail() && !shell.flatFrame &&
+                           options.shellMapping == ShellMapping::Curved;
             triangles_.push_back(shell);
         }
     }
     bvh_ = TriangleBvh(std::move(corners));
+    buildShellMap();
 
     // Per tile (objects sharing one share these): its columns, and its empty space where the
     // skip holds (for the filters whose support the occupancy bounds).
@@ -204,6 +211,7 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
                values[triangle[2]] * hit.b2;
     };
     entry.position = ray.origin + ray.direction * hit.distanceWorld;
+    entry.curved = false;
     if (shell.flatFrame) {
         entry.normal = shell.frameNormal;
         entry.tangent = shell.frameTangent;
@@ -235,10 +243,14 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
     // it left); bounded by the object count so a ray cannot loop.
     const std::size_t maxPasses = scene_.objects.size() + 2;
     float from[kMaxBatchRays];
+    // A ray that left a curved shell through its top crosses that top from behind just after:
+    // back faces nearer than this are the way out, not a stop.
+    float skipBackFacesBefore[kMaxBatchRays];
     std::size_t passes[kMaxBatchRays];
     bool active[kMaxBatchRays];
     for (std::size_t r = 0; r < count; ++r) {
         from[r] = minDistance;
+        skipBackFacesBefore[r] = minDistance;
         passes[r] = 0;
         active[r] = true;
         found[r] = false;
@@ -256,6 +268,16 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
                 active[r] = false;
                 continue;
             }
+            while (baseHit.distanceWorld < skipBackFacesBefore[r] &&
+                   !triangles_[baseHit.triangle].frontFacing(rays[r].direction)) {
+                if (passes[r]++ == maxPasses ||
+                    !bvh_.intersect(rays[r], baseHit.distanceWorld,
+                                    std::numeric_limits<float>::max(), baseHit)) {
+                    active[r] = false;
+                    break;
+                }
+            }
+            if (!active[r]) continue;
             if (!enterAt(rays[r], baseHit, hits[r], marches[r])) {  // stops on the base surface
                 found[r] = true;
                 active[r] = false;
@@ -275,6 +297,9 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
             if (finishShell(rays[r], march, hits[r], counters, withNormals)) {
                 found[r] = true;
                 active[r] = false;
+            } else if (march.curved) {  // out of a curved shell: on from where it left
+                from[r] = march.endDistanceWorld;
+                skipBackFacesBefore[r] = march.outsideDistanceWorld;
             } else {  // out through an open floor: on from where it left
                 from[r] = march.baseHit.distanceWorld +
                           march.result.travelTexels / hits[r].texelsPerWorldAlongRay;
@@ -397,7 +422,9 @@ void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
     std::uint32_t shells[kMaxBatchRays];
     std::size_t flatCount = 0;
     for (ShellMarch* march : marches) {
-        if (entersFlatShell(*march)) {
+        if (triangles_[march->baseHit.triangle].curved) {
+            takeCurvedMarch(*march);
+        } else if (entersFlatShell(*march)) {
             shells[flatCount] = march->baseHit.triangle;
             flat[flatCount++] = march;
         } else {
@@ -564,7 +591,8 @@ bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHi
     if (result.exitedFloor) return false;
     hit.onDetail = true;
     const float distanceWorld =
-        march.baseHit.distanceWorld + travelTexels / hit.texelsPerWorldAlongRay;
+        march.curved ? march.endDistanceWorld
+                     : march.baseHit.distanceWorld + travelTexels / hit.texelsPerWorldAlongRay;
     hit.distanceWorld = distanceWorld;
     hit.position = ray.origin + ray.direction * distanceWorld;
     if (result.onFloor || !withNormal) return true;
@@ -578,6 +606,134 @@ bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHi
     if (glm::length(gradient) > 1e-6f)
         hit.normal = glm::normalize(hit.entry.gradientToWorld(gradient));
     return true;
+}
+
+void SceneTracer::buildShellMap() {
+    bool anyCurved = false;
+    for (const ShellTriangle& shell : triangles_) anyCurved |= shell.curved;
+    if (!anyCurved) return;
+    prisms_.resize(triangles_.size());
+    neighbours_.assign(triangles_.size(), {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour,
+                                           ShellPrisms::kNoNeighbour});
+    std::uint32_t firstShell = 0;
+    for (std::size_t objectIndex = 0; objectIndex < scene_.objects.size(); ++objectIndex) {
+        const SceneObject& object = scene_.objects[objectIndex];
+        const BaseMesh& mesh = object.mesh;
+        const std::uint32_t shellCount = std::uint32_t(mesh.triangles.size());
+        const Tile* tile = object.material.tile.get();
+        bool objectCurved = false;
+        for (std::uint32_t t = 0; t < shellCount; ++t)
+            objectCurved |= triangles_[firstShell + t].curved;
+        if (!objectCurved) {
+            firstShell += shellCount;
+            continue;
+        }
+        const Size3& size = tile->size();
+        // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
+        std::map<std::array<float, 3>, std::uint32_t> weld;
+        std::vector<std::uint32_t> surfaceVertex(mesh.positions.size());
+        for (std::size_t vertex = 0; vertex < mesh.positions.size(); ++vertex) {
+            const glm::vec3& p = mesh.positions[vertex];
+            surfaceVertex[vertex] =
+                weld.try_emplace({p.x, p.y, p.z}, std::uint32_t(weld.size())).first->second;
+        }
+        // Directed edges (from, to) of the surface: a neighbour has the same edge reversed.
+        std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<std::uint32_t>> edges;
+        double foldWorld = std::numeric_limits<double>::infinity();
+        std::size_t foldedTriangles = 0;
+        for (std::uint32_t t = 0; t < shellCount; ++t) {
+            const glm::uvec3 corners = mesh.triangles[t];
+            glm::vec3 positions[3], normals[3];
+            glm::vec2 uvs[3];
+            for (int corner = 0; corner < 3; ++corner) {
+                positions[corner] = mesh.positions[corners[corner]];
+                normals[corner] = mesh.normals[corners[corner]];
+                uvs[corner] = mesh.uvs[corners[corner]];
+            }
+            ShellPrism& prism = prisms_[firstShell + t];
+            prism = ShellPrism::make(positions, normals, uvs, object.material.uvScale, size.width,
+                                     size.height, size.depth, object.material.depthWorld);
+            if (!prism.straight()) {
+                const double fold = prism.foldDepthWorld();
+                foldWorld = std::min(foldWorld, fold);
+                if (fold <= object.material.depthWorld) ++foldedTriangles;
+            }
+            for (int corner = 0; corner < 3; ++corner) {
+                const std::uint32_t from = surfaceVertex[corners[(corner + 1) % 3]];
+                const std::uint32_t to = surfaceVertex[corners[(corner + 2) % 3]];
+                edges[{from, to}].push_back(t * 3 + std::uint32_t(corner));
+            }
+        }
+        // The side face opposite corner c of triangle t is shared with the one triangle that has
+        // the same edge reversed (a manifold, consistently oriented edge); none at a border.
+        for (const auto& [edge, sides] : edges) {
+            if (sides.size() != 1) continue;
+            const auto reversed = edges.find({edge.second, edge.first});
+            if (reversed == edges.end() || reversed->second.size() != 1) continue;
+            const std::uint32_t side = sides[0], other = reversed->second[0];
+            neighbours_[firstShell + side / 3][side % 3] = firstShell + other / 3;
+        }
+        if (foldedTriangles > 0) {
+            char text[320];
+            std::snprintf(text, sizeof text,
+                          "objects[%zu]: the curved shell folds on %zu triangles: its depth %.4g "
+                          "is deeper than the base mesh's radius of curvature there; the largest "
+                          "depth that does not fold is %.4g",
+                          objectIndex, foldedTriangles, double(object.material.depthWorld),
+                          foldWorld);
+            warnings_.push_back(text);
+        }
+        firstShell += shellCount;
+    }
+}
+
+void SceneTracer::takeCurvedMarch(ShellMarch& march) const {
+    const Ray& ray = *march.ray;
+    SurfaceHit& hit = *march.hit;
+    const TriangleHit& baseHit = march.baseHit;
+    const ShellTriangle& shell = triangles_[baseHit.triangle];
+    const SceneObject& object = scene_.objects[shell.object];
+    const Material& material = object.material;
+    baseSurfaceHit(ray, baseHit, hit);
+    march.curved = true;
+    march.startTexels = glm::vec3(0.0f);
+    march.skippedTexels = 0.0f;
+    MarchSettings settings = options_.march;
+    if (!isSphereTracing(settings.method)) settings.method = MarchMethod::Budgeted;
+    const ShellPrisms prisms{prisms_, neighbours_};
+    const CurvedMarchEnd end = withMarchFilter(
+        options_.filter, material, columns(march.object), options_.reference,
+        [&](const auto& filter) {
+            return marchCurved(filter, prisms, ray, baseHit.triangle, baseHit.b1, baseHit.b2,
+                               baseHit.distanceWorld, material.floor, settings);
+        });
+    march.result = end.march;
+    march.marched = true;
+    march.endDistanceWorld = float(end.distanceWorld);
+    march.outsideDistanceWorld = float(end.distanceWorld);
+    if (end.leftShell) {
+        // Past the top's back face: a little beyond where the ray left, relative to the shell.
+        march.outsideDistanceWorld += 1e-3f * material.depthWorld;
+        return;
+    }
+    // The hit's frame: the base point above it and the map's Jacobian there.
+    const ShellPrism& prism = prisms_[end.prism];
+    const ShellPrism::Jacobian jacobian = prism.jacobianAt(end.point);
+    ShellEntry& entry = hit.entry;
+    entry.curved = true;
+    for (int axis = 0; axis < 3; ++axis) {
+        glm::dvec3 unit(0.0);
+        unit[axis] = 1.0;
+        entry.texelFromWorld[axis] = glm::vec3(prism.texelDelta(jacobian.solve(unit)));
+    }
+    const PrismPoint top{end.point.b1, end.point.b2, 0.0};
+    entry.position = glm::vec3(prism.worldAt(top));
+    entry.normal = glm::vec3(glm::normalize(prism.normalAt(end.point.b1, end.point.b2)));
+    const glm::uvec3 corners = object.mesh.triangles[triangles_[end.prism].localTriangle];
+    entry.uv = glm::vec2(glm::dvec2(object.mesh.uvs[corners[0]]) * end.point.b0() +
+                         glm::dvec2(object.mesh.uvs[corners[1]]) * end.point.b1 +
+                         glm::dvec2(object.mesh.uvs[corners[2]]) * end.point.b2);
+    hit.texelsPerWorldAlongRay = end.texelsPerWorldAlongRay;
 }
 
 }  // namespace distile

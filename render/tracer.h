@@ -5,17 +5,22 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
+#include "common/shell_map.h"
 #include "render/bvh.h"
 #include "render/march.h"
 #include "render/scene.h"
+#include "render/shell_march.h"
 #include "sampler/filter_choice.h"
 #include "sampler/occupancy.h"
 
@@ -41,6 +46,21 @@ struct RenderSkips {
     bool casterlessShadowMaps = true;
 };
 
+/// How rays go through the shell of a curved base (one whose vertex normals differ over a
+/// triangle; flat faces always take the planar march, which is exact there).
+enum class ShellMapping {
+    /// Follow the shell map (common/shell_map.h) prism by prism (render/shell_march.h): the default.
+    Curved,
+    /// Ch. 8's planar approximation: the ray mapped into texel space once, with the frame at its
+    /// entry, and marched straight. Kept to measure what the curved march costs and buys.
+    Planar,
+};
+
+/// "curved", "planar": the names of the command line.
+inline const char* shellMappingName(ShellMapping mapping) {
+    return mapping == ShellMapping::Curved ? "curved" : "planar";
+}
+
 struct TraceOptions {
     MarchSettings march;  ///< method, budget per ray (ch. 8 uses 8 to 16) and hit threshold
     FilterKind filter = FilterKind::Trilinear;  ///< the march's distances (must not overestimate)
@@ -51,10 +71,13 @@ struct TraceOptions {
     /// Precondition: every tiled material has an analyticDistance.
     bool reference = false;
     RenderSkips skips;
+    ShellMapping shellMapping = ShellMapping::Curved;
 };
 
 /// The base surface where a ray enters an object's detail shell, with the linear map between
-/// world directions and the tile's texel space there (the per-pixel tangent frame, ch. 8).
+/// world directions and the tile's texel space there (the per-pixel tangent frame, ch. 8). For a
+/// ray through a curved shell (ShellMapping::Curved) it is taken where the ray ends instead: the
+/// base point above the hit (position, normal, uv) and the shell map's Jacobian there.
 struct ShellEntry {
     glm::vec3 position;   ///< on the base surface, world units
     glm::vec3 normal;     ///< N, unit, outward
@@ -63,6 +86,10 @@ struct ShellEntry {
     glm::vec2 uv;
     glm::vec3 texelsPerWorld;  ///< scale of the T, B, N components into texels
     bool frontFacing = true;
+    /// Curved shells: texel = texelFromWorld * world (d texel / d world of the shell map), used by
+    /// toTexel and gradientToWorld instead of the frame.
+    bool curved = false;
+    glm::mat3 texelFromWorld{1.0f};
 
     glm::vec3 toTexel(const glm::vec3& world) const;
     /// A texel-space gradient as a world-space normal direction (not normalised).
@@ -102,6 +129,13 @@ struct ShellMarch {
     /// rays at once (marchShells).
     glm::vec3 gradientTexels{0.0f};
     bool gradientKnown = false;
+    /// A march through a curved shell (render/shell_march.h): its result's position is in the
+    /// texel space of the prism it ended in, and the distances below replace the entry's.
+    bool curved = false;
+    float endDistanceWorld = 0.0f;  ///< the hit, or where the ray left the shell
+    /// Left through the top: a point along the ray known to be above it (the back face of the
+    /// top it crossed lies before this).
+    float outsideDistanceWorld = 0.0f;
 };
 
 /// Calls function(key, items) once per distinct key of `keys`, in order of first appearance, with
@@ -212,6 +246,10 @@ class SceneTracer {
     const Scene& scene() const { return scene_; }
     const TraceOptions& options() const { return options_; }
 
+    /// What the user should know about the scene as traced, one line each, naming the object: a
+    /// curved shell deeper than its base's radius of curvature folds (its largest safe depth).
+    const std::vector<std::string>& warnings() const { return warnings_; }
+
   private:
     struct ShellTriangle {
         std::uint32_t object;
@@ -230,6 +268,9 @@ class SceneTracer {
         /// the same at every point, computed once (frameNormal, frameTangent, frameBitangent).
         bool flatFrame = false;
         glm::vec3 frameNormal{0.0f}, frameTangent{0.0f}, frameBitangent{0.0f};
+        /// Rays entering here follow the shell map (ShellMapping::Curved on a shell that is not
+        /// flat).
+        bool curved = false;
     };
     /// Fills `entry` (in place: the hit's own, no temporary) for the ray's hit on a shell's top.
     void shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const;
@@ -256,6 +297,10 @@ class SceneTracer {
     void beginMarch(ShellMarch& march, int maxIterations) const;
     /// Whether takeFlatEntries takes the entry of `march`.
     bool entersFlatShell(const ShellMarch& march) const;
+    /// The entry and the whole march of a ray entering a curved shell (render/shell_march.h).
+    void takeCurvedMarch(ShellMarch& march) const;
+    /// The prisms of every shell and their neighbours, warnings about folds.
+    void buildShellMap();
 
     const Scene& scene_;
     TraceOptions options_;
@@ -265,6 +310,11 @@ class SceneTracer {
     std::vector<std::shared_ptr<const TileOccupancy>> occupancies_;
     std::vector<std::shared_ptr<const TileColumns>> columns_;  ///< per object; null: no tile
     TriangleBvh bvh_;
+    /// Per shell: its prism (the shell map) and the shells across its side faces (those of curved
+    /// shells only; empty without any).
+    std::vector<ShellPrism> prisms_;
+    std::vector<std::array<std::uint32_t, 3>> neighbours_;
+    std::vector<std::string> warnings_;
 };
 
 // enterShell and enterAt inline: they run for every camera ray's shell, most of them a plain hit.
@@ -301,6 +351,7 @@ inline bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, Sur
     march.hit = &hit;
     march.marched = false;
     march.gradientKnown = false;
+    march.curved = false;
     return true;
 }
 
