@@ -21,6 +21,7 @@
 /// from the origin keeps its sub-texel detail.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
@@ -81,16 +82,18 @@ struct ShellPrism {
         /// Cofactor rows: inverse = rows / determinant (rows[k] = column[k+1] x column[k+2]).
         glm::dvec3 cofactor[3];
         double determinant = 0.0;
+        double inverseDeterminant = 0.0;  ///< 1 / determinant (inf when singular)
 
         /// Solves J x = v.
         glm::dvec3 solve(const glm::dvec3& v) const {
             return glm::dvec3(glm::dot(cofactor[0], v), glm::dot(cofactor[1], v),
-                              glm::dot(cofactor[2], v)) /
-                   determinant;
+                              glm::dot(cofactor[2], v)) *
+                   inverseDeterminant;
         }
         /// Solves J^T x = v: the world vector whose dot with each column is v's component.
         glm::dvec3 solveTransposed(const glm::dvec3& v) const {
-            return (v.x * cofactor[0] + v.y * cofactor[1] + v.z * cofactor[2]) / determinant;
+            return (v.x * cofactor[0] + v.y * cofactor[1] + v.z * cofactor[2]) *
+                   inverseDeterminant;
         }
     };
     Jacobian jacobianAt(const PrismPoint& point) const {
@@ -102,6 +105,7 @@ struct ShellPrism {
         jacobian.cofactor[1] = glm::cross(jacobian.column[2], jacobian.column[0]);
         jacobian.cofactor[2] = glm::cross(jacobian.column[0], jacobian.column[1]);
         jacobian.determinant = glm::dot(jacobian.column[0], jacobian.cofactor[0]);
+        jacobian.inverseDeterminant = 1.0 / jacobian.determinant;
         return jacobian;
     }
 
@@ -118,10 +122,14 @@ struct ShellPrism {
     }
 
     /// The prism point at world offset `offset` (world - P_0) by Newton's method from `guess`
-    /// (the map is nearly affine: one or two steps from a nearby guess). False when it does not
-    /// converge (a fold of the map, a degenerate prism, non-finite input); `point` then holds the
-    /// last iterate.
-    bool invert(const glm::dvec3& offset, PrismPoint& point, int maxSteps = 8) const;
+    /// (the map is nearly affine: one step from a nearby guess). Converged when a step moves
+    /// the barycentrics and the depth (relative to depthWorld) by less than 1e-3: the error left
+    /// is then of the order of the square of that times the map's small nonlinearity. `jacobian`
+    /// receives the Jacobian of the last step (at the point before it). False when it does not
+    /// converge within `maxSteps` (a fold of the map, a degenerate prism, non-finite input);
+    /// `point` then holds the last iterate.
+    bool invert(const glm::dvec3& offset, PrismPoint& point, Jacobian& jacobian,
+                int maxSteps = 8) const;
 
     /// The smallest depth (world units) at which the map folds over this triangle (its
     /// Jacobian's determinant changes sign, looked at along the corners, edge midpoints and the
@@ -129,26 +137,22 @@ struct ShellPrism {
     double foldDepthWorld() const;
 };
 
-inline bool ShellPrism::invert(const glm::dvec3& offset, PrismPoint& point, int maxSteps) const {
-    // Converged when the world residual is below a tiny share of the prism's size (relative to its
-    // edges and depth, so any scale works).
-    const double scale = glm::length(edge1) + glm::length(edge2) + depthWorld;
-    const double tolerance = 1e-12 * scale;
+inline bool ShellPrism::invert(const glm::dvec3& offset, PrismPoint& point, Jacobian& jacobian,
+                               int maxSteps) const {
+    constexpr double kConverged = 1e-3;
     for (int step = 0; step < maxSteps; ++step) {
-        const glm::dvec3 residual = offsetAt(point) - offset;
-        if (glm::dot(residual, residual) <= tolerance * tolerance) return true;
-        const Jacobian jacobian = jacobianAt(point);
+        jacobian = jacobianAt(point);
         if (!(jacobian.determinant != 0.0)) return false;
-        const glm::dvec3 change = jacobian.solve(residual);
+        const glm::dvec3 change = jacobian.solve(offsetAt(point) - offset);
         point.b1 -= change.x;
         point.b2 -= change.y;
         point.depthWorld -= change.z;
-        if (!(std::abs(point.b1) < 1e6 && std::abs(point.b2) < 1e6 &&
-              std::abs(point.depthWorld) < 1e6 * scale))
-            return false;
+        const double moved =
+            std::max({std::abs(change.x), std::abs(change.y), std::abs(change.z) / depthWorld});
+        if (moved < kConverged) return true;
+        if (!(moved < 1e6)) return false;  // diverging, or NaN
     }
-    const glm::dvec3 residual = offsetAt(point) - offset;
-    return glm::dot(residual, residual) <= 1e6 * tolerance * tolerance;
+    return false;
 }
 
 }  // namespace distile

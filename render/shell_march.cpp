@@ -10,7 +10,8 @@ Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dv
     constexpr int kMaxWalk = 64;
     for (int walk = 0; walk < kMaxWalk; ++walk) {
         const ShellPrism& prism = shell.prisms[cursor.prism];
-        if (!prism.invert(cursor.originOffset + distanceWorld * direction, cursor.point, 12))
+        if (!prism.invert(cursor.originOffset + distanceWorld * direction, cursor.point,
+                          cursor.jacobian, 12))
             return Located::Lost;
         const double weights[3] = {cursor.point.b0(), cursor.point.b1, cursor.point.b2};
         int outside = 0;

@@ -54,6 +54,7 @@ struct CurvedCursor {
     std::uint32_t prism = 0;
     PrismPoint point;
     glm::dvec3 originOffset{0.0};  ///< ray origin - P_0 of `prism`
+    ShellPrism::Jacobian jacobian;  ///< the map's, at (or a hair from) `point`
 };
 
 /// The outcome of locating the ray's point at some distance.
@@ -66,10 +67,11 @@ enum class Located { Inside, AboveTop, OpenSide, Lost };
 Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
                double distanceWorld, CurvedCursor& cursor);
 
-/// The texel-space velocity d texel / dt of the ray at the cursor's point (|direction| = 1).
-inline glm::dvec3 texelVelocity(const ShellPrism& prism, const PrismPoint& point,
+/// The texel-space velocity d texel / dt of a ray along unit `direction` where the map's
+/// Jacobian is `jacobian`; `prismVelocity` receives d(b1, b2, h) / dt.
+inline glm::dvec3 texelVelocity(const ShellPrism& prism, const ShellPrism::Jacobian& jacobian,
                                 const glm::dvec3& direction, glm::dvec3& prismVelocity) {
-    prismVelocity = prism.jacobianAt(point).solve(direction);
+    prismVelocity = jacobian.solve(direction);
     return prism.texelDelta(prismVelocity);
 }
 
@@ -129,9 +131,9 @@ CurvedMarchEnd marchCurved(const Filter& filter, const ShellPrisms& shell, const
     auto sample = [&]() {
         const ShellPrism& prism = shell.prisms[cursor.prism];
         const glm::dvec3 velocity =
-            detail::texelVelocity(prism, cursor.point, direction, prismVelocity);
+            detail::texelVelocity(prism, cursor.jacobian, direction, prismVelocity);
         speed = glm::length(velocity);
-        directionTexels = velocity / speed;
+        directionTexels = velocity * (1.0 / speed);
         ++iterations;
         return filter.distanceTexels(glm::vec3(prism.texelAt(cursor.point)));
     };
@@ -192,7 +194,7 @@ CurvedMarchEnd marchCurved(const Filter& filter, const ShellPrisms& shell, const
                     Located::Inside)
                     break;
                 const ShellPrism& at = shell.prisms[cursor.prism];
-                detail::texelVelocity(at, cursor.point, direction, prismVelocity);
+                detail::texelVelocity(at, cursor.jacobian, direction, prismVelocity);
                 const double below = at.depthWorld - cursor.point.depthWorld;
                 if (std::abs(below) <= 1e-9 * at.depthWorld) {
                     found = true;
@@ -218,7 +220,12 @@ CurvedMarchEnd marchCurved(const Filter& filter, const ShellPrisms& shell, const
         double stepTexels = distance;
         forcedStep = false;
         if (budgeted) {
-            const double minimum = toFloorTexels / double(budget - iterations);
+            // The path left in the shell: to the floor while the ray descends, to the top once it
+            // rises again (a ray through a convex shell turns).
+            const double pathLeftTexels =
+                directionTexels.z > 0.0 ? (prism.depthTexels - zTexels) / directionTexels.z
+                                        : toFloorTexels;
+            const double minimum = pathLeftTexels / double(budget - iterations);
             if (minimum > stepTexels) {
                 stepTexels = minimum;
                 forcedStep = true;

@@ -61,6 +61,10 @@ inline const char* shellMappingName(ShellMapping mapping) {
     return mapping == ShellMapping::Curved ? "curved" : "planar";
 }
 
+/// Curved shells: a ray's budget may grow up to this many times MarchSettings::maxIterations,
+/// one sample per texel of its path (SceneTracer: a grazing ray bends along the shell).
+inline constexpr int kCurvedBudgetScale = 4;
+
 struct TraceOptions {
     MarchSettings march;  ///< method, budget per ray (ch. 8 uses 8 to 16) and hit threshold
     FilterKind filter = FilterKind::Trilinear;  ///< the march's distances (must not overestimate)
