@@ -30,3 +30,199 @@ Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dv
 }
 
 }  // namespace distile::detail
+
+namespace distile {
+
+using detail::Located;
+
+void CurvedMarchRay::start(const ShellPrisms& shell, const Ray& ray, std::uint32_t entryPrism,
+                           double b1, double b2, double entryDistanceWorld, Floor floor,
+                           const MarchSettings& settings) {
+    shell_ = &shell;
+    origin_ = glm::dvec3(ray.origin);
+    direction_ = glm::dvec3(ray.direction);
+    cursor_.prism = entryPrism;
+    cursor_.point = {b1, b2, 0.0};
+    cursor_.originOffset = origin_ - shell.prisms[entryPrism].corner0;
+    floor_ = floor;
+    epsilonTexels_ = settings.epsilonTexels;
+    budget_ = settings.maxIterations;
+    budgeted_ = settings.method == MarchMethod::Budgeted;
+    entryDistanceWorld_ = distanceWorld_ = outsideWorld_ = entryDistanceWorld;
+    outsideDepthWorld_ = 0.0;
+    outsideTexels_ = 0.0f;
+    forcedStep_ = refining_ = false;
+    end_ = CurvedMarchEnd{};
+    // The entry itself, even where rounding puts it a hair above the top.
+    const Located where = detail::locate(shell, origin_, direction_, distanceWorld_, cursor_);
+    if (where == Located::AboveTop) {
+        cursor_.point.depthWorld = 0.0;
+    } else if (where != Located::Inside) {
+        leave(distanceWorld_);
+        return;
+    }
+    const ShellPrism& prism = shell.prisms[cursor_.prism];
+    const glm::dvec3 velocity =
+        detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_);
+    speed_ = glm::length(velocity);
+    if (!(speed_ > 0.0 && std::isfinite(speed_))) {
+        leave(distanceWorld_);
+        return;
+    }
+    directionTexels_ = velocity * (1.0 / speed_);
+    samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
+    needsSample_ = true;
+}
+
+bool CurvedMarchRay::prepareSample() {
+    const Located where = detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_);
+    if (where == Located::AboveTop) {
+        // Out through the top between the last two points: where the depth crosses 0.
+        const double share = outsideDepthWorld_ / (outsideDepthWorld_ - cursor_.point.depthWorld);
+        return leave(outsideWorld_ + (distanceWorld_ - outsideWorld_) * share);
+    }
+    if (where != Located::Inside) return leave(outsideWorld_);
+    const ShellPrism& prism = shell_->prisms[cursor_.prism];
+    const glm::dvec3 velocity =
+        detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_);
+    speed_ = glm::length(velocity);
+    if (!(speed_ > 0.0 && std::isfinite(speed_))) return leave(outsideWorld_);
+    directionTexels_ = velocity * (1.0 / speed_);
+    samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
+    return needsSample_ = true;
+}
+
+bool CurvedMarchRay::leave(double atWorld) {
+    end_.leftShell = true;
+    end_.march.exitedFloor = true;
+    end_.distanceWorld = atWorld;
+    end_.prism = cursor_.prism;
+    end_.point = cursor_.point;
+    return needsSample_ = false;
+}
+
+bool CurvedMarchRay::stop(bool converged) {
+    const ShellPrism& prism = shell_->prisms[cursor_.prism];
+    end_.march.texelPosition = glm::vec3(prism.texelAt(cursor_.point));
+    end_.march.converged = converged;
+    end_.march.travelTexels = float((distanceWorld_ - entryDistanceWorld_) * speed_);
+    end_.distanceWorld = distanceWorld_;
+    end_.prism = cursor_.prism;
+    end_.point = cursor_.point;
+    end_.texelsPerWorldAlongRay = float(speed_);
+    return needsSample_ = false;
+}
+
+bool CurvedMarchRay::reachFloor(double toFloorTexels) {
+    // Newton in the distance along the ray for the depth of the floor, from the linear estimate.
+    detail::CurvedCursor cursor = cursor_;
+    double floorWorld = distanceWorld_ + toFloorTexels / speed_;
+    glm::dvec3 prismVelocity;
+    for (int step = 0; step < 8; ++step) {
+        if (detail::locate(*shell_, origin_, direction_, floorWorld, cursor) != Located::Inside)
+            return false;
+        const ShellPrism& prism = shell_->prisms[cursor.prism];
+        const glm::dvec3 velocity =
+            detail::texelVelocity(prism, cursor.jacobian, direction_, prismVelocity);
+        const double below = prism.depthWorld - cursor.point.depthWorld;
+        if (std::abs(below) <= 1e-9 * prism.depthWorld) {
+            cursor.point.depthWorld = prism.depthWorld;
+            cursor_ = cursor;
+            distanceWorld_ = floorWorld;
+            speed_ = glm::length(velocity);
+            if (floor_ == Floor::Open) return !leave(floorWorld);
+            end_.march.onFloor = true;
+            stop(true);
+            end_.march.texelPosition.z = 0.0f;
+            return true;
+        }
+        if (!(prismVelocity.z > 0.0)) return false;
+        floorWorld += below / prismVelocity.z;
+    }
+    return false;
+}
+
+bool CurvedMarchRay::refineStep(float distance) {
+    if (std::abs(distance) < epsilonTexels_) return stop(true);
+    if (distance > 0.0f) {
+        outsideWorld_ = distanceWorld_;
+        outsideTexels_ = distance;
+    } else {
+        insideWorld_ = distanceWorld_;
+        insideTexels_ = distance;
+    }
+    return toEstimate();
+}
+
+bool CurvedMarchRay::toEstimate() {
+    const double estimate = outsideWorld_ + (insideWorld_ - outsideWorld_) * outsideTexels_ /
+                                                (outsideTexels_ - insideTexels_);
+    // The crossing is within the bracket; should the estimate fall outside the shell (a
+    // rounding at its faces), the march ends at the current point.
+    detail::CurvedCursor at = cursor_;
+    if (detail::locate(*shell_, origin_, direction_, estimate, at) != Located::Inside)
+        return stop(true);
+    cursor_ = at;
+    distanceWorld_ = estimate;
+    const ShellPrism& prism = shell_->prisms[cursor_.prism];
+    speed_ = glm::length(detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_));
+    if (end_.march.iterations >= budget_) return stop(true);  // at the estimate, unsampled
+    samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
+    return true;
+}
+
+bool CurvedMarchRay::advance(float distance) {
+    ++end_.march.iterations;
+    if (refining_) return refineStep(distance);
+    if (std::isnan(distance)) return leave(outsideWorld_);
+    if (distance < epsilonTexels_) {
+        if (distance < 0.0f && forcedStep_) {
+            // A budgeted step went past the surface: regula falsi between the last outside point
+            // and this one.
+            refining_ = true;
+            insideWorld_ = distanceWorld_;
+            insideTexels_ = distance;
+            return toEstimate();
+        }
+        return stop(true);
+    }
+    const ShellPrism& prism = shell_->prisms[cursor_.prism];
+    const double zTexels =
+        prism.depthTexels * (1.0 - cursor_.point.depthWorld / prism.depthWorld);
+    const double toFloorTexels = directionTexels_.z < 0.0
+                                     ? std::max(zTexels, 0.0) / -directionTexels_.z
+                                     : std::numeric_limits<double>::infinity();
+    if (double(distance) >= toFloorTexels) {
+        // The floor is nearer than the detail: the march ends there if the ray reaches it
+        // (it may bend away before).
+        if (reachFloor(toFloorTexels)) return false;
+    }
+    if (end_.march.iterations >= budget_) return stop(false);
+    double stepTexels = distance;
+    forcedStep_ = false;
+    if (budgeted_) {
+        // The path left in the shell: to the floor while the ray descends, to the top once it
+        // rises again (a ray through a convex shell turns).
+        const double pathLeftTexels = directionTexels_.z > 0.0
+                                          ? (prism.depthTexels - zTexels) / directionTexels_.z
+                                          : toFloorTexels;
+        const double minimum = pathLeftTexels / double(budget_ - end_.march.iterations);
+        if (minimum > stepTexels) {
+            stepTexels = minimum;
+            forcedStep_ = true;
+        }
+    }
+    stepTexels = std::min(stepTexels, toFloorTexels);
+    outsideWorld_ = distanceWorld_;
+    outsideTexels_ = distance;
+    outsideDepthWorld_ = cursor_.point.depthWorld;
+    const double stepWorld = stepTexels / speed_;
+    distanceWorld_ += stepWorld;
+    // The next point's guess: the current one moved along the ray's prism-space velocity.
+    cursor_.point.b1 += prismVelocity_.x * stepWorld;
+    cursor_.point.b2 += prismVelocity_.y * stepWorld;
+    cursor_.point.depthWorld += prismVelocity_.z * stepWorld;
+    return prepareSample();
+}
+
+}  // namespace distile

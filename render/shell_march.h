@@ -77,171 +77,81 @@ inline glm::dvec3 texelVelocity(const ShellPrism& prism, const ShellPrism::Jacob
 
 }  // namespace detail
 
-/// Marches `ray` through `shell` from its entry on the top of prism `entryPrism` (barycentrics of
-/// the entry, `entryDistanceWorld` along the ray), sampling `filter` (texel space, periodic in x
-/// and y). Budgeted settings take the planar march's minimum step (the path left to the floor
-/// along the local texel direction over the samples left) and refine overshoots by regula falsi;
-/// other sphere-tracing methods step the sampled distance. Counts one iteration per sample.
-/// Preconditions: entryPrism < shell.prisms.size(); settings.maxIterations >= 1.
+/// One ray's march through a curved shell (file note), taken a distance sample at a time like
+/// detail::SphereTraceRay, so that marchInterleaved() can overlap several rays' samples: the
+/// operations per ray are the same whatever the interleaving. Budgeted settings take the planar
+/// march's minimum step (the path left in the shell along the local texel direction over the
+/// samples left: to the floor while the ray descends, to the top once it rises) and refine an
+/// overshoot by regula falsi; the other sphere-tracing methods step the sampled distance. One
+/// iteration per sample.
+class CurvedMarchRay {
+  public:
+    /// Starts the march of `ray` from its entry on the top of prism `entryPrism` (barycentrics
+    /// b1, b2 of the entry, `entryDistanceWorld` along the ray). `shell` must outlive the march.
+    /// Preconditions: entryPrism < shell.prisms.size(); settings.maxIterations >= 1.
+    void start(const ShellPrisms& shell, const Ray& ray, std::uint32_t entryPrism, double b1,
+               double b2, double entryDistanceWorld, Floor floor, const MarchSettings& settings);
+
+    /// False once the march has ended (then end() is final).
+    bool needsSample() const { return needsSample_; }
+    /// Where the next sample is, in the texel space of the prism the ray is in.
+    glm::vec3 samplePosition() const { return samplePosition_; }
+    /// Takes the distance sampled at samplePosition(); false when no more samples are needed.
+    bool advance(float distance);
+
+    const CurvedMarchEnd& end() const { return end_; }
+
+  private:
+    /// Locates the ray's point at distanceWorld_ and sets up its sample, or ends the march there
+    /// when it is outside the shell.
+    bool prepareSample();
+    /// Ends at the current point: a hit (converged, or at the end of the budget).
+    bool stop(bool converged);
+    /// Ends without a hit: the ray left the shell at `atWorld`.
+    bool leave(double atWorld);
+    /// A sample closer to the floor than `distance` texels: ends on the floor when the ray
+    /// reaches it (true), else false and the march goes on.
+    bool reachFloor(double toFloorTexels);
+    /// Regula falsi: a sample inside or outside narrows the bracket, then toEstimate.
+    bool refineStep(float distance);
+    /// Moves to the bracket's false position and sets up its sample (ends there without one when
+    /// the budget is spent).
+    bool toEstimate();
+
+    const ShellPrisms* shell_ = nullptr;
+    glm::dvec3 origin_{0.0}, direction_{0.0};
+    detail::CurvedCursor cursor_;
+    Floor floor_ = Floor::Solid;
+    float epsilonTexels_ = 0.0f;
+    int budget_ = 0;
+    bool budgeted_ = false;
+    double entryDistanceWorld_ = 0.0;
+    double distanceWorld_ = 0.0;  ///< of the current point
+    /// The last point sampled outside the detail, before the current one.
+    double outsideWorld_ = 0.0, outsideDepthWorld_ = 0.0;
+    float outsideTexels_ = 0.0f;
+    bool forcedStep_ = false;  ///< the step to the current point was longer than its distance
+    bool refining_ = false;
+    double insideWorld_ = 0.0;  ///< refining: the bracket's inside end (outside: outsideWorld_)
+    float insideTexels_ = 0.0f;
+    glm::dvec3 prismVelocity_{0.0};    ///< d(b1, b2, h) / dt at the current point
+    glm::dvec3 directionTexels_{0.0};  ///< unit texel-space direction of the ray there
+    double speed_ = 0.0;               ///< |d texel / dt| there: texels per world unit
+    glm::vec3 samplePosition_{0.0f};
+    bool needsSample_ = false;
+    CurvedMarchEnd end_;
+};
+
+/// A whole curved march of one ray over `filter` (CurvedMarchRay, sample by sample).
 template <class Filter>
 CurvedMarchEnd marchCurved(const Filter& filter, const ShellPrisms& shell, const Ray& ray,
                            std::uint32_t entryPrism, double b1, double b2,
                            double entryDistanceWorld, Floor floor, const MarchSettings& settings) {
-    using detail::Located;
-    CurvedMarchEnd end;
-    const glm::dvec3 origin(ray.origin), direction(ray.direction);
-    detail::CurvedCursor cursor;
-    cursor.prism = entryPrism;
-    cursor.point = {b1, b2, 0.0};
-    cursor.originOffset = origin - shell.prisms[entryPrism].corner0;
-    const bool budgeted = settings.method == MarchMethod::Budgeted;
-    const float epsilon = settings.epsilonTexels;
-    const int budget = settings.maxIterations;
-    int& iterations = end.march.iterations;
-    double distanceWorld = entryDistanceWorld;
-    // The last point sampled outside the detail: where the ray was before its current point.
-    double outsideWorld = entryDistanceWorld, outsideDepthWorld = 0.0;
-    float outsideTexels = 0.0f;
-    bool forcedStep = false;  // the step to the current point was longer than the distance there
-    glm::dvec3 prismVelocity(0.0);
-    double speed = 0.0;  // texels per world unit along the ray at the current point
-
-    auto leave = [&](double atWorld) {
-        end.leftShell = true;
-        end.march.exitedFloor = true;
-        end.distanceWorld = atWorld;
-        end.prism = cursor.prism;
-        end.point = cursor.point;
-        return end;
-    };
-    // Ends at the cursor's point (a hit, converged or at the end of the budget).
-    auto stop = [&](bool converged) {
-        const ShellPrism& prism = shell.prisms[cursor.prism];
-        end.march.texelPosition = glm::vec3(prism.texelAt(cursor.point));
-        end.march.converged = converged;
-        end.march.travelTexels = float((distanceWorld - entryDistanceWorld) * speed);
-        end.distanceWorld = distanceWorld;
-        end.prism = cursor.prism;
-        end.point = cursor.point;
-        end.texelsPerWorldAlongRay = float(speed);
-        return end;
-    };
-    // The distance sample at the cursor's point (located); sets speed and the velocities.
-    glm::dvec3 directionTexels(0.0, 0.0, -1.0);
-    auto sample = [&]() {
-        const ShellPrism& prism = shell.prisms[cursor.prism];
-        const glm::dvec3 velocity =
-            detail::texelVelocity(prism, cursor.jacobian, direction, prismVelocity);
-        speed = glm::length(velocity);
-        directionTexels = velocity * (1.0 / speed);
-        ++iterations;
-        return filter.distanceTexels(glm::vec3(prism.texelAt(cursor.point)));
-    };
-    // Regula falsi in distance along the ray between the last outside point and the current one
-    // (inside, `insideTexels` < 0), with the budget left.
-    auto refine = [&](float insideTexels) {
-        double outside = outsideWorld, inside = distanceWorld;
-        float outsideDistance = outsideTexels, insideDistance = insideTexels;
-        while (iterations < budget) {
-            distanceWorld =
-                outside + (inside - outside) * outsideDistance / (outsideDistance - insideDistance);
-            if (detail::locate(shell, origin, direction, distanceWorld, cursor) != Located::Inside)
-                break;  // keeps the estimate: the crossing is within the bracket
-            const float distance = sample();
-            if (std::abs(distance) < epsilon) break;
-            if (distance > 0.0f) {
-                outside = distanceWorld;
-                outsideDistance = distance;
-            } else {
-                inside = distanceWorld;
-                insideDistance = distance;
-            }
-        }
-        return stop(true);
-    };
-
-    for (;;) {
-        const Located where = detail::locate(shell, origin, direction, distanceWorld, cursor);
-        if (where == Located::AboveTop && iterations == 0) {
-            cursor.point.depthWorld = 0.0;  // the entry itself, rounded above the top
-        } else if (where == Located::AboveTop) {
-            // Out through the top between the last two points: where the depth crosses 0.
-            const double share =
-                outsideDepthWorld / (outsideDepthWorld - cursor.point.depthWorld);
-            return leave(outsideWorld + (distanceWorld - outsideWorld) * share);
-        } else if (where != Located::Inside) {
-            return leave(outsideWorld);
-        }
-        const ShellPrism& prism = shell.prisms[cursor.prism];
-        const float distance = sample();
-        if (!(speed > 0.0) || !std::isfinite(speed) || std::isnan(distance))
-            return leave(outsideWorld);
-        if (distance < epsilon) {
-            if (distance < 0.0f && forcedStep) return refine(distance);
-            return stop(true);
-        }
-        const double zTexels = prism.depthTexels * (1.0 - cursor.point.depthWorld / prism.depthWorld);
-        const double toFloorTexels = directionTexels.z < 0.0
-                                         ? std::max(zTexels, 0.0) / -directionTexels.z
-                                         : std::numeric_limits<double>::infinity();
-        if (double(distance) >= toFloorTexels) {
-            // The floor is nearer than the detail: end where the depth reaches it (Newton in the
-            // distance along the ray, from the linear estimate).
-            double floorWorld = distanceWorld + toFloorTexels / speed;
-            bool found = false;
-            for (int step = 0; step < 8; ++step) {
-                if (detail::locate(shell, origin, direction, floorWorld, cursor) !=
-                    Located::Inside)
-                    break;
-                const ShellPrism& at = shell.prisms[cursor.prism];
-                detail::texelVelocity(at, cursor.jacobian, direction, prismVelocity);
-                const double below = at.depthWorld - cursor.point.depthWorld;
-                if (std::abs(below) <= 1e-9 * at.depthWorld) {
-                    found = true;
-                    break;
-                }
-                if (!(prismVelocity.z > 0.0)) break;
-                floorWorld += below / prismVelocity.z;
-            }
-            if (found) {
-                distanceWorld = floorWorld;
-                cursor.point.depthWorld = shell.prisms[cursor.prism].depthWorld;
-                if (floor == Floor::Open) return leave(floorWorld);
-                end.march.onFloor = true;
-                CurvedMarchEnd onFloor = stop(true);
-                onFloor.march.texelPosition.z = 0.0f;
-                return onFloor;
-            }
-            // The ray bends away from the floor before it: on as over detail.
-            if (detail::locate(shell, origin, direction, distanceWorld, cursor) != Located::Inside)
-                return leave(outsideWorld);
-        }
-        if (iterations >= budget) return stop(false);
-        double stepTexels = distance;
-        forcedStep = false;
-        if (budgeted) {
-            // The path left in the shell: to the floor while the ray descends, to the top once it
-            // rises again (a ray through a convex shell turns).
-            const double pathLeftTexels =
-                directionTexels.z > 0.0 ? (prism.depthTexels - zTexels) / directionTexels.z
-                                        : toFloorTexels;
-            const double minimum = pathLeftTexels / double(budget - iterations);
-            if (minimum > stepTexels) {
-                stepTexels = minimum;
-                forcedStep = true;
-            }
-        }
-        stepTexels = std::min(stepTexels, toFloorTexels);
-        outsideWorld = distanceWorld;
-        outsideTexels = distance;
-        outsideDepthWorld = cursor.point.depthWorld;
-        const double stepWorld = stepTexels / speed;
-        distanceWorld += stepWorld;
-        // The next point's guess: the current one moved along the ray's prism-space velocity.
-        cursor.point.b1 += prismVelocity.x * stepWorld;
-        cursor.point.b2 += prismVelocity.y * stepWorld;
-        cursor.point.depthWorld += prismVelocity.z * stepWorld;
+    CurvedMarchRay march;
+    march.start(shell, ray, entryPrism, b1, b2, entryDistanceWorld, floor, settings);
+    while (march.needsSample() && march.advance(filter.distanceTexels(march.samplePosition()))) {
     }
+    return march.end();
 }
 
 }  // namespace distile

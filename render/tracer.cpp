@@ -167,6 +167,7 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     }
     bvh_ = TriangleBvh(std::move(corners));
     buildShellMap();
+    shellPrisms_ = {prisms_, neighbours_};
 
     // Per tile (objects sharing one share these): its columns, and its empty space where the
     // skip holds (for the filters whose support the occupancy bounds).
@@ -423,7 +424,7 @@ void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
     std::size_t flatCount = 0;
     for (ShellMarch* march : marches) {
         if (triangles_[march->baseHit.triangle].curved) {
-            takeCurvedMarch(*march);
+            takeCurvedEntry(*march);
         } else if (entersFlatShell(*march)) {
             shells[flatCount] = march->baseHit.triangle;
             flat[flatCount++] = march;
@@ -544,6 +545,7 @@ void SceneTracer::takeGradients(std::span<ShellMarch* const> marches) const {
 }
 
 void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {
+    takeCurvedMarches(marches);
     const bool interleave = !options_.reference && isSphereTracing(options_.march.method);
     if (!interleave) {
         for (ShellMarch* march : marches) {
@@ -575,6 +577,32 @@ void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {
         owners[index]->result = owners[index]->trace.result();
         owners[index]->marched = true;
     }
+}
+
+void SceneTracer::takeCurvedMarches(std::span<ShellMarch* const> marches) const {
+    CurvedMarchRay* traces[kMaxBatchRays];
+    const TileColumns* tiles[kMaxBatchRays];
+    ShellMarch* owners[kMaxBatchRays];
+    std::size_t count = 0;
+    for (ShellMarch* march : marches) {
+        if (!march->curved || march->marched) continue;
+        if (options_.reference) {  // one at a time, on the truth
+            const Material& material = scene_.objects[march->object].material;
+            const AnalyticFilter truth(material.analyticDistance);
+            CurvedMarchRay& trace = march->curvedTrace;
+            while (trace.advance(truth.distanceTexels(trace.samplePosition()))) {
+            }
+            finishCurvedMarch(*march);
+            continue;
+        }
+        owners[count] = march;
+        traces[count] = &march->curvedTrace;
+        tiles[count++] = columns(march->object);
+    }
+    if (count == 0) return;
+    marchInterleavedByTile(options_.filter, std::span<CurvedMarchRay* const>(traces, count),
+                           std::span<const TileColumns* const>(tiles, count));
+    for (std::size_t index = 0; index < count; ++index) finishCurvedMarch(*owners[index]);
 }
 
 bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHit& hit,
@@ -687,7 +715,7 @@ void SceneTracer::buildShellMap() {
     }
 }
 
-void SceneTracer::takeCurvedMarch(ShellMarch& march) const {
+void SceneTracer::takeCurvedEntry(ShellMarch& march) const {
     const Ray& ray = *march.ray;
     SurfaceHit& hit = *march.hit;
     const TriangleHit& baseHit = march.baseHit;
@@ -715,20 +743,22 @@ void SceneTracer::takeCurvedMarch(ShellMarch& march) const {
         settings.maxIterations = adaptiveBudget(kCurvedBudgetScale * settings.maxIterations,
                                                 float(std::min(pathTexels, 1e9)));
     }
-    const ShellPrisms prisms{prisms_, neighbours_};
-    const CurvedMarchEnd end = withMarchFilter(
-        options_.filter, material, columns(march.object), options_.reference,
-        [&](const auto& filter) {
-            return marchCurved(filter, prisms, ray, baseHit.triangle, baseHit.b1, baseHit.b2,
-                               baseHit.distanceWorld, material.floor, settings);
-        });
+    march.curvedTrace.start(shellPrisms_, ray, baseHit.triangle, baseHit.b1, baseHit.b2,
+                            baseHit.distanceWorld, material.floor, settings);
+    if (!march.curvedTrace.needsSample()) finishCurvedMarch(march);
+}
+
+void SceneTracer::finishCurvedMarch(ShellMarch& march) const {
+    const CurvedMarchEnd& end = march.curvedTrace.end();
+    const SceneObject& object = scene_.objects[march.object];
+    SurfaceHit& hit = *march.hit;
     march.result = end.march;
     march.marched = true;
     march.endDistanceWorld = float(end.distanceWorld);
     march.outsideDistanceWorld = float(end.distanceWorld);
     if (end.leftShell) {
         // Past the top's back face: a little beyond where the ray left, relative to the shell.
-        march.outsideDistanceWorld += 1e-3f * material.depthWorld;
+        march.outsideDistanceWorld += 1e-3f * object.material.depthWorld;
         return;
     }
     // The hit's frame: the base point above it and the map's Jacobian there.

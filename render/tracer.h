@@ -136,6 +136,7 @@ struct ShellMarch {
     /// A march through a curved shell (render/shell_march.h): its result's position is in the
     /// texel space of the prism it ended in, and the distances below replace the entry's.
     bool curved = false;
+    CurvedMarchRay curvedTrace;     ///< the curved march, until it ends
     float endDistanceWorld = 0.0f;  ///< the hit, or where the ray left the shell
     /// Left through the top: a point along the ray known to be above it (the back face of the
     /// top it crossed lies before this).
@@ -301,8 +302,12 @@ class SceneTracer {
     void beginMarch(ShellMarch& march, int maxIterations) const;
     /// Whether takeFlatEntries takes the entry of `march`.
     bool entersFlatShell(const ShellMarch& march) const;
-    /// The entry and the whole march of a ray entering a curved shell (render/shell_march.h).
-    void takeCurvedMarch(ShellMarch& march) const;
+    /// The entry of a ray into a curved shell: its march started (render/shell_march.h).
+    void takeCurvedEntry(ShellMarch& march) const;
+    /// The curved marches among `marches` (takeMarches), interleaved by tile.
+    void takeCurvedMarches(std::span<ShellMarch* const> marches) const;
+    /// A curved march's end into its ShellMarch and its hit's frame.
+    void finishCurvedMarch(ShellMarch& march) const;
     /// The prisms of every shell and their neighbours, warnings about folds.
     void buildShellMap();
 
@@ -318,6 +323,7 @@ class SceneTracer {
     /// shells only; empty without any).
     std::vector<ShellPrism> prisms_;
     std::vector<std::array<std::uint32_t, 3>> neighbours_;
+    ShellPrisms shellPrisms_;  ///< views of the two above
     std::vector<std::string> warnings_;
 };
 
