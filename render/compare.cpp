@@ -73,8 +73,10 @@ bool isSilhouette(const Image& depthA, const Image& depthB, int x, int y, double
                 if (neighbour <= 0.0) return true;
                 const double stepTexels = std::abs(neighbour - here) * texelsPerWorld;
                 if (stepTexels <= kDepthJumpFloorTexels) continue;
+                // The steps beside this one on the same line, where both their pixels hit.
                 const double before = hitDepth(x - dx, y - dy);
                 const double after = hitDepth(x + 2 * dx, y + 2 * dy);
+                if (before <= 0.0 && after <= 0.0) continue;  // no line to judge the step by
                 const double beforeTexels =
                     before > 0.0 ? std::abs(here - before) * texelsPerWorld : 0.0;
                 const double afterTexels =

@@ -14,7 +14,8 @@
 /// A depth jump between neighbours p and q = p + o (o one of the eight offsets) in one render is
 /// a step |depth(q) - depth(p)|, converted to texels with p's texel scale, that is larger than
 /// kDepthJumpFloorTexels and larger than kDepthJumpRatio times each of the steps beside it on
-/// the same line of pixels, from p - o to p and from q to q + o (where those pixels hit). On a
+/// the same line of pixels, from p - o to p and from q to q + o, taken where those pixels are
+/// inside the image and hit (a step with neither is not judged: no line to judge it by). On a
 /// continuous surface consecutive steps along a line change slowly whatever its slope and the
 /// image resolution (on a plane only through perspective), so a step more than twice its
 /// neighbours' marks an occlusion or a fold, where moving the edge by one pixel moves the hit by
