@@ -20,6 +20,7 @@ struct CompareArguments {
     fs::path a;
     fs::path b;
     fs::path difference;
+    fs::path heatMap;
     bool json = false;
 };
 
@@ -49,16 +50,49 @@ RenderFiles readRender(const fs::path& image, const std::string& role) {
             readLayer(besidePath(image, "texel_scale", ".exr"), role)};
 }
 
+nlohmann::json classJson(const HitErrorSummary& summary) {
+    return {{"pixels", summary.pixels},
+            {"hit_error_samples", summary.hitErrorSamples},
+            {"hit_error_mean", summary.meanHitErrorTexels},
+            {"hit_error_p99", summary.p99HitErrorTexels},
+            {"hit_error_max", summary.maxHitErrorTexels},
+            {"normal_error_mean_deg", summary.meanNormalErrorDeg}};
+}
+
+/// The all-pixel figures of `c` as one more class.
+HitErrorSummary allBothHit(const RenderComparison& c) {
+    return {c.bothHit,           c.hitErrorSamples,   c.meanHitErrorTexels,
+            c.p99HitErrorTexels, c.maxHitErrorTexels, c.meanNormalErrorDeg};
+}
+
+const char* const kSilhouetteRule =
+    "silhouette: a pixel where both hit and, in either render, one of its 8 neighbours misses or "
+    "lies across a depth jump (a step over 1 texel and over twice the steps beside it on the same "
+    "line); interior: the other both-hit pixels";
+
+void printClass(const char* name, const HitErrorSummary& summary) {
+    std::printf("  %-10s %9llu %9llu %10.4f %10.4f %12.4f %10.3f\n", name,
+                static_cast<unsigned long long>(summary.pixels),
+                static_cast<unsigned long long>(summary.hitErrorSamples),
+                summary.meanHitErrorTexels, summary.p99HitErrorTexels, summary.maxHitErrorTexels,
+                summary.meanNormalErrorDeg);
+}
+
 void runCompare(const CompareArguments& arguments) {
     const fs::path differencePath = arguments.difference.empty()
                                         ? besidePath(arguments.a, "diff", ".png")
                                         : arguments.difference;
+    const fs::path heatMapPath = arguments.heatMap.empty()
+                                     ? besidePath(arguments.a, "hit_error", ".png")
+                                     : arguments.heatMap;
     requireOutput(differencePath, "-o", {".png", ".exr", ".tif", ".tiff"});
+    requireOutput(heatMapPath, "--heatmap", {".png", ".exr", ".tif", ".tiff"});
     const RenderFiles a = readRender(arguments.a, "A");
     const RenderFiles b = readRender(arguments.b, "B");
-    Image difference;
-    const RenderComparison c = compareRenders(a.view(), b.view(), &difference);
+    Image difference, heatMap;
+    const RenderComparison c = compareRenders(a.view(), b.view(), &difference, &heatMap);
     writeImage(difference, differencePath);
+    writeImage(heatMap, heatMapPath);
     if (arguments.json) {
         // JSON has no infinity: identical images give "psnr_db": null.
         const nlohmann::json psnr =
@@ -72,29 +106,42 @@ void runCompare(const CompareArguments& arguments) {
             {"both_hit", c.bothHit},
             {"coverage_mismatches", c.coverageMismatches},
             {"coverage_mismatch_share", c.coverageMismatchShare},
-            {"hit_error_samples", c.hitErrorSamples},
             {"hit_error_units", "texels"},
-            {"hit_error_mean", c.meanHitErrorTexels},
-            {"hit_error_p99", c.p99HitErrorTexels},
-            {"hit_error_max", c.maxHitErrorTexels},
-            {"normal_error_mean_deg", c.meanNormalErrorDeg},
+            {"interior", classJson(c.interior)},
+            {"silhouette", classJson(c.silhouette)},
+            {"all_both_hit", classJson(allBothHit(c))},
+            {"silhouette_rule", kSilhouetteRule},
             {"psnr_db", psnr},
             {"psnr_of", "sRGB-encoded values in [0, 1], peak 1 (8-bit PSNR for PNGs)"},
-            {"difference", differencePath.string()}};
+            {"difference", differencePath.string()},
+            {"heatmap", heatMapPath.string()},
+            {"heatmap_scale", "hit error, log scale from 0.01 texel (blue) to 100 texels (red)"}};
         std::printf("%s\n", out.dump().c_str());
         return;
     }
     std::printf("compared %s with %s (%dx%d)\n", arguments.a.c_str(), arguments.b.c_str(), c.width,
                 c.height);
-    std::printf("hit error (texels, %llu pixels where both hit): mean %.4f, p99 %.4f, max %.4f\n",
-                static_cast<unsigned long long>(c.hitErrorSamples), c.meanHitErrorTexels,
-                c.p99HitErrorTexels, c.maxHitErrorTexels);
-    std::printf("coverage mismatch: %llu pixels, %.4f%% of all\n",
-                static_cast<unsigned long long>(c.coverageMismatches),
-                100.0 * c.coverageMismatchShare);
-    std::printf("normal angle error: mean %.3f deg\n", c.meanNormalErrorDeg);
+    std::printf(
+        "pixels: %llu; both hit: %llu (interior %llu, silhouette %llu); coverage "
+        "mismatches: %llu (%.4f%% of all)\n",
+        static_cast<unsigned long long>(c.pixels), static_cast<unsigned long long>(c.bothHit),
+        static_cast<unsigned long long>(c.interior.pixels),
+        static_cast<unsigned long long>(c.silhouette.pixels),
+        static_cast<unsigned long long>(c.coverageMismatches), 100.0 * c.coverageMismatchShare);
+    std::printf("mean hit error (interior pixels): %.4f texels, p99 %.4f, max %.4f\n",
+                c.interior.meanHitErrorTexels, c.interior.p99HitErrorTexels,
+                c.interior.maxHitErrorTexels);
+    std::printf("by class (hit error in texels, normal angle error in degrees):\n");
+    std::printf("  %-10s %9s %9s %10s %10s %12s %10s\n", "class", "pixels", "samples", "mean",
+                "p99", "max", "normal");
+    printClass("interior", c.interior);
+    printClass("silhouette", c.silhouette);
+    printClass("all", allBothHit(c));
+    std::printf("%s\n", kSilhouetteRule);
     std::printf("PSNR (sRGB-encoded [0, 1], 8-bit for PNGs): %.2f dB\n", c.psnrDb);
     std::printf("difference image written to %s\n", fs::absolute(differencePath).c_str());
+    std::printf("hit-error heat map (log scale, 0.01 to 100 texels) written to %s\n",
+                fs::absolute(heatMapPath).c_str());
 }
 
 }  // namespace
@@ -112,8 +159,27 @@ void addCompareCommand(CLI::App& app) {
         ->add_option("b", arguments->b, "Render to measure against, e.g. from render --reference")
         ->required();
     command->add_option("-o,--output", arguments->difference,
-                        "Difference heat map to write (default: beside A as <A's stem>.diff.png)");
+                        "Difference heat map of the shaded images to write (default: beside A as "
+                        "<A's stem>.diff.png)");
+    command->add_option(
+        "--heatmap", arguments->heatMap,
+        "Hit-error heat map to write (default: beside A as <A's stem>.hit_error.png)"
+        ": each pixel where both hit coloured by its hit error on a log scale from "
+        "0.01 texel (blue) through 1 (green) to 100 texels (red), magenta where "
+        "one render hits and the other misses, dark grey where both miss, mid grey "
+        "where no texel scale is known; a colour bar with labels in texels below");
     command->add_flag("--json", arguments->json, "Print the figures as one JSON object");
+    command->footer(
+        "Figures: hit error (|depth A - depth B| along the ray, in texels by A's texel scale, "
+        "else B's), coverage mismatches (one render hits, the other misses), mean normal angle "
+        "error and PSNR of the shaded images. The pixels where both hit are split in two "
+        "classes, reported apart and together (all): silhouette pixels, where in either render "
+        "one of the pixel's 8 neighbours misses or lies across a depth jump (a step between the "
+        "two depths, in texels by the pixel's texel scale, over 1 texel and over twice each "
+        "step beside it on the same line of pixels), and interior pixels, the others. One pixel "
+        "that hits a far surface behind a silhouette can outweigh all the others in a mean; the "
+        "headline mean and p99 are the interior ones. On detail the image does not resolve "
+        "(several texels per pixel) most pixels are silhouette pixels.");
     command->callback([arguments] { runCompare(*arguments); });
 }
 

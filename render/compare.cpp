@@ -1,7 +1,9 @@
 #include "render/compare.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <glm/geometric.hpp>
 #include <limits>
 #include <string>
@@ -43,10 +45,189 @@ glm::vec3 encoded(const glm::vec3& linear) {
     return {srgbFromLinear(linear.x), srgbFromLinear(linear.y), srgbFromLinear(linear.z)};
 }
 
+/// Texels per world unit along the ray at (x, y): A's scale, B's where A's is 0; 0 when neither
+/// render hit a tile there.
+float texelsPerWorldAt(const RenderLayersView& a, const RenderLayersView& b, int x, int y) {
+    const float scaleA = a.texelScale.at(x, y).x;
+    return scaleA > 0.0f ? scaleA : b.texelScale.at(x, y).x;
+}
+
+/// Whether both-hit pixel (x, y) is a silhouette pixel (compare.h): in either render a neighbour
+/// inside the image misses or lies across a depth jump.
+bool isSilhouette(const Image& depthA, const Image& depthB, int x, int y, double texelsPerWorld) {
+    const int width = depthA.width;
+    const int height = depthA.height;
+    const auto inside = [&](int px, int py) {
+        return px >= 0 && py >= 0 && px < width && py < height;
+    };
+    for (const Image* depth : {&depthA, &depthB}) {
+        // The depth at (px, py) when that pixel is inside the image and hits, else 0.
+        const auto hitDepth = [&](int px, int py) {
+            return inside(px, py) ? double(depth->at(px, py).x) : 0.0;
+        };
+        const double here = depth->at(x, y).x;
+        for (int dy = -1; dy <= 1; ++dy) {
+            for (int dx = -1; dx <= 1; ++dx) {
+                if ((dx == 0 && dy == 0) || !inside(x + dx, y + dy)) continue;
+                const double neighbour = hitDepth(x + dx, y + dy);
+                if (neighbour <= 0.0) return true;
+                const double stepTexels = std::abs(neighbour - here) * texelsPerWorld;
+                if (stepTexels <= kDepthJumpFloorTexels) continue;
+                // The steps beside this one on the same line, where both their pixels hit.
+                const double before = hitDepth(x - dx, y - dy);
+                const double after = hitDepth(x + 2 * dx, y + 2 * dy);
+                if (before <= 0.0 && after <= 0.0) continue;  // no line to judge the step by
+                const double beforeTexels =
+                    before > 0.0 ? std::abs(here - before) * texelsPerWorld : 0.0;
+                const double afterTexels =
+                    after > 0.0 ? std::abs(after - neighbour) * texelsPerWorld : 0.0;
+                if (stepTexels > kDepthJumpRatio * std::max(beforeTexels, afterTexels)) return true;
+            }
+        }
+    }
+    return false;
+}
+
+/// Accumulates one class of both-hit pixels.
+struct ClassErrors {
+    std::uint64_t pixels = 0;
+    std::vector<double> hitErrorsTexels;
+    double normalErrorSumDeg = 0.0;
+};
+
+/// The number, mean, 99th percentile (nearest rank: the smallest error at or above 99% of the
+/// samples) and maximum of `errors`; leaves the figures as they are when there are none.
+/// Reorders `errors`.
+void summariseHitErrors(std::vector<double>& errors, std::uint64_t& samples, double& mean,
+                        double& p99, double& max) {
+    samples = errors.size();
+    if (errors.empty()) return;
+    double sum = 0.0;
+    for (const double error : errors) sum += error;
+    mean = sum / double(errors.size());
+    max = *std::max_element(errors.begin(), errors.end());
+    const std::size_t rank = std::size_t(std::ceil(0.99 * double(errors.size()))) - 1;
+    std::nth_element(errors.begin(), errors.begin() + std::ptrdiff_t(rank), errors.end());
+    p99 = errors[rank];
+}
+
+HitErrorSummary summarise(ClassErrors& errors) {
+    HitErrorSummary summary;
+    summary.pixels = errors.pixels;
+    summary.meanNormalErrorDeg =
+        errors.pixels ? errors.normalErrorSumDeg / double(errors.pixels) : 0.0;
+    summariseHitErrors(errors.hitErrorsTexels, summary.hitErrorSamples, summary.meanHitErrorTexels,
+                       summary.p99HitErrorTexels, summary.maxHitErrorTexels);
+    return summary;
+}
+
+// The heat map's colour bar and its labels, in a 3 x 5 pixel font (digits, '.', and the letters
+// of "texels") drawn at twice that size.
+constexpr int kGlyphScale = 2;
+constexpr int kGlyphAdvance = 4 * kGlyphScale;  // 3 columns and one of space
+
+/// Rows of the glyph of `character`, top first, bit 2 the leftmost column; all zero if the
+/// font has no such glyph.
+std::array<std::uint8_t, 5> glyphRows(char character) {
+    switch (character) {
+        case '0':
+            return {7, 5, 5, 5, 7};
+        case '1':
+            return {2, 6, 2, 2, 7};
+        case '2':
+            return {7, 1, 7, 4, 7};
+        case '3':
+            return {7, 1, 7, 1, 7};
+        case '4':
+            return {5, 5, 7, 1, 1};
+        case '5':
+            return {7, 4, 7, 1, 7};
+        case '6':
+            return {7, 4, 7, 5, 7};
+        case '7':
+            return {7, 1, 1, 1, 1};
+        case '8':
+            return {7, 5, 7, 5, 7};
+        case '9':
+            return {7, 5, 7, 1, 7};
+        case '.':
+            return {0, 0, 0, 0, 2};
+        case 't':
+            return {2, 7, 2, 2, 3};
+        case 'e':
+            return {0, 7, 7, 4, 7};
+        case 'x':
+            return {0, 5, 2, 2, 5};
+        case 'l':
+            return {6, 2, 2, 2, 7};
+        case 's':
+            return {0, 3, 6, 1, 6};
+        default:
+            return {0, 0, 0, 0, 0};
+    }
+}
+
+int textWidth(const std::string& text) {
+    return text.empty() ? 0 : int(text.size()) * kGlyphAdvance - kGlyphScale;
+}
+
+/// Draws `text` with its top-left corner at (left, top), clipped to the image.
+void drawText(Image& image, const std::string& text, int left, int top, const glm::vec3& color) {
+    for (std::size_t index = 0; index < text.size(); ++index) {
+        const std::array<std::uint8_t, 5> rows = glyphRows(text[index]);
+        const int glyphLeft = left + int(index) * kGlyphAdvance;
+        for (int row = 0; row < 5 * kGlyphScale; ++row) {
+            for (int column = 0; column < 3 * kGlyphScale; ++column) {
+                if (!(rows[std::size_t(row / kGlyphScale)] & (4 >> (column / kGlyphScale))))
+                    continue;
+                const int x = glyphLeft + column;
+                const int y = top + row;
+                if (x >= 0 && y >= 0 && x < image.width && y < image.height) image.at(x, y) = color;
+            }
+        }
+    }
+}
+
+/// Draws the colour bar into the kHeatMapBarHeight rows from `top` (black already): the scale
+/// from kHeatMapMinTexels on the left to kHeatMapMaxTexels on the right, a tick and a label at
+/// each power of ten, and the unit to the right.
+void drawColourBar(Image& image, int top) {
+    const glm::vec3 white(1.0f);
+    const std::string unit = "texels";
+    const int unitLeft = image.width - 8 - textWidth(unit);
+    const int barLeft = 16;
+    const int barRight = std::max(barLeft + 1, unitLeft - 8 - textWidth("100") / 2 - 2);
+    const int barTop = top + 4;
+    const int barBottom = barTop + 10;  // exclusive
+    const double decades = std::log10(kHeatMapMaxTexels / kHeatMapMinTexels);
+    for (int x = barLeft; x <= barRight && x < image.width; ++x) {
+        const float t = float(x - barLeft) / float(barRight - barLeft);
+        for (int y = barTop; y < barBottom; ++y) image.at(x, y) = heatColor(t);
+    }
+    const int labelTop = barBottom + 5;
+    for (int decade = 0; decade <= int(std::lround(decades)); ++decade) {
+        const double texels = kHeatMapMinTexels * std::pow(10.0, decade);
+        const int x = barLeft + int(std::lround(double(barRight - barLeft) * decade / decades));
+        if (x >= image.width) break;
+        for (int y = barBottom; y < barBottom + 3; ++y) image.at(x, y) = white;
+        char label[16];
+        std::snprintf(label, sizeof label, "%g", texels);
+        drawText(image, label, x - textWidth(label) / 2, labelTop, white);
+    }
+    drawText(image, unit, unitLeft, labelTop, white);
+}
+
 }  // namespace
 
+glm::vec3 hitErrorColor(double errorTexels) {
+    if (!(errorTexels > kHeatMapMinTexels)) return heatColor(0.0f);
+    const double t = std::log10(errorTexels / kHeatMapMinTexels) /
+                     std::log10(kHeatMapMaxTexels / kHeatMapMinTexels);
+    return heatColor(float(std::min(t, 1.0)));
+}
+
 RenderComparison compareRenders(const RenderLayersView& a, const RenderLayersView& b,
-                                Image* difference) {
+                                Image* difference, Image* hitErrorMap) {
     requireLayers(a, a.image, "A");
     requireLayers(b, a.image, "B");
     RenderComparison result;
@@ -54,9 +235,12 @@ RenderComparison compareRenders(const RenderLayersView& a, const RenderLayersVie
     result.height = a.image.height;
     result.pixels = std::uint64_t(result.width) * std::uint64_t(result.height);
     if (difference) *difference = Image(result.width, result.height);
+    if (hitErrorMap) *hitErrorMap = Image(result.width, result.height + kHeatMapBarHeight);
+    const glm::vec3 magenta(1.0f, 0.0f, 1.0f);
+    const glm::vec3 bothMissColor(0.02f);  // dark grey
+    const glm::vec3 noScaleColor(0.2f);    // mid grey
 
-    std::vector<double> hitErrors;
-    double normalErrorSum = 0.0;
+    ClassErrors interior, silhouette;
     double squaredErrorSum = 0.0;
     for (int y = 0; y < result.height; ++y) {
         for (int x = 0; x < result.width; ++x) {
@@ -71,44 +255,55 @@ RenderComparison compareRenders(const RenderLayersView& a, const RenderLayersVie
             if (difference) {
                 const float largest =
                     std::max({shadedDifference.x, shadedDifference.y, shadedDifference.z});
-                difference->at(x, y) =
-                    hitA != hitB ? glm::vec3(1.0f, 0.0f, 1.0f) : heatColor(4.0f * largest);
+                difference->at(x, y) = hitA != hitB ? magenta : heatColor(4.0f * largest);
             }
             if (hitA != hitB) {
                 ++result.coverageMismatches;
+                if (hitErrorMap) hitErrorMap->at(x, y) = magenta;
                 continue;
             }
-            if (!hitA) continue;
-            ++result.bothHit;
-            const float scaleA = a.texelScale.at(x, y).x;
-            const float texelsPerWorld = scaleA > 0.0f ? scaleA : b.texelScale.at(x, y).x;
-            if (texelsPerWorld > 0.0f)
-                hitErrors.push_back(std::abs(double(depthA) - double(depthB)) * texelsPerWorld);
+            if (!hitA) {
+                if (hitErrorMap) hitErrorMap->at(x, y) = bothMissColor;
+                continue;
+            }
+            const float texelsPerWorld = texelsPerWorldAt(a, b, x, y);
+            ClassErrors& errors =
+                isSilhouette(a.depth, b.depth, x, y, texelsPerWorld) ? silhouette : interior;
+            ++errors.pixels;
+            if (texelsPerWorld > 0.0f) {
+                const double errorTexels =
+                    std::abs(double(depthA) - double(depthB)) * texelsPerWorld;
+                errors.hitErrorsTexels.push_back(errorTexels);
+                if (hitErrorMap) hitErrorMap->at(x, y) = hitErrorColor(errorTexels);
+            } else if (hitErrorMap) {
+                hitErrorMap->at(x, y) = noScaleColor;
+            }
             const glm::dvec3 normalA = decodeNormal(a.normal.at(x, y));
             const glm::dvec3 normalB = decodeNormal(b.normal.at(x, y));
             const double lengths = glm::length(normalA) * glm::length(normalB);
             if (lengths > 0.0) {
-                normalErrorSum +=
+                errors.normalErrorSumDeg +=
                     std::acos(std::clamp(glm::dot(normalA, normalB) / lengths, -1.0, 1.0)) * 180.0 /
                     kPi;
             }
         }
     }
+    if (hitErrorMap) drawColourBar(*hitErrorMap, result.height);
+
     result.coverageMismatchShare =
         result.pixels ? double(result.coverageMismatches) / double(result.pixels) : 0.0;
-    result.meanNormalErrorDeg = result.bothHit ? normalErrorSum / double(result.bothHit) : 0.0;
-    result.hitErrorSamples = hitErrors.size();
-    if (!hitErrors.empty()) {
-        double sum = 0.0;
-        for (const double error : hitErrors) sum += error;
-        result.meanHitErrorTexels = sum / double(hitErrors.size());
-        result.maxHitErrorTexels = *std::max_element(hitErrors.begin(), hitErrors.end());
-        // Nearest rank: the smallest error at or above 99% of the samples.
-        const std::size_t rank = std::size_t(std::ceil(0.99 * double(hitErrors.size()))) - 1;
-        std::nth_element(hitErrors.begin(), hitErrors.begin() + std::ptrdiff_t(rank),
-                         hitErrors.end());
-        result.p99HitErrorTexels = hitErrors[rank];
-    }
+    result.bothHit = interior.pixels + silhouette.pixels;
+    result.meanNormalErrorDeg =
+        result.bothHit
+            ? (interior.normalErrorSumDeg + silhouette.normalErrorSumDeg) / double(result.bothHit)
+            : 0.0;
+    std::vector<double> allErrors = interior.hitErrorsTexels;
+    allErrors.insert(allErrors.end(), silhouette.hitErrorsTexels.begin(),
+                     silhouette.hitErrorsTexels.end());
+    summariseHitErrors(allErrors, result.hitErrorSamples, result.meanHitErrorTexels,
+                       result.p99HitErrorTexels, result.maxHitErrorTexels);
+    result.interior = summarise(interior);
+    result.silhouette = summarise(silhouette);
     const double meanSquaredError = squaredErrorSum / (3.0 * double(result.pixels));
     result.psnrDb = meanSquaredError > 0.0 ? 10.0 * std::log10(1.0 / meanSquaredError)
                                            : std::numeric_limits<double>::infinity();

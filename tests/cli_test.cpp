@@ -764,18 +764,24 @@ TEST_F(Cli, ReferenceRenderAndCompareReportTheFigures) {
     // tile is not its truth) and is bounded by the shell: these near-vertical rays cross its 8
     // texels in about 8 texels. A 64-wide tile resolves the wires poorly (measured: mean 0.69).
     EXPECT_EQ(report.at("coverage_mismatches").get<int>(), 0);
-    EXPECT_GT(report.at("hit_error_mean").get<double>(), 0.0);
-    EXPECT_LT(report.at("hit_error_mean").get<double>(), 2.0);
-    EXPECT_LT(report.at("hit_error_max").get<double>(), 9.0);
-    EXPECT_GE(report.at("hit_error_max").get<double>(), report.at("hit_error_p99").get<double>());
+    const nlohmann::json& all = report.at("all_both_hit");
+    EXPECT_EQ(all.at("pixels").get<int>(), 64 * 48);
+    EXPECT_GT(all.at("hit_error_mean").get<double>(), 0.0);
+    EXPECT_LT(all.at("hit_error_mean").get<double>(), 2.0);
+    EXPECT_LT(all.at("hit_error_max").get<double>(), 9.0);
+    EXPECT_GE(all.at("hit_error_max").get<double>(), all.at("hit_error_p99").get<double>());
+    EXPECT_EQ(report.at("interior").at("pixels").get<int>() +
+                  report.at("silhouette").at("pixels").get<int>(),
+              64 * 48);
     EXPECT_TRUE(report.at("psnr_db").is_number());
     EXPECT_TRUE(fs::is_regular_file(path("tile.diff.png")));
+    EXPECT_TRUE(fs::is_regular_file(path("tile.hit_error.png")));
 
     // A render against itself: no error, infinite PSNR (null in JSON), difference written with -o.
     const RunResult same = run({"compare", "truth.png", "truth.png", "--json", "-o", "same.png"});
     ASSERT_EQ(same.status, 0) << same.err;
     const nlohmann::json sameReport = nlohmann::json::parse(same.out);
-    EXPECT_EQ(sameReport.at("hit_error_max").get<double>(), 0.0);
+    EXPECT_EQ(sameReport.at("all_both_hit").at("hit_error_max").get<double>(), 0.0);
     EXPECT_TRUE(sameReport.at("psnr_db").is_null());
     EXPECT_TRUE(fs::is_regular_file(path("same.png")));
 
@@ -785,6 +791,78 @@ TEST_F(Cli, ReferenceRenderAndCompareReportTheFigures) {
         0);
     expectInputError({"compare", "plain.png", "truth.png", "-o", "never.png"}, "never.png",
                      {"plain.depth.exr", "--aovs"});
+}
+
+TEST_F(Cli, CompareTextAndJsonGiveTheSameCountsAndTheHeatMapHasItsColourBar) {
+    ASSERT_EQ(run({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x8"}).status, 0);
+    // planeScene's plane seen from above its edge at x = 1: the right part of the view misses,
+    // so there are silhouette pixels next to the misses as well as interior ones.
+    writeText(path("scene.json"),
+              R"({"camera": {"eye": [0.9, 0, 1.5], "target": [0.9, 0, 0], "up": [0, 1, 0],
+                             "fov_deg": 40},
+                  "lights": [{"type": "directional", "direction": [-1, 0, -0.4]}],
+                  "objects": [{"mesh": "plane", "material": )" +
+                  chainmailMaterial(R"("tile.exr")") + "}]}\n");
+    const std::vector<std::string> common = {"scene.json", "--width", "64",          "--height",
+                                             "48",         "--aovs",  "--no-shadows"};
+    auto render = [&](const std::string& output, bool reference) {
+        std::vector<std::string> arguments = {"render"};
+        arguments.insert(arguments.end(), common.begin(), common.end());
+        arguments.insert(arguments.end(), {"-o", output, "--iterations", "64"});
+        if (reference) arguments.push_back("--reference");
+        return run(arguments);
+    };
+    ASSERT_EQ(render("tile.png", false).status, 0);
+    ASSERT_EQ(render("truth.png", true).status, 0);
+
+    const RunResult text = run({"compare", "tile.png", "truth.png", "--heatmap", "errors.png"});
+    ASSERT_EQ(text.status, 0) << text.err;
+    const RunResult json = run({"compare", "tile.png", "truth.png", "--json"});
+    ASSERT_EQ(json.status, 0) << json.err;
+    const nlohmann::json report = nlohmann::json::parse(json.out);
+
+    // The counts line and the table's rows of the text report.
+    unsigned long long pixels = 0, bothHit = 0, interior = 0, silhouette = 0, mismatches = 0;
+    const std::size_t countsAt = text.out.find("pixels: ");
+    ASSERT_NE(countsAt, std::string::npos) << text.out;
+    ASSERT_EQ(std::sscanf(text.out.c_str() + countsAt,
+                          "pixels: %llu; both hit: %llu (interior %llu, silhouette %llu); "
+                          "coverage mismatches: %llu",
+                          &pixels, &bothHit, &interior, &silhouette, &mismatches),
+              5)
+        << text.out;
+    EXPECT_EQ(pixels, report.at("pixels").get<unsigned long long>());
+    EXPECT_EQ(bothHit, report.at("both_hit").get<unsigned long long>());
+    EXPECT_EQ(mismatches, report.at("coverage_mismatches").get<unsigned long long>());
+    EXPECT_EQ(interior, report.at("interior").at("pixels").get<unsigned long long>());
+    EXPECT_EQ(silhouette, report.at("silhouette").at("pixels").get<unsigned long long>());
+    EXPECT_EQ(pixels, 64u * 48u);
+    EXPECT_GT(interior, 0u);
+    EXPECT_GT(silhouette, 0u);
+    EXPECT_LT(bothHit, pixels);  // the misses right of the plane's edge
+    EXPECT_EQ(interior + silhouette, bothHit);
+    for (const char* name : {"interior", "silhouette", "all"}) {
+        const std::size_t rowAt = text.out.find(std::string("\n  ") + name + " ");
+        ASSERT_NE(rowAt, std::string::npos) << name << "\n" << text.out;
+        unsigned long long rowPixels = 0, rowSamples = 0;
+        double mean = 0.0;
+        ASSERT_EQ(std::sscanf(text.out.c_str() + rowAt + 3 + std::string(name).size(),
+                              "%llu %llu %lf", &rowPixels, &rowSamples, &mean),
+                  3)
+            << text.out;
+        const nlohmann::json& figures =
+            report.at(std::string(name) == "all" ? "all_both_hit" : name);
+        EXPECT_EQ(rowPixels, figures.at("pixels").get<unsigned long long>()) << name;
+        EXPECT_EQ(rowSamples, figures.at("hit_error_samples").get<unsigned long long>()) << name;
+        EXPECT_NEAR(mean, figures.at("hit_error_mean").get<double>(), 1e-4) << name;
+    }
+
+    // The heat map: the render's size plus the colour bar strip, misses dark grey.
+    const Image heatMap = readImage(path("errors.png"));
+    EXPECT_EQ(heatMap.width, 64);
+    EXPECT_EQ(heatMap.height, 48 + 32);
+    EXPECT_LT(heatMap.at(63, 24).x, 0.05f);                        // right of the plane's edge
+    EXPECT_TRUE(fs::is_regular_file(path("tile.hit_error.png")));  // the --json run's default
 }
 
 /// A plane material whose tile a scene bakes from `obj`: a 32 x 32 x 8 tile over the 2 x 2 plane
@@ -819,8 +897,8 @@ TEST_F(Cli, MeshRecipeRendersAgainstExactMeshHitsAndRebakesAnEditedMesh) {
     // to ~0.8 texel, see BakesAClosedMeshWithVerifiedSignAndChecksItAgainstTheMesh), and the
     // default march stops within 0.02 texel of the surface.
     EXPECT_EQ(report.at("coverage_mismatches").get<int>(), 0);
-    EXPECT_LT(report.at("hit_error_mean").get<double>(), 0.1);
-    EXPECT_LT(report.at("hit_error_max").get<double>(), 8.0);
+    EXPECT_LT(report.at("all_both_hit").at("hit_error_mean").get<double>(), 0.1);
+    EXPECT_LT(report.at("all_both_hit").at("hit_error_max").get<double>(), 8.0);
 
     // An edited mesh file is baked again (the recipe hashes the file's bytes): the cube twice as
     // tall renders differently.
@@ -833,7 +911,9 @@ TEST_F(Cli, MeshRecipeRendersAgainstExactMeshHitsAndRebakesAnEditedMesh) {
     ASSERT_EQ(edited.status, 0) << edited.err;
     const RunResult changed = run({"compare", "edited.png", "tile.png", "--json"});
     ASSERT_EQ(changed.status, 0) << changed.err;
-    EXPECT_GT(nlohmann::json::parse(changed.out).at("hit_error_max").get<double>(), 1.0);
+    EXPECT_GT(
+        nlohmann::json::parse(changed.out).at("all_both_hit").at("hit_error_max").get<double>(),
+        1.0);
 }
 
 TEST_F(Cli, MeshTruthNeedsAMeshRecipeAndAClosedMesh) {

@@ -1053,7 +1053,7 @@ TEST(Material, ColorTextureIsLookedUpBilinearlyAtTheBaseUvAndWraps) {
 }  // namespace distile
 
 // ---------------------------------------------------------------------------------------------
-// Reference renders (render/analytic_filter.h) and render comparison (render/compare.h).
+// Reference renders (render/analytic_filter.h), measured with render/compare.h.
 
 #include "render/analytic_filter.h"
 #include "render/compare.h"
@@ -1062,66 +1062,6 @@ TEST(Material, ColorTextureIsLookedUpBilinearlyAtTheBaseUvAndWraps) {
 
 namespace distile {
 namespace {
-
-/// Render layers held by value, for synthetic comparisons.
-struct Layers {
-    Image image, depth, normal, texelScale;
-    explicit Layers(int width, int height)
-        : image(width, height, glm::vec3(0.5f)),
-          depth(width, height, glm::vec3(2.0f)),
-          normal(width, height, glm::vec3(0.5f, 0.5f, 1.0f)),
-          texelScale(width, height, glm::vec3(100.0f)) {}
-    RenderLayersView view() const { return {image, depth, normal, texelScale}; }
-};
-
-TEST(CompareRenders, IdenticalRendersHaveNoErrorAndInfinitePsnr) {
-    const Layers a(8, 4);
-    const RenderComparison c = compareRenders(a.view(), a.view());
-    EXPECT_EQ(c.pixels, 32u);
-    EXPECT_EQ(c.bothHit, 32u);
-    EXPECT_EQ(c.coverageMismatches, 0u);
-    EXPECT_EQ(c.meanHitErrorTexels, 0.0);
-    EXPECT_EQ(c.maxHitErrorTexels, 0.0);
-    EXPECT_EQ(c.meanNormalErrorDeg, 0.0);
-    EXPECT_TRUE(std::isinf(c.psnrDb) && c.psnrDb > 0.0);
-}
-
-TEST(CompareRenders, KnownDepthOffsetNormalTurnAndMissingHit) {
-    Layers a(20, 10), b(20, 10);
-    // B's hits are 0.001 world units farther: 0.1 texel at 100 texels per world unit (float
-    // depths near 2 carry ~1e-7 relative error: tolerance 1e-4 texel).
-    for (glm::vec3& depth : b.depth.rgbLinear) depth += 0.001f;
-    // One pixel's hit in B is 0.005 world units off (0.5 texel): the maximum. The 99th percentile
-    // of the 199 samples by nearest rank is rank ceil(0.99 * 199) = 198, i.e. 0.1 texel.
-    b.depth.at(3, 3) = glm::vec3(2.005f);
-    // One pixel missed in B: one mismatch in 200 pixels.
-    b.depth.at(7, 7) = glm::vec3(0.0f);
-    // Every normal of B turned 90 degrees (z -> x): mean normal error 90 degrees over both-hit
-    // pixels.
-    for (glm::vec3& normal : b.normal.rgbLinear) normal = glm::vec3(1.0f, 0.5f, 0.5f);
-    // Shaded difference of 0.1 in sRGB-encoded values everywhere: PSNR = 20 log10(1 / 0.1) = 20 dB.
-    for (glm::vec3& color : b.image.rgbLinear)
-        color = glm::vec3(linearFromSrgb(srgbFromLinear(0.5f) + 0.1f));
-    Image difference;
-    const RenderComparison c = compareRenders(a.view(), b.view(), &difference);
-    EXPECT_EQ(c.coverageMismatches, 1u);
-    EXPECT_DOUBLE_EQ(c.coverageMismatchShare, 0.005);
-    EXPECT_EQ(c.bothHit, 199u);
-    EXPECT_EQ(c.hitErrorSamples, 199u);
-    EXPECT_NEAR(c.meanHitErrorTexels, (198 * 0.1 + 0.5) / 199.0, 1e-4);
-    EXPECT_NEAR(c.p99HitErrorTexels, 0.1, 1e-4);
-    EXPECT_NEAR(c.maxHitErrorTexels, 0.5, 1e-4);
-    EXPECT_NEAR(c.meanNormalErrorDeg, 90.0, 1e-3);
-    EXPECT_NEAR(c.psnrDb, 20.0, 0.01);  // the sRGB round trip is accurate to ~1e-6
-    ASSERT_EQ(difference.width, 20);
-    EXPECT_EQ(difference.at(7, 7), glm::vec3(1.0f, 0.0f, 1.0f));  // coverage mismatch in magenta
-    EXPECT_NE(difference.at(0, 0), heatColor(0.0f));              // a visible shaded difference
-}
-
-TEST(CompareRenders, RejectsLayersOfAnotherSize) {
-    const Layers a(8, 4), b(4, 8);
-    EXPECT_THROW(compareRenders(a.view(), b.view()), InputError);
-}
 
 TEST(AnalyticFilter, DistanceAndGradientOfAPlane) {
     const AnalyticFilter::DistanceFunction plane = [](const glm::dvec3& p) {
