@@ -51,7 +51,7 @@ void CurvedMarchRay::start(const ShellPrisms& shell, const Ray& ray, std::uint32
     entryDistanceWorld_ = distanceWorld_ = outsideWorld_ = entryDistanceWorld;
     outsideDepthWorld_ = 0.0;
     outsideTexels_ = 0.0f;
-    forcedStep_ = refining_ = false;
+    refining_ = false;
     end_ = CurvedMarchEnd{};
     // The entry itself, even where rounding puts it a hair above the top.
     const Located where = detail::locate(shell, origin_, direction_, distanceWorld_, cursor_);
@@ -74,22 +74,39 @@ void CurvedMarchRay::start(const ShellPrisms& shell, const Ray& ray, std::uint32
     needsSample_ = true;
 }
 
-bool CurvedMarchRay::prepareSample() {
-    const Located where = detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_);
-    if (where == Located::AboveTop) {
-        // Out through the top between the last two points: where the depth crosses 0.
-        const double share = outsideDepthWorld_ / (outsideDepthWorld_ - cursor_.point.depthWorld);
-        return leave(outsideWorld_ + (distanceWorld_ - outsideWorld_) * share);
+bool CurvedMarchRay::prepareSample(double stepTexels) {
+    const double startSpeed = speed_;
+    for (int attempt = 0;; ++attempt) {
+        const Located where =
+            detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_);
+        if (where == Located::AboveTop) {
+            // Out through the top between the last two points: where the depth crosses 0.
+            const double share =
+                outsideDepthWorld_ / (outsideDepthWorld_ - cursor_.point.depthWorld);
+            return leave(outsideWorld_ + (distanceWorld_ - outsideWorld_) * share);
+        }
+        if (where != Located::Inside) return leave(outsideWorld_);
+        const ShellPrism& prism = shell_->prisms[cursor_.prism];
+        const glm::dvec3 velocity =
+            detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_);
+        speed_ = glm::length(velocity);
+        if (!(speed_ > 0.0 && std::isfinite(speed_))) return leave(outsideWorld_);
+        directionTexels_ = velocity * (1.0 / speed_);
+        // The step was taken with the stretch at its start; where the stretch grows along it,
+        // the texel-space path (by the trapezoid of the two speeds) is longer than the step and
+        // may leave the safe sphere: shortened once to the step's length.
+        const double meanSpeed = 0.5 * (startSpeed + speed_);
+        const double stepWorld = distanceWorld_ - outsideWorld_;
+        if (attempt > 0 || meanSpeed * stepWorld <= stepTexels * (1.0 + 1e-4)) {
+            samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
+            return needsSample_ = true;
+        }
+        const double shorter = stepTexels / meanSpeed;
+        cursor_.point.b1 -= prismVelocity_.x * (stepWorld - shorter);
+        cursor_.point.b2 -= prismVelocity_.y * (stepWorld - shorter);
+        cursor_.point.depthWorld -= prismVelocity_.z * (stepWorld - shorter);
+        distanceWorld_ = outsideWorld_ + shorter;
     }
-    if (where != Located::Inside) return leave(outsideWorld_);
-    const ShellPrism& prism = shell_->prisms[cursor_.prism];
-    const glm::dvec3 velocity =
-        detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_);
-    speed_ = glm::length(velocity);
-    if (!(speed_ > 0.0 && std::isfinite(speed_))) return leave(outsideWorld_);
-    directionTexels_ = velocity * (1.0 / speed_);
-    samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
-    return needsSample_ = true;
 }
 
 bool CurvedMarchRay::leave(double atWorld) {
@@ -176,9 +193,10 @@ bool CurvedMarchRay::advance(float distance) {
     if (refining_) return refineStep(distance);
     if (std::isnan(distance)) return leave(outsideWorld_);
     if (distance < epsilonTexels_) {
-        if (distance < 0.0f && forcedStep_) {
-            // A budgeted step went past the surface: regula falsi between the last outside point
-            // and this one.
+        if (distance < 0.0f && end_.march.iterations > 1) {
+            // A step went past the surface (a budgeted step longer than the distance, or the
+            // map's stretch growing along it): regula falsi between the last outside point and
+            // this one.
             refining_ = true;
             insideWorld_ = distanceWorld_;
             insideTexels_ = distance;
@@ -199,7 +217,6 @@ bool CurvedMarchRay::advance(float distance) {
     }
     if (end_.march.iterations >= budget_) return stop(false);
     double stepTexels = distance;
-    forcedStep_ = false;
     if (budgeted_) {
         // The path left in the shell: to the floor while the ray descends, to the top once it
         // rises again (a ray through a convex shell turns).
@@ -209,7 +226,7 @@ bool CurvedMarchRay::advance(float distance) {
         const double minimum = pathLeftTexels / double(budget_ - end_.march.iterations);
         if (minimum > stepTexels) {
             stepTexels = minimum;
-            forcedStep_ = true;
+
         }
     }
     stepTexels = std::min(stepTexels, toFloorTexels);
@@ -222,7 +239,7 @@ bool CurvedMarchRay::advance(float distance) {
     cursor_.point.b1 += prismVelocity_.x * stepWorld;
     cursor_.point.b2 += prismVelocity_.y * stepWorld;
     cursor_.point.depthWorld += prismVelocity_.z * stepWorld;
-    return prepareSample();
+    return prepareSample(stepTexels);
 }
 
 }  // namespace distile

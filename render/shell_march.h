@@ -102,9 +102,10 @@ class CurvedMarchRay {
     const CurvedMarchEnd& end() const { return end_; }
 
   private:
-    /// Locates the ray's point at distanceWorld_ and sets up its sample, or ends the march there
-    /// when it is outside the shell.
-    bool prepareSample();
+    /// Locates the ray's point at distanceWorld_, `stepTexels` from the last sample, and sets up
+    /// its sample (the step shortened where the texel-space path grew longer than it), or ends
+    /// the march there when it is outside the shell.
+    bool prepareSample(double stepTexels);
     /// Ends at the current point: a hit (converged, or at the end of the budget).
     bool stop(bool converged);
     /// Ends without a hit: the ray left the shell at `atWorld`.
@@ -130,7 +131,6 @@ class CurvedMarchRay {
     /// The last point sampled outside the detail, before the current one.
     double outsideWorld_ = 0.0, outsideDepthWorld_ = 0.0;
     float outsideTexels_ = 0.0f;
-    bool forcedStep_ = false;  ///< the step to the current point was longer than its distance
     bool refining_ = false;
     double insideWorld_ = 0.0;  ///< refining: the bracket's inside end (outside: outsideWorld_)
     float insideTexels_ = 0.0f;

@@ -1,0 +1,464 @@
+// Tests of the shell map (common/shell_map.h) and of the march that follows it through curved
+// shells (render/shell_march.h, SceneTracer with ShellMapping::Curved). The known answers: a
+// layer of constant depth h in the shell is, by the map's definition, the mesh of the base
+// triangles moved by -h N_i at their corners (flat triangles at every h), so a ray's hit on it is
+// a ray/triangle intersection computed here in double precision, independently of the march.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <cstdio>
+#include <glm/geometric.hpp>
+#include <limits>
+#include <optional>
+#include <random>
+#include <string>
+
+#include "common/shell_map.h"
+#include "render/bvh.h"
+#include "render/renderer.h"
+#include "render/shell_march.h"
+#include "render/tracer.h"
+
+namespace distile {
+namespace {
+
+/// A tile whose detail is the horizontal plane z = heightTexels (solid below): trilinear
+/// reconstruction reproduces its distance exactly.
+Tile layerTile(const Size3& size, float heightTexels) {
+    Tile tile(size);
+    for (int z = 0; z < size.depth; ++z)
+        for (int y = 0; y < size.height; ++y)
+            for (int x = 0; x < size.width; ++x) tile.at(x, y, z) = (z + 0.5f) - heightTexels;
+    return tile;
+}
+
+constexpr float kLayerTexels = 6.0f;  ///< the layer's height in the 16-deep tile
+constexpr float kDepthWorld = 0.04f;
+
+Scene layerScene(BaseMesh mesh, float depthWorld = kDepthWorld) {
+    Scene scene;
+    SceneObject object;
+    object.mesh = std::move(mesh);
+    object.material.tile = std::make_shared<const Tile>(layerTile({32, 32, 16}, kLayerTexels));
+    object.material.uvScale = {8.0f, 4.0f};
+    object.material.depthWorld = depthWorld;
+    scene.objects.push_back(std::move(object));
+    return scene;
+}
+
+/// The nearest front-facing hit of `ray` on the base mesh moved to depth `depthWorld` along its
+/// vertex normals (the shell's layer at that depth), in double precision; nothing for a miss.
+std::optional<double> layerHit(const BaseMesh& mesh, const Ray& ray, double depthWorld) {
+    std::optional<double> nearest;
+    for (const glm::uvec3& triangle : mesh.triangles) {
+        glm::dvec3 corners[3];
+        for (int corner = 0; corner < 3; ++corner) {
+            corners[corner] = glm::dvec3(mesh.positions[triangle[corner]]) -
+                              depthWorld * glm::dvec3(mesh.normals[triangle[corner]]);
+        }
+        const glm::dvec3 edge1 = corners[1] - corners[0], edge2 = corners[2] - corners[0];
+        const glm::dvec3 direction(ray.direction);
+        if (glm::dot(glm::cross(edge1, edge2), direction) >= 0.0) continue;  // a back face
+        const glm::dvec3 pvec = glm::cross(direction, edge2);
+        const double determinant = glm::dot(edge1, pvec);
+        const glm::dvec3 tvec = glm::dvec3(ray.origin) - corners[0];
+        const double b1 = glm::dot(tvec, pvec) / determinant;
+        const glm::dvec3 qvec = glm::cross(tvec, edge1);
+        const double b2 = glm::dot(direction, qvec) / determinant;
+        const double distance = glm::dot(edge2, qvec) / determinant;
+        if (b1 < 0.0 || b2 < 0.0 || b1 + b2 > 1.0 || distance <= 0.0) continue;
+        if (!nearest || distance < *nearest) nearest = distance;
+    }
+    return nearest;
+}
+
+double layerDepthWorld(float depthWorld) { return depthWorld * (1.0 - kLayerTexels / 16.0); }
+
+/// A march that converges far below the default threshold, so a hit is where the map puts it.
+TraceOptions preciseOptions(ShellMapping mapping) {
+    TraceOptions options;
+    options.march.maxIterations = 512;
+    options.march.epsilonTexels = 1e-4f;
+    options.shellMapping = mapping;
+    return options;
+}
+
+ShellPrism curvedPrism() {
+    // A triangle on a sphere of radius 2 with the sphere's normals, and a skewed uv triangle.
+    const glm::vec3 corners[3] = {glm::normalize(glm::vec3(1.0f, 0.1f, 0.2f)) * 2.0f,
+                                  glm::normalize(glm::vec3(0.9f, 0.5f, 0.1f)) * 2.0f,
+                                  glm::normalize(glm::vec3(0.95f, 0.2f, 0.6f)) * 2.0f};
+    const glm::vec3 normals[3] = {corners[0] / 2.0f, corners[1] / 2.0f, corners[2] / 2.0f};
+    const glm::vec2 uvs[3] = {{0.1f, 0.2f}, {0.35f, 0.22f}, {0.18f, 0.5f}};
+    return ShellPrism::make(corners, normals, uvs, {3.0f, 2.0f}, 64, 64, 16, 0.3);
+}
+
+TEST(ShellMap, InvertsTheForwardMapInsideThePrism) {
+    const ShellPrism prism = curvedPrism();
+    std::mt19937 random(7);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int sample = 0; sample < 200; ++sample) {
+        double b1 = unit(random), b2 = unit(random);
+        if (b1 + b2 > 1.0) b1 = 1.0 - b1, b2 = 1.0 - b2;
+        const PrismPoint point{b1, b2, prism.depthWorld * unit(random)};
+        PrismPoint found{1.0 / 3.0, 1.0 / 3.0, 0.0};  // from the centre of the top
+        ShellPrism::Jacobian jacobian;
+        ASSERT_TRUE(prism.invert(prism.offsetAt(point), found, jacobian));
+        // The map is nearly affine: after the step that moved less than 1e-3 the error left is
+        // of the order of its square.
+        EXPECT_NEAR(found.b1, point.b1, 1e-6);
+        EXPECT_NEAR(found.b2, point.b2, 1e-6);
+        EXPECT_NEAR(found.depthWorld, point.depthWorld, 1e-6 * prism.depthWorld);
+        // texel and back
+        const PrismPoint again = prism.pointAtTexel(prism.texelAt(point));
+        EXPECT_NEAR(again.b1, point.b1, 1e-12);
+        EXPECT_NEAR(again.b2, point.b2, 1e-12);
+        EXPECT_NEAR(again.depthWorld, point.depthWorld, 1e-12);
+    }
+}
+
+TEST(ShellMap, JacobianIsTheMapsDerivative) {
+    const ShellPrism prism = curvedPrism();
+    const PrismPoint point{0.3, 0.25, 0.1};
+    const ShellPrism::Jacobian jacobian = prism.jacobianAt(point);
+    const double step = 1e-6;
+    for (int axis = 0; axis < 3; ++axis) {
+        PrismPoint up = point, down = point;
+        double* upValue = axis == 0 ? &up.b1 : axis == 1 ? &up.b2 : &up.depthWorld;
+        double* downValue = axis == 0 ? &down.b1 : axis == 1 ? &down.b2 : &down.depthWorld;
+        *upValue += step;
+        *downValue -= step;
+        const glm::dvec3 difference = (prism.worldAt(up) - prism.worldAt(down)) / (2.0 * step);
+        EXPECT_NEAR(glm::length(difference - jacobian.column[axis]), 0.0, 1e-8) << axis;
+    }
+    // solve and solveTransposed invert J and its transpose.
+    const glm::dvec3 v(0.3, -1.2, 0.7);
+    const glm::dvec3 x = jacobian.solve(v);
+    const glm::dvec3 back = x.x * jacobian.column[0] + x.y * jacobian.column[1] +
+                            x.z * jacobian.column[2];
+    EXPECT_NEAR(glm::length(back - v), 0.0, 1e-12);
+    const glm::dvec3 y = jacobian.solveTransposed(v);
+    EXPECT_NEAR(glm::dot(y, jacobian.column[0]), v.x, 1e-12);
+    EXPECT_NEAR(glm::dot(y, jacobian.column[1]), v.y, 1e-12);
+    EXPECT_NEAR(glm::dot(y, jacobian.column[2]), v.z, 1e-12);
+}
+
+TEST(ShellMap, FoldsAtTheSphereCentreAndNeverWhenFlat) {
+    // Corners on a sphere of radius 2 with radial normals: every P_i - h N_i reaches the centre
+    // at h = 2, where the prism collapses to a point.
+    EXPECT_NEAR(curvedPrism().foldDepthWorld(), 2.0, 1e-6);  // float corners
+    const glm::vec3 corners[3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    const glm::vec3 normals[3] = {{0, 0, 1}, {0, 0, 1}, {0, 0, 1}};
+    const glm::vec2 uvs[3] = {{0, 0}, {1, 0}, {0, 1}};
+    const ShellPrism flat = ShellPrism::make(corners, normals, uvs, {1, 1}, 16, 16, 8, 0.1);
+    EXPECT_TRUE(flat.straight());
+    EXPECT_EQ(flat.foldDepthWorld(), std::numeric_limits<double>::infinity());
+}
+
+/// Rays from `eye` to points of the mesh's visible side (vertices, edge midpoints, and random
+/// points inside triangles), with their expected layer hits.
+struct AimedRay {
+    Ray ray;
+    std::optional<double> expected;
+    std::string what;
+};
+
+std::vector<AimedRay> raysAt(const BaseMesh& mesh, const glm::vec3& eye, double layerDepth,
+                             bool edgesAndVertices) {
+    std::vector<AimedRay> rays;
+    std::mt19937 random(11);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    for (std::size_t t = 0; t < mesh.triangles.size(); t += 7) {
+        const glm::uvec3 triangle = mesh.triangles[t];
+        const glm::vec3 p0 = mesh.positions[triangle[0]], p1 = mesh.positions[triangle[1]],
+                        p2 = mesh.positions[triangle[2]];
+        if (glm::dot(glm::cross(p1 - p0, p2 - p0), (p0 + p1 + p2) / 3.0f - eye) >= 0.0f)
+            continue;  // faces away from the eye
+        std::vector<std::pair<glm::vec3, std::string>> targets;
+        if (edgesAndVertices) {
+            targets = {{p0, "vertex"}, {0.5f * (p0 + p1), "edge"}, {0.5f * (p1 + p2), "edge"}};
+        } else {
+            float b1 = unit(random), b2 = unit(random);
+            if (b1 + b2 > 1.0f) b1 = 1.0f - b1, b2 = 1.0f - b2;
+            targets = {{p0 + b1 * (p1 - p0) + b2 * (p2 - p0), "inside"}};
+        }
+        for (const auto& [target, what] : targets) {
+            const Ray ray{eye, glm::normalize(target - eye)};
+            // Leave out rays that graze the base (their layer hit is ill-conditioned) or that
+            // the base mesh's own other side hides.
+            if (std::abs(glm::dot(ray.direction, mesh.normals[triangle[0]])) < 0.5f) continue;
+            rays.push_back({ray, layerHit(mesh, ray, layerDepth), what + " of triangle " +
+                                                                     std::to_string(t)});
+        }
+    }
+    return rays;
+}
+
+/// The largest error (texels along the ray) of the tracer's hits on the layer, over `rays`;
+/// every ray with an expected hit must hit the detail.
+double largestLayerError(const Scene& scene, const TraceOptions& options,
+                         const std::vector<AimedRay>& rays, int& hits) {
+    const SceneTracer tracer(scene, options);
+    double largest = 0.0;
+    hits = 0;
+    for (const AimedRay& aimed : rays) {
+        SurfaceHit hit;
+        TraceCounters counters;
+        const bool found = tracer.traceNearest(aimed.ray, 0.0f, hit, counters);
+        if (!aimed.expected) continue;
+        EXPECT_TRUE(found && hit.onDetail) << aimed.what;
+        if (!found || !hit.onDetail) continue;
+        ++hits;
+        const double errorTexels =
+            std::abs(double(hit.distanceWorld) - *aimed.expected) * hit.texelsPerWorldAlongRay;
+        largest = std::max(largest, errorTexels);
+
+    }
+    return largest;
+}
+
+TEST(CurvedShell, HitsTheLayerOfTheShellMapOnASphereAndATorus) {
+    // The layer z = 6 of a 16-deep tile lies at depth 0.625 x 0.04 below the base: the
+    // offset mesh. The curved march lands on it to within its threshold (1e-4 texel, with float
+    // rounding of a ray a few world units long: 2e-3 texels); the planar march, which maps the
+    // ray once with the entry's frame, misses it by more on the same rays.
+    for (const bool torus : {false, true}) {
+        const BaseMesh mesh = torus ? makeTorus(0.8f, 0.3f, 64, 32) : makeUvSphere(0.6f, 48, 24);
+        const Scene scene = layerScene(mesh);
+        const std::vector<AimedRay> rays =
+            raysAt(mesh, {0.4f, -2.5f, 1.7f}, layerDepthWorld(kDepthWorld), false);
+        int hits = 0;
+        const double curved =
+            largestLayerError(scene, preciseOptions(ShellMapping::Curved), rays, hits);
+        EXPECT_GT(hits, 50);
+        EXPECT_LT(curved, 2e-3) << (torus ? "torus" : "sphere");
+        const double planar =
+            largestLayerError(scene, preciseOptions(ShellMapping::Planar), rays, hits);
+        EXPECT_GT(planar, 0.05) << (torus ? "torus" : "sphere");
+    }
+}
+
+TEST(CurvedShell, DefaultMarchIsWithinItsThresholdOfTheLayer) {
+    // The default budget and threshold (0.02 texel): within twice the threshold along rays that
+    // meet the base at 60 degrees or steeper (in texel space, steeper still: z is stretched).
+    const BaseMesh mesh = makeTorus(0.8f, 0.3f, 64, 32);
+    const Scene scene = layerScene(mesh);
+    const std::vector<AimedRay> rays =
+        raysAt(mesh, {0.4f, -2.5f, 1.7f}, layerDepthWorld(kDepthWorld), false);
+    TraceOptions options;
+    int hits = 0;
+    EXPECT_LT(largestLayerError(scene, options, rays, hits), 0.05);
+    EXPECT_GT(hits, 50);
+}
+
+TEST(CurvedShell, RaysAtVerticesAndEdgesNeitherLeakNorMissTheLayer) {
+    // Rays aimed exactly at base vertices and edge midpoints enter where several prisms meet and
+    // must land on the layer like any other ray (a leak would miss it, a double hit would not
+    // change the nearest one).
+    const BaseMesh mesh = makeUvSphere(0.6f, 48, 24);
+    const Scene scene = layerScene(mesh);
+    const std::vector<AimedRay> rays =
+        raysAt(mesh, {0.3f, -2.2f, 0.9f}, layerDepthWorld(kDepthWorld), true);
+    int hits = 0;
+    EXPECT_LT(largestLayerError(scene, preciseOptions(ShellMapping::Curved), rays, hits), 2e-3);
+    EXPECT_GT(hits, 100);
+}
+
+TEST(CurvedShell, RaysThatDoNotReachTheLayerLeaveThroughTheTop) {
+    // Rays passing the sphere's centre at a distance between the layer's radius and the base's:
+    // they enter the shell and leave it again without reaching the detail. The planar march
+    // continues straight under the base and wrongly hits.
+    const float radius = 0.6f;
+    const BaseMesh mesh = makeUvSphere(radius, 96, 48);
+    const Scene scene = layerScene(mesh);
+    const double layerRadius = radius - layerDepthWorld(kDepthWorld);
+    const double sag = radius * (1.0 - std::cos(3.14159265 / 48.0));  // chord below the sphere
+    const double pass = 0.5 * (layerRadius + radius - sag);
+    int curvedMisses = 0, planarHits = 0, entered = 0;
+    const SceneTracer curved(scene, TraceOptions{});
+    TraceOptions planarOptions;
+    planarOptions.shellMapping = ShellMapping::Planar;
+    const SceneTracer planar(scene, planarOptions);
+    for (int k = 0; k < 40; ++k) {
+        const double angle = 2.0 * 3.14159265 * (k + 0.5) / 40.0;
+        const glm::dvec3 side(std::cos(angle), 0.0, std::sin(angle));
+        const Ray ray{glm::vec3(side * pass + glm::dvec3(0.0, -3.0, 0.0)), {0.0f, 1.0f, 0.0f}};
+        if (!layerHit(mesh, ray, 0.0)) continue;  // misses the base mesh itself
+        ++entered;
+        EXPECT_FALSE(layerHit(mesh, ray, layerDepthWorld(kDepthWorld)));
+        SurfaceHit hit;
+        TraceCounters counters;
+        if (!curved.traceNearest(ray, 0.0f, hit, counters) || !hit.onDetail) ++curvedMisses;
+        if (planar.traceNearest(ray, 0.0f, hit, counters) && hit.onDetail) ++planarHits;
+    }
+    EXPECT_GT(entered, 30);
+    EXPECT_EQ(curvedMisses, entered);
+    EXPECT_GT(planarHits, entered / 2);
+}
+
+TEST(CurvedShell, MirroredUvsMirrorTheDetailAndItsNormals) {
+    // A gently bent strip whose right half has its u running backwards (mirrored), under a ramp
+    // tile (detail z = 4 + x). On both halves the hit lies on the ramp as the shell map
+    // places it, and the normal J^T grad d is the ramp's world normal, mirrored on the right.
+    BaseMesh mesh;
+    const int columns = 8;
+    for (int column = 0; column <= columns; ++column) {
+        const float x = -1.0f + 2.0f * float(column) / columns;
+        const float u = column <= columns / 2 ? float(column) / columns
+                                              : float(columns - column) / columns;
+        for (int row = 0; row < 2; ++row) {
+            mesh.positions.push_back({x, row == 0 ? -0.5f : 0.5f, -0.1f * x * x});
+            mesh.uvs.push_back({u, float(row)});
+        }
+    }
+    for (int column = 0; column < columns; ++column) {
+        const unsigned a = 2 * column, b = a + 2;
+        mesh.triangles.push_back({a, b, b + 1});
+        mesh.triangles.push_back({a, b + 1, a + 1});
+    }
+    computeTangentFrames(mesh);
+    Tile ramp({32, 32, 16});
+    const double slope = 1.0;
+    const double norm = std::sqrt(1.0 + slope * slope);
+    for (int z = 0; z < 16; ++z)
+        for (int y = 0; y < 32; ++y)
+            for (int x = 0; x < 32; ++x)
+                ramp.at(x, y, z) = float(((z + 0.5) - 4.0 - slope * (x + 0.5)) / norm);
+    Scene scene;
+    SceneObject object;
+    object.mesh = mesh;
+    object.material.tile = std::make_shared<const Tile>(std::move(ramp));
+    object.material.uvScale = {1.0f, 1.0f};
+    object.material.depthWorld = 0.05f;
+    scene.objects.push_back(std::move(object));
+    const SceneTracer tracer(scene, preciseOptions(ShellMapping::Curved));
+    int checked = 0;
+    for (const float x : {-0.6f, -0.35f, 0.35f, 0.6f}) {  // u in [0.2, 0.33]: inside one tile
+        const Ray ray{{x, 0.05f, 2.0f}, {0.0f, 0.0f, -1.0f}};
+        SurfaceHit hit;
+        TraceCounters counters;
+        ASSERT_TRUE(tracer.traceNearest(ray, 0.0f, hit, counters)) << x;
+        ASSERT_TRUE(hit.onDetail) << x;
+        // Where the hit is in its prism, through the map: on the ramp.
+        std::uint32_t shell = 0;
+        for (; shell < mesh.triangles.size(); ++shell) {
+            glm::vec3 top[3], bottom[3];
+            tracer.shellCorners(shell, top, bottom);
+            if (top[0].x <= x && x <= top[1].x && (top[0].x < top[1].x)) break;
+        }
+        ASSERT_LT(shell, mesh.triangles.size());
+        const glm::uvec3 corners = mesh.triangles[shell];
+        glm::vec3 positions[3], normals[3];
+        glm::vec2 uvs[3];
+        for (int corner = 0; corner < 3; ++corner) {
+            positions[corner] = mesh.positions[corners[corner]];
+            normals[corner] = mesh.normals[corners[corner]];
+            uvs[corner] = mesh.uvs[corners[corner]];
+        }
+        const ShellPrism prism = ShellPrism::make(positions, normals, uvs, {1.0f, 1.0f}, 32, 32,
+                                                  16, 0.05);
+        PrismPoint point{1.0 / 3.0, 1.0 / 3.0, 0.0};
+        ShellPrism::Jacobian jacobian;
+        ASSERT_TRUE(prism.invert(glm::dvec3(hit.position) - prism.corner0, point, jacobian));
+        ASSERT_TRUE(prism.invert(glm::dvec3(hit.position) - prism.corner0, point, jacobian));
+        const glm::dvec3 texel = prism.texelAt(point);
+        EXPECT_NEAR(texel.z, 4.0 + slope * texel.x, 2e-3) << x;
+        // The ramp's world normal: the map's Jacobian there, applied to the texel-space normal.
+        const glm::dvec3 gradient(-slope, 0.0, 1.0);
+        const glm::dvec3 expected = glm::normalize(
+            prism.jacobianAt(point).solveTransposed(prism.texelGradientToPrism(gradient)));
+        EXPECT_GT(glm::dot(glm::dvec3(hit.normal), expected), std::cos(0.5 * 3.14159265 / 180))
+            << x;
+        // Mirrored: the ramp rises toward +u, which is +x on the left and -x on the right, so
+        // the normal leans against it, away from the base's normal.
+        const float lean = hit.normal.x - hit.entry.normal.x;
+        EXPECT_LT(lean * (x < 0.0f ? 1.0f : -1.0f), -0.02f) << x;
+        ++checked;
+    }
+    EXPECT_EQ(checked, 4);
+}
+
+TEST(CurvedShell, AFoldingShellIsReportedOnceAndRendersFinitePixels) {
+    // A torus tube of radius 0.1 under a shell 0.15 deep: the shell folds at the tube's
+    // centre line (depth 0.1, a little less on the tessellated tube).
+    Scene scene = layerScene(makeTorus(0.5f, 0.1f, 48, 24), 0.15f);
+    scene.camera = {{0.0f, -1.6f, 1.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f};
+    {
+        const SceneTracer tracer(scene, TraceOptions{});
+        ASSERT_EQ(tracer.warnings().size(), 1u);
+        const std::string& warning = tracer.warnings()[0];
+        EXPECT_NE(warning.find("objects[0]"), std::string::npos) << warning;
+        const std::size_t at = warning.find("does not fold is ");
+        ASSERT_NE(at, std::string::npos) << warning;
+        const double safe = std::stod(warning.substr(at + 17));
+        EXPECT_NEAR(safe, 0.1, 0.005) << warning;
+    }
+    RenderOptions options;
+    options.width = 64;
+    options.height = 48;
+    const RenderResult result = renderScene(scene, options);
+    EXPECT_EQ(result.warnings.size(), 1u);
+    for (const glm::vec3& pixel : result.image.rgbLinear)
+        ASSERT_TRUE(std::isfinite(pixel.x) && std::isfinite(pixel.y) && std::isfinite(pixel.z));
+    // A shell shallower than the tube's radius does not fold.
+    const Scene shallow = layerScene(makeTorus(0.5f, 0.1f, 48, 24), 0.05f);
+    EXPECT_TRUE(SceneTracer(shallow, TraceOptions{}).warnings().empty());
+}
+
+TEST(CurvedShell, RenderIsTheSameForOneAndTwoThreadsAndBatched) {
+    Scene scene = layerScene(makeTorus(0.5f, 0.2f, 48, 24));
+    scene.camera = {{0.0f, -1.5f, 1.1f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f};
+    RenderOptions options;
+    options.width = 80;
+    options.height = 60;
+    options.outputAovs = true;
+    RenderResult one, two;
+    {
+        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+        one = renderScene(scene, options);
+    }
+    {
+        tbb::global_control pair(tbb::global_control::max_allowed_parallelism, 2);
+        two = renderScene(scene, options);
+    }
+    EXPECT_EQ(one.image.rgbLinear, two.image.rgbLinear);
+    EXPECT_EQ(one.aovs->depth.rgbLinear, two.aovs->depth.rgbLinear);
+    EXPECT_GT(one.stats.baseHits, 1000u);
+    // Shadow-map rays (traceNearestBatch) give each ray what it gives alone.
+    const SceneTracer tracer(scene, TraceOptions{});
+    std::vector<Ray> rays;
+    for (int k = 0; k < 64; ++k)
+        rays.push_back({{-0.7f + 0.022f * k, -1.0f, 0.5f}, glm::normalize(glm::vec3(0.1f, 1.0f, -0.6f))});
+    std::vector<SurfaceHit> hits(rays.size());
+    bool found[SceneTracer::kMaxBatchRays] = {};
+    TraceCounters counters;
+    tracer.traceNearestBatch(rays, 0.0f, hits, std::span<bool>(found, rays.size()), counters);
+    int onDetail = 0;
+    for (std::size_t k = 0; k < rays.size(); ++k) {
+        SurfaceHit hit;
+        TraceCounters single;
+        ASSERT_EQ(tracer.traceNearest(rays[k], 0.0f, hit, single), found[k]) << k;
+        if (!found[k]) continue;
+        EXPECT_EQ(hit.distanceWorld, hits[k].distanceWorld) << k;
+        EXPECT_EQ(hit.normal, hits[k].normal) << k;
+        onDetail += hit.onDetail;
+    }
+    EXPECT_GT(onDetail, 10);
+}
+
+TEST(CurvedShell, FlatBasesRenderAsWithThePlanarMarch) {
+    // Flat faces take the planar march whatever the mapping: the same image.
+    Scene scene = layerScene(makePlane(2.0f, 4));
+    scene.camera = {{0.3f, -1.6f, 1.2f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
+    RenderOptions options;
+    options.width = 64;
+    options.height = 48;
+    const RenderResult curved = renderScene(scene, options);
+    options.shellMapping = ShellMapping::Planar;
+    const RenderResult planar = renderScene(scene, options);
+    EXPECT_EQ(curved.image.rgbLinear, planar.image.rgbLinear);
+}
+
+}  // namespace
+}  // namespace distile
