@@ -18,6 +18,7 @@ ShellPrism ShellPrism::make(const glm::vec3 corners[3], const glm::vec3 normals[
     prism.normalDelta2 = glm::dvec3(normals[2]) - prism.normal0;
     prism.depthWorld = depthWorld;
     prism.depthTexels = depthTexels;
+    prism.texelsPerDepthWorld = depthTexels / depthWorld;
     const glm::dvec2 texelsPerUv(double(uvScale.x) * width, double(uvScale.y) * height);
     const glm::dvec2 origin = glm::dvec2(uvs[0]) * texelsPerUv;
     prism.texelOrigin = {origin.x - std::floor(origin.x / width) * width,

@@ -48,6 +48,7 @@ struct ShellPrism {
     /// [0, W) x [0, H) (the tile repeats: far uvs keep their fraction).
     glm::dvec2 texelOrigin{0.0}, texelEdge1{0.0}, texelEdge2{0.0};
     double depthTexels = 1.0;       ///< D: texel z = D (1 - h / depthWorld)
+    double texelsPerDepthWorld = 1.0;  ///< D / depthWorld (texel z per world unit of depth)
 
     /// The prism of a triangle (corners, unit normals, uvs) carrying a tile of `width` x `height`
     /// x `depthTexels` texels repeated `uvScale` times per unit of uv, `depthWorld` deep.
@@ -70,7 +71,7 @@ struct ShellPrism {
 
     glm::dvec3 texelAt(const PrismPoint& point) const {
         const glm::dvec2 xy = texelOrigin + point.b1 * texelEdge1 + point.b2 * texelEdge2;
-        return {xy.x, xy.y, depthTexels * (1.0 - point.depthWorld / depthWorld)};
+        return {xy.x, xy.y, depthTexels - texelsPerDepthWorld * point.depthWorld};
     }
     /// The inverse of texelAt (texel z to depth; x, y through the uv triangle). Precondition: the
     /// uv triangle is not degenerate.
@@ -112,13 +113,13 @@ struct ShellPrism {
     /// d texel / d(b1, b2, h) applied to a vector of (b1, b2, h) changes.
     glm::dvec3 texelDelta(const glm::dvec3& change) const {
         const glm::dvec2 xy = change.x * texelEdge1 + change.y * texelEdge2;
-        return {xy.x, xy.y, -depthTexels / depthWorld * change.z};
+        return {xy.x, xy.y, -texelsPerDepthWorld * change.z};
     }
     /// Its transpose: a texel-space gradient as a gradient over (b1, b2, h).
     glm::dvec3 texelGradientToPrism(const glm::dvec3& gradient) const {
         return {gradient.x * texelEdge1.x + gradient.y * texelEdge1.y,
                 gradient.x * texelEdge2.x + gradient.y * texelEdge2.y,
-                -depthTexels / depthWorld * gradient.z};
+                -texelsPerDepthWorld * gradient.z};
     }
 
     /// The prism point at world offset `offset` (world - P_0) by Newton's method from `guess`
@@ -147,10 +148,10 @@ inline bool ShellPrism::invert(const glm::dvec3& offset, PrismPoint& point, Jaco
         point.b1 -= change.x;
         point.b2 -= change.y;
         point.depthWorld -= change.z;
-        const double moved =
-            std::max({std::abs(change.x), std::abs(change.y), std::abs(change.z) / depthWorld});
-        if (moved < kConverged) return true;
-        if (!(moved < 1e6)) return false;  // diverging, or NaN
+        const double moved = std::max(std::abs(change.x), std::abs(change.y));
+        const double movedTexelsZ = std::abs(change.z) * texelsPerDepthWorld;
+        if (moved < kConverged && movedTexelsZ < kConverged * depthTexels) return true;
+        if (!(moved < 1e6 && movedTexelsZ < 1e6 * depthTexels)) return false;  // or NaN
     }
     return false;
 }

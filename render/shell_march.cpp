@@ -206,7 +206,7 @@ bool CurvedMarchRay::advance(float distance) {
     }
     const ShellPrism& prism = shell_->prisms[cursor_.prism];
     const double zTexels =
-        prism.depthTexels * (1.0 - cursor_.point.depthWorld / prism.depthWorld);
+        prism.depthTexels - prism.texelsPerDepthWorld * cursor_.point.depthWorld;
     const double toFloorTexels = directionTexels_.z < 0.0
                                      ? std::max(zTexels, 0.0) / -directionTexels_.z
                                      : std::numeric_limits<double>::infinity();
