@@ -398,6 +398,8 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     validateScene(scene);
     validateOptions(options);
     WorldReferenceResult result;
+    // Progress: the meshes are the first half of kBuildShare, the BVH the second, then the rows.
+    constexpr double kBuildShare = 0.6;
 
     // 1. The world-space detail meshes (and, for the level-set method, their level sets).
     auto start = std::chrono::steady_clock::now();
@@ -428,6 +430,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
         } catch (const InputError& error) {
             throw InputError("objects[" + std::to_string(index) + "]: " + error.what());
         }
+        if (progress) progress(kBuildShare * 0.5 * double(index + 1) / scene.objects.size());
         // Embree reads vertex buffers 16 bytes at a time: one unused element past the end.
         vertexCounts[index] = meshes[index].positions.size();
         meshes[index].positions.emplace_back(0.0f);
@@ -447,6 +450,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     }
     bvh.commit();
     result.bvhSeconds = secondsSince(start);
+    if (progress) progress(kBuildShare);
     result.bvhBytes = bvh.allocatedBytes();
 
     // 3. The pixels: one ray through each centre, bands of rows for progress reports.
@@ -526,7 +530,8 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                 }
                 hits += localHits;
             });
-        if (progress) progress(double(bandEnd) / options.height);
+        if (progress)
+            progress(kBuildShare + (1.0 - kBuildShare) * double(bandEnd) / options.height);
     }
     result.traceSeconds = secondsSince(start);
     render.stats.rays = std::uint64_t(options.width) * std::uint64_t(options.height);

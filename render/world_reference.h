@@ -57,7 +57,8 @@ struct WorldReferenceResult {
 /// through its centre (as the first sample of a 1-spp render). The detail is each material's
 /// analyticDistance when it has one, else its tile (trilinear). Objects without a tile are
 /// traced as their bare base meshes. Deterministic for any thread count. `progress` is called
-/// on the calling thread while the pixels are traced.
+/// on the calling thread after each mesh, after the BVH and after each band of rows (the build
+/// counts as the first 60%).
 /// @throws InputError an invalid scene (validateScene), size (width/height in [1, 16384]),
 ///         shadowSamples not in [1, 256], or mesh or level-set options (buildDisplacedMesh,
 ///         DisplacedLevelSet::build), naming the object.
