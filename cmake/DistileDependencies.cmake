@@ -29,5 +29,8 @@ foreach(oiio_target OpenImageIO::OpenImageIO OpenImageIO::OpenImageIO_Util)
     endif()
 endforeach()
 
+# Embree 3 traces the world-space ground truth (render/world_reference.cpp) and the bench peer.
+find_package(embree 3 REQUIRED)
+
 find_package(CLI11 CONFIG REQUIRED)
 find_package(nlohmann_json CONFIG REQUIRED)

@@ -14,23 +14,13 @@
 #include "common/error.h"
 #include "render/analytic_filter.h"
 #include "render/coverage.h"
+#include "render/shading.h"
 
 namespace distile {
 
 namespace {
 
 constexpr float kPi = 3.14159265358979f;
-constexpr float kSpecularStrength = 0.35f;
-/// Blinn-Phong exponent 48, as x^32 x^16 by squaring (a libm pow costs more than the rest of
-/// the shading).
-float shininessPower(float x) {
-    const float x2 = x * x;
-    const float x4 = x2 * x2;
-    const float x8 = x4 * x4;
-    const float x16 = x8 * x8;
-    return x16 * x16 * x16;
-}
-constexpr float kAmbientStrength = 0.18f;
 
 /// Visibility in [0, 1] of a light of angular radius atan(tanHalfAngle) from a texel-space
 /// point, by sphere tracing toward it until the ray leaves the top of the tile; the nearest miss
@@ -91,21 +81,6 @@ class LightVisibilityRay {
     std::uint64_t samples_ = 0;
     bool blocked_ = false, needsSample_ = false;
 };
-
-glm::vec3 skyColor(const glm::vec3& direction) {
-    const float t = 0.5f + 0.5f * direction.z;
-    return glm::mix(glm::vec3(0.18f, 0.19f, 0.21f), glm::vec3(0.55f, 0.62f, 0.72f), t);
-}
-
-[[gnu::always_inline]] inline glm::vec3 directLight(const glm::vec3& normal,
-                                                    const glm::vec3& toLight, const glm::vec3& view,
-                                                    const glm::vec3& albedo) {
-    const float diffuse = std::max(glm::dot(normal, toLight), 0.0f);
-    if (diffuse <= 0.0f) return glm::vec3(0.0f);
-    const glm::vec3 halfway = glm::normalize(toLight - view);
-    const float specular = shininessPower(std::max(glm::dot(normal, halfway), 0.0f));
-    return albedo * diffuse + glm::vec3(kSpecularStrength * specular);
-}
 
 /// Position of sample `index` of `count` inside the pixel: the centre for one sample, else the
 /// R2 low-discrepancy sequence (Roberts 2018), the same for every pixel.
@@ -279,8 +254,7 @@ class Renderer {
         sample.iterations = int(counters.marchIterations);
         const Material& material = scene_.objects[hit.object].material;
         if (!hit.entry.frontFacing) {
-            sample.color =
-                material.color * 0.05f;  // inside of a closed mesh, or a plane from below
+            sample.color = backFaceColor(material.color);
         } else if (!hit.onDetail) {
             sample.color = shadeBase(hit, material, ray.direction, seed, sample.shadowMapSamples);
         } else {
@@ -388,10 +362,8 @@ class Renderer {
         const float depthTexels = float(material.tile->size().depth);
         const glm::vec3 texelPosition = hit.march.texelPosition;
         // Cavities (low in the shell) see less of the sky.
-        const float openness =
-            0.35f + 0.65f * std::clamp(texelPosition.z / depthTexels, 0.0f, 1.0f);
         const glm::vec3 albedo = albedoAt(material, hit.entry.uv);
-        glm::vec3 color = albedo * (kAmbientStrength * openness);
+        glm::vec3 color = albedo * (kAmbientStrength * openness(texelPosition.z, depthTexels));
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const DirectionalLight& light = scene_.lights[index];
             const glm::vec3& toLight = toLights_[index];

@@ -1,11 +1,19 @@
 /// @file
-/// World-space reference renders (issue 5): every tiled object's detail mapped through its base
-/// mesh's shell as an OpenVDB level set (vdb/displaced_level_set.h) and traced with OpenVDB's
-/// level-set ray intersector. Unlike RenderOptions::reference, which marches the analytic detail
-/// with the per-pixel planar tangent frame of ch. 8, this follows the curved shell, so comparing
-/// an ordinary render with it (render/compare.h) measures the planar approximation's error too.
+/// World-space reference renders: every tiled object's detail mapped through its base mesh's
+/// curved shell into a world-space mesh (vdb/displaced_level_set.h buildDisplacedMesh) and
+/// traced there. Unlike RenderOptions::reference, which marches the analytic detail with the
+/// per-pixel planar tangent frame of ch. 8, this follows the curved shell, so comparing an
+/// ordinary render with it (render/compare.h) measures the planar approximation's error too.
+///
+/// Two ways to trace the same mesh: a BVH (Embree 3, triangles and quads in float; the
+/// default), or an OpenVDB level set of it traced with OpenVDB's level-set ray intersector
+/// (slower, the ground truth the BVH is validated against). Both shade as the renderer does
+/// (render/shading.h): sky colour for misses, ambient with the renderer's openness term from the
+/// hit's texel height, Lambert + Blinn-Phong, albedo at the hit's base-mesh uv, dim back faces,
+/// and soft shadows from rays toward each light through the BVH of every object.
 #pragma once
 
+#include <cstddef>
 #include <vector>
 
 #include "common/progress.h"
@@ -14,29 +22,47 @@
 
 namespace distile {
 
+enum class WorldReferenceMethod {
+    Bvh,       ///< the world-space mesh in an Embree BVH
+    LevelSet,  ///< hits and normals from an OpenVDB level set of the same mesh
+};
+
 struct WorldReferenceOptions {
     int width = 1280;
     int height = 1024;
     bool outputAovs = false;  ///< depth, normal and texel scale (the layers distile compare reads)
+    WorldReferenceMethod method = WorldReferenceMethod::Bvh;
+    /// The mesh (both methods) and, for WorldReferenceMethod::LevelSet, the level set.
     DisplacedLevelSetOptions levelSet;
+    /// Shadow rays per light and pixel, spread over the light's disk (angle_deg), in [1, 256].
+    int shadowSamples = 16;
 };
 
 struct WorldReferenceResult {
-    /// The image is a Lambert shading of the hit normals under the scene's lights (no shadows).
-    /// AOVs, when requested: depth and normal as RenderAovs holds them; texelScale is 0 everywhere
-    /// (compareRenders then takes the other render's); the other AOVs are black.
-    /// Stats: rays and baseHits (rays that hit anything), converged = baseHits.
+    /// The image, shaded as the file note says. AOVs, when requested: depth and normal as
+    /// RenderAovs holds them; texelScale is 0 everywhere (compareRenders then takes the other
+    /// render's); the other AOVs are black. Stats: rays and baseHits (rays that hit anything),
+    /// converged = baseHits.
     RenderResult render;
-    std::vector<DisplacedLevelSetStats> levelSets;  ///< one per tiled object, in scene order
-    double buildSeconds = 0.0;                      ///< building the level sets (wall time)
+    std::vector<DisplacedMeshStats> meshes;         ///< one per tiled object, in scene order
+    std::vector<DisplacedLevelSetStats> levelSets;  ///< the same, WorldReferenceMethod::LevelSet
+    double meshSeconds = 0.0;                       ///< building the world-space meshes (wall time)
+    double levelSetSeconds = 0.0;  ///< building the level sets (WorldReferenceMethod::LevelSet)
+    double bvhSeconds = 0.0;       ///< building the BVH
+    double traceSeconds = 0.0;     ///< tracing and shading the pixels
+    std::size_t bvhBytes = 0;      ///< memory Embree allocated for the BVH and its buffers
 };
 
-/// Renders `scene` against world-space level sets of its tiled objects: one camera ray per pixel
+/// Renders `scene` against world-space meshes of its tiled objects: one camera ray per pixel
 /// through its centre (as the first sample of a 1-spp render). The detail is each material's
-/// analyticDistance when it has one, else its tile (trilinear). Objects without a tile are traced
-/// as their bare base meshes. Deterministic for any thread count.
-/// @throws InputError an invalid scene (validateScene), size (width/height in [1, 16384]) or
-///         level-set options (DisplacedLevelSet::build).
+/// analyticDistance when it has one, else its tile (trilinear). Objects without a tile are
+/// traced as their bare base meshes. Deterministic for any thread count. `progress` is called
+/// on the calling thread after each mesh, after the BVH and after each band of rows (the build
+/// counts as the first 60%).
+/// @throws InputError an invalid scene (validateScene), size (width/height in [1, 16384]),
+///         shadowSamples not in [1, 256], or mesh or level-set options (buildDisplacedMesh,
+///         DisplacedLevelSet::build), naming the object.
+/// @throws std::runtime_error Embree failed (out of memory, among others).
 WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferenceOptions& options,
                                           const ProgressCallback& progress = {});
 

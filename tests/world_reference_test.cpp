@@ -2,6 +2,7 @@
 #include "render/world_reference.h"
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -83,36 +84,37 @@ RenderOptions smallRender(bool reference) {
     return options;
 }
 
-WorldReferenceResult worldReference(const Scene& scene, double voxelsPerTexel) {
+WorldReferenceResult worldReference(const Scene& scene,
+                                    WorldReferenceMethod method = WorldReferenceMethod::Bvh,
+                                    double voxelsPerTexel = 2.0) {
     WorldReferenceOptions options;
     options.width = kWidth;
     options.height = kHeight;
     options.outputAovs = true;
+    options.method = method;
     options.levelSet.voxelsPerTexel = voxelsPerTexel;  // one lattice sample per texel (default)
     return renderWorldReference(scene, options);
 }
 
 void printComparison(const char* what, const RenderComparison& c,
                      const WorldReferenceResult& world) {
-    const DisplacedLevelSetStats& levelSet = world.levelSets.at(0);
+    const DisplacedMeshStats& mesh = world.meshes.at(0);
     std::printf(
         "%s: mean %.4f p99 %.4f max %.4f texels over %llu hits, coverage mismatch %.3f%% "
-        "(%llu pixels), normals %.2f deg; level set from %zu polygons (%zu + %zu tile copies), "
-        "%zu voxels, %.1f MB, built in %.2f s\n",
+        "(%llu pixels), normals %.2f deg; mesh of %zu polygons, built in %.2f s, BVH %.2f s\n",
         what, c.meanHitErrorTexels, c.p99HitErrorTexels, c.maxHitErrorTexels,
         static_cast<unsigned long long>(c.hitErrorSamples), 100.0 * c.coverageMismatchShare,
         static_cast<unsigned long long>(c.coverageMismatches), c.meanNormalErrorDeg,
-        levelSet.meshPolygons, levelSet.tileCopies, levelSet.edgeCopies, levelSet.activeVoxels,
-        double(levelSet.memoryBytes) / 1e6, world.buildSeconds);
+        mesh.meshPolygons, world.meshSeconds, world.bvhSeconds);
 }
 
 TEST(DisplacedLevelSet, AFlatDetailOnAPlaneIsAPlaneAtItsDepthAcrossTileSeams) {
     // Detail z - D/2: a flat surface half the shell depth below the base plane z = 0. A plane of
     // 1 x 1 world units with 3 x 3 tiles of 32 x 32 x 8 texels: texels of 1/96 world unit, the
-    // surface at z = -depth / 2. The centre tile is the shared tile mesh, the 8 around it are
-    // extracted with the walls; vertical rays across the tile seams (x = +-1/6) must hit the
-    // surface within a tenth of a voxel (the level set of a plane is exact up to float rounding
-    // and the intersector's linear interpolation).
+    // surface at z = -depth / 2. The plane's 8 triangles are clipped out of the tile repeats and
+    // its 8 outer edges are walled; vertical rays across the tile seams (x = +-1/6) and the
+    // triangles' edges must hit the surface within a tenth of a voxel (the level set of a plane
+    // is exact up to float rounding and the intersector's linear interpolation).
     const BaseMesh plane = makePlane(1.0f, 2);
     const double depthWorld = 8.0 / 96.0;
     const DisplacementShell shell{plane.positions, plane.normals, plane.uvs, plane.triangles,
@@ -120,11 +122,8 @@ TEST(DisplacedLevelSet, AFlatDetailOnAPlaneIsAPlaneAtItsDepthAcrossTileSeams) {
     const DisplacedLevelSet levelSet = DisplacedLevelSet::build(
         [](const glm::dvec3& texel) { return texel.z - 4.0; }, {32, 32, 8}, shell);
     const DisplacedLevelSetStats& stats = levelSet.stats();
-    EXPECT_NEAR(stats.texelSizeWorld, 1.0 / 96.0, 1e-9);
-    EXPECT_EQ(stats.tileCopies, 1u);
-    EXPECT_EQ(stats.edgeCopies, 8u);
-    EXPECT_FALSE(stats.wrapsU);
-    EXPECT_FALSE(stats.wrapsV);
+    EXPECT_NEAR(stats.mesh.texelSizeWorld, 1.0 / 96.0, 1e-9);
+    EXPECT_EQ(stats.mesh.borderEdges, 8u);
     const double tolerance = 0.1 * stats.voxelSizeWorld;
     for (double x : {-0.4, -1.0 / 6.0, 0.0, 1.0 / 6.0, 0.3}) {
         for (double y : {-0.3, -1.0 / 6.0, 0.05, 1.0 / 6.0, 0.45}) {
@@ -141,10 +140,11 @@ TEST(DisplacedLevelSet, AFlatDetailOnAPlaneIsAPlaneAtItsDepthAcrossTileSeams) {
 TEST(DisplacedLevelSet, OnATorusTheFloorIsATubeAtTheShellDepth) {
     // No detail (distance 100 texels everywhere): only the solid floor, z = 0 of the shell, a tube
     // of radius r - depth around the torus's centre circle. 4 x 2 tiles of 32 x 32 x 8 on a torus
-    // R = 0.75, r = 0.32, depth 0.08: the chart wraps both ways, so every copy is the shared one
-    // and the seams must close. Vertical rays onto the tube's crown at several angles (seams at
-    // u = 0, v = 0 included) hit at z = r - depth, within a voxel (the base mesh is a polygon of
-    // 48 x 32 segments: its chords sag by r (1 - cos(pi / 32)) = 0.0015 world units).
+    // R = 0.75, r = 0.32, depth 0.08: the chart wraps both ways (its seams are shared edges in
+    // world space, not borders), so nothing is walled and the seams must close. Vertical rays onto
+    // the tube's crown at several angles (seams at u = 0, v = 0 included) hit at z = r - depth,
+    // within a voxel (the base mesh is a polygon of 48 x 32 segments: its chords sag by r (1 -
+    // cos(pi / 32)) = 0.0015 world units).
     const float majorRadius = 0.75f, minorRadius = 0.32f;
     const BaseMesh torus = makeTorus(majorRadius, minorRadius, 48, 32);
     const double depthWorld = 0.08;
@@ -153,10 +153,7 @@ TEST(DisplacedLevelSet, OnATorusTheFloorIsATubeAtTheShellDepth) {
     const DisplacedLevelSet levelSet =
         DisplacedLevelSet::build([](const glm::dvec3&) { return 100.0; }, {32, 32, 8}, shell);
     const DisplacedLevelSetStats& stats = levelSet.stats();
-    EXPECT_TRUE(stats.wrapsU);
-    EXPECT_TRUE(stats.wrapsV);
-    EXPECT_EQ(stats.tileCopies, 8u);
-    EXPECT_EQ(stats.edgeCopies, 0u);
+    EXPECT_EQ(stats.mesh.borderEdges, 0u);
     for (double angle : {0.0, 0.3, 1.0, 2.5, 4.0}) {
         const glm::dvec3 above(majorRadius * std::cos(angle), majorRadius * std::sin(angle), 1.0);
         double distance = 0.0;
@@ -183,9 +180,9 @@ TEST(WorldReference, OnAFlatPlaneItAgreesWithTheAnalyticReference) {
     // depth 16/128), seen from 45 degrees above; the whole image lies inside the plane, so
     // neither reference sees its edges (the analytic one marches on past them, the world one
     // stops at a wall there). On a plane the shell mapping is exactly the planar one of ch. 8,
-    // so the two references differ only by the level set: its mesh is extracted from samples one
-    // texel apart (vertices within about 0.1 texel of the true surface on wires of 2.1 texels)
-    // and resampled at voxels of half a texel (OpenVDB's intersector interpolates trilinearly).
+    // so the two references differ only by the world mesh: it is extracted from samples one
+    // texel apart (its polygons within about 0.1 texel of the true surface on wires of 2.1
+    // texels).
     Scene scene;
     scene.camera = {{0.0f, -0.15f, 0.15f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
     SceneObject plane;
@@ -194,19 +191,19 @@ TEST(WorldReference, OnAFlatPlaneItAgreesWithTheAnalyticReference) {
     scene.objects.push_back(std::move(plane));
 
     const RenderResult analytic = renderScene(scene, smallRender(true));
-    const WorldReferenceResult world = worldReference(scene, 2.0);
-    ASSERT_EQ(world.levelSets.size(), 1u);
-    EXPECT_NEAR(world.levelSets[0].texelSizeWorld, 1.0 / 128.0, 1e-6);
-    EXPECT_FALSE(world.levelSets[0].wrapsU);
+    const WorldReferenceResult world = worldReference(scene);
+    ASSERT_EQ(world.meshes.size(), 1u);
+    EXPECT_NEAR(world.meshes[0].texelSizeWorld, 1.0 / 128.0, 1e-6);
+    EXPECT_EQ(world.meshes[0].borderEdges, 4u);
     const RenderComparison c = compare(analytic, world.render);
     printComparison("flat plane, world against analytic reference", c, world);
     const double withinHalfTexel = shareAgreeingWithin(world.render, analytic, 0.5);
     const double withinTenthTexel = shareAgreeingWithin(world.render, analytic, 0.1);
     std::printf("  pixels within 0.5 texel: %.2f%%, within 0.1 texel: %.2f%%\n",
                 100.0 * withinHalfTexel, 100.0 * withinTenthTexel);
-    // Measured: no coverage mismatch; 96.8% of the pixels within 0.5 texel (one voxel), 59%
-    // within 0.1 texel; mean 0.35 texel and p99 12.5 texels, both from the silhouettes, where
-    // a shift of a fraction of a texel turns a wire hit into a floor hit 8 texels deeper.
+    // Measured: no coverage mismatch; 97.3% of the pixels within 0.5 texel, 62% within 0.1
+    // texel; mean 0.30 texel and p99 10 texels, both from the silhouettes, where a shift of a
+    // fraction of a texel turns a wire hit into a floor hit 8 texels deeper.
     EXPECT_EQ(c.bothHit, c.pixels);  // the plane fills the image, the floor is solid
     EXPECT_EQ(c.coverageMismatches, 0u);
     EXPECT_GT(withinHalfTexel, 0.93);
@@ -219,8 +216,7 @@ TEST(WorldReference, OnATorusItMeasuresThePlanarApproximation) {
     // The demo's torus shape with 8 x 4 tiles: an ordinary render (planar tangent frame per pixel,
     // ch. 8) against the world-space reference. The error is what the reference is for: only
     // printed. Asserted: the chart wraps both ways (no walls), the figures are finite and the
-    // coverage mostly agrees. Voxels of one texel keep the test quick; the planar error is
-    // several texels.
+    // coverage mostly agrees; the planar error is several texels.
     Scene scene;
     scene.camera = {{0.0f, -2.2f, 1.5f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 38.0f};
     SceneObject torus;
@@ -231,12 +227,9 @@ TEST(WorldReference, OnATorusItMeasuresThePlanarApproximation) {
     scene.objects.push_back(std::move(torus));
 
     const RenderResult ordinary = renderScene(scene, smallRender(false));
-    const WorldReferenceResult world = worldReference(scene, 1.0);
-    ASSERT_EQ(world.levelSets.size(), 1u);
-    EXPECT_TRUE(world.levelSets[0].wrapsU);
-    EXPECT_TRUE(world.levelSets[0].wrapsV);
-    EXPECT_EQ(world.levelSets[0].tileCopies, 32u);
-    EXPECT_EQ(world.levelSets[0].edgeCopies, 0u);
+    const WorldReferenceResult world = worldReference(scene);
+    ASSERT_EQ(world.meshes.size(), 1u);
+    EXPECT_EQ(world.meshes[0].borderEdges, 0u);
     const RenderComparison c = compare(ordinary, world.render);
     printComparison("torus, planar approximation against the world reference", c, world);
     std::printf("  pixels within 0.5 texel: %.2f%%, within 2 texels: %.2f%%\n",
@@ -250,6 +243,137 @@ TEST(WorldReference, OnATorusItMeasuresThePlanarApproximation) {
     EXPECT_TRUE(std::isfinite(c.meanHitErrorTexels));
     EXPECT_TRUE(std::isfinite(c.p99HitErrorTexels));
     EXPECT_LT(c.coverageMismatchShare, 0.1);
+}
+
+/// A camera looking straight down -z at (centre.x, centre.y, 0) from `height`, image y along +y.
+Camera topDown(glm::vec2 centre, float height, float fovDeg) {
+    return {{centre.x, centre.y, height}, {centre.x, centre.y, 0.0f}, {0.0f, 1.0f, 0.0f}, fovDeg};
+}
+
+TEST(WorldReference, OnASphereAFlatDetailHitsTheShellAtAVertex) {
+    // Detail z - D/2 on a sphere of radius 0.5 (32 columns, 16 bands; depth 0.04): the surface is
+    // the shell's middle, sum_i b_i (P_i - N_i depth / 2). The camera ray through the centre of a
+    // 33 x 33 image runs along +y onto the equator at phi = 270 degrees, a vertex of the mesh
+    // (32 columns, an even number of bands), where the shell is exactly radial: the hit is at
+    // radius 0.5 - 0.02, 2.5 - 0.48 = 2.02 from the eye, up to float rounding of the mesh (world
+    // positions in float, about 1e-7 of 2.5).
+    Scene scene;
+    scene.camera = {{0.0f, -2.5f, 0.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 30.0f};
+    SceneObject sphere;
+    sphere.mesh = makeUvSphere(0.5f, 32, 16);
+    BakeOptions bake;
+    bake.size = {32, 32, 8};
+    sphere.material = chainmailMaterial({4.0f, 2.0f}, 0.04f);
+    sphere.material.analyticDistance = [](const glm::dvec3& texel) { return texel.z - 4.0; };
+    sphere.material.tile = std::make_shared<const Tile>(
+        bakeChainmail(thickChainmail().chainmail, bake).tile);  // only its size is used
+    scene.objects.push_back(std::move(sphere));
+    WorldReferenceOptions options;
+    options.width = options.height = 33;
+    options.outputAovs = true;
+    const WorldReferenceResult world = renderWorldReference(scene, options);
+    ASSERT_EQ(world.meshes.size(), 1u);
+    EXPECT_EQ(world.meshes[0].borderEdges, 0u);  // the poles' fans close the chart
+    const float depth = world.render.aovs->depth.at(16, 16).x;
+    EXPECT_NEAR(depth, 2.02f, 2e-6f);
+    // The normal is the geometric normal of a facet at that vertex, facing the ray: facets span
+    // 11.25 degrees in both directions, so it is within about 8 degrees of radial.
+    const glm::vec3 normal = world.render.aovs->normal.at(16, 16) * 2.0f - 1.0f;
+    EXPECT_LT(normal.y, -std::cos(9.0f * 3.14159265f / 180.0f));
+}
+
+TEST(WorldReference, MirroredUvsCarryTheDetailOnBothHalves) {
+    // A strip x in [-1, 1], y in [0, 1] whose u is |x| (v = y): the left half's uv triangles lie
+    // on the right half's, mirrored, as on a vase whose u runs 0 -> 1 -> 0 around it. Mapped per
+    // triangle, each half carries the chain mail of its own uv triangle, so the left half is the
+    // right half's mirror image: seen from straight above (a camera symmetric about x = 0), pixel
+    // (x, y) and pixel (width - 1 - x, y) hit at the same depth. The pattern is not symmetric in
+    // u, so mapping the left half through the right half's triangles (per uv) fails this.
+    // Tolerance: 0.01 texel (texels of 1/128 world unit); a few silhouette pixels may flip
+    // between a wire and the floor from the ray directions' rounding, so 98% must agree.
+    BaseMesh strip;
+    for (float y : {0.0f, 1.0f}) {
+        for (float x : {-1.0f, 0.0f, 1.0f}) {
+            strip.positions.emplace_back(x, y, 0.0f);
+            strip.uvs.emplace_back(std::abs(x), y);
+        }
+    }
+    strip.triangles = {{0, 1, 4}, {0, 4, 3}, {1, 2, 5}, {1, 5, 4}};
+    computeTangentFrames(strip);
+    Scene scene;
+    scene.camera = topDown({0.0f, 0.5f}, 2.0f, 40.0f);
+    SceneObject object;
+    object.mesh = strip;
+    object.material = chainmailMaterial({2.0f, 2.0f}, 16.0f / 128.0f);
+    scene.objects.push_back(std::move(object));
+    const WorldReferenceResult world = worldReference(scene);
+    ASSERT_EQ(world.meshes.size(), 1u);
+    EXPECT_EQ(world.meshes[0].borderEdges, 6u);  // x = 0 is shared, the rest is the rim
+    const Image& depth = world.render.aovs->depth;
+    const double texelsPerWorld = 128.0;
+    std::uint64_t pairs = 0, agreeing = 0, hits = 0;
+    for (int y = 0; y < depth.height; ++y) {
+        for (int x = 0; x < depth.width / 2; ++x) {
+            const float left = depth.at(x, y).x, right = depth.at(depth.width - 1 - x, y).x;
+            if (left > 0.0f && right > 0.0f) ++hits;
+            ++pairs;
+            if (std::abs(left - right) * texelsPerWorld <= 0.01) ++agreeing;
+        }
+    }
+    std::printf("mirrored strip: %.2f%% of %llu pixel pairs agree within 0.01 texel\n",
+                100.0 * double(agreeing) / double(pairs), static_cast<unsigned long long>(pairs));
+    EXPECT_GT(double(hits) / double(pairs), 0.5);  // the strip is seen on both sides
+    EXPECT_GT(double(agreeing) / double(pairs), 0.98);
+
+    // The level set of the same mesh handles the overlapping chart as well: its hits agree with
+    // the BVH's (most within a quarter texel, half a voxel of half a texel, where the level
+    // set's trilinear interpolation rounds the mesh's edges; at most a few coverage differences
+    // along the wires' silhouettes).
+    const WorldReferenceResult levelSet = worldReference(scene, WorldReferenceMethod::LevelSet);
+    const RenderComparison c = compare(levelSet.render, world.render);
+    std::uint64_t bothHit = 0, close = 0;
+    for (std::size_t pixel = 0; pixel < depth.rgbLinear.size(); ++pixel) {
+        const float a = levelSet.render.aovs->depth.rgbLinear[pixel].x;
+        const float b = depth.rgbLinear[pixel].x;
+        if (!(a > 0.0f && b > 0.0f)) continue;
+        ++bothHit;
+        if (std::abs(a - b) * texelsPerWorld <= 0.25) ++close;
+    }
+    std::printf(
+        "mirrored strip, level set against BVH: %.2f%% of %llu common hits within 0.25 "
+        "texel, coverage mismatch %.3f%%\n",
+        100.0 * double(close) / double(bothHit), static_cast<unsigned long long>(bothHit),
+        100.0 * c.coverageMismatchShare);
+    EXPECT_LT(c.coverageMismatchShare, 0.01);
+    EXPECT_GT(double(close) / double(bothHit), 0.85);  // measured 92.5%
+}
+
+TEST(WorldReference, TheImageDoesNotDependOnTheThreadCount) {
+    // A torus with chain mail over a plane (shadows between the objects and self-shadows through
+    // the BVH): one thread and two threads give the same bits, image and AOVs.
+    Scene scene;
+    scene.camera = {{0.0f, -2.2f, 1.5f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 38.0f};
+    SceneObject torus;
+    torus.mesh = makeTorus(0.75f, 0.32f, 48, 16);
+    torus.material = chainmailMaterial({8.0f, 4.0f}, 0.06f);
+    scene.objects.push_back(std::move(torus));
+    SceneObject ground;
+    ground.mesh = makePlane(4.0f, 1);
+    for (glm::vec3& p : ground.mesh.positions) p.z -= 0.4f;
+    scene.objects.push_back(std::move(ground));
+    const auto render = [&](int threads) {
+        const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                        std::size_t(threads));
+        return worldReference(scene).render;
+    };
+    const RenderResult one = render(1), two = render(2);
+    for (const auto& [a, b] :
+         {std::pair{&one.image, &two.image}, std::pair{&one.aovs->depth, &two.aovs->depth},
+          std::pair{&one.aovs->normal, &two.aovs->normal}}) {
+        ASSERT_EQ(a->rgbLinear.size(), b->rgbLinear.size());
+        EXPECT_TRUE(std::equal(a->rgbLinear.begin(), a->rgbLinear.end(), b->rgbLinear.begin()));
+    }
+    EXPECT_GT(one.stats.baseHits, one.stats.rays / 4);
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <openvdb/tools/SignedFloodFill.h>
 #include <openvdb/tools/VolumeToMesh.h>
 #include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -14,11 +15,9 @@
 #include <cmath>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
-#include <initializer_list>
 #include <limits>
 #include <map>
 #include <string>
-#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -29,7 +28,7 @@ namespace distile {
 namespace {
 
 void reject(const std::string& what, const std::string& why) {
-    throw InputError("world reference level set: " + what + ": " + why);
+    throw InputError("world reference mesh: " + what + ": " + why);
 }
 
 template <int N>
@@ -41,8 +40,8 @@ bool isFinite(const glm::vec<N, float>& value) {
 }
 
 void validateInput(const Size3& tile, const DisplacementShell& shell,
-                   const DisplacedLevelSetOptions& options) {
-    validateTileSize(tile, "world reference level set: tile size");
+                   const DisplacedMeshOptions& options) {
+    validateTileSize(tile, "world reference mesh: tile size");
     const std::size_t vertexCount = shell.positions.size();
     if (shell.triangles.empty()) reject("base mesh", "it has no triangles");
     if (shell.normals.size() != vertexCount || shell.uvs.size() != vertexCount) {
@@ -68,6 +67,9 @@ void validateInput(const Size3& tile, const DisplacementShell& shell,
     if (options.samplesPerTexel < 1 || options.samplesPerTexel > 8) {
         reject("samples per texel", std::to_string(options.samplesPerTexel) + " is not in [1, 8]");
     }
+}
+
+void validateLevelSetOptions(const DisplacedLevelSetOptions& options) {
     if (!(options.voxelsPerTexel > 0.0 && options.voxelsPerTexel <= 16.0)) {
         reject("voxels per texel", std::to_string(options.voxelsPerTexel) + " is not in (0, 16]");
     }
@@ -80,18 +82,12 @@ double cross2(const glm::dvec2& a, const glm::dvec2& b) {
     return a.x * b.y - a.y * b.x;
 }
 
-/// Does the chart wrap along `axis` (0: u, 1: v)? True when it spans exactly one unit there and
-/// some vertex shares its position with another whose uv differs by one unit along that axis.
-bool chartWraps(const DisplacementShell& shell, int axis, double uvMin, double uvMax) {
-    if (std::abs(uvMax - uvMin - 1.0) > 1e-5) return false;
-    std::map<std::tuple<float, float, float>, std::vector<float>> coordinatesByPosition;
-    for (std::size_t vertex = 0; vertex < shell.positions.size(); ++vertex) {
-        const glm::vec3& p = shell.positions[vertex];
-        coordinatesByPosition[{p.x, p.y, p.z}].push_back(shell.uvs[vertex][axis]);
-    }
-    for (const auto& [position, coordinates] : coordinatesByPosition) {
-        const auto [low, high] = std::minmax_element(coordinates.begin(), coordinates.end());
-        if (std::abs(*high - *low - 1.0f) < 1e-5f) return true;
+/// Lexicographic order of points (x, then y, then z): the order in which a cut between two
+/// points is computed, so both triangles beside an edge compute the same bits.
+template <class Vec>
+bool lexicographicLess(const Vec& a, const Vec& b) {
+    for (int axis = 0; axis < Vec::length(); ++axis) {
+        if (a[axis] != b[axis]) return a[axis] < b[axis];
     }
     return false;
 }
@@ -104,97 +100,6 @@ long long positiveModulo(long long value, long long period) {
     const long long remainder = value % period;
     return remainder < 0 ? remainder + period : remainder;
 }
-
-/// Which base triangle holds a uv, through a uniform grid of cells over the chart's bounds.
-class UvLocator {
-  public:
-    explicit UvLocator(const DisplacementShell& shell) : shell_(shell) {
-        uvMin_ = glm::dvec2(shell.uvs[0]);
-        uvMax_ = uvMin_;
-        for (const glm::vec2& uv : shell.uvs) {
-            uvMin_ = glm::min(uvMin_, glm::dvec2(uv));
-            uvMax_ = glm::max(uvMax_, glm::dvec2(uv));
-        }
-        cells_ = std::clamp(int(std::sqrt(double(shell.triangles.size()))), 1, 1024);
-        cellSize_ = glm::max((uvMax_ - uvMin_) / double(cells_), glm::dvec2(1e-12));
-        cellTriangles_.resize(std::size_t(cells_) * cells_);
-        for (std::uint32_t index = 0; index < shell.triangles.size(); ++index) {
-            const auto corners = uvCorners(index);
-            if (std::abs(cross2(corners[1] - corners[0], corners[2] - corners[0])) <= 1e-14)
-                continue;  // zero uv area: holds no uv
-            const glm::dvec2 low = glm::min(corners[0], glm::min(corners[1], corners[2]));
-            const glm::dvec2 high = glm::max(corners[0], glm::max(corners[1], corners[2]));
-            const glm::ivec2 first = cellOf(low), last = cellOf(high);
-            for (int y = first.y; y <= last.y; ++y) {
-                for (int x = first.x; x <= last.x; ++x) {
-                    cellTriangles_[std::size_t(x) + std::size_t(cells_) * y].push_back(index);
-                }
-            }
-        }
-    }
-
-    glm::dvec2 uvMin() const { return uvMin_; }
-    glm::dvec2 uvMax() const { return uvMax_; }
-
-    /// The triangle holding `uv` with its barycentric weights; for a uv outside every triangle
-    /// (beyond the chart's edge, or in a gap of it), the nearest candidate with its weights
-    /// clamped to the triangle. False when the chart holds no triangle of non-zero uv area.
-    bool locate(const glm::dvec2& uv, std::uint32_t& triangle, glm::dvec3& weights) const {
-        const glm::ivec2 cell = cellOf(uv);
-        double bestInside = -std::numeric_limits<double>::infinity();
-        for (int ring = 0; ring <= cells_; ++ring) {
-            for (int y = cell.y - ring; y <= cell.y + ring; ++y) {
-                for (int x = cell.x - ring; x <= cell.x + ring; ++x) {
-                    const bool onRing =
-                        std::max(std::abs(x - cell.x), std::abs(y - cell.y)) == ring;
-                    if (!onRing || x < 0 || y < 0 || x >= cells_ || y >= cells_) continue;
-                    for (std::uint32_t index :
-                         cellTriangles_[std::size_t(x) + std::size_t(cells_) * y]) {
-                        const glm::dvec3 b = barycentric(index, uv);
-                        const double inside = std::min(b.x, std::min(b.y, b.z));
-                        if (inside > bestInside) {
-                            bestInside = inside;
-                            triangle = index;
-                            weights = b;
-                        }
-                    }
-                }
-            }
-            // Inside a triangle, or something found and one more ring searched for a nearer edge.
-            if (bestInside >= -1e-9 || (ring >= 1 && std::isfinite(bestInside))) break;
-        }
-        if (!std::isfinite(bestInside)) return false;
-        if (bestInside < 0.0) {
-            weights = glm::max(weights, glm::dvec3(0.0));
-            weights /= weights.x + weights.y + weights.z;
-        }
-        return true;
-    }
-
-  private:
-    std::array<glm::dvec2, 3> uvCorners(std::uint32_t index) const {
-        const glm::uvec3& t = shell_.triangles[index];
-        return {glm::dvec2(shell_.uvs[t.x]), glm::dvec2(shell_.uvs[t.y]),
-                glm::dvec2(shell_.uvs[t.z])};
-    }
-    glm::ivec2 cellOf(const glm::dvec2& uv) const {
-        const glm::dvec2 cell = glm::floor((uv - uvMin_) / cellSize_);
-        return glm::clamp(glm::ivec2(glm::clamp(cell, -1.0, double(cells_))), 0, cells_ - 1);
-    }
-    glm::dvec3 barycentric(std::uint32_t index, const glm::dvec2& uv) const {
-        const auto c = uvCorners(index);
-        const double area = cross2(c[1] - c[0], c[2] - c[0]);
-        const double b1 = cross2(uv - c[0], c[2] - c[0]) / area;
-        const double b2 = cross2(c[1] - c[0], uv - c[0]) / area;
-        return {1.0 - b1 - b2, b1, b2};
-    }
-
-    const DisplacementShell& shell_;
-    glm::dvec2 uvMin_, uvMax_;
-    int cells_ = 1;
-    glm::dvec2 cellSize_{1.0};
-    std::vector<std::vector<std::uint32_t>> cellTriangles_;
-};
 
 /// Median over the triangles of the world length of one texel: sqrt(world area / texel area).
 double medianTexelSizeWorld(const DisplacementShell& shell, const Size3& tile) {
@@ -215,43 +120,15 @@ double medianTexelSizeWorld(const DisplacementShell& shell, const Size3& tile) {
     return sizes[sizes.size() / 2];
 }
 
-/// The chart's extent along one texel axis and whether it wraps there (no wall).
-struct FootprintAxis {
-    double lowTexels = 0.0;  ///< the chart's edges, texels
-    double highTexels = 0.0;
-    bool wraps = false;
-    /// The walls of a chart that does not wrap sit a hair inside it, so their vertices map
-    /// inside the chart; a wrapping chart has none.
-    double wallLow() const { return wraps ? -kNoWall : lowTexels + kWallInset; }
-    double wallHigh() const { return wraps ? kNoWall : highTexels - kWallInset; }
-    /// Polygons are kept with their centroid in [ownLow, ownHigh): the chart, plus the walls.
-    double ownLow() const { return wraps ? lowTexels : lowTexels - kWallMargin; }
-    double ownHigh() const { return wraps ? highTexels : highTexels + kWallMargin; }
-
-    static constexpr double kNoWall = 1e300;
-    static constexpr double kWallInset = 1e-3;  ///< texels
-    static constexpr double kWallMargin = 2.0;  ///< texels beyond the wall that hold its polygons
+/// Polygons of the detail's zero isosurface over one tile, in texels: quads, and triangles as
+/// quads whose last index is kNoCorner.
+struct TileMesh {
+    static constexpr unsigned kNoCorner = ~0u;
+    std::vector<glm::dvec3> points;
+    std::vector<glm::uvec4> polygons;
 };
 
-/// Texel-space polygons of the detail's zero isosurface in one box of the footprint, in
-/// coordinates relative to the box's tile copy (texels).
-struct TexelMesh {
-    std::vector<openvdb::Vec3s> points;
-    std::vector<openvdb::Vec3I> triangles;
-    std::vector<openvdb::Vec4I> quads;
-};
-
-/// Which repeat of the tile: copy (i, j) has its origin at texel (i W, j H).
-using CopyIndex = glm::vec<2, long long>;
-
-/// One repeat of the tile in the footprint: its origin (texels) and the mesh placed there.
-struct TileCopy {
-    glm::dvec2 originTexels{0.0};
-    const TexelMesh* mesh = nullptr;
-};
-
-/// The detail on one tile's lattice (periodic in x and y), with the floor, top and walls applied
-/// where a box of the footprint is extracted.
+/// The detail on one tile's lattice (periodic in x and y), with the floor and the top applied.
 class TileLattice {
   public:
     /// Lattice samples below z = 0 and above z = D (texels): the field is positive there.
@@ -259,8 +136,8 @@ class TileLattice {
     /// The solid floor's slab ends between lattice samples, so a sample inside it is negative.
     static constexpr double kFloorSlabTexels = 1.5;
 
-    TileLattice(const DisplacedLevelSet::DistanceFunction& detail, const Size3& tile,
-                int samplesPerTexel, bool solidFloor)
+    TileLattice(const DetailDistanceFunction& detail, const Size3& tile, int samplesPerTexel,
+                bool solidFloor)
         : spacing_(1.0 / samplesPerTexel),
           countX_((long long)(tile.width) * samplesPerTexel),
           countY_((long long)(tile.height) * samplesPerTexel),
@@ -286,38 +163,41 @@ class TileLattice {
     }
 
     double spacing() const { return spacing_; }
+    long long countZ() const { return countZ_; }
+    double zOf(long long k) const { return double(firstZ_ + k) * spacing_; }
 
-    /// The isosurface's polygons whose centroid lies in [ownLow, ownHigh) (texels relative to
-    /// `originTexels`, a whole number of tiles), with the walls of `axisX`, `axisY` applied.
-    /// Extracted from the lattice padded by kPadSamples around that box, so every polygon in it
-    /// is complete and the padding's boundary effects are dropped.
-    TexelMesh extract(const glm::dvec2& originTexels, const glm::dvec2& ownLow,
-                      const glm::dvec2& ownHigh, const FootprintAxis& axisX,
-                      const FootprintAxis& axisY) const {
+    /// The clipped field (detail, floor, top) at a texel position, trilinear between the
+    /// lattice's samples in x and y, at the lattice's z sample `k`.
+    double clippedAt(const glm::dvec2& texel, long long k) const {
+        const double fx = texel.x / spacing_, fy = texel.y / spacing_;
+        const double floorX = std::floor(fx), floorY = std::floor(fy);
+        const double tx = fx - floorX, ty = fy - floorY;
+        const long long i0 = positiveModulo((long long)floorX, countX_);
+        const long long j0 = positiveModulo((long long)floorY, countY_);
+        const long long i1 = (i0 + 1) % countX_, j1 = (j0 + 1) % countY_;
+        const double low =
+            (1.0 - tx) * distances_[index(i0, j0, k)] + tx * distances_[index(i1, j0, k)];
+        const double high =
+            (1.0 - tx) * distances_[index(i0, j1, k)] + tx * distances_[index(i1, j1, k)];
+        return clipped((1.0 - ty) * low + ty * high, zOf(k));
+    }
+
+    /// The isosurface of one whole tile: the polygons whose centroid lies in [0, W) x [0, H)
+    /// (texels). Extracted from the lattice padded by a few samples around the tile, so every
+    /// polygon is complete; repeats of it placed side by side meet without gaps or overlaps.
+    TileMesh extractTile() const {
         constexpr long long kPadSamples = 3;
-        const long long firstI = (long long)(std::floor(ownLow.x / spacing_)) - kPadSamples;
-        const long long lastI = (long long)(std::ceil(ownHigh.x / spacing_)) + kPadSamples;
-        const long long firstJ = (long long)(std::floor(ownLow.y / spacing_)) - kPadSamples;
-        const long long lastJ = (long long)(std::ceil(ownHigh.y / spacing_)) + kPadSamples;
-        const long long originI = std::llround(originTexels.x / spacing_);
-        const long long originJ = std::llround(originTexels.y / spacing_);
-        // Narrow band: every sign change between neighbouring samples has both ends active.
         const float bandTexels = float(2.0 * spacing_);
         auto grid = openvdb::FloatGrid::create(bandTexels);
         grid->setTransform(openvdb::math::Transform::createLinearTransform(spacing_));
         auto accessor = grid->getAccessor();
         for (long long k = 0; k < countZ_; ++k) {
-            const double z = double(firstZ_ + k) * spacing_;
-            for (long long j = firstJ; j <= lastJ; ++j) {
-                const double y = double(originJ + j) * spacing_;
-                const double wallY = std::max(axisY.wallLow() - y, y - axisY.wallHigh());
-                const long long tileJ = positiveModulo(originJ + j, countY_);
-                for (long long i = firstI; i <= lastI; ++i) {
-                    const double x = double(originI + i) * spacing_;
-                    const double wall =
-                        std::max({axisX.wallLow() - x, x - axisX.wallHigh(), wallY});
-                    const long long tileI = positiveModulo(originI + i, countX_);
-                    const double field = clipped(distances_[index(tileI, tileJ, k)], z, wall);
+            const double z = zOf(k);
+            for (long long j = -kPadSamples; j < countY_ + kPadSamples; ++j) {
+                const long long tileJ = positiveModulo(j, countY_);
+                for (long long i = -kPadSamples; i < countX_ + kPadSamples; ++i) {
+                    const long long tileI = positiveModulo(i, countX_);
+                    const double field = clipped(distances_[index(tileI, tileJ, k)], z);
                     if (std::abs(field) < bandTexels) {
                         accessor.setValue(openvdb::Coord(int(i), int(j), int(firstZ_ + k)),
                                           float(field));
@@ -326,10 +206,42 @@ class TileLattice {
             }
         }
         openvdb::tools::signedFloodFill(grid->tree());
-        TexelMesh all;
-        openvdb::tools::volumeToMesh(*grid, all.points, all.triangles, all.quads, 0.0, 0.0);
+        std::vector<openvdb::Vec3s> points;
+        std::vector<openvdb::Vec3I> triangles;
+        std::vector<openvdb::Vec4I> quads;
+        openvdb::tools::volumeToMesh(*grid, points, triangles, quads, 0.0, 0.0);
         grid.reset();
-        return keepOwned(std::move(all), ownLow, ownHigh);
+
+        // Keep the polygons whose centroid lies in the tile (a hair wider, so a centroid on its
+        // edge is kept by both neighbours rather than lost to rounding; the copies coincide).
+        constexpr double kTieTexels = 1e-4;
+        const double width = double(countX_) * spacing_, height = double(countY_) * spacing_;
+        TileMesh kept;
+        std::vector<unsigned> newIndex(points.size(), TileMesh::kNoCorner);
+        const auto keep = [&](const unsigned* corners, int count) {
+            glm::dvec2 centroid(0.0);
+            for (int c = 0; c < count; ++c) {
+                centroid += glm::dvec2(points[corners[c]].x(), points[corners[c]].y());
+            }
+            centroid /= double(count);
+            if (!(centroid.x >= -kTieTexels && centroid.x < width + kTieTexels &&
+                  centroid.y >= -kTieTexels && centroid.y < height + kTieTexels)) {
+                return;
+            }
+            glm::uvec4 polygon(TileMesh::kNoCorner);
+            for (int c = 0; c < count; ++c) {
+                if (newIndex[corners[c]] == TileMesh::kNoCorner) {
+                    newIndex[corners[c]] = unsigned(kept.points.size());
+                    const openvdb::Vec3s& p = points[corners[c]];
+                    kept.points.emplace_back(p.x(), p.y(), p.z());
+                }
+                polygon[c] = newIndex[corners[c]];
+            }
+            kept.polygons.push_back(polygon);
+        };
+        for (const openvdb::Vec3I& t : triangles) keep(t.asPointer(), 3);
+        for (const openvdb::Vec4I& q : quads) keep(q.asPointer(), 4);
+        return kept;
     }
 
   private:
@@ -337,46 +249,11 @@ class TileLattice {
         return std::size_t(i + countX_ * (j + countY_ * k));
     }
 
-    /// The detail with the floor (a slab below z = 0, or open), the top (z = D) and the walls.
-    double clipped(double detail, double z, double wall) const {
-        double field = solidFloor_ ? std::max(std::min(detail, z), -(z + kFloorSlabTexels))
-                                   : std::max(detail, -z);
-        return std::max({field, z - depthTexels_, wall});
-    }
-
-    /// The polygons of `all` with their centroid in [ownLow, ownHigh) (a hair wider, so a
-    /// centroid on the line between two boxes is kept twice rather than lost to rounding; the
-    /// copies coincide), with only the points they use.
-    static TexelMesh keepOwned(TexelMesh all, const glm::dvec2& ownLow, const glm::dvec2& ownHigh) {
-        constexpr double kTieTexels = 1e-4;
-        const auto owned = [&](std::initializer_list<unsigned> corners) {
-            glm::dvec2 centroid(0.0);
-            for (unsigned corner : corners) {
-                centroid += glm::dvec2(all.points[corner].x(), all.points[corner].y());
-            }
-            centroid /= double(corners.size());
-            return centroid.x >= ownLow.x - kTieTexels && centroid.x < ownHigh.x + kTieTexels &&
-                   centroid.y >= ownLow.y - kTieTexels && centroid.y < ownHigh.y + kTieTexels;
-        };
-        TexelMesh kept;
-        std::vector<unsigned> newIndex(all.points.size(), ~0u);
-        const auto keep = [&](unsigned corner) {
-            if (newIndex[corner] == ~0u) {
-                newIndex[corner] = unsigned(kept.points.size());
-                kept.points.push_back(all.points[corner]);
-            }
-            return newIndex[corner];
-        };
-        for (const openvdb::Vec3I& t : all.triangles) {
-            if (owned({t[0], t[1], t[2]}))
-                kept.triangles.emplace_back(keep(t[0]), keep(t[1]), keep(t[2]));
-        }
-        for (const openvdb::Vec4I& q : all.quads) {
-            if (owned({q[0], q[1], q[2], q[3]})) {
-                kept.quads.emplace_back(keep(q[0]), keep(q[1]), keep(q[2]), keep(q[3]));
-            }
-        }
-        return kept;
+    /// The detail with the floor (a slab below z = 0, or open) and the top (z = D).
+    double clipped(double detail, double z) const {
+        const double field = solidFloor_ ? std::max(std::min(detail, z), -(z + kFloorSlabTexels))
+                                         : std::max(detail, -z);
+        return std::max(field, z - depthTexels_);
     }
 
     double spacing_;
@@ -387,34 +264,489 @@ class TileLattice {
     std::vector<float> distances_;  ///< x fastest, then y, then z
 };
 
-/// The interval [first, end) of tile copies along one axis that meet the chart; the first and
-/// the last also hold the polygons of the walls just beyond it.
-std::pair<long long, long long> copyRange(const FootprintAxis& axis, double tileTexels) {
-    const auto first = (long long)(std::floor(axis.lowTexels / tileTexels));
-    return {first, std::max(first + 1, (long long)(std::ceil(axis.highTexels / tileTexels)))};
+/// The tile mesh's polygons binned on a grid of cells by their first corner, to find those
+/// near a base triangle.
+class TileMeshCells {
+  public:
+    static constexpr double kCellTexels = 8.0;
+
+    TileMeshCells(const TileMesh& mesh, const glm::dvec2& tileTexels) {
+        cellsX_ = std::max(1, int(std::ceil(tileTexels.x / kCellTexels)));
+        cellsY_ = std::max(1, int(std::ceil(tileTexels.y / kCellTexels)));
+        std::vector<std::uint32_t> cellOfPolygon(mesh.polygons.size());
+        firstOfCell_.assign(std::size_t(cellsX_) * cellsY_ + 1, 0);
+        for (std::size_t index = 0; index < mesh.polygons.size(); ++index) {
+            const glm::uvec4& polygon = mesh.polygons[index];
+            const glm::dvec2 first(mesh.points[polygon[0]]);
+            for (int corner = 0; corner < 4 && polygon[corner] != TileMesh::kNoCorner; ++corner) {
+                const glm::dvec2 offset =
+                    glm::abs(glm::dvec2(mesh.points[polygon[corner]]) - first);
+                reachTexels_ = std::max({reachTexels_, offset.x, offset.y});
+            }
+            const glm::ivec2 cell = cellOf(first);
+            cellOfPolygon[index] = std::uint32_t(cell.x + cellsX_ * cell.y);
+            ++firstOfCell_[cellOfPolygon[index] + 1];
+        }
+        for (std::size_t cell = 1; cell < firstOfCell_.size(); ++cell) {
+            firstOfCell_[cell] += firstOfCell_[cell - 1];
+        }
+        polygonsByCell_.resize(mesh.polygons.size());
+        std::vector<std::uint32_t> next(firstOfCell_.begin(), firstOfCell_.end() - 1);
+        for (std::size_t index = 0; index < mesh.polygons.size(); ++index) {
+            polygonsByCell_[next[cellOfPolygon[index]]++] = std::uint32_t(index);
+        }
+    }
+
+    /// Calls function(polygon index) for every polygon that may overlap [low, high] (texels in
+    /// the tile's own coordinates), each once, in a fixed order.
+    template <class Function>
+    void forEachNear(const glm::dvec2& low, const glm::dvec2& high, Function&& function) const {
+        const glm::ivec2 first = cellOf(low - reachTexels_), last = cellOf(high + reachTexels_);
+        for (int y = first.y; y <= last.y; ++y) {
+            for (int x = first.x; x <= last.x; ++x) {
+                const std::size_t cell = std::size_t(x + cellsX_ * y);
+                for (std::uint32_t slot = firstOfCell_[cell]; slot < firstOfCell_[cell + 1];
+                     ++slot) {
+                    function(polygonsByCell_[slot]);
+                }
+            }
+        }
+    }
+
+  private:
+    glm::ivec2 cellOf(const glm::dvec2& texel) const {
+        const glm::dvec2 cell = glm::floor(texel / kCellTexels);
+        return {std::clamp(int(std::clamp(cell.x, -1.0, double(cellsX_))), 0, cellsX_ - 1),
+                std::clamp(int(std::clamp(cell.y, -1.0, double(cellsY_))), 0, cellsY_ - 1)};
+    }
+
+    int cellsX_ = 1, cellsY_ = 1;
+    double reachTexels_ = 0.0;  ///< farthest any corner of a polygon is from its first, per axis
+    std::vector<std::uint32_t> firstOfCell_;
+    std::vector<std::uint32_t> polygonsByCell_;
+};
+
+/// One base triangle's map from texel space to world space (the shell), with its edges.
+class ShellTriangleMap {
+  public:
+    ShellTriangleMap(const DisplacementShell& shell, std::uint32_t triangle,
+                     const glm::dvec2& texelsPerUv, double depthTexels)
+        : depthWorld_(shell.depthWorld), depthTexels_(depthTexels) {
+        const glm::uvec3& corners = shell.triangles[triangle];
+        for (int c = 0; c < 3; ++c) {
+            corner_[c] = glm::dvec2(shell.uvs[corners[c]]) * texelsPerUv;
+            top_[c] = glm::dvec3(shell.positions[corners[c]]);
+            normal_[c] = glm::dvec3(shell.normals[corners[c]]);
+        }
+        area_ = cross2(corner_[1] - corner_[0], corner_[2] - corner_[0]);
+        for (int edge = 0; edge < 3; ++edge) {
+            int a = edge, b = (edge + 1) % 3;
+            if (lexicographicLess(corner_[b], corner_[a])) std::swap(a, b);
+            edgeFrom_[edge] = a;
+            edgeTo_[edge] = b;
+            // Inside is where the opposite corner is.
+            edgeSign_[edge] = lineValue(edge, corner_[3 - a - b]) > 0.0 ? 1.0 : -1.0;
+        }
+    }
+
+    /// The triangle has a uv area to carry detail (a hair more than rounding).
+    bool hasArea() const {
+        const double scale =
+            glm::length(corner_[1] - corner_[0]) * glm::length(corner_[2] - corner_[0]);
+        return std::abs(area_) > 1e-9 * scale && scale > 0.0;
+    }
+    glm::dvec2 low() const { return glm::min(corner_[0], glm::min(corner_[1], corner_[2])); }
+    glm::dvec2 high() const { return glm::max(corner_[0], glm::max(corner_[1], corner_[2])); }
+    glm::dvec2 corner(int c) const { return corner_[c]; }
+    int edgeFrom(int edge) const { return edgeFrom_[edge]; }
+    int edgeTo(int edge) const { return edgeTo_[edge]; }
+
+    /// > 0 inside edge `edge`'s half-plane; bit for bit the negation of the value the triangle
+    /// on the other side of the edge computes.
+    double inside(int edge, const glm::dvec2& texel) const {
+        return edgeSign_[edge] * lineValue(edge, texel);
+    }
+
+    /// World position of a texel-space point, by the triangle's barycentrics (extrapolated
+    /// linearly outside it).
+    glm::dvec3 map(const glm::dvec3& texel) const {
+        const glm::dvec2 p(texel);
+        const double b1 = cross2(p - corner_[0], corner_[2] - corner_[0]) / area_;
+        const double b2 = cross2(corner_[1] - corner_[0], p - corner_[0]) / area_;
+        const double weights[3] = {1.0 - b1 - b2, b1, b2};
+        glm::dvec3 world(0.0);
+        for (int c = 0; c < 3; ++c) world += weights[c] * shellPoint(c, texel.z);
+        return world;
+    }
+
+    /// World position of a texel-space point on edge `edge`, from the edge's two corners only,
+    /// so the triangle on the other side maps it to the same bits.
+    glm::dvec3 mapOnEdge(int edge, const glm::dvec3& texel) const {
+        const int a = edgeFrom_[edge], b = edgeTo_[edge];
+        const glm::dvec2 along = corner_[b] - corner_[a];
+        const double t = glm::dot(glm::dvec2(texel) - corner_[a], along) / glm::dot(along, along);
+        return (1.0 - t) * shellPoint(a, texel.z) + t * shellPoint(b, texel.z);
+    }
+
+  private:
+    double lineValue(int edge, const glm::dvec2& p) const {
+        const glm::dvec2 a = corner_[edgeFrom_[edge]], b = corner_[edgeTo_[edge]];
+        return cross2(b - a, p - a);
+    }
+    glm::dvec3 shellPoint(int c, double zTexels) const {
+        return top_[c] - normal_[c] * (depthWorld_ * (1.0 - zTexels / depthTexels_));
+    }
+
+    glm::dvec2 corner_[3];
+    glm::dvec3 top_[3], normal_[3];
+    double area_ = 0.0;
+    int edgeFrom_[3] = {}, edgeTo_[3] = {};
+    double edgeSign_[3] = {};
+    double depthWorld_, depthTexels_;
+};
+
+/// Which edges of the base triangles are open borders: not shared by another triangle with a uv
+/// area (edges matched by their corners' world positions, so a uv seam is not a border).
+std::vector<std::array<bool, 3>> findBorderEdges(const DisplacementShell& shell,
+                                                 const std::vector<bool>& hasArea) {
+    using Point = std::array<float, 3>;
+    const auto point = [&](unsigned vertex) {
+        const glm::vec3& p = shell.positions[vertex];
+        return Point{p.x, p.y, p.z};
+    };
+    std::map<std::pair<Point, Point>, int> uses;
+    const auto key = [&](const glm::uvec3& t, int edge) {
+        Point a = point(t[edge]), b = point(t[(edge + 1) % 3]);
+        if (b < a) std::swap(a, b);
+        return std::make_pair(a, b);
+    };
+    for (std::size_t index = 0; index < shell.triangles.size(); ++index) {
+        if (!hasArea[index]) continue;
+        for (int edge = 0; edge < 3; ++edge) ++uses[key(shell.triangles[index], edge)];
+    }
+    std::vector<std::array<bool, 3>> border(shell.triangles.size(), {false, false, false});
+    for (std::size_t index = 0; index < shell.triangles.size(); ++index) {
+        if (!hasArea[index]) continue;
+        for (int edge = 0; edge < 3; ++edge)
+            border[index][edge] = uses[key(shell.triangles[index], edge)] == 1;
+    }
+    return border;
 }
 
-/// The polygons copy `index` of [first, end) keeps along one axis, texels relative to its
-/// origin: its own tile, clipped to the chart, the first and last copies extended to the walls.
-std::pair<double, double> copyOwnership(const FootprintAxis& axis, long long index,
-                                        std::pair<long long, long long> range, double tileTexels) {
-    const double origin = double(index) * tileTexels;
-    const double low = index == range.first ? axis.ownLow() : std::max(origin, axis.ownLow());
-    const double high =
-        index + 1 == range.second ? axis.ownHigh() : std::min(origin + tileTexels, axis.ownHigh());
-    return {low - origin, high - origin};
+/// The world-space polygons one base triangle carries.
+struct TrianglePieces {
+    std::vector<glm::vec3> positions, texelPositions;
+    std::vector<glm::uvec3> triangles;
+    std::vector<glm::uvec4> quads;
+
+    unsigned addVertex(const glm::dvec3& world, const glm::dvec3& texel) {
+        positions.emplace_back(world);
+        texelPositions.emplace_back(texel);
+        return unsigned(positions.size() - 1);
+    }
+};
+
+/// A corner of a clipped polygon: texel position and the base edge it was cut on (-1: none).
+struct ClipCorner {
+    glm::dvec3 texel;
+    int edge = -1;
+};
+
+/// Clips `polygon` to the half-plane inside base edge `edge` into `out`. A cut point is computed
+/// from its segment's two ends in lexicographic order, so the neighbour across the edge computes
+/// the same bits.
+void clipToEdge(const ShellTriangleMap& map, int edge, const std::vector<ClipCorner>& polygon,
+                std::vector<ClipCorner>& out) {
+    out.clear();
+    const std::size_t count = polygon.size();
+    for (std::size_t index = 0; index < count; ++index) {
+        const ClipCorner& current = polygon[index];
+        const ClipCorner& next = polygon[(index + 1) % count];
+        const double dCurrent = map.inside(edge, glm::dvec2(current.texel));
+        const double dNext = map.inside(edge, glm::dvec2(next.texel));
+        if (dCurrent >= 0.0) out.push_back(current);
+        if ((dCurrent >= 0.0) == (dNext >= 0.0)) continue;
+        const bool currentFirst = lexicographicLess(current.texel, next.texel);
+        const ClipCorner& p = currentFirst ? current : next;
+        const ClipCorner& q = currentFirst ? next : current;
+        const double dP = currentFirst ? dCurrent : dNext;
+        const double dQ = currentFirst ? dNext : dCurrent;
+        out.push_back({p.texel + (q.texel - p.texel) * (dP / (dP - dQ)), edge});
+    }
 }
 
-/// Whether copy `index` (tile length `tileTexels`) can be the shared tile mesh placed as it is:
-/// it lies inside the kept range, and far enough from the walls that they change no sample
-/// its polygons depend on (the detail is a distance, so a sample next to a sign change is
-/// > -spacing; a wall more than a few samples away is below that).
-bool plainAlong(const FootprintAxis& axis, long long index, double tileTexels, double spacing) {
-    const double low = double(index) * tileTexels, high = low + tileTexels;
-    if (axis.wraps) return low >= axis.lowTexels && high <= axis.highTexels;
-    const double wallClearance = 4.0 * spacing + 1.0;
-    return low >= axis.wallLow() + wallClearance && high <= axis.wallHigh() - wallClearance;
+/// Per-thread working memory of mapTriangle: which tile-mesh point became which vertex of the
+/// current tile repeat (stamped, so nothing is cleared between repeats).
+struct MapScratch {
+    std::vector<std::uint32_t> stamp, vertex;
+    std::uint32_t currentStamp = 0;
+    std::vector<ClipCorner> polygon, clipped;
+};
+
+/// The detail of one base triangle: the tile repeats over its uv triangle clipped to it and
+/// mapped, and walls on its border edges.
+void mapTriangle(const ShellTriangleMap& map, const std::array<bool, 3>& border,
+                 const TileMesh& tileMesh, const TileMeshCells& cells, const TileLattice& lattice,
+                 const glm::dvec2& tileTexels, MapScratch& scratch, TrianglePieces& pieces) {
+    const glm::dvec2 low = map.low(), high = map.high();
+    const auto firstCopy = glm::vec<2, long long>(glm::floor(low / tileTexels));
+    const auto lastCopy = glm::vec<2, long long>(glm::floor(high / tileTexels));
+    if (scratch.stamp.size() != tileMesh.points.size()) {
+        scratch.stamp.assign(tileMesh.points.size(), 0);
+        scratch.vertex.assign(tileMesh.points.size(), 0);
+        scratch.currentStamp = 0;
+    }
+    for (long long copyY = firstCopy.y; copyY <= lastCopy.y; ++copyY) {
+        for (long long copyX = firstCopy.x; copyX <= lastCopy.x; ++copyX) {
+            const glm::dvec2 origin = glm::dvec2(double(copyX), double(copyY)) * tileTexels;
+            const glm::dvec3 origin3(origin, 0.0);
+            if (++scratch.currentStamp == 0) {
+                std::fill(scratch.stamp.begin(), scratch.stamp.end(), 0);
+                scratch.currentStamp = 1;
+            }
+            const auto shared = [&](unsigned point) {
+                if (scratch.stamp[point] != scratch.currentStamp) {
+                    scratch.stamp[point] = scratch.currentStamp;
+                    const glm::dvec3 texel = tileMesh.points[point] + origin3;
+                    scratch.vertex[point] = pieces.addVertex(map.map(texel), texel);
+                }
+                return scratch.vertex[point];
+            };
+            cells.forEachNear(low - origin, high - origin, [&](std::uint32_t index) {
+                const glm::uvec4& polygon = tileMesh.polygons[index];
+                const int count = polygon[3] == TileMesh::kNoCorner ? 3 : 4;
+                glm::dvec2 polygonLow(std::numeric_limits<double>::max());
+                glm::dvec2 polygonHigh(-std::numeric_limits<double>::max());
+                for (int c = 0; c < count; ++c) {
+                    const glm::dvec2 p = glm::dvec2(tileMesh.points[polygon[c]]) + origin;
+                    polygonLow = glm::min(polygonLow, p);
+                    polygonHigh = glm::max(polygonHigh, p);
+                }
+                if (polygonHigh.x < low.x || polygonHigh.y < low.y || polygonLow.x > high.x ||
+                    polygonLow.y > high.y) {
+                    return;
+                }
+                bool allInside = true;
+                for (int edge = 0; edge < 3; ++edge) {
+                    int outside = 0;
+                    for (int c = 0; c < count; ++c) {
+                        const glm::dvec2 p = glm::dvec2(tileMesh.points[polygon[c]]) + origin;
+                        if (map.inside(edge, p) < 0.0) ++outside;
+                    }
+                    if (outside == count) return;  // wholly outside this edge
+                    if (outside > 0) allInside = false;
+                }
+                if (allInside) {
+                    if (count == 3) {
+                        pieces.triangles.emplace_back(shared(polygon[0]), shared(polygon[1]),
+                                                      shared(polygon[2]));
+                    } else {
+                        pieces.quads.emplace_back(shared(polygon[0]), shared(polygon[1]),
+                                                  shared(polygon[2]), shared(polygon[3]));
+                    }
+                    return;
+                }
+                scratch.polygon.clear();
+                for (int c = 0; c < count; ++c) {
+                    scratch.polygon.push_back({tileMesh.points[polygon[c]] + origin3, -1});
+                }
+                for (int edge = 0; edge < 3; ++edge) {
+                    clipToEdge(map, edge, scratch.polygon, scratch.clipped);
+                    std::swap(scratch.polygon, scratch.clipped);
+                    if (scratch.polygon.size() < 3) return;
+                }
+                const unsigned first = unsigned(pieces.positions.size());
+                for (const ClipCorner& corner : scratch.polygon) {
+                    pieces.addVertex(corner.edge >= 0 ? map.mapOnEdge(corner.edge, corner.texel)
+                                                      : map.map(corner.texel),
+                                     corner.texel);
+                }
+                for (unsigned c = 1; c + 1 < scratch.polygon.size(); ++c) {
+                    pieces.triangles.emplace_back(first, first + c, first + c + 1);
+                }
+            });
+        }
+    }
+
+    // Walls: the detail's cross-section on each border edge, from the lattice sampled along the
+    // edge (trilinear in x and y) at its z samples; each cell of that (along, z) grid is split
+    // into two triangles, each cut to where the field is <= 0 (linear on the triangle).
+    for (int edge = 0; edge < 3; ++edge) {
+        if (!border[edge]) continue;
+        const glm::dvec2 a = map.corner(map.edgeFrom(edge)), b = map.corner(map.edgeTo(edge));
+        const auto steps =
+            std::max<long long>(1, (long long)std::ceil(glm::length(b - a) / lattice.spacing()));
+        const long long countZ = lattice.countZ();
+        std::vector<double> field(std::size_t((steps + 1) * countZ));
+        for (long long step = 0; step <= steps; ++step) {
+            const glm::dvec2 texel = a + (b - a) * (double(step) / double(steps));
+            for (long long k = 0; k < countZ; ++k)
+                field[std::size_t(step * countZ + k)] = lattice.clippedAt(texel, k);
+        }
+        struct Node {
+            long long step, k;
+        };
+        const auto value = [&](const Node& n) { return field[std::size_t(n.step * countZ + n.k)]; };
+        const auto texelOf = [&](double step, double z) {
+            return glm::dvec3(a + (b - a) * (step / double(steps)), z);
+        };
+        std::array<glm::dvec3, 4> cut;
+        for (long long step = 0; step < steps; ++step) {
+            for (long long k = 0; k + 1 < countZ; ++k) {
+                const Node cell[4] = {{step, k}, {step + 1, k}, {step + 1, k + 1}, {step, k + 1}};
+                for (const std::array<int, 3>& half : {std::array<int, 3>{0, 1, 2}, {0, 2, 3}}) {
+                    int cutCount = 0;
+                    for (int c = 0; c < 3; ++c) {
+                        const Node& n = cell[half[c]];
+                        const Node& m = cell[half[(c + 1) % 3]];
+                        const double vn = value(n), vm = value(m);
+                        if (vn <= 0.0) cut[cutCount++] = texelOf(double(n.step), lattice.zOf(n.k));
+                        if ((vn <= 0.0) == (vm <= 0.0)) continue;
+                        const double t = vn / (vn - vm);
+                        cut[cutCount++] =
+                            texelOf(double(n.step) + t * double(m.step - n.step),
+                                    lattice.zOf(n.k) + t * (lattice.zOf(m.k) - lattice.zOf(n.k)));
+                    }
+                    if (cutCount < 3) continue;
+                    const unsigned first = unsigned(pieces.positions.size());
+                    for (int c = 0; c < cutCount; ++c) {
+                        pieces.addVertex(map.mapOnEdge(edge, cut[std::size_t(c)]),
+                                         cut[std::size_t(c)]);
+                    }
+                    for (int c = 1; c + 1 < cutCount; ++c) {
+                        pieces.triangles.emplace_back(first, first + unsigned(c),
+                                                      first + unsigned(c) + 1);
+                    }
+                }
+            }
+        }
+    }
 }
+
+}  // namespace
+
+DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Size3& tile,
+                                 const DisplacementShell& shell,
+                                 const DisplacedMeshOptions& options) {
+    validateInput(tile, shell, options);
+    openvdb::initialize();
+    DisplacedMesh mesh;
+    DisplacedMeshStats& stats = mesh.stats;
+    stats.texelSizeWorld = medianTexelSizeWorld(shell, tile);
+
+    // 1. The detail on one tile's lattice, sampled once (multi-threaded), and its isosurface.
+    auto start = std::chrono::steady_clock::now();
+    const TileLattice lattice(detail, tile, options.samplesPerTexel, shell.solidFloor);
+    stats.latticeSeconds = secondsSince(start);
+    start = std::chrono::steady_clock::now();
+    const TileMesh tileMesh = lattice.extractTile();
+    const glm::dvec2 tileTexels(tile.width, tile.height);
+    const TileMeshCells cells(tileMesh, tileTexels);
+    stats.tilePolygons = tileMesh.polygons.size();
+    stats.extractSeconds = secondsSince(start);
+
+    // 2. Per base triangle: the tile repeats over its uv triangle, clipped and mapped.
+    start = std::chrono::steady_clock::now();
+    const glm::dvec2 texelsPerUv = shell.uvScale * tileTexels;
+    const double depthTexels = double(tile.depth);
+    const std::size_t triangleCount = shell.triangles.size();
+    std::vector<bool> hasArea(triangleCount);
+    double repeats = 0.0;
+    for (std::size_t index = 0; index < triangleCount; ++index) {
+        const ShellTriangleMap map(shell, std::uint32_t(index), texelsPerUv, depthTexels);
+        hasArea[index] = map.hasArea();
+        if (!hasArea[index]) continue;
+        const glm::dvec2 copies =
+            glm::floor(map.high() / tileTexels) - glm::floor(map.low() / tileTexels) + 1.0;
+        repeats += copies.x * copies.y;
+    }
+    constexpr double kMaxRepeats = 1 << 16;
+    if (repeats > kMaxRepeats) {
+        reject("uv scale", "the base triangles hold " + std::to_string((long long)repeats) +
+                               " tile repeats; at most 65536 are accepted");
+    }
+    const std::vector<std::array<bool, 3>> border = findBorderEdges(shell, hasArea);
+    for (const auto& edges : border) {
+        stats.borderEdges += std::size_t(edges[0]) + std::size_t(edges[1]) + std::size_t(edges[2]);
+    }
+    std::vector<TrianglePieces> pieces(triangleCount);
+    tbb::enumerable_thread_specific<MapScratch> scratches;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, triangleCount), [&](const auto& range) {
+        MapScratch& scratch = scratches.local();
+        for (std::size_t index = range.begin(); index != range.end(); ++index) {
+            if (!hasArea[index]) continue;
+            const ShellTriangleMap map(shell, std::uint32_t(index), texelsPerUv, depthTexels);
+            mapTriangle(map, border[index], tileMesh, cells, lattice, tileTexels, scratch,
+                        pieces[index]);
+        }
+    });
+
+    // 3. The pieces joined in triangle order (the same mesh for any thread count).
+    std::vector<std::size_t> firstVertex(triangleCount + 1, 0), firstTriangle(triangleCount + 1, 0),
+        firstQuad(triangleCount + 1, 0);
+    for (std::size_t index = 0; index < triangleCount; ++index) {
+        firstVertex[index + 1] = firstVertex[index] + pieces[index].positions.size();
+        firstTriangle[index + 1] = firstTriangle[index] + pieces[index].triangles.size();
+        firstQuad[index + 1] = firstQuad[index] + pieces[index].quads.size();
+    }
+    if (firstVertex.back() > std::size_t(std::numeric_limits<std::uint32_t>::max())) {
+        reject("detail", "the world-space mesh would have more than 2^32 vertices");
+    }
+    mesh.positions.resize(firstVertex.back());
+    mesh.texelPositions.resize(firstVertex.back());
+    mesh.triangles.resize(firstTriangle.back());
+    mesh.triangleBase.resize(firstTriangle.back());
+    mesh.quads.resize(firstQuad.back());
+    mesh.quadBase.resize(firstQuad.back());
+    tbb::parallel_for(std::size_t(0), triangleCount, [&](std::size_t index) {
+        TrianglePieces& own = pieces[index];
+        const auto offset = unsigned(firstVertex[index]);
+        std::copy(own.positions.begin(), own.positions.end(),
+                  mesh.positions.begin() + std::ptrdiff_t(firstVertex[index]));
+        std::copy(own.texelPositions.begin(), own.texelPositions.end(),
+                  mesh.texelPositions.begin() + std::ptrdiff_t(firstVertex[index]));
+        for (std::size_t t = 0; t < own.triangles.size(); ++t) {
+            mesh.triangles[firstTriangle[index] + t] = own.triangles[t] + offset;
+            mesh.triangleBase[firstTriangle[index] + t] = std::uint32_t(index);
+        }
+        for (std::size_t q = 0; q < own.quads.size(); ++q) {
+            mesh.quads[firstQuad[index] + q] = own.quads[q] + offset;
+            mesh.quadBase[firstQuad[index] + q] = std::uint32_t(index);
+        }
+        own = TrianglePieces{};
+    });
+    stats.mapSeconds = secondsSince(start);
+    stats.meshVertices = mesh.positions.size();
+    stats.meshPolygons = mesh.triangles.size() + mesh.quads.size();
+    if (stats.meshPolygons == 0) reject("detail", "its surface is empty inside the shell");
+    return mesh;
+}
+
+namespace {
+
+/// A DisplacedMesh as OpenVDB's mesh-to-volume conversion reads it (its MeshDataAdapter
+/// interface): triangles first, then quads, points in the grid's index space.
+class MeshAdapter {
+  public:
+    MeshAdapter(const DisplacedMesh& mesh, const openvdb::math::Transform& transform)
+        : mesh_(mesh), transform_(transform) {}
+    std::size_t polygonCount() const { return mesh_.triangles.size() + mesh_.quads.size(); }
+    std::size_t pointCount() const { return mesh_.positions.size(); }
+    std::size_t vertexCount(std::size_t polygon) const {
+        return polygon < mesh_.triangles.size() ? 3 : 4;
+    }
+    void getIndexSpacePoint(std::size_t polygon, std::size_t corner, openvdb::Vec3d& point) const {
+        const std::size_t triangles = mesh_.triangles.size();
+        const unsigned vertex = polygon < triangles ? mesh_.triangles[polygon][int(corner)]
+                                                    : mesh_.quads[polygon - triangles][int(corner)];
+        const glm::vec3& p = mesh_.positions[vertex];
+        point = transform_.worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
+    }
+
+  private:
+    const DisplacedMesh& mesh_;
+    const openvdb::math::Transform& transform_;
+};
 
 }  // namespace
 
@@ -436,137 +768,25 @@ const DisplacedLevelSetStats& DisplacedLevelSet::stats() const {
 DisplacedLevelSet DisplacedLevelSet::build(const DistanceFunction& detail, const Size3& tile,
                                            const DisplacementShell& shell,
                                            const DisplacedLevelSetOptions& options) {
-    validateInput(tile, shell, options);
-    const auto start = std::chrono::steady_clock::now();
+    validateLevelSetOptions(options);
+    return build(buildDisplacedMesh(detail, tile, shell, options.mesh), options);
+}
+
+DisplacedLevelSet DisplacedLevelSet::build(const DisplacedMesh& mesh,
+                                           const DisplacedLevelSetOptions& options) {
+    validateLevelSetOptions(options);
+    if (mesh.triangles.empty() && mesh.quads.empty()) reject("detail", "the mesh is empty");
     openvdb::initialize();
     auto impl = std::make_unique<Impl>();
     DisplacedLevelSetStats& stats = impl->stats;
-
-    // 1. The detail on one tile's lattice, sampled once (multi-threaded).
-    const TileLattice lattice(detail, tile, options.samplesPerTexel, shell.solidFloor);
-
-    // 2. The footprint: the chart's uv bounds in texels, walls where it does not wrap.
-    const UvLocator locator(shell);
-    const glm::dvec2 texelsPerUv(shell.uvScale.x * tile.width, shell.uvScale.y * tile.height);
-    const glm::dvec2 uvMin = locator.uvMin(), uvMax = locator.uvMax();
-    if (!(uvMax.x > uvMin.x && uvMax.y > uvMin.y)) reject("base mesh uvs", "the chart has no area");
-    stats.wrapsU = chartWraps(shell, 0, uvMin.x, uvMax.x);
-    stats.wrapsV = chartWraps(shell, 1, uvMin.y, uvMax.y);
-    const FootprintAxis axisX{uvMin.x * texelsPerUv.x, uvMax.x * texelsPerUv.x, stats.wrapsU};
-    const FootprintAxis axisY{uvMin.y * texelsPerUv.y, uvMax.y * texelsPerUv.y, stats.wrapsV};
-
-    // 3. The tile copies that cover it: the copies away from walls and chart edges share one
-    //    extracted tile mesh; the others are extracted with the walls and clipped to the chart.
-    const glm::dvec2 tileTexels(tile.width, tile.height);
-    const auto copiesX = copyRange(axisX, tileTexels.x);
-    const auto copiesY = copyRange(axisY, tileTexels.y);
-    const auto [firstCopyX, endCopyX] = copiesX;
-    const auto [firstCopyY, endCopyY] = copiesY;
-    const double copyCount = double(endCopyX - firstCopyX) * double(endCopyY - firstCopyY);
-    constexpr double kMaxCopies = 1 << 16;
-    if (copyCount > kMaxCopies) {
-        reject("uv scale", "the chart holds " + std::to_string((long long)(copyCount)) +
-                               " tile repeats; at most 65536 are accepted");
-    }
-    std::vector<CopyIndex> edgeCopies;
-    std::vector<TileCopy> copies;
-    for (long long copyY = firstCopyY; copyY < endCopyY; ++copyY) {
-        for (long long copyX = firstCopyX; copyX < endCopyX; ++copyX) {
-            const glm::dvec2 origin(double(copyX) * tileTexels.x, double(copyY) * tileTexels.y);
-            if (plainAlong(axisX, copyX, tileTexels.x, lattice.spacing()) &&
-                plainAlong(axisY, copyY, tileTexels.y, lattice.spacing())) {
-                copies.push_back({origin, nullptr});  // the shared tile mesh, set below
-            } else {
-                edgeCopies.push_back({copyX, copyY});
-            }
-        }
-    }
-    TexelMesh tileMesh;
-    if (!copies.empty()) {
-        const FootprintAxis unwalled{0.0, 0.0, true};
-        tileMesh =
-            lattice.extract(glm::dvec2(0.0), glm::dvec2(0.0), tileTexels, unwalled, unwalled);
-        for (TileCopy& copy : copies) copy.mesh = &tileMesh;
-    }
-    stats.tileCopies = copies.size();
-    stats.edgeCopies = edgeCopies.size();
-    std::vector<TexelMesh> edgeMeshes(edgeCopies.size());
-    tbb::parallel_for(std::size_t(0), edgeCopies.size(), [&](std::size_t index) {
-        const CopyIndex copy = edgeCopies[index];
-        const glm::dvec2 origin = glm::dvec2(copy) * tileTexels;
-        const auto [lowX, highX] = copyOwnership(axisX, copy.x, copiesX, tileTexels.x);
-        const auto [lowY, highY] = copyOwnership(axisY, copy.y, copiesY, tileTexels.y);
-        edgeMeshes[index] = lattice.extract(origin, {lowX, lowY}, {highX, highY}, axisX, axisY);
-    });
-    for (std::size_t index = 0; index < edgeCopies.size(); ++index) {
-        copies.push_back({glm::dvec2(edgeCopies[index]) * tileTexels, &edgeMeshes[index]});
-    }
-
-    // 4. The copies' vertices mapped through the shell (a wrapping chart's coordinate taken
-    //    modulo one unit of uv, so vertices past the seam land beside it), their polygons joined.
-    std::vector<std::size_t> firstPoint(copies.size() + 1, 0);
-    std::size_t triangleCount = 0, quadCount = 0;
-    for (std::size_t index = 0; index < copies.size(); ++index) {
-        firstPoint[index + 1] = firstPoint[index] + copies[index].mesh->points.size();
-        triangleCount += copies[index].mesh->triangles.size();
-        quadCount += copies[index].mesh->quads.size();
-    }
-    std::vector<openvdb::Vec3s> points(firstPoint.back());
-    std::vector<openvdb::Vec3I> triangles;
-    std::vector<openvdb::Vec4I> quads;
-    triangles.reserve(triangleCount);
-    quads.reserve(quadCount);
-    for (std::size_t index = 0; index < copies.size(); ++index) {
-        const auto offset = unsigned(firstPoint[index]);
-        for (const openvdb::Vec3I& t : copies[index].mesh->triangles) {
-            triangles.push_back(t + openvdb::Vec3I(offset));
-        }
-        for (const openvdb::Vec4I& q : copies[index].mesh->quads) {
-            quads.push_back(q + openvdb::Vec4I(offset));
-        }
-    }
-    const double depthTexels = double(tile.depth);
-    const auto wrapped = [](double uv, double uvLow, bool wraps) {
-        return wraps ? uvLow + (uv - uvLow - std::floor(uv - uvLow)) : uv;
-    };
-    for (std::size_t index = 0; index < copies.size(); ++index) {
-        const TileCopy& copy = copies[index];
-        tbb::parallel_for(std::size_t(0), copy.mesh->points.size(), [&](std::size_t point) {
-            const openvdb::Vec3s texel = copy.mesh->points[point];
-            const glm::dvec2 uv(
-                wrapped((copy.originTexels.x + texel.x()) / texelsPerUv.x, uvMin.x, stats.wrapsU),
-                wrapped((copy.originTexels.y + texel.y()) / texelsPerUv.y, uvMin.y, stats.wrapsV));
-            std::uint32_t triangle = 0;
-            glm::dvec3 weights(0.0);
-            locator.locate(uv, triangle, weights);  // the chart has area (checked above)
-            const double below = shell.depthWorld * (1.0 - double(texel.z()) / depthTexels);
-            const glm::uvec3& corners = shell.triangles[triangle];
-            glm::dvec3 world(0.0);
-            for (int corner = 0; corner < 3; ++corner) {
-                world += weights[corner] * (glm::dvec3(shell.positions[corners[corner]]) -
-                                            glm::dvec3(shell.normals[corners[corner]]) * below);
-            }
-            points[firstPoint[index] + point] =
-                openvdb::Vec3s(float(world.x), float(world.y), float(world.z));
-        });
-    }
-    copies.clear();
-    edgeMeshes.clear();
-    tileMesh = {};
-    stats.meshVertices = points.size();
-    stats.meshPolygons = triangles.size() + quads.size();
-
-    stats.surfaceSeconds = secondsSince(start);
-    const auto levelSetStart = std::chrono::steady_clock::now();
-
-    // 5. The world-space level set.
-    stats.texelSizeWorld = medianTexelSizeWorld(shell, tile);
-    stats.voxelSizeWorld = stats.texelSizeWorld / options.voxelsPerTexel;
-    const auto worldTransform =
-        openvdb::math::Transform::createLinearTransform(stats.voxelSizeWorld);
-    impl->grid = openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(
-        *worldTransform, points, triangles, quads, options.halfBandVoxels);
-    stats.levelSetSeconds = secondsSince(levelSetStart);
+    stats.mesh = mesh.stats;
+    const auto start = std::chrono::steady_clock::now();
+    stats.voxelSizeWorld = mesh.stats.texelSizeWorld / options.voxelsPerTexel;
+    const auto transform = openvdb::math::Transform::createLinearTransform(stats.voxelSizeWorld);
+    impl->grid = openvdb::tools::meshToVolume<openvdb::FloatGrid>(
+        MeshAdapter(mesh, *transform), *transform, options.halfBandVoxels, options.halfBandVoxels);
+    impl->grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    stats.levelSetSeconds = secondsSince(start);
     stats.activeVoxels = impl->grid->activeVoxelCount();
     stats.memoryBytes = impl->grid->memUsage();
     if (stats.activeVoxels == 0) reject("detail", "its surface is empty inside the shell");

@@ -1,40 +1,39 @@
 /// @file
 /// A world-space ground truth for detail on curved base meshes: the tile's detail mapped through
-/// a base mesh's shell as an OpenVDB level set, and camera rays traced against it with OpenVDB's
-/// level-set ray intersector (issue 5: the planar approximation of ch. 8 then has a measured
-/// error).
+/// a base mesh's shell as a world-space polygon mesh (buildDisplacedMesh), which the world
+/// reference traces with a BVH (render/world_reference.h), or as an OpenVDB level set of that
+/// same mesh (DisplacedLevelSet), traced with OpenVDB's level-set ray intersector.
 ///
-/// Construction: the detail is sampled once on one tile's texel-space lattice (multi-threaded),
+/// Construction: the detail is sampled once on one tile's texel-space lattice (multi-threaded)
 /// and its zero isosurface is extracted once for a whole tile (OpenVDB volumeToMesh, the lattice
-/// being periodic). That tile mesh is placed at every repeat of the tile over the uv footprint of
-/// the mesh (the tile repeated uvScale times per unit of uv); only the repeats that meet a wall
-/// or the chart's edge are extracted on their own. Every vertex is mapped through the shell and
-/// the world-space mesh becomes a narrow-band level set (OpenVDB meshToLevelSet). The shell is
-/// the renderer's (render/tracer.h shellCorners): texel (x, y, z) -> uv = (x / (uvScale.x W),
-/// y / (uvScale.y H)) -> the base triangle holding that uv, barycentrics b -> world =
-/// sum_i b_i (P_i - N_i depthWorld (1 - z / D)), with P_i the vertex positions and N_i the unit
-/// vertex normals (linear interpolation, as the shell prism's corners). The detail is clipped to
-/// 0 <= z <= D; a solid floor is a slab 1.5 texels thick below z = 0. Where the uv chart does not
-/// wrap (a plane's edges, a sphere's poles) the detail is cut by a wall at the chart's edge, so
-/// the surface is closed; a chart that wraps (the same position at u and u + 1, or v and v + 1,
-/// as the built-in torus and sphere) continues across the seam (seamlessly when uvScale is a
-/// whole number along it).
+/// being periodic). The detail is clipped to 0 <= z <= D; a solid floor is a slab 1.5 texels
+/// thick below z = 0. Then, for every base triangle, the repeats of that tile mesh that overlap
+/// its uv triangle (the tile repeated uvScale times per unit of uv) are clipped to it and mapped
+/// with its own barycentrics through the shell (the renderer's, render/tracer.h shellCorners):
+/// texel (x, y, z) -> uv = (x / (uvScale.x W), y / (uvScale.y H)) -> barycentrics b in that
+/// triangle -> world = sum_i b_i (P_i - N_i depthWorld (1 - z / D)), with P_i the vertex positions
+/// and N_i the unit vertex normals. Mapping per triangle, not per uv, makes mirrored and
+/// overlapping uv charts right: each triangle carries the detail of its own uv triangle. Points
+/// cut on an edge shared by two triangles are mapped along that edge alone, so both sides meet.
+/// An edge no other triangle shares (by world position: a uv seam is not a border) is an open
+/// border: the detail's cross-section there is closed by a wall, so the surface is closed.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 #include <memory>
 #include <span>
+#include <vector>
 
 #include "common/size3.h"
 
 namespace distile {
 
-/// The base mesh and material of one object, as plain arrays (world units).
-/// Precondition of the uv chart: no two triangles overlap in uv (true for the built-in plane,
-/// sphere and torus; not for meshes with mirrored UVs, whose detail would be mapped to one of the
-/// overlapping triangles only).
+/// The base mesh and material of one object, as plain arrays (world units). The uv chart may
+/// overlap itself (mirrored UVs): detail is mapped per triangle.
 struct DisplacementShell {
     std::span<const glm::vec3> positions;   ///< world units
     std::span<const glm::vec3> normals;     ///< unit outward vertex normals
@@ -45,46 +44,87 @@ struct DisplacementShell {
     bool solidFloor = true;                 ///< z = 0 is solid (else rays pass through holes)
 };
 
-struct DisplacedLevelSetOptions {
+struct DisplacedMeshOptions {
     /// Samples per texel of the texel-space lattice the isosurface is extracted from.
     int samplesPerTexel = 1;
-    /// World voxels per world size of one texel (the median over the base triangles of
-    /// sqrt(world area / texel area)): 2 gives voxels of half a texel.
+};
+
+/// Figures of a mesh build, for reports (wall times in seconds).
+struct DisplacedMeshStats {
+    double texelSizeWorld = 0.0;   ///< median over the base triangles of sqrt(world / texel area)
+    std::size_t tilePolygons = 0;  ///< of the one texel-space tile mesh
+    std::size_t borderEdges = 0;   ///< base-mesh edges closed by a wall
+    std::size_t meshVertices = 0;
+    std::size_t meshPolygons = 0;  ///< triangles and quads of the world-space mesh
+    double latticeSeconds = 0.0;   ///< sampling the detail on the tile lattice
+    double extractSeconds = 0.0;   ///< the tile's isosurface (OpenVDB volumeToMesh)
+    double mapSeconds = 0.0;       ///< clipping to the base triangles, walls, mapping
+};
+
+/// The world-space detail surface of one object: triangles and quads over shared vertices,
+/// each vertex with its world and texel position, each polygon with the base triangle whose
+/// barycentrics mapped it.
+struct DisplacedMesh {
+    std::vector<glm::vec3> positions;  ///< world units
+    /// Texel space: x, y as the chart's uv times texels per uv (not reduced to one tile), so the
+    /// base-mesh uv of a point is (x / (uvScale.x W), y / (uvScale.y H)); z in [0, D] on the
+    /// detail (below 0 on the solid floor's slab).
+    std::vector<glm::vec3> texelPositions;
+    std::vector<glm::uvec3> triangles;
+    std::vector<glm::uvec4> quads;
+    std::vector<std::uint32_t> triangleBase;  ///< per triangle: its base-mesh triangle
+    std::vector<std::uint32_t> quadBase;      ///< per quad: its base-mesh triangle
+    DisplacedMeshStats stats;
+};
+
+/// Exact (or at least non-overestimating) signed distance of the detail in texels at a
+/// texel-space position, periodic in x and y; called concurrently from several threads.
+using DetailDistanceFunction = std::function<double(const glm::dvec3& texelPosition)>;
+
+/// Builds the world-space surface of `detail` (tile size `tile`) mapped through `shell`, as the
+/// file note describes. Deterministic for any thread count.
+/// @throws InputError an invalid tile size, an empty or inconsistent shell (array sizes,
+///         indices), non-finite data, uvScale or depthWorld not > 0, samplesPerTexel not in
+///         [1, 8], a uv chart whose triangles all have zero uv or world area, a tile lattice of
+///         more than 2^31 samples, a chart holding more than 65536 tile repeats, or a detail
+///         with no surface inside the shell.
+DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Size3& tile,
+                                 const DisplacementShell& shell,
+                                 const DisplacedMeshOptions& options = {});
+
+struct DisplacedLevelSetOptions {
+    DisplacedMeshOptions mesh;
+    /// World voxels per world size of one texel (DisplacedMeshStats::texelSizeWorld): 2 gives
+    /// voxels of half a texel.
     double voxelsPerTexel = 2.0;
     /// Half width of the world level set's narrow band, voxels.
     float halfBandVoxels = 3.0f;
 };
 
-/// Figures of a build, for reports.
+/// Figures of a level-set build, for reports.
 struct DisplacedLevelSetStats {
+    DisplacedMeshStats mesh;
     double voxelSizeWorld = 0.0;
-    double texelSizeWorld = 0.0;  ///< the median world size of a texel used to choose the voxel
-    std::size_t tileCopies = 0;   ///< tile repeats placed from the one shared tile mesh
-    std::size_t edgeCopies = 0;   ///< repeats at walls or chart edges, extracted on their own
-    std::size_t meshVertices = 0;
-    std::size_t meshPolygons = 0;  ///< triangles and quads of the world-space detail mesh
     std::size_t activeVoxels = 0;
     std::size_t memoryBytes = 0;   ///< of the world level set (OpenVDB's memUsage)
-    double surfaceSeconds = 0.0;   ///< sampling the tile and placing its copies (wall time)
-    double levelSetSeconds = 0.0;  ///< OpenVDB meshToLevelSet (wall time)
-    bool wrapsU = false;           ///< the uv chart wraps in u (no wall at its edges)
-    bool wrapsV = false;
+    double levelSetSeconds = 0.0;  ///< OpenVDB mesh to volume (wall time)
 };
 
 class DisplacedLevelSet {
   public:
-    /// Exact (or at least non-overestimating) signed distance of the detail in texels at a
-    /// texel-space position, periodic in x and y; called concurrently from several threads.
-    using DistanceFunction = std::function<double(const glm::dvec3& texelPosition)>;
+    using DistanceFunction = DetailDistanceFunction;
 
-    /// Builds the world level set of `detail` (tile size `tile`) mapped through `shell`.
-    /// @throws InputError an invalid tile size, an empty or inconsistent shell (array sizes,
-    ///         indices), non-finite data, uvScale or depthWorld not > 0, options out of range
-    ///         (samplesPerTexel in [1, 8], voxelsPerTexel in (0, 16], halfBandVoxels in [2, 16]),
-    ///         a uv chart of zero area, a tile lattice of more than 2^31 samples, or a chart
-    ///         holding more than 65536 tile repeats.
+    /// Builds the world level set of `detail` (tile size `tile`) mapped through `shell`: the
+    /// narrow-band level set of buildDisplacedMesh's surface.
+    /// @throws InputError as buildDisplacedMesh, and options out of range (voxelsPerTexel in
+    ///         (0, 16], halfBandVoxels in [2, 16]).
     static DisplacedLevelSet build(const DistanceFunction& detail, const Size3& tile,
                                    const DisplacementShell& shell,
+                                   const DisplacedLevelSetOptions& options = {});
+
+    /// The level set of a mesh built already (buildDisplacedMesh).
+    /// @throws InputError options out of range (as above), an empty mesh.
+    static DisplacedLevelSet build(const DisplacedMesh& mesh,
                                    const DisplacedLevelSetOptions& options = {});
 
     DisplacedLevelSet(DisplacedLevelSet&&) noexcept;
