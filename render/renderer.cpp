@@ -23,7 +23,8 @@ namespace {
 constexpr float kPi = 3.14159265358979f;
 
 /// Visibility in [0, 1] of a light of angular radius atan(tanHalfAngle) from a texel-space
-/// point, by sphere tracing toward it until the ray leaves the top of the tile; the nearest miss
+/// point, by sphere tracing toward it until the ray leaves the top of the tile (in a curved
+/// shell: along the world ray toward the light, through the shell map); the nearest miss
 /// relative to the distance travelled estimates how much of the light's disk is covered. Taken a
 /// sample at a time (samplePosition, advance), so the self-shadow rays of a batch of camera rays
 /// are marched together (marchInterleaved) with the operations of a single one.
@@ -43,10 +44,32 @@ class LightVisibilityRay {
         travel_ = 0.1f;
         samples_ = 0;
         blocked_ = toLight.z <= 0.0f;  // the light is below the base surface
+        curved_ = false;
         needsSample_ = !blocked_ && nextSampleInside();
     }
+    /// start() for a hit in a curved shell: from world point `startWorld` (prism `prism`, near
+    /// its point `guess`) toward the light along the world ray, its samples where that ray is in
+    /// texel space (ShellRayPath); it ends where the ray leaves the shell.
+    void startCurved(const ShellPrisms& shell, std::uint32_t prism, const PrismPoint& guess,
+                     const glm::dvec3& startWorld, const glm::dvec3& toLightWorld,
+                     float tanHalfAngle, int maxSamples, float epsilonTexels) {
+        tanHalfAngle_ = tanHalfAngle;
+        samplesLeft_ = maxSamples;
+        blockingTexels_ = 0.5f * epsilonTexels;
+        visibility_ = 1.0f;
+        travel_ = 0.1f;
+        samples_ = 0;
+        curved_ = true;
+        blocked_ = false;
+        needsSample_ = false;
+        if (!path_.start(shell, startWorld, toLightWorld, prism, guess)) return;  // above it
+        blocked_ = !(path_.directionTexels().z > 0.0);  // the light is below the base surface
+        needsSample_ = !blocked_ && samplesLeft_ > 0 && path_.advance(travel_);
+    }
     bool needsSample() const { return needsSample_; }
-    glm::vec3 samplePosition() const { return start_ + toLight_ * travel_; }
+    glm::vec3 samplePosition() const {
+        return curved_ ? path_.texelPosition() : start_ + toLight_ * travel_;
+    }
     /// Takes the distance sampled at samplePosition(); false when no more samples are needed.
     bool advance(float distance) {
         ++samples_;
@@ -55,8 +78,10 @@ class LightVisibilityRay {
             return needsSample_ = false;
         }
         visibility_ = std::min(visibility_, distance / (travel_ * tanHalfAngle_));
-        travel_ += std::max(distance, 0.05f);
+        const float step = std::max(distance, 0.05f);
+        travel_ += step;
         --samplesLeft_;
+        if (curved_) return needsSample_ = samplesLeft_ > 0 && path_.advance(step);
         return needsSample_ = nextSampleInside();
     }
     /// Smoothstepped visibility, once needsSample() is false.
@@ -80,6 +105,8 @@ class LightVisibilityRay {
     int samplesLeft_ = 0;
     std::uint64_t samples_ = 0;
     bool blocked_ = false, needsSample_ = false;
+    bool curved_ = false;  ///< startCurved: the samples follow path_
+    ShellRayPath path_;
 };
 
 /// Position of sample `index` of `count` inside the pixel: the centre for one sample, else the
@@ -321,8 +348,17 @@ class Renderer {
             const glm::vec3 gradient = filter.gradient(texelPosition);
             if (glm::length(gradient) > 1e-6f) texelNormal = glm::normalize(gradient);
         }
-        const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLights_[index]));
         const glm::vec3 start = texelPosition + texelNormal * (2.0f * options_.march.epsilonTexels);
+        if (hit.entry.curved) {  // along the world ray toward the light, through the shell map
+            const ShellPrisms& shell = tracer_.shellPrisms();
+            const ShellPrism& prism = shell.prisms[hit.shellPrism];
+            const PrismPoint startPoint = prism.pointAtTexel(glm::dvec3(start));
+            ray.startCurved(shell, hit.shellPrism, startPoint, prism.worldAt(startPoint),
+                            glm::dvec3(toLights_[index]), tanHalfAngles_[index],
+                            options_.shadowIterations, options_.march.epsilonTexels);
+            return;
+        }
+        const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLights_[index]));
         ray.start(start, toLightTexel, depthTexels, tanHalfAngles_[index],
                   options_.shadowIterations, options_.march.epsilonTexels);
     }

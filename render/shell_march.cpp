@@ -242,4 +242,39 @@ bool CurvedMarchRay::advance(float distance) {
     return prepareSample(stepTexels);
 }
 
+bool ShellRayPath::start(const ShellPrisms& shell, const glm::dvec3& originWorld,
+                         const glm::dvec3& direction, std::uint32_t prism,
+                         const PrismPoint& guess) {
+    shell_ = &shell;
+    origin_ = originWorld;
+    direction_ = direction;
+    cursor_.prism = prism;
+    cursor_.point = guess;
+    cursor_.originOffset = origin_ - shell.prisms[prism].corner0;
+    distanceWorld_ = 0.0;
+    return settle();
+}
+
+bool ShellRayPath::advance(double texels) {
+    const double stepWorld = texels / speed_;
+    distanceWorld_ += stepWorld;
+    cursor_.point.b1 += prismVelocity_.x * stepWorld;
+    cursor_.point.b2 += prismVelocity_.y * stepWorld;
+    cursor_.point.depthWorld += prismVelocity_.z * stepWorld;
+    return settle();
+}
+
+bool ShellRayPath::settle() {
+    if (detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_) != Located::Inside)
+        return false;
+    const ShellPrism& prism = shell_->prisms[cursor_.prism];
+    const glm::dvec3 velocity =
+        detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_);
+    speed_ = glm::length(velocity);
+    if (!(speed_ > 0.0 && std::isfinite(speed_))) return false;
+    directionTexels_ = velocity * (1.0 / speed_);
+    texelPosition_ = glm::vec3(prism.texelAt(cursor_.point));
+    return true;
+}
+
 }  // namespace distile

@@ -142,6 +142,36 @@ class CurvedMarchRay {
     CurvedMarchEnd end_;
 };
 
+/// A point moving along a world ray through a shell by lengths of its texel-space path (the
+/// stretch |J r| taken where it is): the path of a self-shadow ray toward a light.
+class ShellRayPath {
+  public:
+    /// Starts at world point `originWorld` (in prism `prism`, near prism point `guess`) along
+    /// unit `direction`. False when that point is not inside the shell. `shell` must outlive
+    /// the path.
+    bool start(const ShellPrisms& shell, const glm::dvec3& originWorld,
+               const glm::dvec3& direction, std::uint32_t prism, const PrismPoint& guess);
+    /// Moves `texels` of texel-space path on; false once the point has left the shell (through
+    /// the top or an open border).
+    bool advance(double texels);
+    /// Where the point is, in the texel space of its prism.
+    glm::vec3 texelPosition() const { return texelPosition_; }
+    /// The unit texel-space direction of the path there.
+    const glm::dvec3& directionTexels() const { return directionTexels_; }
+
+  private:
+    /// Locates the point at distanceWorld_ and takes its texel position and direction.
+    bool settle();
+
+    const ShellPrisms* shell_ = nullptr;
+    glm::dvec3 origin_{0.0}, direction_{0.0};
+    detail::CurvedCursor cursor_;
+    double distanceWorld_ = 0.0;
+    double speed_ = 0.0;  ///< texels per world unit along the path
+    glm::dvec3 prismVelocity_{0.0}, directionTexels_{0.0, 0.0, 1.0};
+    glm::vec3 texelPosition_{0.0f};
+};
+
 /// A whole curved march of one ray over `filter` (CurvedMarchRay, sample by sample).
 template <class Filter>
 CurvedMarchEnd marchCurved(const Filter& filter, const ShellPrisms& shell, const Ray& ray,

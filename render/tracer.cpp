@@ -779,6 +779,8 @@ void SceneTracer::finishCurvedMarch(ShellMarch& march) const {
                          glm::dvec2(object.mesh.uvs[corners[1]]) * end.point.b1 +
                          glm::dvec2(object.mesh.uvs[corners[2]]) * end.point.b2);
     hit.texelsPerWorldAlongRay = end.texelsPerWorldAlongRay;
+    hit.shellPrism = end.prism;
+    hit.shellPoint = end.point;
 }
 
 }  // namespace distile

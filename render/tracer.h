@@ -112,6 +112,10 @@ struct SurfaceHit {
     /// Texels per world unit along the ray in the shell's texel space (from the entry's frame);
     /// 0 when the ray did not enter a tile (bare base surface, back face).
     float texelsPerWorldAlongRay = 0.0f;
+    /// A hit in a curved shell (entry.curved): the prism it lies in and its point there
+    /// (march.texelPosition is in that prism's texel space).
+    std::uint32_t shellPrism = 0;
+    PrismPoint shellPoint;
 };
 
 /// A ray that entered a detail shell, between SceneTracer::enterShell and finishShell: its entry
@@ -254,6 +258,9 @@ class SceneTracer {
     /// What the user should know about the scene as traced, one line each, naming the object: a
     /// curved shell deeper than its base's radius of curvature folds (its largest safe depth).
     const std::vector<std::string>& warnings() const { return warnings_; }
+    /// The shell map of every shell (empty without a curved one): the prisms that the hits of
+    /// curved shells (SurfaceHit::shellPrism) lie in.
+    const ShellPrisms& shellPrisms() const { return shellPrisms_; }
 
   private:
     struct ShellTriangle {
