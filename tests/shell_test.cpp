@@ -15,6 +15,7 @@
 #include <string>
 
 #include "common/shell_map.h"
+#include "mesh/base_mesh.h"
 #include "render/bvh.h"
 #include "render/renderer.h"
 #include "render/shell_march.h"
@@ -237,6 +238,25 @@ TEST(CurvedShell, HitsTheLayerOfTheShellMapOnASphereAndATorus) {
             largestLayerError(scene, preciseOptions(ShellMapping::Planar), rays, hits);
         EXPECT_GT(planar, 0.05) << (torus ? "torus" : "sphere");
     }
+}
+
+TEST(CurvedShell, TheMirroredUvVaseCarriesTheLayerOnBothHalves) {
+    // data/meshes/vase.obj: a uv seam, and u running backwards over half the vase (mirrored
+    // charts, tangent handedness -1). The layer lies at the same depth on both halves, and the
+    // march reaches it from either side of the mirror line.
+    const BaseMesh mesh = loadBaseMesh(std::string(DISTILE_SOURCE_DIR) + "/data/meshes/vase.obj");
+    const Scene scene = layerScene(mesh);
+    int mirrored = 0, unmirrored = 0;
+    for (const glm::vec3 eye : {glm::vec3(2.2f, -2.6f, 1.9f), glm::vec3(-2.2f, 2.6f, 1.9f)}) {
+        const std::vector<AimedRay> rays = raysAt(mesh, eye, layerDepthWorld(kDepthWorld), false);
+        int hits = 0;
+        EXPECT_LT(largestLayerError(scene, preciseOptions(ShellMapping::Curved), rays, hits),
+                  2e-3);
+        EXPECT_GT(hits, 20);
+        (eye.y < 0.0f ? mirrored : unmirrored) += hits;  // u runs backwards where y < 0
+    }
+    EXPECT_GT(mirrored, 20);
+    EXPECT_GT(unmirrored, 20);
 }
 
 TEST(CurvedShell, DefaultMarchIsWithinItsThresholdOfTheLayer) {
