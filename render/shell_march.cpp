@@ -22,9 +22,17 @@ Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dv
         const std::uint32_t neighbour = shell.neighbours[cursor.prism][std::size_t(outside)];
         if (neighbour == ShellPrisms::kNoNeighbour)
             return aboveTop ? Located::AboveTop : Located::OpenSide;
+        // The guess in the neighbour, exact where the two triangles form a parallelogram: the
+        // far corner takes the weight beyond the shared face, which its two corners (in reverse
+        // order) give up.
+        const int far = shell.neighbourCorners[cursor.prism][std::size_t(outside)];
+        double across[3];
+        across[far] = -weights[outside];
+        across[(far + 1) % 3] = weights[(outside + 2) % 3] + weights[outside];
+        across[(far + 2) % 3] = weights[(outside + 1) % 3] + weights[outside];
         cursor.prism = neighbour;
         cursor.originOffset = origin - shell.prisms[neighbour].corner0;
-        cursor.point = {1.0 / 3.0, 1.0 / 3.0, cursor.point.depthWorld};
+        cursor.point = {across[1], across[2], cursor.point.depthWorld};
     }
     return Located::Lost;
 }

@@ -33,6 +33,8 @@ struct ShellPrisms {
     static constexpr std::uint32_t kNoNeighbour = 0xffffffffU;
     std::span<const ShellPrism> prisms;
     std::span<const std::array<std::uint32_t, 3>> neighbours;
+    /// For each side face that has a neighbour: the neighbour's corner opposite that face.
+    std::span<const std::array<std::uint8_t, 3>> neighbourCorners;
 };
 
 /// How a curved march ended.

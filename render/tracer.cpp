@@ -167,7 +167,7 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     }
     bvh_ = TriangleBvh(std::move(corners));
     buildShellMap();
-    shellPrisms_ = {prisms_, neighbours_};
+    shellPrisms_ = {prisms_, neighbours_, neighbourCorners_};
 
     // Per tile (objects sharing one share these): its columns, and its empty space where the
     // skip holds (for the filters whose support the occupancy bounds).
@@ -643,6 +643,7 @@ void SceneTracer::buildShellMap() {
     prisms_.resize(triangles_.size());
     neighbours_.assign(triangles_.size(), {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour,
                                            ShellPrisms::kNoNeighbour});
+    neighbourCorners_.assign(triangles_.size(), {0, 0, 0});
     std::uint32_t firstShell = 0;
     for (std::size_t objectIndex = 0; objectIndex < scene_.objects.size(); ++objectIndex) {
         const SceneObject& object = scene_.objects[objectIndex];
@@ -700,6 +701,7 @@ void SceneTracer::buildShellMap() {
             if (reversed == edges.end() || reversed->second.size() != 1) continue;
             const std::uint32_t side = sides[0], other = reversed->second[0];
             neighbours_[firstShell + side / 3][side % 3] = firstShell + other / 3;
+            neighbourCorners_[firstShell + side / 3][side % 3] = std::uint8_t(other % 3);
         }
         if (foldedTriangles > 0) {
             char text[320];

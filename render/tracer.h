@@ -330,7 +330,8 @@ class SceneTracer {
     /// shells only; empty without any).
     std::vector<ShellPrism> prisms_;
     std::vector<std::array<std::uint32_t, 3>> neighbours_;
-    ShellPrisms shellPrisms_;  ///< views of the two above
+    std::vector<std::array<std::uint8_t, 3>> neighbourCorners_;
+    ShellPrisms shellPrisms_;  ///< views of the three above
     std::vector<std::string> warnings_;
 };
 
