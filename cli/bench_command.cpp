@@ -621,6 +621,7 @@ void addBenchCommand(CLI::App& app) {
         "bench",
         "Time against error on the flat chain-mail sheet: tile sizes, storage, filters, budgets "
         "and march methods, next to Embree and vdb_render, all against the analytic reference; "
+        "and the torus on the sheet with curved and planar shells against the world reference; "
         "writes bench.csv, pareto.png (gnuplot) and report.md");
     command->add_option("-o,--output", arguments->outputDir, "Folder for the results")
         ->capture_default_str();
@@ -632,9 +633,10 @@ void addBenchCommand(CLI::App& app) {
                       "stress.md and stress.csv; exit 1 when a case fails");
     command
         ->add_flag("--speed", arguments->speed,
-                   "Instead of the sweep: the speed report (issue 6): distile against the peers, "
-                   "repetition, every render skip on and off, bake cache, threads; writes "
-                   "speed.md and speed.csv")
+                   "Instead of the sweep: the speed report: distile against the peers, "
+                   "repetition, every render skip on and off, bake cache, threads, curved against "
+                   "planar shells (and each against the world reference); writes speed.md and "
+                   "speed.csv")
         ->excludes("--stress");
     command->add_option("--width", arguments->width, "Image width (default 1280, quick 640)")
         ->check(CLI::Range(16, 16384));
