@@ -873,8 +873,9 @@ void runSpeedBench(const BenchArguments& arguments) {
                               curved->coverageMismatchShare <= kMaxCurvedCoverageMismatch &&
                               curved->interiorMeanNormalErrorDeg <= kMaxCurvedInteriorNormalDeg;
         curvedVerdicts.push_back(
-            verdict(accurate) + " " + s.id + " curved against the world reference (" + image +
-            "): interior mean " + fixed(curved->interiorMeanHitErrorTexels, 4) +
+            verdict(accurate) + " " + s.id + " curved against the world reference at " +
+            std::to_string(times->width) + "x" + std::to_string(times->height) +
+            ": interior mean " + fixed(curved->interiorMeanHitErrorTexels, 4) +
             " texel (<= " + fixed(kMaxCurvedInteriorMeanTexels, 1) + "), interior p99 " +
             fixed(curved->interiorP99HitErrorTexels, 3) +
             " (<= " + fixed(kMaxCurvedInteriorP99Texels, 0) + "), coverage mismatch " +
