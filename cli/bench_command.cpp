@@ -1,5 +1,6 @@
-// distile bench: run time against error on the flat chain-mail sheet (issue 5), distile's sweeps
-// next to the peers a user would otherwise pick, all against the analytic reference render.
+// distile bench: run time against error on the flat chain-mail sheet, distile's sweeps next to the
+// peers a user would otherwise pick, all against the analytic reference render; and the curved and
+// planar shell marches on the torus on the sheet against its world reference.
 #include <Imath/half.h>
 #include <tbb/global_control.h>
 
@@ -10,6 +11,8 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "cli/arguments.h"
@@ -81,8 +84,16 @@ struct Row {
     double convergedShare = 0.0;
     RenderComparison error;
     bool peer = false;
+    /// Rendered from the torus on the sheet and compared with its world reference (the curved-shell
+    /// series), not from the sheet against the analytic reference: beside the front, not on it.
+    bool torus = false;
     bool paretoFront = false;
 };
+
+/// The series of the torus on the sheet, one per shell mapping.
+std::string torusGroup(ShellMapping mapping) {
+    return std::string(shellMappingName(mapping)) + " shell, torus on sheet";
+}
 
 double convergedShare(const RenderStats& stats) {
     return stats.baseHits ? double(stats.converged) / double(stats.baseHits) : 0.0;
@@ -93,13 +104,14 @@ double tileMiB(const Tile& tile, Storage storage) {
     return double(tile.distancesTexels().size()) * bytes / (1024.0 * 1024.0);
 }
 
-/// distile's rows not dominated in (seconds, mean hit error) by another of distile's rows (with
-/// no more coverage mismatch, within 0.5%) get paretoFront; peers are shown beside the front.
+/// distile's sheet rows not dominated in (seconds, mean hit error) by another of them (with no
+/// more coverage mismatch, within 0.5%) get paretoFront; peers and the torus rows are shown beside
+/// the front.
 void markParetoFront(std::vector<Row>& rows) {
     for (Row& row : rows) {
-        if (row.peer) continue;
+        if (row.peer || row.torus) continue;
         row.paretoFront = std::none_of(rows.begin(), rows.end(), [&](const Row& other) {
-            if (other.peer) return false;
+            if (other.peer || other.torus) return false;
             const bool noWorse = other.seconds <= row.seconds &&
                                  other.error.meanHitErrorTexels <= row.error.meanHitErrorTexels;
             const bool better = other.seconds < row.seconds ||
@@ -114,7 +126,8 @@ std::string csvOf(const std::vector<Row>& rows, int threads, int width, int heig
     std::ostringstream csv;
     csv << "group,label,tile,storage,filter,method,budget,seconds,setup_seconds,memory_mib,"
            "converged_share,hit_error_mean_texels,hit_error_p99_texels,hit_error_max_texels,"
-           "coverage_mismatch_share,normal_error_mean_deg,pareto_front,threads,width,height\n";
+           "coverage_mismatch_share,normal_error_mean_deg,pareto_front,threads,width,height,scene,"
+           "reference,interior_hit_error_mean_texels,interior_hit_error_p99_texels\n";
     csv.precision(6);
     for (const Row& r : rows) {
         csv << r.group << ",\"" << r.label << "\"," << r.tile << "," << r.storage << "," << r.filter
@@ -122,7 +135,10 @@ std::string csvOf(const std::vector<Row>& rows, int threads, int width, int heig
             << "," << r.memoryMiB << "," << r.convergedShare << "," << r.error.meanHitErrorTexels
             << "," << r.error.p99HitErrorTexels << "," << r.error.maxHitErrorTexels << ","
             << r.error.coverageMismatchShare << "," << r.error.meanNormalErrorDeg << ","
-            << (r.paretoFront ? 1 : 0) << "," << threads << "," << width << "," << height << "\n";
+            << (r.paretoFront ? 1 : 0) << "," << threads << "," << width << "," << height << ","
+            << (r.torus ? "torus on sheet,world" : "sheet,analytic") << ","
+            << r.error.interior.meanHitErrorTexels << "," << r.error.interior.p99HitErrorTexels
+            << "\n";
     }
     return csv.str();
 }
@@ -133,7 +149,8 @@ std::string gnuplotScript(const std::vector<Row>& rows, const fs::path& png) {
     std::ostringstream gp;
     gp << "set terminal pngcairo size 1400,900 enhanced font 'Sans,11'\n"
        << "set output '" << png.string() << "'\n"
-       << "set title 'distile bench: render time against mean hit error (flat chain-mail sheet)'\n"
+       << "set title 'distile bench: render time against mean hit error (flat chain-mail sheet "
+          "against the analytic reference; torus on sheet against the world reference)'\n"
        << "set xlabel 'time per frame, seconds (log)'\nset ylabel 'mean hit error, texels (log)'\n"
        << "set logscale xy\nset grid\nset key outside right top\nset datafile separator ','\n";
     std::vector<std::string> groups;
@@ -188,7 +205,7 @@ struct ClaimRow {
 
 std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& claims,
                      const std::vector<std::string>& notes, int threads, int width, int height,
-                     double referenceSeconds, bool plotted) {
+                     double referenceSeconds, double worldReferenceSeconds, bool plotted) {
     std::ostringstream md;
     md.precision(4);
     md << "# distile bench\n\n"
@@ -200,7 +217,8 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
        << referenceSeconds
        << " s). distile rows are renders without shadows (primary rays, march, normals, "
           "shading); peer rows are their primary-ray trace times. Hit error: distance along the "
-          "ray to the reference hit, in texels.\n\n";
+          "ray to the reference hit, in texels. The two torus-on-sheet series are another scene "
+          "against another truth (see Curved shells below).\n\n";
     if (plotted) md << "![time against error](pareto.png)\n\n";
     md << "## distile's Pareto front (time against mean hit error)\n\n";
     for (const Row& r : rows)
@@ -213,6 +231,31 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
             md << "- **" << r.label << "**: " << r.seconds << " s trace (" << r.setupSeconds
                << " s setup, " << r.memoryMiB << " MiB), mean " << r.error.meanHitErrorTexels
                << " texel, coverage mismatch " << 100.0 * r.error.coverageMismatchShare << "%\n";
+    md << "\n## Curved shells: the torus on the sheet\n\n"
+       << "data/scenes/torus_on_sheet.json (chain mail on a torus, a curved base, lying on the "
+          "sheet) at the same size, rendered with the curved shell march (the default: the ray "
+          "follows the shell map prism by prism) and with the planar one (ch. 8: the ray mapped "
+          "into texel space once, at its entry), each the fastest of 2 runs, alternated; both "
+          "against the world reference (the detail mapped through the curved shell into world "
+          "space and traced there; "
+       << worldReferenceSeconds
+       << " s, its build included). Interior: the pixels where both hit, away from silhouettes "
+          "and depth jumps (render/compare.h); all: every pixel where both hit. On the plot they "
+          "are their own two series, beside the sheet's front.\n\n"
+          "| shell | time s | interior mean | interior p99 | all mean | all p99 | coverage "
+          "mismatch | normal err deg |\n|---|---|---|---|---|---|---|---|\n";
+    const Row* curvedRow = nullptr;
+    const Row* planarRow = nullptr;
+    for (const Row& r : rows) {
+        if (!r.torus) continue;
+        (r.group == torusGroup(ShellMapping::Curved) ? curvedRow : planarRow) = &r;
+        md << "| " << r.label << " | " << r.seconds << " | " << r.error.interior.meanHitErrorTexels
+           << " | " << r.error.interior.p99HitErrorTexels << " | " << r.error.meanHitErrorTexels
+           << " | " << r.error.p99HitErrorTexels << " | " << 100.0 * r.error.coverageMismatchShare
+           << "% | " << r.error.meanNormalErrorDeg << " |\n";
+    }
+    if (curvedRow && planarRow)
+        md << "\nCurved / planar time: " << curvedRow->seconds / planarRow->seconds << ".\n";
     md << "\n## All rows\n\n| group | configuration | time s | setup s | memory MiB | converged | "
           "mean err | p99 err | coverage mismatch | normal err deg | front |\n"
        << "|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -357,10 +400,7 @@ void runBench(const BenchArguments& arguments) {
             arguments.outputDir / "scenes" /
             ("sheet_" + std::to_string(size.width) + "x" + std::to_string(size.height) + "x" +
              std::to_string(size.depth) + ".json");
-        writeText(file, sheetJson(size));
-        SceneFile sheet = loadSceneFile(file, tiles);
-        attachTruth(sheet);
-        return sheet.scene;
+        return loadBenchScene(file, sheetJson(size), tiles).scene;
     };
 
     const Size3 defaultSize{256, 256, 16};
@@ -373,11 +413,14 @@ void runBench(const BenchArguments& arguments) {
     const TimedRender reference = timedRender(sheet, referenceOptions);
     const RenderLayersView truth = layers(reference.result);
 
-    auto measure = [&](Row row, const Scene& scene, const RenderOptions& options, Storage storage) {
-        const TimedRender timed = timedRender(scene, options);
+    // A row from a timed render of `scene`, compared with `truthOf` (the sheet's analytic
+    // reference unless given).
+    auto record = [&](Row row, const TimedRender& timed, const Scene& scene,
+                      const RenderOptions& options, Storage storage,
+                      const RenderLayersView& truthOf) {
         row.seconds = timed.seconds;
         row.convergedShare = convergedShare(timed.result.stats);
-        row.error = compareRenders(layers(timed.result), truth);
+        row.error = compareRenders(layers(timed.result), truthOf);
         row.memoryMiB = tileMiB(*scene.objects[0].material.tile, storage);
         row.tile = std::to_string(scene.objects[0].material.tile->size().width) + "x" +
                    std::to_string(scene.objects[0].material.tile->size().height) + "x" +
@@ -393,6 +436,9 @@ void runBench(const BenchArguments& arguments) {
             row.error.p99HitErrorTexels, row.convergedShare);
         say(line);
         rows.push_back(row);
+    };
+    auto measure = [&](Row row, const Scene& scene, const RenderOptions& options, Storage storage) {
+        record(std::move(row), timedRender(scene, options), scene, options, storage, truth);
     };
     const RenderOptions defaults = benchRenderOptions(width, height);
 
@@ -474,6 +520,35 @@ void runBench(const BenchArguments& arguments) {
                 std::to_string(claims.back().convergedShare));
         }
     }
+    // The torus on the sheet (data/scenes/torus_on_sheet.json): the curved and the planar shell
+    // march, each the fastest of two runs alternated after an untimed warm-up render, against the
+    // world reference at the same size.
+    say("bench: torus on sheet, curved and planar shells, against the world reference");
+    double worldReferenceSeconds = 0.0;
+    {
+        const Scene torus = loadBenchScene(arguments.outputDir / "scenes" / "torus_on_sheet.json",
+                                           torusOnSheetJson(), tiles)
+                                .scene;
+        RenderOptions curved = defaults;
+        curved.shellMapping = ShellMapping::Curved;
+        RenderOptions planar = defaults;
+        planar.shellMapping = ShellMapping::Planar;
+        timedRender(torus, curved);
+        const FastestPair pair = fastestPair(torus, curved, torus, planar, 2);
+        const TimedWorldReference world = timedWorldReference(torus, width, height);
+        worldReferenceSeconds = world.seconds;
+        const RenderLayersView worldTruth = layers(world.result.render);
+        for (const auto& [mapping, timed, options] :
+             {std::tuple{ShellMapping::Curved, &pair.a, &curved},
+              std::tuple{ShellMapping::Planar, &pair.b, &planar}}) {
+            Row row;
+            row.group = torusGroup(mapping);
+            row.label = std::string("torus on sheet, ") + shellMappingName(mapping);
+            row.torus = true;
+            record(row, *timed, torus, *options, Storage::Float32, worldTruth);
+        }
+        say("  world reference " + std::to_string(world.seconds) + " s");
+    }
     // Peers.
 #ifdef DISTILE_HAVE_PEERS
     if (arguments.peers) {
@@ -531,8 +606,8 @@ void runBench(const BenchArguments& arguments) {
     writeText(script, gnuplotScript(rows, arguments.outputDir / "pareto.png"));
     const bool plotted = runProgram("gnuplot \"" + script.string() + "\"");
     if (!plotted) notes.push_back("gnuplot failed or is missing (Debian: gnuplot-nox): no plot");
-    const std::string report =
-        reportOf(rows, claims, notes, threads, width, height, reference.seconds, plotted);
+    const std::string report = reportOf(rows, claims, notes, threads, width, height,
+                                        reference.seconds, worldReferenceSeconds, plotted);
     writeText(arguments.outputDir / "report.md", report);
     say("bench: wrote " + fs::absolute(arguments.outputDir / "bench.csv").string() + ", " +
         (plotted ? "pareto.png, " : "") + "report.md");
@@ -546,6 +621,7 @@ void addBenchCommand(CLI::App& app) {
         "bench",
         "Time against error on the flat chain-mail sheet: tile sizes, storage, filters, budgets "
         "and march methods, next to Embree and vdb_render, all against the analytic reference; "
+        "and the torus on the sheet with curved and planar shells against the world reference; "
         "writes bench.csv, pareto.png (gnuplot) and report.md");
     command->add_option("-o,--output", arguments->outputDir, "Folder for the results")
         ->capture_default_str();
@@ -557,9 +633,10 @@ void addBenchCommand(CLI::App& app) {
                       "stress.md and stress.csv; exit 1 when a case fails");
     command
         ->add_flag("--speed", arguments->speed,
-                   "Instead of the sweep: the speed report (issue 6): distile against the peers, "
-                   "repetition, every render skip on and off, bake cache, threads; writes "
-                   "speed.md and speed.csv")
+                   "Instead of the sweep: the speed report: distile against the peers, "
+                   "repetition, every render skip on and off, bake cache, threads, curved against "
+                   "planar shells (and each against the world reference); writes speed.md and "
+                   "speed.csv")
         ->excludes("--stress");
     command->add_option("--width", arguments->width, "Image width (default 1280, quick 640)")
         ->check(CLI::Range(16, 16384));

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <utility>
 
 #include "common/atomic_file.h"
 #include "common/error.h"
@@ -48,6 +49,13 @@ std::string sheetJsonWithTile(const std::string& tileJson, int tilesPerSide, dou
     return json.str();
 }
 
+SceneFile loadBenchScene(const fs::path& file, const std::string& json, TileCache& tiles) {
+    writeText(file, json);
+    SceneFile scene = loadSceneFile(file, tiles);
+    attachTruth(scene);
+    return scene;
+}
+
 HeightImage smoothHeightImage(int side) {
     HeightImage heights;
     heights.width = heights.height = side;
@@ -78,6 +86,29 @@ RenderOptions benchRenderOptions(int width, int height) {
 TimedRender timedRender(const Scene& scene, const RenderOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     TimedRender timed{renderScene(scene, options), 0.0};
+    timed.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return timed;
+}
+
+FastestPair fastestPair(const Scene& sceneA, const RenderOptions& optionsA, const Scene& sceneB,
+                        const RenderOptions& optionsB, int runs) {
+    FastestPair fastest{timedRender(sceneA, optionsA), timedRender(sceneB, optionsB)};
+    for (int run = 1; run < runs; ++run) {
+        TimedRender a = timedRender(sceneA, optionsA);
+        if (a.seconds < fastest.a.seconds) fastest.a = std::move(a);
+        TimedRender b = timedRender(sceneB, optionsB);
+        if (b.seconds < fastest.b.seconds) fastest.b = std::move(b);
+    }
+    return fastest;
+}
+
+TimedWorldReference timedWorldReference(const Scene& scene, int width, int height) {
+    WorldReferenceOptions options;
+    options.width = width;
+    options.height = height;
+    options.outputAovs = true;
+    const auto start = std::chrono::steady_clock::now();
+    TimedWorldReference timed{renderWorldReference(scene, options), 0.0};
     timed.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return timed;
 }

@@ -1,14 +1,17 @@
 /// @file
 /// What `distile bench` (cli/bench_command.cpp) and `distile bench --speed` (cli/speed_bench.cpp)
-/// share: their arguments, the flat chain-mail sheet scene, the smooth height image, timed renders
-/// and text output. Internal to the command; the libraries never see it.
+/// share: their arguments, the flat chain-mail sheet scene, the torus on the sheet, the smooth
+/// height image, timed renders, timed world references and text output. Internal to the command;
+/// the libraries never see it.
 #pragma once
 
 #include <filesystem>
 #include <string>
 
+#include "cli/scene_json.h"
 #include "render/compare.h"
 #include "render/renderer.h"
+#include "render/world_reference.h"
 #include "sampler/height_image.h"
 #include "sampler/tile.h"
 
@@ -48,6 +51,16 @@ std::string repeatedSheetJson(const Size3& tile, int tilesPerSide);
 std::string sheetJsonWithTile(const std::string& tileJson, int tilesPerSide = 4,
                               double depthWorld = 0.0625, const SheetView& view = {});
 
+/// data/scenes/torus_on_sheet.json as the repository holds it (built into the command): chain mail
+/// on a torus (a curved base) lying on the chain-mail sheet (flat), with its own image size.
+std::string torusOnSheetJson();
+
+/// Writes `json` to `file` (beside the results, so every row can be reproduced with `distile
+/// render`), loads it as a scene file and gives its objects their truth (attachTruth). Throws
+/// InputError when the file cannot be written or the scene is invalid.
+SceneFile loadBenchScene(const std::filesystem::path& file, const std::string& json,
+                         TileCache& tiles);
+
 /// A smooth periodic height image, `side` x `side` pixels: 0.5 + 0.25 sin(u) cos(2v) +
 /// 0.2 cos(u + v) with u, v = 2 pi x / side, 2 pi y / side, so every value is in [0.05, 0.95].
 HeightImage smoothHeightImage(int side);
@@ -62,6 +75,25 @@ struct TimedRender {
 };
 
 TimedRender timedRender(const Scene& scene, const RenderOptions& options);
+
+/// The fastest of `runs` renders of each of two configurations, run alternately (A, B, A, B, ...)
+/// so that a slow spell of the shared machine hits both alike.
+struct FastestPair {
+    TimedRender a;
+    TimedRender b;
+};
+
+FastestPair fastestPair(const Scene& sceneA, const RenderOptions& optionsA, const Scene& sceneB,
+                        const RenderOptions& optionsB, int runs);
+
+struct TimedWorldReference {
+    WorldReferenceResult result;
+    double seconds = 0.0;  ///< wall time of renderWorldReference, level sets included
+};
+
+/// The world reference of `scene` (render/world_reference.h) at `width` x `height` with its AOVs,
+/// every other option at its default: the truth of the curved-shell rows.
+TimedWorldReference timedWorldReference(const Scene& scene, int width, int height);
 
 /// The layers of `result` a comparison reads. Precondition: rendered with outputAovs.
 RenderLayersView layers(const RenderResult& result);

@@ -1,4 +1,5 @@
-// distile bench --speed: the acceptance measurements of issue 6 (see cli/speed_bench.h).
+// distile bench --speed: the acceptance measurements of the renderer's speed (see
+// cli/speed_bench.h).
 #include "cli/speed_bench.h"
 
 #include <tbb/global_control.h>
@@ -64,6 +65,25 @@ struct SpeedScene {
     Scene scene;
 };
 
+/// A scene of the curved-shell section (E.), at its own image size.
+struct CurvedShellScene {
+    std::string id;
+    std::string name;
+    Scene scene;
+    ImageSettings image;  ///< the scene's own size (its file's "image")
+};
+
+/// The section of the curved-shell rows in speed.csv.
+constexpr const char* kCurvedSection = "curved shells";
+
+/// Acceptance of the curved march: its time against the planar march's in the same run, and its
+/// error against the world reference (interior pixels: render/compare.h).
+constexpr double kMaxCurvedOverPlanar = 1.5;
+constexpr double kMaxCurvedInteriorMeanTexels = 0.3;
+constexpr double kMaxCurvedInteriorP99Texels = 2.0;
+constexpr double kMaxCurvedCoverageMismatch = 0.005;
+constexpr double kMaxCurvedInteriorNormalDeg = 3.0;
+
 /// uv_scale of the sheet (S1) and of the repeated sheet (S2): 16x the repeats per side.
 constexpr int kSheetTilesPerSide = 4;
 constexpr int kRepeatedTilesPerSide = 64;
@@ -96,12 +116,30 @@ struct SpeedRow {
     bool estimated = false;  ///< bytes extrapolated, not measured
     double meanHitErrorTexels = std::nan("");
     double coverageMismatchShare = std::nan("");
+    double p99HitErrorTexels = std::nan("");
+    double interiorMeanHitErrorTexels = std::nan("");  ///< render/compare.h's interior class
+    double interiorP99HitErrorTexels = std::nan("");
+    double meanNormalErrorDeg = std::nan("");
+    double interiorMeanNormalErrorDeg = std::nan("");
+    int width = 0;  ///< the image size where it is not the run's (curved shells); 0: the run's
+    int height = 0;
     /// Skips: the RenderStats work counter the skip lowers most, and by which share of its value
     /// with the skip off (deterministic, unlike the times); "none" when it lowers none.
     std::string workCounter;
     double workSavedShare = std::nan("");
     std::string note;
 };
+
+/// Fills the error fields of `row` from a comparison against a reference.
+void setError(SpeedRow& row, const RenderComparison& comparison) {
+    row.meanHitErrorTexels = comparison.meanHitErrorTexels;
+    row.coverageMismatchShare = comparison.coverageMismatchShare;
+    row.p99HitErrorTexels = comparison.p99HitErrorTexels;
+    row.interiorMeanHitErrorTexels = comparison.interior.meanHitErrorTexels;
+    row.interiorP99HitErrorTexels = comparison.interior.p99HitErrorTexels;
+    row.meanNormalErrorDeg = comparison.meanNormalErrorDeg;
+    row.interiorMeanNormalErrorDeg = comparison.interior.meanNormalErrorDeg;
+}
 
 /// The `what` of a skip's row: the switch, and the render unless it is the default one.
 std::string skipRowName(const SkipSwitch& skip, const char* renderName) {
@@ -177,25 +215,6 @@ TimedRender fastestRender(const Scene& scene, const RenderOptions& options, int 
     return fastest;
 }
 
-/// The fastest of `runs` renders of each of two configurations, run alternately (A, B, A, B, ...)
-/// so that a slow spell of the shared machine hits both alike.
-struct FastestPair {
-    TimedRender a;
-    TimedRender b;
-};
-
-FastestPair fastestPair(const Scene& sceneA, const RenderOptions& optionsA, const Scene& sceneB,
-                        const RenderOptions& optionsB, int runs) {
-    FastestPair fastest{timedRender(sceneA, optionsA), timedRender(sceneB, optionsB)};
-    for (int run = 1; run < runs; ++run) {
-        TimedRender a = timedRender(sceneA, optionsA);
-        if (a.seconds < fastest.a.seconds) fastest.a = std::move(a);
-        TimedRender b = timedRender(sceneB, optionsB);
-        if (b.seconds < fastest.b.seconds) fastest.b = std::move(b);
-    }
-    return fastest;
-}
-
 double secondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -232,9 +251,10 @@ std::string csvNumber(double value) {
 std::string csvOf(const std::vector<SpeedRow>& rows, int threads, int width, int height) {
     std::ostringstream csv;
     csv << "section,scene,what,seconds,compared_seconds,ratio,differing_share,max_difference_codes,"
-           "bytes,bytes_estimated,hit_error_mean_texels,coverage_mismatch_share,work_counter,"
-           "work_saved_share,note,threads,"
-           "width,height\n";
+           "bytes,bytes_estimated,hit_error_mean_texels,coverage_mismatch_share,"
+           "hit_error_p99_texels,interior_hit_error_mean_texels,interior_hit_error_p99_texels,"
+           "normal_error_mean_deg,interior_normal_error_mean_deg,work_counter,work_saved_share,"
+           "note,threads,width,height\n";
     for (const SpeedRow& r : rows) {
         csv << r.section << "," << r.scene << ",\"" << r.what << "\"," << csvNumber(r.seconds)
             << "," << csvNumber(r.comparedSeconds) << ","
@@ -244,8 +264,12 @@ std::string csvOf(const std::vector<SpeedRow>& rows, int threads, int width, int
                 : r.estimated       ? "1"
                                     : "0")
             << "," << csvNumber(r.meanHitErrorTexels) << "," << csvNumber(r.coverageMismatchShare)
-            << ",\"" << r.workCounter << "\"," << csvNumber(r.workSavedShare) << ",\"" << r.note
-            << "\"," << threads << "," << width << "," << height << "\n";
+            << "," << csvNumber(r.p99HitErrorTexels) << ","
+            << csvNumber(r.interiorMeanHitErrorTexels) << ","
+            << csvNumber(r.interiorP99HitErrorTexels) << "," << csvNumber(r.meanNormalErrorDeg)
+            << "," << csvNumber(r.interiorMeanNormalErrorDeg) << ",\"" << r.workCounter << "\","
+            << csvNumber(r.workSavedShare) << ",\"" << r.note << "\"," << threads << ","
+            << (r.width > 0 ? r.width : width) << "," << (r.height > 0 ? r.height : height) << "\n";
     }
     return csv.str();
 }
@@ -301,10 +325,7 @@ void runSpeedBench(const BenchArguments& arguments) {
     TileCache tiles;
     const Size3 sheetTile{256, 256, 16};
     auto loadJson = [&](const std::string& fileName, const std::string& json, TileCache& cache) {
-        writeText(sceneDir / fileName, json);
-        SceneFile file = loadSceneFile(sceneDir / fileName, cache);
-        attachTruth(file);
-        return file.scene;
+        return loadBenchScene(sceneDir / fileName, json, cache).scene;
     };
     say("bench --speed: loading the scenes (bakes come from the cache when it has them)");
     std::vector<SpeedScene> scenes;
@@ -313,7 +334,9 @@ void runSpeedBench(const BenchArguments& arguments) {
     scenes.push_back(
         {"S2", "sheet x16",
          loadJson("sheet_x16.json", repeatedSheetJson(sheetTile, kRepeatedTilesPerSide), tiles)});
-    scenes.push_back({"S3", "demo", demoScene(tiles).scene});
+    SceneFile demo = demoScene(tiles);
+    attachTruth(demo);  // the world reference's detail: analytic, not the tile
+    scenes.push_back({"S3", "demo", demo.scene});
     {
         // Heights fill the lowest quarter of the slab: a large empty space above the detail.
         HeightMapOptions heightMap;
@@ -357,6 +380,13 @@ void runSpeedBench(const BenchArguments& arguments) {
     }
     const Scene& sheet = scenes[0].scene;
     const Scene& repeated = scenes[1].scene;
+    // The curved-shell section's scenes: the demo (S3) and the torus on the sheet.
+    const std::vector<CurvedShellScene> curvedScenes{
+        {"S3", "demo", demo.scene, demo.image}, [&] {
+            const SceneFile torus =
+                loadBenchScene(sceneDir / "torus_on_sheet.json", torusOnSheetJson(), tiles);
+            return CurvedShellScene{"S7", "torus on sheet", torus.scene, torus.image};
+        }()};
 
     std::vector<SpeedRow> rows;
     std::vector<std::string> notes;
@@ -388,8 +418,7 @@ void runSpeedBench(const BenchArguments& arguments) {
         const RenderComparison comparison =
             compareRenders(layers(measured.result), layers(reference.result));
         SpeedRow row{"error", "S1", "distile against the analytic reference"};
-        row.meanHitErrorTexels = comparison.meanHitErrorTexels;
-        row.coverageMismatchShare = comparison.coverageMismatchShare;
+        setError(row, comparison);
         rows.push_back(row);
         std::snprintf(line, sizeof line,
                       "  S1 error: mean hit %.4f texel, coverage mismatch %.4f%%",
@@ -615,6 +644,67 @@ void runSpeedBench(const BenchArguments& arguments) {
             " (max linear difference " + std::to_string(maxLinear) + ")");
     }
 
+    // E. Curved shells: the curved march against the planar one in the same run, alternated as
+    // in B, and each against the world reference of the same scene at the same size.
+    say("bench --speed: E. curved shells: the curved march against the planar one, each against "
+        "the world reference");
+    // The scene's own size; a quarter of it per side with --quick; the run's when given.
+    const bool sizeGiven = arguments.width > 0 || arguments.height > 0;
+    auto curvedSize = [&](const ImageSettings& image) {
+        if (sizeGiven) return std::pair{width, height};
+        if (arguments.quick)
+            return std::pair{std::max(16, image.width / 4), std::max(16, image.height / 4)};
+        return std::pair{image.width, image.height};
+    };
+    for (const CurvedShellScene& s : curvedScenes) {
+        const auto [curvedWidth, curvedHeight] = curvedSize(s.image);
+        RenderOptions curved = benchRenderOptions(curvedWidth, curvedHeight);
+        curved.shellMapping = ShellMapping::Curved;
+        RenderOptions planar = curved;
+        planar.shellMapping = ShellMapping::Planar;
+        timedRender(s.scene, curved);  // untimed warm-up: fresh pages for this scene and size
+        const FastestPair pair = fastestPair(s.scene, curved, s.scene, planar, runs);
+        say("  " + s.id + " world reference, " + std::to_string(curvedWidth) + "x" +
+            std::to_string(curvedHeight));
+        const TimedWorldReference reference =
+            timedWorldReference(s.scene, curvedWidth, curvedHeight);
+        const RenderLayersView truth = layers(reference.result.render);
+        auto curvedRow = [&](const std::string& what) {
+            SpeedRow row{kCurvedSection, s.id, what};
+            row.width = curvedWidth;
+            row.height = curvedHeight;
+            return row;
+        };
+        SpeedRow timeRow = curvedRow("curved against planar");
+        timeRow.seconds = pair.a.seconds;
+        timeRow.comparedSeconds = pair.b.seconds;
+        rows.push_back(timeRow);
+        for (const auto& [what, render] :
+             {std::pair{"curved", &pair.a.result}, std::pair{"planar", &pair.b.result}}) {
+            SpeedRow errorRow = curvedRow(std::string(what) + " against the world reference");
+            setError(errorRow, compareRenders(layers(*render), truth));
+            rows.push_back(errorRow);
+            std::snprintf(line, sizeof line,
+                          "  %s %-6s interior mean %.4f p99 %.3f, all mean %.4f p99 %.3f texels, "
+                          "coverage mismatch %.4f%%, normals %.2f deg interior, %.2f all",
+                          s.id.c_str(), what, errorRow.interiorMeanHitErrorTexels,
+                          errorRow.interiorP99HitErrorTexels, errorRow.meanHitErrorTexels,
+                          errorRow.p99HitErrorTexels, 100.0 * errorRow.coverageMismatchShare,
+                          errorRow.interiorMeanNormalErrorDeg, errorRow.meanNormalErrorDeg);
+            say(line);
+        }
+        SpeedRow referenceRow = curvedRow("world reference");
+        referenceRow.seconds = reference.seconds;
+        referenceRow.note = "one run, its build included";
+        rows.push_back(referenceRow);
+        std::snprintf(line, sizeof line,
+                      "  %s curved %8.4f s, planar %8.4f s: curved/planar %.3f; world reference "
+                      "%.2f s",
+                      s.id.c_str(), pair.a.seconds, pair.b.seconds, pair.a.seconds / pair.b.seconds,
+                      reference.seconds);
+        say(line);
+    }
+
     writeText(arguments.outputDir / "speed.csv", csvOf(rows, threads, width, height));
 
     // The report.
@@ -631,7 +721,10 @@ void runSpeedBench(const BenchArguments& arguments) {
           "misses, back faces, a curved mesh, shadows), S4 the sheet with a smooth height field "
           "filling the lowest quarter of the slab, S5 that height field seen from about 12 degrees "
           "above (long empty paths above the detail), S6 the chain-mail sheet under three low "
-          "lights from three sides (much of the detail faces away from one of them).\n\n";
+          "lights from three sides (much of the detail faces away from one of them); in E only, "
+          "S7 chain mail on a torus lying on the chain-mail sheet "
+          "(data/scenes/torus_on_sheet.json)."
+          "\n\n";
 
     md << "## A. Peers on S1 (primary visibility and a normal: distile without shadows or AOVs)"
           "\n\n| | trace s | distile s | ratio |\n|---|---|---|---|\n";
@@ -721,11 +814,78 @@ void runSpeedBench(const BenchArguments& arguments) {
                            "x faster than baking, " + r->note);
     }
 
-    const SpeedRow& threadRow = rows.back();
+    const SpeedRow& threadRow =
+        *findRow(rows, "threads", "S1", "1 thread against " + std::to_string(threads));
     md << "\n## D. Threads\n\nS1 (shadows on) on 1 thread against " << threads
        << " threads: " << threadRow.note << " (pixels > 1 code "
        << fixed(100.0 * threadRow.differingShare, 4) << "%, max "
        << fixed(threadRow.maxDifferenceCodes, 0) << " codes).\n";
+
+    md << "\n## E. Curved shells (the curved march against the planar one, each against the world "
+          "reference)\n\n"
+          "Renders as the peers' in A (no shadows), AOVs on: each time the fastest of "
+       << runs
+       << " runs, curved and planar alternated after one untimed warm-up render. Errors against "
+          "the "
+          "world reference of the same scene at the same size (render/world_reference.h: the "
+          "detail mapped through the curved shell into world space and traced there; one run, "
+          "its build included in its time), in texels. Interior: the pixels where both hit, away "
+          "from silhouettes and depth jumps (render/compare.h); all: every pixel where both hit."
+       << (arguments.quick && !sizeGiven
+               ? " With --quick the images are a quarter of the scene's size per side."
+               : "")
+       << "\n\n| scene | image | render | time s | curved / planar | interior mean | interior "
+          "p99 | all mean | all p99 | coverage mismatch | normal deg, interior | normal deg, all "
+          "|\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    std::vector<std::string> curvedVerdicts;
+    for (const CurvedShellScene& s : curvedScenes) {
+        const SpeedRow* times = findRow(rows, kCurvedSection, s.id, "curved against planar");
+        const SpeedRow* reference = findRow(rows, kCurvedSection, s.id, "world reference");
+        const double ratio = times->seconds / times->comparedSeconds;
+        std::string image = std::to_string(times->width) + "x" + std::to_string(times->height);
+        if (times->width != s.image.width || times->height != s.image.height)
+            image += " (" + std::string(arguments.quick && !sizeGiven ? "--quick; " : "") +
+                     "the scene's: " + std::to_string(s.image.width) + "x" +
+                     std::to_string(s.image.height) + ")";
+        for (const char* what : {"curved", "planar"}) {
+            const SpeedRow* r = findRow(rows, kCurvedSection, s.id,
+                                        std::string(what) + " against the world reference");
+            const bool isCurved = what == std::string("curved");
+            md << "| " << s.id << " " << s.name << " | " << image << " | " << what << " | "
+               << fixed(isCurved ? times->seconds : times->comparedSeconds, 4) << " | "
+               << (isCurved ? fixed(ratio, 3) : "") << " | "
+               << fixed(r->interiorMeanHitErrorTexels, 4) << " | "
+               << fixed(r->interiorP99HitErrorTexels, 3) << " | " << fixed(r->meanHitErrorTexels, 4)
+               << " | " << fixed(r->p99HitErrorTexels, 3) << " | "
+               << fixed(100.0 * r->coverageMismatchShare, 4) << "% | "
+               << fixed(r->interiorMeanNormalErrorDeg, 2) << " | "
+               << fixed(r->meanNormalErrorDeg, 2) << " |\n";
+        }
+        md << "| " << s.id << " " << s.name << " | " << image << " | world reference | "
+           << fixed(reference->seconds, 2) << " | | | | | | | | |\n";
+        const SpeedRow* curved =
+            findRow(rows, kCurvedSection, s.id, "curved against the world reference");
+        curvedVerdicts.push_back(verdict(ratio <= kMaxCurvedOverPlanar) + " " + s.id +
+                                 " curved / planar = " + fixed(ratio, 3) +
+                                 " (<= " + fixed(kMaxCurvedOverPlanar, 1) + ")");
+        const bool accurate = curved->interiorMeanHitErrorTexels <= kMaxCurvedInteriorMeanTexels &&
+                              curved->interiorP99HitErrorTexels <= kMaxCurvedInteriorP99Texels &&
+                              curved->coverageMismatchShare <= kMaxCurvedCoverageMismatch &&
+                              curved->interiorMeanNormalErrorDeg <= kMaxCurvedInteriorNormalDeg;
+        curvedVerdicts.push_back(
+            verdict(accurate) + " " + s.id + " curved against the world reference at " +
+            std::to_string(times->width) + "x" + std::to_string(times->height) +
+            ": interior mean " + fixed(curved->interiorMeanHitErrorTexels, 4) +
+            " texel (<= " + fixed(kMaxCurvedInteriorMeanTexels, 1) + "), interior p99 " +
+            fixed(curved->interiorP99HitErrorTexels, 3) +
+            " (<= " + fixed(kMaxCurvedInteriorP99Texels, 0) + "), coverage mismatch " +
+            fixed(100.0 * curved->coverageMismatchShare, 4) +
+            "% (<= " + fixed(100.0 * kMaxCurvedCoverageMismatch, 1) + "%), interior normal " +
+            fixed(curved->interiorMeanNormalErrorDeg, 2) +
+            " deg (<= " + fixed(kMaxCurvedInteriorNormalDeg, 0) + ")");
+    }
+    md << "\n";
+    for (const std::string& v : curvedVerdicts) md << "- " << v << "\n";
 
     // Verdicts, one per acceptance point.
     std::vector<std::string> acceptance;
@@ -758,6 +918,7 @@ void runSpeedBench(const BenchArguments& arguments) {
                              (sameTile ? "the same (" + mib(tileBytes) + ")" : "DIFFERS"));
     }
     for (const std::string& v : verdicts) acceptance.push_back(v);
+    for (const std::string& v : curvedVerdicts) acceptance.push_back(v);
     acceptance.push_back(verdict(threadRow.note == "bit-identical") + " threads: 1 thread and " +
                          std::to_string(threads) + " give " + threadRow.note + " images");
     md << "\n## Verdicts\n\n";

@@ -944,8 +944,9 @@ namespace {
 
 TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
     // A tiny sweep (no peers: they are tested in peers_test): every distile row of the sweep is
-    // in the CSV with a finite error against the analytic reference; the report names the Pareto
-    // front and judges ch. 8's claims; bad arguments are refused.
+    // in the CSV with a finite error against the analytic reference, and the torus on the sheet's
+    // curved and planar rows against the world reference; the report names the Pareto front,
+    // shows the curved shells and judges ch. 8's claims; bad arguments are refused.
     const RunResult bench = run({"bench", "--quick", "--no-peers", "--width", "48", "--height",
                                  "32", "-o", path("bench").string()});
     ASSERT_EQ(bench.status, 0) << bench.err;
@@ -954,8 +955,10 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
     std::getline(csv, line);
     EXPECT_EQ(line.rfind("group,label,tile,storage,filter,method,budget,seconds,", 0), 0u) << line;
     int rows = 0;
+    int torusRows = 0;
     while (std::getline(csv, line)) {
         ++rows;
+        if (line.find(" shell, torus on sheet,") != std::string::npos) ++torusRows;
         // Columns 8 (seconds) and 12 (mean hit error): numbers, finite.
         std::vector<std::string> fields;
         std::string field;
@@ -974,13 +977,19 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
         EXPECT_TRUE(std::isfinite(std::stod(fields[7]))) << line;
         EXPECT_TRUE(std::isfinite(std::stod(fields[11]))) << line;
     }
-    // --quick: 2 sizes + 2 storages + 1 filter + 5 march methods x 3 budgets.
-    EXPECT_EQ(rows, 20);
+    // --quick: 2 sizes + 2 storages + 1 filter + 5 march methods x 3 budgets, and the torus on the
+    // sheet with curved and planar shells.
+    EXPECT_EQ(rows, 22);
+    EXPECT_EQ(torusRows, 2);
     const std::string report = readText(path("bench/report.md"));
     EXPECT_NE(report.find("Pareto front"), std::string::npos);
     EXPECT_NE(report.find("| chain mail (sheet) | 16 |"), std::string::npos);
     EXPECT_NE(report.find("| smooth height field | 8 |"), std::string::npos);
+    EXPECT_NE(report.find("## Curved shells: the torus on the sheet"), std::string::npos);
+    EXPECT_NE(report.find("| torus on sheet, curved |"), std::string::npos);
+    EXPECT_NE(report.find("| torus on sheet, planar |"), std::string::npos);
     EXPECT_TRUE(fs::exists(path("bench/pareto.png")));
+    EXPECT_TRUE(fs::exists(path("bench/scenes/torus_on_sheet.json")));
     const RunResult bad = run({"bench", "--width", "0", "-o", path("bad").string()});
     EXPECT_NE(bad.status, 0);
     EXPECT_FALSE(fs::exists(path("bad/bench.csv")));
@@ -988,9 +997,9 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
 
 TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     // A tiny speed report (no peers): every RenderSkips switch (all bools) is measured on each of
-    // the six scenes in three renders (shadows, none, tricubic march), the bake cache and the
-    // thread check have their rows, the report has its verdicts, the scenes are kept; --speed and
-    // --stress together are refused.
+    // the six scenes in three renders (shadows, none, tricubic march), the bake cache, the thread
+    // check and the curved shells (on the demo and the torus on the sheet) have their rows, the
+    // report has its verdicts, the scenes are kept; --speed and --stress together are refused.
     const RunResult speed = run({"bench", "--speed", "--quick", "--no-peers", "--width", "64",
                                  "--height", "48", "-o", path("speed").string()});
     ASSERT_EQ(speed.status, 0) << speed.err;
@@ -1000,9 +1009,17 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     EXPECT_EQ(line.rfind("section,scene,what,seconds,compared_seconds,ratio,", 0), 0u) << line;
     std::set<std::string> skipRows;
     std::set<std::string> sections;
+    std::set<std::string> curvedRows;
     while (std::getline(csv, line)) {
         const std::string section = line.substr(0, line.find(','));
         sections.insert(section);
+        if (section == "curved shells") {
+            // curved shells,S<n>,"<what>",...
+            const std::size_t sceneEnd = line.find(',', section.size() + 1);
+            const std::size_t whatEnd = line.find('"', sceneEnd + 2);
+            curvedRows.insert(line.substr(section.size() + 1, sceneEnd - section.size() - 1) + " " +
+                              line.substr(sceneEnd + 2, whatEnd - sceneEnd - 2));
+        }
         if (section != "skip") continue;
         // skip,S<n>,"<name>",<seconds on>,<seconds off>,...
         const std::size_t sceneEnd = line.find(',', 5);
@@ -1025,15 +1042,23 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
         EXPECT_TRUE(skipRows.count(std::string("adaptiveBudget, tricubic march ") + scene))
             << scene;
     }
-    for (const char* section : {"error", "repetition", "memory", "skip", "cache", "threads"})
+    for (const char* section :
+         {"error", "repetition", "memory", "skip", "cache", "threads", "curved shells"})
         EXPECT_TRUE(sections.count(section)) << section;
+    for (const char* scene : {"S3", "S7"})
+        for (const char* what : {"curved against planar", "curved against the world reference",
+                                 "planar against the world reference", "world reference"})
+            EXPECT_TRUE(curvedRows.count(std::string(scene) + " " + what)) << scene << " " << what;
     const std::string report = readText(path("speed/speed.md"));
     EXPECT_NE(report.find("## Verdicts"), std::string::npos);
+    EXPECT_NE(report.find("## E. Curved shells"), std::string::npos);
+    EXPECT_NE(report.find("S7 curved / planar = "), std::string::npos);
     EXPECT_NE(report.find("threads: 1 thread and"), std::string::npos);
     EXPECT_TRUE(fs::exists(path("speed/scenes/sheet_x16.json")));
     EXPECT_TRUE(fs::exists(path("speed/scenes/low_height_field.exr")));
     EXPECT_TRUE(fs::exists(path("speed/scenes/low_height_field_grazing.json")));
     EXPECT_TRUE(fs::exists(path("speed/scenes/sheet_three_lights.json")));
+    EXPECT_TRUE(fs::exists(path("speed/scenes/torus_on_sheet.json")));
     const RunResult both = run({"bench", "--speed", "--stress", "-o", path("both").string()});
     EXPECT_NE(both.status, 0);
     EXPECT_FALSE(fs::exists(path("both/speed.md")));
