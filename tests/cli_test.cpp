@@ -1046,7 +1046,8 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
          {"error", "repetition", "memory", "skip", "cache", "threads", "curved shells"})
         EXPECT_TRUE(sections.count(section)) << section;
     for (const char* scene : {"S3", "S7"})
-        for (const char* what : {"curved against planar", "curved against the world reference",
+        for (const char* what : {"curved against planar", "curved against planar, default render",
+                                 "curved against the world reference",
                                  "planar against the world reference", "world reference"})
             EXPECT_TRUE(curvedRows.count(std::string(scene) + " " + what)) << scene << " " << what;
     const std::string report = readText(path("speed/speed.md"));
