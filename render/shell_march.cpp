@@ -266,13 +266,24 @@ bool ShellRayPath::start(const ShellPrisms& shell, const glm::dvec3& originWorld
 bool ShellRayPath::advance(double texels) {
     const double stepWorld = texels / speed_;
     distanceWorld_ += stepWorld;
-    cursor_.point.b1 += prismVelocity_.x * stepWorld;
-    cursor_.point.b2 += prismVelocity_.y * stepWorld;
-    cursor_.point.depthWorld += prismVelocity_.z * stepWorld;
+    PrismPoint& point = cursor_.point;
+    point.b1 += prismVelocity_.x * stepWorld;
+    point.b2 += prismVelocity_.y * stepWorld;
+    point.depthWorld += prismVelocity_.z * stepWorld;
+    // Between corrections the point moves along the path's tangent in the prism; a correction
+    // (Newton, a new velocity) every kStepsPerSettle steps, and wherever the point may have left
+    // the prism.
+    const ShellPrism& prism = shell_->prisms[cursor_.prism];
+    if (++stepsSinceSettle_ < kStepsPerSettle && point.b1 >= 0.0 && point.b2 >= 0.0 &&
+        point.b0() >= 0.0 && point.depthWorld >= 0.0 && point.depthWorld <= prism.depthWorld) {
+        texelPosition_ = glm::vec3(prism.texelAt(point));
+        return true;
+    }
     return settle();
 }
 
 bool ShellRayPath::settle() {
+    stepsSinceSettle_ = 0;
     if (detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_) != Located::Inside)
         return false;
     const ShellPrism& prism = shell_->prisms[cursor_.prism];

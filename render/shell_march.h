@@ -145,7 +145,10 @@ class CurvedMarchRay {
 };
 
 /// A point moving along a world ray through a shell by lengths of its texel-space path (the
-/// stretch |J r| taken where it is): the path of a self-shadow ray toward a light.
+/// stretch |J r| taken where it is): the path of a self-shadow ray toward a light. The map is
+/// inverted (Newton) at every kStepsPerSettle-th step and wherever the point may have left its
+/// prism; in between the point moves along the path's tangent there (a soft visibility estimate
+/// needs no more: over a few texels the tangent strays by a small fraction of a texel).
 class ShellRayPath {
   public:
     /// Starts at world point `originWorld` (in prism `prism`, near prism point `guess`) along
@@ -161,6 +164,8 @@ class ShellRayPath {
     /// The unit texel-space direction of the path there.
     const glm::dvec3& directionTexels() const { return directionTexels_; }
 
+    static constexpr int kStepsPerSettle = 4;
+
   private:
     /// Locates the point at distanceWorld_ and takes its texel position and direction.
     bool settle();
@@ -172,6 +177,7 @@ class ShellRayPath {
     double speed_ = 0.0;  ///< texels per world unit along the path
     glm::dvec3 prismVelocity_{0.0}, directionTexels_{0.0, 0.0, 1.0};
     glm::vec3 texelPosition_{0.0f};
+    int stepsSinceSettle_ = 0;
 };
 
 /// A whole curved march of one ray over `filter` (CurvedMarchRay, sample by sample).
