@@ -97,6 +97,13 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
         result.bvhSeconds, double(result.bvhBytes) / 1e6, result.traceSeconds,
         stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0,
         static_cast<unsigned long long>(stats.rays));
+    std::printf(
+        "detail hits on the exact surface: %llu refined, %llu left on the traced %s; %llu rays "
+        "stopped by a back face of a tiled base mesh\n",
+        static_cast<unsigned long long>(result.refinedHits),
+        static_cast<unsigned long long>(result.unrefinedHits),
+        options.method == WorldReferenceMethod::LevelSet ? "level set" : "mesh",
+        static_cast<unsigned long long>(result.backFaceStops));
     if (result.render.aovs) {
         std::printf(
             "AOVs written beside it: %s, %s, %s (texel scale 0: compare takes the other "

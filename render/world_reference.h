@@ -14,6 +14,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "common/progress.h"
@@ -51,6 +52,12 @@ struct WorldReferenceResult {
     double bvhSeconds = 0.0;       ///< building the BVH
     double traceSeconds = 0.0;     ///< tracing and shading the pixels
     std::size_t bvhBytes = 0;      ///< memory Embree allocated for the BVH and its buffers
+    /// Camera rays whose detail hit was moved onto the exact detail surface, and those whose hit
+    /// stayed on the traced mesh or level set (the refinement left its bracket, did not
+    /// converge, or had no base triangle to start from).
+    std::uint64_t refinedHits = 0;
+    std::uint64_t unrefinedHits = 0;
+    std::uint64_t backFaceStops = 0;  ///< camera rays stopped by a tiled base triangle's back face
 };
 
 /// Renders `scene` against world-space meshes of its tiled objects: one camera ray per pixel
