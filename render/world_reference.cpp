@@ -425,20 +425,28 @@ struct ExactHit {
     glm::dvec3 normal{0.0};  ///< unit world normal of the detail, not yet facing the ray
 };
 
-/// Moves a hit on an object's world mesh at `meshDistanceWorld` along the unit ray onto the
-/// exact detail surface: secant steps (the first a sphere-tracing step) on the detail's texel
-/// distance d(t) of the ray's point mapped into the shell, until |d| < 1e-4 texel, within 1.5
-/// texels along the ray of the mesh hit (the mesh is a fraction of a texel from the surface).
-/// `triangle` and `point` locate the mesh hit (a guess). False, with `exact` undefined, when the
-/// steps leave that bracket, do not converge in 16 steps, or leave the shell's chart.
+/// Moves a hit on an object's world mesh (or level set) at `meshDistanceWorld` along the unit
+/// ray onto the exact detail surface: the first zero of the detail's texel distance d(t) of the
+/// ray's point mapped into the shell within 1.5 texels (along the ray) of the mesh hit, which is
+/// a fraction of a texel off. From the start of that bracket: sphere-tracing steps (t += d /
+/// |dtexel/dt|), stretched toward the secant's root once close, until d changes sign or
+/// |d| < 1e-4 texel; then regula falsi (Illinois) on the sign change. Starting ahead of the hit
+/// and marching forward, the hits of two traced surfaces a little apart (the mesh and its level
+/// set) end on the same zero. `triangle` and `point` locate the mesh hit (a guess). False, with
+/// `exact` undefined, when the bracket's start lies in the detail, no zero is found in the
+/// bracket within 96 steps, or the ray leaves the shell's chart (an open border).
 bool refineHit(const ObjectShell& shell, const glm::dvec3& origin, const glm::dvec3& direction,
                double meshDistanceWorld, std::uint32_t triangle, PrismPoint point,
                ExactHit& exact) {
     constexpr double kConvergedTexels = 1e-4;
     constexpr double kBracketTexels = 1.5;
-    constexpr int kMaxSteps = 16;
+    /// Below this distance (texels) a step may go up to kMaxStretch sphere steps, toward the
+    /// secant's root: sphere steps alone crawl where the ray meets the surface at a low angle.
+    constexpr double kNearTexels = 0.05;
+    constexpr double kMaxStretch = 4.0;
+    constexpr int kMaxSteps = 96;
     struct Sample {
-        double distanceWorld, distanceTexels, texelsPerWorld;
+        double distanceWorld = 0.0, distanceTexels = 0.0, texelsPerWorld = 0.0;
     };
     const auto evaluate = [&](double distanceWorld, Sample& sample) {
         if (!shell.locate(origin + distanceWorld * direction, triangle, point)) return false;
@@ -453,23 +461,45 @@ bool refineHit(const ObjectShell& shell, const glm::dvec3& origin, const glm::dv
     if (!evaluate(meshDistanceWorld, current)) return false;
     const double reachWorld = kBracketTexels / current.texelsPerWorld;
     const double low = meshDistanceWorld - reachWorld, high = meshDistanceWorld + reachWorld;
-    Sample previous{};
-    bool hasPrevious = false;
+    if (!evaluate(std::max(low, 0.0), current) || !(current.distanceTexels > 0.0)) return false;
+    Sample outside = current, inside, previous;
+    bool bracketed = false, hasPrevious = false;
+    int lastSide = 0;  ///< +1: the last step moved the outside end, -1: the inside end
     for (int step = 0;; ++step) {
         if (std::abs(current.distanceTexels) < kConvergedTexels) break;
         if (step == kMaxSteps) return false;
-        double next = current.distanceWorld + current.distanceTexels / current.texelsPerWorld;
-        if (hasPrevious && current.distanceTexels != previous.distanceTexels) {
-            const double secant =
-                current.distanceWorld - current.distanceTexels *
-                                            (current.distanceWorld - previous.distanceWorld) /
-                                            (current.distanceTexels - previous.distanceTexels);
-            if (secant >= low && secant <= high) next = secant;
+        double next = 0.0;
+        if (bracketed) {
+            next = outside.distanceWorld - outside.distanceTexels *
+                                               (inside.distanceWorld - outside.distanceWorld) /
+                                               (inside.distanceTexels - outside.distanceTexels);
+        } else {
+            const double sphereStep = current.distanceTexels / current.texelsPerWorld;
+            next = current.distanceWorld + sphereStep;
+            if (hasPrevious && current.distanceTexels < kNearTexels &&
+                current.distanceTexels < previous.distanceTexels) {
+                const double secant =
+                    current.distanceWorld - current.distanceTexels *
+                                                (current.distanceWorld - previous.distanceWorld) /
+                                                (current.distanceTexels - previous.distanceTexels);
+                next = std::clamp(secant, next, current.distanceWorld + kMaxStretch * sphereStep);
+            }
+            if (!(next <= high)) return false;
         }
-        if (!(next >= low && next <= high)) return false;
         previous = current;
         hasPrevious = true;
         if (!evaluate(next, current)) return false;
+        // Illinois: an end kept twice in a row counts half, so the false position moves on.
+        if (current.distanceTexels > 0.0) {
+            if (bracketed && lastSide == 1) inside.distanceTexels *= 0.5;
+            outside = current;
+            lastSide = 1;
+        } else {
+            if (bracketed && lastSide == -1) outside.distanceTexels *= 0.5;
+            inside = current;
+            lastSide = -1;
+            bracketed = true;
+        }
     }
     const ShellPrism& prism = shell.prism(triangle);
     exact.distanceWorld = current.distanceWorld;
