@@ -638,7 +638,7 @@ class WorldShader {
                 const glm::uvec3& triangle = object.mesh.triangles[rayHit.hit.primID];
                 const bool backFace = info.kind == GeometryInfo::Kind::TiledBase;
                 if (backFace && info.object != context.object &&
-                    wayOut(ray, info.object, distance)) {
+                    wayOut(ray, info.object, rayHit.hit.primID, distance)) {
                     from = std::nextafter(distance, std::numeric_limits<float>::infinity());
                     continue;
                 }
@@ -709,16 +709,24 @@ class WorldShader {
     /// front face nearer without meeting the detail (the renderer's curved march goes on there):
     /// the nearest of the object's base triangles back along the ray faces it. A ray that left
     /// the shell through an open floor and came back up from inside is not told apart.
-    bool wayOut(const Ray& ray, std::uint32_t object, float distanceWorld) const {
+    bool wayOut(const Ray& ray, std::uint32_t object, std::uint32_t triangle,
+                float distanceWorld) const {
         const glm::vec3 at = ray.origin + ray.direction * distanceWorld;
-        // Past the base triangle the ray leaves by (a thousandth of a texel).
-        const float skipWorld = 1e-3f * float(meshes_[object].stats.texelSizeWorld);
-        RTCRayHit rayHit;
-        if (!bvh_.intersectBase(object, at, -ray.direction, skipWorld, distanceWorld, rayHit))
-            return false;
+        // Past the base triangle the ray leaves by (a thousandth of a texel; at a low angle the
+        // rounding of `at` can put it farther, so that triangle is passed over too).
+        float fromWorld = 1e-3f * float(meshes_[object].stats.texelSizeWorld);
         const BaseMesh& mesh = scene_.objects[object].mesh;
-        return glm::dot(geometricNormal(mesh, mesh.triangles[rayHit.hit.primID]), ray.direction) <
-               0.0f;
+        RTCRayHit rayHit;
+        for (int pass = 0; pass < 4; ++pass) {
+            if (!bvh_.intersectBase(object, at, -ray.direction, fromWorld, distanceWorld, rayHit))
+                return false;
+            if (rayHit.hit.primID != triangle) {
+                return glm::dot(geometricNormal(mesh, mesh.triangles[rayHit.hit.primID]),
+                                ray.direction) < 0.0f;
+            }
+            fromWorld = std::nextafter(rayHit.ray.tfar, std::numeric_limits<float>::infinity());
+        }
+        return false;
     }
 
     /// Moves a detail hit onto the exact detail surface (refineHit), from its distance along
