@@ -286,12 +286,11 @@ TEST(WorldReference, OnATorusItMeasuresThePlanarApproximation) {
     std::printf("  pixels within 0.5 texel: %.2f%%, within 2 texels: %.2f%%\n",
                 100.0 * shareAgreeingWithin(ordinary, world.render, 0.5),
                 100.0 * shareAgreeingWithin(ordinary, world.render, 2.0));
-    // Measured (160 x 128) with the planar march: mean 4.2 p99 34.7 texels, coverage mismatch
-    // 6.4%, 25% of the pixels within 0.5 texel. The shell is deep (depth = 0.39 of the tube
-    // radius): the planar frame keeps the floor solid under every pixel, while in the shell it
-    // is a thin tube that rays through the rings' gaps can miss. With the renderer's default
-    // curved march and the refined reference: mean 0.48 texel, coverage mismatch 2.3%, 54%
-    // within 0.5 texel.
+    // Measured (160 x 128): mean 0.48 texel, p99 16 texels, coverage mismatch 2.3%, 54% of the
+    // pixels within 0.5 texel (when this test was written, against the unrefined reference and
+    // an earlier curved march: mean 4.2, coverage mismatch 6.4%). The shell is deep (depth =
+    // 0.39 of the tube radius): its floor is a thin tube that rays through the rings' gaps can
+    // miss.
     EXPECT_GT(c.hitErrorSamples, c.pixels / 10);
     EXPECT_TRUE(std::isfinite(c.meanHitErrorTexels));
     EXPECT_TRUE(std::isfinite(c.p99HitErrorTexels));
