@@ -958,13 +958,21 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                                     refinable = hit.onDetail;
                                 }
                                 found = true;
+                                // Shadow rays are traced through the BVH: from the mesh's hit
+                                // when it is the level set's (within half a texel), else from
+                                // the level set's.
+                                const bool meshHitNear =
+                                    refinable && std::abs(nearest - double(hit.distanceWorld)) <
+                                                     0.5 * meshes[hit.object].stats.texelSizeWorld;
                                 hit.distanceWorld = float(nearest);
                                 hit.position = ray.origin + ray.direction * hit.distanceWorld;
                                 hit.normal = glm::vec3(levelSetNormal);
                                 if (glm::dot(hit.normal, ray.direction) > 0.0f)
                                     hit.normal = -hit.normal;
-                                hit.shadowFrom = hit.position;
-                                hit.shadowNormal = hit.normal;
+                                if (!meshHitNear) {
+                                    hit.shadowFrom = hit.position;
+                                    hit.shadowNormal = hit.normal;
+                                }
                             } else if (found && hit.onDetail) {
                                 found = false;  // the level sets saw no detail here
                                 refinable = false;
