@@ -97,6 +97,13 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
         result.bvhSeconds, double(result.bvhBytes) / 1e6, result.traceSeconds,
         stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0,
         static_cast<unsigned long long>(stats.rays));
+    std::printf(
+        "detail hits on the exact surface: %llu refined, %llu left on the traced %s; %llu rays "
+        "stopped by a back face of a tiled base mesh\n",
+        static_cast<unsigned long long>(result.refinedHits),
+        static_cast<unsigned long long>(result.unrefinedHits),
+        options.method == WorldReferenceMethod::LevelSet ? "level set" : "mesh",
+        static_cast<unsigned long long>(result.backFaceStops));
     if (result.render.aovs) {
         std::printf(
             "AOVs written beside it: %s, %s, %s (texel scale 0: compare takes the other "
@@ -302,10 +309,12 @@ void addRenderCommand(CLI::App& app) {
                 "procedural detail in double precision with the planar tangent frame of ch. 8, "
                 "512 iterations, epsilon 0.001 texel; world: the detail mapped through the base "
                 "mesh's curved shell, triangle by triangle (mirrored UVs included), into a "
-                "world-space mesh traced with Embree, shaded as the renderer shades (sky, "
+                "world-space mesh traced with Embree, each hit refined along the ray onto the "
+                "exact detail (1e-4 texel; normals from its gradient through the shell), back "
+                "faces of base meshes stopping rays, shaded as the renderer shades (sky, "
                 "ambient, Blinn-Phong, 16 soft-shadow rays per light); world-levelset: the same "
-                "mesh as an OpenVDB level set (--reference-voxels) for its hits and normals, "
-                "much slower: the check of the world reference")
+                "mesh as an OpenVDB level set (--reference-voxels) for its hits, refined the "
+                "same way, much slower: the check of the world reference")
             ->expected(0, 1)
             ->check(
                 [](const std::string& kind) {

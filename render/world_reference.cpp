@@ -5,16 +5,21 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <map>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "common/error.h"
+#include "common/shell_map.h"
+#include "render/analytic_filter.h"
 #include "render/coverage.h"
 #include "render/shading.h"
 #include "sampler/filters.h"
@@ -39,13 +44,48 @@ DetailDistanceFunction detailDistance(const Material& material) {
 
 /// What a hit on one Embree geometry belongs to.
 struct GeometryInfo {
+    enum class Kind {
+        Detail,     ///< a tiled object's world-space detail mesh
+        Bare,       ///< the base mesh of an object without a tile
+        TiledBase,  ///< the base mesh of a tiled object: only its back faces stop camera rays
+    };
+    Kind kind = Kind::Bare;
     std::uint32_t object = 0;
-    const DisplacedMesh* detail = nullptr;  ///< null: the object's bare base mesh
-    bool quads = false;                     ///< the detail's quads (else its triangles)
+    const DisplacedMesh* detail = nullptr;  ///< Kind::Detail: the mesh
+    bool quads = false;                     ///< Kind::Detail: its quads (else its triangles)
+    const BaseMesh* base = nullptr;         ///< Kind::TiledBase: the base mesh
 };
 
-/// An Embree device and scene of every object: the world-space detail meshes of tiled objects,
-/// the base meshes of the others. Buffers are shared with the meshes, which must outlive it.
+/// What a query lets through (the Embree filter functions read it): the context of every
+/// intersect and occluded call, Embree's own first.
+struct QueryContext {
+    enum class Mode {
+        Camera,  ///< detail (but that of `object`), bare surfaces, back faces of tiled bases
+        Shadow,  ///< detail and bare surfaces
+        BaseOf,  ///< the base triangles of tiled object `object`, either side
+    };
+    static constexpr std::uint32_t kNoObject = ~0u;
+    RTCIntersectContext embree;
+    Mode mode = Mode::Camera;
+    std::uint32_t object = kNoObject;
+    glm::vec3 direction{0.0f};  ///< the ray's (Mode::Camera)
+
+    QueryContext(Mode queryMode, const glm::vec3& rayDirection, std::uint32_t queryObject)
+        : mode(queryMode), object(queryObject), direction(rayDirection) {
+        rtcInitIntersectContext(&embree);
+    }
+};
+
+glm::vec3 geometricNormal(const BaseMesh& mesh, const glm::uvec3& triangle) {
+    return glm::cross(mesh.positions[triangle.y] - mesh.positions[triangle.x],
+                      mesh.positions[triangle.z] - mesh.positions[triangle.x]);
+}
+
+/// An Embree device and scene of every object: the world-space detail meshes of tiled objects
+/// and their base meshes (whose back faces stop camera rays, as in the renderer), the base meshes
+/// of the others; and a second scene of the tiled base meshes alone (to look back along a ray
+/// for the base triangle it came in through). Buffers are shared with the meshes, which must
+/// outlive it.
 class WorldBvh {
   public:
     WorldBvh() {
@@ -55,13 +95,16 @@ class WorldBvh {
                                      std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
         }
         rtcSetDeviceMemoryMonitorFunction(device_, &WorldBvh::monitor, &allocatedBytes_);
-        scene_ = rtcNewScene(device_);
-        // Robust: shared edges are watertight (no ray slips between two triangles).
-        rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);
-        check("creating the scene");
+        for (RTCScene* scene : {&scene_, &bases_}) {
+            *scene = rtcNewScene(device_);
+            // Robust: shared edges are watertight (no ray slips between two triangles).
+            rtcSetSceneFlags(*scene, RTC_SCENE_FLAG_ROBUST);
+        }
+        check("creating the scenes");
     }
     ~WorldBvh() {
         if (scene_) rtcReleaseScene(scene_);
+        if (bases_) rtcReleaseScene(bases_);
         rtcReleaseDevice(device_);
     }
     WorldBvh(const WorldBvh&) = delete;
@@ -70,61 +113,77 @@ class WorldBvh {
     /// Adds a detail mesh. Precondition: mesh.positions and mesh.texelPositions hold one more
     /// (unused) element than the mesh's vertices (Embree reads vertex buffers 16 bytes at a time).
     void addDetail(std::uint32_t object, const DisplacedMesh& mesh, std::size_t vertexCount) {
+        GeometryInfo info{GeometryInfo::Kind::Detail, object, &mesh, false, nullptr};
         if (!mesh.triangles.empty()) {
-            attach(polygons(RTC_GEOMETRY_TYPE_TRIANGLE, mesh, vertexCount, mesh.triangles.data(),
+            attach(scene_,
+                   polygons(RTC_GEOMETRY_TYPE_TRIANGLE, mesh, vertexCount, mesh.triangles.data(),
                             RTC_FORMAT_UINT3, sizeof(glm::uvec3), mesh.triangles.size()),
-                   {object, &mesh, false});
+                   info);
         }
         if (!mesh.quads.empty()) {
-            attach(polygons(RTC_GEOMETRY_TYPE_QUAD, mesh, vertexCount, mesh.quads.data(),
+            info.quads = true;
+            attach(scene_,
+                   polygons(RTC_GEOMETRY_TYPE_QUAD, mesh, vertexCount, mesh.quads.data(),
                             RTC_FORMAT_UINT4, sizeof(glm::uvec4), mesh.quads.size()),
-                   {object, &mesh, true});
+                   info);
         }
     }
 
     /// Adds a bare base mesh (its positions are copied).
-    void addBase(std::uint32_t object, const BaseMesh& mesh) {
-        RTCGeometry geometry = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* vertices = static_cast<float*>(
-            rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                    3 * sizeof(float), mesh.positions.size()));
-        auto* indices = static_cast<unsigned*>(
-            rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                    3 * sizeof(unsigned), mesh.triangles.size()));
-        check("allocating a base mesh's buffers");
-        std::copy_n(&mesh.positions.front().x, 3 * mesh.positions.size(), vertices);
-        std::copy_n(&mesh.triangles.front().x, 3 * mesh.triangles.size(), indices);
-        attach(geometry, {object, nullptr, false});
+    void addBare(std::uint32_t object, const BaseMesh& mesh) {
+        attach(scene_, baseGeometry(mesh),
+               {GeometryInfo::Kind::Bare, object, nullptr, false, nullptr});
+    }
+
+    /// Adds a tiled object's base mesh (its positions are copied), to both scenes.
+    void addTiledBase(std::uint32_t object, const BaseMesh& mesh) {
+        const GeometryInfo info{GeometryInfo::Kind::TiledBase, object, nullptr, false, &mesh};
+        attach(scene_, baseGeometry(mesh), info);
+        attach(bases_, baseGeometry(mesh), info);
     }
 
     void commit() {
         rtcCommitScene(scene_);
+        rtcCommitScene(bases_);
         check("building the BVH");
     }
 
-    /// The nearest hit of the ray origin + t direction, t in (0, inf); false for a miss.
-    bool intersect(const glm::vec3& origin, const glm::vec3& direction, RTCRayHit& rayHit) const {
-        setRay(rayHit.ray, origin, direction, std::numeric_limits<float>::infinity());
+    /// The nearest hit of the ray origin + t direction, t in (minDistance, inf), that `context`
+    /// lets through; false for a miss.
+    bool intersect(const glm::vec3& origin, const glm::vec3& direction, float minDistance,
+                   QueryContext& context, RTCRayHit& rayHit) const {
+        setRay(rayHit.ray, origin, direction, minDistance, std::numeric_limits<float>::infinity());
         rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        rtcIntersect1(scene_, &context, &rayHit);
+        rtcIntersect1(context.mode == QueryContext::Mode::BaseOf ? bases_ : scene_, &context.embree,
+                      &rayHit);
         return rayHit.hit.geomID != RTC_INVALID_GEOMETRY_ID;
     }
 
-    /// Whether anything lies on the ray origin + t direction, t in (0, inf).
+    /// The nearest base triangle of tiled object `object` on the ray origin + t direction, t in
+    /// (minDistance, maxDistance); false for none.
+    bool intersectBase(std::uint32_t object, const glm::vec3& origin, const glm::vec3& direction,
+                       float minDistance, float maxDistance, RTCRayHit& rayHit) const {
+        QueryContext context(QueryContext::Mode::BaseOf, direction, object);
+        setRay(rayHit.ray, origin, direction, minDistance, maxDistance);
+        rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(bases_, &context.embree, &rayHit);
+        return rayHit.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+
+    /// Whether detail or a bare surface lies on the ray origin + t direction, t in (0, inf).
     bool occluded(const glm::vec3& origin, const glm::vec3& direction) const {
         RTCRay ray;
-        setRay(ray, origin, direction, std::numeric_limits<float>::infinity());
-        RTCIntersectContext context;
-        rtcInitIntersectContext(&context);
-        rtcOccluded1(scene_, &context, &ray);
+        setRay(ray, origin, direction, 0.0f, std::numeric_limits<float>::infinity());
+        QueryContext context(QueryContext::Mode::Shadow, direction, QueryContext::kNoObject);
+        rtcOccluded1(scene_, &context.embree, &ray);
         return ray.tfar < 0.0f;  // Embree marks an occluded ray with tfar = -inf
     }
 
-    const GeometryInfo& info(unsigned geometryId) const { return infos_[geometryId]; }
+    const GeometryInfo& info(unsigned geometryId) const { return *infos_[geometryId]; }
     RTCGeometry geometry(unsigned geometryId) const { return rtcGetGeometry(scene_, geometryId); }
+    const GeometryInfo& baseInfo(unsigned geometryId) const { return *baseInfos_[geometryId]; }
     std::size_t allocatedBytes() const {
         return std::size_t(std::max<long long>(allocatedBytes_, 0));
     }
@@ -145,16 +204,68 @@ class WorldBvh {
         return geometry;
     }
 
-    void attach(RTCGeometry geometry, const GeometryInfo& info) {
-        rtcCommitGeometry(geometry);
-        const unsigned id = rtcAttachGeometry(scene_, geometry);
-        rtcReleaseGeometry(geometry);
-        check("attaching a geometry");
-        if (infos_.size() <= id) infos_.resize(id + 1);
-        infos_[id] = info;
+    RTCGeometry baseGeometry(const BaseMesh& mesh) {
+        RTCGeometry geometry = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+        auto* vertices = static_cast<float*>(
+            rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                    3 * sizeof(float), mesh.positions.size()));
+        auto* indices = static_cast<unsigned*>(
+            rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                    3 * sizeof(unsigned), mesh.triangles.size()));
+        check("allocating a base mesh's buffers");
+        std::copy_n(&mesh.positions.front().x, 3 * mesh.positions.size(), vertices);
+        std::copy_n(&mesh.triangles.front().x, 3 * mesh.triangles.size(), indices);
+        return geometry;
     }
 
-    static void setRay(RTCRay& ray, const glm::vec3& origin, const glm::vec3& direction,
+    void attach(RTCScene scene, RTCGeometry geometry, const GeometryInfo& info) {
+        auto owned = std::make_unique<GeometryInfo>(info);
+        rtcSetGeometryUserData(geometry, owned.get());
+        if (info.kind != GeometryInfo::Kind::Bare) {
+            rtcSetGeometryIntersectFilterFunction(geometry, &WorldBvh::filter);
+            rtcSetGeometryOccludedFilterFunction(geometry, &WorldBvh::filter);
+        }
+        rtcCommitGeometry(geometry);
+        const unsigned id = rtcAttachGeometry(scene, geometry);
+        rtcReleaseGeometry(geometry);
+        check("attaching a geometry");
+        auto& infos = scene == scene_ ? infos_ : baseInfos_;
+        if (infos.size() <= id) infos.resize(id + 1);
+        infos[id] = std::move(owned);
+    }
+
+    /// Embree's filter of detail and tiled-base hits: what the query's context lets through.
+    static void filter(const RTCFilterFunctionNArguments* arguments) {
+        const auto& info = *static_cast<const GeometryInfo*>(arguments->geometryUserPtr);
+        // QueryContext starts with Embree's context, which is what Embree hands back.
+        const auto& context = *reinterpret_cast<const QueryContext*>(arguments->context);
+        for (unsigned lane = 0; lane < arguments->N; ++lane) {
+            if (arguments->valid[lane] != -1) continue;
+            bool accepted = false;
+            switch (context.mode) {
+                case QueryContext::Mode::Shadow:
+                    accepted = info.kind == GeometryInfo::Kind::Detail;
+                    break;
+                case QueryContext::Mode::BaseOf:
+                    accepted = info.object == context.object;
+                    break;
+                case QueryContext::Mode::Camera:
+                    if (info.kind == GeometryInfo::Kind::Detail) {
+                        accepted = info.object != context.object;
+                    } else {  // a tiled base triangle: its back face alone
+                        const glm::uvec3& triangle =
+                            info.base
+                                ->triangles[RTCHitN_primID(arguments->hit, arguments->N, lane)];
+                        accepted = glm::dot(geometricNormal(*info.base, triangle),
+                                            context.direction) > 0.0f;
+                    }
+                    break;
+            }
+            if (!accepted) arguments->valid[lane] = 0;
+        }
+    }
+
+    static void setRay(RTCRay& ray, const glm::vec3& origin, const glm::vec3& direction, float near,
                        float far) {
         ray.org_x = origin.x;
         ray.org_y = origin.y;
@@ -162,7 +273,7 @@ class WorldBvh {
         ray.dir_x = direction.x;
         ray.dir_y = direction.y;
         ray.dir_z = direction.z;
-        ray.tnear = 0.0f;
+        ray.tnear = near;
         ray.tfar = far;
         ray.time = 0.0f;
         ray.mask = ~0u;
@@ -185,9 +296,224 @@ class WorldBvh {
 
     RTCDevice device_ = nullptr;
     RTCScene scene_ = nullptr;
-    std::vector<GeometryInfo> infos_;  ///< by Embree geometry id
+    RTCScene bases_ = nullptr;
+    std::vector<std::unique_ptr<GeometryInfo>> infos_;      ///< by Embree geometry id in scene_
+    std::vector<std::unique_ptr<GeometryInfo>> baseInfos_;  ///< the same in bases_
     std::atomic<long long> allocatedBytes_{0};
 };
+
+/// A tiled object's shell maps and exact detail, for refining hits on its world-space mesh.
+class ObjectShell {
+  public:
+    static constexpr std::uint32_t kNoNeighbour = ~0u;
+
+    /// Precondition: the object has a tile.
+    explicit ObjectShell(const SceneObject& object)
+        : analytic_(object.material.analyticDistance),
+          tile_(object.material.tile.get()),
+          depthTexels_(object.material.tile->size().depth),
+          solidFloor_(object.material.floor == Floor::Solid) {
+        const BaseMesh& mesh = object.mesh;
+        const Size3& size = tile_->size();
+        // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
+        std::map<std::array<float, 3>, std::uint32_t> weld;
+        std::vector<std::uint32_t> surfaceVertex(mesh.positions.size());
+        for (std::size_t vertex = 0; vertex < mesh.positions.size(); ++vertex) {
+            const glm::vec3& p = mesh.positions[vertex];
+            surfaceVertex[vertex] =
+                weld.try_emplace({p.x, p.y, p.z}, std::uint32_t(weld.size())).first->second;
+        }
+        std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<std::uint32_t>> edges;
+        prisms_.reserve(mesh.triangles.size());
+        for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
+            const glm::uvec3& corners = mesh.triangles[t];
+            glm::vec3 positions[3], normals[3];
+            glm::vec2 uvs[3];
+            for (int corner = 0; corner < 3; ++corner) {
+                positions[corner] = mesh.positions[corners[corner]];
+                normals[corner] = mesh.normals[corners[corner]];
+                uvs[corner] = mesh.uvs[corners[corner]];
+            }
+            prisms_.push_back(ShellPrism::make(positions, normals, uvs, object.material.uvScale,
+                                               size.width, size.height, size.depth,
+                                               object.material.depthWorld));
+            for (int corner = 0; corner < 3; ++corner) {
+                const std::uint32_t from = surfaceVertex[corners[(corner + 1) % 3]];
+                const std::uint32_t to = surfaceVertex[corners[(corner + 2) % 3]];
+                edges[{from, to}].push_back(t * 3 + std::uint32_t(corner));
+            }
+        }
+        // The side opposite corner c of triangle t is shared with the one triangle that has the
+        // same edge reversed (a manifold, consistently oriented edge); none at a border.
+        neighbours_.assign(mesh.triangles.size(), {kNoNeighbour, kNoNeighbour, kNoNeighbour});
+        for (const auto& [edge, sides] : edges) {
+            if (sides.size() != 1) continue;
+            const auto reversed = edges.find({edge.second, edge.first});
+            if (reversed == edges.end() || reversed->second.size() != 1) continue;
+            neighbours_[sides[0] / 3][sides[0] % 3] = reversed->second[0] / 3;
+        }
+    }
+
+    const ShellPrism& prism(std::uint32_t triangle) const { return prisms_[triangle]; }
+
+    /// The clipped detail (the surface the world mesh approximates) at a texel position, texels.
+    double distanceTexels(const glm::dvec3& texel) const {
+        return clippedDetailTexels(detailTexels(texel), texel.z, depthTexels_, solidFloor_);
+    }
+
+    /// The gradient of distanceTexels in texel space: central differences of the analytic
+    /// distance (AnalyticFilter's step), else the tile's trilinear gradient, or the floor's or
+    /// top's where the clipping decides.
+    glm::dvec3 gradientTexels(const glm::dvec3& texel) const {
+        if (analytic_) {
+            const double h = AnalyticFilter::kGradientStepTexels;
+            const auto difference = [&](const glm::dvec3& step) {
+                return (distanceTexels(texel + step) - distanceTexels(texel - step)) / (2.0 * h);
+            };
+            return {difference({h, 0.0, 0.0}), difference({0.0, h, 0.0}),
+                    difference({0.0, 0.0, h})};
+        }
+        const double detail = detailTexels(texel);
+        const double clipped = clippedDetailTexels(detail, texel.z, depthTexels_, solidFloor_);
+        if (clipped == detail)
+            return glm::dvec3(TrilinearFilter(*tile_).gradient(glm::vec3(texel)));
+        // The floor's slab bottom faces down; the floor, the open floor's cut and the top face up.
+        return {0.0, 0.0, clipped == -(texel.z + kFloorSlabTexels) ? -1.0 : 1.0};
+    }
+
+    /// The prism point of world position `world`, starting from `triangle` and `point` (a guess)
+    /// and moving to the neighbouring triangle while the point lies outside the current one.
+    /// False when the map cannot be inverted there or the point lies beyond an open border.
+    bool locate(const glm::dvec3& world, std::uint32_t& triangle, PrismPoint& point) const {
+        constexpr int kMaxMoves = 8;
+        constexpr double kInside = 1e-9;  ///< barycentric slack: a point on an edge is inside
+        for (int move = 0; move < kMaxMoves; ++move) {
+            const ShellPrism& shell = prisms_[triangle];
+            ShellPrism::Jacobian jacobian;
+            if (!shell.invert(world - shell.corner0, point, jacobian)) return false;
+            const double weights[3] = {point.b0(), point.b1, point.b2};
+            const int corner = int(std::min_element(weights, weights + 3) - weights);
+            if (weights[corner] >= -kInside) return true;
+            const std::uint32_t next = neighbours_[triangle][corner];
+            if (next == kNoNeighbour) return false;
+            triangle = next;
+            point = {1.0 / 3.0, 1.0 / 3.0, point.depthWorld};
+        }
+        return false;
+    }
+
+  private:
+    double detailTexels(const glm::dvec3& texel) const {
+        return analytic_ ? analytic_(texel)
+                         : double(TrilinearFilter(*tile_).distanceTexels(glm::vec3(texel)));
+    }
+
+    DetailDistanceFunction analytic_;
+    const Tile* tile_;
+    double depthTexels_;
+    bool solidFloor_;
+    std::vector<ShellPrism> prisms_;                        ///< by base triangle
+    std::vector<std::array<std::uint32_t, 3>> neighbours_;  ///< across the side opposite a corner
+};
+
+/// A hit on the exact detail surface, refined from a hit on its world mesh (refineHit).
+struct ExactHit {
+    double distanceWorld = 0.0;
+    std::uint32_t triangle = 0;  ///< the base triangle whose prism holds it
+    PrismPoint point;
+    glm::dvec3 texel{0.0};
+    glm::dvec3 normal{0.0};  ///< unit world normal of the detail, not yet facing the ray
+};
+
+/// Moves a hit on an object's world mesh (or level set) at `meshDistanceWorld` along the unit
+/// ray onto the exact detail surface: the first zero of the detail's texel distance d(t) of the
+/// ray's point mapped into the shell within 1.5 texels (along the ray) of the mesh hit, which is
+/// a fraction of a texel off. From the start of that bracket: sphere-tracing steps (t += d /
+/// |dtexel/dt|), stretched toward the secant's root once close, until d changes sign or
+/// |d| < 1e-4 texel; then regula falsi (Illinois) on the sign change. Starting ahead of the hit
+/// and marching forward, the hits of two traced surfaces a little apart (the mesh and its level
+/// set) end on the same zero. `triangle` and `point` locate the mesh hit (a guess). False, with
+/// `exact` undefined, when the bracket's start lies in the detail, no zero is found in the
+/// bracket within 96 steps, or the ray leaves the shell's chart (an open border).
+bool refineHit(const ObjectShell& shell, const glm::dvec3& origin, const glm::dvec3& direction,
+               double meshDistanceWorld, std::uint32_t triangle, PrismPoint point,
+               ExactHit& exact) {
+    constexpr double kConvergedTexels = 1e-4;
+    constexpr double kBracketTexels = 1.5;
+    /// Below this distance (texels) a step may go up to kMaxStretch sphere steps, toward the
+    /// secant's root: sphere steps alone crawl where the ray meets the surface at a low angle.
+    constexpr double kNearTexels = 0.05;
+    constexpr double kMaxStretch = 4.0;
+    constexpr int kMaxSteps = 96;
+    struct Sample {
+        double distanceWorld = 0.0, distanceTexels = 0.0, texelsPerWorld = 0.0;
+    };
+    const auto evaluate = [&](double distanceWorld, Sample& sample) {
+        if (!shell.locate(origin + distanceWorld * direction, triangle, point)) return false;
+        const ShellPrism& prism = shell.prism(triangle);
+        const ShellPrism::Jacobian jacobian = prism.jacobianAt(point);
+        sample = {distanceWorld, shell.distanceTexels(prism.texelAt(point)),
+                  glm::length(prism.texelDelta(jacobian.solve(direction)))};
+        return std::isfinite(sample.distanceTexels) && sample.texelsPerWorld > 0.0 &&
+               std::isfinite(sample.texelsPerWorld);
+    };
+    Sample current;
+    if (!evaluate(meshDistanceWorld, current)) return false;
+    const double reachWorld = kBracketTexels / current.texelsPerWorld;
+    const double low = meshDistanceWorld - reachWorld, high = meshDistanceWorld + reachWorld;
+    if (!evaluate(std::max(low, 0.0), current) || !(current.distanceTexels > 0.0)) return false;
+    Sample outside = current, inside, previous;
+    bool bracketed = false, hasPrevious = false;
+    int lastSide = 0;  ///< +1: the last step moved the outside end, -1: the inside end
+    for (int step = 0;; ++step) {
+        if (std::abs(current.distanceTexels) < kConvergedTexels) break;
+        if (step == kMaxSteps) return false;
+        double next = 0.0;
+        if (bracketed) {
+            next = outside.distanceWorld - outside.distanceTexels *
+                                               (inside.distanceWorld - outside.distanceWorld) /
+                                               (inside.distanceTexels - outside.distanceTexels);
+        } else {
+            const double sphereStep = current.distanceTexels / current.texelsPerWorld;
+            next = current.distanceWorld + sphereStep;
+            if (hasPrevious && current.distanceTexels < kNearTexels &&
+                current.distanceTexels < previous.distanceTexels) {
+                const double secant =
+                    current.distanceWorld - current.distanceTexels *
+                                                (current.distanceWorld - previous.distanceWorld) /
+                                                (current.distanceTexels - previous.distanceTexels);
+                next = std::clamp(secant, next, current.distanceWorld + kMaxStretch * sphereStep);
+            }
+            if (!(next <= high)) return false;
+        }
+        previous = current;
+        hasPrevious = true;
+        if (!evaluate(next, current)) return false;
+        // Illinois: an end kept twice in a row counts half, so the false position moves on.
+        if (current.distanceTexels > 0.0) {
+            if (bracketed && lastSide == 1) inside.distanceTexels *= 0.5;
+            outside = current;
+            lastSide = 1;
+        } else {
+            if (bracketed && lastSide == -1) outside.distanceTexels *= 0.5;
+            inside = current;
+            lastSide = -1;
+            bracketed = true;
+        }
+    }
+    const ShellPrism& prism = shell.prism(triangle);
+    exact.distanceWorld = current.distanceWorld;
+    exact.triangle = triangle;
+    exact.point = point;
+    exact.texel = prism.texelAt(point);
+    // n ~ J^-T (d texel / d prism)^T grad d: the gradient of d in world space.
+    const glm::dvec3 normal = prism.jacobianAt(point).solveTransposed(
+        prism.texelGradientToPrism(shell.gradientTexels(exact.texel)));
+    const double length = glm::length(normal);
+    if (!(length > 0.0) || !std::isfinite(length)) return false;
+    exact.normal = normal / length;
+    return true;
+}
 
 /// A camera ray's hit, with what shading needs.
 struct WorldHit {
@@ -199,26 +525,34 @@ struct WorldHit {
     glm::vec2 uv{0.0f};          ///< base-mesh uv
     float texelZ = 0.0f;         ///< texel height in the shell (detail only)
     bool onDetail = false;
-    bool frontFacing = true;  ///< the base triangle faces the ray
+    bool frontFacing = true;  ///< false: a base triangle met from behind (its back face)
+    /// Detail hits: the base triangle whose prism holds the hit and the hit's point in it (the
+    /// mesh's interpolation until refined).
+    std::uint32_t baseTriangle = 0;
+    PrismPoint prismPoint;
+    bool refined = false;  ///< on the exact detail surface (refineHit), else on its mesh
+    /// Where shadow rays start from, off the traced surface (the world mesh or the level set)
+    /// along its normal: the exact surface may lie a fraction of a texel inside that mesh.
+    glm::vec3 shadowFrom{0.0f};
+    glm::vec3 shadowNormal{0.0f};
+    /// A ray that met an object's detail from below its shell (the underside of a solid floor)
+    /// ignores that object's detail from there on, as the renderer, which enters shells only
+    /// through their tops, never sees it: the object, or QueryContext::kNoObject.
+    std::uint32_t ignoredDetailOf = QueryContext::kNoObject;
+    float ignoredDetailFromWorld = 0.0f;
 };
 
 /// Barycentric weights of `uv` in a base triangle's uv corners (linear, also outside it).
-glm::vec3 uvBarycentrics(const BaseMesh& mesh, const glm::uvec3& triangle, const glm::vec2& uv) {
+glm::dvec3 uvBarycentrics(const BaseMesh& mesh, const glm::uvec3& triangle, const glm::dvec2& uv) {
     const glm::dvec2 c0(mesh.uvs[triangle.x]), c1(mesh.uvs[triangle.y]), c2(mesh.uvs[triangle.z]);
     const auto cross2 = [](const glm::dvec2& a, const glm::dvec2& b) {
         return a.x * b.y - a.y * b.x;
     };
     const double area = cross2(c1 - c0, c2 - c0);
-    if (area == 0.0) return glm::vec3(1.0f / 3.0f);
-    const glm::dvec2 p(uv);
-    const double b1 = cross2(p - c0, c2 - c0) / area;
-    const double b2 = cross2(c1 - c0, p - c0) / area;
-    return glm::vec3(float(1.0 - b1 - b2), float(b1), float(b2));
-}
-
-glm::vec3 geometricNormal(const BaseMesh& mesh, const glm::uvec3& triangle) {
-    return glm::cross(mesh.positions[triangle.y] - mesh.positions[triangle.x],
-                      mesh.positions[triangle.z] - mesh.positions[triangle.x]);
+    if (area == 0.0) return glm::dvec3(1.0 / 3.0);
+    const double b1 = cross2(uv - c0, c2 - c0) / area;
+    const double b2 = cross2(c1 - c0, uv - c0) / area;
+    return {1.0 - b1 - b2, b1, b2};
 }
 
 /// The unit normal interpolated from a base triangle's vertex normals.
@@ -258,6 +592,11 @@ class WorldShader {
     WorldShader(const Scene& scene, const WorldBvh& bvh, const std::vector<DisplacedMesh>& meshes,
                 int shadowSamples)
         : scene_(scene), bvh_(bvh), meshes_(meshes), disk_(diskSamples(shadowSamples)) {
+        shells_.resize(scene.objects.size());
+        for (std::size_t index = 0; index < scene.objects.size(); ++index) {
+            if (scene.objects[index].material.tile)
+                shells_[index] = std::make_unique<const ObjectShell>(scene.objects[index]);
+        }
         for (const DirectionalLight& light : scene.lights) {
             const glm::vec3 toLight = -glm::normalize(light.direction);
             toLights_.push_back(toLight);
@@ -279,48 +618,143 @@ class WorldShader {
         sceneOffsetWorld_ = 1e-5f * glm::length(high - low);
     }
 
-    /// The nearest hit along the ray, from the BVH.
-    bool trace(const Ray& ray, WorldHit& hit) const {
-        RTCRayHit rayHit;
-        if (!bvh_.intersect(ray.origin, ray.direction, rayHit)) return false;
-        const GeometryInfo& info = bvh_.info(rayHit.hit.geomID);
-        const SceneObject& object = scene_.objects[info.object];
-        hit.object = info.object;
-        hit.distanceWorld = rayHit.ray.tfar;
-        hit.position = ray.origin + ray.direction * rayHit.ray.tfar;
-        glm::vec3 normal(rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z);
-        normal = glm::normalize(normal);
-        if (glm::dot(normal, ray.direction) > 0.0f) normal = -normal;
-        hit.normal = normal;
-        hit.onDetail = info.detail != nullptr;
-        const float u = rayHit.hit.u, v = rayHit.hit.v;
-        if (!hit.onDetail) {
-            const glm::uvec3& triangle = object.mesh.triangles[rayHit.hit.primID];
-            const glm::vec3 weights(1.0f - u - v, u, v);
-            hit.uv = weights.x * object.mesh.uvs[triangle.x] +
-                     weights.y * object.mesh.uvs[triangle.y] +
-                     weights.z * object.mesh.uvs[triangle.z];
-            hit.baseNormal = interpolatedNormal(object.mesh, triangle, weights);
-            hit.normal = hit.baseNormal;  // the renderer shades bare surfaces so
-            hit.frontFacing =
-                glm::dot(geometricNormal(object.mesh, triangle), ray.direction) < 0.0f;
-            hit.texelZ = 0.0f;
+    /// The nearest hit along the ray as the renderer sees it, from the BVH: detail, a bare
+    /// surface, or a tiled base triangle from behind (unless the ray is leaving a shell through
+    /// its top; see wayOut). Detail hits are not refined yet (refine).
+    bool trace(const Ray& ray, WorldHit& hit, std::uint64_t& backFaceStops) const {
+        // Each pass goes past one hit that does not count; a few are plenty.
+        constexpr int kMaxPasses = 16;
+        QueryContext context(QueryContext::Mode::Camera, ray.direction, QueryContext::kNoObject);
+        float from = 0.0f;
+        float ignoredFromWorld = 0.0f;
+        for (int pass = 0; pass < kMaxPasses; ++pass) {
+            RTCRayHit rayHit;
+            if (!bvh_.intersect(ray.origin, ray.direction, from, context, rayHit)) return false;
+            const GeometryInfo& info = bvh_.info(rayHit.hit.geomID);
+            const SceneObject& object = scene_.objects[info.object];
+            const float distance = rayHit.ray.tfar;
+            const float u = rayHit.hit.u, v = rayHit.hit.v;
+            if (info.kind != GeometryInfo::Kind::Detail) {
+                const glm::uvec3& triangle = object.mesh.triangles[rayHit.hit.primID];
+                const bool backFace = info.kind == GeometryInfo::Kind::TiledBase;
+                if (backFace && info.object != context.object &&
+                    wayOut(ray, info.object, rayHit.hit.primID, distance)) {
+                    from = std::nextafter(distance, std::numeric_limits<float>::infinity());
+                    continue;
+                }
+                hit = WorldHit{};
+                hit.object = info.object;
+                hit.distanceWorld = distance;
+                hit.position = ray.origin + ray.direction * distance;
+                const glm::vec3 weights(1.0f - u - v, u, v);
+                hit.uv = weights.x * object.mesh.uvs[triangle.x] +
+                         weights.y * object.mesh.uvs[triangle.y] +
+                         weights.z * object.mesh.uvs[triangle.z];
+                hit.baseNormal = interpolatedNormal(object.mesh, triangle, weights);
+                hit.normal = hit.baseNormal;  // the renderer shades bare surfaces so
+                hit.frontFacing =
+                    glm::dot(geometricNormal(object.mesh, triangle), ray.direction) < 0.0f;
+                hit.shadowFrom = hit.position;
+                hit.shadowNormal = hit.frontFacing ? hit.baseNormal : -hit.baseNormal;
+                if (backFace) {
+                    ++backFaceStops;
+                    if (context.object != QueryContext::kNoObject) {
+                        hit.ignoredDetailOf = context.object;
+                        hit.ignoredDetailFromWorld = ignoredFromWorld;
+                    }
+                }
+                return true;
+            }
+            float texel[3];
+            rtcInterpolate0(bvh_.geometry(rayHit.hit.geomID), rayHit.hit.primID, u, v,
+                            RTC_BUFFER_TYPE_VERTEX_ATTRIBUTE, 0, texel, 3);
+            const Material& material = object.material;
+            if (material.floor == Floor::Solid && texel[2] < -0.5 * kFloorSlabTexels) {
+                // The solid floor's slab from below: the ray came from inside the object.
+                if (context.object == QueryContext::kNoObject) ignoredFromWorld = distance;
+                context.object = info.object;
+                from = std::nextafter(distance, std::numeric_limits<float>::infinity());
+                continue;
+            }
+            hit = WorldHit{};
+            hit.object = info.object;
+            hit.distanceWorld = distance;
+            hit.position = ray.origin + ray.direction * distance;
+            glm::vec3 normal =
+                glm::normalize(glm::vec3(rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z));
+            if (glm::dot(normal, ray.direction) > 0.0f) normal = -normal;
+            hit.normal = normal;
+            hit.onDetail = true;
+            const Size3 tile = material.tile->size();
+            hit.uv = glm::vec2(texel[0] / (material.uvScale.x * float(tile.width)),
+                               texel[1] / (material.uvScale.y * float(tile.height)));
+            hit.texelZ = texel[2];
+            hit.baseTriangle = info.quads ? info.detail->quadBase[rayHit.hit.primID]
+                                          : info.detail->triangleBase[rayHit.hit.primID];
+            const glm::uvec3& triangle = object.mesh.triangles[hit.baseTriangle];
+            const glm::dvec3 weights = uvBarycentrics(object.mesh, triangle, glm::dvec2(hit.uv));
+            hit.baseNormal = interpolatedNormal(object.mesh, triangle, glm::vec3(weights));
+            hit.prismPoint = {
+                weights.y, weights.z,
+                double(material.depthWorld) * (1.0 - double(texel[2]) / double(tile.depth))};
+            hit.shadowFrom = hit.position;
+            hit.shadowNormal = hit.normal;
             return true;
         }
-        float texel[3];
-        rtcInterpolate0(bvh_.geometry(rayHit.hit.geomID), rayHit.hit.primID, u, v,
-                        RTC_BUFFER_TYPE_VERTEX_ATTRIBUTE, 0, texel, 3);
-        const Material& material = object.material;
-        const Size3 tile = material.tile->size();
-        hit.uv = glm::vec2(texel[0] / (material.uvScale.x * float(tile.width)),
-                           texel[1] / (material.uvScale.y * float(tile.height)));
-        hit.texelZ = texel[2];
-        const std::uint32_t base = info.quads ? info.detail->quadBase[rayHit.hit.primID]
-                                              : info.detail->triangleBase[rayHit.hit.primID];
-        const glm::uvec3& triangle = object.mesh.triangles[base];
-        hit.baseNormal = interpolatedNormal(object.mesh, triangle,
-                                            uvBarycentrics(object.mesh, triangle, hit.uv));
-        hit.frontFacing = glm::dot(geometricNormal(object.mesh, triangle), ray.direction) < 0.0f;
+        return false;
+    }
+
+    /// Whether a ray that meets tiled object `object`'s base triangle from behind at
+    /// `distanceWorld` is leaving the object's shell through its top, having come in through a
+    /// front face nearer without meeting the detail (the renderer's curved march goes on there):
+    /// the nearest of the object's base triangles back along the ray faces it. A ray that left
+    /// the shell through an open floor and came back up from inside is not told apart.
+    bool wayOut(const Ray& ray, std::uint32_t object, std::uint32_t triangle,
+                float distanceWorld) const {
+        const glm::vec3 at = ray.origin + ray.direction * distanceWorld;
+        // Past the base triangle the ray leaves by (a thousandth of a texel; at a low angle the
+        // rounding of `at` can put it farther, so that triangle is passed over too).
+        float fromWorld = 1e-3f * float(meshes_[object].stats.texelSizeWorld);
+        const BaseMesh& mesh = scene_.objects[object].mesh;
+        RTCRayHit rayHit;
+        for (int pass = 0; pass < 4; ++pass) {
+            if (!bvh_.intersectBase(object, at, -ray.direction, fromWorld, distanceWorld, rayHit))
+                return false;
+            if (rayHit.hit.primID != triangle) {
+                return glm::dot(geometricNormal(mesh, mesh.triangles[rayHit.hit.primID]),
+                                ray.direction) < 0.0f;
+            }
+            fromWorld = std::nextafter(rayHit.ray.tfar, std::numeric_limits<float>::infinity());
+        }
+        return false;
+    }
+
+    /// Moves a detail hit onto the exact detail surface (refineHit), from its distance along
+    /// the ray, base triangle and prism point; its position, normal, uv, texel height and base
+    /// normal follow. False (the hit unchanged) when the refinement fails.
+    bool refine(const Ray& ray, WorldHit& hit) const {
+        const SceneObject& object = scene_.objects[hit.object];
+        ExactHit exact;
+        if (!refineHit(*shells_[hit.object], glm::dvec3(ray.origin), glm::dvec3(ray.direction),
+                       double(hit.distanceWorld), hit.baseTriangle, hit.prismPoint, exact)) {
+            return false;
+        }
+        hit.refined = true;
+        hit.distanceWorld = float(exact.distanceWorld);
+        hit.position =
+            glm::vec3(glm::dvec3(ray.origin) + exact.distanceWorld * glm::dvec3(ray.direction));
+        glm::vec3 normal(exact.normal);
+        if (glm::dot(normal, ray.direction) > 0.0f) normal = -normal;
+        hit.normal = normal;
+        hit.baseTriangle = exact.triangle;
+        hit.prismPoint = exact.point;
+        hit.texelZ = float(exact.texel.z);
+        const glm::uvec3& triangle = object.mesh.triangles[exact.triangle];
+        const glm::vec3 weights(float(exact.point.b0()), float(exact.point.b1),
+                                float(exact.point.b2));
+        hit.uv = weights.x * object.mesh.uvs[triangle.x] + weights.y * object.mesh.uvs[triangle.y] +
+                 weights.z * object.mesh.uvs[triangle.z];
+        hit.baseNormal = interpolatedNormal(object.mesh, triangle, weights);
         return true;
     }
 
@@ -338,7 +772,7 @@ class WorldShader {
             offsetWorld =
                 std::max(offsetWorld, 0.02f * float(meshes_[hit.object].stats.texelSizeWorld));
         }
-        const glm::vec3 origin = hit.position + hit.normal * offsetWorld;
+        const glm::vec3 origin = hit.shadowFrom + hit.shadowNormal * offsetWorld;
         const float cosRotation = std::cos(rotation), sinRotation = std::sin(rotation);
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const glm::vec3& toLight = toLights_[index];
@@ -370,6 +804,7 @@ class WorldShader {
     const Scene& scene_;
     const WorldBvh& bvh_;
     const std::vector<DisplacedMesh>& meshes_;  ///< by object (empty for bare objects)
+    std::vector<std::unique_ptr<const ObjectShell>> shells_;  ///< by object (null if bare)
     std::vector<glm::vec2> disk_;
     std::vector<glm::vec3> toLights_;
     std::vector<float> tanHalfAngles_;
@@ -444,8 +879,9 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     for (std::size_t index = 0; index < scene.objects.size(); ++index) {
         if (scene.objects[index].material.tile) {
             bvh.addDetail(std::uint32_t(index), meshes[index], vertexCounts[index]);
+            bvh.addTiledBase(std::uint32_t(index), scene.objects[index].mesh);
         } else {
-            bvh.addBase(std::uint32_t(index), scene.objects[index].mesh);
+            bvh.addBare(std::uint32_t(index), scene.objects[index].mesh);
         }
     }
     bvh.commit();
@@ -462,7 +898,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     if (options.outputAovs) {
         render.aovs.emplace(RenderAovs::blank(options.width, options.height));
     }
-    std::atomic<std::uint64_t> hits{0};
+    std::atomic<std::uint64_t> hits{0}, refined{0}, unrefined{0}, backFaces{0};
     constexpr int kBlock = 16;
     constexpr int kBandRows = 64;
     for (int bandStart = 0; bandStart < options.height; bandStart += kBandRows) {
@@ -470,15 +906,19 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
         tbb::parallel_for(
             tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
             [&](const tbb::blocked_range2d<int>& block) {
-                std::uint64_t localHits = 0;
+                std::uint64_t localHits = 0, localRefined = 0, localUnrefined = 0,
+                              localBackFaces = 0;
                 for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
                     for (int x = block.cols().begin(); x != block.cols().end(); ++x) {
                         const Ray ray = projection.ray(float(x) + 0.5f, float(y) + 0.5f);
                         WorldHit hit;
-                        bool found = shader.trace(ray, hit);
+                        bool found = shader.trace(ray, hit, localBackFaces);
+                        bool refinable = found && hit.onDetail;
                         if (options.method == WorldReferenceMethod::LevelSet) {
                             // Hits and normals from the level sets where one is nearer than
-                            // the BVH's bare surfaces; the rest from the BVH's hit.
+                            // the BVH's bare surfaces and back faces; the rest from the BVH's
+                            // hit. A level set's hit is refined from the BVH's base triangle when
+                            // the BVH hit the same object's detail.
                             double nearest = found && !hit.onDetail
                                                  ? double(hit.distanceWorld)
                                                  : std::numeric_limits<double>::infinity();
@@ -487,11 +927,18 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                             for (std::size_t index = 0; index < levelSets.size(); ++index) {
                                 double distance = 0.0;
                                 glm::dvec3 normal(0.0);
+                                // Detail the BVH's ray ignored (seen from below its shell), with
+                                // a margin of two texels for the two surfaces' difference.
+                                const double ignoredFrom =
+                                    found && hit.ignoredDetailOf == index
+                                        ? double(hit.ignoredDetailFromWorld) -
+                                              2.0 * meshes[index].stats.texelSizeWorld
+                                        : std::numeric_limits<double>::infinity();
                                 if (levelSets[index] &&
                                     levelSets[index]->intersect(
                                         glm::dvec3(ray.origin), glm::dvec3(ray.direction),
                                         std::numeric_limits<double>::max(), distance, normal) &&
-                                    distance < nearest) {
+                                    distance < nearest && distance < ignoredFrom) {
                                     nearest = distance;
                                     levelSetNormal = normal;
                                     levelSetObject = std::uint32_t(index);
@@ -506,15 +953,36 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                                     hit.texelZ = float(
                                         scene.objects[hit.object].material.tile->size().depth);
                                     hit.baseNormal = glm::vec3(levelSetNormal);
+                                    refinable = false;
+                                } else {
+                                    refinable = hit.onDetail;
                                 }
                                 found = true;
+                                // Shadow rays are traced through the BVH: from the mesh's hit
+                                // when it is the level set's (within half a texel), else from
+                                // the level set's.
+                                const bool meshHitNear =
+                                    refinable && std::abs(nearest - double(hit.distanceWorld)) <
+                                                     0.5 * meshes[hit.object].stats.texelSizeWorld;
                                 hit.distanceWorld = float(nearest);
                                 hit.position = ray.origin + ray.direction * hit.distanceWorld;
                                 hit.normal = glm::vec3(levelSetNormal);
                                 if (glm::dot(hit.normal, ray.direction) > 0.0f)
                                     hit.normal = -hit.normal;
+                                if (!meshHitNear) {
+                                    hit.shadowFrom = hit.position;
+                                    hit.shadowNormal = hit.normal;
+                                }
                             } else if (found && hit.onDetail) {
                                 found = false;  // the level sets saw no detail here
+                                refinable = false;
+                            }
+                        }
+                        if (refinable) {
+                            if (shader.refine(ray, hit)) {
+                                ++localRefined;
+                            } else {
+                                ++localUnrefined;
                             }
                         }
                         if (!found) {
@@ -529,6 +997,9 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                     }
                 }
                 hits += localHits;
+                refined += localRefined;
+                unrefined += localUnrefined;
+                backFaces += localBackFaces;
             });
         if (progress)
             progress(kBuildShare + (1.0 - kBuildShare) * double(bandEnd) / options.height);
@@ -537,6 +1008,9 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     render.stats.rays = std::uint64_t(options.width) * std::uint64_t(options.height);
     render.stats.baseHits = hits;
     render.stats.converged = hits;
+    result.refinedHits = refined;
+    result.unrefinedHits = unrefined;
+    result.backFaceStops = backFaces;
     return result;
 }
 

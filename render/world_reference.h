@@ -7,13 +7,23 @@
 ///
 /// Two ways to trace the same mesh: a BVH (Embree 3, triangles and quads in float; the
 /// default), or an OpenVDB level set of it traced with OpenVDB's level-set ray intersector
-/// (slower, the ground truth the BVH is validated against). Both shade as the renderer does
+/// (slower, the ground truth the BVH is validated against). Either hit, a fraction of a texel
+/// off the detail (the mesh is extracted at one sample per texel), is then refined in double
+/// precision along the ray onto the exact detail surface: the first zero of the detail's
+/// distance (analytic, else the tile's trilinear one, clipped to the shell as the mesh is) at the
+/// ray's point mapped into the shell (common/shell_map.h), within 1.5 texels of the hit, to 1e-4
+/// texel; its normal is that distance's gradient carried to world space by the map's Jacobian.
+/// As in the renderer's tracer (SceneTracer), a tiled object's base triangle met from behind
+/// stops a camera ray (the inside of an open mesh), unless the ray is leaving the shell through
+/// its top after entering it through a front face; detail met from below its shell (the
+/// underside of a solid floor) is passed through. Both shade as the renderer does
 /// (render/shading.h): sky colour for misses, ambient with the renderer's openness term from the
 /// hit's texel height, Lambert + Blinn-Phong, albedo at the hit's base-mesh uv, dim back faces,
 /// and soft shadows from rays toward each light through the BVH of every object.
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "common/progress.h"
@@ -40,7 +50,8 @@ struct WorldReferenceOptions {
 
 struct WorldReferenceResult {
     /// The image, shaded as the file note says. AOVs, when requested: depth and normal as
-    /// RenderAovs holds them; texelScale is 0 everywhere (compareRenders then takes the other
+    /// RenderAovs holds them (a back face's normal is its base normal, unflipped, as the
+    /// renderer's); texelScale is 0 everywhere (compareRenders then takes the other
     /// render's); the other AOVs are black. Stats: rays and baseHits (rays that hit anything),
     /// converged = baseHits.
     RenderResult render;
@@ -51,6 +62,12 @@ struct WorldReferenceResult {
     double bvhSeconds = 0.0;       ///< building the BVH
     double traceSeconds = 0.0;     ///< tracing and shading the pixels
     std::size_t bvhBytes = 0;      ///< memory Embree allocated for the BVH and its buffers
+    /// Camera rays whose detail hit was moved onto the exact detail surface, and those whose hit
+    /// stayed on the traced mesh or level set (the refinement left its bracket, did not
+    /// converge, or had no base triangle to start from).
+    std::uint64_t refinedHits = 0;
+    std::uint64_t unrefinedHits = 0;
+    std::uint64_t backFaceStops = 0;  ///< camera rays stopped by a tiled base triangle's back face
 };
 
 /// Renders `scene` against world-space meshes of its tiled objects: one camera ray per pixel

@@ -133,8 +133,8 @@ class TileLattice {
   public:
     /// Lattice samples below z = 0 and above z = D (texels): the field is positive there.
     static constexpr int kMarginTexels = 2;
-    /// The solid floor's slab ends between lattice samples, so a sample inside it is negative.
-    static constexpr double kFloorSlabTexels = 1.5;
+    // The solid floor's slab (kFloorSlabTexels) ends between lattice samples, so a sample
+    // inside it is negative.
 
     TileLattice(const DetailDistanceFunction& detail, const Size3& tile, int samplesPerTexel,
                 bool solidFloor)
@@ -249,11 +249,8 @@ class TileLattice {
         return std::size_t(i + countX_ * (j + countY_ * k));
     }
 
-    /// The detail with the floor (a slab below z = 0, or open) and the top (z = D).
     double clipped(double detail, double z) const {
-        const double field = solidFloor_ ? std::max(std::min(detail, z), -(z + kFloorSlabTexels))
-                                         : std::max(detail, -z);
-        return std::max(field, z - depthTexels_);
+        return clippedDetailTexels(detail, z, depthTexels_, solidFloor_);
     }
 
     double spacing_;

@@ -19,6 +19,7 @@
 /// border: the detail's cross-section there is closed by a wall, so the surface is closed.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <glm/vec2.hpp>
@@ -80,6 +81,21 @@ struct DisplacedMesh {
 /// Exact (or at least non-overestimating) signed distance of the detail in texels at a
 /// texel-space position, periodic in x and y; called concurrently from several threads.
 using DetailDistanceFunction = std::function<double(const glm::dvec3& texelPosition)>;
+
+/// The solid floor's slab below z = 0, texels: it closes the floor into a solid of the mesh.
+inline constexpr double kFloorSlabTexels = 1.5;
+
+/// The detail distance `detailTexels` at texel height `zTexels` with the shell's clipping applied,
+/// the field whose zero set buildDisplacedMesh extracts: the top (z = D of a shell `depthTexels`
+/// deep) caps it, and the floor is either solid (a slab kFloorSlabTexels thick below z = 0) or
+/// open (nothing below z = 0).
+inline double clippedDetailTexels(double detailTexels, double zTexels, double depthTexels,
+                                  bool solidFloor) {
+    const double field =
+        solidFloor ? std::max(std::min(detailTexels, zTexels), -(zTexels + kFloorSlabTexels))
+                   : std::max(detailTexels, -zTexels);
+    return std::max(field, zTexels - depthTexels);
+}
 
 /// Builds the world-space surface of `detail` (tile size `tile`) mapped through `shell`, as the
 /// file note describes. Deterministic for any thread count.
