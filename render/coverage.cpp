@@ -271,15 +271,9 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     for (std::uint32_t shell = 0; shell < shellCount; ++shell) {
         glm::vec3 top[3], bottom[3];
         tracer.shellCorners(shell, top, bottom);
-        // A camera ray enters a shell only through a front-facing top (the tracer's own test is
-        // dot(geometric normal, direction) < 0); keep the ones at rounding distance from edge-on.
-        const glm::dvec3 geometricNormal = glm::cross(glm::dvec3(top[1]) - glm::dvec3(top[0]),
-                                                      glm::dvec3(top[2]) - glm::dvec3(top[0]));
-        const glm::dvec3 toCorner = glm::dvec3(top[0]) - eye;
-        if (glm::dot(geometricNormal, toCorner) >
-            1e-5 * glm::length(geometricNormal) * glm::length(toCorner)) {
-            continue;
-        }
+        // Front-facing tops are where camera rays enter shells, back-facing ones stop them (the
+        // inside of a mesh) unless the ray leaves a curved shell there (traceNearestBatch): both
+        // are binned, and the tracer tells them apart.
         ShellBounds& bounds = bounds_[shell];
         bounds.top = projectTriangle(projection, top);
         if (bounds.top.empty()) continue;
@@ -446,12 +440,21 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
     struct Arrays {
         Candidates candidates[kMaxBatchRays];
         SurfaceHit shellHits[kMaxBatchRays];
+        SurfaceHit backHits[kMaxBatchRays];
         ShellMarch marches[kMaxBatchRays];
+        /// Per ray: where it left curved shells (SceneTracer: it crossed their top between the
+        /// two distances), at most kExits of them.
+        std::array<std::pair<float, float>, 4> exits[kMaxBatchRays];
     };
+    constexpr std::size_t kExits = 4;
     thread_local Arrays arrays;
     Candidates* candidates = arrays.candidates;
     SurfaceHit* shellHits = arrays.shellHits;
+    SurfaceHit* backHits = arrays.backHits;
     ShellMarch* marches = arrays.marches;
+    auto* exits = arrays.exits;
+    std::size_t exitCount[kMaxBatchRays];
+    float backNearest[kMaxBatchRays];
     std::size_t next[kMaxBatchRays];
     float nearest[kMaxBatchRays];
     for (std::size_t r = 0; r < count; ++r) {
@@ -478,6 +481,8 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
         next[r] = 0;
         nearest[r] = kFar;
         found[r] = false;
+        exitCount[r] = 0;
+        backNearest[r] = kFar;
     }
     // Rounds: each ray traces its candidates in order up to the next one it enters; the marches
     // of the round are taken together; then each ray takes its march's end. A ray's steps are
@@ -487,12 +492,35 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
     // Where ray r's current shell is traced: straight into its output until it has a hit (most
     // rays have one candidate: no copy), then into working memory, copied when nearer.
     SurfaceHit* into[kMaxBatchRays];
+    // Back-facing stops are kept apart, the nearest per ray, and taken at the end unless a front
+    // hit is nearer or the ray left a curved shell there (shells are traced in the order of
+    // their depth bounds, which need not be the order along the ray).
     auto keepNearest = [&](std::size_t r) {
         const SurfaceHit& shellHit = *into[r];
-        if (!shellHit.entry.frontFacing || !(shellHit.distanceWorld < nearest[r])) return;
+        if (!shellHit.entry.frontFacing) {
+            if (shellHit.distanceWorld < backNearest[r]) {
+                backNearest[r] = shellHit.distanceWorld;
+                backHits[r] = shellHit;
+            }
+            return;
+        }
+        if (!(shellHit.distanceWorld < nearest[r])) return;
         nearest[r] = shellHit.distanceWorld;
         if (into[r] != &hits[r]) hits[r] = shellHit;
         found[r] = true;
+    };
+    auto leftThere = [&](std::size_t r, float distanceWorld) {
+        for (std::size_t e = 0; e < exitCount[r]; ++e)
+            if (exits[r][e].first <= distanceWorld && distanceWorld <= exits[r][e].second)
+                return true;
+        return false;
+    };
+    auto takeBackStops = [&] {
+        for (std::size_t r = 0; r < count; ++r) {
+            if (!(backNearest[r] < nearest[r]) || leftThere(r, backNearest[r])) continue;
+            hits[r] = backHits[r];
+            found[r] = true;
+        }
     };
     for (;;) {
         std::size_t pendingCount = 0;
@@ -521,11 +549,25 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
                 if (stopped) keepNearest(r);
             }
         }
-        if (pendingCount == 0) return;
+        if (pendingCount == 0) {
+            takeBackStops();
+            return;
+        }
         tracer_.marchShells(std::span<ShellMarch* const>(pending, pendingCount));
         for (std::size_t p = 0; p < pendingCount; ++p) {
             const std::size_t r = pendingRay[p];
-            if (tracer_.finishShell(rays[r].ray, marches[r], *into[r], counters[r])) keepNearest(r);
+            const ShellMarch& march = marches[r];
+            if (tracer_.finishShell(rays[r].ray, march, *into[r], counters[r])) {
+                keepNearest(r);
+            } else if (march.curved) {
+                if (exitCount[r] < kExits) {
+                    exits[r][exitCount[r]++] = {march.lastInsideWorld, march.firstOutsideWorld};
+                } else {  // a ray out of many curved shells: any back face before the last
+                    exits[r][kExits - 1].first = 0.0f;
+                    exits[r][kExits - 1].second =
+                        std::max(exits[r][kExits - 1].second, march.firstOutsideWorld);
+                }
+            }
         }
     }
 }

@@ -124,8 +124,9 @@ struct ShellCounters {
 };
 
 /// Shells binned into screen tiles, nearest z_min first, for the camera rays of one image.
-/// Shells that face away from the eye, or that no camera ray can reach, are left out: a camera
-/// ray only enters a shell through its front-facing top.
+/// Shells that no camera ray can reach are left out. A camera ray enters a shell through its
+/// front-facing top; a back-facing top stops it (the inside of a mesh), as SceneTracer's does,
+/// except where the ray leaves a curved shell through it.
 class ScreenShells {
   public:
     static constexpr int kTilePixels = 16;

@@ -121,6 +121,8 @@ bool CurvedMarchRay::leave(double atWorld) {
     end_.leftShell = true;
     end_.march.exitedFloor = true;
     end_.distanceWorld = atWorld;
+    end_.lastInsideWorld = std::min(outsideWorld_, atWorld);
+    end_.firstOutsideWorld = std::max(distanceWorld_, atWorld);
     end_.prism = cursor_.prism;
     end_.point = cursor_.point;
     return needsSample_ = false;

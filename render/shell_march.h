@@ -42,6 +42,9 @@ struct CurvedMarchEnd {
     MarchResult march;        ///< texel position in the end prism's texel space, iterations, ...
     bool leftShell = false;   ///< through the top, an open border or an open floor: no hit here
     double distanceWorld = 0.0;  ///< along the ray: the hit, or where it left the shell
+    /// Left the shell: it crossed its boundary between these two distances along the ray (the
+    /// last point sampled inside, the first known outside).
+    double lastInsideWorld = 0.0, firstOutsideWorld = 0.0;
     std::uint32_t prism = 0;  ///< where it ended
     PrismPoint point;         ///< the end point in that prism
     /// |J r| at the end: texels per world unit along the ray (0 when it left the shell).
@@ -110,7 +113,8 @@ class CurvedMarchRay {
     bool prepareSample(double stepTexels);
     /// Ends at the current point: a hit (converged, or at the end of the budget).
     bool stop(bool converged);
-    /// Ends without a hit: the ray left the shell at `atWorld`.
+    /// Ends without a hit: the ray left the shell at `atWorld`, between the last point sampled
+    /// inside and distanceWorld_ (outside).
     bool leave(double atWorld);
     /// A sample closer to the floor than `distance` texels: ends on the floor when the ray
     /// reaches it (true), else false and the march goes on.

@@ -299,8 +299,8 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
                 found[r] = true;
                 active[r] = false;
             } else if (march.curved) {  // out of a curved shell: on from where it left
-                from[r] = march.endDistanceWorld;
-                skipBackFacesBefore[r] = march.outsideDistanceWorld;
+                from[r] = march.lastInsideWorld;
+                skipBackFacesBefore[r] = march.firstOutsideWorld;
             } else {  // out through an open floor: on from where it left
                 from[r] = march.baseHit.distanceWorld +
                           march.result.travelTexels / hits[r].texelsPerWorldAlongRay;
@@ -757,10 +757,11 @@ void SceneTracer::finishCurvedMarch(ShellMarch& march) const {
     march.result = end.march;
     march.marched = true;
     march.endDistanceWorld = float(end.distanceWorld);
-    march.outsideDistanceWorld = float(end.distanceWorld);
     if (end.leftShell) {
-        // Past the top's back face: a little beyond where the ray left, relative to the shell.
-        march.outsideDistanceWorld += 1e-3f * object.material.depthWorld;
+        // Rounded outward, so the crossing stays inside the interval in float.
+        march.lastInsideWorld = std::nextafter(float(end.lastInsideWorld), 0.0f);
+        march.firstOutsideWorld =
+            std::nextafter(float(end.firstOutsideWorld), std::numeric_limits<float>::max());
         return;
     }
     // The hit's frame: the base point above it and the map's Jacobian there.

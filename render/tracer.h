@@ -142,9 +142,9 @@ struct ShellMarch {
     bool curved = false;
     CurvedMarchRay curvedTrace;     ///< the curved march, until it ends
     float endDistanceWorld = 0.0f;  ///< the hit, or where the ray left the shell
-    /// Left through the top: a point along the ray known to be above it (the back face of the
-    /// top it crossed lies before this).
-    float outsideDistanceWorld = 0.0f;
+    /// Left the shell: the ray crossed its boundary (through the top: the back face of a base
+    /// triangle) between these two distances along it.
+    float lastInsideWorld = 0.0f, firstOutsideWorld = 0.0f;
 };
 
 /// Calls function(key, items) once per distinct key of `keys`, in order of first appearance, with
