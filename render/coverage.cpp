@@ -515,8 +515,12 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
                 return true;
         return false;
     };
+    // The planar march cannot tell where a ray leaves a shell (it marches on under the base):
+    // with it a back face is trusted only where nothing else is hit.
+    const bool planar = tracer_.options().shellMapping == ShellMapping::Planar;
     auto takeBackStops = [&] {
         for (std::size_t r = 0; r < count; ++r) {
+            if (planar && found[r]) continue;
             if (!(backNearest[r] < nearest[r]) || leftThere(r, backNearest[r])) continue;
             hits[r] = backHits[r];
             found[r] = true;

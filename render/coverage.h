@@ -126,7 +126,8 @@ struct ShellCounters {
 /// Shells binned into screen tiles, nearest z_min first, for the camera rays of one image.
 /// Shells that no camera ray can reach are left out. A camera ray enters a shell through its
 /// front-facing top; a back-facing top stops it (the inside of a mesh), as SceneTracer's does,
-/// except where the ray leaves a curved shell through it.
+/// except where the ray leaves a curved shell through it (with ShellMapping::Planar, whose march
+/// cannot tell where a ray leaves, only where no front-facing surface is hit).
 class ScreenShells {
   public:
     static constexpr int kTilePixels = 16;
