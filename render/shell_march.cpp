@@ -102,10 +102,11 @@ bool CurvedMarchRay::prepareSample(double stepTexels) {
         directionTexels_ = velocity * (1.0 / speed_);
         // The step was taken with the stretch at its start; where the stretch grows along it,
         // the texel-space path (by the trapezoid of the two speeds) is longer than the step and
-        // may leave the safe sphere: shortened once to the step's length.
+        // may leave the safe sphere: shortened once to the step's length when it would leave it
+        // by more than the hit threshold (the march resolves nothing finer anyway).
         const double meanSpeed = 0.5 * (startSpeed + speed_);
         const double stepWorld = distanceWorld_ - outsideWorld_;
-        if (attempt > 0 || meanSpeed * stepWorld <= stepTexels * (1.0 + 1e-4)) {
+        if (attempt > 0 || meanSpeed * stepWorld <= stepTexels + epsilonTexels_) {
             samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
             return needsSample_ = true;
         }
