@@ -1,5 +1,8 @@
 #include "render/shell_march.h"
 
+#include <map>
+#include <utility>
+
 namespace distile::detail {
 
 Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
@@ -42,6 +45,52 @@ Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dv
 namespace distile {
 
 using detail::Located;
+
+ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const Size3& tileSize,
+                         double depthWorld) {
+    ShellMesh shell;
+    const std::size_t count = mesh.triangles.size();
+    shell.prisms.reserve(count);
+    shell.neighbours.assign(count, {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour,
+                                    ShellPrisms::kNoNeighbour});
+    shell.neighbourCorners.assign(count, {0, 0, 0});
+    // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
+    std::map<std::array<float, 3>, std::uint32_t> weld;
+    std::vector<std::uint32_t> surfaceVertex(mesh.positions.size());
+    for (std::size_t vertex = 0; vertex < mesh.positions.size(); ++vertex) {
+        const glm::vec3& p = mesh.positions[vertex];
+        surfaceVertex[vertex] =
+            weld.try_emplace({p.x, p.y, p.z}, std::uint32_t(weld.size())).first->second;
+    }
+    // Directed edges (from, to): the side opposite corner c of triangle t is 3 t + c.
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<std::uint32_t>> edges;
+    for (std::uint32_t t = 0; t < count; ++t) {
+        const glm::uvec3 corners = mesh.triangles[t];
+        glm::vec3 positions[3], normals[3];
+        glm::vec2 uvs[3];
+        for (int corner = 0; corner < 3; ++corner) {
+            positions[corner] = mesh.positions[corners[corner]];
+            normals[corner] = mesh.normals[corners[corner]];
+            uvs[corner] = mesh.uvs[corners[corner]];
+        }
+        shell.prisms.push_back(ShellPrism::make(positions, normals, uvs, uvScale, tileSize.width,
+                                                tileSize.height, tileSize.depth, depthWorld));
+        for (int corner = 0; corner < 3; ++corner) {
+            const std::uint32_t from = surfaceVertex[corners[(corner + 1) % 3]];
+            const std::uint32_t to = surfaceVertex[corners[(corner + 2) % 3]];
+            edges[{from, to}].push_back(t * 3 + std::uint32_t(corner));
+        }
+    }
+    for (const auto& [edge, sides] : edges) {
+        if (sides.size() != 1) continue;
+        const auto reversed = edges.find({edge.second, edge.first});
+        if (reversed == edges.end() || reversed->second.size() != 1) continue;
+        const std::uint32_t side = sides[0], other = reversed->second[0];
+        shell.neighbours[side / 3][side % 3] = other / 3;
+        shell.neighbourCorners[side / 3][side % 3] = std::uint8_t(other % 3);
+    }
+    return shell;
+}
 
 void CurvedMarchRay::start(const ShellPrisms& shell, const Ray& ray, std::uint32_t entryPrism,
                            double b1, double b2, double entryDistanceWorld, Floor floor,

@@ -20,8 +20,11 @@
 #include <limits>
 #include <glm/vec3.hpp>
 #include <span>
+#include <vector>
 
 #include "common/shell_map.h"
+#include "common/size3.h"
+#include "mesh/base_mesh.h"
 #include "render/bvh.h"
 #include "render/march.h"
 
@@ -36,6 +39,22 @@ struct ShellPrisms {
     /// For each side face that has a neighbour: the neighbour's corner opposite that face.
     std::span<const std::array<std::uint8_t, 3>> neighbourCorners;
 };
+
+/// The shell map of one base mesh carrying a tile: a prism per triangle (common/shell_map.h) and,
+/// across each side face, the neighbouring triangle: the one triangle with the same edge
+/// reversed, vertices welded by position (so uv seams and mirrored charts connect); none at an
+/// open border, a non-manifold edge or one whose triangles disagree in orientation.
+struct ShellMesh {
+    std::vector<ShellPrism> prisms;  ///< by triangle
+    std::vector<std::array<std::uint32_t, 3>> neighbours;  ///< across the face opposite a corner
+    std::vector<std::array<std::uint8_t, 3>> neighbourCorners;  ///< ShellPrisms::neighbourCorners
+    ShellPrisms view() const { return {prisms, neighbours, neighbourCorners}; }
+};
+
+/// The shell map of `mesh` (unit vertex normals) under a tile of `tileSize` texels repeated
+/// `uvScale` times per unit of uv, `depthWorld` deep. Preconditions: valid indices, finite data.
+ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const Size3& tileSize,
+                         double depthWorld);
 
 /// How a curved march ended.
 struct CurvedMarchEnd {

@@ -657,51 +657,24 @@ void SceneTracer::buildShellMap() {
             firstShell += shellCount;
             continue;
         }
-        const Size3& size = tile->size();
-        // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
-        std::map<std::array<float, 3>, std::uint32_t> weld;
-        std::vector<std::uint32_t> surfaceVertex(mesh.positions.size());
-        for (std::size_t vertex = 0; vertex < mesh.positions.size(); ++vertex) {
-            const glm::vec3& p = mesh.positions[vertex];
-            surfaceVertex[vertex] =
-                weld.try_emplace({p.x, p.y, p.z}, std::uint32_t(weld.size())).first->second;
-        }
-        // Directed edges (from, to) of the surface: a neighbour has the same edge reversed.
-        std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<std::uint32_t>> edges;
+        const ShellMesh shell = buildShellMesh(mesh, object.material.uvScale, tile->size(),
+                                               object.material.depthWorld);
         double foldWorld = std::numeric_limits<double>::infinity();
         std::size_t foldedTriangles = 0;
         for (std::uint32_t t = 0; t < shellCount; ++t) {
-            const glm::uvec3 corners = mesh.triangles[t];
-            glm::vec3 positions[3], normals[3];
-            glm::vec2 uvs[3];
-            for (int corner = 0; corner < 3; ++corner) {
-                positions[corner] = mesh.positions[corners[corner]];
-                normals[corner] = mesh.normals[corners[corner]];
-                uvs[corner] = mesh.uvs[corners[corner]];
+            const ShellPrism& prism = shell.prisms[t];
+            prisms_[firstShell + t] = prism;
+            for (int side = 0; side < 3; ++side) {
+                const std::uint32_t neighbour = shell.neighbours[t][side];
+                if (neighbour == ShellPrisms::kNoNeighbour) continue;
+                neighbours_[firstShell + t][side] = firstShell + neighbour;
+                neighbourCorners_[firstShell + t][side] = shell.neighbourCorners[t][side];
             }
-            ShellPrism& prism = prisms_[firstShell + t];
-            prism = ShellPrism::make(positions, normals, uvs, object.material.uvScale, size.width,
-                                     size.height, size.depth, object.material.depthWorld);
             if (!prism.straight()) {
                 const double fold = prism.foldDepthWorld();
                 foldWorld = std::min(foldWorld, fold);
                 if (fold <= object.material.depthWorld) ++foldedTriangles;
             }
-            for (int corner = 0; corner < 3; ++corner) {
-                const std::uint32_t from = surfaceVertex[corners[(corner + 1) % 3]];
-                const std::uint32_t to = surfaceVertex[corners[(corner + 2) % 3]];
-                edges[{from, to}].push_back(t * 3 + std::uint32_t(corner));
-            }
-        }
-        // The side face opposite corner c of triangle t is shared with the one triangle that has
-        // the same edge reversed (a manifold, consistently oriented edge); none at a border.
-        for (const auto& [edge, sides] : edges) {
-            if (sides.size() != 1) continue;
-            const auto reversed = edges.find({edge.second, edge.first});
-            if (reversed == edges.end() || reversed->second.size() != 1) continue;
-            const std::uint32_t side = sides[0], other = reversed->second[0];
-            neighbours_[firstShell + side / 3][side % 3] = firstShell + other / 3;
-            neighbourCorners_[firstShell + side / 3][side % 3] = std::uint8_t(other % 3);
         }
         if (foldedTriangles > 0) {
             char text[320];

@@ -11,7 +11,6 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <limits>
-#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -22,6 +21,7 @@
 #include "render/analytic_filter.h"
 #include "render/coverage.h"
 #include "render/shading.h"
+#include "render/shell_march.h"
 #include "sampler/filters.h"
 
 namespace distile {
@@ -305,56 +305,16 @@ class WorldBvh {
 /// A tiled object's shell maps and exact detail, for refining hits on its world-space mesh.
 class ObjectShell {
   public:
-    static constexpr std::uint32_t kNoNeighbour = ~0u;
-
     /// Precondition: the object has a tile.
     explicit ObjectShell(const SceneObject& object)
         : analytic_(object.material.analyticDistance),
           tile_(object.material.tile.get()),
           depthTexels_(object.material.tile->size().depth),
-          solidFloor_(object.material.floor == Floor::Solid) {
-        const BaseMesh& mesh = object.mesh;
-        const Size3& size = tile_->size();
-        // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
-        std::map<std::array<float, 3>, std::uint32_t> weld;
-        std::vector<std::uint32_t> surfaceVertex(mesh.positions.size());
-        for (std::size_t vertex = 0; vertex < mesh.positions.size(); ++vertex) {
-            const glm::vec3& p = mesh.positions[vertex];
-            surfaceVertex[vertex] =
-                weld.try_emplace({p.x, p.y, p.z}, std::uint32_t(weld.size())).first->second;
-        }
-        std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<std::uint32_t>> edges;
-        prisms_.reserve(mesh.triangles.size());
-        for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
-            const glm::uvec3& corners = mesh.triangles[t];
-            glm::vec3 positions[3], normals[3];
-            glm::vec2 uvs[3];
-            for (int corner = 0; corner < 3; ++corner) {
-                positions[corner] = mesh.positions[corners[corner]];
-                normals[corner] = mesh.normals[corners[corner]];
-                uvs[corner] = mesh.uvs[corners[corner]];
-            }
-            prisms_.push_back(ShellPrism::make(positions, normals, uvs, object.material.uvScale,
-                                               size.width, size.height, size.depth,
-                                               object.material.depthWorld));
-            for (int corner = 0; corner < 3; ++corner) {
-                const std::uint32_t from = surfaceVertex[corners[(corner + 1) % 3]];
-                const std::uint32_t to = surfaceVertex[corners[(corner + 2) % 3]];
-                edges[{from, to}].push_back(t * 3 + std::uint32_t(corner));
-            }
-        }
-        // The side opposite corner c of triangle t is shared with the one triangle that has the
-        // same edge reversed (a manifold, consistently oriented edge); none at a border.
-        neighbours_.assign(mesh.triangles.size(), {kNoNeighbour, kNoNeighbour, kNoNeighbour});
-        for (const auto& [edge, sides] : edges) {
-            if (sides.size() != 1) continue;
-            const auto reversed = edges.find({edge.second, edge.first});
-            if (reversed == edges.end() || reversed->second.size() != 1) continue;
-            neighbours_[sides[0] / 3][sides[0] % 3] = reversed->second[0] / 3;
-        }
-    }
+          solidFloor_(object.material.floor == Floor::Solid),
+          shell_(buildShellMesh(object.mesh, object.material.uvScale, tile_->size(),
+                                object.material.depthWorld)) {}
 
-    const ShellPrism& prism(std::uint32_t triangle) const { return prisms_[triangle]; }
+    const ShellPrism& prism(std::uint32_t triangle) const { return shell_.prisms[triangle]; }
 
     /// The clipped detail (the surface the world mesh approximates) at a texel position, texels.
     double distanceTexels(const glm::dvec3& texel) const {
@@ -382,24 +342,20 @@ class ObjectShell {
     }
 
     /// The prism point of world position `world`, starting from `triangle` and `point` (a guess)
-    /// and moving to the neighbouring triangle while the point lies outside the current one.
-    /// False when the map cannot be inverted there or the point lies beyond an open border.
+    /// and moving to the neighbouring triangle while the point lies outside the current one
+    /// (render/shell_march.h detail::locate; above the top counts: the clipped detail is defined
+    /// there). False when the map cannot be inverted there or the point lies beyond an open
+    /// border.
     bool locate(const glm::dvec3& world, std::uint32_t& triangle, PrismPoint& point) const {
-        constexpr int kMaxMoves = 8;
-        constexpr double kInside = 1e-9;  ///< barycentric slack: a point on an edge is inside
-        for (int move = 0; move < kMaxMoves; ++move) {
-            const ShellPrism& shell = prisms_[triangle];
-            ShellPrism::Jacobian jacobian;
-            if (!shell.invert(world - shell.corner0, point, jacobian)) return false;
-            const double weights[3] = {point.b0(), point.b1, point.b2};
-            const int corner = int(std::min_element(weights, weights + 3) - weights);
-            if (weights[corner] >= -kInside) return true;
-            const std::uint32_t next = neighbours_[triangle][corner];
-            if (next == kNoNeighbour) return false;
-            triangle = next;
-            point = {1.0 / 3.0, 1.0 / 3.0, point.depthWorld};
-        }
-        return false;
+        detail::CurvedCursor cursor;
+        cursor.prism = triangle;
+        cursor.point = point;
+        cursor.originOffset = world - shell_.prisms[triangle].corner0;
+        const detail::Located where =
+            detail::locate(shell_.view(), world, glm::dvec3(0.0), 0.0, cursor);
+        triangle = cursor.prism;
+        point = cursor.point;
+        return where == detail::Located::Inside || where == detail::Located::AboveTop;
     }
 
   private:
@@ -412,8 +368,7 @@ class ObjectShell {
     const Tile* tile_;
     double depthTexels_;
     bool solidFloor_;
-    std::vector<ShellPrism> prisms_;                        ///< by base triangle
-    std::vector<std::array<std::uint32_t, 3>> neighbours_;  ///< across the side opposite a corner
+    ShellMesh shell_;  ///< by base triangle
 };
 
 /// A hit on the exact detail surface, refined from a hit on its world mesh (refineHit).
