@@ -704,20 +704,10 @@ void SceneTracer::takeCurvedEntry(ShellMarch& march) const {
     MarchSettings settings = options_.march;
     if (!isSphereTracing(settings.method)) settings.method = MarchMethod::Budgeted;
     // A ray through a curved shell may bend along it for many texels (grazing rays at
-    // silhouettes): it gets a sample per texel of its path, up to kCurvedBudgetScale x the
-    // budget, the path estimated at the entry (to the floor along the entry's texel direction).
-    if (options_.skips.adaptiveBudget && !options_.reference) {
-        const ShellPrism& prism = prisms_[baseHit.triangle];
-        const PrismPoint entry{baseHit.b1, baseHit.b2, 0.0};
-        glm::dvec3 prismVelocity;
-        const glm::dvec3 velocity = detail::texelVelocity(prism, prism.jacobianAt(entry),
-                                                          glm::dvec3(ray.direction), prismVelocity);
-        const double pathTexels = velocity.z < 0.0
-                                      ? prism.depthTexels * glm::length(velocity) / -velocity.z
-                                      : std::numeric_limits<double>::infinity();
-        settings.maxIterations = adaptiveBudget(kCurvedBudgetScale * settings.maxIterations,
-                                                float(std::min(pathTexels, 1e9)));
-    }
+    // silhouettes), and its path is not known at the entry: it gets kCurvedBudgetScale x the
+    // budget, not cut by the adaptive budget (the budgeted march's minimum step, the path left
+    // over the samples left, is what would change with it).
+    if (!options_.reference) settings.maxIterations *= kCurvedBudgetScale;
     march.curvedTrace.start(shellPrisms_, ray, baseHit.triangle, baseHit.b1, baseHit.b2,
                             baseHit.distanceWorld, material.floor, settings);
     if (!march.curvedTrace.needsSample()) finishCurvedMarch(march);

@@ -61,8 +61,8 @@ inline const char* shellMappingName(ShellMapping mapping) {
     return mapping == ShellMapping::Curved ? "curved" : "planar";
 }
 
-/// Curved shells: a ray's budget may grow up to this many times MarchSettings::maxIterations,
-/// one sample per texel of its path (SceneTracer: a grazing ray bends along the shell).
+/// Curved shells: a ray's budget is this many times MarchSettings::maxIterations (SceneTracer: a
+/// grazing ray bends along the shell for many texels); the adaptive budget does not cut it.
 inline constexpr int kCurvedBudgetScale = 4;
 
 struct TraceOptions {
