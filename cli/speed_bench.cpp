@@ -893,9 +893,9 @@ void runSpeedBench(const BenchArguments& arguments) {
             findRow(rows, kCurvedSection, s.id, "curved against the world reference");
         curvedVerdicts.push_back(verdict(ratio <= kMaxCurvedOverPlanar) + " " + s.id +
                                  " curved / planar = " + fixed(ratio, 3) +
-                                 " for the default render (<= " +
-                                 fixed(kMaxCurvedOverPlanar, 1) + "); without shadows " +
-                                 fixed(unshadedRatio, 3) + " (the march's own cost)");
+                                 " for the default render (<= " + fixed(kMaxCurvedOverPlanar, 1) +
+                                 "); without shadows " + fixed(unshadedRatio, 3) +
+                                 " (the march's own cost)");
         const bool accurate = curved->interiorMeanHitErrorTexels <= kMaxCurvedInteriorMeanTexels &&
                               curved->interiorP99HitErrorTexels <= kMaxCurvedInteriorP99Texels &&
                               curved->coverageMismatchShare <= kMaxCurvedCoverageMismatch &&

@@ -7,8 +7,8 @@
 namespace distile {
 
 ShellPrism ShellPrism::make(const glm::vec3 corners[3], const glm::vec3 normals[3],
-                            const glm::vec2 uvs[3], const glm::vec2& uvScale, int width,
-                            int height, int depthTexels, double depthWorld) {
+                            const glm::vec2 uvs[3], const glm::vec2& uvScale, int width, int height,
+                            int depthTexels, double depthWorld) {
     ShellPrism prism;
     prism.corner0 = glm::dvec3(corners[0]);
     prism.edge1 = glm::dvec3(corners[1]) - prism.corner0;
@@ -41,8 +41,8 @@ PrismPoint ShellPrism::pointAtTexel(const glm::dvec3& texel) const {
 double ShellPrism::foldDepthWorld() const {
     // det J(b, h) is a quadratic in h for fixed b: fitted through h = 0, +-depthWorld, then its
     // smallest positive root where the sign leaves that of the top.
-    constexpr double kSamples[7][2] = {{0, 0},     {1, 0},     {0, 1},        {0.5, 0},
-                                       {0.5, 0.5}, {0, 0.5},   {1.0 / 3, 1.0 / 3}};
+    constexpr double kSamples[7][2] = {
+        {0, 0}, {1, 0}, {0, 1}, {0.5, 0}, {0.5, 0.5}, {0, 0.5}, {1.0 / 3, 1.0 / 3}};
     const double limit = 1e6 * depthWorld;
     double fold = std::numeric_limits<double>::infinity();
     for (const auto& sample : kSamples) {
@@ -52,7 +52,8 @@ double ShellPrism::foldDepthWorld() const {
         const double top = determinantAt(0.0);
         const double up = determinantAt(-depthWorld);
         const double down = determinantAt(depthWorld);
-        const double a = 0.5 * (up + down) / (depthWorld * depthWorld) - top / (depthWorld * depthWorld);
+        const double a =
+            0.5 * (up + down) / (depthWorld * depthWorld) - top / (depthWorld * depthWorld);
         const double b = 0.5 * (down - up) / depthWorld;
         const double c = top;
         double roots[2];

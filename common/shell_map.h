@@ -39,15 +39,15 @@ struct PrismPoint {
 
 /// The shell map of one base triangle (file note). Plain data: copyable, no references.
 struct ShellPrism {
-    glm::dvec3 corner0{0.0};        ///< P_0, world units
-    glm::dvec3 edge1{0.0}, edge2{0.0};  ///< P_1 - P_0, P_2 - P_0
-    glm::dvec3 normal0{0.0};        ///< N_0, unit
+    glm::dvec3 corner0{0.0};                          ///< P_0, world units
+    glm::dvec3 edge1{0.0}, edge2{0.0};                ///< P_1 - P_0, P_2 - P_0
+    glm::dvec3 normal0{0.0};                          ///< N_0, unit
     glm::dvec3 normalDelta1{0.0}, normalDelta2{0.0};  ///< N_1 - N_0, N_2 - N_0
-    double depthWorld = 1.0;        ///< h of the bottom (z = 0)
+    double depthWorld = 1.0;                          ///< h of the bottom (z = 0)
     /// texel.xy = texelOrigin + b1 texelEdge1 + b2 texelEdge2; texelOrigin wrapped into
     /// [0, W) x [0, H) (the tile repeats: far uvs keep their fraction).
     glm::dvec2 texelOrigin{0.0}, texelEdge1{0.0}, texelEdge2{0.0};
-    double depthTexels = 1.0;       ///< D: texel z = D (1 - h / depthWorld)
+    double depthTexels = 1.0;          ///< D: texel z = D (1 - h / depthWorld)
     double texelsPerDepthWorld = 1.0;  ///< D / depthWorld (texel z per world unit of depth)
 
     /// The prism of a triangle (corners, unit normals, uvs) carrying a tile of `width` x `height`
@@ -57,7 +57,9 @@ struct ShellPrism {
                            int depthTexels, double depthWorld);
 
     /// True when the three normals are equal: the map is affine.
-    bool straight() const { return normalDelta1 == glm::dvec3(0.0) && normalDelta2 == glm::dvec3(0.0); }
+    bool straight() const {
+        return normalDelta1 == glm::dvec3(0.0) && normalDelta2 == glm::dvec3(0.0);
+    }
 
     /// The interpolated (not normalised) vertex normal at barycentrics (b1, b2).
     glm::dvec3 normalAt(double b1, double b2) const {
@@ -65,7 +67,8 @@ struct ShellPrism {
     }
     /// world(b, h) - P_0.
     glm::dvec3 offsetAt(const PrismPoint& point) const {
-        return point.b1 * edge1 + point.b2 * edge2 - point.depthWorld * normalAt(point.b1, point.b2);
+        return point.b1 * edge1 + point.b2 * edge2 -
+               point.depthWorld * normalAt(point.b1, point.b2);
     }
     glm::dvec3 worldAt(const PrismPoint& point) const { return corner0 + offsetAt(point); }
 
@@ -93,8 +96,7 @@ struct ShellPrism {
         }
         /// Solves J^T x = v: the world vector whose dot with each column is v's component.
         glm::dvec3 solveTransposed(const glm::dvec3& v) const {
-            return (v.x * cofactor[0] + v.y * cofactor[1] + v.z * cofactor[2]) *
-                   inverseDeterminant;
+            return (v.x * cofactor[0] + v.y * cofactor[1] + v.z * cofactor[2]) * inverseDeterminant;
         }
     };
     Jacobian jacobianAt(const PrismPoint& point) const {
@@ -141,18 +143,37 @@ struct ShellPrism {
 inline bool ShellPrism::invert(const glm::dvec3& offset, PrismPoint& point, Jacobian& jacobian,
                                int maxSteps) const {
     constexpr double kConverged = 1e-3;
+    // Locals, written back once: the point and the Jacobian live in the caller's memory, and
+    // stores to them in the loop would be reloaded.
+    double b1 = point.b1, b2 = point.b2, depth = point.depthWorld;
     for (int step = 0; step < maxSteps; ++step) {
-        jacobian = jacobianAt(point);
-        if (!(jacobian.determinant != 0.0)) return false;
-        const glm::dvec3 change = jacobian.solve(offsetAt(point) - offset);
-        point.b1 -= change.x;
-        point.b2 -= change.y;
-        point.depthWorld -= change.z;
+        const glm::dvec3 normal = normalAt(b1, b2);
+        Jacobian at;
+        at.column[0] = edge1 - depth * normalDelta1;
+        at.column[1] = edge2 - depth * normalDelta2;
+        at.column[2] = -normal;
+        at.cofactor[0] = glm::cross(at.column[1], at.column[2]);
+        at.cofactor[1] = glm::cross(at.column[2], at.column[0]);
+        at.cofactor[2] = glm::cross(at.column[0], at.column[1]);
+        at.determinant = glm::dot(at.column[0], at.cofactor[0]);
+        if (!(at.determinant != 0.0)) break;
+        at.inverseDeterminant = 1.0 / at.determinant;
+        const glm::dvec3 residual = b1 * edge1 + b2 * edge2 - depth * normal - offset;
+        const glm::dvec3 change = at.solve(residual);
+        b1 -= change.x;
+        b2 -= change.y;
+        depth -= change.z;
         const double moved = std::max(std::abs(change.x), std::abs(change.y));
         const double movedTexelsZ = std::abs(change.z) * texelsPerDepthWorld;
-        if (moved < kConverged && movedTexelsZ < kConverged * depthTexels) return true;
-        if (!(moved < 1e6 && movedTexelsZ < 1e6 * depthTexels)) return false;  // or NaN
+        if (moved < kConverged && movedTexelsZ < kConverged * depthTexels) {
+            point = {b1, b2, depth};
+            jacobian = at;
+            return true;
+        }
+        if (!(moved < 1e6 && movedTexelsZ < 1e6 * depthTexels)) break;  // diverging, or NaN
+        if (step + 1 == maxSteps) jacobian = at;
     }
+    point = {b1, b2, depth};
     return false;
 }
 

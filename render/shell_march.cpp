@@ -51,8 +51,8 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
     ShellMesh shell;
     const std::size_t count = mesh.triangles.size();
     shell.prisms.reserve(count);
-    shell.neighbours.assign(count, {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour,
-                                    ShellPrisms::kNoNeighbour});
+    shell.neighbours.assign(
+        count, {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour});
     shell.neighbourCorners.assign(count, {0, 0, 0});
     // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
     std::map<std::array<float, 3>, std::uint32_t> weld;
@@ -134,8 +134,7 @@ void CurvedMarchRay::start(const ShellPrisms& shell, const Ray& ray, std::uint32
 bool CurvedMarchRay::prepareSample(double stepTexels) {
     const double startSpeed = speed_;
     for (int attempt = 0;; ++attempt) {
-        const Located where =
-            detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_);
+        const Located where = detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_);
         if (where == Located::AboveTop) {
             // Out through the top between the last two points: where the depth crosses 0.
             const double share =
@@ -242,7 +241,8 @@ bool CurvedMarchRay::toEstimate() {
     cursor_ = at;
     distanceWorld_ = estimate;
     const ShellPrism& prism = shell_->prisms[cursor_.prism];
-    speed_ = glm::length(detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_));
+    speed_ =
+        glm::length(detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_));
     if (end_.march.iterations >= budget_) return stop(true);  // at the estimate, unsampled
     samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
     return true;
@@ -265,8 +265,7 @@ bool CurvedMarchRay::advance(float distance) {
         return stop(true);
     }
     const ShellPrism& prism = shell_->prisms[cursor_.prism];
-    const double zTexels =
-        prism.depthTexels - prism.texelsPerDepthWorld * cursor_.point.depthWorld;
+    const double zTexels = prism.depthTexels - prism.texelsPerDepthWorld * cursor_.point.depthWorld;
     const double toFloorTexels = directionTexels_.z < 0.0
                                      ? std::max(zTexels, 0.0) / -directionTexels_.z
                                      : std::numeric_limits<double>::infinity();
@@ -286,7 +285,6 @@ bool CurvedMarchRay::advance(float distance) {
         const double minimum = pathLeftTexels / double(budget_ - end_.march.iterations);
         if (minimum > stepTexels) {
             stepTexels = minimum;
-
         }
     }
     stepTexels = std::min(stepTexels, toFloorTexels);

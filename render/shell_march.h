@@ -17,8 +17,8 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <glm/vec3.hpp>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -45,7 +45,7 @@ struct ShellPrisms {
 /// reversed, vertices welded by position (so uv seams and mirrored charts connect); none at an
 /// open border, a non-manifold edge or one whose triangles disagree in orientation.
 struct ShellMesh {
-    std::vector<ShellPrism> prisms;  ///< by triangle
+    std::vector<ShellPrism> prisms;                        ///< by triangle
     std::vector<std::array<std::uint32_t, 3>> neighbours;  ///< across the face opposite a corner
     std::vector<std::array<std::uint8_t, 3>> neighbourCorners;  ///< ShellPrisms::neighbourCorners
     ShellPrisms view() const { return {prisms, neighbours, neighbourCorners}; }
@@ -58,8 +58,8 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
 
 /// How a curved march ended.
 struct CurvedMarchEnd {
-    MarchResult march;        ///< texel position in the end prism's texel space, iterations, ...
-    bool leftShell = false;   ///< through the top, an open border or an open floor: no hit here
+    MarchResult march;           ///< texel position in the end prism's texel space, iterations, ...
+    bool leftShell = false;      ///< through the top, an open border or an open floor: no hit here
     double distanceWorld = 0.0;  ///< along the ray: the hit, or where it left the shell
     /// Left the shell: it crossed its boundary between these two distances along the ray (the
     /// last point sampled inside, the first known outside).
@@ -77,7 +77,7 @@ namespace detail {
 struct CurvedCursor {
     std::uint32_t prism = 0;
     PrismPoint point;
-    glm::dvec3 originOffset{0.0};  ///< ray origin - P_0 of `prism`
+    glm::dvec3 originOffset{0.0};   ///< ray origin - P_0 of `prism`
     ShellPrism::Jacobian jacobian;  ///< the map's, at (or a hair from) `point`
 };
 
@@ -177,8 +177,8 @@ class ShellRayPath {
     /// Starts at world point `originWorld` (in prism `prism`, near prism point `guess`) along
     /// unit `direction`. False when that point is not inside the shell. `shell` must outlive
     /// the path.
-    bool start(const ShellPrisms& shell, const glm::dvec3& originWorld,
-               const glm::dvec3& direction, std::uint32_t prism, const PrismPoint& guess);
+    bool start(const ShellPrisms& shell, const glm::dvec3& originWorld, const glm::dvec3& direction,
+               std::uint32_t prism, const PrismPoint& guess);
     /// Moves `texels` of texel-space path on; false once the point has left the shell (through
     /// the top or an open border).
     bool advance(double texels);

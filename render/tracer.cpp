@@ -657,8 +657,8 @@ void SceneTracer::buildShellMap() {
             firstShell += shellCount;
             continue;
         }
-        const ShellMesh shell = buildShellMesh(mesh, object.material.uvScale, tile->size(),
-                                               object.material.depthWorld);
+        const ShellMesh shell =
+            buildShellMesh(mesh, object.material.uvScale, tile->size(), object.material.depthWorld);
         double foldWorld = std::numeric_limits<double>::infinity();
         std::size_t foldedTriangles = 0;
         for (std::uint32_t t = 0; t < shellCount; ++t) {

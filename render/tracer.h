@@ -49,7 +49,8 @@ struct RenderSkips {
 /// How rays go through the shell of a curved base (one whose vertex normals differ over a
 /// triangle; flat faces always take the planar march, which is exact there).
 enum class ShellMapping {
-    /// Follow the shell map (common/shell_map.h) prism by prism (render/shell_march.h): the default.
+    /// Follow the shell map (common/shell_map.h) prism by prism (render/shell_march.h): the
+    /// default.
     Curved,
     /// Ch. 8's planar approximation: the ray mapped into texel space once, with the frame at its
     /// entry, and marched straight. Kept to measure what the curved march costs and buys.

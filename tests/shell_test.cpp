@@ -74,7 +74,9 @@ std::optional<double> layerHit(const BaseMesh& mesh, const Ray& ray, double dept
     return nearest;
 }
 
-double layerDepthWorld(float depthWorld) { return depthWorld * (1.0 - kLayerTexels / 16.0); }
+double layerDepthWorld(float depthWorld) {
+    return depthWorld * (1.0 - kLayerTexels / 16.0);
+}
 
 /// A march that converges far below the default threshold, so a hit is where the map puts it.
 TraceOptions preciseOptions(ShellMapping mapping) {
@@ -136,8 +138,8 @@ TEST(ShellMap, JacobianIsTheMapsDerivative) {
     // solve and solveTransposed invert J and its transpose.
     const glm::dvec3 v(0.3, -1.2, 0.7);
     const glm::dvec3 x = jacobian.solve(v);
-    const glm::dvec3 back = x.x * jacobian.column[0] + x.y * jacobian.column[1] +
-                            x.z * jacobian.column[2];
+    const glm::dvec3 back =
+        x.x * jacobian.column[0] + x.y * jacobian.column[1] + x.z * jacobian.column[2];
     EXPECT_NEAR(glm::length(back - v), 0.0, 1e-12);
     const glm::dvec3 y = jacobian.solveTransposed(v);
     EXPECT_NEAR(glm::dot(y, jacobian.column[0]), v.x, 1e-12);
@@ -189,8 +191,8 @@ std::vector<AimedRay> raysAt(const BaseMesh& mesh, const glm::vec3& eye, double 
             // Leave out rays that graze the base (their layer hit is ill-conditioned) or that
             // the base mesh's own other side hides.
             if (std::abs(glm::dot(ray.direction, mesh.normals[triangle[0]])) < 0.5f) continue;
-            rays.push_back({ray, layerHit(mesh, ray, layerDepth), what + " of triangle " +
-                                                                     std::to_string(t)});
+            rays.push_back(
+                {ray, layerHit(mesh, ray, layerDepth), what + " of triangle " + std::to_string(t)});
         }
     }
     return rays;
@@ -214,7 +216,6 @@ double largestLayerError(const Scene& scene, const TraceOptions& options,
         const double errorTexels =
             std::abs(double(hit.distanceWorld) - *aimed.expected) * hit.texelsPerWorldAlongRay;
         largest = std::max(largest, errorTexels);
-
     }
     return largest;
 }
@@ -250,8 +251,7 @@ TEST(CurvedShell, TheMirroredUvVaseCarriesTheLayerOnBothHalves) {
     for (const glm::vec3 eye : {glm::vec3(2.2f, -2.6f, 1.9f), glm::vec3(-2.2f, 2.6f, 1.9f)}) {
         const std::vector<AimedRay> rays = raysAt(mesh, eye, layerDepthWorld(kDepthWorld), false);
         int hits = 0;
-        EXPECT_LT(largestLayerError(scene, preciseOptions(ShellMapping::Curved), rays, hits),
-                  2e-3);
+        EXPECT_LT(largestLayerError(scene, preciseOptions(ShellMapping::Curved), rays, hits), 2e-3);
         EXPECT_GT(hits, 20);
         (eye.y < 0.0f ? mirrored : unmirrored) += hits;  // u runs backwards where y < 0
     }
@@ -325,8 +325,8 @@ TEST(CurvedShell, MirroredUvsMirrorTheDetailAndItsNormals) {
     const int columns = 8;
     for (int column = 0; column <= columns; ++column) {
         const float x = -1.0f + 2.0f * float(column) / columns;
-        const float u = column <= columns / 2 ? float(column) / columns
-                                              : float(columns - column) / columns;
+        const float u =
+            column <= columns / 2 ? float(column) / columns : float(columns - column) / columns;
         for (int row = 0; row < 2; ++row) {
             mesh.positions.push_back({x, row == 0 ? -0.5f : 0.5f, -0.1f * x * x});
             mesh.uvs.push_back({u, float(row)});
@@ -376,8 +376,8 @@ TEST(CurvedShell, MirroredUvsMirrorTheDetailAndItsNormals) {
             normals[corner] = mesh.normals[corners[corner]];
             uvs[corner] = mesh.uvs[corners[corner]];
         }
-        const ShellPrism prism = ShellPrism::make(positions, normals, uvs, {1.0f, 1.0f}, 32, 32,
-                                                  16, 0.05);
+        const ShellPrism prism =
+            ShellPrism::make(positions, normals, uvs, {1.0f, 1.0f}, 32, 32, 16, 0.05);
         PrismPoint point{1.0 / 3.0, 1.0 / 3.0, 0.0};
         ShellPrism::Jacobian jacobian;
         ASSERT_TRUE(prism.invert(glm::dvec3(hit.position) - prism.corner0, point, jacobian));
@@ -449,7 +449,8 @@ TEST(CurvedShell, RenderIsTheSameForOneAndTwoThreadsAndBatched) {
     const SceneTracer tracer(scene, TraceOptions{});
     std::vector<Ray> rays;
     for (int k = 0; k < 64; ++k)
-        rays.push_back({{-0.7f + 0.022f * k, -1.0f, 0.5f}, glm::normalize(glm::vec3(0.1f, 1.0f, -0.6f))});
+        rays.push_back(
+            {{-0.7f + 0.022f * k, -1.0f, 0.5f}, glm::normalize(glm::vec3(0.1f, 1.0f, -0.6f))});
     std::vector<SurfaceHit> hits(rays.size());
     bool found[SceneTracer::kMaxBatchRays] = {};
     TraceCounters counters;
