@@ -422,9 +422,13 @@ void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
     ShellMarch* flat[kMaxBatchRays];
     std::uint32_t shells[kMaxBatchRays];
     std::size_t flatCount = 0;
+    // The curved marches' state, once per thread (most marches are not curved: a ShellMarch
+    // does not carry it).
+    thread_local CurvedMarchRay curvedTraces[kMaxBatchRays];
+    std::size_t curvedCount = 0;
     for (ShellMarch* march : marches) {
         if (triangles_[march->baseHit.triangle].curved) {
-            takeCurvedEntry(*march);
+            takeCurvedEntry(*march, curvedTraces[curvedCount++]);
         } else if (entersFlatShell(*march)) {
             shells[flatCount] = march->baseHit.triangle;
             flat[flatCount++] = march;
@@ -589,14 +593,14 @@ void SceneTracer::takeCurvedMarches(std::span<ShellMarch* const> marches) const 
         if (options_.reference) {  // one at a time, on the truth
             const Material& material = scene_.objects[march->object].material;
             const AnalyticFilter truth(material.analyticDistance);
-            CurvedMarchRay& trace = march->curvedTrace;
+            CurvedMarchRay& trace = *march->curvedTrace;
             while (trace.advance(truth.distanceTexels(trace.samplePosition()))) {
             }
             finishCurvedMarch(*march);
             continue;
         }
         owners[count] = march;
-        traces[count] = &march->curvedTrace;
+        traces[count] = march->curvedTrace;
         tiles[count++] = columns(march->object);
     }
     if (count == 0) return;
@@ -690,7 +694,7 @@ void SceneTracer::buildShellMap() {
     }
 }
 
-void SceneTracer::takeCurvedEntry(ShellMarch& march) const {
+void SceneTracer::takeCurvedEntry(ShellMarch& march, CurvedMarchRay& trace) const {
     const Ray& ray = *march.ray;
     SurfaceHit& hit = *march.hit;
     const TriangleHit& baseHit = march.baseHit;
@@ -708,13 +712,14 @@ void SceneTracer::takeCurvedEntry(ShellMarch& march) const {
     // budget, not cut by the adaptive budget (the budgeted march's minimum step, the path left
     // over the samples left, is what would change with it).
     if (!options_.reference) settings.maxIterations *= kCurvedBudgetScale;
-    march.curvedTrace.start(shellPrisms_, ray, baseHit.triangle, baseHit.b1, baseHit.b2,
-                            baseHit.distanceWorld, material.floor, settings);
-    if (!march.curvedTrace.needsSample()) finishCurvedMarch(march);
+    march.curvedTrace = &trace;
+    trace.start(shellPrisms_, ray, baseHit.triangle, baseHit.b1, baseHit.b2, baseHit.distanceWorld,
+                material.floor, settings);
+    if (!trace.needsSample()) finishCurvedMarch(march);
 }
 
 void SceneTracer::finishCurvedMarch(ShellMarch& march) const {
-    const CurvedMarchEnd& end = march.curvedTrace.end();
+    const CurvedMarchEnd& end = march.curvedTrace->end();
     const SceneObject& object = scene_.objects[march.object];
     SurfaceHit& hit = *march.hit;
     march.result = end.march;

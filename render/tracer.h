@@ -141,7 +141,9 @@ struct ShellMarch {
     /// A march through a curved shell (render/shell_march.h): its result's position is in the
     /// texel space of the prism it ended in, and the distances below replace the entry's.
     bool curved = false;
-    CurvedMarchRay curvedTrace;     ///< the curved march, until it ends
+    /// The curved march, until it ends: working memory of the thread that takes the entry,
+    /// valid within one marchShells (or traceNearestBatch) call.
+    CurvedMarchRay* curvedTrace = nullptr;
     float endDistanceWorld = 0.0f;  ///< the hit, or where the ray left the shell
     /// Left the shell: the ray crossed its boundary (through the top: the back face of a base
     /// triangle) between these two distances along it.
@@ -310,8 +312,9 @@ class SceneTracer {
     void beginMarch(ShellMarch& march, int maxIterations) const;
     /// Whether takeFlatEntries takes the entry of `march`.
     bool entersFlatShell(const ShellMarch& march) const;
-    /// The entry of a ray into a curved shell: its march started (render/shell_march.h).
-    void takeCurvedEntry(ShellMarch& march) const;
+    /// The entry of a ray into a curved shell: its march started (render/shell_march.h) in
+    /// `trace`, working memory that must outlive the march.
+    void takeCurvedEntry(ShellMarch& march, CurvedMarchRay& trace) const;
     /// The curved marches among `marches` (takeMarches), interleaved by tile.
     void takeCurvedMarches(std::span<ShellMarch* const> marches) const;
     /// A curved march's end into its ShellMarch and its hit's frame.
