@@ -302,7 +302,7 @@ std::string tableCell(const std::string& text) {
     return escaped;
 }
 
-/// `distile bench --stress -o DIR`: runs the stress cases of issue 5
+/// `distile bench --stress -o DIR`: runs the numerical stress cases
 /// (bench/stress/stress_cases.h), writes DIR/stress.md and DIR/stress.csv, prints one line per
 /// case and exits with status 1 when a case failed.
 void runStressReport(const fs::path& outputDir) {
@@ -311,12 +311,12 @@ void runStressReport(const fs::path& outputDir) {
     if (error)
         throw InputError("-o: cannot create the folder '" + outputDir.string() +
                          "': " + error.message());
-    std::printf("bench: stress cases (issue 5)\n");
+    std::printf("bench: numerical stress cases\n");
     std::fflush(stdout);
     const std::vector<StressCase> cases = runStressCases();
     std::ostringstream md, csv;
     md << "# distile bench --stress\n\n"
-          "The numerical-stability stress cases of issue 5, each against a known answer (a "
+          "The numerical-stability stress cases, each against a known answer (a "
           "plane's exact hit, the same scene near the origin, the analytic chain mail). Error: "
           "the case's figure against that answer, in texels; pass: error within tolerance, no "
           "NaN/Inf pixel and every other expectation held (tests/stress_test.cpp asserts the "

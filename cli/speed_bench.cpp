@@ -92,7 +92,7 @@ constexpr int kRepeatedTilesPerSide = 64;
 /// the renderer's work counters: on a shared machine the fastest of a few runs still moves by a
 /// few percent between identical renders, so a time alone does not tell a skip from noise.
 constexpr double kSavingThreshold = 0.02;
-/// Acceptance (issue 6): a skip changes the image by more than one 8-bit code in at most this
+/// A skip passes when it changes the image by more than one 8-bit code in at most this
 /// share of the pixels.
 constexpr double kMaxDifferingShare = 0.001;
 

@@ -1,5 +1,5 @@
 /// @file
-/// The empty space above a tile's detail, for empty-space skipping in the march (issue 6): per
+/// The empty space above a tile's detail, for empty-space skipping in the march: per
 /// block of kBlockTexels x kBlockTexels texel columns, the height above which the trilinear (or
 /// nearest) reconstruction is at least a threshold everywhere over the block. A ray that descends
 /// through the top face crosses the blocks' empty parts in one step each (a 2D walk over the

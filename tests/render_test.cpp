@@ -1134,7 +1134,7 @@ RenderComparison sheetAgainstReference(int iterations) {
 }
 
 TEST(ReferenceRender, SheetWithAConvergedBudgetIsWithinAQuarterTexelOfTheAnalyticTruth) {
-    // Issue 5's acceptance figures (mean hit error <= 0.25 texel, coverage mismatch <= 0.5%) on a
+    // The acceptance figures (mean hit error <= 0.25 texel, coverage mismatch <= 0.5%) on a
     // 320 x 256 image of data/scenes/sheet.json's camera and sheet, trilinear tile, 64 iterations
     // (99.8% of rays converge). Measured: mean 0.112 texel, no coverage mismatch. The residual
     // is the tile's own error (trilinear over a float tile) and silhouette pixels.

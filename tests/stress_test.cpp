@@ -1,4 +1,4 @@
-// Numerical-stability stress suite (issue 5): grazing rays, far UVs, far base meshes, broken UV
+// Numerical-stability stress suite: grazing rays, far UVs, far base meshes, broken UV
 // layouts, a camera inside the shell, sub-texel wires, extreme shell depths and NaN/Inf rays. The
 // cases themselves (scenes, known answers, checks) live in bench/stress/stress_cases.h, shared with
 // `distile bench --stress`; here each family asserts its cases' error against the tolerance named

@@ -1,5 +1,5 @@
 /// @file
-/// The numerical-stability stress cases of issue 5: grazing rays (0.1 to 5 degrees above the
+/// The numerical-stability stress cases: grazing rays (0.1 to 5 degrees above the
 /// surface), UVs far from the origin, a base mesh far from the world origin, mirrored and
 /// degenerate UV triangles and zero-area faces, a camera inside the shell, wires thinner than a
 /// texel, shell depths from 1e-4 to 1e2 world units, and NaN/Inf rays. Each case states the
