@@ -5,12 +5,40 @@
 
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace distile {
 
 /// A value the caller passed (a size, a parameter, a path, a scene field) is not acceptable.
-struct InputError : std::runtime_error {
+///
+/// Libraries name the field of their own options struct (`InputError::inField("march.epsilonTexels",
+/// "0 is not accepted; ...")`); a program that filled the struct from its own input (a command-line
+/// flag, a JSON path) shows the error under that name with `renamed`.
+class InputError : public std::runtime_error {
+public:
     using std::runtime_error::runtime_error;
+
+    /// An error about one field, as the options struct names it (member path, e.g.
+    /// "march.epsilonTexels"): what() reads "field: problem".
+    static InputError inField(std::string field, std::string problem) {
+        InputError error(field + ": " + problem);
+        error.field_ = std::move(field);
+        error.problem_ = std::move(problem);
+        return error;
+    }
+
+    /// The field this error is about; empty when it is not about one field.
+    const std::string& field() const noexcept { return field_; }
+
+    /// The message without the field's name (the whole message when there is no field).
+    std::string problem() const { return field_.empty() ? what() : problem_; }
+
+    /// The same error about `shownAs` (a flag, a JSON path) instead of the field.
+    InputError renamed(std::string shownAs) const { return inField(std::move(shownAs), problem()); }
+
+private:
+    std::string field_;
+    std::string problem_;
 };
 
 /// A file exists but its contents are not what distile reads (truncated, corrupted, wrong kind).
