@@ -67,10 +67,10 @@ def main():
     o = project(0, 0, 0)
     out += arrow(o, project(W + 40, 0, 0), "#c0392b", "x (T, +u): 0 … W", (6, 16))
     out += arrow(o, project(0, H + 70, 0), "#27ae60", "y (B, +v): 0 … H", (8, 14))
-    out += arrow(o, project(0, 0, D + 9), "#2c5fa8", "z (N): 0 … D", (8, 4))
+    out += arrow(o, project(0, 0, D + 16), "#2c5fa8", "z (N): 0 … D", (-4, -8))
 
     # Face labels.
-    p = project(W * 0.5, H * 0.62, D)
+    p = project(W * 0.62, H * 0.62, D)
     out.append(f'<text x="{p[0]:.1f}" y="{p[1]:.1f}" text-anchor="middle">'
                'z = D: the base surface, rays enter here</text>')
     p = project(W * 0.5, 0, 0)
