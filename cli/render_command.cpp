@@ -5,14 +5,14 @@
 #include <optional>
 #include <string>
 
+#include "bake/provenance.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "cli/progress_bar.h"
-#include "cli/provenance.h"
-#include "cli/scene_json.h"
 #include "common/error.h"
 #include "render/renderer.h"
 #include "render/world_reference.h"
+#include "scene/scene_file.h"
 
 namespace distile::cli {
 
@@ -120,6 +120,8 @@ void runRender(RenderArguments arguments) {
     TileCache tiles;
     SceneFile sceneFile =
         arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles);
+    for (const std::string& warning : sceneFile.warnings)
+        std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());
     if (arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset") {
         runWorldReference(arguments, std::move(sceneFile));
         return;
