@@ -118,10 +118,11 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
     TileCache tiles;
-    SceneFile sceneFile =
-        arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles);
-    for (const std::string& warning : sceneFile.warnings)
+    const auto warn = [](const std::string& warning) {
         std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());
+    };
+    SceneFile sceneFile =
+        arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles, warn);
     if (arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset") {
         runWorldReference(arguments, std::move(sceneFile));
         return;

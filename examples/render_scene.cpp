@@ -16,19 +16,19 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "usage: render_scene SCENE.json OUT.png [WIDTH HEIGHT]\n");
         return 2;
     }
+    const auto warn = [](const std::string& warning) {
+        std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    };
     try {
         distile::TileCache tiles;  // tiles shared by the scene's objects
-        const distile::SceneFile file = distile::loadSceneFile(argv[1], tiles);
-        for (const std::string& warning : file.warnings)
-            std::fprintf(stderr, "warning: %s\n", warning.c_str());
+        const distile::SceneFile file = distile::loadSceneFile(argv[1], tiles, warn);
 
         distile::RenderOptions options;  // image size and samples from the scene file
         options.width = argc == 5 ? std::stoi(argv[3]) : file.image.width;
         options.height = argc == 5 ? std::stoi(argv[4]) : file.image.height;
         options.samplesPerPixel = file.image.samplesPerPixel;
         const distile::RenderResult result = distile::renderScene(file.scene, options);
-        for (const std::string& warning : result.warnings)
-            std::fprintf(stderr, "warning: %s\n", warning.c_str());
+        for (const std::string& warning : result.warnings) warn(warning);
 
         distile::writeImage(result.image, argv[2]);
         std::printf("%s: %dx%d written to %s\n", argv[1], options.width, options.height, argv[2]);

@@ -203,9 +203,9 @@ struct BakedTile {
 
 /// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the closed
 /// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
-/// scale or offset is given. The mesh's warnings go to `warnings`.
+/// scale or offset is given. The mesh's warnings go to `warn`.
 BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                        std::vector<std::string>& warnings) {
+                        const SceneWarningCallback& warn) {
     spec.requireObject({"bake", "file", "size", "scale", "offset"});
     if (!spec.has("file"))
         spec.fail("missing field 'file' (a closed detail mesh: OBJ, PLY, OFF or STL)");
@@ -232,9 +232,11 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
     const std::string recipe = meshRecipe(bytes, placement, options);
     BakedTile baked;
     try {
-        SolidDetailMesh solid = loadSolidDetailMesh(path);
+        const SolidDetailMesh solid = loadSolidDetailMesh(path);
         const TriangleSoup& mesh = solid.mesh;
-        warnings.insert(warnings.end(), solid.warnings.begin(), solid.warnings.end());
+        if (warn) {
+            for (const std::string& warning : solid.warnings) warn(warning);
+        }
         baked.placedMesh =
             std::make_shared<const TriangleSoup>(placeMesh(mesh, placement, options.size));
         const std::string key = "bake:" + recipe;
@@ -255,10 +257,10 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
 }
 
 BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                    std::vector<std::string>& warnings) {
+                    const SceneWarningCallback& warn) {
     if (!spec.has("bake")) spec.fail("missing field 'bake' (the detail to bake: chainmail, mesh)");
     const std::string kind = spec["bake"].string();
-    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warnings);
+    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn);
     if (kind != "chainmail")
         spec["bake"].fail("'" + kind + "' is not a known detail; accepted: chainmail, mesh");
     spec.requireObject({"bake", "size", "rings_per_row", "rows_per_tile", "ring_radius",
@@ -314,16 +316,16 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
 }
 
 /// The material of `field`; stores the placed mesh of a `"bake": "mesh"` tile in `placedMesh`
-/// and the warnings of its bake in `warnings`.
+/// and gives the warnings of its bake to `warn`.
 Material loadMaterial(const Field& field, const fs::path& folder, TileCache& tiles,
                       std::shared_ptr<const TriangleSoup>& placedMesh,
-                      std::vector<std::string>& warnings) {
+                      const SceneWarningCallback& warn) {
     field.requireObject({"tile", "uv_scale", "depth", "floor", "color"});
     Material material;
     if (field.has("tile")) {
         const Field tile = field["tile"];
         if (tile.value().is_object()) {
-            BakedTile baked = bakedTile(tile, folder, tiles, warnings);
+            BakedTile baked = bakedTile(tile, folder, tiles, warn);
             material.tile = std::move(baked.tile);
             placedMesh = std::move(baked.placedMesh);
         } else {
@@ -372,7 +374,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
 
 }  // namespace
 
-SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
+SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarningCallback& warn) {
     if (!fs::exists(file)) throw InputError(file.string() + ": no such file");
     if (fs::is_directory(file))
         throw InputError(file.string() + ": is a folder; a scene .json file is expected");
@@ -451,8 +453,7 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
         }
         std::shared_ptr<const TriangleSoup> placedMesh;
         if (object.has("material"))
-            parsed.material =
-                loadMaterial(object["material"], folder, tiles, placedMesh, result.warnings);
+            parsed.material = loadMaterial(object["material"], folder, tiles, placedMesh, warn);
         scene.objects.push_back(std::move(parsed));
         result.placedDetailMeshes.push_back(std::move(placedMesh));
     }

@@ -18,6 +18,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -41,17 +42,21 @@ struct SceneFile {
     /// placed in the tile (texels), from which attachTruth builds the mesh truth; null for
     /// other objects. May be shorter than scene.objects (missing entries are null).
     std::vector<std::shared_ptr<const TriangleSoup>> placedDetailMeshes;
-    /// What is odd about the input without stopping the load (a baked detail mesh's degenerate
-    /// faces or self-intersections), one line each, naming the file; the caller shows them.
-    std::vector<std::string> warnings;
 };
 
 /// Tiles shared by the objects of a scene: files by canonical path, bakes by their parameters.
 using TileCache = std::map<std::string, std::shared_ptr<const Tile>>;
 
+/// Called with what is odd about a scene's input without stopping the load (a baked detail
+/// mesh's degenerate faces or self-intersections, bake/solid_mesh.h), one line naming the file,
+/// as soon as it is found: before a later error ends the load. The library prints nothing.
+using SceneWarningCallback = std::function<void(const std::string& warning)>;
+
 /// The scene in `file`, its tiles read or baked once through `tiles` (pass the same cache to load
-/// several scenes that share tiles). Throws as the file note says.
-SceneFile loadSceneFile(const std::filesystem::path& file, TileCache& tiles);
+/// several scenes that share tiles); warnings go to `warn` (none: dropped). Throws as the file
+/// note says.
+SceneFile loadSceneFile(const std::filesystem::path& file, TileCache& tiles,
+                        const SceneWarningCallback& warn = {});
 
 /// The built-in demo: chain mail on a torus (curved) lying on a plane (flat).
 SceneFile demoScene(TileCache& tiles);
