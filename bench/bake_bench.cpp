@@ -14,8 +14,8 @@
 #include <optional>
 #include <vector>
 
+#include "bake/bake.h"
 #include "common/triangle_soup.h"
-#include "sampler/bake.h"
 #include "vdb/chainmail.h"
 #include "vdb/mesh_level_set.h"
 

@@ -8,11 +8,11 @@
 #include <random>
 #include <vector>
 
+#include "bake/bake.h"
 #include "render/coverage.h"
 #include "render/demo_scene.h"
 #include "render/march.h"
 #include "render/renderer.h"
-#include "sampler/bake.h"
 #include "sampler/filters.h"
 #include "sampler/tile_columns.h"
 

@@ -1,19 +1,20 @@
 // distile bake: detail -> level set (.vdb) -> tile (.exr).
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <optional>
 #include <set>
 #include <sstream>
 #include <utility>
 
+#include "bake/bake.h"
+#include "bake/height_image.h"
+#include "bake/solid_mesh.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
-#include "cli/mesh_bake.h"
 #include "cli/progress_bar.h"
 #include "common/error.h"
-#include "sampler/bake.h"
-#include "sampler/height_image.h"
 #include "sampler/tile_io.h"
 
 namespace distile::cli {
@@ -65,16 +66,32 @@ MeshPlacement meshPlacement(const BakeArguments& arguments) {
 }
 
 /// `bake mesh FILE`: load, refuse meshes that have no inside, bake with exact signs near the
-/// surface, verify the sign (cli/mesh_bake.h). Throws before anything is written.
+/// surface, verify the sign (bake/solid_mesh.h). Throws before anything is written.
 BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& options,
                         ProgressBar& progress) {
     const std::string file = arguments.input.string();
-    const TriangleSoup mesh = loadSolidDetailMesh(arguments.input);
+    const SolidDetailMesh solid = loadSolidDetailMesh(arguments.input);
+    for (const std::string& warning : solid.warnings)
+        std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());
     SolidMeshBake bake =
-        bakeSolidMesh(mesh, meshPlacement(arguments), options, file, std::ref(progress));
+        bakeSolidMesh(solid.mesh, meshPlacement(arguments), options, file, std::ref(progress));
     std::printf("%s: %zu triangles, closed and manifold; sign verified at %d voxels\n",
-                file.c_str(), mesh.triangles.size(), bake.signCheckedVoxels);
+                file.c_str(), solid.mesh.triangles.size(), bake.signCheckedVoxels);
     return std::move(bake.result);
+}
+
+/// The library's error about one field of the bake's options (bake/bake.h) under the flag that
+/// filled it; other errors as they are.
+InputError underFlag(const InputError& error) {
+    static const std::map<std::string, std::string> flags = {
+        {"size", "--size"},
+        {"halfBandTexels", "--band"},
+        {"placement.scale", "--scale"},
+        {"placement.offsetTexels", "--offset"},
+        {"heightTexels", "--height-texels"},
+    };
+    const auto found = flags.find(error.field());
+    return found == flags.end() ? error : error.renamed(found->second);
 }
 
 /// "NxM" -> (N, M) for --repeat; the level set checks the range.
@@ -159,7 +176,7 @@ void runBake(const BakeArguments& arguments) {
 
     const auto start = std::chrono::steady_clock::now();
     std::optional<BakeResult> result;
-    {
+    try {
         ProgressBar progress("bake " + arguments.detail + " " + toString(options.size));
         if (arguments.detail == "mesh") {
             result.emplace(bakeMeshFile(arguments, options, progress));
@@ -171,6 +188,8 @@ void runBake(const BakeArguments& arguments) {
         } else {
             result.emplace(bakeProcedural(procedural, options, std::ref(progress)));
         }
+    } catch (const InputError& error) {
+        throw underFlag(error);
     }
     // The repeated level set is built before anything is written: a refused --repeat leaves no
     // file.

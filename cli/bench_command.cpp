@@ -15,15 +15,15 @@
 #include <utility>
 #include <vector>
 
+#include "bake/bake.h"
 #include "cli/arguments.h"
 #include "cli/bench_common.h"
 #include "cli/commands.h"
-#include "cli/scene_json.h"
 #include "cli/speed_bench.h"
 #include "common/error.h"
 #include "render/compare.h"
 #include "render/renderer.h"
-#include "sampler/bake.h"
+#include "scene/scene_file.h"
 
 #ifdef DISTILE_HAVE_PEERS
 #include "bench/peers/peers.h"
@@ -507,7 +507,6 @@ void runBench(const BenchArguments& arguments) {
         field.objects[0].material.tile =
             std::make_shared<const Tile>(bakeHeightMap(heights, HeightMapOptions{}, bake).tile);
         field.objects[0].material.analyticDistance = {};
-        field.objects[0].material.procedural.reset();
         for (int budget : {4, 8, 16}) {
             RenderOptions options = defaults;
             options.march.method = MarchMethod::SphereTracing;

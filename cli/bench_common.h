@@ -8,12 +8,12 @@
 #include <filesystem>
 #include <string>
 
-#include "cli/scene_json.h"
+#include "bake/height_image.h"
 #include "render/compare.h"
 #include "render/renderer.h"
 #include "render/world_reference.h"
-#include "sampler/height_image.h"
 #include "sampler/tile.h"
+#include "scene/scene_file.h"
 
 namespace distile::cli {
 

@@ -5,14 +5,14 @@
 #include <optional>
 #include <string>
 
+#include "bake/provenance.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "cli/progress_bar.h"
-#include "cli/provenance.h"
-#include "cli/scene_json.h"
 #include "common/error.h"
 #include "render/renderer.h"
 #include "render/world_reference.h"
+#include "scene/scene_file.h"
 
 namespace distile::cli {
 
@@ -118,8 +118,11 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
     TileCache tiles;
+    const auto warn = [](const std::string& warning) {
+        std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());
+    };
     SceneFile sceneFile =
-        arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles);
+        arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles, warn);
     if (arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset") {
         runWorldReference(arguments, std::move(sceneFile));
         return;

@@ -19,11 +19,11 @@
 #include <utility>
 #include <vector>
 
-#include "cli/bake_cache.h"
-#include "cli/scene_json.h"
+#include "bake/bake.h"
+#include "bake/bake_cache.h"
 #include "common/error.h"
-#include "sampler/bake.h"
 #include "sampler/tile_io.h"
+#include "scene/scene_file.h"
 
 #ifdef DISTILE_HAVE_PEERS
 #include "bench/peers/peers.h"

@@ -3,11 +3,12 @@
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
-set(distile_libraries distile_common distile_vdb distile_sampler distile_mesh distile_truth distile_render)
+set(distile_libraries distile_common distile_vdb distile_sampler distile_mesh distile_truth distile_bake
+                       distile_render distile_scene)
 install(TARGETS ${distile_libraries} distile_warnings distile_sanitizers EXPORT distileTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS distile RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
-foreach(folder common vdb sampler mesh truth render)
+foreach(folder common vdb sampler mesh truth bake render scene)
     install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/distile
             FILES_MATCHING PATTERN "*.h" PATTERN "detail" EXCLUDE)
 endforeach()

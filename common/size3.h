@@ -26,7 +26,8 @@ std::string toString(const Size3& size);
 inline constexpr std::size_t kMaxTileTexels = std::size_t(1) << 28;
 
 /// Throws InputError unless every extent is in [2, 65536] and the texel count is at most
-/// kMaxTileTexels. `what` names the value in the message (e.g. "--size").
+/// kMaxTileTexels. `what` names the value in the message and is the error's field() (a library
+/// passes its options' field, e.g. "size"; a program its flag or JSON path).
 void validateTileSize(const Size3& size, const std::string& what);
 
 }  // namespace distile

@@ -1,7 +1,7 @@
 /// @file
 /// What the renderer draws: a camera, directional lights and base meshes carrying distance
-/// tiles. Plain structs with defaults (DESIGN.md, Scene files); the command line fills them
-/// from JSON, the renderer never parses text. World units throughout, angles in degrees.
+/// tiles. Plain structs with defaults; scene files (scene/scene_file.h) and programs fill them,
+/// the renderer never parses text. World units throughout, angles in degrees.
 #pragma once
 
 #include <functional>
@@ -14,7 +14,6 @@
 #include "mesh/base_mesh.h"
 #include "render/image.h"
 #include "sampler/tile.h"
-#include "vdb/procedural.h"
 
 namespace distile {
 
@@ -64,9 +63,6 @@ struct Material {
     std::function<std::optional<DetailHit>(const glm::dvec3& originTexels,
                                            const glm::dvec3& direction, double maxTravelTexels)>
         exactHit;
-    /// Optional: the procedural pattern the tile was baked from (the options behind
-    /// analyticDistance), so peers can rebuild the same detail their own way (bench/peers).
-    std::optional<ProceduralOptions> procedural;
 };
 
 /// A colour texture's bilinear albedo at base-mesh uv (texel centres at (i + 0.5) / size, row 0

@@ -641,7 +641,7 @@ TEST_F(Cli, ClosedMeshAcceptanceWithTheDefaultConservativeBake) {
     };
     // Issue #3: `check --against` the mesh, 100,000 points, default bake: max |error| <= 0.5
     // texel within 2 texels of the surface, no sign errors. The conservative correction measures
-    // the trilinear overestimate against the exact mesh distance (sampler/conservative.h), so the
+    // the trilinear overestimate against the exact mesh distance (bake/conservative.h), so the
     // cube's sharp edges are lowered by what they overestimate (the estimate alone: 0.70).
     writeText(path("cube.obj"), kCubeObj);
     // A cube at a non-aligned offset, more than 2 texels from z = 0 and z = D (see below), and a

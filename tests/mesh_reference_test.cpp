@@ -9,11 +9,11 @@
 #include <numbers>
 #include <optional>
 
+#include "bake/bake.h"
 #include "detail_meshes.h"
 #include "mesh/base_mesh.h"
 #include "render/compare.h"
 #include "render/renderer.h"
-#include "sampler/bake.h"
 #include "truth/mesh_truth.h"
 
 namespace distile {

@@ -12,8 +12,8 @@
 #include <filesystem>
 #include <vector>
 
+#include "bake/bake.h"
 #include "render/renderer.h"
-#include "sampler/bake.h"
 
 namespace distile {
 namespace {
@@ -39,7 +39,6 @@ Scene smallSheet() {
     sheet.material.depthWorld = 0.25f;
     ProceduralOptions procedural;
     procedural.chainmail = chainmail;
-    sheet.material.procedural = procedural;
     sheet.material.analyticDistance =
         proceduralDistance(procedural, tile->size()).signedDistanceTexels;
     scene.objects.push_back(std::move(sheet));

@@ -1055,9 +1055,9 @@ TEST(Material, ColorTextureIsLookedUpBilinearlyAtTheBaseUvAndWraps) {
 // ---------------------------------------------------------------------------------------------
 // Reference renders (render/analytic_filter.h), measured with render/compare.h.
 
+#include "bake/bake.h"
 #include "render/analytic_filter.h"
 #include "render/compare.h"
-#include "sampler/bake.h"
 #include "vdb/procedural.h"
 
 namespace distile {

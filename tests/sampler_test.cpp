@@ -12,9 +12,9 @@
 #include <random>
 #include <vector>
 
+#include "bake/bake.h"
+#include "bake/conservative.h"
 #include "common/error.h"
-#include "sampler/bake.h"
-#include "sampler/conservative.h"
 #include "sampler/filters.h"
 #include "sampler/occupancy.h"
 #include "sampler/tile_columns.h"

@@ -11,12 +11,12 @@
 #include <glm/geometric.hpp>
 #include <memory>
 
+#include "bake/bake.h"
+#include "bake/height_image.h"
 #include "detail_meshes.h"
 #include "mesh/base_mesh.h"
 #include "render/coverage.h"
 #include "render/renderer.h"
-#include "sampler/bake.h"
-#include "sampler/height_image.h"
 #include "truth/mesh_truth.h"
 #include "vdb/height_field.h"
 

@@ -12,9 +12,9 @@
 #include <random>
 #include <vector>
 
+#include "bake/bake.h"
 #include "common/error.h"
 #include "detail_meshes.h"
-#include "sampler/bake.h"
 #include "truth/mesh_truth.h"
 #include "vdb/height_field.h"
 #include "vdb/mesh_level_set.h"

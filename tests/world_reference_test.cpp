@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "bake/bake.h"
 #include "common/error.h"
 #include "mesh/base_mesh.h"
 #include "render/compare.h"
@@ -16,7 +17,6 @@
 #include "render/renderer.h"
 #include "render/shading.h"
 #include "render/tracer.h"
-#include "sampler/bake.h"
 #include "vdb/displaced_level_set.h"
 #include "vdb/procedural.h"
 

@@ -24,7 +24,7 @@ struct GratingOptions {
     double barHeightTexels = 6.0;  ///< bar thickness in z, texels
     /// Rounding of the bars' long edges, texels (0: sharp). The default, half the bar height, gives
     /// a stadium cross-section: no sharp edge outside and no corner cone inside, which trilinear
-    /// reconstruction would overestimate (sampler/conservative.h).
+    /// reconstruction would overestimate (bake/conservative.h).
     double edgeRadiusTexels = 3.0;
     double layerGapTexels = 1.0;  ///< gap between the layers in z, texels (> 0)
 };

@@ -8,8 +8,9 @@
 ///    sheet (vdb/level_set.h), with its camera converted to the level set's texel space.
 /// Both accept one kind of scene, a "sheet": one object, a planar base mesh with orthogonal,
 /// right-handed uv axes carrying a procedural European 4-in-1 chain-mail tile
-/// (Material::procedural). Anything else, or a peer that is not installed, gives a PeerRender
-/// with available = false and the reason; errors of the peer itself throw std::runtime_error.
+/// (its options read from the tile's provenance, bake/provenance.h). Anything else, or a peer that
+/// is not installed, gives a PeerRender with available = false and the reason; errors of the peer
+/// itself throw std::runtime_error.
 #pragma once
 
 #include <cstddef>

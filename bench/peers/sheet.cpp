@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <optional>
 
+#include "bake/provenance.h"
 #include "common/error.h"
 
 namespace distile::detail {
@@ -44,17 +46,25 @@ std::variant<SheetPlacement, std::string> findSheet(const Scene& scene) {
     const SceneObject& object = scene.objects.front();
     const Material& material = object.material;
     if (!material.tile) return std::string("not available: objects[0] has no tile");
-    if (!material.procedural || material.procedural->kind != ProceduralKind::Chainmail ||
-        material.procedural->chainmail.weave != ChainmailWeave::European4in1) {
+    // The chain-mail options the tile was baked with, from its provenance.
+    std::optional<ProceduralOptions> procedural;
+    try {
+        procedural =
+            proceduralFromProvenance(material.tile->provenance, "objects[0].material.tile");
+    } catch (const std::exception&) {
+        // Not procedural, or params that cannot be read: not chain mail the peers can rebuild.
+    }
+    if (!procedural || procedural->kind != ProceduralKind::Chainmail ||
+        procedural->chainmail.weave != ChainmailWeave::European4in1) {
         return std::string(
-            "not available: objects[0].material is not known to be procedural European 4-in-1 "
-            "chain mail (Material::procedural)");
+            "not available: objects[0].material.tile is not procedural European 4-in-1 chain "
+            "mail (its provenance)");
     }
     const BaseMesh& mesh = object.mesh;
     if (mesh.triangles.empty()) return std::string("not available: objects[0] has no triangles");
 
     SheetPlacement sheet;
-    sheet.chainmail = material.procedural->chainmail;
+    sheet.chainmail = procedural->chainmail;
     sheet.tile = material.tile->size();
     sheet.uvScale = glm::dvec2(material.uvScale);
     sheet.depthWorld = material.depthWorld;

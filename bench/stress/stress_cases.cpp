@@ -10,12 +10,12 @@
 #include <limits>
 #include <memory>
 
+#include "bake/bake.h"
 #include "common/error.h"
 #include "mesh/base_mesh.h"
 #include "render/march.h"
 #include "render/renderer.h"
 #include "render/tracer.h"
-#include "sampler/bake.h"
 #include "sampler/filters.h"
 #include "sampler/tile_columns.h"
 #include "vdb/chainmail.h"

@@ -1,23 +1,32 @@
 /// @file
-/// The one bake path for closed detail meshes, shared by `distile bake mesh` and the scene recipe
-/// `"tile": {"bake": "mesh", ...}`: refuse meshes without an inside, bake with the exact inside
-/// test and the exact distance of the placed mesh (truth/mesh_truth.h), then verify the sign.
+/// The one bake path for closed detail meshes, shared by every program that bakes them (the
+/// `bake mesh` command, a scene's `"bake": "mesh"` tile): refuse meshes without an inside, bake
+/// with the exact inside test and the exact distance of the placed mesh (truth/mesh_truth.h),
+/// then verify the sign.
 #pragma once
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
+#include "bake/bake.h"
 #include "common/progress.h"
 #include "common/triangle_soup.h"
-#include "sampler/bake.h"
 
-namespace distile::cli {
+namespace distile {
 
-/// Reads a detail mesh (mesh/detail_mesh.h) and checks that it is a solid; warns on stderr about
-/// degenerate faces and self-intersections.
+/// A detail mesh that is a solid, and what is odd about it without stopping a bake.
+struct SolidDetailMesh {
+    TriangleSoup mesh;  ///< file units
+    /// One line each, naming the file: degenerate (zero-area) faces, self-intersections. The
+    /// caller shows them (the library writes nothing to the terminal).
+    std::vector<std::string> warnings;
+};
+
+/// Reads a detail mesh (mesh/detail_mesh.h) and checks that it is a solid.
 /// @throws InputError naming the file: the mesh is open, non-manifold or not orientable.
 /// @throws FormatError as loadDetailMesh.
-TriangleSoup loadSolidDetailMesh(const std::filesystem::path& file);
+SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& file);
 
 /// Number of voxels whose sign bakeSolidMesh verifies against the exact inside test.
 inline constexpr int kSignCheckVoxels = 10000;
@@ -28,7 +37,7 @@ struct SolidMeshBake {
 };
 
 /// Bakes `mesh` (file units, from loadSolidDetailMesh) placed by `placement`, with exact signs
-/// near the surface and the exact distance for the conservative correction (sampler/bake.h
+/// near the surface and the exact distance for the conservative correction (bake/bake.h
 /// bakeMesh), then verifies the sign at up to kSignCheckVoxels random voxels. `file` names the
 /// mesh in messages.
 /// @throws InputError as placeMesh, or the mesh has no inside.
@@ -37,4 +46,4 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
                             const BakeOptions& options, const std::string& file,
                             const ProgressCallback& progress = {});
 
-}  // namespace distile::cli
+}  // namespace distile

@@ -1,15 +1,15 @@
-#include "cli/mesh_bake.h"
+#include "bake/solid_mesh.h"
 
-#include <cstdio>
 #include <random>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 
 #include "common/error.h"
 #include "mesh/detail_mesh.h"
 #include "truth/mesh_truth.h"
 
-namespace distile::cli {
+namespace distile {
 
 namespace {
 
@@ -19,10 +19,10 @@ constexpr double kSignCheckSkipTexels = 0.1;
 
 }  // namespace
 
-TriangleSoup loadSolidDetailMesh(const std::filesystem::path& path) {
+SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& path) {
     const std::string file = path.string();
-    TriangleSoup mesh = loadDetailMesh(path);
-    const MeshTopology topology = inspectMesh(mesh);
+    SolidDetailMesh solid{loadDetailMesh(path), {}};
+    const MeshTopology topology = inspectMesh(solid.mesh);
     if (!topology.closed || !topology.manifold) {
         std::ostringstream message;
         message << file << ": the mesh is ";
@@ -33,16 +33,15 @@ TriangleSoup loadSolidDetailMesh(const std::filesystem::path& path) {
         throw InputError(message.str());
     }
     if (topology.degenerateFaces > 0) {
-        std::fprintf(stderr, "distile: warning: %s: %zu degenerate (zero-area) faces\n",
-                     file.c_str(), topology.degenerateFaces);
+        solid.warnings.push_back(file + ": " + std::to_string(topology.degenerateFaces) +
+                                 " degenerate (zero-area) faces");
     }
     if (topology.selfIntersecting) {
-        std::fprintf(stderr,
-                     "distile: warning: %s: the mesh intersects itself; inside is where the exact "
-                     "test says\n",
-                     file.c_str());
+        solid.warnings.push_back(file +
+                                 ": the mesh intersects itself; inside is where the exact test "
+                                 "says");
     }
-    return mesh;
+    return solid;
 }
 
 SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& placement,
@@ -57,7 +56,7 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
             "manifold triangle meshes");
     }
     // The exact inside test fixes the signs near the surface; the exact distance lets the
-    // conservative correction measure the trilinear overestimate (sampler/conservative.h).
+    // conservative correction measure the trilinear overestimate (bake/conservative.h).
     SolidMeshBake bake{bakeMesh(
         mesh, placement, options, progress,
         [&truth](const glm::dvec3& p) { return truth.isInside(p); },
@@ -92,4 +91,4 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     return bake;
 }
 
-}  // namespace distile::cli
+}  // namespace distile

@@ -1,15 +1,34 @@
-#include "sampler/bake.h"
+#include "bake/bake.h"
 
 #include <algorithm>
 #include <cmath>
 #include <sstream>
 
+#include "bake/resample.h"
 #include "common/error.h"
-#include "sampler/resample.h"
 #include "vdb/height_field.h"
 #include "vdb/mesh_level_set.h"
 
 namespace distile {
+
+namespace {
+
+/// Errors name the fields of BakeOptions (a program shows them under its own names).
+void validateBakeOptions(const BakeOptions& options) {
+    validateTileSize(options.size, "size");
+    if (!(options.halfBandTexels >= 0.0f)) {
+        throw InputError::inField(
+            "halfBandTexels",
+            std::to_string(options.halfBandTexels) +
+                " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
+    }
+}
+
+bool isFinite(const glm::dvec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+}  // namespace
 
 BakeResult bakeChainmail(const ChainmailOptions& chainmailOptions, const BakeOptions& options,
                          const ProgressCallback& progress) {
@@ -21,35 +40,22 @@ BakeResult bakeChainmail(const ChainmailOptions& chainmailOptions, const BakeOpt
 
 BakeResult bakeProcedural(const ProceduralOptions& proceduralOptions, const BakeOptions& options,
                           const ProgressCallback& progress) {
-    validateTileSize(options.size, "--size");
-    if (!(options.halfBandTexels >= 0.0f)) {
-        throw InputError(
-            "--band: " + std::to_string(options.halfBandTexels) +
-            " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
-    }
+    validateBakeOptions(options);
     const ProceduralDistance procedural = proceduralDistance(proceduralOptions, options.size);
     const float halfBand =
         options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
     LevelSet levelSet =
         LevelSet::fromDistance(procedural.signedDistanceTexels, options.size, halfBand,
                                procedural.source, procedural.paramsJson, progress);
-    // The estimated correction (sampler/conservative.h): it meets the procedural targets, where
+    // The estimated correction (bake/conservative.h): it meets the procedural targets, where
     // the measured one lowers too much across the wires' centreline kinks.
     Tile tile = tileFromLevelSet(levelSet, options.conservative);
     return {std::move(levelSet), std::move(tile)};
 }
 
-namespace {
-
-bool isFinite(const glm::dvec3& v) {
-    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-
-}  // namespace
-
 TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                        const Size3& tile) {
-    validateTileSize(tile, "--size");
+    validateTileSize(tile, "size");
     validateTriangleSoup(meshFileUnits, "detail mesh");
     const Bounds3 box = boundsOf(meshFileUnits);
     const glm::dvec3 extent = box.max - box.min;
@@ -59,7 +65,7 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
         if (!(extent.x > 0.0 || extent.y > 0.0)) {
             throw InputError(
                 "detail mesh: has no extent in x or y, so it cannot be fitted to "
-                "the tile footprint; use --scale and --offset");
+                "the tile footprint; place it with an explicit scale and offset");
         }
         scale = std::min(extent.x > 0.0 ? tile.width / extent.x : HUGE_VAL,
                          extent.y > 0.0 ? tile.height / extent.y : HUGE_VAL);
@@ -70,15 +76,21 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
             std::ostringstream message;
             message << "detail mesh: fitted to the " << tile.width << "x" << tile.height
                     << " footprint it is " << scale * extent.z << " texels tall, more than the "
-                    << "tile depth " << tile.depth << "; use a deeper --size or --scale/--offset";
+                    << "tile depth " << tile.depth
+                    << "; use a deeper tile size or an explicit scale and offset";
             throw InputError(message.str());
         }
     } else {
         if (!(std::isfinite(scale) && scale > 0.0)) {
-            throw InputError("--scale: " + std::to_string(scale) +
-                             " is not accepted; it must be a finite number > 0 (texels per unit)");
+            throw InputError::inField(
+                "placement.scale",
+                std::to_string(scale) +
+                    " is not accepted; it must be a finite number > 0 (texels per unit)");
         }
-        if (!isFinite(offset)) throw InputError("--offset: must be three finite numbers (texels)");
+        if (!isFinite(offset)) {
+            throw InputError::inField("placement.offsetTexels",
+                                      "must be three finite numbers (texels)");
+        }
     }
     TriangleSoup placed;
     placed.triangles = meshFileUnits.triangles;
@@ -91,7 +103,7 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
             std::ostringstream message;
             message << "detail mesh: placed at (" << texel.x << ", " << texel.y << ", " << texel.z
                     << ") texels; placed coordinates must be within +-" << kMaxPlacedTexelCoordinate
-                    << " (check --scale and --offset)";
+                    << " (check the scale and offset)";
             throw InputError(message.str());
         }
         placed.positions.push_back(texel);
@@ -102,12 +114,7 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
 BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                     const BakeOptions& options, const ProgressCallback& progress,
                     const InsideTest& insideTest, const ExactDistance& exactDistance) {
-    validateTileSize(options.size, "--size");
-    if (!(options.halfBandTexels >= 0.0f)) {
-        throw InputError(
-            "--band: " + std::to_string(options.halfBandTexels) +
-            " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
-    }
+    validateBakeOptions(options);
     const TriangleSoup placed = placeMesh(meshFileUnits, placement, options.size);
     const float halfBand =
         options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
@@ -123,12 +130,7 @@ BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& plac
 
 BakeResult bakeHeightMap(const HeightImage& image, const HeightMapOptions& heightMap,
                          const BakeOptions& options, const ProgressCallback& progress) {
-    validateTileSize(options.size, "--size");
-    if (!(options.halfBandTexels >= 0.0f)) {
-        throw InputError(
-            "--band: " + std::to_string(options.halfBandTexels) +
-            " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
-    }
+    validateBakeOptions(options);
     const double heightTexels =
         heightMap.heightTexels != 0.0 ? heightMap.heightTexels : double(options.size.depth - 1);
     const HeightField field = heightFieldFromImage(image, options.size, heightTexels);

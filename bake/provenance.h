@@ -1,6 +1,7 @@
 /// @file
 /// A tile's provenance (distile:source, distile:params) back to the procedural options it was
-/// baked with, for commands that need the analytic truth (check, render --reference).
+/// baked with, for whoever needs the analytic truth of a tile (checks, reference renders) or
+/// wants to rebuild the same detail its own way.
 #pragma once
 
 #include <string>
@@ -8,7 +9,7 @@
 #include "sampler/tile.h"
 #include "vdb/procedural.h"
 
-namespace distile::cli {
+namespace distile {
 
 /// The procedural options recorded in a tile's distile:source and distile:params (written by
 /// vdb/procedural.h's paramsJson). Throws InputError, naming `file`, for a source without
@@ -17,4 +18,4 @@ namespace distile::cli {
 ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance,
                                            const std::string& file);
 
-}  // namespace distile::cli
+}  // namespace distile

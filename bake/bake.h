@@ -1,13 +1,17 @@
 /// @file
 /// Baking: detail source -> exact narrow-band level set -> dense tile.
+///
+/// Errors about one option are InputError::inField naming its member path, as the options
+/// structs spell it: "size", "halfBandTexels", "placement.scale", "placement.offsetTexels",
+/// "heightTexels"; a program shows them under its own names (InputError::renamed).
 #pragma once
 
 #include <glm/vec3.hpp>
 
+#include "bake/conservative.h"
+#include "bake/height_image.h"
 #include "common/progress.h"
 #include "common/triangle_soup.h"
-#include "sampler/conservative.h"
-#include "sampler/height_image.h"
 #include "sampler/tile.h"
 #include "vdb/chainmail.h"
 #include "vdb/level_set.h"
@@ -22,7 +26,7 @@ struct BakeOptions {
     /// covers every texel of the tile.
     float halfBandTexels = 0.0f;
     /// Resampling into the tile lowers texels so trilinear interpolation does not overestimate
-    /// (sampler/conservative.h); on by default.
+    /// (bake/conservative.h); on by default.
     ConservativeOptions conservative;
 };
 
@@ -42,7 +46,8 @@ BakeResult bakeChainmail(const ChainmailOptions& chainmail, const BakeOptions& o
 BakeResult bakeProcedural(const ProceduralOptions& procedural, const BakeOptions& options,
                           const ProgressCallback& progress = {});
 
-/// Where a detail mesh goes in the tile (texel space, see DESIGN.md).
+/// Where a detail mesh goes in the tile (texel space: x, y in [0,W) x [0,H), z = 0 the floor,
+/// z = D the top).
 /// - Fit (default): scaled uniformly so its x/y bounding box fits the tile footprint exactly
 ///   (the axis with the larger extent relative to W or H spans it), centred in x and y, its
 ///   bottom resting on the floor z = 0. A mesh meant to repeat should have its period as its
@@ -73,12 +78,12 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
 /// (vdb/mesh_level_set.h). `exactDistance`, when given, is the exact signed distance of the placed
 /// mesh (periodic, texels, e.g. truth/mesh_truth.h MeshDistance::signedDistance): the conservative
 /// correction then measures the trilinear overestimate against it instead of estimating it
-/// (sampler/conservative.h). Throws InputError as placeMesh and bakeChainmail do.
+/// (bake/conservative.h). Throws InputError as placeMesh and bakeChainmail do.
 BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                     const BakeOptions& options, const ProgressCallback& progress = {},
                     const InsideTest& insideTest = {}, const ExactDistance& exactDistance = {});
 
-/// A height map: the image (sampler/height_image.h) scaled to heights 0..heightTexels, sampled
+/// A height map: the image (bake/height_image.h) scaled to heights 0..heightTexels, sampled
 /// periodically and bilinearly at the tile's texel columns, material solid below the
 /// triangulated surface through those heights (vdb/height_field.h), baked into an exact signed
 /// level set and its tile (provenance: source "heightmap", the image size and heightTexels).

@@ -1,4 +1,4 @@
-#include "sampler/resample.h"
+#include "bake/resample.h"
 
 namespace distile {
 

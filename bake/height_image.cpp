@@ -1,4 +1,4 @@
-#include "sampler/height_image.h"
+#include "bake/height_image.h"
 
 #include <OpenImageIO/imageio.h>
 
@@ -79,13 +79,13 @@ HeightImage readHeightImage(const fs::path& file) {
 }
 
 HeightField heightFieldFromImage(const HeightImage& image, const Size3& tile, double heightTexels) {
-    validateTileSize(tile, "--size");
+    validateTileSize(tile, "size");
     if (!(std::isfinite(heightTexels) && heightTexels > 0.0 &&
           heightTexels <= double(tile.depth))) {
-        std::ostringstream message;
-        message << "--height-texels: " << heightTexels
-                << " is not accepted; it must be > 0 and at most the tile depth " << tile.depth;
-        throw InputError(message.str());
+        std::ostringstream problem;
+        problem << heightTexels << " is not accepted; it must be > 0 and at most the tile depth "
+                << tile.depth;
+        throw InputError::inField("heightTexels", problem.str());
     }
     if (image.width <= 0 || image.height <= 0 ||
         image.values.size() != std::size_t(image.width) * std::size_t(image.height)) {

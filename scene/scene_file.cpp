@@ -1,25 +1,26 @@
-#include "cli/scene_json.h"
+#include "scene/scene_file.h"
 
 #include <cmath>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
 #include <sstream>
 
-#include "cli/bake_cache.h"
-#include "cli/mesh_bake.h"
-#include "cli/provenance.h"
+#include "bake/bake.h"
+#include "bake/bake_cache.h"
+#include "bake/provenance.h"
+#include "bake/solid_mesh.h"
 #include "common/error.h"
 #include "mesh/base_mesh.h"
 #include "render/demo_scene.h"
 #include "render/image.h"
-#include "sampler/bake.h"
 #include "sampler/tile_io.h"
 #include "truth/mesh_truth.h"
 
-namespace distile::cli {
+namespace distile {
 
 namespace {
 
@@ -144,7 +145,7 @@ Size3 parseSize(const Field& field) {
     return size;
 }
 
-/// Everything a scene's chain-mail bake depends on (cli/bake_cache.h).
+/// Everything a scene's chain-mail bake depends on (bake/bake_cache.h).
 std::string chainmailRecipe(const ChainmailOptions& chainmail, const BakeOptions& options) {
     std::ostringstream recipe;
     recipe.precision(17);
@@ -160,7 +161,7 @@ std::string chainmailRecipe(const ChainmailOptions& chainmail, const BakeOptions
     return recipe.str();
 }
 
-/// Everything a scene's mesh bake depends on (cli/bake_cache.h): the mesh file's bytes (by
+/// Everything a scene's mesh bake depends on (bake/bake_cache.h): the mesh file's bytes (by
 /// hash), the placement and the bake options.
 std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& placement,
                        const BakeOptions& options) {
@@ -176,9 +177,22 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
     }
     recipe << "\nsize " << options.size.width << "x" << options.size.height << "x"
            << options.size.depth << " band " << options.halfBandTexels << "\nconservative "
-           << options.conservative.enabled << " " << options.conservative.toleranceTexels
+           << options.conservative.enabled << " "
+           << options.conservative.toleranceTexels
+           // The recipe's text is part of its hash: changing a word here bakes every cached
+           // mesh tile again.
            << "\nexact inside test and exact distance (cli/mesh_bake.h)\n";
     return recipe.str();
+}
+
+/// The bake library's error about one field of its options (bake/bake.h) under the key of the
+/// tile spec that filled it; other errors under `fallback`, as they are.
+[[noreturn]] void failInSpec(const Field& spec, const Field& fallback, const InputError& error) {
+    static const std::map<std::string, std::string> keys = {
+        {"size", "size"}, {"placement.scale", "scale"}, {"placement.offsetTexels", "offset"}};
+    const auto found = keys.find(error.field());
+    if (found != keys.end() && spec.has(found->second)) spec[found->second].fail(error.problem());
+    fallback.fail(error.what());
 }
 
 /// A tile a scene bakes, and for a mesh recipe the mesh placed in it (texels).
@@ -188,9 +202,10 @@ struct BakedTile {
 };
 
 /// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the closed
-/// mesh baked as `distile bake mesh` does (cli/mesh_bake.h), fitted to the footprint unless
-/// scale or offset is given.
-BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles) {
+/// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
+/// scale or offset is given. The mesh's warnings go to `warn`.
+BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
+                        const SceneWarningCallback& warn) {
     spec.requireObject({"bake", "file", "size", "scale", "offset"});
     if (!spec.has("file"))
         spec.fail("missing field 'file' (a closed detail mesh: OBJ, PLY, OFF or STL)");
@@ -217,7 +232,11 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
     const std::string recipe = meshRecipe(bytes, placement, options);
     BakedTile baked;
     try {
-        const TriangleSoup mesh = loadSolidDetailMesh(path);
+        const SolidDetailMesh solid = loadSolidDetailMesh(path);
+        const TriangleSoup& mesh = solid.mesh;
+        if (warn) {
+            for (const std::string& warning : solid.warnings) warn(warning);
+        }
         baked.placedMesh =
             std::make_shared<const TriangleSoup>(placeMesh(mesh, placement, options.size));
         const std::string key = "bake:" + recipe;
@@ -230,17 +249,18 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
             tiles[key] = baked.tile;
         }
     } catch (const InputError& error) {
-        file.fail(error.what());
+        failInSpec(spec, file, error);
     } catch (const FormatError& error) {
         file.fail(error.what());
     }
     return baked;
 }
 
-BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles) {
+BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
+                    const SceneWarningCallback& warn) {
     if (!spec.has("bake")) spec.fail("missing field 'bake' (the detail to bake: chainmail, mesh)");
     const std::string kind = spec["bake"].string();
-    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles);
+    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn);
     if (kind != "chainmail")
         spec["bake"].fail("'" + kind + "' is not a known detail; accepted: chainmail, mesh");
     spec.requireObject({"bake", "size", "rings_per_row", "rows_per_tile", "ring_radius",
@@ -263,7 +283,7 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles)
         tiles[key] = tile;
         return {tile, nullptr};
     } catch (const InputError& error) {
-        spec.fail(error.what());
+        failInSpec(spec, spec, error);
     }
 }
 
@@ -295,15 +315,17 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
     return loadBaseMesh(path);
 }
 
-/// The material of `field`; stores the placed mesh of a `"bake": "mesh"` tile in `placedMesh`.
+/// The material of `field`; stores the placed mesh of a `"bake": "mesh"` tile in `placedMesh`
+/// and gives the warnings of its bake to `warn`.
 Material loadMaterial(const Field& field, const fs::path& folder, TileCache& tiles,
-                      std::shared_ptr<const TriangleSoup>& placedMesh) {
+                      std::shared_ptr<const TriangleSoup>& placedMesh,
+                      const SceneWarningCallback& warn) {
     field.requireObject({"tile", "uv_scale", "depth", "floor", "color"});
     Material material;
     if (field.has("tile")) {
         const Field tile = field["tile"];
         if (tile.value().is_object()) {
-            BakedTile baked = bakedTile(tile, folder, tiles);
+            BakedTile baked = bakedTile(tile, folder, tiles, warn);
             material.tile = std::move(baked.tile);
             placedMesh = std::move(baked.placedMesh);
         } else {
@@ -352,7 +374,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
 
 }  // namespace
 
-SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
+SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarningCallback& warn) {
     if (!fs::exists(file)) throw InputError(file.string() + ": no such file");
     if (fs::is_directory(file))
         throw InputError(file.string() + ": is a folder; a scene .json file is expected");
@@ -431,7 +453,7 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles) {
         }
         std::shared_ptr<const TriangleSoup> placedMesh;
         if (object.has("material"))
-            parsed.material = loadMaterial(object["material"], folder, tiles, placedMesh);
+            parsed.material = loadMaterial(object["material"], folder, tiles, placedMesh, warn);
         scene.objects.push_back(std::move(parsed));
         result.placedDetailMeshes.push_back(std::move(placedMesh));
     }
@@ -494,10 +516,10 @@ void attachTruth(SceneFile& sceneFile) {
             continue;
         }
         const std::string where = "objects[" + std::to_string(index) + "].material.tile";
-        material.procedural = proceduralFromProvenance(provenance, where);
         material.analyticDistance =
-            proceduralDistance(*material.procedural, material.tile->size()).signedDistanceTexels;
+            proceduralDistance(proceduralFromProvenance(provenance, where), material.tile->size())
+                .signedDistanceTexels;
     }
 }
 
-}  // namespace distile::cli
+}  // namespace distile

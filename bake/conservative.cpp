@@ -1,4 +1,4 @@
-#include "sampler/conservative.h"
+#include "bake/conservative.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

@@ -1,4 +1,4 @@
-#include "cli/bake_cache.h"
+#include "bake/bake_cache.h"
 
 #include <cstdint>
 #include <cstdio>
@@ -7,7 +7,7 @@
 #include "common/error.h"
 #include "sampler/tile_io.h"
 
-namespace distile::cli {
+namespace distile {
 
 namespace fs = std::filesystem;
 
@@ -60,4 +60,4 @@ std::shared_ptr<const Tile> cachedBake(const std::string& recipe,
     return tile;
 }
 
-}  // namespace distile::cli
+}  // namespace distile

@@ -19,7 +19,7 @@
 
 #include "sampler/tile.h"
 
-namespace distile::cli {
+namespace distile {
 
 /// Bump when the bake's output for the same recipe changes (a new conservative correction, a
 /// different resampling): cached tiles of older revisions are then never read.
@@ -37,4 +37,4 @@ std::optional<std::filesystem::path> bakeCacheFolder();
 std::shared_ptr<const Tile> cachedBake(const std::string& recipe,
                                        const std::function<Tile()>& bake);
 
-}  // namespace distile::cli
+}  // namespace distile

@@ -1,0 +1,75 @@
+/// @file
+/// Scene files: JSON to the renderer's structs (render/scene.h). Every field but `objects` has a
+/// default; unknown fields are errors; relative paths resolve from the scene's folder. Tiles a
+/// scene bakes (`"tile": {"bake": ...}`) are baked with distile::bake and kept in its bake cache
+/// (bake/bake_cache.h). Errors are InputError (FormatError for unparsable JSON) naming the file
+/// and the JSON path of the bad field, e.g. "scene.json: objects[0].material.depth: -1 is not
+/// accepted; ...".
+///
+/// Loading and rendering a scene (examples/render_scene.cpp is the whole program):
+///
+///     distile::TileCache tiles;
+///     distile::SceneFile file = distile::loadSceneFile("scene.json", tiles);
+///     distile::RenderOptions options;  // render/renderer.h
+///     options.width = file.image.width;
+///     options.height = file.image.height;
+///     options.samplesPerPixel = file.image.samplesPerPixel;
+///     distile::writeImage(distile::renderScene(file.scene, options).image, "scene.png");
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/triangle_soup.h"
+#include "render/scene.h"
+
+namespace distile {
+
+struct ImageSettings {
+    int width = 1280;
+    int height = 1024;
+    int samplesPerPixel = 1;
+};
+
+struct SceneFile {
+    Scene scene;
+    ImageSettings image;
+    /// Per object (same index as scene.objects): the detail mesh of a `"bake": "mesh"` tile,
+    /// placed in the tile (texels), from which attachTruth builds the mesh truth; null for
+    /// other objects. May be shorter than scene.objects (missing entries are null).
+    std::vector<std::shared_ptr<const TriangleSoup>> placedDetailMeshes;
+};
+
+/// Tiles shared by the objects of a scene: files by canonical path, bakes by their parameters.
+using TileCache = std::map<std::string, std::shared_ptr<const Tile>>;
+
+/// Called with what is odd about a scene's input without stopping the load (a baked detail
+/// mesh's degenerate faces or self-intersections, bake/solid_mesh.h), one line naming the file,
+/// as soon as it is found: before a later error ends the load. The library prints nothing.
+using SceneWarningCallback = std::function<void(const std::string& warning)>;
+
+/// The scene in `file`, its tiles read or baked once through `tiles` (pass the same cache to load
+/// several scenes that share tiles); warnings go to `warn` (none: dropped). Throws as the file
+/// note says.
+SceneFile loadSceneFile(const std::filesystem::path& file, TileCache& tiles,
+                        const SceneWarningCallback& warn = {});
+
+/// The built-in demo: chain mail on a torus (curved) lying on a plane (flat).
+SceneFile demoScene(TileCache& tiles);
+
+/// Gives each tiled object the exact truth of its detail, for reference renders and peers:
+/// - a tile baked from procedural detail: the analytic distance (Material::analyticDistance) of
+///   the procedural options in the tile's provenance (bake/provenance.h);
+/// - a `"bake": "mesh"` tile: the mesh truth (truth/mesh_truth.h, periodic over the tile) as
+///   Material::exactHit (CGAL first ray hits and triangle normals) and analyticDistance (exact
+///   signed distance).
+/// Others (tile files baked from meshes or height maps) are left as they are: the renderer
+/// rejects a reference render of them. Throws FormatError for a procedural tile whose params
+/// cannot be read.
+void attachTruth(SceneFile& sceneFile);
+
+}  // namespace distile
