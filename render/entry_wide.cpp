@@ -1,6 +1,6 @@
-// The AVX2 kernel of render/entry_wide.h. Compiled with -mavx2 and without FMA (see
+// The AVX2 kernel of render/detail/entry_wide.h. Compiled with -mavx2 and without FMA (see
 // sampler/trilinear_wide.cpp: nothing here is shared with the SSE2 build of distile).
-#include "render/entry_wide.h"
+#include "render/detail/entry_wide.h"
 
 #if defined(__x86_64__) && defined(__AVX2__) && !defined(__FMA__)
 #include <immintrin.h>

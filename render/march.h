@@ -28,6 +28,7 @@
 #include <span>
 #include <type_traits>
 
+#include "common/simd.h"
 #include "render/march_wide.h"
 #include "render/scene.h"
 #include "sampler/filters.h"
@@ -437,7 +438,7 @@ void marchInterleavedScalar(const Filter& filter, std::span<Marcher* const> rays
 /// (render/march_wide.h): the rays' steps that go on in SIMD lanes, the step that ends each march
 /// by the ray itself; the few rays that go on after it (a relaxed step taken back, a point the
 /// wide filter does not take) are marched by marchInterleavedScalar. Precondition:
-/// kWideTrilinear.
+/// kSimdLevel >= SimdLevel::Avx2.
 template <class Filter>
 void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const> rays) {
     constexpr std::size_t kChunk = 64;
@@ -476,7 +477,7 @@ template <class Filter, class Marcher = detail::SphereTraceRay>
 void marchInterleaved(const Filter& filter, std::span<Marcher* const> rays) {
     if constexpr (std::is_same_v<Filter, BasicTrilinearFilter<ColumnTexels>> &&
                   std::is_same_v<Marcher, detail::SphereTraceRay>) {
-        if (detail::kWideTrilinear && rays.size() > 1) {
+        if (kSimdLevel >= SimdLevel::Avx2 && rays.size() > 1) {
             detail::marchSphereTracesWide(filter, rays);
             return;
         }

@@ -5,7 +5,7 @@
 /// the regula falsi refinement and its steps) taken in the lanes with the scalar operations in
 /// their order (no FMA), so bit for bit as detail::SphereTraceRay takes them. The step that ends
 /// a march (or takes back a relaxed step) is left to SphereTraceRay itself. Built in their own
-/// translation units with AVX2 and AVX-512 (render/march_lanes.h); plain types only, as
+/// translation units with AVX2 and AVX-512 (render/detail/march_lanes.h); plain types only, as
 /// sampler/trilinear_wide.h.
 #pragma once
 
@@ -45,12 +45,13 @@ struct SphereTraceUniforms {
 /// distance at least epsilon and short of the floor, no relaxed step to take back; the start of
 /// the refinement: a step that went inside; a refinement step: not within epsilon) until the
 /// first other step, eight or sixteen lanes at a time: each lane ends in the state before that
-/// step, with the distance sampled there. Precondition: kWideTrilinear; every lane needs a sample.
+/// step, with the distance sampled there. Preconditions: kSimdLevel >= SimdLevel::Avx2; every lane
+/// needs a sample.
 void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                              SphereTraceLane* const* lanes, int count);
 
 /// sphereTraceOngoingSteps sixteen lanes at a time (render/march_wide16.cpp, AVX-512), which it
-/// calls where kSixteenLanes. Precondition: kSixteenLanes.
+/// calls where kSimdLevel is Avx512. Precondition: kSimdLevel == SimdLevel::Avx512.
 void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                                SphereTraceLane* const* lanes, int count);
 

@@ -11,8 +11,9 @@
 #include <utility>
 
 #include "common/error.h"
+#include "common/simd.h"
 #include "render/analytic_filter.h"
-#include "render/entry_wide.h"
+#include "render/detail/entry_wide.h"
 
 namespace distile {
 
@@ -413,7 +414,7 @@ void SceneTracer::beginMarch(ShellMarch& march, int maxIterations) const {
 
 bool SceneTracer::entersFlatShell(const ShellMarch& march) const {
     // takeEntry's jump over the empty layers without the block walk (trilinear), or no occupancy.
-    return detail::kWideTrilinear && triangles_[march.baseHit.triangle].flatFrame &&
+    return kSimdLevel >= SimdLevel::Avx2 && triangles_[march.baseHit.triangle].flatFrame &&
            !options_.reference &&
            (options_.filter == FilterKind::Trilinear || !occupancies_[march.object]);
 }

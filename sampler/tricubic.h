@@ -318,7 +318,7 @@ class BasicTricubicBSplineFilter {
     void gradients(const glm::vec3* positions, int count, glm::vec3* out) const {
         unsigned redo = (1u << count) - 1u;
         if constexpr (Texels::kZContiguous) {
-            if (detail::kWideTrilinear) {
+            if (kSimdLevel >= SimdLevel::Avx2) {
                 redo = detail::tricubicGradientColumns(texels_.wide(), &positions[0].x, count,
                                                        &out[0].x);
             }

@@ -275,8 +275,8 @@ TEST_F(Cli, RenderDoesNotDependOnTheThreadCount) {
 
 TEST_F(Cli, RenderIsTheSameOnEverySimdPath) {
     // DISTILE_SIMD=sse2 keeps to the SSE2 paths; where the processor has AVX2 the default takes
-    // the wide entry, march and filter kernels (render/entry_wide.h, render/march_wide.h), and
-    // where it has AVX-512 the march's sixteen lanes, which DISTILE_SIMD=avx2 keeps to eight.
+    // the wide entry, march and filter kernels (render/detail/entry_wide.h, render/march_wide.h),
+    // and where it has AVX-512 the march's sixteen lanes, which DISTILE_SIMD=avx2 keeps to eight.
     // Same operations per ray: the same floats. With shadows (self-shadow rays interleave too) and
     // the AOVs' depth. Two scenes: the chain mail seen from above; and a low grating (empty space
     // above it: the entry's jump to the highest top) seen at a grazing angle, with tiles repeated

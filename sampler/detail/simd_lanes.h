@@ -1,14 +1,15 @@
 /// @file
-/// SIMD lanes for the wide kernels (sampler/trilinear_lanes.h, render/march_lanes.h): the float
-/// and int operations they need, for eight lanes with AVX2 (Lanes8) and sixteen with AVX-512F
-/// and BW (Lanes16), so each kernel is written once for both widths. For translation units built
-/// with those instruction sets and without FMA only: every lane rounds as scalar code does.
+/// SIMD lanes for the wide kernels (sampler/detail/trilinear_lanes.h, render/detail/march_lanes.h):
+/// the float and int operations they need, for eight lanes with AVX2 (Lanes8) and sixteen with
+/// AVX-512F and BW (Lanes16), so each kernel is written once for both widths. For translation units
+/// built with those instruction sets and without FMA only: every lane rounds as scalar code does.
 /// Everything here has internal linkage, so each such unit has its own copy and no code built for
 /// another instruction set links to it.
 #pragma once
 
 #if !defined(__AVX2__) || defined(__FMA__)
-#error "sampler/simd_lanes.h is for units built with -mavx2 (or -mavx512f -mavx512bw), no FMA"
+#error \
+    "sampler/detail/simd_lanes.h is for units built with -mavx2 (or -mavx512f -mavx512bw), no FMA"
 #endif
 
 #include <immintrin.h>
