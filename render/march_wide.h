@@ -13,6 +13,26 @@
 
 namespace distile::detail {
 
+/// The adaptive budget (ch. 8's future work: iterations from the viewing angle): a ray gets one
+/// sample per kAdaptiveTexelsPerSample texels of its path to the floor, within [budget / 4,
+/// budget]. Steep rays and rays starting low (after empty-space skipping) need few samples; the
+/// cut never makes the budgeted march's forced steps (path left over samples left) longer than
+/// kAdaptiveTexelsPerSample, so thin detail is not stepped over for it.
+inline constexpr float kAdaptiveTexelsPerSample = 1.0f;
+
+/// The adaptive budget of rays whose paths to the floor are `pathTexels` (texels; NaN gets the
+/// whole budget), written once over lanes L (render/march.h's one ray at a time, the entry
+/// kernel's eight): the operations of every lane are the scalar ones, so all agree bit for bit.
+template <class L>
+typename L::I adaptiveBudgetLanes(int budget, typename L::F pathTexels) {
+    const typename L::F samples = L::ceil(L::div(pathTexels, L::set1(kAdaptiveTexelsPerSample)));
+    const typename L::M cut = L::less(samples, L::set1(float(budget)));  // false for NaN
+    const int quarter = (budget + 3) / 4;
+    const int fewest = quarter > 1 ? quarter : 1;
+    return L::blend(L::set1(budget),
+                    L::max(L::truncate(L::onlyWhere(cut, samples)), L::set1(fewest)), cut);
+}
+
 /// A sphere trace between two samples: the state detail::SphereTraceRay keeps (in this form, so
 /// the kernel reads and writes it in place), in world-free texel-space floats.
 struct SphereTraceLane {
