@@ -1,7 +1,7 @@
 #include "cli/arguments.h"
 
 #include <algorithm>
-#include <sstream>
+#include <utility>
 
 #include "common/error.h"
 
@@ -10,16 +10,40 @@ namespace distile::cli {
 namespace fs = std::filesystem;
 
 Size3 parseSize(const std::string& text, const std::string& option) {
-    Size3 size{0, 0, 0};
-    char x1 = 0, x2 = 0;
-    std::string rest;
-    std::istringstream in(text);
-    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x' ||
-        (in >> rest)) {
-        throw InputError(option + ": '" + text + "' is not a size; write WxHxD, e.g. 256x256x16");
-    }
+    const Size3 size = parseSize3(text, option);
     validateTileSize(size, option);
     return size;
+}
+
+InputError underFlag(const InputError& error, std::initializer_list<FieldFlag> flags) {
+    for (const FieldFlag& entry : flags) {
+        if (!error.field().empty() && error.field() == entry.field)
+            return error.renamed(std::string(entry.flag));
+    }
+    return error;
+}
+
+std::string sceneJsonPath(std::string_view field) {
+    // The Scene members whose JSON key differs (docs/scene.md); the others are spelled alike.
+    static constexpr std::pair<std::string_view, std::string_view> kKeys[] = {
+        {"fovDeg", "fov_deg"},   {"angleDeg", "angle_deg"}, {"rotateDeg", "rotate_deg"},
+        {"depthWorld", "depth"}, {"uvScale", "uv_scale"},
+    };
+    std::string path;
+    std::size_t begin = 0;
+    while (begin <= field.size()) {
+        const std::size_t dot = std::min(field.find('.', begin), field.size());
+        std::string_view part = field.substr(begin, dot - begin);
+        const std::string_view index = part.substr(std::min(part.find('['), part.size()));
+        const std::string_view name = part.substr(0, part.size() - index.size());
+        std::string key(name);
+        for (const auto& [member, json] : kKeys) {
+            if (name == member) key = json;
+        }
+        path += (begin == 0 ? "" : ".") + key + std::string(index);
+        begin = dot + 1;
+    }
+    return path;
 }
 
 std::string lowerExtension(const fs::path& path) {

@@ -240,7 +240,13 @@ void runCheck(const CheckArguments& arguments) {
     float bandTexels = 0.0f;
     for (float value : tile.distancesTexels()) bandTexels = std::max(bandTexels, std::abs(value));
     if (bandTexels > 0.0f) options.truthClampTexels = bandTexels;
-    const TileErrorReport report = measureTileError(tile, truth, options);
+    TileErrorReport report;
+    try {
+        report = measureTileError(tile, truth, options);
+    } catch (const InputError& error) {
+        throw underFlag(error, {{"samples", "--samples"},
+                                {"overestimateToleranceTexels", "--max-overestimate"}});
+    }
 
     std::vector<std::string> failures;
     auto text = [](double value) {

@@ -115,6 +115,20 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
     std::printf("image written to %s\n", fs::absolute(arguments.output).c_str());
 }
 
+/// A library's InputError as the user wrote the value: under the render command's flag, or the
+/// scene file's JSON path (validateScene's Scene members).
+InputError underRenderNames(const InputError& error) {
+    if (error.field().empty()) return error;
+    const InputError flagged = underFlag(error, {{"width", "--width"},
+                                                 {"height", "--height"},
+                                                 {"samplesPerPixel", "--spp"},
+                                                 {"march.maxIterations", "--iterations"},
+                                                 {"march.epsilonTexels", "--epsilon"},
+                                                 {"march.relaxation", "--relaxation"}});
+    if (flagged.field() != error.field()) return flagged;
+    return error.renamed(sceneJsonPath(error.field()));
+}
+
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
     TileCache tiles;
@@ -334,7 +348,11 @@ void addRenderCommand(CLI::App& app) {
         ->check(CLI::Range(0.0, 16.0));
     command->callback([arguments, reference] {
         arguments->referenceGiven = reference->count() > 0;
-        runRender(*arguments);
+        try {
+            runRender(*arguments);
+        } catch (const InputError& error) {
+            throw underRenderNames(error);
+        }
     });
 }
 
