@@ -220,7 +220,7 @@ void runRender(RenderArguments arguments) {
 void addRenderCommand(CLI::App& app) {
     auto arguments = std::make_shared<RenderArguments>();
     CLI::App* command = app.add_subcommand(
-        "render", "Render a scene (JSON, see DESIGN.md) or, without one, the built-in demo");
+        "render", "Render a scene (JSON, see docs/scene.md) or, without one, the built-in demo");
     command->add_option("scene", arguments->scene, "Scene file (.json); omit for the demo scene");
     command->add_option("-o,--output", arguments->output, "Image to write (.png, .exr, .tif)")
         ->required();
