@@ -1,6 +1,6 @@
 /// @file
 /// What the renderer draws: a camera, directional lights and base meshes carrying distance
-/// tiles. Plain structs with defaults (DESIGN.md, Scene files); the command line fills them
+/// tiles. Plain structs with defaults (docs/scene.md); the command line fills them
 /// from JSON, the renderer never parses text. World units throughout, angles in degrees.
 #pragma once
 

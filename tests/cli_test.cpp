@@ -639,7 +639,7 @@ TEST_F(Cli, ClosedMeshAcceptanceWithTheDefaultConservativeBake) {
             100.0 * report["overestimate_share"].get<double>(), report["rms"].get<double>());
         return report;
     };
-    // Issue #3: `check --against` the mesh, 100,000 points, default bake: max |error| <= 0.5
+    // `check --against` the mesh, 100,000 points, default bake: max |error| <= 0.5
     // texel within 2 texels of the surface, no sign errors. The conservative correction measures
     // the trilinear overestimate against the exact mesh distance (sampler/conservative.h), so the
     // cube's sharp edges are lowered by what they overestimate (the estimate alone: 0.70).
