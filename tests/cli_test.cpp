@@ -128,12 +128,13 @@ class Cli : public ::testing::Test {
     fs::path work() const { return root_ / "work"; }
     fs::path path(const std::string& name) const { return work() / name; }
 
-    /// Runs `distile <arguments>` in work().
-    RunResult run(const std::vector<std::string>& arguments) const {
+    /// Runs `distile <arguments>` in work() (`program`: another copy of distile).
+    RunResult run(const std::vector<std::string>& arguments,
+                  const fs::path& program = DISTILE_BINARY) const {
         const fs::path outFile = root_ / "logs" / "stdout.txt";
         const fs::path errFile = root_ / "logs" / "stderr.txt";
         std::string command =
-            "cd " + shellQuote(work().string()) + " && " + shellQuote(DISTILE_BINARY);
+            "cd " + shellQuote(work().string()) + " && " + shellQuote(program.string());
         for (const std::string& argument : arguments) command += " " + shellQuote(argument);
         command +=
             " </dev/null >" + shellQuote(outFile.string()) + " 2>" + shellQuote(errFile.string());
@@ -942,7 +943,24 @@ TEST_F(Cli, MeshTruthNeedsAMeshRecipeAndAClosedMesh) {
 namespace distile {
 namespace {
 
+/// Whether distile-bench, which `distile bench` runs, was built next to distile.
+bool benchBuilt() {
+    return fs::exists(fs::path(DISTILE_BINARY).parent_path() / "distile-bench");
+}
+
+TEST_F(Cli, BenchWithoutDistileBenchSaysTheBenchmarksWereNotBuilt) {
+    // A copy of distile in a folder of its own: `bench` has no distile-bench to run.
+    fs::create_directories(path("alone"));
+    fs::copy_file(DISTILE_BINARY, path("alone/distile"));
+    const RunResult bench = run({"bench", "--quick"}, path("alone/distile"));
+    EXPECT_EQ(bench.status, 2);
+    EXPECT_NE(bench.err.find("benchmarks were not built"), std::string::npos) << bench.err;
+    EXPECT_NE(bench.err.find("-DDISTILE_BUILD_BENCH=ON"), std::string::npos) << bench.err;
+    EXPECT_NE(run({"--help"}, path("alone/distile")).out.find("bench"), std::string::npos);
+}
+
 TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
+    if (!benchBuilt()) GTEST_SKIP() << "distile-bench was not built (DISTILE_BUILD_BENCH=OFF)";
     // A tiny sweep (no peers: they are tested in peers_test): every distile row of the sweep is
     // in the CSV with a finite error against the analytic reference, and the torus on the sheet's
     // curved and planar rows against the world reference; the report names the Pareto front,
@@ -996,6 +1014,7 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
 }
 
 TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
+    if (!benchBuilt()) GTEST_SKIP() << "distile-bench was not built (DISTILE_BUILD_BENCH=OFF)";
     // A tiny speed report (no peers): every RenderSkips switch (all bools) is measured on each of
     // the six scenes in three renders (shadows, none, tricubic march), the bake cache, the thread
     // check and the curved shells (on the demo and the torus on the sheet) have their rows, the
