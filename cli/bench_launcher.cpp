@@ -42,8 +42,11 @@ void addBenchLauncher(CLI::App& app, char** argv) {
         "Time against error on the flat chain-mail sheet, next to Embree and vdb_render; the "
         "speed report (--speed) and the stress cases (--stress). Runs distile-bench; see "
         "`distile bench --help`");
-    command->prefix_command();  // every argument after `bench` is distile-bench's,
-    command->set_help_flag();   // --help too
+    // Every argument after `bench` is distile-bench's: --help, and --threads too (not taken by
+    // distile's own options).
+    command->prefix_command();
+    command->set_help_flag();
+    command->fallthrough(false);
     command->callback([argv] { runDistileBench(argv); });
 }
 
