@@ -46,6 +46,10 @@ std::string sceneJsonPath(std::string_view field) {
     return path;
 }
 
+InputError underSceneJsonPath(const InputError& error) {
+    return error.field().empty() ? error : error.renamed(sceneJsonPath(error.field()));
+}
+
 std::string lowerExtension(const fs::path& path) {
     std::string extension = path.extension().string();
     std::transform(extension.begin(), extension.end(), extension.begin(),

@@ -30,6 +30,10 @@ InputError underFlag(const InputError& error, std::initializer_list<FieldFlag> f
 /// scene file's JSON path ("objects[0].material.depth"); other text as it is.
 std::string sceneJsonPath(std::string_view field);
 
+/// `error` under the scene file's JSON path of its field (sceneJsonPath); as it is when it names
+/// no field.
+InputError underSceneJsonPath(const InputError& error);
+
 /// Throws InputError unless `path` has one of `extensions` (case-insensitive) and its folder
 /// exists.
 void requireOutput(const std::filesystem::path& path, const std::string& option,

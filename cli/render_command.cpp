@@ -126,7 +126,7 @@ InputError underRenderNames(const InputError& error) {
                                                  {"march.epsilonTexels", "--epsilon"},
                                                  {"march.relaxation", "--relaxation"}});
     if (flagged.field() != error.field()) return flagged;
-    return error.renamed(sceneJsonPath(error.field()));
+    return underSceneJsonPath(error);
 }
 
 void runRender(RenderArguments arguments) {

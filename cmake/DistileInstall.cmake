@@ -10,6 +10,8 @@ install(TARGETS distile RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 if(TARGET distile-bench)  # next to distile, which runs it for `distile bench`
     install(TARGETS distile-bench RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()
+# The public headers: every header of a library's folder but those in its detail/ subfolder (the
+# SIMD lanes and the kernels only its own sources include).
 foreach(folder common vdb sampler mesh truth render)
     install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/distile
             FILES_MATCHING PATTERN "*.h" PATTERN "detail" EXCLUDE)
