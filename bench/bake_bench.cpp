@@ -1,4 +1,4 @@
-// Baking the default chain-mail tile two ways in one process (issue #3):
+// Baking the default chain-mail tile two ways in one process:
 //  - procedural: distile's bake (exact analytic distance into the level set, then the
 //    conservative tile), band = the tile depth;
 //  - mesh: the same rings tessellated finely and converted with OpenVDB's mesh-to-level-set

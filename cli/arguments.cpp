@@ -1,7 +1,7 @@
 #include "cli/arguments.h"
 
 #include <algorithm>
-#include <sstream>
+#include <utility>
 
 #include "common/error.h"
 
@@ -10,16 +10,17 @@ namespace distile::cli {
 namespace fs = std::filesystem;
 
 Size3 parseSize(const std::string& text, const std::string& option) {
-    Size3 size{0, 0, 0};
-    char x1 = 0, x2 = 0;
-    std::string rest;
-    std::istringstream in(text);
-    if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' || x2 != 'x' ||
-        (in >> rest)) {
-        throw InputError(option + ": '" + text + "' is not a size; write WxHxD, e.g. 256x256x16");
-    }
+    const Size3 size = parseSize3(text, option);
     validateTileSize(size, option);
     return size;
+}
+
+InputError underFlag(const InputError& error, std::initializer_list<FieldFlag> flags) {
+    for (const FieldFlag& entry : flags) {
+        if (!error.field().empty() && error.field() == entry.field)
+            return error.renamed(std::string(entry.flag));
+    }
+    return error;
 }
 
 std::string lowerExtension(const fs::path& path) {

@@ -1,11 +1,11 @@
 // distile bake: detail -> level set (.vdb) -> tile (.exr).
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <optional>
 #include <set>
-#include <sstream>
 #include <utility>
 
 #include "bake/bake.h"
@@ -82,26 +82,23 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
 
 /// The library's error about one field of the bake's options (bake/bake.h) under the flag that
 /// filled it; other errors as they are.
-InputError underFlag(const InputError& error) {
-    static const std::map<std::string, std::string> flags = {
-        {"size", "--size"},
-        {"halfBandTexels", "--band"},
-        {"placement.scale", "--scale"},
-        {"placement.offsetTexels", "--offset"},
-        {"heightTexels", "--height-texels"},
-    };
-    const auto found = flags.find(error.field());
-    return found == flags.end() ? error : error.renamed(found->second);
+InputError underBakeFlag(const InputError& error) {
+    return underFlag(error, {{"size", "--size"},
+                             {"halfBandTexels", "--band"},
+                             {"placement.scale", "--scale"},
+                             {"placement.offsetTexels", "--offset"},
+                             {"heightTexels", "--height-texels"}});
 }
 
 /// "NxM" -> (N, M) for --repeat; the level set checks the range.
 std::pair<int, int> parseRepeat(const std::string& text) {
-    int x = 0, y = 0;
-    char separator = 0;
-    std::string rest;
-    std::istringstream in(text);
-    if (!(in >> x >> separator >> y) || separator != 'x' || (in >> rest) || x < 1 || x > 64 ||
-        y < 1 || y > 64) {
+    std::array<int, 2> repeat{0, 0};
+    try {
+        repeat = parseSize2(text, "--repeat");
+    } catch (const InputError&) {  // told below with the accepted range
+    }
+    const auto [x, y] = repeat;
+    if (x < 1 || x > 64 || y < 1 || y > 64) {
         throw InputError("--repeat: '" + text +
                          "' is not accepted; write NxM with N and M in [1, 64], e.g. 2x2");
     }
@@ -189,13 +186,18 @@ void runBake(const BakeArguments& arguments) {
             result.emplace(bakeProcedural(procedural, options, std::ref(progress)));
         }
     } catch (const InputError& error) {
-        throw underFlag(error);
+        throw underBakeFlag(error);
     }
     // The repeated level set is built before anything is written: a refused --repeat leaves no
     // file.
     std::optional<LevelSet> repeatedLevelSet;
-    if (repeat.first > 1 || repeat.second > 1)
-        repeatedLevelSet.emplace(result->levelSet.repeated(repeat.first, repeat.second));
+    if (repeat.first > 1 || repeat.second > 1) {
+        try {
+            repeatedLevelSet.emplace(result->levelSet.repeated(repeat.first, repeat.second));
+        } catch (const InputError& error) {
+            throw underFlag(error, {{"repeatX, repeatY", "--repeat"}});
+        }
+    }
     writeTileExr(result->tile, arguments.output,
                  arguments.half ? TileStorage::Half16 : TileStorage::Float32);
     std::printf("tile %s (%s, %s) written to %s\n", toString(options.size).c_str(),

@@ -7,7 +7,6 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
-#include <set>
 #include <sstream>
 #include <vector>
 
@@ -46,6 +45,10 @@ struct CheckArguments {
     std::optional<double> meshScale;
     std::vector<double> meshOffset;
 };
+
+}  // namespace
+
+namespace {
 
 void printReport(const CheckArguments& arguments, const std::string& against,
                  const TileErrorReport& report, bool passed,
@@ -170,7 +173,13 @@ void runCheck(const CheckArguments& arguments) {
     float bandTexels = 0.0f;
     for (float value : tile.distancesTexels()) bandTexels = std::max(bandTexels, std::abs(value));
     if (bandTexels > 0.0f) options.truthClampTexels = bandTexels;
-    const TileErrorReport report = measureTileError(tile, truth, options);
+    TileErrorReport report;
+    try {
+        report = measureTileError(tile, truth, options);
+    } catch (const InputError& error) {
+        throw underFlag(error, {{"samples", "--samples"},
+                                {"overestimateToleranceTexels", "--max-overestimate"}});
+    }
 
     std::vector<std::string> failures;
     auto text = [](double value) {

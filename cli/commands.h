@@ -12,6 +12,10 @@ void addBakeCommand(CLI::App& app);
 void addRenderCommand(CLI::App& app);
 void addCheckCommand(CLI::App& app);
 void addCompareCommand(CLI::App& app);
+/// The benchmarks (bench/bench_command.cpp), in distile-bench.
 void addBenchCommand(CLI::App& app);
+/// `bench` in the `distile` command: runs distile-bench with `argv` (cli/bench_launcher.cpp), or
+/// throws InputError when it was not built.
+void addBenchLauncher(CLI::App& app, char** argv);
 
 }  // namespace distile::cli

@@ -115,6 +115,20 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
     std::printf("image written to %s\n", fs::absolute(arguments.output).c_str());
 }
 
+/// A library's InputError as the user wrote the value: under the render command's flag, or the
+/// scene file's JSON path (validateScene's Scene members).
+InputError underRenderNames(const InputError& error) {
+    if (error.field().empty()) return error;
+    const InputError flagged = underFlag(error, {{"width", "--width"},
+                                                 {"height", "--height"},
+                                                 {"samplesPerPixel", "--spp"},
+                                                 {"march.maxIterations", "--iterations"},
+                                                 {"march.epsilonTexels", "--epsilon"},
+                                                 {"march.relaxation", "--relaxation"}});
+    if (flagged.field() != error.field()) return flagged;
+    return underSceneJsonPath(error);
+}
+
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
     TileCache tiles;
@@ -209,7 +223,7 @@ void runRender(RenderArguments arguments) {
 void addRenderCommand(CLI::App& app) {
     auto arguments = std::make_shared<RenderArguments>();
     CLI::App* command = app.add_subcommand(
-        "render", "Render a scene (JSON, see DESIGN.md) or, without one, the built-in demo");
+        "render", "Render a scene (JSON, see docs/scene.md) or, without one, the built-in demo");
     command->add_option("scene", arguments->scene, "Scene file (.json); omit for the demo scene");
     command->add_option("-o,--output", arguments->output, "Image to write (.png, .exr, .tif)")
         ->required();
@@ -337,7 +351,11 @@ void addRenderCommand(CLI::App& app) {
         ->check(CLI::Range(0.0, 16.0));
     command->callback([arguments, reference] {
         arguments->referenceGiven = reference->count() > 0;
-        runRender(*arguments);
+        try {
+            runRender(*arguments);
+        } catch (const InputError& error) {
+            throw underRenderNames(error);
+        }
     });
 }
 

@@ -1,4 +1,5 @@
-# Finds distile's dependencies on Debian 12 and works around the packaging pitfalls listed in DESIGN.md.
+# Finds distile's dependencies and works around the packaging pitfalls of Debian 12 (each noted
+# where it is handled).
 
 find_package(Threads REQUIRED)
 find_package(TBB CONFIG REQUIRED)

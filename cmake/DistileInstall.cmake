@@ -8,6 +8,11 @@ set(distile_libraries distile_common distile_vdb distile_sampler distile_mesh di
 install(TARGETS ${distile_libraries} distile_warnings distile_sanitizers EXPORT distileTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS distile RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+if(TARGET distile-bench)  # next to distile, which runs it for `distile bench`
+    install(TARGETS distile-bench RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endif()
+# The public headers: every header of a library's folder but those in its detail/ subfolder (the
+# SIMD lanes and the kernels only its own sources include).
 foreach(folder common vdb sampler mesh truth bake render scene)
     install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/distile
             FILES_MATCHING PATTERN "*.h" PATTERN "detail" EXCLUDE)

@@ -2,8 +2,10 @@
 /// Size of a distance tile in texels: width (x), height (y), depth (z, the detail's thickness).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <string>
+#include <string_view>
 
 namespace distile {
 
@@ -21,6 +23,14 @@ struct Size3 {
 
 /// "256x256x16".
 std::string toString(const Size3& size);
+
+/// "WxHxD" (whole numbers joined by 'x', e.g. "256x256x16") to a Size3, not validated (see
+/// validateTileSize). Throws InputError::inField(field, "'text' is not a size; write WxHxD, e.g.
+/// 256x256x16") for any other text.
+Size3 parseSize3(std::string_view text, const std::string& field);
+
+/// "WxH" (e.g. "2x3") to {W, H}, not validated; InputError::inField(field, ...) as parseSize3.
+std::array<int, 2> parseSize2(std::string_view text, const std::string& field);
 
 /// Largest tile distile allocates: 2^28 texels (1 GiB of float distances).
 inline constexpr std::size_t kMaxTileTexels = std::size_t(1) << 28;

@@ -1,7 +1,7 @@
 /// @file
 /// A plain indexed triangle list without attributes: the form in which detail meshes travel
 /// between mesh/ (loading), vdb/ (mesh to level set) and truth/ (exact distances). When used for
-/// baking, positions are in texel space of the tile (see DESIGN.md: texel centres at i + 0.5,
+/// baking, positions are in texel space of the tile (see docs/texel_space.md: texel centres at i + 0.5,
 /// z = D is the top, periodic in x and y); otherwise they are in the units of the file they came
 /// from. Also the one implementation of the periodic wrap of a mesh, shared by the bake and the
 /// ground truth so both measure the same thing.

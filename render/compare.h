@@ -1,5 +1,5 @@
 /// @file
-/// How far one render is from another of the same scene (DESIGN.md, Truth and error): hit
+/// How far one render is from another of the same scene (docs/reports.md): hit
 /// position error in texels, coverage mismatch, normal angle error and PSNR, from the images and
 /// AOVs of RenderResult (or the same layers read back from files by the command line); and a
 /// heat map of the hit error with its colour bar. Works on images in memory only; no file I/O.

@@ -28,6 +28,7 @@
 #include <span>
 #include <type_traits>
 
+#include "common/simd.h"
 #include "render/march_wide.h"
 #include "render/scene.h"
 #include "sampler/filters.h"
@@ -64,17 +65,32 @@ struct MarchSettings {
     float reliefLinearShare = 0.75f;
 };
 
-/// The adaptive budget (ch. 8's future work: iterations from the viewing angle): a ray gets one
-/// sample per kAdaptiveTexelsPerSample texels of its path to the floor, within [budget / 4,
-/// budget]. Steep rays and rays starting low (after empty-space skipping) need few samples; the
-/// cut never makes the budgeted march's forced steps (path left over samples left) longer than
-/// kAdaptiveTexelsPerSample, so thin detail is not stepped over for it.
-inline constexpr float kAdaptiveTexelsPerSample = 1.0f;
+namespace detail {
 
+/// One ray as a lane of detail::adaptiveBudgetLanes.
+struct OneLane {
+    using F = float;
+    using I = int;
+    using M = bool;
+    static F set1(float value) { return value; }
+    static I set1(int value) { return value; }
+    static F div(F a, F b) { return a / b; }
+    static F ceil(F a) { return std::ceil(a); }
+    static M less(F a, F b) { return a < b; }
+    static F onlyWhere(M m, F v) { return m ? v : 0.0f; }
+    static I truncate(F v) { return int(v); }
+    static I max(I a, I b) { return std::max(a, b); }
+    static I blend(I a, I b, M m) { return m ? b : a; }
+};
+
+}  // namespace detail
+
+using detail::kAdaptiveTexelsPerSample;
+
+/// The adaptive budget of a ray whose path to the floor is `pathTexels` (render/march_wide.h,
+/// detail::adaptiveBudgetLanes): at most `budget` samples, at least a quarter of it.
 inline int adaptiveBudget(int budget, float pathTexels) {
-    const float samples = std::ceil(pathTexels / kAdaptiveTexelsPerSample);
-    if (!(samples < float(budget))) return budget;  // also NaN
-    return std::max({int(samples), (budget + 3) / 4, 1});
+    return detail::adaptiveBudgetLanes<detail::OneLane>(budget, pathTexels);
 }
 
 /// Where a march ended. Positions in texel space, lengths in texels.
@@ -437,7 +453,7 @@ void marchInterleavedScalar(const Filter& filter, std::span<Marcher* const> rays
 /// (render/march_wide.h): the rays' steps that go on in SIMD lanes, the step that ends each march
 /// by the ray itself; the few rays that go on after it (a relaxed step taken back, a point the
 /// wide filter does not take) are marched by marchInterleavedScalar. Precondition:
-/// kWideTrilinear.
+/// kSimdLevel >= SimdLevel::Avx2.
 template <class Filter>
 void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const> rays) {
     constexpr std::size_t kChunk = 64;
@@ -476,7 +492,7 @@ template <class Filter, class Marcher = detail::SphereTraceRay>
 void marchInterleaved(const Filter& filter, std::span<Marcher* const> rays) {
     if constexpr (std::is_same_v<Filter, BasicTrilinearFilter<ColumnTexels>> &&
                   std::is_same_v<Marcher, detail::SphereTraceRay>) {
-        if (detail::kWideTrilinear && rays.size() > 1) {
+        if (kSimdLevel >= SimdLevel::Avx2 && rays.size() > 1) {
             detail::marchSphereTracesWide(filter, rays);
             return;
         }

@@ -4,7 +4,7 @@
 #include "render/march_wide.h"
 
 #if defined(__x86_64__) && defined(__AVX2__) && !defined(__FMA__)
-#include "render/march_lanes.h"
+#include "render/detail/march_lanes.h"
 #endif
 
 namespace distile::detail {
@@ -13,7 +13,7 @@ namespace distile::detail {
 
 void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                              SphereTraceLane* const* lanes, int count) {
-    if (kSixteenLanes)
+    if (kSimdLevel == SimdLevel::Avx512)
         sphereTraceOngoingSteps16(columns, uniforms, lanes, count);
     else
         sphereTraceOngoingStepsInLanes<Lanes8>(columns, uniforms, lanes, count);

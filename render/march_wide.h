@@ -5,13 +5,33 @@
 /// the regula falsi refinement and its steps) taken in the lanes with the scalar operations in
 /// their order (no FMA), so bit for bit as detail::SphereTraceRay takes them. The step that ends
 /// a march (or takes back a relaxed step) is left to SphereTraceRay itself. Built in their own
-/// translation units with AVX2 and AVX-512 (render/march_lanes.h); plain types only, as
+/// translation units with AVX2 and AVX-512 (render/detail/march_lanes.h); plain types only, as
 /// sampler/trilinear_wide.h.
 #pragma once
 
 #include "sampler/trilinear_wide.h"
 
 namespace distile::detail {
+
+/// The adaptive budget (ch. 8's future work: iterations from the viewing angle): a ray gets one
+/// sample per kAdaptiveTexelsPerSample texels of its path to the floor, within [budget / 4,
+/// budget]. Steep rays and rays starting low (after empty-space skipping) need few samples; the
+/// cut never makes the budgeted march's forced steps (path left over samples left) longer than
+/// kAdaptiveTexelsPerSample, so thin detail is not stepped over for it.
+inline constexpr float kAdaptiveTexelsPerSample = 1.0f;
+
+/// The adaptive budget of rays whose paths to the floor are `pathTexels` (texels; NaN gets the
+/// whole budget), written once over lanes L (render/march.h's one ray at a time, the entry
+/// kernel's eight): the operations of every lane are the scalar ones, so all agree bit for bit.
+template <class L>
+typename L::I adaptiveBudgetLanes(int budget, typename L::F pathTexels) {
+    const typename L::F samples = L::ceil(L::div(pathTexels, L::set1(kAdaptiveTexelsPerSample)));
+    const typename L::M cut = L::less(samples, L::set1(float(budget)));  // false for NaN
+    const int quarter = (budget + 3) / 4;
+    const int fewest = quarter > 1 ? quarter : 1;
+    return L::blend(L::set1(budget),
+                    L::max(L::truncate(L::onlyWhere(cut, samples)), L::set1(fewest)), cut);
+}
 
 /// A sphere trace between two samples: the state detail::SphereTraceRay keeps (in this form, so
 /// the kernel reads and writes it in place), in world-free texel-space floats.
@@ -45,12 +65,13 @@ struct SphereTraceUniforms {
 /// distance at least epsilon and short of the floor, no relaxed step to take back; the start of
 /// the refinement: a step that went inside; a refinement step: not within epsilon) until the
 /// first other step, eight or sixteen lanes at a time: each lane ends in the state before that
-/// step, with the distance sampled there. Precondition: kWideTrilinear; every lane needs a sample.
+/// step, with the distance sampled there. Preconditions: kSimdLevel >= SimdLevel::Avx2; every lane
+/// needs a sample.
 void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                              SphereTraceLane* const* lanes, int count);
 
 /// sphereTraceOngoingSteps sixteen lanes at a time (render/march_wide16.cpp, AVX-512), which it
-/// calls where kSixteenLanes. Precondition: kSixteenLanes.
+/// calls where kSimdLevel is Avx512. Precondition: kSimdLevel == SimdLevel::Avx512.
 void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                                SphereTraceLane* const* lanes, int count);
 

@@ -1,9 +1,9 @@
 // The kernel of render/march_wide.h with AVX-512 (sixteen lanes). Compiled with -mavx512f
-// -mavx512bw and without FMA, and run only where the processor has both (kSixteenLanes).
+// -mavx512bw and without FMA, and run only where kSimdLevel is Avx512 (common/simd.h).
 #include "render/march_wide.h"
 
 #if defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512BW__) && !defined(__FMA__)
-#include "render/march_lanes.h"
+#include "render/detail/march_lanes.h"
 #endif
 
 namespace distile::detail {

@@ -455,39 +455,41 @@ class Renderer {
 };
 
 void validateOptions(const RenderOptions& options) {
-    auto reject = [](const std::string& what, const std::string& value,
+    auto reject = [](const std::string& field, const std::string& value,
                      const std::string& accepted) {
-        throw InputError(what + ": " + value + " is not accepted; " + accepted);
+        throw InputError::inField(field, value + " is not accepted; " + accepted);
     };
     if (options.width < 1 || options.width > 16384)
-        reject("--width", std::to_string(options.width), "it must be in [1, 16384]");
+        reject("width", std::to_string(options.width), "it must be in [1, 16384]");
     if (options.height < 1 || options.height > 16384)
-        reject("--height", std::to_string(options.height), "it must be in [1, 16384]");
+        reject("height", std::to_string(options.height), "it must be in [1, 16384]");
     if (options.march.maxIterations < 1 || options.march.maxIterations > 4096) {
-        reject("--iterations", std::to_string(options.march.maxIterations),
+        reject("march.maxIterations", std::to_string(options.march.maxIterations),
                "it must be in [1, 4096]");
     }
     if (!(options.march.epsilonTexels > 0.0f && options.march.epsilonTexels <= 1.0f)) {
-        reject("--epsilon", std::to_string(options.march.epsilonTexels),
+        reject("march.epsilonTexels", std::to_string(options.march.epsilonTexels),
                "it must be in (0, 1] texels");
     }
     if (!(options.march.relaxation >= 1.0f && options.march.relaxation < 2.0f)) {
-        reject("--relaxation", std::to_string(options.march.relaxation), "it must be in [1, 2)");
+        reject("march.relaxation", std::to_string(options.march.relaxation),
+               "it must be in [1, 2)");
     }
     if (!(options.march.reliefLinearShare > 0.0f && options.march.reliefLinearShare <= 1.0f)) {
-        reject("relief linear share", std::to_string(options.march.reliefLinearShare),
+        reject("march.reliefLinearShare", std::to_string(options.march.reliefLinearShare),
                "it must be in (0, 1]");
     }
     if (options.shadowIterations < 1 || options.shadowIterations > 4096) {
-        reject("shadow iterations", std::to_string(options.shadowIterations),
+        reject("shadowIterations", std::to_string(options.shadowIterations),
                "it must be in [1, 4096]");
     }
     if (options.samplesPerPixel < 1 || options.samplesPerPixel > 256) {
-        reject("--spp", std::to_string(options.samplesPerPixel), "it must be in [1, 256]");
+        reject("samplesPerPixel", std::to_string(options.samplesPerPixel),
+               "it must be in [1, 256]");
     }
     if (options.shadowMapResolution != 0 &&
         (options.shadowMapResolution < 16 || options.shadowMapResolution > 16384)) {
-        reject("shadow map resolution", std::to_string(options.shadowMapResolution),
+        reject("shadowMapResolution", std::to_string(options.shadowMapResolution),
                "it must be 0 (automatic) or in [16, 16384] texels");
     }
 }

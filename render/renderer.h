@@ -97,7 +97,8 @@ struct RenderResult {
     std::vector<std::string> warnings;
 };
 
-/// Renders `scene`. Throws InputError for an invalid scene (validateScene) or options; for a
+/// Renders `scene`. Throws InputError for an invalid scene (validateScene) or options (naming the
+/// RenderOptions member, e.g. "march.epsilonTexels"); for a
 /// reference render, also for an object whose tile has no analytic distance (naming the object)
 /// (width/height in [1, 16384], iterations in [1, 4096], epsilon in (0, 1], samples per pixel
 /// in [1, 256], shadow-map resolution 0 or in [16, 16384]). `progress` is called on the calling

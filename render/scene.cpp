@@ -19,17 +19,18 @@ bool finite(const glm::vec3& v) {
 }
 
 void requireFinite(const glm::vec3& v, const std::string& field) {
-    if (!finite(v)) throw InputError(field + ": must be three finite numbers");
+    if (!finite(v)) throw InputError::inField(field, "must be three finite numbers");
 }
 
 }  // namespace
 
 void applyTransform(BaseMesh& mesh, const Transform& transform) {
     requireFinite(transform.translate, "transform.translate");
-    requireFinite(transform.rotateDeg, "transform.rotate_deg");
+    requireFinite(transform.rotateDeg, "transform.rotateDeg");
     if (!(std::isfinite(transform.scale) && transform.scale > 0.0f)) {
-        throw InputError("transform.scale: " + std::to_string(transform.scale) +
-                         " is not accepted; it must be a positive number");
+        throw InputError::inField("transform.scale", std::to_string(transform.scale) +
+                                                         " is not accepted; it must be a positive "
+                                                         "number");
     }
     glm::mat4 matrix(1.0f);
     matrix = glm::translate(matrix, transform.translate);
@@ -72,44 +73,48 @@ void validateScene(const Scene& scene) {
     requireFinite(camera.up, "camera.up");
     const glm::vec3 forward = camera.target - camera.eye;
     if (glm::length(forward) <= 0.0f)
-        throw InputError("camera.target: equals camera.eye; the camera needs a view direction");
+        throw InputError::inField("camera.target",
+                                  "equals camera.eye; the camera needs a view direction");
     if (!std::isfinite(glm::length(forward))) {  // its square overflows single precision
-        throw InputError(
-            "camera.target: too far from camera.eye for single precision; they must be within "
-            "1e18 world units of each other");
+        throw InputError::inField("camera.target",
+                                  "too far from camera.eye for single precision; they must be "
+                                  "within 1e18 world units of each other");
     }
     if (glm::length(glm::cross(glm::normalize(forward), camera.up)) < 1e-6f) {
-        throw InputError(
-            "camera.up: parallel to the view direction (or zero); it must point sideways of it");
+        throw InputError::inField(
+            "camera.up", "parallel to the view direction (or zero); it must point sideways of it");
     }
     if (!(camera.fovDeg > 0.0f && camera.fovDeg < 180.0f)) {
-        throw InputError("camera.fov_deg: " + std::to_string(camera.fovDeg) +
-                         " is not accepted; it must be in (0, 180)");
+        throw InputError::inField("camera.fovDeg", std::to_string(camera.fovDeg) +
+                                                       " is not accepted; it must be in (0, 180)");
     }
     for (std::size_t i = 0; i < scene.lights.size(); ++i) {
         const std::string field = "lights[" + std::to_string(i) + "]";
         requireFinite(scene.lights[i].direction, field + ".direction");
         requireFinite(scene.lights[i].color, field + ".color");
         if (glm::length(scene.lights[i].direction) <= 0.0f)
-            throw InputError(field + ".direction: must not be zero");
+            throw InputError::inField(field + ".direction", "must not be zero");
         if (!(scene.lights[i].angleDeg >= 0.0f && scene.lights[i].angleDeg < 90.0f)) {
-            throw InputError(field + ".angle_deg: must be in [0, 90)");
+            throw InputError::inField(field + ".angleDeg", "must be in [0, 90)");
         }
     }
     if (scene.objects.empty())
-        throw InputError("objects: the scene has no objects; at least one is needed");
+        throw InputError::inField("objects", "the scene has no objects; at least one is needed");
     for (std::size_t i = 0; i < scene.objects.size(); ++i) {
         const std::string field = "objects[" + std::to_string(i) + "]";
         const SceneObject& object = scene.objects[i];
-        if (object.mesh.triangles.empty()) throw InputError(field + ".mesh: has no triangles");
+        if (object.mesh.triangles.empty())
+            throw InputError::inField(field + ".mesh", "has no triangles");
         const Material& material = object.material;
         if (!(std::isfinite(material.depthWorld) && material.depthWorld > 0.0f)) {
-            throw InputError(field + ".material.depth: " + std::to_string(material.depthWorld) +
-                             " is not accepted; it must be a positive number of world units");
+            throw InputError::inField(field + ".material.depthWorld",
+                                      std::to_string(material.depthWorld) +
+                                          " is not accepted; it must be a positive number of "
+                                          "world units");
         }
         if (!(std::isfinite(material.uvScale.x) && std::isfinite(material.uvScale.y) &&
               material.uvScale.x > 0.0f && material.uvScale.y > 0.0f)) {
-            throw InputError(field + ".material.uv_scale: must be two positive numbers");
+            throw InputError::inField(field + ".material.uvScale", "must be two positive numbers");
         }
         requireFinite(material.color, field + ".material.color");
     }

@@ -1,7 +1,7 @@
 /// @file
 /// What the renderer draws: a camera, directional lights and base meshes carrying distance
-/// tiles. Plain structs with defaults; scene files (scene/scene_file.h) and programs fill them,
-/// the renderer never parses text. World units throughout, angles in degrees.
+/// tiles. Plain structs with defaults (docs/scene.md); scene files (scene/scene_file.h) and
+/// programs fill them, the renderer never parses text. World units throughout, angles in degrees.
 #pragma once
 
 #include <functional>
@@ -94,10 +94,11 @@ struct Transform {
 };
 
 /// Applies `transform` to positions, normals and tangents (frames stay unit and orthogonal).
-/// Throws InputError for a non-finite transform or a scale <= 0.
+/// Throws InputError::inField ("transform.scale", ...) for a non-finite transform or a scale <= 0.
 void applyTransform(BaseMesh& mesh, const Transform& transform);
 
-/// Throws InputError, naming the field ("camera.up", "objects[1].material.depth", ...), when the
+/// Throws InputError::inField, naming the Scene member ("camera.up",
+/// "objects[1].material.depthWorld", ...), when the
 /// scene cannot be rendered: non-finite vectors, eye == target, up parallel to the view, field of
 /// view outside (0, 180), no objects, an empty mesh, depth <= 0, uv scale <= 0, a zero light
 /// direction.

@@ -63,8 +63,9 @@ glm::vec2 diskOffset(int angular, int radial, std::uint32_t seed, float rotation
 ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
                      int resolutionTexels) {
     if (resolutionTexels < 16 || resolutionTexels > 16384) {
-        throw InputError("shadow map resolution: " + std::to_string(resolutionTexels) +
-                         " is not accepted; it must be in [16, 16384] texels");
+        throw InputError::inField("resolutionTexels", std::to_string(resolutionTexels) +
+                                                          " is not accepted; it must be in [16, "
+                                                          "16384] texels");
     }
     const Scene& scene = tracer.scene();
     toLight_ = -glm::normalize(light.direction);

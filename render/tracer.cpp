@@ -11,8 +11,9 @@
 #include <utility>
 
 #include "common/error.h"
+#include "common/simd.h"
 #include "render/analytic_filter.h"
-#include "render/entry_wide.h"
+#include "render/detail/entry_wide.h"
 
 namespace distile {
 
@@ -385,9 +386,10 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     // The empty path above the detail needs no samples: the march starts where it ends.
     const TileOccupancy* occupancy = occupancies_[shell.object].get();
     // The block walk costs about what a few samples do: for the trilinear march (8 samples per
-    // AVX2 call, sampler/trilinear_wide.h) more than the samples it saves (bench --speed: -4% on
-    // S4), for the nearest and the 64-tap tricubic marches much less. The jump to the highest top
-    // is always worth it. Not decided by the processor, so every machine gives the same image.
+    // AVX2 call, sampler/trilinear_wide.h) more than the samples it saves (on the sheet with a low
+    // height field, bench --speed), for the nearest and the 64-tap tricubic marches much less. The
+    // jump to the highest top is always worth it. Not decided by the processor, so every machine
+    // gives the same image.
     const bool walkBlocks = options_.filter != FilterKind::Trilinear;
     march.skippedTexels =
         occupancy ? occupancy->emptyTravelTexels(start, direction, walkBlocks) : 0.0f;
@@ -413,7 +415,7 @@ void SceneTracer::beginMarch(ShellMarch& march, int maxIterations) const {
 
 bool SceneTracer::entersFlatShell(const ShellMarch& march) const {
     // takeEntry's jump over the empty layers without the block walk (trilinear), or no occupancy.
-    return detail::kWideTrilinear && triangles_[march.baseHit.triangle].flatFrame &&
+    return kSimdLevel >= SimdLevel::Avx2 && triangles_[march.baseHit.triangle].flatFrame &&
            !options_.reference &&
            (options_.filter == FilterKind::Trilinear || !occupancies_[march.object]);
 }

@@ -240,7 +240,7 @@ class SceneTracer {
                     SurfaceHit& hit, ShellMarch& march, bool& stopped) const;
     /// Takes the entries and the marches of `marches` (from enterShell; at most kMaxBatchRays):
     /// the entries of rays into the same flat shell eight at a time where AVX2 allows
-    /// (render/entry_wide.h), the marches of several rays interleaved where the march method
+    /// (render/detail/entry_wide.h), the marches of several rays interleaved where the march method
     /// allows; the results are those of one ray at a time. Then the normal gradients of the
     /// marches that end on detail, sixteen at a time where the normal filter allows
     /// (BasicTricubicBSplineFilter::gradients): the same values.

@@ -20,6 +20,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "common/simd.h"
 #include "sampler/tile.h"
 #include "sampler/tile_columns.h"
 #include "sampler/trilinear_wide.h"
@@ -225,7 +226,7 @@ class BasicTrilinearFilter {
     /// distancesTexels4.
     void distancesTexels8(const glm::vec3* positions, float* out) const {
         if constexpr (Texels::kZContiguous) {
-            if (detail::kWideTrilinear) {
+            if (kSimdLevel >= SimdLevel::Avx2) {
                 const unsigned redo =
                     detail::trilinearColumns8(texels_.wide(), &positions[0].x, out);
                 if (redo != 0) {

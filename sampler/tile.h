@@ -13,7 +13,7 @@
 
 namespace distile {
 
-/// What a tile was made from; stored in the EXR header (see DESIGN.md, Formats).
+/// What a tile was made from; stored in the EXR header (see docs/tile_format.md).
 struct TileProvenance {
     std::string source;  ///< e.g. "chainmail", "mesh:ring.obj"
     std::string params;  ///< the source's parameters as JSON text

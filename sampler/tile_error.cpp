@@ -14,21 +14,23 @@ TileErrorReport measureTileError(const Tile& tile,
                                  const std::function<double(const glm::dvec3&)>& truth,
                                  const TileErrorOptions& options) {
     if (options.samples < 1) {
-        throw InputError("--samples: " + std::to_string(options.samples) +
-                         " is not accepted; it must be at least 1");
+        throw InputError::inField(
+            "samples", std::to_string(options.samples) + " is not accepted; it must be at least 1");
     }
     auto requireNonNegative = [](double value, const char* field) {
         if (!(value >= 0.0 && std::isfinite(value))) {
-            throw InputError(std::string(field) + ": " + std::to_string(value) +
-                             " is not accepted; it must be a finite number >= 0 (texels)");
+            throw InputError::inField(field,
+                                      std::to_string(value) +
+                                          " is not accepted; it must be a finite number >= 0 "
+                                          "(texels)");
         }
     };
-    requireNonNegative(options.nearSurfaceTexels, "near-surface distance");
-    requireNonNegative(options.overestimateToleranceTexels, "--max-overestimate");
-    requireNonNegative(options.signMarginTexels, "sign margin");
+    requireNonNegative(options.nearSurfaceTexels, "nearSurfaceTexels");
+    requireNonNegative(options.overestimateToleranceTexels, "overestimateToleranceTexels");
+    requireNonNegative(options.signMarginTexels, "signMarginTexels");
     if (!(options.truthClampTexels > 0.0)) {
-        throw InputError("truth clamp: " + std::to_string(options.truthClampTexels) +
-                         " is not accepted; it must be > 0");
+        throw InputError::inField("truthClampTexels", std::to_string(options.truthClampTexels) +
+                                                          " is not accepted; it must be > 0");
     }
 
     const Size3& size = tile.size();

@@ -48,8 +48,8 @@ struct TileErrorReport {
 
 /// Samples `tile` with options.filter and `truth` (signed distance in texels at a texel-space
 /// point; called on this thread only, in the order of the points) at options.samples uniform
-/// random points. Deterministic for a seed. Throws InputError when samples < 1 or a tolerance or
-/// margin is negative or not finite.
+/// random points. Deterministic for a seed. Throws InputError (naming the
+/// TileErrorOptions member) when samples < 1 or a tolerance or margin is negative or not finite.
 TileErrorReport measureTileError(const Tile& tile,
                                  const std::function<double(const glm::dvec3&)>& truth,
                                  const TileErrorOptions& options = {});

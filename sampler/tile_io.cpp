@@ -6,7 +6,6 @@
 #include <array>
 #include <bit>
 #include <cctype>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <span>
@@ -175,20 +174,9 @@ void requireFinite(const Tile& tile, const fs::path& file) {
 
 Size3 parseSize(const std::string& text, const fs::path& file) {
     Size3 size;
-    const char* cursor = text.data();
-    const char* end = text.data() + text.size();
-    bool parsed = true;
-    int* extents[3] = {&size.width, &size.height, &size.depth};
-    for (int axis = 0; axis < 3 && parsed; ++axis) {
-        if (axis > 0) {
-            parsed = cursor != end && *cursor == 'x';
-            cursor += parsed ? 1 : 0;
-        }
-        const auto result = std::from_chars(cursor, end, *extents[axis]);
-        parsed = parsed && result.ec == std::errc() && result.ptr != cursor;
-        cursor = result.ptr;
-    }
-    if (!parsed || cursor != end) {
+    try {
+        size = parseSize3(text, "distile:size");
+    } catch (const InputError&) {
         throw FormatError(file.string() + ": distile:size '" + text +
                           "' is not accepted; expected WxHxD such as 256x256x16");
     }

@@ -1,7 +1,7 @@
 /// @file
 /// Tile files: the OpenEXR atlas distile reads and writes, and the PNG export for GPU shaders.
 ///
-/// Layout (DESIGN.md, Formats): the D slices of a W x H x D tile are laid out as a 2D atlas of
+/// Layout (docs/tile_format.md): the D slices of a W x H x D tile are laid out as a 2D atlas of
 /// cols = ceil(sqrt(D)) columns and rows = ceil(D / cols) rows; slice k sits at column k % cols,
 /// row k / cols, so texel (x, y, k) is atlas pixel (k % cols * W + x, k / cols * H + y), x fastest,
 /// pixel row 0 at the top. A 256x256x16 tile is a 4 x 4 atlas of 1024 x 1024 pixels. Atlas cells

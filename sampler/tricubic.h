@@ -294,7 +294,7 @@ class BasicTricubicBSplineFilter {
 
     /// Exact first derivatives of the filtered field (texels per texel), continuous everywhere,
     /// in one pass over the 64 taps: on a CPU that is about 4x faster than the chapter's 24 linear
-    /// fetches (bench/distile_bench: sampleGradient), which pay off only where the hardware
+    /// fetches (bench/micro_bench.cpp: sampleGradient), which pay off only where the hardware
     /// filters for free. gradient8Fetch() is the chapter's form, kept as the check.
     glm::vec3 gradient(const glm::vec3& texelPosition) const {
         const Axes a = axes(texelPosition);
@@ -318,7 +318,7 @@ class BasicTricubicBSplineFilter {
     void gradients(const glm::vec3* positions, int count, glm::vec3* out) const {
         unsigned redo = (1u << count) - 1u;
         if constexpr (Texels::kZContiguous) {
-            if (detail::kWideTrilinear) {
+            if (kSimdLevel >= SimdLevel::Avx2) {
                 redo = detail::tricubicGradientColumns(texels_.wide(), &positions[0].x, count,
                                                        &out[0].x);
             }

@@ -1,41 +1,15 @@
-// The eight-lane (AVX2) kernels of sampler/trilinear_wide.h, and the choice of lanes
-// (kWideTrilinear, kSixteenLanes). This file is compiled with -mavx2 (and without FMA, so no
-// product is fused into a sum): it includes nothing with inline functions that the rest of
-// distile also instantiates, so no AVX2 code can stand in for theirs.
+// The eight-lane (AVX2) kernels of sampler/trilinear_wide.h. This file is compiled with -mavx2 (and
+// without FMA, so no product is fused into a sum): it includes nothing with inline functions that
+// the rest of distile also instantiates, so no AVX2 code can stand in for theirs.
 #include "sampler/trilinear_wide.h"
 
-#include <cstdio>
-#include <cstdlib>
-#include <cstring>
-
 #if defined(__x86_64__) && defined(__AVX2__) && !defined(__FMA__)
-#include "sampler/trilinear_lanes.h"
+#include "sampler/detail/trilinear_lanes.h"
 #endif
 
 namespace distile::detail {
 
 #if defined(__x86_64__) && defined(__AVX2__) && !defined(__FMA__)
-
-const bool kWideTrilinear = [] {
-    // DISTILE_SIMD=sse2 keeps to the SSE2 paths (the same results; to compare or reproduce).
-    const char* simd = std::getenv("DISTILE_SIMD");
-    if (simd && std::strcmp(simd, "sse2") != 0 && std::strcmp(simd, "avx2") != 0) {
-        std::fprintf(stderr,
-                     "distile: warning: DISTILE_SIMD=%s is not one of sse2, avx2; the widest "
-                     "lanes the processor has are used\n",
-                     simd);
-    }
-    if (simd && std::strcmp(simd, "sse2") == 0) return false;
-    __builtin_cpu_init();  // may run before libgcc's own initialisation
-    return __builtin_cpu_supports("avx2") != 0;
-}();
-
-const bool kSixteenLanes = [] {
-    const char* simd = std::getenv("DISTILE_SIMD");
-    if (!kWideTrilinear || (simd && std::strcmp(simd, "avx2") == 0)) return false;
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw");
-}();
 
 unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out) {
     Lanes8::M outside = _mm256_setzero_ps();
@@ -50,7 +24,8 @@ unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* 
 unsigned tricubicGradientColumns(const WideColumns& columns, const float* xyz, int count,
                                  float* gradients) {
     const unsigned points = (1u << count) - 1u;
-    if (kSixteenLanes) return points & tricubicGradientColumns16(columns, xyz, gradients);
+    if (kSimdLevel == SimdLevel::Avx512)
+        return points & tricubicGradientColumns16(columns, xyz, gradients);
     unsigned redo = tricubicGradientColumnsLanes<Lanes8>(columns, xyz, gradients);
     if (count > 8)
         redo |= tricubicGradientColumnsLanes<Lanes8>(columns, xyz + 24, gradients + 24) << 8;
@@ -58,9 +33,6 @@ unsigned tricubicGradientColumns(const WideColumns& columns, const float* xyz, i
 }
 
 #else
-
-const bool kWideTrilinear = false;
-const bool kSixteenLanes = false;
 
 unsigned tricubicGradientColumns(const WideColumns&, const float*, int count, float*) {
     return (1u << count) - 1u;  // never called: no AVX2

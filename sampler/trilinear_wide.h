@@ -9,6 +9,8 @@
 
 #include <cstdint>
 
+#include "common/simd.h"
+
 namespace distile::detail {
 
 /// A tile's columns as the wide kernel reads them (ColumnTexels' fields).
@@ -18,34 +20,25 @@ struct WideColumns {
     int width, height, depth;
 };
 
-/// Whether this processor runs trilinearColumns8 (x86-64 with AVX2), decided once; the
-/// environment variable DISTILE_SIMD=sse2 turns the wide paths off (same results).
-extern const bool kWideTrilinear;
-
-/// Whether the march kernel (render/march_wide.h) and the gradients take sixteen lanes at a
-/// time: kWideTrilinear and the processor has AVX-512F and BW, decided once; DISTILE_SIMD=avx2
-/// keeps them to eight (same results).
-extern const bool kSixteenLanes;
-
 /// BasicTrilinearFilter<ColumnTexels>::distanceTexels at the eight points `xyz` (x, y, z of
 /// each, 24 floats) into out[0..8), bit for bit, for every lane whose x and y are in
 /// periodicAxis' near case. Returns the lanes that are not (huge or not finite coordinates; bit i
 /// for point i): their out[] is unspecified and must be computed one at a time.
-/// Precondition: kWideTrilinear.
+/// Precondition: kSimdLevel >= SimdLevel::Avx2 (common/simd.h).
 unsigned trilinearColumns8(const WideColumns& columns, const float* xyz, float* out);
 
 /// BasicTricubicBSplineFilter<ColumnTexels>::gradient at the first `count` (1 .. 16) of the
 /// sixteen points `xyz` into `gradients` (x, y, z of each, 48 floats in and out; the points past
 /// `count` finite), bit for bit, for every point whose x and y are in periodicAxis' near case and
 /// whose z taps are all stored slices (z - 0.5 in [1, D - 2)): sixteen at a time where
-/// kSixteenLanes, else eight. Returns the other points among the first `count` (bit i for point
-/// i): their gradients are unspecified and must be computed one at a time. Precondition:
-/// kWideTrilinear.
+/// kSimdLevel is Avx512, else eight. Returns the other points among the first `count` (bit i for
+/// point i): their gradients are unspecified and must be computed one at a time. Precondition:
+/// kSimdLevel >= SimdLevel::Avx2.
 unsigned tricubicGradientColumns(const WideColumns& columns, const float* xyz, int count,
                                  float* gradients);
 
 /// tricubicGradientColumns for all sixteen points with AVX-512 (sampler/trilinear_wide16.cpp),
-/// which it calls where kSixteenLanes. Precondition: kSixteenLanes.
+/// which it calls where kSimdLevel is Avx512. Precondition: kSimdLevel == SimdLevel::Avx512.
 unsigned tricubicGradientColumns16(const WideColumns& columns, const float* xyz, float* gradients);
 
 }  // namespace distile::detail

@@ -1,9 +1,9 @@
 // The sixteen-lane (AVX-512) kernels of sampler/trilinear_wide.h. Compiled with -mavx512f
-// -mavx512bw and without FMA, and run only where the processor has both (kSixteenLanes).
+// -mavx512bw and without FMA, and run only where kSimdLevel is Avx512 (common/simd.h).
 #include "sampler/trilinear_wide.h"
 
 #if defined(__x86_64__) && defined(__AVX512F__) && defined(__AVX512BW__) && !defined(__FMA__)
-#include "sampler/trilinear_lanes.h"
+#include "sampler/detail/trilinear_lanes.h"
 #endif
 
 namespace distile::detail {

@@ -1,5 +1,6 @@
 #include "scene/scene_file.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <iterator>
@@ -8,6 +9,7 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "bake/bake.h"
 #include "bake/bake_cache.h"
@@ -181,7 +183,7 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
            << options.conservative.toleranceTexels
            // The recipe's text is part of its hash: changing a word here bakes every cached
            // mesh tile again.
-           << "\nexact inside test and exact distance (cli/mesh_bake.h)\n";
+           << "\nexact inside test and exact distance (solid mesh bake)\n";
     return recipe.str();
 }
 
@@ -460,9 +462,36 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarni
     try {
         validateScene(scene);
     } catch (const InputError& error) {
-        throw InputError(fileName + ": " + error.what());
+        throw InputError(fileName + ": " + underSceneJsonPath(error).what());
     }
     return result;
+}
+
+std::string sceneJsonPath(std::string_view field) {
+    // The Scene members whose JSON key differs (docs/scene.md); the others are spelled alike.
+    static constexpr std::pair<std::string_view, std::string_view> kKeys[] = {
+        {"fovDeg", "fov_deg"},   {"angleDeg", "angle_deg"}, {"rotateDeg", "rotate_deg"},
+        {"depthWorld", "depth"}, {"uvScale", "uv_scale"},
+    };
+    std::string path;
+    std::size_t begin = 0;
+    while (begin <= field.size()) {
+        const std::size_t dot = std::min(field.find('.', begin), field.size());
+        std::string_view part = field.substr(begin, dot - begin);
+        const std::string_view index = part.substr(std::min(part.find('['), part.size()));
+        const std::string_view name = part.substr(0, part.size() - index.size());
+        std::string key(name);
+        for (const auto& [member, json] : kKeys) {
+            if (name == member) key = json;
+        }
+        path += (begin == 0 ? "" : ".") + key + std::string(index);
+        begin = dot + 1;
+    }
+    return path;
+}
+
+InputError underSceneJsonPath(const InputError& error) {
+    return error.field().empty() ? error : error.renamed(sceneJsonPath(error.field()));
 }
 
 SceneFile demoScene(TileCache& tiles) {

@@ -22,8 +22,10 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "common/error.h"
 #include "common/triangle_soup.h"
 #include "render/scene.h"
 
@@ -71,5 +73,13 @@ SceneFile demoScene(TileCache& tiles);
 /// rejects a reference render of them. Throws FormatError for a procedural tile whose params
 /// cannot be read.
 void attachTruth(SceneFile& sceneFile);
+
+/// A Scene member path as validateScene names it ("objects[0].material.depthWorld") to the
+/// scene file's JSON path ("objects[0].material.depth"); other text as it is.
+std::string sceneJsonPath(std::string_view field);
+
+/// `error` under the scene file's JSON path of its field (sceneJsonPath); as it is when it names
+/// no field.
+InputError underSceneJsonPath(const InputError& error);
 
 }  // namespace distile

@@ -128,12 +128,13 @@ class Cli : public ::testing::Test {
     fs::path work() const { return root_ / "work"; }
     fs::path path(const std::string& name) const { return work() / name; }
 
-    /// Runs `distile <arguments>` in work().
-    RunResult run(const std::vector<std::string>& arguments) const {
+    /// Runs `distile <arguments>` in work() (`program`: another copy of distile).
+    RunResult run(const std::vector<std::string>& arguments,
+                  const fs::path& program = DISTILE_BINARY) const {
         const fs::path outFile = root_ / "logs" / "stdout.txt";
         const fs::path errFile = root_ / "logs" / "stderr.txt";
         std::string command =
-            "cd " + shellQuote(work().string()) + " && " + shellQuote(DISTILE_BINARY);
+            "cd " + shellQuote(work().string()) + " && " + shellQuote(program.string());
         for (const std::string& argument : arguments) command += " " + shellQuote(argument);
         command +=
             " </dev/null >" + shellQuote(outFile.string()) + " 2>" + shellQuote(errFile.string());
@@ -275,8 +276,8 @@ TEST_F(Cli, RenderDoesNotDependOnTheThreadCount) {
 
 TEST_F(Cli, RenderIsTheSameOnEverySimdPath) {
     // DISTILE_SIMD=sse2 keeps to the SSE2 paths; where the processor has AVX2 the default takes
-    // the wide entry, march and filter kernels (render/entry_wide.h, render/march_wide.h), and
-    // where it has AVX-512 the march's sixteen lanes, which DISTILE_SIMD=avx2 keeps to eight.
+    // the wide entry, march and filter kernels (render/detail/entry_wide.h, render/march_wide.h),
+    // and where it has AVX-512 the march's sixteen lanes, which DISTILE_SIMD=avx2 keeps to eight.
     // Same operations per ray: the same floats. With shadows (self-shadow rays interleave too) and
     // the AOVs' depth. Two scenes: the chain mail seen from above; and a low grating (empty space
     // above it: the entry's jump to the highest top) seen at a grazing angle, with tiles repeated
@@ -639,7 +640,7 @@ TEST_F(Cli, ClosedMeshAcceptanceWithTheDefaultConservativeBake) {
             100.0 * report["overestimate_share"].get<double>(), report["rms"].get<double>());
         return report;
     };
-    // Issue #3: `check --against` the mesh, 100,000 points, default bake: max |error| <= 0.5
+    // `check --against` the mesh, 100,000 points, default bake: max |error| <= 0.5
     // texel within 2 texels of the surface, no sign errors. The conservative correction measures
     // the trilinear overestimate against the exact mesh distance (bake/conservative.h), so the
     // cube's sharp edges are lowered by what they overestimate (the estimate alone: 0.70).
@@ -942,7 +943,24 @@ TEST_F(Cli, MeshTruthNeedsAMeshRecipeAndAClosedMesh) {
 namespace distile {
 namespace {
 
+/// Whether distile-bench, which `distile bench` runs, was built next to distile.
+bool benchBuilt() {
+    return fs::exists(fs::path(DISTILE_BINARY).parent_path() / "distile-bench");
+}
+
+TEST_F(Cli, BenchWithoutDistileBenchSaysTheBenchmarksWereNotBuilt) {
+    // A copy of distile in a folder of its own: `bench` has no distile-bench to run.
+    fs::create_directories(path("alone"));
+    fs::copy_file(DISTILE_BINARY, path("alone/distile"));
+    const RunResult bench = run({"bench", "--quick"}, path("alone/distile"));
+    EXPECT_EQ(bench.status, 2);
+    EXPECT_NE(bench.err.find("benchmarks were not built"), std::string::npos) << bench.err;
+    EXPECT_NE(bench.err.find("-DDISTILE_BUILD_BENCH=ON"), std::string::npos) << bench.err;
+    EXPECT_NE(run({"--help"}, path("alone/distile")).out.find("bench"), std::string::npos);
+}
+
 TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
+    if (!benchBuilt()) GTEST_SKIP() << "distile-bench was not built (DISTILE_BUILD_BENCH=OFF)";
     // A tiny sweep (no peers: they are tested in peers_test): every distile row of the sweep is
     // in the CSV with a finite error against the analytic reference, and the torus on the sheet's
     // curved and planar rows against the world reference; the report names the Pareto front,
@@ -996,6 +1014,7 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
 }
 
 TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
+    if (!benchBuilt()) GTEST_SKIP() << "distile-bench was not built (DISTILE_BUILD_BENCH=OFF)";
     // A tiny speed report (no peers): every RenderSkips switch (all bools) is measured on each of
     // the six scenes in three renders (shadows, none, tricubic march), the bake cache, the thread
     // check and the curved shells (on the demo and the torus on the sheet) have their rows, the

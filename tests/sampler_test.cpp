@@ -153,8 +153,8 @@ TEST(BakedChainmail, TrilinearTileMatchesTheAnalyticDistance) {
     //    outer half texels z < 0.5 and z > D - 0.5, where the filter extends the edge cell
     //    linearly (extrapolating half a texel errs by 3/8 of the second difference, three times
     //    the curvature term inside, and underestimates a convex field);
-    //  - RMS over the whole tile is dominated by the smooth regions: at most 0.1 (issue #2).
-    // Issue #2 also asks for p99.9 <= 0.25 within 2 texels of the surface; the kinks above make
+    //  - RMS over the whole tile is dominated by the smooth regions: at most 0.1.
+    // A p99.9 <= 0.25 within 2 texels of the surface is out of reach: the kinks above make
     // that unreachable for point-sampled trilinear reconstruction of linked rings in a 16-texel
     // deep tile (measured 0.45; see the closing note). The test holds the bounds that follow from
     // the analysis, so a regression in baking or filtering fails it.
@@ -513,7 +513,7 @@ std::vector<std::pair<std::string, ProceduralOptions>> proceduralKinds() {
 }
 
 TEST(ConservativeResampling, EveryProceduralTileMeetsTheOverestimateAndRmsTargets) {
-    // Issue #3 acceptance, against the analytic truth at 100,000 uniform random points: trilinear
+    // Against the analytic truth at 100,000 uniform random points: trilinear
     // overestimates beyond 0.05 texel in under 0.1% of the samples, and RMS <= 0.1 texel. The
     // exact tile (texel-centre distances) misses the first target by far on chain mail (measured
     // ~11%: convex fields between samples), which the test also asserts, so it can fail.

@@ -1,4 +1,4 @@
-// Issue #3: "a 2x2 render shows no seam" for tiles baked from meshes and height maps. A plane
+// A 2x2 render shows no seam for tiles baked from meshes and height maps. A plane
 // carrying 2 x 2 repeats of a tile is rendered from high above with a narrow field of view; every
 // pixel's hit is compared with the truth along the same ray (the periodic mesh through CGAL, the
 // triangulated height field). A seam is the hits next to the tile borders being worse than the

@@ -147,9 +147,11 @@ LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
                                std::size_t(tile.depth + 2 * margin);
     if (repeatX < 1 || repeatX > 64 || repeatY < 1 || repeatY > 64 ||
         voxels > (std::size_t(1) << 30)) {
-        throw InputError("--repeat: " + std::to_string(repeatX) + "x" + std::to_string(repeatY) +
-                         " is not accepted; each count must be in [1, 64] and the repeated level "
-                         "set at most 2^30 voxels");
+        throw InputError::inField("repeatX, repeatY", std::to_string(repeatX) + "x" +
+                                                          std::to_string(repeatY) +
+                                                          " is not accepted; each count must be "
+                                                          "in [1, 64] and the repeated level "
+                                                          "set at most 2^30 voxels");
     }
     const openvdb::CoordBBox source(
         openvdb::Coord(0, 0, -margin),

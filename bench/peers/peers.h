@@ -1,5 +1,5 @@
 /// @file
-/// Peer renderers for `distile bench` (DESIGN.md, Performance): the same scene, camera rays and
+/// Peer renderers for `distile bench` (docs/reports.md): the same scene, camera rays and
 /// thread count traced by other tools on the same detail, so distile's time and error can be put
 /// next to theirs in one run.
 ///  - Embree 3 on the chain mail tessellated finely (vdb/chainmail.h tessellateChainmail) and

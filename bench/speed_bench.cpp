@@ -1,6 +1,6 @@
 // distile bench --speed: the acceptance measurements of the renderer's speed (see
-// cli/speed_bench.h).
-#include "cli/speed_bench.h"
+// bench/speed_bench.h).
+#include "bench/speed_bench.h"
 
 #include <tbb/global_control.h>
 
@@ -21,13 +21,10 @@
 
 #include "bake/bake.h"
 #include "bake/bake_cache.h"
+#include "bench/peers/peers.h"
 #include "common/error.h"
 #include "sampler/tile_io.h"
 #include "scene/scene_file.h"
-
-#ifdef DISTILE_HAVE_PEERS
-#include "bench/peers/peers.h"
-#endif
 
 namespace distile::cli {
 
@@ -58,7 +55,7 @@ constexpr std::array kSkipSwitches{
 static_assert(sizeof(RenderSkips) == kSkipSwitches.size() * sizeof(bool),
               "every RenderSkips field must be a bool listed in kSkipSwitches");
 
-/// A scene of the report: S1..S6.
+/// A scene of the report, with the label its tables show it under (the report defines them).
 struct SpeedScene {
     std::string id;
     std::string name;
@@ -84,7 +81,7 @@ constexpr double kMaxCurvedInteriorP99Texels = 2.0;
 constexpr double kMaxCurvedCoverageMismatch = 0.005;
 constexpr double kMaxCurvedInteriorNormalDeg = 3.0;
 
-/// uv_scale of the sheet (S1) and of the repeated sheet (S2): 16x the repeats per side.
+/// uv_scale of the chain-mail sheet and of the repeated sheet: 16x the repeats per side.
 constexpr int kSheetTilesPerSide = 4;
 constexpr int kRepeatedTilesPerSide = 64;
 
@@ -106,7 +103,7 @@ struct SpeedRow {
         : section(std::move(sectionName)), scene(std::move(sceneId)), what(std::move(measured)) {}
 
     std::string section;  ///< peers, error, repetition, memory, skip, cache, threads
-    std::string scene;    ///< S1..S6
+    std::string scene;    ///< the scene's label in the report
     std::string what;
     double seconds = std::nan("");          ///< distile; the skip on; warm cache; 1 thread
     double comparedSeconds = std::nan("");  ///< the peer; the skip off; no cache; all threads
@@ -380,7 +377,7 @@ void runSpeedBench(const BenchArguments& arguments) {
     }
     const Scene& sheet = scenes[0].scene;
     const Scene& repeated = scenes[1].scene;
-    // The curved-shell section's scenes: the demo (S3) and the torus on the sheet.
+    // The curved-shell section's scenes: the demo and the torus on the sheet.
     const std::vector<CurvedShellScene> curvedScenes{
         {"S3", "demo", demo.scene, demo.image}, [&] {
             const SceneFile torus =
@@ -398,7 +395,7 @@ void runSpeedBench(const BenchArguments& arguments) {
     shadowed.width = width;
     shadowed.height = height;
 
-    // A. Peers and error (S1).
+    // A. Peers and error, on the chain-mail sheet.
     say("bench --speed: A. distile against the peers on S1, and its error");
     // A first render, untimed: the process's first pays for starting the thread pool and for
     // fresh pages (the peers' times exclude their start too: set-up, reading the level set).
@@ -428,7 +425,6 @@ void runSpeedBench(const BenchArguments& arguments) {
     const double tileBytes =
         double(sheet.objects[0].material.tile->distancesTexels().size()) * sizeof(float);
     std::optional<double> embreeBytes, levelSetBytes;
-#ifdef DISTILE_HAVE_PEERS
     if (arguments.peers) {
         auto peerRow = [&](const std::string& name, std::optional<PeerRender> fastest) {
             if (!fastest) return;
@@ -492,10 +488,6 @@ void runSpeedBench(const BenchArguments& arguments) {
         sayDistileTime();
         notes.push_back("peers: not run (--no-peers)");
     }
-#else
-    sayDistileTime();
-    notes.push_back("peers: distile was built without bench/ (DISTILE_BUILD_BENCH=OFF)");
-#endif
 
     // B. Repetition and memory.
     say("bench --speed: B. repetition (S2: uv scale x16) and memory");
@@ -578,7 +570,8 @@ void runSpeedBench(const BenchArguments& arguments) {
         }
     }
 
-    // The bake cache: S1 loaded from a warm cache against a bake with caching off.
+    // The bake cache: the chain-mail sheet loaded from a warm cache against a bake with caching
+    // off.
     say("bench --speed: bake cache (S1 loaded warm against caching off)");
     if (bakeCacheFolder()) {
         const std::string json = sheetJson(sheetTile, kSheetTilesPerSide);

@@ -1,5 +1,5 @@
 // Micro-benchmarks: filter samples and whole sphere-traced marches on the default chain-mail
-// tile, and the bake itself. Run: build/bin/distile_bench [--benchmark_filter=...]
+// tile, and the bake itself. Run: build/bin/micro_bench [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
 
 #include <cmath>

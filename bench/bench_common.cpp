@@ -1,4 +1,4 @@
-#include "cli/bench_common.h"
+#include "bench/bench_common.h"
 
 #include <chrono>
 #include <cmath>

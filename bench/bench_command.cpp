@@ -16,21 +16,16 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bench/bench_common.h"
+#include "bench/peers/peers.h"
+#include "bench/speed_bench.h"
+#include "bench/stress/stress_cases.h"
 #include "cli/arguments.h"
-#include "cli/bench_common.h"
 #include "cli/commands.h"
-#include "cli/speed_bench.h"
 #include "common/error.h"
 #include "render/compare.h"
 #include "render/renderer.h"
 #include "scene/scene_file.h"
-
-#ifdef DISTILE_HAVE_PEERS
-#include "bench/peers/peers.h"
-#endif
-#ifdef DISTILE_HAVE_STRESS
-#include "bench/stress/stress_cases.h"
-#endif
 
 namespace distile::cli {
 
@@ -287,7 +282,6 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
     return md.str();
 }
 
-#ifdef DISTILE_HAVE_STRESS
 /// A CSV field: quoted, inner quotes doubled.
 std::string csvField(const std::string& text) {
     std::string quoted = "\"";
@@ -358,7 +352,6 @@ void runStressReport(const fs::path& outputDir) {
     std::fflush(stdout);
     if (failed > 0) std::exit(1);  // a case failed: exit status 1 (bad input is 2, from main)
 }
-#endif
 
 /// The skips for ch. 8's plain sphere tracing: no empty-space skipping and no adaptive budget,
 /// which would change the march whose convergence the chapter's claims are about.
@@ -371,12 +364,8 @@ RenderSkips chapter8Skips() {
 
 void runBench(const BenchArguments& arguments) {
     if (arguments.stress) {
-#ifdef DISTILE_HAVE_STRESS
         runStressReport(arguments.outputDir);
         return;
-#else
-        throw InputError("--stress: distile was built without bench/ (DISTILE_BUILD_BENCH=OFF)");
-#endif
     }
     if (arguments.speed) {
         runSpeedBench(arguments);
@@ -549,7 +538,6 @@ void runBench(const BenchArguments& arguments) {
         say("  world reference " + std::to_string(world.seconds) + " s");
     }
     // Peers.
-#ifdef DISTILE_HAVE_PEERS
     if (arguments.peers) {
         say("bench: peers");
         auto peerRow = [&](const PeerRender& peer) {
@@ -592,11 +580,6 @@ void runBench(const BenchArguments& arguments) {
             "vdb_render's level set has no floor: pixels where distile and the reference hit the "
             "sheet's solid floor are misses there (its coverage mismatch).");
     }
-
-#else
-    if (arguments.peers)
-        notes.push_back("peers: distile was built without bench/ (DISTILE_BUILD_BENCH=OFF)");
-#endif
 
     markParetoFront(rows);
     const std::string csv = csvOf(rows, threads, width, height);

@@ -39,7 +39,7 @@ struct EntryLanes {
 };
 
 /// Fills the outputs of `lanes` for rays entering the flat shell `shell`. Precondition:
-/// kWideTrilinear (sampler/trilinear_wide.h).
+/// kSimdLevel >= SimdLevel::Avx2 (common/simd.h).
 void enterFlatShell8(const FlatShellConstants& shell, EntryLanes& lanes);
 
 }  // namespace distile::detail

@@ -1,11 +1,11 @@
 /// @file
 /// The body of the wide trilinear filter (sampler/trilinear_wide.h) over SIMD lanes
-/// (sampler/simd_lanes.h: Lanes8 with AVX2, Lanes16 with AVX-512), for translation units built
-/// with those instruction sets and without FMA only (sampler/trilinear_wide.cpp,
+/// (sampler/detail/simd_lanes.h: Lanes8 with AVX2, Lanes16 with AVX-512), for translation units
+/// built with those instruction sets and without FMA only (sampler/trilinear_wide.cpp,
 /// render/march_wide*.cpp). Internal linkage, as simd_lanes.h.
 #pragma once
 
-#include "sampler/simd_lanes.h"
+#include "sampler/detail/simd_lanes.h"
 #include "sampler/trilinear_wide.h"
 
 namespace distile::detail {

@@ -1,14 +1,15 @@
 /// @file
-/// SIMD lanes for the wide kernels (sampler/trilinear_lanes.h, render/march_lanes.h): the float
-/// and int operations they need, for eight lanes with AVX2 (Lanes8) and sixteen with AVX-512F
-/// and BW (Lanes16), so each kernel is written once for both widths. For translation units built
-/// with those instruction sets and without FMA only: every lane rounds as scalar code does.
+/// SIMD lanes for the wide kernels (sampler/detail/trilinear_lanes.h, render/detail/march_lanes.h):
+/// the float and int operations they need, for eight lanes with AVX2 (Lanes8) and sixteen with
+/// AVX-512F and BW (Lanes16), so each kernel is written once for both widths. For translation units
+/// built with those instruction sets and without FMA only: every lane rounds as scalar code does.
 /// Everything here has internal linkage, so each such unit has its own copy and no code built for
 /// another instruction set links to it.
 #pragma once
 
 #if !defined(__AVX2__) || defined(__FMA__)
-#error "sampler/simd_lanes.h is for units built with -mavx2 (or -mavx512f -mavx512bw), no FMA"
+#error \
+    "sampler/detail/simd_lanes.h is for units built with -mavx2 (or -mavx512f -mavx512bw), no FMA"
 #endif
 
 #include <immintrin.h>
@@ -29,6 +30,11 @@ struct Lanes8 {
 
     DISTILE_LANES_INLINE F load(const float* values) { return _mm256_load_ps(values); }
     DISTILE_LANES_INLINE void store(float* values, F v) { _mm256_store_ps(values, v); }
+    DISTILE_LANES_INLINE F loadUnaligned(const float* values) { return _mm256_loadu_ps(values); }
+    DISTILE_LANES_INLINE void storeUnaligned(float* values, F v) { _mm256_storeu_ps(values, v); }
+    DISTILE_LANES_INLINE void storeIntUnaligned(int* values, I v) {
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(values), v);
+    }
     DISTILE_LANES_INLINE I loadInt(const int* values) {
         return _mm256_load_si256(reinterpret_cast<const __m256i*>(values));
     }
@@ -58,6 +64,12 @@ struct Lanes8 {
     DISTILE_LANES_INLINE F abs(F a) {
         return _mm256_and_ps(a, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff)));
     }
+    /// -a: the sign bit flipped (-0 for 0, as scalar negation).
+    DISTILE_LANES_INLINE F negate(F a) {
+        return _mm256_xor_ps(a, _mm256_castsi256_ps(_mm256_set1_epi32(int(0x80000000u))));
+    }
+    DISTILE_LANES_INLINE F sqrt(F a) { return _mm256_sqrt_ps(a); }
+    DISTILE_LANES_INLINE F ceil(F a) { return _mm256_ceil_ps(a); }
     /// Ordered comparisons (false where either is NaN), and a >= b unordered (true there).
     DISTILE_LANES_INLINE M less(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
     DISTILE_LANES_INLINE M greater(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
@@ -135,6 +147,11 @@ struct Lanes16 {
 
     DISTILE_LANES_INLINE F load(const float* values) { return _mm512_load_ps(values); }
     DISTILE_LANES_INLINE void store(float* values, F v) { _mm512_store_ps(values, v); }
+    DISTILE_LANES_INLINE F loadUnaligned(const float* values) { return _mm512_loadu_ps(values); }
+    DISTILE_LANES_INLINE void storeUnaligned(float* values, F v) { _mm512_storeu_ps(values, v); }
+    DISTILE_LANES_INLINE void storeIntUnaligned(int* values, I v) {
+        _mm512_storeu_si512(values, v);
+    }
     DISTILE_LANES_INLINE I loadInt(const int* values) { return _mm512_load_si512(values); }
     DISTILE_LANES_INLINE void storeInt(int* values, I v) { _mm512_store_si512(values, v); }
     DISTILE_LANES_INLINE M loadMask(const int* values) {
@@ -160,6 +177,14 @@ struct Lanes16 {
     DISTILE_LANES_INLINE F abs(F a) {
         return _mm512_castsi512_ps(
             _mm512_and_si512(_mm512_castps_si512(a), _mm512_set1_epi32(0x7fffffff)));
+    }
+    DISTILE_LANES_INLINE F negate(F a) {
+        return _mm512_castsi512_ps(
+            _mm512_xor_si512(_mm512_castps_si512(a), _mm512_set1_epi32(int(0x80000000u))));
+    }
+    DISTILE_LANES_INLINE F sqrt(F a) { return _mm512_sqrt_ps(a); }
+    DISTILE_LANES_INLINE F ceil(F a) {
+        return _mm512_roundscale_ps(a, _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC);
     }
     DISTILE_LANES_INLINE M less(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_LT_OQ); }
     DISTILE_LANES_INLINE M greater(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_GT_OQ); }

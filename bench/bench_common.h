@@ -1,8 +1,8 @@
 /// @file
-/// What `distile bench` (cli/bench_command.cpp) and `distile bench --speed` (cli/speed_bench.cpp)
-/// share: their arguments, the flat chain-mail sheet scene, the torus on the sheet, the smooth
-/// height image, timed renders, timed world references and text output. Internal to the command;
-/// the libraries never see it.
+/// What `distile bench` (bench/bench_command.cpp) and `distile bench --speed`
+/// (bench/speed_bench.cpp) share: their arguments, the flat chain-mail sheet scene, the torus on
+/// the sheet, the smooth height image, timed renders, timed world references and text output.
+/// Internal to the command; the libraries never see it.
 #pragma once
 
 #include <filesystem>
@@ -23,7 +23,7 @@ struct BenchArguments {
     bool peers = true;
     /// The stress cases (bench/stress/stress_cases.h) instead of the sweep.
     bool stress = false;
-    /// The speed report (cli/speed_bench.h) instead of the sweep.
+    /// The speed report (bench/speed_bench.h) instead of the sweep.
     bool speed = false;
     int width = 0;  ///< 0: 1280 (640 with --quick)
     int height = 0;

@@ -8,7 +8,7 @@
 /// DIR/scenes/.
 #pragma once
 
-#include "cli/bench_common.h"
+#include "bench/bench_common.h"
 
 namespace distile::cli {
 

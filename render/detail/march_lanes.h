@@ -1,11 +1,11 @@
 /// @file
-/// The wide march kernel of render/march_wide.h over SIMD lanes (sampler/simd_lanes.h): written
-/// once, built with AVX2 (eight lanes, render/march_wide.cpp) and AVX-512 (sixteen,
+/// The wide march kernel of render/march_wide.h over SIMD lanes (sampler/detail/simd_lanes.h):
+/// written once, built with AVX2 (eight lanes, render/march_wide.cpp) and AVX-512 (sixteen,
 /// render/march_wide16.cpp). Internal linkage, as simd_lanes.h.
 #pragma once
 
 #include "render/march_wide.h"
-#include "sampler/trilinear_lanes.h"
+#include "sampler/detail/trilinear_lanes.h"
 
 namespace distile::detail {
 namespace {
