@@ -130,19 +130,16 @@ Size3 parseSize(const Field& field) {
         size = {field[0].integer(1, 1 << 20), field[1].integer(1, 1 << 20),
                 field[2].integer(1, 1 << 20)};
     } else {
-        const std::string text = field.string();
-        char x1 = 0, x2 = 0;
-        std::istringstream in(text);
-        std::string rest;
-        if (!(in >> size.width >> x1 >> size.height >> x2 >> size.depth) || x1 != 'x' ||
-            x2 != 'x' || (in >> rest)) {
-            field.fail("'" + text + "' is not a size; write WxHxD, e.g. 256x256x16");
+        try {
+            size = parseSize3(field.string(), field.path());
+        } catch (const InputError& error) {
+            field.fail(error.problem());
         }
     }
     try {
         validateTileSize(size, field.path());
     } catch (const InputError& error) {
-        field.fail(error.what());
+        field.fail(error.problem());
     }
     return size;
 }
@@ -390,7 +387,9 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarni
     const std::string fileName = file.string();
     const fs::path folder = file.has_parent_path() ? file.parent_path() : fs::path(".");
     const Field root(document, "", fileName);
-    root.requireObject({"camera", "image", "lights", "objects"});
+    // "$schema" lets editors find docs/scene.schema.json; the reader only checks it is a string.
+    root.requireObject({"$schema", "camera", "image", "lights", "objects"});
+    if (root.has("$schema")) root["$schema"].string();
 
     SceneFile result;
     Scene& scene = result.scene;

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Checks the documentation: every relative link and image in README.md and docs/*.md points to a
-file or folder in the repository, and no tracked file mentions the team's private notes folder.
+file or folder in the repository, and no tracked file mentions the team's notes outside the repository.
 
 Usage: check_doc_links.py REPOSITORY
 """
@@ -13,8 +13,9 @@ import sys
 # [text](target) and ![alt](target), target up to the first space or ')'; <img src="...">.
 MARKDOWN_LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
 HTML_SOURCE = re.compile(r"<img[^>]*\ssrc=\"([^\"]+)\"")
-# Spelled in two parts so that this file does not mention it.
-PRIVATE_FOLDER = "shared" + "/"
+# The team's notes outside the repository, which users do not have; spelled in two parts so that
+# this file does not mention them.
+PRIVATE_NAMES = ["shared" + "/", "DESIGN" + ".md", "STYLE" + ".md"]
 
 
 def strip_code(text):
@@ -42,14 +43,16 @@ def main():
                 failures.append(f"{os.path.relpath(page, root)}: '{target}' does not exist")
     print(f"{checked} relative links in {len(pages)} pages")
 
-    tracked = subprocess.run(["git", "-C", root, "grep", "-l", "-I", "-F", PRIVATE_FOLDER],
-                             capture_output=True, text=True)
-    if tracked.returncode == 128:
-        print("not a git checkout: tracked files not checked")
-    elif tracked.returncode > 1:
-        failures.append(f"git grep failed: {tracked.stderr.strip()}")
-    for name in tracked.stdout.split():
-        failures.append(f"{name}: mentions '{PRIVATE_FOLDER}', a folder users do not have")
+    for name in PRIVATE_NAMES:
+        tracked = subprocess.run(["git", "-C", root, "grep", "-l", "-I", "-F", name],
+                                 capture_output=True, text=True)
+        if tracked.returncode == 128:
+            print("not a git checkout: tracked files not checked")
+            break
+        if tracked.returncode > 1:
+            failures.append(f"git grep failed: {tracked.stderr.strip()}")
+        for path in tracked.stdout.split():
+            failures.append(f"{path}: mentions '{name}', which users do not have")
 
     for failure in failures:
         print("FAIL", failure, file=sys.stderr)
