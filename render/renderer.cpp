@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -162,6 +163,7 @@ class Renderer {
             tanHalfAngles_.push_back(
                 std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f));
         }
+        facingHits_ = std::make_unique<std::atomic<std::uint64_t>[]>(2 * scene.objects.size());
         shadowMaps_.resize(scene.lights.size());
         if (options.shadowFilter == ShadowFilter::None) return;
         if (options.skips.casterlessShadowMaps && !sceneCastsShadowsBetweenSurfaces(scene)) return;
@@ -176,7 +178,22 @@ class Renderer {
         }
     }
 
-    const std::vector<std::string>& warnings() const { return tracer_.warnings(); }
+    /// The tracer's warnings (folds), and one per object whose camera hits are mostly back
+    /// faces: the sign of a mesh wound clockwise, whose detail would silently not show.
+    std::vector<std::string> warnings() const {
+        std::vector<std::string> all = tracer_.warnings();
+        for (std::size_t object = 0; object < scene_.objects.size(); ++object) {
+            const std::uint64_t back = facingHits_[2 * object + 1].load();
+            const std::uint64_t hits = facingHits_[2 * object].load() + back;
+            if (hits == 0 || 2 * back <= hits) continue;
+            all.push_back("objects[" + std::to_string(object) + "]: " +
+                          std::to_string(int(std::lround(100.0 * double(back) / double(hits)))) +
+                          "% of the camera rays that reach it meet back faces, which show no "
+                          "detail; if the mesh is closed, its faces are wound clockwise (distile "
+                          "expects them counter-clockwise seen from outside)");
+        }
+        return all;
+    }
 
     /// Pixels x0 ... x1 - 1 of rows y0 ... y1 - 1 into `pixels` (row by row): each the mean
     /// colour of its samples, with the first sample's AOV values. The camera rays are traced in
@@ -197,9 +214,11 @@ class Renderer {
             SurfaceHit hits[kBatch];
             bool found[kBatch];
             TraceCounters counters[kBatch];
+            std::vector<std::uint32_t> facingHits;  ///< per object: front, back camera hits
         };
         thread_local Arrays arrays;
-        auto& [selfShadows, rays, sampleIndices, hits, found, counters] = arrays;
+        auto& [selfShadows, rays, sampleIndices, hits, found, counters, facingHits] = arrays;
+        facingHits.assign(2 * scene_.objects.size(), 0);
         const int samplesPerPixel = options_.samplesPerPixel;
         const int runWidth = x1 - x0;
         const int total = runWidth * (y1 - y0) * samplesPerPixel;
@@ -242,6 +261,10 @@ class Renderer {
             stats.shellsTraced += shellCounters.traced;
             if (batchSelfShadows) marchSelfShadows(count, hits, found, selfShadows);
             for (std::size_t k = 0; k < count; ++k) {
+                if (found[k])
+                    ++facingHits[2 * hits[k].object + (hits[k].entry.frontFacing ? 0 : 1)];
+            }
+            for (std::size_t k = 0; k < count; ++k) {
                 const int x = rays[k].x;
                 const int y = rays[k].y;
                 const int index = sampleIndices[k];
@@ -255,6 +278,9 @@ class Renderer {
                 sum = index == 0 ? sample.color : sum + sample.color;
                 if (index == samplesPerPixel - 1) pixel.color = sum / float(samplesPerPixel);
             }
+        }
+        for (std::size_t slot = 0; slot < facingHits.size(); ++slot) {
+            if (facingHits[slot] != 0) facingHits_[slot].fetch_add(facingHits[slot]);
         }
     }
 
@@ -452,6 +478,8 @@ class Renderer {
     std::vector<float> tanHalfAngles_;  ///< per light: tan of its angular radius (at least 1e-3)
     std::vector<glm::vec2> sampleOffsets_;  ///< per sample of a pixel: sampleOffset()
     ScreenShells shells_;  ///< camera rays' shells per screen tile (the BVH serves the other rays)
+    /// Per object: camera rays that hit a front face (2 i), a back face (2 i + 1).
+    std::unique_ptr<std::atomic<std::uint64_t>[]> facingHits_;
 };
 
 void validateOptions(const RenderOptions& options) {

@@ -13,6 +13,7 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <utility>
 
 #include "common/shell_map.h"
 #include "mesh/base_mesh.h"
@@ -424,6 +425,27 @@ TEST(CurvedShell, AFoldingShellIsReportedOnceAndRendersFinitePixels) {
     // A shell shallower than the tube's radius does not fold.
     const Scene shallow = layerScene(makeTorus(0.5f, 0.1f, 48, 24), 0.05f);
     EXPECT_TRUE(SceneTracer(shallow, TraceOptions{}).warnings().empty());
+}
+
+TEST(CurvedShell, AMeshWoundClockwiseIsReported) {
+    // The same sphere twice: wound as files should be (counter-clockwise seen from outside), no
+    // warning; flipped, every camera ray that reaches it meets a back face, and the render says
+    // so, naming the object.
+    RenderOptions options;
+    options.width = 48;
+    options.height = 36;
+    Scene scene = layerScene(makeUvSphere(0.6f, 32, 16));
+    scene.camera = {{0.0f, -2.5f, 0.8f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
+    EXPECT_TRUE(renderScene(scene, options).warnings.empty());
+
+    for (glm::uvec3& triangle : scene.objects[0].mesh.triangles)
+        std::swap(triangle[1], triangle[2]);
+    computeTangentFrames(scene.objects[0].mesh);
+    const RenderResult flipped = renderScene(scene, options);
+    ASSERT_EQ(flipped.warnings.size(), 1u);
+    EXPECT_NE(flipped.warnings[0].find("objects[0]: 100% of the camera rays"), std::string::npos)
+        << flipped.warnings[0];
+    EXPECT_NE(flipped.warnings[0].find("clockwise"), std::string::npos);
 }
 
 TEST(CurvedShell, RenderIsTheSameForOneAndTwoThreadsAndBatched) {
