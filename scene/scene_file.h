@@ -69,9 +69,12 @@ SceneFile demoScene(TileCache& tiles);
 /// - a `"bake": "mesh"` tile: the mesh truth (truth/mesh_truth.h, periodic over the tile) as
 ///   Material::exactHit (CGAL first ray hits and triangle normals) and analyticDistance (exact
 ///   signed distance).
-/// Others (tile files baked from meshes or height maps) are left as they are: the renderer
-/// rejects a reference render of them. Throws FormatError for a procedural tile whose params
-/// cannot be read.
+/// - a tile file baked from a mesh: the same mesh truth, of its recorded source mesh placed as it
+///   was baked (bake/provenance.h sourceMeshPlaced).
+/// Others (height maps, mesh tiles that do not record their source) are left as they are: the
+/// renderer rejects a reference render of them. Throws FormatError for a procedural tile whose
+/// params cannot be read; InputError for a mesh tile whose recorded source mesh is not found or
+/// has changed since the bake.
 void attachTruth(SceneFile& sceneFile);
 
 /// A Scene member path as validateScene names it ("objects[0].material.depthWorld") to the
