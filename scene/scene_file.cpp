@@ -81,6 +81,10 @@ class Field {
         }
         return result;
     }
+    /// Sets `target` to the number at `key`, in [low, high], when the key is given.
+    void numberInto(const std::string& key, double& target, double low, double high) const {
+        if (has(key)) target = (*this)[key].number(low, high);
+    }
     int integer(int low, int high) const {
         const double result = number(low, high);
         if (result != std::floor(result)) fail("must be a whole number");
@@ -183,14 +187,20 @@ std::string gratingRecipe(const GratingOptions& grating, const BakeOptions& opti
     return recipe.str();
 }
 
+/// The part of a recipe that names an input file by its bytes: "KIND file fnv1a HASH bytes N".
+std::string fileRecipe(const char* kind, const std::string& fileBytes) {
+    return std::string(kind) + " file fnv1a " + contentHash(fileBytes) + " bytes " +
+           std::to_string(fileBytes.size());
+}
+
 /// Everything a scene's height-map bake depends on (bake/bake_cache.h): the image file's bytes
 /// (by hash), the height and the bake options.
 std::string heightMapRecipe(const std::string& imageFileBytes, const HeightMapOptions& heightMap,
                             const BakeOptions& options) {
     std::ostringstream recipe;
     recipe.precision(17);
-    recipe << "heightmap file fnv1a " << contentHash(imageFileBytes) << " bytes "
-           << imageFileBytes.size() << " height " << heightMap.heightTexels << "\n"
+    recipe << fileRecipe("heightmap", imageFileBytes) << " height " << heightMap.heightTexels
+           << "\n"
            << bakeOptionsRecipe(options) << "\n";
     return recipe.str();
 }
@@ -201,8 +211,7 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
                        const BakeOptions& options) {
     std::ostringstream recipe;
     recipe.precision(17);
-    recipe << "mesh file fnv1a " << contentHash(meshFileBytes) << " bytes " << meshFileBytes.size()
-           << "\nplacement ";
+    recipe << fileRecipe("mesh", meshFileBytes) << "\nplacement ";
     if (placement.fit) {
         recipe << "fit";
     } else {
@@ -328,8 +337,7 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "height_texels"});
     const BakeOptions options = bakeOptionsOf(spec);
     HeightMapOptions heightMap;
-    if (spec.has("height_texels"))
-        heightMap.heightTexels = spec["height_texels"].number(0.0, 65536.0);
+    spec.numberInto("height_texels", heightMap.heightTexels, 0.0, 65536.0);
     const auto [path, bytes] = recipeFile(spec, folder, "a grey image: PNG or EXR");
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
     const std::string key = "bake:" + recipe;
@@ -369,16 +377,12 @@ ChainmailOptions chainmailOf(const Field& spec) {
     if (spec.has("rings_per_row")) chainmail.ringsPerRow = spec["rings_per_row"].integer(1, 4096);
     if (const auto rows = aliased(spec, "rows", "rows_per_tile"))
         chainmail.rowsPerTile = rows->integer(2, 4096);
-    if (spec.has("ring_radius"))
-        chainmail.ringRadiusSpacings = spec["ring_radius"].number(0.0, 2.0);
-    if (spec.has("wire_radius"))
-        chainmail.wireRadiusSpacings = spec["wire_radius"].number(0.0, 2.0);
+    spec.numberInto("ring_radius", chainmail.ringRadiusSpacings, 0.0, 2.0);
+    spec.numberInto("wire_radius", chainmail.wireRadiusSpacings, 0.0, 2.0);
     if (const auto tilt = aliased(spec, "tilt", "tilt_deg"))
         chainmail.tiltDeg = tilt->number(0.0, 60.0);
-    if (spec.has("small_ring_radius"))
-        chainmail.smallRingRadiusSpacings = spec["small_ring_radius"].number(0.0, 1.0);
-    if (spec.has("small_wire_radius"))
-        chainmail.smallWireRadiusSpacings = spec["small_wire_radius"].number(0.0, 1.0);
+    spec.numberInto("small_ring_radius", chainmail.smallRingRadiusSpacings, 0.0, 1.0);
+    spec.numberInto("small_wire_radius", chainmail.smallWireRadiusSpacings, 0.0, 1.0);
     return chainmail;
 }
 
@@ -388,11 +392,10 @@ GratingOptions gratingOf(const Field& spec) {
                         "edge_radius", "layer_gap"});
     GratingOptions grating;
     if (spec.has("bars")) grating.barsPerTile = spec["bars"].integer(1, 16384);
-    if (spec.has("bar_width")) grating.barWidthTexels = spec["bar_width"].number(0.0, 65536.0);
-    if (spec.has("bar_height")) grating.barHeightTexels = spec["bar_height"].number(0.0, 65536.0);
-    if (spec.has("edge_radius"))
-        grating.edgeRadiusTexels = spec["edge_radius"].number(0.0, 65536.0);
-    if (spec.has("layer_gap")) grating.layerGapTexels = spec["layer_gap"].number(0.0, 65536.0);
+    spec.numberInto("bar_width", grating.barWidthTexels, 0.0, 65536.0);
+    spec.numberInto("bar_height", grating.barHeightTexels, 0.0, 65536.0);
+    spec.numberInto("edge_radius", grating.edgeRadiusTexels, 0.0, 65536.0);
+    spec.numberInto("layer_gap", grating.layerGapTexels, 0.0, 65536.0);
     return grating;
 }
 

@@ -1,10 +1,11 @@
 /// @file
 /// Scene files: JSON to the renderer's structs (render/scene.h). Every field but `objects` has a
 /// default; unknown fields are errors; relative paths resolve from the scene's folder. Tiles a
-/// scene bakes (`"tile": {"bake": ...}`) are baked with distile::bake and kept in its bake cache
-/// (bake/bake_cache.h). Errors are InputError (FormatError for unparsable JSON) naming the file
-/// and the JSON path of the bad field, e.g. "scene.json: objects[0].material.depth: -1 is not
-/// accepted; ...".
+/// scene bakes (`"tile": {"bake": "chainmail" | "grating" | "heightmap" | "mesh", ...}`, with the
+/// options of `distile bake` under its flags' names) are baked with distile::bake and kept in its
+/// bake cache (bake/bake_cache.h). Errors are InputError (FormatError for unparsable JSON) naming
+/// the file and the JSON path of the bad field, e.g. "scene.json: objects[0].material.depth: -1 is
+/// not accepted; ...".
 ///
 /// Loading and rendering a scene (examples/render_scene.cpp is the whole program):
 ///
