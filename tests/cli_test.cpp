@@ -726,6 +726,11 @@ TEST_F(Cli, BakesAHeightMap) {
                                 "32x32x8", "--height-texels", "6"});
     ASSERT_EQ(bake.status, 0) << bake.out << bake.err;
     EXPECT_TRUE(fs::exists(path("ramp.exr")));
+    // The tile records its image (distile:source_file, distile:source_hash).
+    const TileProvenance recorded = readTileExr(path("ramp.exr")).provenance;
+    EXPECT_EQ(recorded.source, "heightmap");
+    EXPECT_EQ(recorded.sourceFile, fs::absolute(path("ramp.png")).lexically_normal());
+    EXPECT_EQ(recorded.sourceHash.size(), 16u);
     expectInputError({"bake", "heightmap", "ramp.png", "-o", "high.exr", "--size", "32x32x8",
                       "--height-texels", "9"},
                      "high.exr", {"--height-texels", "9"});
