@@ -53,8 +53,8 @@ BakeResult bakeProcedural(const ProceduralOptions& proceduralOptions, const Bake
     return {std::move(levelSet), std::move(tile)};
 }
 
-TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
-                       const Size3& tile) {
+MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
+                                const Size3& tile) {
     validateTileSize(tile, "size");
     validateTriangleSoup(meshFileUnits, "detail mesh");
     const Bounds3 box = boundsOf(meshFileUnits);
@@ -92,6 +92,18 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
                                       "must be three finite numbers (texels)");
         }
     }
+    MeshPlacement result;
+    result.fit = false;
+    result.scale = scale;
+    result.offsetTexels = offset;
+    return result;
+}
+
+TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
+                       const Size3& tile) {
+    const MeshPlacement used = explicitPlacement(meshFileUnits, placement, tile);
+    const double scale = used.scale;
+    const glm::dvec3 offset = used.offsetTexels;
     TriangleSoup placed;
     placed.triangles = meshFileUnits.triangles;
     placed.positions.reserve(meshFileUnits.positions.size());
@@ -118,10 +130,13 @@ BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& plac
     const TriangleSoup placed = placeMesh(meshFileUnits, placement, options.size);
     const float halfBand =
         options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    const MeshPlacement used = explicitPlacement(meshFileUnits, placement, options.size);
     std::ostringstream params;
     params.precision(17);
     params << "{\"placement\":\"" << (placement.fit ? "fit" : "explicit")
-           << "\",\"triangles\":" << placed.triangles.size() << "}";
+           << "\",\"scale\":" << used.scale << ",\"offset_texels\":[" << used.offsetTexels.x << ","
+           << used.offsetTexels.y << "," << used.offsetTexels.z
+           << "],\"triangles\":" << placed.triangles.size() << "}";
     LevelSet levelSet = levelSetFromMesh(placed, options.size, halfBand, "mesh", params.str(),
                                          progress, insideTest);
     Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistance);

@@ -63,6 +63,11 @@ struct MeshPlacement {
 /// positions) resolves less than 1/8 texel.
 inline constexpr double kMaxPlacedTexelCoordinate = 1 << 20;
 
+/// The explicit placement `placement` amounts to for this mesh and tile: itself when explicit,
+/// the fitted scale and offset (texels) otherwise. Throws InputError as placeMesh.
+MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
+                                const Size3& tile);
+
 /// The mesh (file units) placed in the tile by `placement`, positions in texels.
 /// @throws InputError the mesh fails validateTriangleSoup, has no x/y extent (Fit), is taller
 ///   than the tile depth after fitting, the scale is not finite and > 0, the offset is not
@@ -71,7 +76,9 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
                        const Size3& tile);
 
 /// A closed detail mesh (file units) placed by `placement` and baked with OpenVDB's
-/// mesh-to-level-set into a periodic level set (vdb/mesh_level_set.h) and its tile. The sign is
+/// mesh-to-level-set into a periodic level set (vdb/mesh_level_set.h) and its tile; the tile's
+/// params record the placement (JSON: "placement": "fit" or "explicit", "scale", "offset_texels"
+/// [x, y, z] as used, also when fitted, and "triangles"). The sign is
 /// only meaningful for a closed, manifold mesh: callers check that (truth/mesh_truth.h) and
 /// verify the sign. `insideTest`, when given, is the exact inside test of the *placed* mesh
 /// (placeMesh's result, texels), which fixes the sign of the voxels within 1 texel of the surface

@@ -1,10 +1,16 @@
 #include "bake/provenance.h"
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 
+#include "bake/bake.h"
+#include "bake/bake_cache.h"
 #include "common/error.h"
+#include "mesh/detail_mesh.h"
 
 namespace distile {
 
@@ -77,6 +83,91 @@ ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance,
         if (!used.count(key)) fail("has an unknown field '" + key + "' for " + provenance.source);
     }
     return options;
+}
+
+namespace {
+
+/// FNV-1a 64 of the bytes of `file`, or nothing if it cannot be read.
+std::optional<std::string> fileContentHash(const std::filesystem::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return std::nullopt;
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) return std::nullopt;
+    return contentHash(bytes);
+}
+
+}  // namespace
+
+void recordSourceFile(TileProvenance& provenance, const std::filesystem::path& file) {
+    const std::optional<std::string> hash = fileContentHash(file);
+    if (!hash) throw InputError(file.string() + ": cannot be read");
+    provenance.sourceFile = std::filesystem::absolute(file).lexically_normal();
+    provenance.sourceHash = *hash;
+}
+
+TriangleSoup sourceMeshPlaced(const Tile& tile, const std::string& tileName,
+                              const std::filesystem::path& tileFile) {
+    const TileProvenance& provenance = tile.provenance;
+    if (provenance.source != "mesh") {
+        throw InputError(tileName + ": distile:source '" + provenance.source + "' is not a mesh");
+    }
+    if (provenance.sourceFile.empty()) {
+        throw InputError(tileName +
+                         ": does not record its source mesh (baked before tiles recorded it)");
+    }
+    const std::filesystem::path& file = provenance.sourceFile;
+    // As recorded: relative to the tile's folder.
+    const std::string recorded =
+        tileFile.empty()
+            ? file.string()
+            : file.lexically_relative(
+                      std::filesystem::absolute(tileFile).parent_path().lexically_normal())
+                  .generic_string();
+    std::error_code status;
+    if (!std::filesystem::is_regular_file(file, status)) {
+        throw InputError(tileName + ": its source mesh " + recorded + " (recorded) is not found");
+    }
+    const std::optional<std::string> hash = fileContentHash(file);
+    if (!hash) throw InputError(tileName + ": its source mesh " + recorded + " cannot be read");
+    if (*hash != provenance.sourceHash) {
+        throw InputError(tileName + ": its source mesh " + recorded +
+                         " has changed since the bake (content hash " + *hash + ", recorded " +
+                         provenance.sourceHash + "); bake the tile again from it");
+    }
+    json params;
+    try {
+        params = json::parse(provenance.params);
+    } catch (const json::exception&) {
+        throw FormatError(tileName + ": distile:params is not valid JSON: '" + provenance.params +
+                          "'");
+    }
+    const auto isNumber = [&](const char* key) {
+        return params.is_object() && params.contains(key) && params[key].is_number();
+    };
+    if (!isNumber("scale") || !params.contains("offset_texels") ||
+        !params["offset_texels"].is_array() || params["offset_texels"].size() != 3) {
+        throw FormatError(tileName +
+                          ": distile:params do not record the mesh's placement (scale, "
+                          "offset_texels): '" +
+                          provenance.params + "'");
+    }
+    MeshPlacement placement;
+    placement.fit = false;
+    placement.scale = params["scale"].get<double>();
+    for (int axis = 0; axis < 3; ++axis) {
+        const json& value = params["offset_texels"][std::size_t(axis)];
+        if (!value.is_number()) {
+            throw FormatError(tileName + ": distile:params offset_texels must be three numbers");
+        }
+        placement.offsetTexels[axis] = value.get<double>();
+    }
+    TriangleSoup mesh;
+    try {
+        mesh = loadDetailMesh(file);
+    } catch (const FormatError& error) {
+        throw FormatError(tileName + ": its source mesh: " + error.what());
+    }
+    return placeMesh(mesh, placement, tile.size());
 }
 
 }  // namespace distile

@@ -6,7 +6,8 @@ Tile tileFromLevelSet(const LevelSet& levelSet, const ConservativeOptions& conse
                       const ExactDistance& exactDistance) {
     Tile tile(levelSet.tileSize());
     levelSet.copyTileVoxels(tile.distancesTexels());
-    tile.provenance = {levelSet.source(), levelSet.params()};
+    tile.provenance.source = levelSet.source();
+    tile.provenance.params = levelSet.params();
     makeConservative(tile, conservative, exactDistance);
     return tile;
 }

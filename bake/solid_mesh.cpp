@@ -85,8 +85,8 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
                 << bake.signCheckedVoxels
                 << " voxels have the wrong sign against the exact inside test (first at texel "
                 << firstWrong.x << ", " << firstWrong.y << ", " << firstWrong.z
-                << "); nothing written";
-        throw std::runtime_error(message.str());
+                << "); its inside cannot be trusted, nothing written";
+        throw InputError(message.str());
     }
     return bake;
 }

@@ -40,8 +40,8 @@ struct SolidMeshBake {
 /// near the surface and the exact distance for the conservative correction (bake/bake.h
 /// bakeMesh), then verifies the sign at up to kSignCheckVoxels random voxels. `file` names the
 /// mesh in messages.
-/// @throws InputError as placeMesh, or the mesh has no inside.
-/// @throws std::runtime_error the sign verification fails.
+/// @throws InputError as placeMesh, the mesh has no inside, or the sign verification fails (the
+///   mesh's inside cannot be trusted: refused input, like an open mesh).
 SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& placement,
                             const BakeOptions& options, const std::string& file,
                             const ProgressCallback& progress = {});

@@ -20,6 +20,7 @@
 #include "bench/peers/peers.h"
 #include "bench/speed_bench.h"
 #include "bench/stress/stress_cases.h"
+#include "cli/app.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "common/error.h"
@@ -350,7 +351,7 @@ void runStressReport(const fs::path& outputDir) {
                 int(cases.size()) - failed, cases.size(),
                 fs::absolute(outputDir / "stress.md").string().c_str());
     std::fflush(stdout);
-    if (failed > 0) std::exit(1);  // a case failed: exit status 1 (bad input is 2, from main)
+    if (failed > 0) std::exit(kExitFailure);  // a case failed: the work failed (cli/app.h)
 }
 
 /// The skips for ch. 8's plain sphere tracing: no empty-space skipping and no adaptive budget,

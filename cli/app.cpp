@@ -18,6 +18,7 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
         "(OpenVDB level set -> 256x256x16 EXR atlas) and renders them on base meshes with a CPU "
         "sphere tracer.\n"};
     app.name("distile");
+    app.footer(kExitStatusHelp);
     app.require_subcommand(1);
     app.fallthrough();  // --threads may also follow the subcommand
     app.set_version_flag("--version", "distile 0.1.0");

@@ -8,8 +8,15 @@
 
 namespace distile::cli {
 
-constexpr int kExitFailure = 1;  ///< an internal failure (a bug, or the system)
-constexpr int kExitInput = 2;    ///< bad input: arguments, files, scenes
+/// Exit statuses, one meaning each (`distile --help` says them): 0 success; 1 the work itself
+/// failed (a check beyond its tolerances, a failed benchmark case, a system error or a bug); 2
+/// refused input (a bad option, file, scene or mesh, before anything is written).
+constexpr int kExitFailure = 1;  ///< the work failed
+constexpr int kExitInput = 2;    ///< refused input: arguments, files, scenes, meshes
+/// The exit statuses as `--help` shows them.
+inline constexpr const char* kExitStatusHelp =
+    "Exit status: 0 success; 1 the work failed (a check beyond its tolerances, a failed benchmark "
+    "case, a system error); 2 refused input (a bad option, file, scene or mesh; nothing written).";
 
 /// Parses `argv` with the subcommands `addCommands` adds to the app and runs the one given.
 /// Returns the exit status: 0, kExitInput for bad input (InputError, FormatError, a command line

@@ -10,6 +10,7 @@
 
 #include "bake/bake.h"
 #include "bake/height_image.h"
+#include "bake/provenance.h"
 #include "bake/solid_mesh.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
@@ -185,6 +186,7 @@ void runBake(const BakeArguments& arguments) {
         } else {
             result.emplace(bakeProcedural(procedural, options, std::ref(progress)));
         }
+        if (fromFile) recordSourceFile(result->tile.provenance, arguments.input);
     } catch (const InputError& error) {
         throw underBakeFlag(error);
     }

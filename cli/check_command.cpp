@@ -13,6 +13,7 @@
 #include "bake/bake.h"
 #include "bake/provenance.h"
 #include "bake/resample.h"
+#include "cli/app.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "common/error.h"
@@ -34,6 +35,7 @@ using nlohmann::json;
 struct CheckArguments {
     fs::path tile;
     std::string against = "analytic";
+    bool againstGiven = false;  ///< --against given: it overrides the tile's recorded source
     int samples = 100000;
     std::uint64_t seed = 1;
     bool json = false;
@@ -106,7 +108,26 @@ void runCheck(const CheckArguments& arguments) {
     std::string against;
     // Keep the truth's owners alive while sampling.
     std::shared_ptr<const void> keepAlive;
-    if (arguments.against == "analytic") {
+    if (!arguments.againstGiven && tile.provenance.source == "mesh") {
+        // The mesh the tile was baked from, placed as the bake placed it (distile:source_file,
+        // distile:params).
+        TriangleSoup placed;
+        try {
+            placed = sourceMeshPlaced(tile, tileName, arguments.tile);
+        } catch (const InputError& error) {
+            throw InputError(std::string(error.what()) + "; pass --against FILE");
+        }
+        auto mesh =
+            std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
+        if (!mesh->hasSign()) {
+            throw InputError(tileName + ": its source mesh " + tile.provenance.sourceFile.string() +
+                             " is not closed, so it has no inside; pass --against LEVEL.vdb");
+        }
+        keepAlive = mesh;
+        truth = [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
+        against =
+            "mesh " + tile.provenance.sourceFile.string() + " (recorded source, placed as baked)";
+    } else if (arguments.against == "analytic") {
         ProceduralOptions options;
         try {
             options = proceduralFromProvenance(tile.provenance, tileName);
@@ -208,7 +229,7 @@ void runCheck(const CheckArguments& arguments) {
     printReport(arguments, against, report, failures.empty(), failures);
     if (!failures.empty()) {
         std::fflush(stdout);
-        std::exit(1);  // a tolerance is exceeded: exit status 1 (bad input is 2, from main)
+        std::exit(kExitFailure);  // a tolerance is exceeded: the work failed (cli/app.h)
     }
 }
 
@@ -224,8 +245,9 @@ void addCheckCommand(CLI::App& app) {
     command
         ->add_option("--against", arguments->against,
                      "Truth: analytic (from the tile's distile:source/params), a closed mesh file "
-                     "(OBJ, PLY, OFF, "
-                     "STL; placed as `bake mesh` does) or a level set (.vdb)")
+                     "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
+                     "Default: the analytic truth, or for a tile baked from a mesh that mesh "
+                     "(its recorded distile:source_file, placed as it was baked)")
         ->capture_default_str();
     command->add_option("--samples", arguments->samples, "Uniform random sample points")
         ->capture_default_str()
@@ -260,7 +282,10 @@ void addCheckCommand(CLI::App& app) {
         ->add_option("--offset", arguments->meshOffset,
                      "Mesh truth: explicit placement, offset X Y Z in texels")
         ->expected(3);
-    command->callback([arguments] { runCheck(*arguments); });
+    command->callback([arguments, command] {
+        arguments->againstGiven = command->count("--against") > 0;
+        runCheck(*arguments);
+    });
 }
 
 }  // namespace distile::cli

@@ -543,13 +543,14 @@ void validateReference(const Scene& scene) {
             material.tile->provenance.source.empty() ? "unknown" : material.tile->provenance.source;
         std::string message = "objects[" + std::to_string(index) +
                               "].material.tile: a reference render needs the detail's exact "
-                              "truth: procedural detail (chainmail, grating) or a mesh the scene "
-                              "bakes (\"bake\": \"mesh\"); this tile's source '" +
+                              "truth: procedural detail (chainmail, grating) or a mesh (a scene's "
+                              "\"bake\": \"mesh\", or a tile file that records its source mesh); "
+                              "this tile's source '" +
                               source + "' has none";
         if (source == "mesh") {
             message +=
-                " (a tile file baked from a mesh does not name its mesh: bake it in the scene "
-                "with {\"bake\": \"mesh\", \"file\": ...})";
+                " (this tile file does not record its source mesh: bake it again with `distile "
+                "bake mesh`, or bake it in the scene with {\"bake\": \"mesh\", \"file\": ...})";
         }
         throw InputError(message);
     }

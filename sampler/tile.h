@@ -5,6 +5,7 @@
 /// y, then z.
 #pragma once
 
+#include <filesystem>
 #include <span>
 #include <string>
 #include <vector>
@@ -15,8 +16,15 @@ namespace distile {
 
 /// What a tile was made from; stored in the EXR header (see docs/tile_format.md).
 struct TileProvenance {
-    std::string source;  ///< e.g. "chainmail", "mesh:ring.obj"
+    std::string source;  ///< e.g. "chainmail", "mesh", "heightmap"
     std::string params;  ///< the source's parameters as JSON text
+    /// The input file the tile was baked from (a mesh, a height map, a level set); empty for
+    /// procedural detail. Absolute in memory; a tile file records it relative to its own folder
+    /// (distile:source_file).
+    std::filesystem::path sourceFile;
+    /// FNV-1a 64 of the source file's bytes as 16 hex digits (distile:source_hash); empty when
+    /// sourceFile is.
+    std::string sourceHash;
 };
 
 class Tile {

@@ -131,8 +131,17 @@ void fromAtlas(const Size3& size, std::span<const float> pixels, Tile& tile) {
     }
 }
 
+/// `source` as written in the tile `file`: relative to the tile's folder
+/// when the two share a root, else absolute.
+std::string recordedSourceFile(const fs::path& source, const fs::path& file) {
+    const fs::path absoluteSource = fs::absolute(source).lexically_normal();
+    const fs::path relative =
+        absoluteSource.lexically_relative(fs::absolute(file).parent_path().lexically_normal());
+    return relative.empty() ? absoluteSource.generic_string() : relative.generic_string();
+}
+
 void setTileAttributes(OIIO::ImageSpec& spec, const Size3& size, const TileProvenance& provenance,
-                       std::uint64_t hash) {
+                       std::uint64_t hash, const fs::path& file) {
     spec.attribute("distile:size", toString(size));
     spec.attribute("distile:layout", layoutText(atlasGrid(size.depth)));
     spec.attribute("distile:units", "texels");
@@ -142,6 +151,10 @@ void setTileAttributes(OIIO::ImageSpec& spec, const Size3& size, const TileProve
     spec.attribute("distile:params", provenance.params.empty() ? kNoParams : provenance.params);
     spec.attribute("distile:version", kFormatVersion);
     spec.attribute("distile:hash", hexDigits(hash));
+    if (!provenance.sourceFile.empty()) {
+        spec.attribute("distile:source_file", recordedSourceFile(provenance.sourceFile, file));
+        spec.attribute("distile:source_hash", provenance.sourceHash);
+    }
 }
 
 /// Opens `temporary` with OpenImageIO and writes `pixels` (one channel, row-major) into it.
@@ -241,7 +254,7 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
     OIIO::ImageSpec spec(atlas.width, atlas.height, 1, fileType);
     spec.channelnames = {kChannelName};
     spec.attribute("compression", "zip");
-    setTileAttributes(spec, size, tile.provenance, hashDistances(size, stored));
+    setTileAttributes(spec, size, tile.provenance, hashDistances(size, stored), file);
 
     writeAtomically(file, [&](const fs::path& temporary) {
         writeAtlas(temporary, spec, pixels, OIIO::TypeDesc::FLOAT, file);
@@ -320,6 +333,13 @@ Tile readTileExr(const fs::path& file) {
     }
     tile.provenance.source = spec.get_string_attribute("distile:source");
     tile.provenance.params = spec.get_string_attribute("distile:params");
+    // Optional: tiles baked from a file name it, relative to the tile's folder.
+    const std::string sourceFile = spec.get_string_attribute("distile:source_file");
+    if (!sourceFile.empty()) {
+        tile.provenance.sourceFile =
+            (fs::absolute(file).parent_path() / fs::path(sourceFile)).lexically_normal();
+        tile.provenance.sourceHash = spec.get_string_attribute("distile:source_hash");
+    }
     return tile;
 }
 
@@ -359,7 +379,7 @@ void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
                          bitsPerChannel == 8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
     spec.channelnames = {kChannelName};
     spec.attribute("oiio:ColorSpace", "Linear");  // data, not colour: no sRGB decoding
-    setTileAttributes(spec, size, tile.provenance, tileHash(tile));
+    setTileAttributes(spec, size, tile.provenance, tileHash(tile), file);
     spec.attribute("distile:units", "distance / " + std::to_string(size.depth) +
                                         " texels (tile depth), clamped to [0, 1]");
     if (bitsPerChannel == 8) {

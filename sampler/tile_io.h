@@ -11,9 +11,11 @@
 /// header attributes: distile:size ("256x256x16"), distile:layout (the sentence above, short),
 /// distile:units ("texels"), distile:source, distile:params (the tile's provenance),
 /// distile:version ("0.1.0") and distile:hash (tileHash() as 16 lowercase hex digits). A file
-/// without them is not a tile. EXR cannot keep an empty attribute, so an empty source is written
-/// as "unknown" and empty params as "{}" (and read back that way). Every file is written through
-/// writeAtomically().
+/// without them is not a tile. A tile baked from a file also carries distile:source_file (the
+/// provenance's sourceFile, relative to the tile file's folder when it can be, else absolute) and
+/// distile:source_hash; tiles without them (procedural detail, older files) are read as before. EXR
+/// cannot keep an empty attribute, so an empty source is written as "unknown" and empty params as
+/// "{}" (and read back that way). Every file is written through writeAtomically().
 #pragma once
 
 #include <cstdint>
@@ -49,10 +51,11 @@ void writeTileExr(const Tile& tile, const std::filesystem::path& file,
                   TileStorage storage = TileStorage::Float32);
 
 /// Reads a tile written by writeTileExr(), half or float, into float distances in texel units,
-/// with its provenance. Throws InputError if `file` does not exist; FormatError if it is not an
-/// OpenEXR file OpenImageIO can read, has no distile: attributes ("not a distile tile"), does not
-/// have exactly one channel named "distance", has atlas dimensions that disagree with
-/// distile:size, holds NaN or infinite distances, or fails the distile:hash check.
+/// with its provenance (a recorded relative source file resolved from the tile file's folder).
+/// Throws InputError if `file` does not exist; FormatError if it is not an OpenEXR file OpenImageIO
+/// can read, has no distile: attributes ("not a distile tile"), does not have exactly one channel
+/// named "distance", has atlas dimensions that disagree with distile:size, holds NaN or infinite
+/// distances, or fails the distile:hash check.
 Tile readTileExr(const std::filesystem::path& file);
 
 /// Writes `tile` as a one-channel grey PNG atlas of `bitsPerChannel` 8 or 16 bits, for GPU

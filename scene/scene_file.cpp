@@ -81,10 +81,19 @@ class Field {
         }
         return result;
     }
+    /// Sets `target` to the number at `key`, in [low, high], when the key is given.
+    void numberInto(const std::string& key, double& target, double low, double high) const {
+        if (has(key)) target = (*this)[key].number(low, high);
+    }
     int integer(int low, int high) const {
         const double result = number(low, high);
         if (result != std::floor(result)) fail("must be a whole number");
         return int(result);
+    }
+    bool boolean() const {
+        if (!value_.is_boolean())
+            fail("must be true or false, not " + std::string(value_.type_name()));
+        return value_.get<bool>();
     }
     std::string string() const {
         if (!value_.is_string()) fail("must be a string, not " + std::string(value_.type_name()));
@@ -144,19 +153,55 @@ Size3 parseSize(const Field& field) {
     return size;
 }
 
+/// The part of a recipe that BakeOptions decide: "size WxHxD band B\nconservative E T".
+std::string bakeOptionsRecipe(const BakeOptions& options) {
+    std::ostringstream recipe;
+    recipe.precision(17);
+    recipe << "size " << options.size.width << "x" << options.size.height << "x"
+           << options.size.depth << " band " << options.halfBandTexels << "\nconservative "
+           << options.conservative.enabled << " " << options.conservative.toleranceTexels;
+    return recipe.str();
+}
+
 /// Everything a scene's chain-mail bake depends on (bake/bake_cache.h).
 std::string chainmailRecipe(const ChainmailOptions& chainmail, const BakeOptions& options) {
     std::ostringstream recipe;
     recipe.precision(17);
-    const ConservativeOptions& conservative = options.conservative;
     recipe << "chainmail weave " << weaveName(chainmail.weave) << " rings " << chainmail.ringsPerRow
            << " rows " << chainmail.rowsPerTile << " ring " << chainmail.ringRadiusSpacings
            << " wire " << chainmail.wireRadiusSpacings << " tilt " << chainmail.tiltDeg
            << " small ring " << chainmail.smallRingRadiusSpacings << " small wire "
-           << chainmail.smallWireRadiusSpacings << "\nsize " << options.size.width << "x"
-           << options.size.height << "x" << options.size.depth << " band " << options.halfBandTexels
-           << "\nconservative " << conservative.enabled << " " << conservative.toleranceTexels
-           << "\n";
+           << chainmail.smallWireRadiusSpacings << "\n"
+           << bakeOptionsRecipe(options) << "\n";
+    return recipe.str();
+}
+
+/// Everything a scene's grating bake depends on (bake/bake_cache.h).
+std::string gratingRecipe(const GratingOptions& grating, const BakeOptions& options) {
+    std::ostringstream recipe;
+    recipe.precision(17);
+    recipe << "grating bars " << grating.barsPerTile << " width " << grating.barWidthTexels
+           << " height " << grating.barHeightTexels << " edge " << grating.edgeRadiusTexels
+           << " gap " << grating.layerGapTexels << "\n"
+           << bakeOptionsRecipe(options) << "\n";
+    return recipe.str();
+}
+
+/// The part of a recipe that names an input file by its bytes: "KIND file fnv1a HASH bytes N".
+std::string fileRecipe(const char* kind, const std::string& fileBytes) {
+    return std::string(kind) + " file fnv1a " + contentHash(fileBytes) + " bytes " +
+           std::to_string(fileBytes.size());
+}
+
+/// Everything a scene's height-map bake depends on (bake/bake_cache.h): the image file's bytes
+/// (by hash), the height and the bake options.
+std::string heightMapRecipe(const std::string& imageFileBytes, const HeightMapOptions& heightMap,
+                            const BakeOptions& options) {
+    std::ostringstream recipe;
+    recipe.precision(17);
+    recipe << fileRecipe("heightmap", imageFileBytes) << " height " << heightMap.heightTexels
+           << "\n"
+           << bakeOptionsRecipe(options) << "\n";
     return recipe.str();
 }
 
@@ -166,20 +211,16 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
                        const BakeOptions& options) {
     std::ostringstream recipe;
     recipe.precision(17);
-    recipe << "mesh file fnv1a " << contentHash(meshFileBytes) << " bytes " << meshFileBytes.size()
-           << "\nplacement ";
+    recipe << fileRecipe("mesh", meshFileBytes) << "\nplacement ";
     if (placement.fit) {
         recipe << "fit";
     } else {
         recipe << "scale " << placement.scale << " offset " << placement.offsetTexels.x << " "
                << placement.offsetTexels.y << " " << placement.offsetTexels.z;
     }
-    recipe << "\nsize " << options.size.width << "x" << options.size.height << "x"
-           << options.size.depth << " band " << options.halfBandTexels << "\nconservative "
-           << options.conservative.enabled << " "
-           << options.conservative.toleranceTexels
-           // The recipe's text is part of its hash: changing a word here bakes every cached
-           // mesh tile again.
+    // The recipe's text is part of its hash: changing a word here bakes every cached tile again.
+    recipe << "\n"
+           << bakeOptionsRecipe(options)
            << "\nexact inside test and exact distance (solid mesh bake)\n";
     return recipe.str();
 }
@@ -187,11 +228,48 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
 /// The bake library's error about one field of its options (bake/bake.h) under the key of the
 /// tile spec that filled it; other errors under `fallback`, as they are.
 [[noreturn]] void failInSpec(const Field& spec, const Field& fallback, const InputError& error) {
-    static const std::map<std::string, std::string> keys = {
-        {"size", "size"}, {"placement.scale", "scale"}, {"placement.offsetTexels", "offset"}};
+    static const std::map<std::string, std::string> keys = {{"size", "size"},
+                                                            {"halfBandTexels", "band"},
+                                                            {"heightTexels", "height_texels"},
+                                                            {"placement.scale", "scale"},
+                                                            {"placement.offsetTexels", "offset"}};
     const auto found = keys.find(error.field());
     if (found != keys.end() && spec.has(found->second)) spec[found->second].fail(error.problem());
     fallback.fail(error.what());
+}
+
+/// The options every recipe shares, under the names of `distile bake`'s flags: size, band,
+/// exact_texels.
+BakeOptions bakeOptionsOf(const Field& spec) {
+    BakeOptions options;
+    if (spec.has("size")) options.size = parseSize(spec["size"]);
+    if (spec.has("band")) options.halfBandTexels = float(spec["band"].number(0.0, 65536.0));
+    if (spec.has("exact_texels")) options.conservative.enabled = !spec["exact_texels"].boolean();
+    return options;
+}
+
+/// The field `name`, or `olderName` (its older spelling, still accepted) when only that is given.
+std::optional<Field> aliased(const Field& spec, const char* name, const char* olderName) {
+    if (spec.has(name) && spec.has(olderName)) {
+        spec[olderName].fail(std::string("is the older name of '") + name + "'; give only '" +
+                             name + "'");
+    }
+    if (spec.has(name)) return spec[name];
+    if (spec.has(olderName)) return spec[olderName];
+    return std::nullopt;
+}
+
+/// The recipe's input file (`"file"`, relative to the scene's folder): its path and bytes.
+std::pair<fs::path, std::string> recipeFile(const Field& spec, const fs::path& folder,
+                                            const std::string& what) {
+    if (!spec.has("file")) spec.fail("missing field 'file' (" + what + ")");
+    const Field file = spec["file"];
+    const fs::path path = folder / file.string();
+    if (!fs::is_regular_file(path)) file.fail("file '" + path.string() + "' does not exist");
+    std::ifstream in(path, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (!in.good() && !in.eof()) file.fail("cannot read '" + path.string() + "'");
+    return {path, std::move(bytes)};
 }
 
 /// A tile a scene bakes, and for a mesh recipe the mesh placed in it (texels).
@@ -205,15 +283,11 @@ struct BakedTile {
 /// scale or offset is given. The mesh's warnings go to `warn`.
 BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
                         const SceneWarningCallback& warn) {
-    spec.requireObject({"bake", "file", "size", "scale", "offset"});
-    if (!spec.has("file"))
-        spec.fail("missing field 'file' (a closed detail mesh: OBJ, PLY, OFF or STL)");
-    const Field file = spec["file"];
-    const fs::path path = folder / file.string();
-    if (!fs::is_regular_file(path)) file.fail("mesh file '" + path.string() + "' does not exist");
-    BakeOptions options;
-    if (spec.has("size")) options.size = parseSize(spec["size"]);
+    spec.requireObject({"bake", "file", "size", "band", "exact_texels", "fit", "scale", "offset"});
+    const BakeOptions options = bakeOptionsOf(spec);
     MeshPlacement placement;
+    if (spec.has("fit") && spec["fit"].boolean() && (spec.has("scale") || spec.has("offset")))
+        spec["fit"].fail("cannot be combined with scale/offset; give one placement");
     if (spec.has("scale") || spec.has("offset")) {
         placement.fit = false;
         if (spec.has("scale")) placement.scale = spec["scale"].number(1e-12, 1e12);
@@ -225,9 +299,9 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
                 placement.offsetTexels[axis] = offset[std::size_t(axis)].number(-1e6, 1e6);
         }
     }
-    std::ifstream in(path, std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    if (!in.good() && !in.eof()) file.fail("cannot read mesh file '" + path.string() + "'");
+    const auto [path, bytes] =
+        recipeFile(spec, folder, "a closed detail mesh: OBJ, PLY, OFF or STL");
+    const Field file = spec["file"];
     const std::string recipe = meshRecipe(bytes, placement, options);
     BakedTile baked;
     try {
@@ -243,7 +317,9 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
             baked.tile = found->second;
         } else {
             baked.tile = cachedBake(recipe, [&] {
-                return bakeSolidMesh(mesh, placement, options, path.string()).result.tile;
+                Tile tile = bakeSolidMesh(mesh, placement, options, path.string()).result.tile;
+                recordSourceFile(tile.provenance, path);
+                return tile;
             });
             tiles[key] = baked.tile;
         }
@@ -255,30 +331,101 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
     return baked;
 }
 
-BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                    const SceneWarningCallback& warn) {
-    if (!spec.has("bake")) spec.fail("missing field 'bake' (the detail to bake: chainmail, mesh)");
-    const std::string kind = spec["bake"].string();
-    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn);
-    if (kind != "chainmail")
-        spec["bake"].fail("'" + kind + "' is not a known detail; accepted: chainmail, mesh");
-    spec.requireObject({"bake", "size", "rings_per_row", "rows_per_tile", "ring_radius",
-                        "wire_radius", "tilt_deg"});
-    BakeOptions options;
-    ChainmailOptions chainmail;
-    if (spec.has("size")) options.size = parseSize(spec["size"]);
-    if (spec.has("rings_per_row")) chainmail.ringsPerRow = spec["rings_per_row"].integer(1, 4096);
-    if (spec.has("rows_per_tile")) chainmail.rowsPerTile = spec["rows_per_tile"].integer(2, 4096);
-    if (spec.has("ring_radius"))
-        chainmail.ringRadiusSpacings = spec["ring_radius"].number(0.0, 2.0);
-    if (spec.has("wire_radius"))
-        chainmail.wireRadiusSpacings = spec["wire_radius"].number(0.0, 2.0);
-    if (spec.has("tilt_deg")) chainmail.tiltDeg = spec["tilt_deg"].number(0.0, 60.0);
-    const std::string key = "bake:" + spec.value().dump();
+/// `"tile": {"bake": "heightmap", "file": ..., "height_texels": ...}`: the image baked as
+/// `distile bake heightmap` does.
+BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCache& tiles) {
+    spec.requireObject({"bake", "file", "size", "band", "exact_texels", "height_texels"});
+    const BakeOptions options = bakeOptionsOf(spec);
+    HeightMapOptions heightMap;
+    spec.numberInto("height_texels", heightMap.heightTexels, 0.0, 65536.0);
+    const auto [path, bytes] = recipeFile(spec, folder, "a grey image: PNG or EXR");
+    const std::string recipe = heightMapRecipe(bytes, heightMap, options);
+    const std::string key = "bake:" + recipe;
     if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
     try {
-        auto tile = cachedBake(chainmailRecipe(chainmail, options),
-                               [&] { return bakeChainmail(chainmail, options).tile; });
+        auto tile = cachedBake(recipe, [&] {
+            Tile baked = bakeHeightMap(readHeightImage(path), heightMap, options).tile;
+            recordSourceFile(baked.provenance, path);
+            return baked;
+        });
+        tiles[key] = tile;
+        return {tile, nullptr};
+    } catch (const InputError& error) {
+        failInSpec(spec, spec["file"], error);
+    } catch (const FormatError& error) {
+        spec["file"].fail(error.what());
+    }
+}
+
+/// The chain mail of `"bake": "chainmail"`, under the names of `distile bake chainmail`'s flags
+/// (`rows_per_tile` and `tilt_deg` are the older names of `rows` and `tilt`); options not given
+/// take the weave's defaults.
+ChainmailOptions chainmailOf(const Field& spec) {
+    spec.requireObject({"bake", "size", "band", "exact_texels", "weave", "rings_per_row", "rows",
+                        "rows_per_tile", "ring_radius", "wire_radius", "tilt", "tilt_deg",
+                        "small_ring_radius", "small_wire_radius"});
+    ChainmailOptions chainmail;
+    if (spec.has("weave")) {
+        const std::string weave = spec["weave"].string();
+        if (weave == weaveName(ChainmailWeave::Japanese4in1)) {
+            chainmail = japanese4in1Defaults();
+        } else if (weave != weaveName(ChainmailWeave::European4in1)) {
+            spec["weave"].fail("'" + weave +
+                               "' is not accepted; accepted: european4in1, japanese4in1");
+        }
+    }
+    if (spec.has("rings_per_row")) chainmail.ringsPerRow = spec["rings_per_row"].integer(1, 4096);
+    if (const auto rows = aliased(spec, "rows", "rows_per_tile"))
+        chainmail.rowsPerTile = rows->integer(2, 4096);
+    spec.numberInto("ring_radius", chainmail.ringRadiusSpacings, 0.0, 2.0);
+    spec.numberInto("wire_radius", chainmail.wireRadiusSpacings, 0.0, 2.0);
+    if (const auto tilt = aliased(spec, "tilt", "tilt_deg"))
+        chainmail.tiltDeg = tilt->number(0.0, 60.0);
+    spec.numberInto("small_ring_radius", chainmail.smallRingRadiusSpacings, 0.0, 1.0);
+    spec.numberInto("small_wire_radius", chainmail.smallWireRadiusSpacings, 0.0, 1.0);
+    return chainmail;
+}
+
+/// The grating of `"bake": "grating"`, under the names of `distile bake grating`'s flags.
+GratingOptions gratingOf(const Field& spec) {
+    spec.requireObject({"bake", "size", "band", "exact_texels", "bars", "bar_width", "bar_height",
+                        "edge_radius", "layer_gap"});
+    GratingOptions grating;
+    if (spec.has("bars")) grating.barsPerTile = spec["bars"].integer(1, 16384);
+    spec.numberInto("bar_width", grating.barWidthTexels, 0.0, 65536.0);
+    spec.numberInto("bar_height", grating.barHeightTexels, 0.0, 65536.0);
+    spec.numberInto("edge_radius", grating.edgeRadiusTexels, 0.0, 65536.0);
+    spec.numberInto("layer_gap", grating.layerGapTexels, 0.0, 65536.0);
+    return grating;
+}
+
+BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
+                    const SceneWarningCallback& warn) {
+    if (!spec.has("bake")) {
+        spec.fail("missing field 'bake' (the detail to bake: chainmail, grating, heightmap, mesh)");
+    }
+    const std::string kind = spec["bake"].string();
+    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn);
+    if (kind == "heightmap") return bakedHeightMapTile(spec, folder, tiles);
+    ProceduralOptions procedural;
+    std::string recipe;
+    if (kind == "chainmail") {
+        procedural.kind = ProceduralKind::Chainmail;
+        procedural.chainmail = chainmailOf(spec);
+        recipe = chainmailRecipe(procedural.chainmail, bakeOptionsOf(spec));
+    } else if (kind == "grating") {
+        procedural.kind = ProceduralKind::Grating;
+        procedural.grating = gratingOf(spec);
+        recipe = gratingRecipe(procedural.grating, bakeOptionsOf(spec));
+    } else {
+        spec["bake"].fail("'" + kind +
+                          "' is not a known detail; accepted: chainmail, grating, heightmap, mesh");
+    }
+    const BakeOptions options = bakeOptionsOf(spec);
+    const std::string key = "bake:" + recipe;
+    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
+    try {
+        auto tile = cachedBake(recipe, [&] { return bakeProcedural(procedural, options).tile; });
         tiles[key] = tile;
         return {tile, nullptr};
     } catch (const InputError& error) {
@@ -539,11 +686,21 @@ void attachTruth(SceneFile& sceneFile) {
             continue;
         }
         const TileProvenance& provenance = material.tile->provenance;
+        const std::string where = "objects[" + std::to_string(index) + "].material.tile";
+        if (provenance.source == "mesh" && !provenance.sourceFile.empty()) {
+            try {
+                attachMeshTruth(material, sourceMeshPlaced(*material.tile, where));
+            } catch (const InputError& error) {
+                throw InputError(
+                    std::string(error.what()) +
+                    "; or bake it in the scene with {\"bake\": \"mesh\", \"file\": ...}");
+            }
+            continue;
+        }
         if (provenance.source != proceduralSourceName(ProceduralKind::Chainmail) &&
             provenance.source != proceduralSourceName(ProceduralKind::Grating)) {
             continue;
         }
-        const std::string where = "objects[" + std::to_string(index) + "].material.tile";
         material.analyticDistance =
             proceduralDistance(proceduralFromProvenance(provenance, where), material.tile->size())
                 .signedDistanceTexels;

@@ -1,10 +1,11 @@
 /// @file
 /// Scene files: JSON to the renderer's structs (render/scene.h). Every field but `objects` has a
 /// default; unknown fields are errors; relative paths resolve from the scene's folder. Tiles a
-/// scene bakes (`"tile": {"bake": ...}`) are baked with distile::bake and kept in its bake cache
-/// (bake/bake_cache.h). Errors are InputError (FormatError for unparsable JSON) naming the file
-/// and the JSON path of the bad field, e.g. "scene.json: objects[0].material.depth: -1 is not
-/// accepted; ...".
+/// scene bakes (`"tile": {"bake": "chainmail" | "grating" | "heightmap" | "mesh", ...}`, with the
+/// options of `distile bake` under its flags' names) are baked with distile::bake and kept in its
+/// bake cache (bake/bake_cache.h). Errors are InputError (FormatError for unparsable JSON) naming
+/// the file and the JSON path of the bad field, e.g. "scene.json: objects[0].material.depth: -1 is
+/// not accepted; ...".
 ///
 /// Loading and rendering a scene (examples/render_scene.cpp is the whole program):
 ///
@@ -69,9 +70,12 @@ SceneFile demoScene(TileCache& tiles);
 /// - a `"bake": "mesh"` tile: the mesh truth (truth/mesh_truth.h, periodic over the tile) as
 ///   Material::exactHit (CGAL first ray hits and triangle normals) and analyticDistance (exact
 ///   signed distance).
-/// Others (tile files baked from meshes or height maps) are left as they are: the renderer
-/// rejects a reference render of them. Throws FormatError for a procedural tile whose params
-/// cannot be read.
+/// - a tile file baked from a mesh: the same mesh truth, of its recorded source mesh placed as it
+///   was baked (bake/provenance.h sourceMeshPlaced).
+/// Others (height maps, mesh tiles that do not record their source) are left as they are: the
+/// renderer rejects a reference render of them. Throws FormatError for a procedural tile whose
+/// params cannot be read; InputError for a mesh tile whose recorded source mesh is not found or
+/// has changed since the bake.
 void attachTruth(SceneFile& sceneFile);
 
 /// A Scene member path as validateScene names it ("objects[0].material.depthWorld") to the

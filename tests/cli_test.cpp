@@ -23,6 +23,7 @@
 #include "detail_meshes.h"
 #include "render/image.h"
 #include "render/tracer.h"
+#include "sampler/tile_io.h"
 
 namespace distile {
 namespace {
@@ -605,6 +606,51 @@ TEST_F(Cli, BakesAClosedMeshWithVerifiedSignAndChecksItAgainstTheMesh) {
     expectInputError({"bake", "mesh", "-o", "none.exr"}, "none.exr", {"mesh", "input file"});
 }
 
+TEST_F(Cli, CheckFindsTheRecordedSourceMeshOfAMeshTile) {
+    fs::create_directories(path("meshes"));
+    fs::create_directories(path("tiles"));
+    writeText(path("meshes/cube.obj"), kCubeObj);
+    // Fitted into 16x16x16: the unit cube at scale 16, offset (0, 0, 0), recorded as used.
+    ASSERT_EQ(run({"bake", "mesh", "meshes/cube.obj", "-o", "tiles/cube.exr", "--size", "16x16x16"})
+                  .status,
+              0);
+    const std::vector<std::string> loose = {
+        "--samples", "20000", "--json", "--max-overestimate-share", "1", "--max-rms", "1"};
+    auto check = [&](std::vector<std::string> arguments) {
+        arguments.insert(arguments.end(), loose.begin(), loose.end());
+        return run(arguments);
+    };
+    // No flags: against the recorded mesh, with the same figures as the explicit placement.
+    const RunResult recorded = check({"check", "tiles/cube.exr"});
+    ASSERT_EQ(recorded.status, 0) << recorded.out << recorded.err;
+    const nlohmann::json report = nlohmann::json::parse(recorded.out);
+    EXPECT_NE(report["against"].get<std::string>().find("cube.obj (recorded source"),
+              std::string::npos)
+        << recorded.out;
+    EXPECT_EQ(report["sign_errors"].get<int>(), 0);
+    const RunResult given = check({"check", "tiles/cube.exr", "--against", "meshes/cube.obj",
+                                   "--scale", "16", "--offset", "0", "0", "0"});
+    ASSERT_EQ(given.status, 0) << given.err;
+    EXPECT_EQ(nlohmann::json::parse(given.out)["rms"], report["rms"]);
+
+    // Moved: refused (exit 2) naming the recorded path, relative to the tile's folder.
+    fs::rename(path("meshes/cube.obj"), path("meshes/moved.obj"));
+    expectInputError({"check", "tiles/cube.exr"}, "none",
+                     {"tiles/cube.exr: its source mesh ../meshes/cube.obj (recorded) is not found",
+                      "pass --against FILE"});
+    EXPECT_EQ(run({"check", "tiles/cube.exr"}).status, 2);
+    // --against still overrides.
+    EXPECT_EQ(check({"check", "tiles/cube.exr", "--against", "meshes/moved.obj", "--scale", "16",
+                     "--offset", "0", "0", "0"})
+                  .status,
+              0);
+    // Edited: refused, saying what to do.
+    writeText(path("meshes/cube.obj"), std::string(kCubeObj) + "# edited\n");
+    expectInputError({"check", "tiles/cube.exr"}, "none",
+                     {"../meshes/cube.obj", "changed since the bake", "bake the tile again"});
+    EXPECT_EQ(run({"check", "tiles/cube.exr"}).status, 2);
+}
+
 /// The soup as an OBJ file (positions with 17 significant digits, 1-based faces).
 std::string objText(const TriangleSoup& soup) {
     std::ostringstream out;
@@ -680,6 +726,11 @@ TEST_F(Cli, BakesAHeightMap) {
                                 "32x32x8", "--height-texels", "6"});
     ASSERT_EQ(bake.status, 0) << bake.out << bake.err;
     EXPECT_TRUE(fs::exists(path("ramp.exr")));
+    // The tile records its image (distile:source_file, distile:source_hash).
+    const TileProvenance recorded = readTileExr(path("ramp.exr")).provenance;
+    EXPECT_EQ(recorded.source, "heightmap");
+    EXPECT_EQ(recorded.sourceFile, fs::absolute(path("ramp.png")).lexically_normal());
+    EXPECT_EQ(recorded.sourceHash.size(), 16u);
     expectInputError({"bake", "heightmap", "ramp.png", "-o", "high.exr", "--size", "32x32x8",
                       "--height-texels", "9"},
                      "high.exr", {"--height-texels", "9"});
@@ -917,16 +968,87 @@ TEST_F(Cli, MeshRecipeRendersAgainstExactMeshHitsAndRebakesAnEditedMesh) {
         1.0);
 }
 
-TEST_F(Cli, MeshTruthNeedsAMeshRecipeAndAClosedMesh) {
-    writeText(path("cube.obj"), kCubeObj);
-    ASSERT_EQ(run({"bake", "mesh", "cube.obj", "-o", "cube.exr", "--size", "32x32x8", "--scale",
-                   "4", "--offset", "14,14,0"})
-                  .status,
+TEST_F(Cli, SceneRecipesBakeTheSameTilesAsTheCommand) {
+    // A recipe and `distile bake` with the same options give identical distances. The scene's
+    // tile is read back from a bake cache of this test's own.
+    Image ramp(16, 8, glm::vec3(0.0f));
+    for (int y = 0; y < 8; ++y) {
+        for (int x = 0; x < 16; ++x)
+            ramp.rgbLinear[std::size_t(y) * 16 + x] = glm::vec3(float(x + y) / 22.0f);
+    }
+    writeImage(ramp, path("ramp.png"));
+    const fs::path cache = work().parent_path() / "cache";
+    /// The one tile in the cache after rendering the scene with `recipe` (into an empty cache
+    /// when `fresh`).
+    const auto sceneTile = [&](const std::string& recipe, bool fresh = true) {
+        if (fresh) fs::remove_all(cache);
+        writeText(path("scene.json"), planeScene(chainmailMaterial(recipe)));
+        setenv("DISTILE_CACHE", cache.c_str(), 1);
+        const RunResult render = run({"render", "scene.json", "-o", "scene.png", "--width", "8",
+                                      "--height", "8", "--no-shadows"});
+        unsetenv("DISTILE_CACHE");
+        EXPECT_EQ(render.status, 0) << render.err;
+        std::vector<fs::path> cached;
+        for (const auto& entry : fs::directory_iterator(cache)) cached.push_back(entry.path());
+        EXPECT_EQ(cached.size(), 1u);
+        return readTileExr(cached.at(0));
+    };
+    struct Case {
+        std::string recipe;
+        std::vector<std::string> bake;
+    };
+    const std::vector<Case> cases = {
+        {R"({"bake": "grating", "size": "64x64x16", "bars": 4, "bar_width": 9, "bar_height": 5,
+             "edge_radius": 2, "layer_gap": 2, "band": 6})",
+         {"bake", "grating", "--size", "64x64x16", "--bars", "4", "--bar-width", "9",
+          "--bar-height", "5", "--edge-radius", "2", "--layer-gap", "2", "--band", "6"}},
+        {R"({"bake": "heightmap", "file": "ramp.png", "size": "32x32x8", "height_texels": 6,
+             "exact_texels": true})",
+         {"bake", "heightmap", "ramp.png", "--size", "32x32x8", "--height-texels", "6",
+          "--exact-texels"}},
+        {R"({"bake": "chainmail", "weave": "japanese4in1", "size": "128x128x16",
+             "small_wire_radius": 0.045})",
+         {"bake", "chainmail", "--weave", "japanese4in1", "--size", "128x128x16",
+          "--small-wire-radius", "0.045"}},
+    };
+    for (const Case& test : cases) {
+        SCOPED_TRACE(test.recipe);
+        std::vector<std::string> bake = test.bake;
+        bake.insert(bake.end(), {"-o", "command.exr"});
+        const RunResult baked = run(bake);
+        ASSERT_EQ(baked.status, 0) << baked.err;
+        const Tile command = readTileExr(path("command.exr"));
+        const Tile scene = sceneTile(test.recipe);
+        EXPECT_EQ(scene.provenance.source, command.provenance.source);
+        ASSERT_TRUE(scene.size() == command.size());
+        EXPECT_TRUE(std::equal(scene.distancesTexels().begin(), scene.distancesTexels().end(),
+                               command.distancesTexels().begin()));
+    }
+    // The older names of rows and tilt name the same cached tile as the new ones (one file).
+    const Tile older = sceneTile(R"({"bake": "chainmail", "size": "64x64x8", "rows_per_tile": 4,
+                                      "tilt_deg": 10})");
+    const Tile newer =
+        sceneTile(R"({"bake": "chainmail", "size": "64x64x8", "rows": 4, "tilt": 10})", false);
+    EXPECT_EQ(tileHash(older), tileHash(newer));
+}
+
+TEST_F(Cli, MeshTruthNeedsARecordedOrRecipeMeshAndAClosedMesh) {
+    // A tile file baked from a mesh records its mesh (distile:source_file): a reference render
+    // traces the recorded mesh, placed as baked; the sample ring, 32x32x8, fitted.
+    fs::create_directories(path("tiles"));
+    fs::copy_file(fs::path(DISTILE_SOURCE_DIR) / "data/meshes/ring.obj", path("ring.obj"));
+    ASSERT_EQ(run({"bake", "mesh", "ring.obj", "-o", "tiles/ring.exr", "--size", "32x32x8"}).status,
               0);
-    // A tile file baked from a mesh does not name its mesh: no truth for a reference render.
-    writeText(path("scene.json"), planeScene(R"({"tile": "cube.exr", "depth": 0.5})"));
-    expectInputError({"render", "scene.json", "-o", "out.png", "--reference"}, "out.png",
-                     {"objects[0].material.tile", "source 'mesh'", R"("bake": "mesh")"});
+    writeText(path("scene.json"), planeScene(R"({"tile": "tiles/ring.exr", "depth": 0.5})"));
+    const RunResult reference = run({"render", "scene.json", "-o", "ring.png", "--reference",
+                                     "--width", "32", "--height", "24", "--no-shadows"});
+    EXPECT_EQ(reference.status, 0) << reference.err;
+    EXPECT_TRUE(fs::exists(path("ring.png")));
+    // Moved away: the reference render says which mesh it misses.
+    fs::rename(path("ring.obj"), path("moved.obj"));
+    expectInputError(
+        {"render", "scene.json", "-o", "out.png", "--reference"}, "out.png",
+        {"objects[0].material.tile", "source mesh", "ring.obj", "not found", R"("bake": "mesh")"});
     // An open mesh in a recipe: refused naming the field.
     std::string open = kCubeObj;
     open.erase(open.rfind("f "));

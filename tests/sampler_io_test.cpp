@@ -166,6 +166,26 @@ TEST_F(SamplerIo, EmptyProvenanceIsSpelledOut) {
     EXPECT_EQ(read.provenance.params, "{}");
 }
 
+TEST_F(SamplerIo, SourceFileIsRecordedRelativeToTheTileAndResolvedOnReading) {
+    fs::create_directories(path("meshes"));
+    fs::create_directories(path("tiles"));
+    Tile tile = patternTile({8, 8, 2});
+    tile.provenance.sourceFile = fs::absolute(path("meshes/ring.obj"));
+    tile.provenance.sourceHash = "0123456789abcdef";
+    writeTileExr(tile, path("tiles/tile.exr"));
+    const OIIO::ImageSpec spec = readRaw(path("tiles/tile.exr")).spec;
+    EXPECT_EQ(spec.get_string_attribute("distile:source_file"), "../meshes/ring.obj");
+    EXPECT_EQ(spec.get_string_attribute("distile:source_hash"), "0123456789abcdef");
+    // Read back as the absolute path, from wherever the tile is read.
+    const Tile read = readTileExr(path("tiles/tile.exr"));
+    EXPECT_EQ(read.provenance.sourceFile, fs::absolute(path("meshes/ring.obj")).lexically_normal());
+    EXPECT_EQ(read.provenance.sourceHash, "0123456789abcdef");
+    // A tile without a source file (procedural, or written before the keys existed) has none.
+    writeTileExr(patternTile({8, 8, 2}), path("plain.exr"));
+    EXPECT_FALSE(readRaw(path("plain.exr")).spec.find_attribute("distile:source_file"));
+    EXPECT_TRUE(readTileExr(path("plain.exr")).provenance.sourceFile.empty());
+}
+
 TEST_F(SamplerIo, AtlasPlacesSliceKAtColumnKModColsRowKDivCols) {
     const Size3 size{16, 16, 5};
     Tile tile(size);
