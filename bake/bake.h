@@ -35,6 +35,10 @@ struct BakeResult {
     Tile tile;
 };
 
+/// Throws InputError::inField naming "size" or "halfBandTexels" when the tile size is invalid
+/// (validateTileSize) or the half band is negative or not a number.
+void validateBakeOptions(const BakeOptions& options);
+
 /// Chain mail (vdb/chainmail.h) baked into a level set and its tile. Throws InputError for bad
 /// sizes or chain-mail options.
 BakeResult bakeChainmail(const ChainmailOptions& chainmail, const BakeOptions& options,
@@ -70,7 +74,8 @@ inline constexpr double kMaxPlacedTexelCoordinate = 1 << 20;
 TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                        const Size3& tile);
 
-/// A closed detail mesh (file units) placed by `placement` and baked with OpenVDB's
+/// The benchmark peer of the mesh bake (bake/solid_mesh.h bakeSolidMesh is the one programs use):
+/// a closed detail mesh (file units) placed by `placement` and baked with OpenVDB's
 /// mesh-to-level-set into a periodic level set (vdb/mesh_level_set.h) and its tile. The sign is
 /// only meaningful for a closed, manifold mesh: callers check that (truth/mesh_truth.h) and
 /// verify the sign. `insideTest`, when given, is the exact inside test of the *placed* mesh
