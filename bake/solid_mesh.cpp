@@ -69,8 +69,8 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
            << (sign.unsignedDistance ? "unsigned" : "winding number") << "\"";
     if (sign.unsignedDistance) params << ",\"thickness_texels\":" << sign.thicknessTexels;
     params << "}";
-    // Along a row, the distance of the previous texel plus 1 (the distance is 1-Lipschitz; a hair
-    // more for rounding) bounds the search: the same exact result, much less of the tree visited.
+    // Along a row, the previous texel's nearest triangle starts the search: the same exact
+    // result, much less of the tree visited.
     // The sign likewise: where the winding number changes only across the surface, a texel 1
     // texel from its row neighbour, nearer to it than the neighbour is to the surface, shares its
     // sign (the segment between them crosses no surface).
@@ -78,11 +78,10 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     const auto rowDistance = [&](int j, int k, std::span<double> row) {
         double previous = cutoff;
         bool previousInside = false;
+        SoupDistance::NearestHint hint;
         for (std::size_t i = 0; i < row.size(); ++i) {
             const glm::dvec3 p(double(i) + 0.5, j + 0.5, k + 0.5);
-            const double bound = std::min(cutoff, previous + 1.0 + 1e-9 * (1.0 + previous));
-            double distance = soup.unsignedDistance(p, bound);
-            if (distance >= bound && bound < cutoff) distance = soup.unsignedDistance(p, cutoff);
+            const double distance = soup.unsignedDistance(p, cutoff, hint);
             if (sign.unsignedDistance) {
                 row[i] = distance - halfThickness;
             } else {

@@ -4,9 +4,11 @@
 #include <array>
 #include <cassert>
 #include <cmath>
+#include <cstdint>
 #include <glm/geometric.hpp>
 #include <numbers>
 #include <unordered_map>
+#include <utility>
 
 namespace distile {
 
@@ -110,6 +112,7 @@ SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;
     triangles_.reserve(input.size());
     nodes_.reserve(2 * (input.size() / kLeafTriangles + 1));
+    dipoles_.reserve(nodes_.capacity());
     build(order, 0, std::uint32_t(order.size()), input);
     windingPiecewiseConstant_ = edgeUsesCancel(soupTexels);
 }
@@ -118,7 +121,9 @@ std::uint32_t SoupDistance::build(std::vector<std::uint32_t>& order, std::uint32
                                   std::uint32_t end, const std::vector<Triangle>& input) {
     const std::uint32_t index = std::uint32_t(nodes_.size());
     nodes_.emplace_back();
+    dipoles_.emplace_back();
     Node node;
+    Dipole dipole;
     node.boxMin = glm::dvec3(HUGE_VAL);
     node.boxMax = glm::dvec3(-HUGE_VAL);
     glm::dvec3 centroidMin(HUGE_VAL), centroidMax(-HUGE_VAL), weightedCentre(0.0);
@@ -132,17 +137,18 @@ std::uint32_t SoupDistance::build(std::vector<std::uint32_t>& order, std::uint32
         centroidMax = glm::max(centroidMax, centroid);
         const glm::dvec3 vectorArea = 0.5 * glm::cross(t.b - t.a, t.c - t.a);
         const double triangleArea = glm::length(vectorArea);
-        node.vectorArea += vectorArea;
+        dipole.vectorArea += vectorArea;
         weightedCentre += triangleArea * centroid;
         area += triangleArea;
     }
-    node.dipoleCentre = area > 0.0 ? weightedCentre / area : 0.5 * (node.boxMin + node.boxMax);
+    dipole.centre = area > 0.0 ? weightedCentre / area : 0.5 * (node.boxMin + node.boxMax);
     for (int corner = 0; corner < 8; ++corner) {
         const glm::dvec3 p(corner & 1 ? node.boxMax.x : node.boxMin.x,
                            corner & 2 ? node.boxMax.y : node.boxMin.y,
                            corner & 4 ? node.boxMax.z : node.boxMin.z);
-        node.radius = std::max(node.radius, glm::length(p - node.dipoleCentre));
+        dipole.radius = std::max(dipole.radius, glm::length(p - dipole.centre));
     }
+    dipoles_[index] = dipole;
     if (end - begin <= kLeafTriangles) {
         node.first = std::uint32_t(triangles_.size());
         node.count = end - begin;
@@ -170,46 +176,70 @@ std::uint32_t SoupDistance::build(std::vector<std::uint32_t>& order, std::uint32
     return index;
 }
 
-double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared) const {
-    std::array<std::uint32_t, kStackSize> stack;
+double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
+                                    std::uint32_t& bestTriangle) const {
+    // Each entry keeps its box's squared distance, computed when it was pushed.
+    std::array<std::pair<std::uint32_t, double>, kStackSize> stack;
     int size = 0;
-    stack[size++] = 0;
+    stack[size++] = {0u, boxDistanceSquared(point, nodes_[0].boxMin, nodes_[0].boxMax)};
     while (size > 0) {
-        const Node& node = nodes_[stack[--size]];
-        if (boxDistanceSquared(point, node.boxMin, node.boxMax) >= bestSquared) continue;
+        const auto [index, boxSquared] = stack[--size];
+        if (boxSquared >= bestSquared) continue;
+        const Node& node = nodes_[index];
         if (node.count > 0) {
             for (std::uint32_t t = node.first; t < node.first + node.count; ++t) {
                 const Triangle& triangle = triangles_[t];
-                bestSquared = std::min(bestSquared, triangleDistanceSquared(
-                                                        point, triangle.a, triangle.b, triangle.c));
+                const double squared =
+                    triangleDistanceSquared(point, triangle.a, triangle.b, triangle.c);
+                if (squared < bestSquared) {
+                    bestSquared = squared;
+                    bestTriangle = t;
+                }
             }
             continue;
         }
         // Visit the nearer child first: push it last.
-        const std::uint32_t left = std::uint32_t(&node - nodes_.data()) + 1, right = node.first;
+        const std::uint32_t left = index + 1, right = node.first;
         const double leftSquared =
             boxDistanceSquared(point, nodes_[left].boxMin, nodes_[left].boxMax);
         const double rightSquared =
             boxDistanceSquared(point, nodes_[right].boxMin, nodes_[right].boxMax);
         assert(size + 2 <= kStackSize);
         if (leftSquared <= rightSquared) {
-            if (rightSquared < bestSquared) stack[size++] = right;
-            if (leftSquared < bestSquared) stack[size++] = left;
+            if (rightSquared < bestSquared) stack[size++] = {right, rightSquared};
+            if (leftSquared < bestSquared) stack[size++] = {left, leftSquared};
         } else {
-            if (leftSquared < bestSquared) stack[size++] = left;
-            if (rightSquared < bestSquared) stack[size++] = right;
+            if (leftSquared < bestSquared) stack[size++] = {left, leftSquared};
+            if (rightSquared < bestSquared) stack[size++] = {right, rightSquared};
         }
     }
     return bestSquared;
 }
 
 double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const {
-    const PeriodicShifts shifts = periodicShifts(texelPosition, bounds_, tile_, cutoffTexels);
+    NearestHint none;
+    return unsignedDistance(texelPosition, cutoffTexels, none);
+}
+
+double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
+                                      NearestHint& hint) const {
+    // The hint's triangle is one of the candidates the search compares anyway (the same
+    // arithmetic on the same shifted point), so starting from it gives the same minimum.
     double bestSquared = cutoffTexels * cutoffTexels;
+    if (hint.triangle != UINT32_MAX) {
+        const Triangle& triangle = triangles_[hint.triangle];
+        bestSquared =
+            std::min(bestSquared, triangleDistanceSquared(texelPosition - hint.shift, triangle.a,
+                                                          triangle.b, triangle.c));
+    }
+    const PeriodicShifts shifts =
+        periodicShifts(texelPosition, bounds_, tile_, std::sqrt(bestSquared));
     for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
         for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
             const glm::dvec3 shift(double(m) * tile_.width, double(n) * tile_.height, 0.0);
-            bestSquared = closestSquared(texelPosition - shift, bestSquared);
+            std::uint32_t found = UINT32_MAX;
+            bestSquared = closestSquared(texelPosition - shift, bestSquared, found);
+            if (found != UINT32_MAX) hint = {found, shift};
         }
     }
     return std::sqrt(bestSquared);
@@ -223,10 +253,11 @@ double SoupDistance::windingNumberOfCopy(const glm::dvec3& point, double farFiel
     while (size > 0) {
         const std::uint32_t index = stack[--size];
         const Node& node = nodes_[index];
-        const glm::dvec3 toCentre = node.dipoleCentre - point;
+        const Dipole& dipole = dipoles_[index];
+        const glm::dvec3 toCentre = dipole.centre - point;
         const double distanceSquared = glm::dot(toCentre, toCentre);
-        if (distanceSquared > farFieldRatio * farFieldRatio * node.radius * node.radius) {
-            solidAngles += glm::dot(toCentre, node.vectorArea) /
+        if (distanceSquared > farFieldRatio * farFieldRatio * dipole.radius * dipole.radius) {
+            solidAngles += glm::dot(toCentre, dipole.vectorArea) /
                            (distanceSquared * std::sqrt(distanceSquared));
             continue;
         }

@@ -49,6 +49,16 @@ class SoupDistance {
     /// nothing is nearer than it (the search stops there). @pre cutoffTexels > 0.
     double unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const;
 
+    /// The triangle (and copy) an unsignedDistance query found nearest; a start for the next
+    /// query at a nearby point, whose result it only speeds up (never changes).
+    struct NearestHint {
+        std::uint32_t triangle = UINT32_MAX;  ///< UINT32_MAX: none
+        glm::dvec3 shift{0.0};                ///< of the copy, (m W, n H, 0)
+    };
+    /// unsignedDistance starting from `hint`'s triangle, which it then updates.
+    double unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
+                            NearestHint& hint) const;
+
     /// Generalized winding number of the periodic union at the point (see the file note).
     double windingNumber(const glm::dvec3& texelPosition) const;
 
@@ -66,13 +76,16 @@ class SoupDistance {
     bool windingChangesOnlyAcrossTheSurface() const { return windingPiecewiseConstant_; }
 
   private:
+    /// What the distance query reads, kept small (the winding number's data apart).
     struct Node {
         glm::dvec3 boxMin{0.0}, boxMax{0.0};
-        glm::dvec3 dipoleCentre{0.0};  ///< area-weighted centroid of the node's triangles
-        glm::dvec3 vectorArea{0.0};    ///< sum of (b - a) x (c - a) / 2 over the node's triangles
-        double radius = 0.0;      ///< farthest corner of the node's triangles from dipoleCentre
         std::uint32_t first = 0;  ///< leaf: first triangle; inner: index of the second child
         std::uint32_t count = 0;  ///< leaf: number of triangles; inner: 0 (first child follows)
+    };
+    struct Dipole {
+        glm::dvec3 centre{0.0};      ///< area-weighted centroid of the node's triangles
+        glm::dvec3 vectorArea{0.0};  ///< sum of (b - a) x (c - a) / 2 over the node's triangles
+        double radius = 0.0;         ///< farthest corner of the node's box from centre
     };
     struct Triangle {
         glm::dvec3 a, b, c;
@@ -80,7 +93,8 @@ class SoupDistance {
 
     std::uint32_t build(std::vector<std::uint32_t>& order, std::uint32_t begin, std::uint32_t end,
                         const std::vector<Triangle>& input);
-    double closestSquared(const glm::dvec3& point, double bestSquared) const;
+    double closestSquared(const glm::dvec3& point, double bestSquared,
+                          std::uint32_t& bestTriangle) const;
     double windingNumberOfCopy(const glm::dvec3& point, double farFieldRatio) const;
 
     bool windingPiecewiseConstant_ = false;
@@ -88,6 +102,7 @@ class SoupDistance {
     Bounds3 bounds_;
     std::vector<Triangle> triangles_;  ///< in leaf order
     std::vector<Node> nodes_;          ///< depth-first, root first
+    std::vector<Dipole> dipoles_;      ///< one per node
 };
 
 }  // namespace distile
