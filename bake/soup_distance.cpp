@@ -142,11 +142,10 @@ std::uint32_t SoupDistance::build(std::vector<std::uint32_t>& order, std::uint32
         area += triangleArea;
     }
     dipole.centre = area > 0.0 ? weightedCentre / area : 0.5 * (node.boxMin + node.boxMax);
-    for (int corner = 0; corner < 8; ++corner) {
-        const glm::dvec3 p(corner & 1 ? node.boxMax.x : node.boxMin.x,
-                           corner & 2 ? node.boxMax.y : node.boxMin.y,
-                           corner & 4 ? node.boxMax.z : node.boxMin.z);
-        dipole.radius = std::max(dipole.radius, glm::length(p - dipole.centre));
+    for (std::uint32_t i = begin; i < end; ++i) {
+        const Triangle& t = input[order[i]];
+        for (const glm::dvec3& corner : {t.a, t.b, t.c})
+            dipole.radius = std::max(dipole.radius, glm::length(corner - dipole.centre));
     }
     dipoles_[index] = dipole;
     if (end - begin <= kLeafTriangles) {

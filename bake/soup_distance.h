@@ -85,7 +85,7 @@ class SoupDistance {
     struct Dipole {
         glm::dvec3 centre{0.0};      ///< area-weighted centroid of the node's triangles
         glm::dvec3 vectorArea{0.0};  ///< sum of (b - a) x (c - a) / 2 over the node's triangles
-        double radius = 0.0;         ///< farthest corner of the node's box from centre
+        double radius = 0.0;         ///< farthest triangle corner of the node from centre
     };
     struct Triangle {
         glm::dvec3 a, b, c;
