@@ -13,7 +13,12 @@ namespace distile {
 
 namespace {
 
-/// Errors name the fields of BakeOptions (a program shows them under its own names).
+bool isFinite(const glm::dvec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+}  // namespace
+
 void validateBakeOptions(const BakeOptions& options) {
     validateTileSize(options.size, "size");
     if (!(options.halfBandTexels >= 0.0f)) {
@@ -23,12 +28,6 @@ void validateBakeOptions(const BakeOptions& options) {
                 " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
     }
 }
-
-bool isFinite(const glm::dvec3& v) {
-    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
-
-}  // namespace
 
 BakeResult bakeChainmail(const ChainmailOptions& chainmailOptions, const BakeOptions& options,
                          const ProgressCallback& progress) {

@@ -35,6 +35,10 @@ struct BakeResult {
     Tile tile;
 };
 
+/// Throws InputError::inField naming "size" or "halfBandTexels" when the tile size is invalid
+/// (validateTileSize) or the half band is negative or not a number.
+void validateBakeOptions(const BakeOptions& options);
+
 /// Chain mail (vdb/chainmail.h) baked into a level set and its tile. Throws InputError for bad
 /// sizes or chain-mail options.
 BakeResult bakeChainmail(const ChainmailOptions& chainmail, const BakeOptions& options,
@@ -75,7 +79,8 @@ MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPla
 TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                        const Size3& tile);
 
-/// A closed detail mesh (file units) placed by `placement` and baked with OpenVDB's
+/// The benchmark peer of the mesh bake (bake/solid_mesh.h bakeSolidMesh is the one programs use):
+/// a closed detail mesh (file units) placed by `placement` and baked with OpenVDB's
 /// mesh-to-level-set into a periodic level set (vdb/mesh_level_set.h) and its tile; the tile's
 /// params record the placement (JSON: "placement": "fit" or "explicit", "scale", "offset_texels"
 /// [x, y, z] as used, also when fitted, and "triangles"). The sign is

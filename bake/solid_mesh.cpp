@@ -1,23 +1,18 @@
 #include "bake/solid_mesh.h"
 
-#include <random>
+#include <algorithm>
+#include <cmath>
+#include <span>
 #include <sstream>
-#include <stdexcept>
 #include <string>
 
+#include "bake/resample.h"
+#include "bake/soup_distance.h"
 #include "common/error.h"
 #include "mesh/detail_mesh.h"
 #include "truth/mesh_truth.h"
 
 namespace distile {
-
-namespace {
-
-/// Voxels nearer the surface than this (texels) are skipped by the check: there OpenVDB's inside
-/// test is approximate (the bake takes their sign from the exact test anyway).
-constexpr double kSignCheckSkipTexels = 0.1;
-
-}  // namespace
 
 SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& path) {
     const std::string file = path.string();
@@ -29,8 +24,8 @@ SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& path) {
         if (!topology.closed) message << "open (" << topology.boundaryEdges << " boundary edges)";
         if (!topology.closed && !topology.manifold) message << " and ";
         if (!topology.manifold) message << "non-manifold or not orientable";
-        message << "; bake mesh accepts closed, manifold triangle meshes (a solid with an inside)";
-        throw InputError(message.str());
+        message << "; inside is where its winding number exceeds 1/2";
+        solid.warnings.push_back(message.str());
     }
     if (topology.degenerateFaces > 0) {
         solid.warnings.push_back(file + ": " + std::to_string(topology.degenerateFaces) +
@@ -38,57 +33,88 @@ SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& path) {
     }
     if (topology.selfIntersecting) {
         solid.warnings.push_back(file +
-                                 ": the mesh intersects itself; inside is where the exact test "
-                                 "says");
+                                 ": the mesh intersects itself; inside is where its winding "
+                                 "number exceeds 1/2");
     }
     return solid;
 }
 
 SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& placement,
                             const BakeOptions& options, const std::string& file,
-                            const ProgressCallback& progress) {
+                            const ProgressCallback& progress, const MeshSignOptions& sign) {
+    validateBakeOptions(options);
     const TriangleSoup placed = placeMesh(mesh, placement, options.size);
-    const MeshDistance truth(placed, MeshDistance::Periodic{options.size});
-    if (!truth.hasSign()) {
-        throw InputError(
-            file +
-            ": the mesh has no inside (CGAL could not close it); bake mesh accepts closed, "
-            "manifold triangle meshes");
+    if (sign.unsignedDistance &&
+        !(std::isfinite(sign.thicknessTexels) && sign.thicknessTexels >= 0.0 &&
+          sign.thicknessTexels <= options.size.depth)) {
+        throw InputError::inField("sign.thicknessTexels",
+                                  std::to_string(sign.thicknessTexels) +
+                                      " texels is not accepted; it must be in [0, " +
+                                      std::to_string(options.size.depth) + "] (the tile depth)");
     }
-    // The exact inside test fixes the signs near the surface; the exact distance lets the
-    // conservative correction measure the trilinear overestimate (bake/conservative.h).
-    SolidMeshBake bake{bakeMesh(
-        mesh, placement, options, progress,
-        [&truth](const glm::dvec3& p) { return truth.isInside(p); },
-        [&truth](const glm::dvec3& p) { return truth.signedDistance(p); })};
-
-    // Verify the sign at random voxels of the footprint against the exact inside test.
-    const Size3& size = options.size;
-    std::mt19937 random(20240603u);
-    std::uniform_int_distribution<int> pickX(0, size.width - 1), pickY(0, size.height - 1),
-        pickZ(0, size.depth - 1);
-    int wrong = 0;
-    glm::dvec3 firstWrong(0.0);
-    for (int n = 0; n < kSignCheckVoxels; ++n) {
-        const int x = pickX(random), y = pickY(random), z = pickZ(random);
-        const glm::dvec3 centre(x + 0.5, y + 0.5, z + 0.5);
-        if (truth.unsignedDistance(centre) < kSignCheckSkipTexels) continue;
-        ++bake.signCheckedVoxels;
-        const bool bakedInside = bake.result.levelSet.voxelDistanceTexels(x, y, z) < 0.0f;
-        if (bakedInside != truth.isInside(centre)) {
-            if (wrong++ == 0) firstWrong = centre;
+    const float halfBand =
+        options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    const SoupDistance soup(placed, options.size);
+    const double halfThickness = sign.unsignedDistance ? 0.5 * sign.thicknessTexels : 0.0;
+    // Nothing beyond the band is needed: the level set clamps there.
+    const double cutoff = double(halfBand) + halfThickness;
+    const ExactDistance exactDistance = [&](const glm::dvec3& p) {
+        if (sign.unsignedDistance) return soup.unsignedDistance(p, cutoff) - halfThickness;
+        return soup.signedDistance(p, cutoff);
+    };
+    // The placement as used (also when fitted): `check` and reference renders place the source
+    // mesh by it.
+    const MeshPlacement used = explicitPlacement(mesh, placement, options.size);
+    std::ostringstream params;
+    params.precision(17);
+    params << "{\"placement\":\"" << (placement.fit ? "fit" : "explicit")
+           << "\",\"scale\":" << used.scale << ",\"offset_texels\":[" << used.offsetTexels.x
+           << "," << used.offsetTexels.y << "," << used.offsetTexels.z
+           << "],\"triangles\":" << placed.triangles.size() << ",\"sign\":\""
+           << (sign.unsignedDistance ? "unsigned" : "winding number") << "\"";
+    if (sign.unsignedDistance) params << ",\"thickness_texels\":" << sign.thicknessTexels;
+    params << "}";
+    // Along a row, the previous texel's nearest triangle starts the search: the same exact
+    // result, much less of the tree visited.
+    // The sign likewise: where the winding number changes only across the surface, a texel 1
+    // texel from its row neighbour, nearer to it than the neighbour is to the surface, shares its
+    // sign (the segment between them crosses no surface).
+    const bool signPropagates = soup.windingChangesOnlyAcrossTheSurface();
+    const auto rowDistance = [&](int j, int k, std::span<double> row) {
+        double previous = cutoff;
+        bool previousInside = false;
+        SoupDistance::NearestHint hint;
+        for (std::size_t i = 0; i < row.size(); ++i) {
+            const glm::dvec3 p(double(i) + 0.5, j + 0.5, k + 0.5);
+            const double distance = soup.unsignedDistance(p, cutoff, hint);
+            if (sign.unsignedDistance) {
+                row[i] = distance - halfThickness;
+            } else {
+                const bool inside = signPropagates && i > 0 && previous > 1.0 + 1e-9
+                                        ? previousInside
+                                        : soup.windingNumber(p) > 0.5;
+                row[i] = inside ? -distance : distance;
+                previousInside = inside;
+            }
+            previous = distance;
         }
+    };
+    LevelSet levelSet = LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh",
+                                                   params.str(), progress);
+
+    std::vector<float> texels(options.size.texelCount());
+    levelSet.copyTileVoxels(texels);
+    const std::size_t insideTexels =
+        std::size_t(std::count_if(texels.begin(), texels.end(), [](float d) { return d < 0.0f; }));
+    if (insideTexels == 0 && !sign.unsignedDistance) {
+        throw InputError::inField(
+            "sign.unsignedDistance",
+            file +
+                ": the mesh has no inside in the tile (its winding number is nowhere above "
+                "1/2); sheet-like detail must be baked as an unsigned distance");
     }
-    if (wrong > 0) {
-        std::ostringstream message;
-        message << file << ": sign verification failed: " << wrong << " of "
-                << bake.signCheckedVoxels
-                << " voxels have the wrong sign against the exact inside test (first at texel "
-                << firstWrong.x << ", " << firstWrong.y << ", " << firstWrong.z
-                << "); its inside cannot be trusted, nothing written";
-        throw InputError(message.str());
-    }
-    return bake;
+    Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistance);
+    return {{std::move(levelSet), std::move(tile)}, insideTexels};
 }
 
 }  // namespace distile

@@ -1,10 +1,12 @@
 /// @file
-/// The one bake path for closed detail meshes, shared by every program that bakes them (the
-/// `bake mesh` command, a scene's `"bake": "mesh"` tile): refuse meshes without an inside, bake
-/// with the exact inside test and the exact distance of the placed mesh (truth/mesh_truth.h),
-/// then verify the sign.
+/// The one bake path for detail meshes, shared by every program that bakes them (the
+/// `bake mesh` command, a scene's `"bake": "mesh"` tile): the exact distance to the placed mesh
+/// at every texel centre, signed by the generalized winding number (bake/soup_distance.h), so
+/// closed solids, open meshes, soups of overlapping parts and duplicated or flipped faces all
+/// bake; or the unsigned distance for sheet-like detail that has no inside.
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -15,35 +17,47 @@
 
 namespace distile {
 
-/// A detail mesh that is a solid, and what is odd about it without stopping a bake.
+/// A detail mesh read for baking, and what is odd about it without stopping a bake.
 struct SolidDetailMesh {
     TriangleSoup mesh;  ///< file units
-    /// One line each, naming the file: degenerate (zero-area) faces, self-intersections. The
-    /// caller shows them (the library writes nothing to the terminal).
+    /// One line each, naming the file: open or non-manifold parts, degenerate (zero-area)
+    /// faces, self-intersections. The caller shows them (the library writes nothing to the
+    /// terminal).
     std::vector<std::string> warnings;
 };
 
-/// Reads a detail mesh (mesh/detail_mesh.h) and checks that it is a solid.
-/// @throws InputError naming the file: the mesh is open, non-manifold or not orientable.
+/// Reads a detail mesh (mesh/detail_mesh.h) and inspects it (truth/mesh_truth.h inspectMesh):
+/// what is not a clean solid becomes a warning, since the winding-number sign copes with it.
 /// @throws FormatError as loadDetailMesh.
 SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& file);
 
-/// Number of voxels whose sign bakeSolidMesh verifies against the exact inside test.
-inline constexpr int kSignCheckVoxels = 10000;
+/// How the distances of a mesh bake are signed.
+struct MeshSignOptions {
+    /// false: negative where the generalized winding number exceeds 1/2 (inside).
+    /// true: sheet-like detail without an inside: the surface is a shell of
+    /// `thicknessTexels` around the triangles (distance = unsigned distance - thickness / 2), so
+    /// with thickness 0 the tile is never negative and its zero set is the triangles themselves.
+    bool unsignedDistance = false;
+    double thicknessTexels = 0.0;  ///< unsignedDistance only: shell thickness, texels, >= 0
+};
 
 struct SolidMeshBake {
     BakeResult result;
-    int signCheckedVoxels = 0;  ///< voxels of the sign verification (those near the surface skip)
+    std::size_t insideTexels = 0;  ///< texels of the tile with a negative exact distance
 };
 
-/// Bakes `mesh` (file units, from loadSolidDetailMesh) placed by `placement`, with exact signs
-/// near the surface and the exact distance for the conservative correction (bake/bake.h
-/// bakeMesh), then verifies the sign at up to kSignCheckVoxels random voxels. `file` names the
-/// mesh in messages.
-/// @throws InputError as placeMesh, the mesh has no inside, or the sign verification fails (the
-///   mesh's inside cannot be trusted: refused input, like an open mesh).
+/// Bakes `mesh` (file units) placed by `placement` (placeMesh): every voxel of the level set
+/// (the tile and its band margin above and below, LevelSet::fromDistance) takes the exact
+/// periodic distance to the placed mesh, signed as `sign` says, clamped to the half band; the
+/// conservative correction measures against the same exact distance (bake/conservative.h).
+/// Multi-threaded; the result does not depend on the thread count. `file` names the mesh in
+/// messages.
+/// @throws InputError as placeMesh; field "sign.thicknessTexels" when it is negative, not
+///   finite or thicker than the tile depth; field "sign.unsignedDistance" when the mesh has no
+///   inside (no texel with a winding number above 1/2) and unsignedDistance is false.
 SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& placement,
                             const BakeOptions& options, const std::string& file,
-                            const ProgressCallback& progress = {});
+                            const ProgressCallback& progress = {},
+                            const MeshSignOptions& sign = {});
 
 }  // namespace distile

@@ -5,17 +5,28 @@
 //    (vdb/mesh_level_set.h) at a half band of 3 voxels, voxel size 1 texel.
 // Both report their error against the analytic distance over the voxels where both are defined
 // (the mesh level set's band, |d| < 3, inside the tile's footprint and depth) as counters.
-// Run: build/bin/bake_bench [--benchmark_filter=...]; compare the two times of one run.
+// And the mesh bake (bake/solid_mesh.h: exact BVH distance, winding-number sign) against OpenVDB's
+// mesh-to-level-set (bake/bake.h bakeMesh) on the chain mail tessellated at three sizes (argument:
+// triangles per ring, about 3 k, 100 k and 1 M triangles in all), both at voxel size 1 texel and
+// the half band `bake mesh` uses (the tile depth), conservative lowering off. Counters: the error
+// against the exact distance to the same mesh (CGAL, truth/mesh_truth.h) at random voxel centres
+// within 2 texels of the surface (max, RMS) and the sign errors at all sampled voxels.
+// Run: build/bin/bake_bench [--benchmark_filter=...]; compare the times of one run.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <cmath>
 #include <glm/vec3.hpp>
+#include <map>
+#include <memory>
 #include <optional>
+#include <random>
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/solid_mesh.h"
 #include "common/triangle_soup.h"
+#include "truth/mesh_truth.h"
 #include "vdb/chainmail.h"
 #include "vdb/mesh_level_set.h"
 
@@ -94,6 +105,91 @@ void bakeChainmailMeshToLevelSet(benchmark::State& state) {
     setErrorCounters(state, voxelErrors(*levelSet, *levelSet));
 }
 BENCHMARK(bakeChainmailMeshToLevelSet)->Unit(benchmark::kMillisecond)->Iterations(3)->UseRealTime();
+
+/// The default chain mail with `segmentsAround` x `segmentsTube` quads per ring.
+struct ChainmailMesh {
+    TriangleSoup soup;
+    std::unique_ptr<MeshDistance> truth;  ///< exact periodic distance to `soup`
+};
+const ChainmailMesh& chainmailMeshOfSize(int segmentsAround, int segmentsTube) {
+    static std::map<std::pair<int, int>, ChainmailMesh> meshes;
+    ChainmailMesh& mesh = meshes[{segmentsAround, segmentsTube}];
+    if (mesh.soup.triangles.empty()) {
+        mesh.soup =
+            tessellateChainmail(Chainmail(ChainmailOptions{}, kTile), segmentsAround, segmentsTube);
+        mesh.truth = std::make_unique<MeshDistance>(mesh.soup, MeshDistance::Periodic{kTile});
+    }
+    return mesh;
+}
+
+/// Errors of a tile (exact texels) against the exact mesh distance at random voxel centres.
+void setMeshErrorCounters(benchmark::State& state, const Tile& tile, const ChainmailMesh& mesh) {
+    std::mt19937 random(7);
+    std::uniform_int_distribution<int> i(0, kTile.width - 1), j(0, kTile.height - 1),
+        k(0, kTile.depth - 1);
+    double maxError = 0.0, sumSquares = 0.0, near = 0.0, signErrors = 0.0;
+    for (int n = 0; n < 20000; ++n) {
+        const int x = i(random), y = j(random), z = k(random);
+        const double truth = mesh.truth->signedDistance({x + 0.5, y + 0.5, z + 0.5});
+        const double baked = tile.at(x, y, z);
+        if (std::abs(truth) > 1e-6 && (truth < 0.0) != (baked < 0.0)) signErrors += 1.0;
+        if (std::abs(truth) > 2.0) continue;
+        near += 1.0;
+        maxError = std::max(maxError, std::abs(baked - truth));
+        sumSquares += (baked - truth) * (baked - truth);
+    }
+    state.counters["triangles"] = double(mesh.soup.triangles.size());
+    state.counters["near_max_error_texels"] = maxError;
+    state.counters["near_rms_error_texels"] = near > 0.0 ? std::sqrt(sumSquares / near) : 0.0;
+    state.counters["sign_errors"] = signErrors;
+}
+
+/// Argument pairs (segments around the ring, around the wire): 3 k, 100 k and 1 M triangles.
+void meshSizes(benchmark::internal::Benchmark* benchmark) {
+    benchmark->Args({8, 3})->Args({48, 13})->Args({160, 40});
+}
+
+BakeOptions exactTexelOptions() {
+    BakeOptions options;
+    options.conservative.enabled = false;
+    return options;
+}
+
+MeshPlacement asTessellated() {
+    MeshPlacement placement;
+    placement.fit = false;
+    return placement;
+}
+
+void bakeMeshWindingNumber(benchmark::State& state) {
+    const ChainmailMesh& mesh = chainmailMeshOfSize(int(state.range(0)), int(state.range(1)));
+    std::optional<SolidMeshBake> bake;
+    for (auto _ : state) {
+        bake.emplace(bakeSolidMesh(mesh.soup, asTessellated(), exactTexelOptions(), "chainmail"));
+        benchmark::DoNotOptimize(bake->result.tile.distancesTexels().data());
+    }
+    setMeshErrorCounters(state, bake->result.tile, mesh);
+}
+BENCHMARK(bakeMeshWindingNumber)
+    ->Apply(meshSizes)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
+
+void bakeMeshOpenVdb(benchmark::State& state) {
+    const ChainmailMesh& mesh = chainmailMeshOfSize(int(state.range(0)), int(state.range(1)));
+    std::optional<BakeResult> bake;
+    for (auto _ : state) {
+        bake.emplace(bakeMesh(mesh.soup, asTessellated(), exactTexelOptions()));
+        benchmark::DoNotOptimize(bake->tile.distancesTexels().data());
+    }
+    setMeshErrorCounters(state, bake->tile, mesh);
+}
+BENCHMARK(bakeMeshOpenVdb)
+    ->Apply(meshSizes)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
 
 }  // namespace
 }  // namespace distile

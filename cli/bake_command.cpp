@@ -45,6 +45,8 @@ struct BakeArguments {
     std::optional<double> meshScale;
     std::vector<double> meshOffset;
     double heightTexels = 0.0;
+    bool unsignedDistance = false;
+    std::optional<double> thicknessTexels;
 };
 
 /// How `bake mesh` places the mesh: --fit (default) or --scale/--offset.
@@ -66,18 +68,34 @@ MeshPlacement meshPlacement(const BakeArguments& arguments) {
     return placement;
 }
 
-/// `bake mesh FILE`: load, refuse meshes that have no inside, bake with exact signs near the
-/// surface, verify the sign (bake/solid_mesh.h). Throws before anything is written.
+/// `bake mesh FILE`: load, warn about what is odd, bake the exact distance signed by the winding
+/// number, or unsigned with --unsigned (bake/solid_mesh.h). Throws before anything is written.
 BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& options,
                         ProgressBar& progress) {
     const std::string file = arguments.input.string();
+    MeshSignOptions sign;
+    sign.unsignedDistance = arguments.unsignedDistance;
+    if (arguments.thicknessTexels) {
+        if (!arguments.unsignedDistance)
+            throw InputError(
+                "--thickness: needs --unsigned (it is the thickness of the shell "
+                "around an unsigned surface)");
+        sign.thicknessTexels = *arguments.thicknessTexels;
+    }
     const SolidDetailMesh solid = loadSolidDetailMesh(arguments.input);
+    const MeshPlacement placement = meshPlacement(arguments);
+    SolidMeshBake bake =
+        bakeSolidMesh(solid.mesh, placement, options, file, std::ref(progress), sign);
+    // After the bake: a refused mesh gets its one-line error only.
     for (const std::string& warning : solid.warnings)
         std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());
-    SolidMeshBake bake =
-        bakeSolidMesh(solid.mesh, meshPlacement(arguments), options, file, std::ref(progress));
-    std::printf("%s: %zu triangles, closed and manifold; sign verified at %d voxels\n",
-                file.c_str(), solid.mesh.triangles.size(), bake.signCheckedVoxels);
+    if (sign.unsignedDistance) {
+        std::printf("%s: %zu triangles; unsigned distance, shell %g texels thick\n", file.c_str(),
+                    solid.mesh.triangles.size(), sign.thicknessTexels);
+    } else {
+        std::printf("%s: %zu triangles; inside where the winding number exceeds 1/2 (%zu texels)\n",
+                    file.c_str(), solid.mesh.triangles.size(), bake.insideTexels);
+    }
     return std::move(bake.result);
 }
 
@@ -88,7 +106,9 @@ InputError underBakeFlag(const InputError& error) {
                              {"halfBandTexels", "--band"},
                              {"placement.scale", "--scale"},
                              {"placement.offsetTexels", "--offset"},
-                             {"heightTexels", "--height-texels"}});
+                             {"heightTexels", "--height-texels"},
+                             {"sign.unsignedDistance", "--unsigned"},
+                             {"sign.thicknessTexels", "--thickness"}});
 }
 
 /// "NxM" -> (N, M) for --repeat; the level set checks the range.
@@ -150,6 +170,10 @@ void runBake(const BakeArguments& arguments) {
                          ": needs the input file, e.g. `distile bake " + arguments.detail +
                          (arguments.detail == "mesh" ? " ring.obj" : " stones.png") +
                          " -o tile.exr`");
+    }
+    if (arguments.detail != "mesh" && (arguments.unsignedDistance || arguments.thicknessTexels)) {
+        throw InputError(std::string(arguments.unsignedDistance ? "--unsigned" : "--thickness") +
+                         ": only for bake mesh");
     }
     if (!fromFile && !arguments.input.empty()) {
         throw InputError("bake " + arguments.detail + ": takes no input file ('" +
@@ -300,9 +324,13 @@ void addBakeCommand(CLI::App& app) {
                         "Write the --vdb level set tiled NxM (world units = texels)");
     auto* mesh =
         command->add_option_group("mesh",
-                                  "bake mesh FILE: a closed, manifold triangle mesh (OBJ, PLY, "
-                                  "OFF, STL; open or non-manifold meshes are "
-                                  "refused). Placement in texel space (x, y in [0,W) x [0,H), z = "
+                                  "bake mesh FILE: a triangle mesh (OBJ, PLY, OFF, STL; corners "
+                                  "at identical positions are welded). Every texel takes the "
+                                  "exact distance to the mesh, negative where its generalized "
+                                  "winding number exceeds 1/2, so open meshes, soups of "
+                                  "overlapping parts and flipped faces bake too; sheet-like "
+                                  "detail without an inside needs --unsigned. Placement in texel "
+                                  "space (x, y in [0,W) x [0,H), z = "
                                   "0 the floor, z = D the top): by default "
                                   "(--fit) the mesh is scaled uniformly so its x/y bounding box "
                                   "spans the tile footprint (the axis with the "
@@ -311,8 +339,7 @@ void addBakeCommand(CLI::App& app) {
                                   "a repeating mesh its period as its x/y bounding box. With "
                                   "--scale/--offset: texel = S * file position + "
                                   "(X, Y, Z). The tile is periodic: parts beyond the footprint "
-                                  "continue on the other side. The sign is checked "
-                                  "against an exact inside test (CGAL) before anything is written");
+                                  "continue on the other side");
     mesh->add_flag("--fit", arguments->fit,
                    "Fit the x/y bounding box to the footprint, floor at z = 0 (the default)");
     mesh->add_option("--scale", arguments->meshScale,
@@ -321,6 +348,13 @@ void addBakeCommand(CLI::App& app) {
                      "Explicit placement: where the file's origin goes, X,Y,Z texels")
         ->expected(3)
         ->delimiter(',');
+    mesh->add_flag("--unsigned", arguments->unsignedDistance,
+                   "Sheet-like detail without an inside (cloth, leaves, a grille of quads): store "
+                   "the unsigned distance, so the tracer's surface (the zero set) is the "
+                   "triangles themselves; give it --thickness to make a solid shell");
+    mesh->add_option("--thickness", arguments->thicknessTexels,
+                     "With --unsigned: shell thickness T in texels, in [0, D]; the tile stores "
+                     "the unsigned distance minus T/2 (default 0)");
     auto* heightmap = command->add_option_group(
         "heightmap",
         "bake heightmap IMAGE: an 8/16-bit PNG or an EXR read as grey, values in [0,1] mapped to "

@@ -16,8 +16,10 @@ inline constexpr double kMaxDetailCoordinate = 1e9;
 
 /// Reads a detail mesh through OpenMesh: `.obj`, `.ply` (ASCII or binary), `.off`, `.stl`
 /// (ASCII or binary); the extension picks the reader, case-insensitively. Polygons are
-/// fan-triangulated from their first corner. Positions are returned in file units; identical
-/// STL corners are merged by OpenMesh, so closed STL meshes stay closed.
+/// fan-triangulated from their first corner. Positions are returned in file units. Corners at
+/// identical positions are welded into one vertex in every format (a soup of unwelded corners
+/// loads as the same mesh from OBJ, PLY, OFF and STL); triangles whose corners merged (no
+/// area) are dropped.
 /// Checked before OpenMesh reads the file (it crashes or silently drops data otherwise): OBJ
 /// lines (finite numbers, in-range face indices, as loadBaseMesh does); binary STL size
 /// (exactly 84 + 50 x the triangle count in its header); PLY data against its header (enough

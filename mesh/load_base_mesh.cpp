@@ -14,6 +14,7 @@
 #include <sstream>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -431,6 +432,23 @@ void checkPlyFile(const std::filesystem::path& file) {
     }
 }
 
+/// A vertex position exactly as read (positions are welded by exact equality).
+struct PositionKey {
+    float x, y, z;
+    bool operator==(const PositionKey&) const = default;
+};
+
+struct PositionKeyHash {
+    std::size_t operator()(const PositionKey& key) const {
+        // +0.0 and -0.0 compare equal, so they must hash alike.
+        const auto bits = [](float value) {
+            return std::hash<float>{}(value == 0.0f ? 0.0f : value);
+        };
+        return bits(key.x) ^ (bits(key.y) * 0x9e3779b97f4a7c15ull) ^
+               (bits(key.z) * 0xc2b2ae3d27d4eb4full);
+    }
+};
+
 }  // namespace
 
 TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
@@ -470,8 +488,14 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
         throw FormatError(name + ": OpenMesh read only " + std::to_string(polygons.n_faces()) +
                           " of its " + std::to_string(objFacts.faceCount) + " faces");
     }
+    // Corners at identical positions become one vertex, whatever the format: OpenMesh merges
+    // them for STL only, and an OBJ/PLY/OFF soup of unwelded corners would otherwise have no
+    // shared edges at all.
     TriangleSoup soup;
     soup.positions.reserve(polygons.n_vertices());
+    std::vector<std::uint32_t> weldedIndex(polygons.n_vertices());
+    std::unordered_map<PositionKey, std::uint32_t, PositionKeyHash> firstAtPosition;
+    firstAtPosition.reserve(polygons.n_vertices());
     for (const auto vertex : polygons.vertices()) {
         const auto& p = polygons.point(vertex);
         for (int axis = 0; axis < 3; ++axis) {
@@ -483,16 +507,23 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
                 throw FormatError(message.str());
             }
         }
-        soup.positions.emplace_back(p[0], p[1], p[2]);
+        const auto [entry, isNew] = firstAtPosition.try_emplace(
+            PositionKey{p[0], p[1], p[2]}, std::uint32_t(soup.positions.size()));
+        if (isNew) soup.positions.emplace_back(p[0], p[1], p[2]);
+        weldedIndex[vertex.idx()] = entry->second;
     }
     std::vector<std::uint32_t> corners;
     for (const auto face : polygons.faces()) {
         corners.clear();
         for (const auto vertex : polygons.fv_range(face)) {
-            corners.push_back(static_cast<std::uint32_t>(vertex.idx()));
+            corners.push_back(weldedIndex[vertex.idx()]);
         }
         for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
-            soup.triangles.emplace_back(corners[0], corners[k], corners[k + 1]);
+            // A triangle whose corners merged has no area (OpenMesh drops such STL faces too).
+            const glm::uvec3 triangle(corners[0], corners[k], corners[k + 1]);
+            if (triangle.x == triangle.y || triangle.y == triangle.z || triangle.z == triangle.x)
+                continue;
+            soup.triangles.push_back(triangle);
         }
     }
     return soup;

@@ -221,7 +221,7 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
     // The recipe's text is part of its hash: changing a word here bakes every cached tile again.
     recipe << "\n"
            << bakeOptionsRecipe(options)
-           << "\nexact inside test and exact distance (solid mesh bake)\n";
+           << "\nexact BVH distance, winding-number sign (solid mesh bake)\n";
     return recipe.str();
 }
 
@@ -235,6 +235,8 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
                                                             {"placement.offsetTexels", "offset"}};
     const auto found = keys.find(error.field());
     if (found != keys.end() && spec.has(found->second)) spec[found->second].fail(error.problem());
+    // The mesh's sign options have no key in a recipe: their problem (it names the mesh) only.
+    if (error.field().rfind("sign.", 0) == 0) fallback.fail(error.problem());
     fallback.fail(error.what());
 }
 
@@ -307,9 +309,6 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
     try {
         const SolidDetailMesh solid = loadSolidDetailMesh(path);
         const TriangleSoup& mesh = solid.mesh;
-        if (warn) {
-            for (const std::string& warning : solid.warnings) warn(warning);
-        }
         baked.placedMesh =
             std::make_shared<const TriangleSoup>(placeMesh(mesh, placement, options.size));
         const std::string key = "bake:" + recipe;
@@ -322,6 +321,10 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
                 return tile;
             });
             tiles[key] = baked.tile;
+        }
+        // After the bake: a refused mesh gets its one-line error only.
+        if (warn) {
+            for (const std::string& warning : solid.warnings) warn(warning);
         }
     } catch (const InputError& error) {
         failInSpec(spec, file, error);

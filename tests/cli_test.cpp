@@ -581,7 +581,8 @@ TEST_F(Cli, BakesAClosedMeshWithVerifiedSignAndChecksItAgainstTheMesh) {
     const RunResult bake = run({"bake", "mesh", "cube.obj", "-o", "cube.exr", "--size", "32x32x16",
                                 "--scale", "10", "--offset", "5,5,2", "--vdb", "cube.vdb"});
     ASSERT_EQ(bake.status, 0) << bake.out << bake.err;
-    EXPECT_NE(bake.out.find("sign verified"), std::string::npos) << bake.out;
+    EXPECT_NE(bake.out.find("inside where the winding number exceeds 1/2"), std::string::npos)
+        << bake.out;
     EXPECT_TRUE(fs::exists(path("cube.exr")));
     // Against the exact mesh distance: no sign errors. The level set's voxels are exact
     // (truth_test), but trilinear reconstruction between them rounds the cube's edges and corners
@@ -772,12 +773,6 @@ TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
               "element face 12\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 "
               "0\n1 1 0\n");
     ASSERT_NO_FATAL_FAILURE(bakeMesh("short.ply", {"short.ply"}));
-    // Five faces of the cube: open, 4 boundary edges.
-    writeText(path("open.obj"),
-              "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
-              "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\n");
-    ASSERT_NO_FATAL_FAILURE(
-        bakeMesh("open.obj", {"open.obj", "open", "4 boundary edges", "closed, manifold"}));
 
     const auto bakeHeightMap = [&](const std::string& file,
                                    std::initializer_list<std::string> keywords) {
@@ -789,6 +784,40 @@ TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
     bakeHeightMap("zero.png", {"zero.png"});
     // (A corrupted PNG body is also refused, but libpng prints its own extra line on stderr.)
     bakeHeightMap("missing.png", {"missing.png", "no such file"});
+}
+
+TEST_F(Cli, BakesOpenMeshesByWindingNumberAndSheetsOnlyWithUnsigned) {
+    // The cube without its top face: open, but its winding number is above 1/2 inside.
+    writeText(path("open.obj"),
+              "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+              "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\n");
+    const RunResult open = run({"bake", "mesh", "open.obj", "-o", "open.exr", "--size", "32x32x16",
+                                "--scale", "10", "--offset", "5,5,2"});
+    ASSERT_EQ(open.status, 0) << open.err;
+    EXPECT_NE(open.err.find("open (4 boundary edges)"), std::string::npos) << open.err;
+    EXPECT_NE(open.out.find("winding number"), std::string::npos) << open.out;
+
+    // A flat sheet has no inside: refused without --unsigned, naming it.
+    writeText(path("sheet.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+    const std::vector<std::string> sheet{"bake",      "mesh",     "sheet.obj", "-o",
+                                         "sheet.exr", "--size",   "32x32x8",   "--scale",
+                                         "20",        "--offset", "6,6,4"};
+    const auto with = [&](std::initializer_list<std::string> more) {
+        std::vector<std::string> arguments = sheet;
+        arguments.insert(arguments.end(), more);
+        return arguments;
+    };
+    expectInputError(sheet, "sheet.exr", {"--unsigned", "sheet.obj", "no inside"});
+    expectInputError(with({"--thickness", "2"}), "sheet.exr", {"--thickness", "needs --unsigned"});
+    expectInputError(with({"--unsigned", "--thickness", "-1"}), "sheet.exr",
+                     {"--thickness", "-1", "[0, 8]"});
+    expectInputError({"bake", "chainmail", "-o", "c.exr", "--unsigned"}, "c.exr",
+                     {"--unsigned", "only for bake mesh"});
+    const RunResult shell = run(with({"--unsigned", "--thickness", "2"}));
+    ASSERT_EQ(shell.status, 0) << shell.err;
+    EXPECT_NE(shell.out.find("unsigned distance, shell 2 texels thick"), std::string::npos)
+        << shell.out;
+    EXPECT_TRUE(fs::exists(path("sheet.exr")));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1032,7 +1061,7 @@ TEST_F(Cli, SceneRecipesBakeTheSameTilesAsTheCommand) {
     EXPECT_EQ(tileHash(older), tileHash(newer));
 }
 
-TEST_F(Cli, MeshTruthNeedsARecordedOrRecipeMeshAndAClosedMesh) {
+TEST_F(Cli, MeshTruthNeedsARecordedOrRecipeMeshAndAnInside) {
     // A tile file baked from a mesh records its mesh (distile:source_file): a reference render
     // traces the recorded mesh, placed as baked; the sample ring, 32x32x8, fitted.
     fs::create_directories(path("tiles"));
@@ -1049,12 +1078,10 @@ TEST_F(Cli, MeshTruthNeedsARecordedOrRecipeMeshAndAClosedMesh) {
     expectInputError(
         {"render", "scene.json", "-o", "out.png", "--reference"}, "out.png",
         {"objects[0].material.tile", "source mesh", "ring.obj", "not found", R"("bake": "mesh")"});
-    // An open mesh in a recipe: refused naming the field.
-    std::string open = kCubeObj;
-    open.erase(open.rfind("f "));
-    writeText(path("open.obj"), open);
-    expectSceneError(planeScene(meshRecipeMaterial("open.obj")),
-                     {"objects[0].material.tile.file", "open (4 boundary edges)"});
+    // A mesh without an inside (a flat sheet) in a recipe: refused naming the field.
+    writeText(path("sheet.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+    expectSceneError(planeScene(meshRecipeMaterial("sheet.obj")),
+                     {"objects[0].material.tile.file", "sheet.obj", "no inside"});
     expectSceneError(planeScene(meshRecipeMaterial("missing.obj")),
                      {"objects[0].material.tile.file", "does not exist"});
 }

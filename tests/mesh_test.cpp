@@ -7,10 +7,12 @@
 #include <filesystem>
 #include <fstream>
 #include <glm/geometric.hpp>
+#include <map>
 #include <numbers>
 #include <string>
 
 #include "common/error.h"
+#include "detail_meshes.h"
 #include "mesh/base_mesh.h"
 #include "mesh/detail_mesh.h"
 
@@ -612,6 +614,56 @@ TEST(DetailMesh, ReadsObjOffPlyStl) {
         const Bounds3 box = boundsOf(soup);
         EXPECT_EQ(box.min, glm::dvec3(0.0)) << file->path();
         EXPECT_EQ(box.max, glm::dvec3(1.0)) << file->path();
+    }
+}
+
+TEST(DetailMesh, WeldsCornersInEveryFormat) {
+    // A closed box whose 12 triangles each have their own 3 corners (a soup, as exporters write
+    // OBJ) and the same triangles as binary STL: both load as 8 vertices, 12 triangles, closed.
+    const TriangleSoup box = test::makeBoxSoup(glm::dvec3(0.0), glm::dvec3(1.0, 2.0, 3.0));
+    std::string obj, stl(80, ' ');
+    const std::uint32_t count = std::uint32_t(box.triangles.size());
+    stl.append(reinterpret_cast<const char*>(&count), 4);
+    for (const glm::uvec3& triangle : box.triangles) {
+        const float normal[3] = {0, 0, 0};
+        stl.append(reinterpret_cast<const char*>(normal), 12);
+        for (int c = 0; c < 3; ++c) {
+            const glm::dvec3& p = box.positions[triangle[c]];
+            obj += "v " + std::to_string(p.x) + " " + std::to_string(p.y) + " " +
+                   std::to_string(p.z) + "\n";
+            const float corner[3] = {float(p.x), float(p.y), float(p.z)};
+            stl.append(reinterpret_cast<const char*>(corner), 12);
+        }
+        stl.append(2, '\0');
+    }
+    for (std::size_t t = 0; t < box.triangles.size(); ++t) {
+        obj += "f " + std::to_string(3 * t + 1) + " " + std::to_string(3 * t + 2) + " " +
+               std::to_string(3 * t + 3) + "\n";
+    }
+    const TempFile objFile("box_soup.obj", obj), stlFile("box_soup.stl", stl);
+    const TriangleSoup fromObj = loadDetailMesh(objFile.path());
+    const TriangleSoup fromStl = loadDetailMesh(stlFile.path());
+    for (const TriangleSoup* soup : {&fromObj, &fromStl}) {
+        EXPECT_EQ(soup->positions.size(), 8u);
+        EXPECT_EQ(soup->triangles.size(), 12u);
+        // Closed and consistently oriented: every directed edge once, its reverse once.
+        std::map<std::pair<unsigned, unsigned>, int> directedEdges;
+        for (const glm::uvec3& triangle : soup->triangles) {
+            for (int c = 0; c < 3; ++c) ++directedEdges[{triangle[c], triangle[(c + 1) % 3]}];
+        }
+        EXPECT_EQ(directedEdges.size(), 36u);
+        for (const auto& [edge, uses] : directedEdges) {
+            EXPECT_EQ(uses, 1);
+            EXPECT_EQ(directedEdges.count({edge.second, edge.first}), 1u);
+        }
+    }
+    // The same triangles on the same positions (both keep the file's corner order).
+    ASSERT_EQ(fromObj.triangles.size(), fromStl.triangles.size());
+    for (std::size_t t = 0; t < fromObj.triangles.size(); ++t) {
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_EQ(fromObj.positions[fromObj.triangles[t][c]],
+                      fromStl.positions[fromStl.triangles[t][c]]);
+        }
     }
 }
 

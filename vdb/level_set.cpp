@@ -97,6 +97,17 @@ LevelSet::~LevelSet() = default;
 LevelSet LevelSet::fromDistance(const DistanceFunction& distance, const Size3& tile,
                                 float halfBandTexels, const std::string& source,
                                 const std::string& params, const ProgressCallback& progress) {
+    return fromDistanceRows(
+        [&distance](int j, int k, std::span<double> row) {
+            for (std::size_t i = 0; i < row.size(); ++i)
+                row[i] = distance(glm::dvec3(double(i) + 0.5, j + 0.5, k + 0.5));
+        },
+        tile, halfBandTexels, source, params, progress);
+}
+
+LevelSet LevelSet::fromDistanceRows(const RowDistanceFunction& rowDistance, const Size3& tile,
+                                    float halfBandTexels, const std::string& source,
+                                    const std::string& params, const ProgressCallback& progress) {
     validateTileSize(tile, "level set");
     if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
         throw InputError("level set: half band width " + std::to_string(halfBandTexels) +
@@ -119,11 +130,12 @@ LevelSet LevelSet::fromDistance(const DistanceFunction& distance, const Size3& t
         float* slabValues = values + std::size_t(slab) * slabStride;
         tbb::parallel_for(
             tbb::blocked_range<int>(0, tile.height), [&](const tbb::blocked_range<int>& rows) {
+                std::vector<double> row(std::size_t(tile.width));
                 for (int j = rows.begin(); j != rows.end(); ++j) {
+                    rowDistance(j, k, row);
                     for (int i = 0; i < tile.width; ++i) {
-                        const double d = distance(glm::dvec3(i + 0.5, j + 0.5, k + 0.5));
                         slabValues[std::size_t(j) * tile.width + i] =
-                            std::clamp(float(d), -halfBandTexels, halfBandTexels);
+                            std::clamp(float(row[std::size_t(i)]), -halfBandTexels, halfBandTexels);
                     }
                 }
             });

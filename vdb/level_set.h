@@ -34,6 +34,19 @@ class LevelSet {
                                  float halfBandTexels, const std::string& source,
                                  const std::string& params, const ProgressCallback& progress = {});
 
+    /// Fills `distancesTexels` (W values) with the exact signed distance, texels, at the texel
+    /// centres (i + 0.5, j + 0.5, k + 0.5) of row (j, k), i = 0..W-1. A row lets the caller reuse
+    /// work between neighbours (the distance is 1-Lipschitz).
+    using RowDistanceFunction =
+        std::function<void(int j, int k, std::span<double> distancesTexels)>;
+
+    /// fromDistance with the distances given a row at a time; `rowDistance` is called
+    /// concurrently for different rows. Same voxels, band and errors as fromDistance.
+    static LevelSet fromDistanceRows(const RowDistanceFunction& rowDistance, const Size3& tile,
+                                     float halfBandTexels, const std::string& source,
+                                     const std::string& params,
+                                     const ProgressCallback& progress = {});
+
     /// Reads the grid named "surface" (or the first float level set) of a .vdb file written by
     /// save(). Throws InputError for a missing file, FormatError for anything unreadable or not
     /// a distile level set.

@@ -1,0 +1,108 @@
+/// @file
+/// Exact distances and generalized winding numbers of a triangle soup placed in a periodic tile,
+/// for baking detail meshes of any kind: closed solids, open sheets, soups of overlapping parts,
+/// duplicated or flipped faces.
+///
+/// - **Distance**: the exact Euclidean distance (double precision) from a point to the nearest
+///   triangle of the periodic union of the soup's copies shifted by (m W, n H, 0)
+///   (common/triangle_soup.h periodicShifts), found with a bounding-volume hierarchy
+///   (median splits, leaves of at most 4 triangles) queried once per copy that can be nearer.
+/// - **Sign**: the generalized winding number w (Jacobson et al. 2013): the sum of the signed
+///   solid angles of the triangles over 4 pi. It is 1 inside and 0 outside a closed,
+///   outward-oriented mesh, adds up over overlapping closed parts, and degrades gracefully
+///   for holes and soups; a point is inside where w > 1/2. Far clusters of triangles are
+///   replaced by their dipole (the sum of their vector areas at their area-weighted centroid;
+///   Barill et al. 2018, "Fast winding numbers for soups and clouds", first order): a node of
+///   the hierarchy is taken whole when the point is farther than kWindingFarFieldRatio times the
+///   node's radius; nearer ones are opened down to the exact per-triangle solid angles. Where the
+///   result is ambiguous (|w - 1/2| < kWindingRecheckMargin) it is evaluated again with
+///   kWindingRecheckRatio, which is exact enough to decide the sign for any mesh whose
+///   exact w stays clear of 1/2. Only the copies whose bounding box contains the point in x and
+///   y count (the other copies of a closed part contribute 0 there).
+///
+/// All queries are const and thread-safe; results do not depend on the thread that asks.
+#pragma once
+
+#include <cstdint>
+#include <glm/vec3.hpp>
+#include <vector>
+
+#include "common/size3.h"
+#include "common/triangle_soup.h"
+
+namespace distile {
+
+/// A hierarchy node is taken as one dipole beyond this many node radii from the point.
+inline constexpr double kWindingFarFieldRatio = 2.0;
+/// Winding numbers within this of 1/2 are evaluated again with kWindingRecheckRatio.
+inline constexpr double kWindingRecheckMargin = 0.25;
+inline constexpr double kWindingRecheckRatio = 8.0;
+
+class SoupDistance {
+  public:
+    /// `soupTexels`: positions in texel space of `tile` (placeMesh's result). Builds the
+    /// hierarchy (O(n log n), single-threaded).
+    /// @pre the soup passes validateTriangleSoup; tile extents >= 1.
+    SoupDistance(const TriangleSoup& soupTexels, const Size3& tile);
+
+    /// Distance to the nearest triangle of the periodic union, texels; `cutoffTexels` when
+    /// nothing is nearer than it (the search stops there). @pre cutoffTexels > 0.
+    double unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const;
+
+    /// The triangle (and copy) an unsignedDistance query found nearest; a start for the next
+    /// query at a nearby point, whose result it only speeds up (never changes).
+    struct NearestHint {
+        std::uint32_t triangle = UINT32_MAX;  ///< UINT32_MAX: none
+        glm::dvec3 shift{0.0};                ///< of the copy, (m W, n H, 0)
+    };
+    /// unsignedDistance starting from `hint`'s triangle, which it then updates.
+    double unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
+                            NearestHint& hint) const;
+
+    /// Generalized winding number of the periodic union at the point (see the file note).
+    double windingNumber(const glm::dvec3& texelPosition) const;
+
+    /// unsignedDistance, negative where windingNumber > 1/2; +-cutoffTexels beyond it.
+    double signedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const;
+
+    std::size_t triangleCount() const { return triangles_.size(); }
+
+    /// True when every edge (corners matched by exact position) is used as often in one
+    /// direction as in the other: closed, consistently oriented parts, however they overlap or
+    /// repeat. Then the winding number changes only across the surface (it jumps by an integer
+    /// there and is constant elsewhere), so a point nearer to a point of known winding number
+    /// than that point's distance to the surface shares it. Otherwise (holes, flipped faces,
+    /// sheets) it also varies continuously off the surface.
+    bool windingChangesOnlyAcrossTheSurface() const { return windingPiecewiseConstant_; }
+
+  private:
+    /// What the distance query reads, kept small (the winding number's data apart).
+    struct Node {
+        glm::dvec3 boxMin{0.0}, boxMax{0.0};
+        std::uint32_t first = 0;  ///< leaf: first triangle; inner: index of the second child
+        std::uint32_t count = 0;  ///< leaf: number of triangles; inner: 0 (first child follows)
+    };
+    struct Dipole {
+        glm::dvec3 centre{0.0};      ///< area-weighted centroid of the node's triangles
+        glm::dvec3 vectorArea{0.0};  ///< sum of (b - a) x (c - a) / 2 over the node's triangles
+        double radius = 0.0;         ///< farthest triangle corner of the node from centre
+    };
+    struct Triangle {
+        glm::dvec3 a, b, c;
+    };
+
+    std::uint32_t build(std::vector<std::uint32_t>& order, std::uint32_t begin, std::uint32_t end,
+                        const std::vector<Triangle>& input);
+    double closestSquared(const glm::dvec3& point, double bestSquared,
+                          std::uint32_t& bestTriangle) const;
+    double windingNumberOfCopy(const glm::dvec3& point, double farFieldRatio) const;
+
+    bool windingPiecewiseConstant_ = false;
+    Size3 tile_;
+    Bounds3 bounds_;
+    std::vector<Triangle> triangles_;  ///< in leaf order
+    std::vector<Node> nodes_;          ///< depth-first, root first
+    std::vector<Dipole> dipoles_;      ///< one per node
+};
+
+}  // namespace distile

@@ -1,0 +1,285 @@
+// The mesh bake (bake/solid_mesh.h) and its exact distance and winding-number sign
+// (bake/soup_distance.h), against closed-form distances.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <random>
+
+#include "bake/solid_mesh.h"
+#include "bake/soup_distance.h"
+#include "common/error.h"
+#include "detail_meshes.h"
+#include "truth/mesh_truth.h"
+
+namespace distile {
+namespace {
+
+using test::inscribedTessellationError;
+using test::makeBoxSoup;
+using test::makeIcosphereSoup;
+using test::makeTorusSoup;
+
+/// Appends `part`'s triangles to `soup` (no corners shared: a soup of parts).
+void append(TriangleSoup& soup, const TriangleSoup& part) {
+    const unsigned base = unsigned(soup.positions.size());
+    soup.positions.insert(soup.positions.end(), part.positions.begin(), part.positions.end());
+    for (const glm::uvec3& t : part.triangles) soup.triangles.push_back(t + glm::uvec3(base));
+}
+
+/// Random points in the box [lo, hi].
+std::vector<glm::dvec3> randomPoints(const glm::dvec3& lo, const glm::dvec3& hi, int count,
+                                     unsigned seed) {
+    std::mt19937 random(seed);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    std::vector<glm::dvec3> points;
+    for (int n = 0; n < count; ++n)
+        points.push_back(lo + (hi - lo) * glm::dvec3(unit(random), unit(random), unit(random)));
+    return points;
+}
+
+// A tile big enough that the periodic copies stay farther than the cutoff.
+const Size3 kLargeTile{256, 256, 96};
+constexpr double kCutoff = 30.0;
+
+TEST(SoupDistance, IcosphereMatchesTheAnalyticSphereWithinItsTessellation) {
+    // r = 40 texels, 5120 triangles: the mesh lies between the inscribed and the analytic
+    // sphere, so its distance differs from the sphere's by at most their gap (0.03 texel).
+    const glm::dvec3 centre(128.3, 127.6, 48.2);
+    const double radius = 40.0;
+    const TriangleSoup sphere = makeIcosphereSoup(centre, radius, 4);
+    const double tolerance = inscribedTessellationError(sphere, centre, radius) + 1e-9;
+    ASSERT_LT(tolerance, 0.05);
+    const SoupDistance distance(sphere, kLargeTile);
+    double maxError = 0.0;
+    for (const glm::dvec3& p : randomPoints(centre - 55.0, centre + 55.0, 20000, 1)) {
+        const double analytic = glm::length(p - centre) - radius;
+        if (std::abs(analytic) >= kCutoff - 1.0) continue;
+        const double baked = distance.signedDistance(p, kCutoff);
+        maxError = std::max(maxError, std::abs(baked - analytic));
+        if (std::abs(analytic) > tolerance) {
+            ASSERT_EQ(baked < 0.0, analytic < 0.0) << p.x << " " << p.y << " " << p.z;
+        }
+    }
+    EXPECT_LE(maxError, tolerance);
+    // Beyond the cutoff: the cutoff, signed.
+    EXPECT_EQ(distance.signedDistance(centre, 10.0), -10.0);
+    EXPECT_EQ(distance.signedDistance(centre + glm::dvec3(0, 0, 45.0), 1.0), 1.0);
+}
+
+TEST(SoupDistance, WindingNumberOfAClosedMeshIsOneInsideAndZeroOutside) {
+    // Away from the surface the first-order far field (dipoles at 2 node radii) stays within 0.1
+    // of the exact 0 / 1 (0.05 measured): far from 1/2, so the sign is never in doubt.
+    const TriangleSoup torus = makeTorusSoup(glm::dvec3(128.0, 128.0, 48.0), 30.0, 10.0, 96, 48);
+    const SoupDistance distance(torus, kLargeTile);
+    for (const glm::dvec3& p :
+         randomPoints(glm::dvec3(80, 80, 30), glm::dvec3(176, 176, 66), 5000, 2)) {
+        const double radial = std::hypot(p.x - 128.0, p.y - 128.0);
+        const double tube = std::hypot(radial - 30.0, p.z - 48.0) - 10.0;
+        if (std::abs(tube) < 0.5) continue;
+        EXPECT_NEAR(distance.windingNumber(p), tube < 0.0 ? 1.0 : 0.0, 0.1);
+    }
+}
+
+TEST(SoupDistance, OverlappingSpheresInOneSoupAreInsideWhereEitherIs) {
+    const glm::dvec3 a(110.0, 128.0, 48.0), b(135.0, 130.0, 50.0);
+    TriangleSoup soup = makeIcosphereSoup(a, 20.0, 3);
+    append(soup, makeIcosphereSoup(b, 18.0, 3));
+    const double tolerance = inscribedTessellationError(makeIcosphereSoup(a, 20.0, 3), a, 20.0);
+    const SoupDistance distance(soup, kLargeTile);
+    int inside = 0;
+    for (const glm::dvec3& p :
+         randomPoints(glm::dvec3(80, 100, 20), glm::dvec3(165, 160, 80), 20000, 3)) {
+        const double analytic =
+            std::min(glm::length(p - a) - 20.0, glm::length(p - b) - 18.0);  // the union
+        if (std::abs(analytic) <= tolerance) continue;
+        const double baked = distance.signedDistance(p, kCutoff);
+        ASSERT_EQ(baked < 0.0, analytic < 0.0) << p.x << " " << p.y << " " << p.z;
+        inside += baked < 0.0;
+        // Outside, the distance is the union's; inside, the distance to the nearest surface
+        // (the inner sphere's wall counts too): never farther than the union's depth.
+        if (analytic > 0.0) {
+            EXPECT_NEAR(baked, std::min(analytic, kCutoff), tolerance);
+        }
+    }
+    EXPECT_GT(inside, 1000);  // the test measures something
+}
+
+TEST(SoupDistance, DuplicatedAndFlippedFacesKeepTheSign) {
+    const glm::dvec3 centre(128.0, 128.0, 48.0);
+    const TriangleSoup sphere = makeIcosphereSoup(centre, 30.0, 4);
+    const double tolerance = inscribedTessellationError(sphere, centre, 30.0);
+    // Every face twice (w = 2 inside), and a tenth of the faces flipped (w = 1 - 2 x their solid
+    // angle share: wrong only right next to a flipped face).
+    TriangleSoup duplicated = sphere;
+    append(duplicated, sphere);
+    TriangleSoup flipped = sphere;
+    std::vector<glm::dvec3> flippedCentres;
+    for (std::size_t t = 0; t < flipped.triangles.size(); t += 10) {
+        glm::uvec3& f = flipped.triangles[t];
+        std::swap(f.y, f.z);
+        flippedCentres.push_back(
+            (flipped.positions[f.x] + flipped.positions[f.y] + flipped.positions[f.z]) / 3.0);
+    }
+    const SoupDistance duplicatedDistance(duplicated, kLargeTile);
+    const SoupDistance flippedDistance(flipped, kLargeTile);
+    for (const glm::dvec3& p : randomPoints(centre - 40.0, centre + 40.0, 10000, 4)) {
+        const double analytic = glm::length(p - centre) - 30.0;
+        if (std::abs(analytic) <= tolerance) continue;
+        ASSERT_EQ(duplicatedDistance.signedDistance(p, kCutoff) < 0.0, analytic < 0.0);
+        EXPECT_NEAR(std::abs(duplicatedDistance.signedDistance(p, kCutoff)),
+                    std::min(std::abs(analytic), kCutoff), tolerance);
+        // Farther than a face's size (1.6 texels) from a flipped face, its solid angle is small.
+        double nearestFlipped = HUGE_VAL;
+        for (const glm::dvec3& c : flippedCentres)
+            nearestFlipped = std::min(nearestFlipped, glm::length(p - c));
+        if (nearestFlipped < 2.0) continue;
+        ASSERT_EQ(flippedDistance.signedDistance(p, kCutoff) < 0.0, analytic < 0.0)
+            << p.x << " " << p.y << " " << p.z;
+    }
+}
+
+TEST(SoupDistance, OpenCupUnsignedDistanceIsTheWallsAndBottom) {
+    // A cylinder wall (radius 20, height 30, 128 segments) and its bottom disk, no top.
+    const glm::dvec3 base(128.0, 128.0, 30.0);
+    const double radius = 20.0, height = 30.0;
+    const int segments = 128;
+    TriangleSoup cup;
+    cup.positions.push_back(base);
+    for (int s = 0; s < segments; ++s) {
+        const double angle = 2.0 * std::numbers::pi * s / segments;
+        const glm::dvec3 rim(radius * std::cos(angle), radius * std::sin(angle), 0.0);
+        cup.positions.push_back(base + rim);
+        cup.positions.push_back(base + rim + glm::dvec3(0, 0, height));
+    }
+    for (unsigned s = 0; s < unsigned(segments); ++s) {
+        const unsigned next = (s + 1) % segments;
+        const unsigned bottom = 1 + 2 * s, top = bottom + 1, nextBottom = 1 + 2 * next,
+                       nextTop = nextBottom + 1;
+        cup.triangles.emplace_back(0u, nextBottom, bottom);
+        cup.triangles.emplace_back(bottom, nextBottom, nextTop);
+        cup.triangles.emplace_back(bottom, nextTop, top);
+    }
+    const double sagitta = radius * (1.0 - std::cos(std::numbers::pi / segments));
+    const SoupDistance distance(cup, kLargeTile);
+    for (const glm::dvec3& p :
+         randomPoints(base - glm::dvec3(30, 30, 10), base + glm::dvec3(30, 30, 40), 10000, 5)) {
+        const glm::dvec3 q = p - base;
+        const double rho = std::hypot(q.x, q.y);
+        // The wall: a segment in the (rho, z) half plane from (radius, 0) to (radius, height).
+        const double wall = std::hypot(rho - radius, std::max({0.0, -q.z, q.z - height}));
+        // The bottom disk.
+        const double bottom = std::hypot(std::max(0.0, rho - radius), q.z);
+        const double analytic = std::min(wall, bottom);
+        if (analytic >= kCutoff) continue;
+        EXPECT_NEAR(distance.unsignedDistance(p, kCutoff), analytic, sagitta + 1e-9);
+    }
+}
+
+TEST(SoupDistance, PeriodicDistanceMatchesTheExactMeshDistanceAcrossTheWrap) {
+    const Size3 tile{64, 64, 16};
+    const TriangleSoup torus = makeTorusSoup(glm::dvec3(3.3, 60.2, 8.1), 14.0, 5.0, 96, 48);
+    const SoupDistance distance(torus, tile);
+    const MeshDistance truth(torus, MeshDistance::Periodic{tile});
+    for (const glm::dvec3& p : randomPoints(glm::dvec3(0.0), glm::dvec3(64, 64, 16), 5000, 6)) {
+        const double exact = truth.signedDistance(p);
+        EXPECT_NEAR(distance.signedDistance(p, 100.0), exact, 1e-9);
+    }
+}
+
+/// A sphere of radius 6 texels at `centre` in a 32x32x16 tile, baked with exact texels.
+SolidMeshBake bakeSphere(const BakeOptions& options, const glm::dvec3& centre) {
+    const TriangleSoup sphere = makeIcosphereSoup(glm::dvec3(0.0), 1.0, 4);
+    MeshPlacement placement;
+    placement.fit = false;
+    placement.scale = 6.0;
+    placement.offsetTexels = centre;
+    return bakeSolidMesh(sphere, placement, options, "sphere");
+}
+
+TEST(MeshBake, SphereTileIsTheAnalyticDistanceForAnyThreadCount) {
+    BakeOptions options;
+    options.size = {32, 32, 16};
+    options.conservative.enabled = false;
+    const glm::dvec3 centre(30.0, 16.5, 8.0);  // across the x wrap
+    const double tolerance = inscribedTessellationError(makeIcosphereSoup(glm::dvec3(0.0), 6.0, 4),
+                                                        glm::dvec3(0.0), 6.0);
+    std::vector<float> single, dual;
+    {
+        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        const SolidMeshBake bake = bakeSphere(options, centre);
+        single.assign(bake.result.tile.distancesTexels().begin(),
+                      bake.result.tile.distancesTexels().end());
+    }
+    {
+        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+        const SolidMeshBake bake = bakeSphere(options, centre);
+        dual.assign(bake.result.tile.distancesTexels().begin(),
+                    bake.result.tile.distancesTexels().end());
+        EXPECT_GT(bake.insideTexels, 800u);  // 4/3 pi 6^3 = 905
+    }
+    EXPECT_EQ(single, dual);
+    const Size3& size = options.size;
+    double maxError = 0.0;
+    for (int z = 0; z < size.depth; ++z) {
+        for (int y = 0; y < size.height; ++y) {
+            for (int x = 0; x < size.width; ++x) {
+                glm::dvec3 offset = glm::dvec3(x + 0.5, y + 0.5, z + 0.5) - centre;
+                offset.x -= size.width * std::round(offset.x / size.width);  // nearest copy
+                const double analytic =
+                    std::clamp(glm::length(offset) - 6.0, -double(size.depth), double(size.depth));
+                const float baked = dual[(std::size_t(z) * size.height + y) * size.width + x];
+                maxError = std::max(maxError, std::abs(baked - analytic));
+            }
+        }
+    }
+    EXPECT_LE(maxError, tolerance + 1e-5);  // float storage
+}
+
+TEST(MeshBake, ConservativeTileNeverOverestimatesAtTexelCentres) {
+    BakeOptions options;
+    options.size = {32, 32, 16};
+    const SolidMeshBake bake = bakeSphere(options, glm::dvec3(16.0, 16.0, 8.0));
+    options.conservative.enabled = false;
+    const SolidMeshBake exact = bakeSphere(options, glm::dvec3(16.0, 16.0, 8.0));
+    const std::span<const float> lowered = bake.result.tile.distancesTexels();
+    const std::span<const float> centres = exact.result.tile.distancesTexels();
+    for (std::size_t n = 0; n < lowered.size(); ++n) ASSERT_LE(lowered[n], centres[n]);
+}
+
+TEST(MeshBake, SheetWithoutInsideNeedsUnsigned) {
+    // A flat quad 4 texels above the floor: no inside anywhere.
+    TriangleSoup sheet;
+    sheet.positions = {{2, 2, 4}, {30, 2, 4}, {30, 30, 4}, {2, 30, 4}};
+    sheet.triangles = {{0, 1, 2}, {0, 2, 3}};
+    MeshPlacement placement;
+    placement.fit = false;
+    BakeOptions options;
+    options.size = {32, 32, 8};
+    options.conservative.enabled = false;
+    try {
+        bakeSolidMesh(sheet, placement, options, "sheet.obj");
+        FAIL() << "a sheet baked without unsignedDistance";
+    } catch (const InputError& error) {
+        EXPECT_EQ(error.field(), "sign.unsignedDistance");
+        EXPECT_NE(std::string(error.what()).find("sheet.obj"), std::string::npos);
+    }
+    MeshSignOptions sign;
+    sign.unsignedDistance = true;
+    sign.thicknessTexels = 2.0;
+    const SolidMeshBake shell = bakeSolidMesh(sheet, placement, options, "sheet.obj", {}, sign);
+    const Tile& tile = shell.result.tile;
+    // Texel centres sit 0.5 texel from the sheet (z = 3.5, 4.5): 0.5 - 1 inside the shell.
+    EXPECT_NEAR(tile.at(16, 16, 3), -0.5f, 1e-6f);
+    EXPECT_NEAR(tile.at(16, 16, 4), -0.5f, 1e-6f);
+    EXPECT_NEAR(tile.at(16, 16, 7), 2.5f, 1e-6f);
+    // Two slices of texel columns x, y in [1.5, 30.5]: the edge columns are 0.71 texel away.
+    EXPECT_EQ(shell.insideTexels, std::size_t(2 * 30 * 30));
+    sign.thicknessTexels = -1.0;
+    EXPECT_THROW(bakeSolidMesh(sheet, placement, options, "sheet.obj", {}, sign), InputError);
+}
+
+}  // namespace
+}  // namespace distile
