@@ -58,13 +58,13 @@ TexelPlacement windowPlacement(const Bounds3& window, const VdbVolume& volume, c
                        window.max[axis] >= surface.min[axis];
     }
     if (!withinActive || !meetsSurface) {
-        throw InputError::inField("placement.windowWorld",
-                                  boxText(window) + " is outside grid '" + volume.gridName() +
-                                      "': its x and y must lie within the active voxels " +
-                                      boxText(active) + " and it must meet the surface " +
-                                      boxText(surface));
+        throw InputError::inField(
+            "placement.windowWorld",
+            boxText(window) + " is outside grid '" + volume.gridName() +
+                "': its x and y must lie within its active voxels' centres " + boxText(active) +
+                " (nothing is extrapolated) and it must meet the surface " + boxText(surface));
     }
-    return {scale, -scale * window.min};
+    return {scale, -scale * window.min + 0.0};  // + 0.0: no negative zeros
 }
 
 TexelPlacement resolvePlacement(const VdbPlacement& placement, const VdbVolume& volume,

@@ -204,8 +204,8 @@ VdbVolume VdbVolume::read(const std::filesystem::path& file, const std::string& 
     auto impl = std::make_unique<Impl>();
     impl->levelSet = levelSet;
     impl->iso = iso.value_or(0.0);
-    impl->activeBounds = worldBoundsOfIndexBox(transform, active.min().asVec3d() - 0.5,
-                                               active.max().asVec3d() + 0.5);
+    impl->activeBounds =
+        worldBoundsOfIndexBox(transform, active.min().asVec3d(), active.max().asVec3d());
     openvdb::tools::volumeToMesh(*grid, impl->points, impl->triangles, impl->quads, impl->iso,
                                  /*adaptivity=*/0.0);
     if (impl->points.empty() || (impl->triangles.empty() && impl->quads.empty())) {

@@ -70,7 +70,8 @@ class VdbVolume {
     double iso() const;  ///< 0 for a level set read without an iso value
     /// World-unit voxel size along the index axes (not equal for a non-uniform transform).
     glm::dvec3 voxelSizeWorld() const;
-    /// World-space box of the active voxels (the band of a level set), voxel extents included.
+    /// World-space box of the active voxels' centres (the band of a level set): the region where
+    /// trilinear interpolation has voxel values on both sides.
     Bounds3 activeBoundsWorld() const;
     /// World-space box of the surface (the polygonised iso crossing).
     Bounds3 surfaceBoundsWorld() const;
