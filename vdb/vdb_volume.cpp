@@ -10,11 +10,11 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
-#include <mutex>
 #include <numbers>
 #include <sstream>
 
 #include "common/error.h"
+#include "vdb/detail/openvdb_setup.h"
 
 namespace distile {
 
@@ -22,10 +22,7 @@ namespace {
 
 using Accessor = openvdb::tree::ValueAccessor<const openvdb::FloatTree, /*IsSafe=*/false>;
 
-void initializeOpenVdb() {
-    static std::once_flag once;
-    std::call_once(once, [] { openvdb::initialize(); });
-}
+using detail::initializeOpenVdb;
 
 std::string describe(const openvdb::GridBase& grid) {
     return "'" + grid.getName() + "' (" + grid.valueType() + ", " +
@@ -45,12 +42,12 @@ openvdb::GridPtrVecPtr readGridMetadata(const std::filesystem::path& file) {
         throw InputError(file.string() + ": no such file (expected an OpenVDB .vdb file)");
     }
     initializeOpenVdb();
+    openvdb::GridPtrVecPtr grids;
     try {
         openvdb::io::File vdbFile(file.string());
         vdbFile.open(/*delayLoad=*/false);
-        openvdb::GridPtrVecPtr grids = vdbFile.readAllGridMetadata();
+        grids = vdbFile.readAllGridMetadata();
         vdbFile.close();
-        return grids;
     } catch (const std::bad_alloc&) {
         throw FormatError(file.string() +
                           ": not a readable .vdb file (its header asks for more "
@@ -58,6 +55,12 @@ openvdb::GridPtrVecPtr readGridMetadata(const std::filesystem::path& file) {
     } catch (const std::exception& error) {
         throw FormatError(file.string() + ": not a readable .vdb file (" + error.what() + ")");
     }
+    // OpenVDB reads a file of a format version it does not know as one without grids.
+    if (!grids || grids->empty()) {
+        throw FormatError(file.string() +
+                          ": holds no grids (an empty, corrupt or too new .vdb file)");
+    }
+    return grids;
 }
 
 Bounds3 worldBoundsOfIndexBox(const openvdb::math::Transform& transform, const openvdb::Vec3d& min,
@@ -161,6 +164,16 @@ VdbVolume VdbVolume::read(const std::filesystem::path& file, const std::string& 
                        "where the value is above it), e.g. 0.5 for a fog volume");
     }
 
+    // The writer's record of the grid's size in memory: a corrupt one is refused before the
+    // voxels are read (larger grids than this are not detail tiles).
+    constexpr std::int64_t kMaxGridBytes = std::int64_t(1) << 34;
+    if (const auto bytes =
+            chosen->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_MEM_BYTES);
+        bytes && (bytes->value() < 0 || bytes->value() > kMaxGridBytes)) {
+        throw FormatError(name + ": grid '" + chosen->getName() + "' says it needs " +
+                          std::to_string(bytes->value()) +
+                          " bytes in memory; accepted: up to 16 GiB (is the file corrupt?)");
+    }
     openvdb::FloatGrid::Ptr grid;
     try {
         openvdb::io::File vdbFile(name);
@@ -326,8 +339,7 @@ VdbTileSampler::VdbTileSampler(const VdbVolume& volume, const TexelPlacement& pl
         if (near({t[0], t[1], t[2]})) triangles.push_back(t);
     for (const openvdb::Vec4I& q : source.quads)
         if (near({q[0], q[1], q[2], q[3]})) quads.push_back(q);
-    auto texels = openvdb::math::Transform::createLinearTransform(1.0);
-    texels->postTranslate(openvdb::Vec3d(0.5));
+    const auto texels = detail::texelTransform();
     if (triangles.empty() && quads.empty()) {
         impl.rebuilt = openvdb::FloatGrid::create(halfBandTexels);
     } else {
