@@ -828,6 +828,11 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
                    "64x64x64", "-o", "fog.exr"})
                   .status,
               0);
+    // `check` against the bake's own source: placed, and at the iso value, as the tile says.
+    const RunResult check = run({"check", "fog.exr", "--against", "fog.vdb", "--samples", "5000"});
+    EXPECT_EQ(check.status, 0) << check.out << check.err;
+    EXPECT_NE(check.out.find("grid 'density' as placed by the bake"), std::string::npos)
+        << check.out;
 }
 
 // ---------------------------------------------------------------------------------------------
