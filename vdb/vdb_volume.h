@@ -115,7 +115,7 @@ class VdbTileSampler {
 /// (OpenVDB's createLevelSetSphere, half band `halfWidthVoxels`) or, with `fog`, as a fog volume
 /// (1 inside, 0 outside, a linear ramp across the band; surface at 0.5), in a grid named
 /// `gridName` with voxel size `voxelSizeWorld` and its index axes rotated by `rotationDegrees`
-/// about the axis (1, 1, 1) (world positions are unchanged: only the voxel lattice turns).
+/// about x, then by as much about y (world positions are unchanged: only the voxel lattice turns).
 /// Written to `file` (overwritten).
 struct SphereVolumeOptions {
     double radiusWorld = 1.0;
