@@ -822,7 +822,8 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
     fog.fog = true;
     fog.gridName = "density";
     writeSphereVolume(path("fog.vdb"), fog);
-    bakeVdb({"fog.vdb"}, {"fog.vdb", "no float level set", "'density' (float, fog volume)"});
+    bakeVdb({"fog.vdb"},
+            {"--grid", "fog.vdb", "no float level set", "'density' (float, fog volume)"});
     bakeVdb({"fog.vdb", "--grid", "density"}, {"--iso", "'density'", "not a level set"});
     EXPECT_EQ(run({"bake", "vdb", "fog.vdb", "--grid", "density", "--iso", "0.5", "--size",
                    "64x64x64", "-o", "fog.exr"})

@@ -149,10 +149,10 @@ VdbVolume VdbVolume::read(const std::filesystem::path& file, const std::string& 
         }
         if (levelSets.size() != 1) {
             const bool none = levelSets.empty();
-            throw InputError(name +
-                             (none ? " holds no float level set" : " holds several level sets") +
-                             " (its grids: " + listGrids(*metadata) + "); choose a grid by name" +
-                             (none ? ", with an iso value if it is a fog volume" : ""));
+            throw InputError::inField(
+                "grid", name + (none ? " holds no float level set" : " holds several level sets") +
+                            " (its grids: " + listGrids(*metadata) + "); choose a grid by name" +
+                            (none ? ", with an iso value if it is a fog volume" : ""));
         }
         chosen = levelSets.front();
     }
