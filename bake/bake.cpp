@@ -29,6 +29,11 @@ void validateBakeOptions(const BakeOptions& options) {
     }
 }
 
+float validatedHalfBandTexels(const BakeOptions& options) {
+    validateBakeOptions(options);
+    return options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+}
+
 BakeResult bakeChainmail(const ChainmailOptions& chainmailOptions, const BakeOptions& options,
                          const ProgressCallback& progress) {
     ProceduralOptions procedural;
@@ -52,6 +57,24 @@ BakeResult bakeProcedural(const ProceduralOptions& proceduralOptions, const Bake
     return {std::move(levelSet), std::move(tile)};
 }
 
+FootprintFit fitToFootprint(const Bounds3& box, const Size3& tile, const std::string& what) {
+    const glm::dvec3 extent = box.max - box.min;
+    const double scale = std::min(extent.x > 0.0 ? tile.width / extent.x : HUGE_VAL,
+                                  extent.y > 0.0 ? tile.height / extent.y : HUGE_VAL);
+    const glm::dvec3 centre = 0.5 * (box.min + box.max);
+    const glm::dvec3 offset(0.5 * tile.width - scale * centre.x,
+                            0.5 * tile.height - scale * centre.y, -scale * box.min.z);
+    if (scale * extent.z > tile.depth) {
+        std::ostringstream message;
+        message << what << ": fitted to the " << tile.width << "x" << tile.height
+                << " footprint it is " << scale * extent.z << " texels tall, more than the "
+                << "tile depth " << tile.depth
+                << "; use a deeper tile size or an explicit scale and offset";
+        throw InputError(message.str());
+    }
+    return {scale, offset};
+}
+
 MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                                 const Size3& tile) {
     validateTileSize(tile, "size");
@@ -66,19 +89,9 @@ MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPla
                 "detail mesh: has no extent in x or y, so it cannot be fitted to "
                 "the tile footprint; place it with an explicit scale and offset");
         }
-        scale = std::min(extent.x > 0.0 ? tile.width / extent.x : HUGE_VAL,
-                         extent.y > 0.0 ? tile.height / extent.y : HUGE_VAL);
-        const glm::dvec3 centre = 0.5 * (box.min + box.max);
-        offset = glm::dvec3(0.5 * tile.width - scale * centre.x,
-                            0.5 * tile.height - scale * centre.y, -scale * box.min.z);
-        if (scale * extent.z > tile.depth) {
-            std::ostringstream message;
-            message << "detail mesh: fitted to the " << tile.width << "x" << tile.height
-                    << " footprint it is " << scale * extent.z << " texels tall, more than the "
-                    << "tile depth " << tile.depth
-                    << "; use a deeper tile size or an explicit scale and offset";
-            throw InputError(message.str());
-        }
+        const FootprintFit fitted = fitToFootprint(box, tile, "detail mesh");
+        scale = fitted.scale;
+        offset = fitted.offsetTexels;
     } else {
         if (!(std::isfinite(scale) && scale > 0.0)) {
             throw InputError::inField(

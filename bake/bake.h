@@ -30,6 +30,10 @@ struct BakeOptions {
     ConservativeOptions conservative;
 };
 
+/// Checks `options` (InputError naming "size" or "halfBandTexels") and returns the level set's
+/// half band, texels: halfBandTexels, or the tile depth when it is 0.
+float validatedHalfBandTexels(const BakeOptions& options);
+
 struct BakeResult {
     LevelSet levelSet;
     Tile tile;
@@ -62,6 +66,17 @@ struct MeshPlacement {
     double scale = 1.0;            ///< Explicit only: texels per file unit, > 0
     glm::dvec3 offsetTexels{0.0};  ///< Explicit only: where the file's origin goes, texels
 };
+
+/// The fit placement of a box (file units): the uniform scale (texels per unit) and offset
+/// (texels) that make its x/y extent span the tile footprint (the axis with the larger extent
+/// relative to W or H spans it exactly), centred in x and y, its bottom on the floor z = 0.
+/// @pre the box has an x or y extent > 0. @throws InputError "<what>: fitted ... tall" when the
+///   fitted box is taller than the tile depth.
+struct FootprintFit {
+    double scale = 1.0;
+    glm::dvec3 offsetTexels{0.0};
+};
+FootprintFit fitToFootprint(const Bounds3& box, const Size3& tile, const std::string& what);
 
 /// Largest texel coordinate a placed mesh may have: beyond 2^20 a float (OpenVDB's mesh
 /// positions) resolves less than 1/8 texel.

@@ -105,15 +105,13 @@ void recordSourceFile(TileProvenance& provenance, const std::filesystem::path& f
     provenance.sourceHash = *hash;
 }
 
-TriangleSoup sourceMeshPlaced(const Tile& tile, const std::string& tileName,
-                              const std::filesystem::path& tileFile) {
+std::filesystem::path recordedSourceFile(const Tile& tile, const std::string& tileName,
+                                         const std::filesystem::path& tileFile) {
     const TileProvenance& provenance = tile.provenance;
-    if (provenance.source != "mesh") {
-        throw InputError(tileName + ": distile:source '" + provenance.source + "' is not a mesh");
-    }
+    const std::string what = "its source " + provenance.source;
     if (provenance.sourceFile.empty()) {
-        throw InputError(tileName +
-                         ": does not record its source mesh (baked before tiles recorded it)");
+        throw InputError(tileName + ": does not record " + what +
+                         " file (baked before tiles recorded it)");
     }
     const std::filesystem::path& file = provenance.sourceFile;
     // As recorded: relative to the tile's folder.
@@ -125,15 +123,25 @@ TriangleSoup sourceMeshPlaced(const Tile& tile, const std::string& tileName,
                   .generic_string();
     std::error_code status;
     if (!std::filesystem::is_regular_file(file, status)) {
-        throw InputError(tileName + ": its source mesh " + recorded + " (recorded) is not found");
+        throw InputError(tileName + ": " + what + " " + recorded + " (recorded) is not found");
     }
     const std::optional<std::string> hash = fileContentHash(file);
-    if (!hash) throw InputError(tileName + ": its source mesh " + recorded + " cannot be read");
+    if (!hash) throw InputError(tileName + ": " + what + " " + recorded + " cannot be read");
     if (*hash != provenance.sourceHash) {
-        throw InputError(tileName + ": its source mesh " + recorded +
+        throw InputError(tileName + ": " + what + " " + recorded +
                          " has changed since the bake (content hash " + *hash + ", recorded " +
                          provenance.sourceHash + "); bake the tile again from it");
     }
+    return file;
+}
+
+TriangleSoup sourceMeshPlaced(const Tile& tile, const std::string& tileName,
+                              const std::filesystem::path& tileFile) {
+    const TileProvenance& provenance = tile.provenance;
+    if (provenance.source != "mesh") {
+        throw InputError(tileName + ": distile:source '" + provenance.source + "' is not a mesh");
+    }
+    const std::filesystem::path file = recordedSourceFile(tile, tileName, tileFile);
     json params;
     try {
         params = json::parse(provenance.params);

@@ -25,6 +25,14 @@ ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance,
 /// contentHash) as the source file of `provenance`. Throws InputError if it cannot be read.
 void recordSourceFile(TileProvenance& provenance, const std::filesystem::path& file);
 
+/// The source file a tile records (distile:source_file), checked: it exists and its bytes still
+/// have the recorded hash. `tileName` names the tile in messages; `tileFile`, when known, is the
+/// file the tile was read from, so messages show the source as recorded (relative to it).
+/// @throws InputError the tile records no source file (baked by an older distile, or from
+///   procedural detail), the file is not found, or its bytes no longer have the recorded hash.
+std::filesystem::path recordedSourceFile(const Tile& tile, const std::string& tileName,
+                                         const std::filesystem::path& tileFile = {});
+
 /// The detail mesh of a tile baked from a mesh (distile:source "mesh"), read from its recorded
 /// source file and placed as the bake placed it (the scale and offset_texels in distile:params),
 /// positions in texels. `tileName` names the tile in messages; `tileFile`, when known, is the file

@@ -12,6 +12,7 @@
 #include "bake/height_image.h"
 #include "bake/provenance.h"
 #include "bake/solid_mesh.h"
+#include "bake/vdb_bake.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "cli/progress_bar.h"
@@ -26,7 +27,7 @@ namespace {
 
 struct BakeArguments {
     std::string detail;
-    fs::path input;  ///< mesh or height map file
+    fs::path input;  ///< mesh, height map or .vdb file
     fs::path output;
     std::string size = "256x256x16";
     fs::path vdbOutput;
@@ -47,6 +48,9 @@ struct BakeArguments {
     double heightTexels = 0.0;
     bool unsignedDistance = false;
     std::optional<double> thicknessTexels;
+    std::string gridName;
+    std::optional<double> iso;
+    std::vector<double> window;
 };
 
 /// How `bake mesh` places the mesh: --fit (default) or --scale/--offset.
@@ -99,6 +103,47 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
     return std::move(bake.result);
 }
 
+/// `bake vdb FILE`: read the grid, place it (--fit, --scale/--offset or --window), bake; report
+/// the placement and, with a window, the seam mismatch. Throws before anything is written.
+BakeResult bakeVdbFile(const BakeArguments& arguments, const BakeOptions& options,
+                       ProgressBar& progress) {
+    const std::string file = arguments.input.string();
+    VdbPlacement placement;
+    if (!arguments.window.empty()) {
+        if (arguments.fit || arguments.meshScale || !arguments.meshOffset.empty()) {
+            throw InputError(
+                "--window: cannot be combined with --fit/--scale/--offset; give one placement");
+        }
+        const std::vector<double>& w = arguments.window;
+        placement.mode = VdbPlacement::Mode::Window;
+        placement.windowWorld = {{w[0], w[1], w[2]}, {w[3], w[4], w[5]}};
+    } else {
+        const MeshPlacement fitOrExplicit = meshPlacement(arguments);
+        if (!fitOrExplicit.fit) {
+            placement.mode = VdbPlacement::Mode::Explicit;
+            placement.scale = fitOrExplicit.scale;
+            placement.offsetTexels = fitOrExplicit.offsetTexels;
+        }
+    }
+    const VdbVolume volume = VdbVolume::read(arguments.input, arguments.gridName, arguments.iso);
+    VdbBakeResult bake = bakeVdb(volume, placement, options, arguments.input.filename().string(),
+                                 std::ref(progress));
+    const glm::dvec3 voxel = volume.voxelSizeWorld();
+    const glm::dvec3 offset = bake.placement.offsetTexels;
+    std::printf(
+        "%s: grid '%s' (%s, voxel size %g x %g x %g), placed at %g texels per unit, "
+        "offset (%g, %g, %g) texels%s\n",
+        file.c_str(), volume.gridName().c_str(),
+        volume.isLevelSet() ? "level set" : "surface at the iso value", voxel.x, voxel.y, voxel.z,
+        bake.placement.scale, offset.x, offset.y, offset.z,
+        bake.rebuilt ? "; band rebuilt from the surface" : "");
+    if (bake.seamMismatchTexels) {
+        std::printf("seam mismatch x: %.4f texels, y: %.4f texels\n", bake.seamMismatchTexels->x,
+                    bake.seamMismatchTexels->y);
+    }
+    return std::move(bake.bake);
+}
+
 /// The library's error about one field of the bake's options (bake/bake.h) under the flag that
 /// filled it; other errors as they are.
 InputError underBakeFlag(const InputError& error) {
@@ -108,7 +153,11 @@ InputError underBakeFlag(const InputError& error) {
                              {"placement.offsetTexels", "--offset"},
                              {"heightTexels", "--height-texels"},
                              {"sign.unsignedDistance", "--unsigned"},
-                             {"sign.thicknessTexels", "--thickness"}});
+                             {"sign.thicknessTexels", "--thickness"},
+
+                             {"grid", "--grid"},
+                             {"iso", "--iso"},
+                             {"placement.windowWorld", "--window"}});
 }
 
 /// "NxM" -> (N, M) for --repeat; the level set checks the range.
@@ -159,16 +208,20 @@ ProceduralOptions proceduralOptions(const BakeArguments& arguments) {
 }
 
 void runBake(const BakeArguments& arguments) {
-    const bool fromFile = arguments.detail == "mesh" || arguments.detail == "heightmap";
+    const bool fromFile =
+        arguments.detail == "mesh" || arguments.detail == "heightmap" || arguments.detail == "vdb";
     if (arguments.detail != "chainmail" && arguments.detail != "grating" && !fromFile) {
         throw InputError(
             "bake: '" + arguments.detail +
-            "' is not a known detail; accepted: chainmail, grating, mesh FILE, heightmap IMAGE");
+            "' is not a known detail; accepted: chainmail, grating, mesh FILE, heightmap IMAGE, "
+            "vdb FILE");
     }
     if (fromFile && arguments.input.empty()) {
         throw InputError("bake " + arguments.detail +
                          ": needs the input file, e.g. `distile bake " + arguments.detail +
-                         (arguments.detail == "mesh" ? " ring.obj" : " stones.png") +
+                         (arguments.detail == "mesh"  ? " ring.obj"
+                          : arguments.detail == "vdb" ? " level.vdb"
+                                                      : " stones.png") +
                          " -o tile.exr`");
     }
     if (arguments.detail != "mesh" && (arguments.unsignedDistance || arguments.thicknessTexels)) {
@@ -202,6 +255,8 @@ void runBake(const BakeArguments& arguments) {
         ProgressBar progress("bake " + arguments.detail + " " + toString(options.size));
         if (arguments.detail == "mesh") {
             result.emplace(bakeMeshFile(arguments, options, progress));
+        } else if (arguments.detail == "vdb") {
+            result.emplace(bakeVdbFile(arguments, options, progress));
         } else if (arguments.detail == "heightmap") {
             const HeightImage image = readHeightImage(arguments.input);
             HeightMapOptions heightMap;
@@ -262,10 +317,12 @@ void addBakeCommand(CLI::App& app) {
         "bake", "Bake detail into a distance tile (EXR atlas) and optionally its level set (.vdb)");
     command
         ->add_option("detail", arguments->detail,
-                     "What to bake: chainmail, grating, mesh FILE, heightmap IMAGE")
+                     "What to bake: chainmail, grating, mesh FILE, heightmap IMAGE, vdb FILE")
         ->required();
-    command->add_option("input", arguments->input,
-                        "mesh: the detail mesh (OBJ, PLY, OFF, STL); heightmap: the image");
+    command->add_option(
+        "input", arguments->input,
+        "mesh: the detail mesh (OBJ, PLY, OFF, STL); heightmap: the image; vdb: the "
+        ".vdb file");
     command->add_option("-o,--output", arguments->output, "Tile file to write (.exr)")->required();
     command->add_option("--size", arguments->size, "Tile size WxHxD in texels")
         ->capture_default_str();
@@ -364,6 +421,22 @@ void addBakeCommand(CLI::App& app) {
         "bilinearly at the texel columns); material is solid below the surface");
     heightmap->add_option("--height-texels", arguments->heightTexels,
                           "Height of image value 1, texels, in (0, D] (default: D - 1)");
+    auto* vdb = command->add_option_group(
+        "vdb",
+        "bake vdb FILE: a float level set (or, with --iso, a fog volume) from any .vdb file, any "
+        "voxel size and transform. Placement as for meshes, in the file's world units: --fit "
+        "(default; the surface's box) or --scale/--offset (texel = S * world + (X, Y, Z)), or "
+        "--window. Distances are the file's inside its band and rebuilt from its surface beyond "
+        "it; nothing is wrapped");
+    vdb->add_option("--grid", arguments->gridName,
+                    "The grid to bake (default: the file's only float level set)");
+    vdb->add_option("--iso", arguments->iso,
+                    "The surface's value: required for a fog volume (inside above it, e.g. 0.5); "
+                    "for a level set it offsets the surface (inside below it)");
+    vdb->add_option("--window", arguments->window,
+                    "One period X0 Y0 Z0 X1 Y1 Z1 (world units) cut from a larger volume: its x/y "
+                    "extent spans the footprint, Z0 goes to the floor; prints the seam mismatch")
+        ->expected(6);
     command->add_flag("--exact-texels", arguments->exactTexels,
                       "Keep the exact distances at texel centres (no conservative lowering; "
                       "trilinear may overestimate)");

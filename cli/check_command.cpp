@@ -13,6 +13,7 @@
 #include "bake/bake.h"
 #include "bake/provenance.h"
 #include "bake/resample.h"
+#include "bake/vdb_bake.h"
 #include "cli/app.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
@@ -23,6 +24,7 @@
 #include "truth/mesh_truth.h"
 #include "vdb/level_set.h"
 #include "vdb/procedural.h"
+#include "vdb/vdb_volume.h"
 
 namespace distile::cli {
 
@@ -101,8 +103,27 @@ void printReport(const CheckArguments& arguments, const std::string& against,
     }
 }
 
-void runCheck(const CheckArguments& arguments) {
+/// Whether `file` is a level set distile wrote (LevelSet::load reads it).
+bool isDistileLevelSet(const fs::path& file) {
+    try {
+        LevelSet::load(file);
+        return true;
+    } catch (const FormatError&) {
+        return false;
+    }
+}
+
+void runCheck(CheckArguments arguments) {
     const Tile tile = readTileExr(arguments.tile);
+    if (!arguments.againstGiven && tile.provenance.source == "vdb") {
+        // The level set the tile was baked from (distile:source_file), placed as its params say.
+        try {
+            arguments.against =
+                recordedSourceFile(tile, arguments.tile.string(), arguments.tile).string();
+        } catch (const InputError& error) {
+            throw InputError(std::string(error.what()) + "; pass --against FILE");
+        }
+    }
     const std::string tileName = arguments.tile.string();
     std::function<double(const glm::dvec3&)> truth;
     std::string against;
@@ -143,6 +164,50 @@ void runCheck(const CheckArguments& arguments) {
         }
         truth = procedural.signedDistanceTexels;
         against = "analytic " + procedural.source + " " + procedural.paramsJson;
+    } else if (lowerExtension(arguments.against) == ".vdb" && tile.provenance.source == "vdb" &&
+               !isDistileLevelSet(arguments.against)) {
+        // A tile of `bake vdb`: its source file placed as its params say, resampled at the texel
+        // centres without the conservative lowering (as for distile's own level sets below).
+        json params;
+        TexelPlacement placement;
+        std::string gridName;
+        std::optional<double> iso;
+        try {
+            params = json::parse(tile.provenance.params);
+            placement.scale = params.at("scale").get<double>();
+            const auto offset = params.at("offset").get<std::vector<double>>();
+            placement.offsetTexels = {offset.at(0), offset.at(1), offset.at(2)};
+            gridName = params.at("grid").get<std::string>();
+            if (params.contains("iso")) iso = params.at("iso").get<double>();
+        } catch (const std::exception& error) {
+            throw FormatError(tileName + ": distile:params do not describe a vdb placement (" +
+                              error.what() + ")");
+        }
+        VdbPlacement explicitPlacement;
+        explicitPlacement.mode = VdbPlacement::Mode::Explicit;
+        explicitPlacement.scale = placement.scale;
+        explicitPlacement.offsetTexels = placement.offsetTexels;
+        BakeOptions exact;
+        exact.size = tile.size();
+        exact.halfBandTexels = 1.0f;
+        for (float value : tile.distancesTexels())
+            exact.halfBandTexels = std::max(exact.halfBandTexels, std::abs(value));
+        exact.conservative.enabled = false;
+        std::shared_ptr<const Tile> grid;
+        try {
+            grid = std::make_shared<const Tile>(
+                bakeVdb(VdbVolume::read(arguments.against, gridName, iso), explicitPlacement, exact,
+                        arguments.against)
+                    .bake.tile);
+        } catch (const InputError& error) {
+            throw InputError("--against: " + std::string(error.what()));
+        }
+        keepAlive = grid;
+        truth = [grid, filter = TrilinearFilter(*grid)](const glm::dvec3& p) {
+            return double(filter.distanceTexels(glm::vec3(p)));
+        };
+        against = "level set " + arguments.against + " grid '" + gridName +
+                  "' as placed by the bake (trilinear of its distances at the texel centres)";
     } else if (lowerExtension(arguments.against) == ".vdb") {
         const LevelSet levelSet = LevelSet::load(arguments.against);
         if (!(levelSet.tileSize() == tile.size())) {

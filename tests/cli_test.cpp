@@ -24,6 +24,7 @@
 #include "render/image.h"
 #include "render/tracer.h"
 #include "sampler/tile_io.h"
+#include "vdb/vdb_volume.h"
 
 namespace distile {
 namespace {
@@ -818,6 +819,110 @@ TEST_F(Cli, BakesOpenMeshesByWindingNumberAndSheetsOnlyWithUnsigned) {
     EXPECT_NE(shell.out.find("unsigned distance, shell 2 texels thick"), std::string::npos)
         << shell.out;
     EXPECT_TRUE(fs::exists(path("sheet.exr")));
+}
+
+// `bake vdb` of the level set `bake chainmail --vdb` wrote, placed back where it came from (its
+// world space is texel space: scale 1, offset 0): every texel centre lands on a voxel centre, so
+// the level set is the same voxel for voxel and the tile, lowered by the same conservative
+// correction (estimated from the texels alone), is the same.
+TEST_F(Cli, BakesALevelSetFileBackIntoTheSameTile) {
+    ASSERT_EQ(run({"bake", "chainmail", "-o", "a.exr", "--vdb", "a.vdb"}).status, 0);
+    const RunResult result =
+        run({"bake", "vdb", "a.vdb", "--scale", "1", "--offset", "0", "0", "0", "-o", "b.exr"});
+    ASSERT_EQ(result.status, 0) << result.err;
+    EXPECT_NE(result.out.find("grid 'surface' (level set, voxel size 1 x 1 x 1)"),
+              std::string::npos)
+        << result.out;
+    const Tile original = readTileExr(path("a.exr"));
+    const Tile baked = readTileExr(path("b.exr"));
+    ASSERT_EQ(baked.size(), original.size());
+    double maxDifference = 0.0;
+    for (std::size_t i = 0; i < original.distancesTexels().size(); ++i) {
+        maxDifference =
+            std::max(maxDifference,
+                     double(std::abs(baked.distancesTexels()[i] - original.distancesTexels()[i])));
+    }
+    EXPECT_LE(maxDifference, 0.01);
+    EXPECT_EQ(baked.provenance.source, "vdb");
+    const nlohmann::json params = nlohmann::json::parse(baked.provenance.params);
+    EXPECT_EQ(params.at("file"), "a.vdb");
+    EXPECT_EQ(params.at("grid"), "surface");
+    EXPECT_EQ(params.at("placement"), "explicit");
+    EXPECT_EQ(params.at("scale"), 1.0);
+}
+
+// One period cut out of a periodic level set tiled 2x2 repeats seamlessly: the window's opposite
+// faces agree.
+TEST_F(Cli, BakesOnePeriodOfALargerLevelSetAndReportsTheSeam) {
+    std::vector<std::string> bake = kBakeGrating;
+    bake.insert(bake.end(), {"--vdb", "repeated.vdb", "--repeat", "2x2"});
+    ASSERT_EQ(run(bake).status, 0);
+    const RunResult result = run({"bake", "vdb", "repeated.vdb", "--window", "32", "32", "0", "160",
+                                  "160", "16", "--size", "128x128x16", "-o", "w.exr"});
+    ASSERT_EQ(result.status, 0) << result.err;
+    EXPECT_NE(result.out.find("seam mismatch x: 0.0000 texels, y: 0.0000 texels"),
+              std::string::npos)
+        << result.out;
+}
+
+TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
+    ASSERT_EQ(run({"bake", "grating", "--size", "64x64x16", "--bars", "2", "-o", "g.exr", "--vdb",
+                   "g.vdb"})
+                  .status,
+              0);
+    fs::remove(path("g.exr"));
+    const auto bakeVdb = [&](std::vector<std::string> arguments,
+                             std::initializer_list<std::string> keywords) {
+        arguments.insert(arguments.begin(), {"bake", "vdb"});
+        arguments.insert(arguments.end(), {"--size", "64x64x16", "-o", "t.exr"});
+        ASSERT_NO_FATAL_FAILURE(expectInputError(arguments, "t.exr", keywords));
+    };
+    bakeVdb({"missing.vdb"}, {"missing.vdb", "no such file"});
+    writeText(path("text.vdb"), "not a level set\n");
+    bakeVdb({"text.vdb"}, {"text.vdb", "not a readable .vdb file"});
+    const std::string level = readText(path("g.vdb"));
+    writeText(path("truncated.vdb"), level.substr(0, level.size() / 2));
+    bakeVdb({"truncated.vdb"}, {"truncated.vdb"});
+    std::string flipped = level;  // the header's counts and offsets, scrambled
+    for (std::size_t i = 8; i < 64 && i < flipped.size(); ++i) flipped[i] = char(0xff);
+    writeText(path("flipped.vdb"), flipped);
+    bakeVdb({"flipped.vdb"}, {"flipped.vdb"});
+    bakeVdb({"g.vdb", "--grid", "density"},
+            {"--grid", "'density'", "'surface' (float, level set)"});
+    bakeVdb({"g.vdb", "--iso", "nan"}, {"--iso"});
+    bakeVdb({"g.vdb", "--iso", "100"}, {"g.vdb", "no surface", "100"});
+    bakeVdb({"g.vdb", "--scale", "0"}, {"--scale", "0"});
+    bakeVdb({"g.vdb", "--scale", "1", "--offset", "0", "inf", "0"}, {"--offset", "finite"});
+    bakeVdb({"g.vdb", "--window", "100", "100", "0", "164", "164", "16"},
+            {"--window", "outside grid 'surface'"});
+    bakeVdb({"g.vdb", "--window", "0", "0", "0", "32", "16", "4"}, {"--window", "aspect"});
+    bakeVdb({"g.vdb", "--window", "0", "0", "0", "32", "32", "16", "--fit"}, {"--window", "--fit"});
+    SphereVolumeOptions fog;
+    fog.fog = true;
+    fog.gridName = "density";
+    writeSphereVolume(path("fog.vdb"), fog);
+    bakeVdb({"fog.vdb"},
+            {"--grid", "fog.vdb", "no float level set", "'density' (float, fog volume)"});
+    bakeVdb({"fog.vdb", "--grid", "density"}, {"--iso", "'density'", "not a level set"});
+    EXPECT_EQ(run({"bake", "vdb", "fog.vdb", "--grid", "density", "--iso", "0.5", "--size",
+                   "64x64x64", "-o", "fog.exr"})
+                  .status,
+              0);
+    // `check` against the bake's own source: placed, and at the iso value, as the tile says.
+    const RunResult check = run({"check", "fog.exr", "--against", "fog.vdb", "--samples", "5000"});
+    EXPECT_EQ(check.status, 0) << check.out << check.err;
+    EXPECT_NE(check.out.find("grid 'density' as placed by the bake"), std::string::npos)
+        << check.out;
+    // Without --against, the tile's recorded source: the same check, the same figures.
+    const RunResult recorded = run({"check", "fog.exr", "--samples", "5000"});
+    EXPECT_EQ(recorded.status, 0) << recorded.out << recorded.err;
+    const auto figures = [](const std::string& out) { return out.substr(out.find(" grid '")); };
+    EXPECT_EQ(figures(recorded.out), figures(check.out));
+    // Edited since the bake: refused, saying what to do.
+    std::ofstream(path("fog.vdb"), std::ios::app) << "edited";
+    expectInputError(
+        {"check", "fog.exr"}, "no-output",
+        {"fog.exr", "its source vdb", "fog.vdb", "has changed since the bake", "--against FILE"});
 }
 
 // ---------------------------------------------------------------------------------------------

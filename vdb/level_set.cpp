@@ -9,12 +9,12 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
-#include <mutex>
 #include <sstream>
 #include <vector>
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "vdb/detail/openvdb_setup.h"
 
 namespace distile {
 
@@ -25,17 +25,8 @@ constexpr const char* kSizeKey = "distile:size";
 constexpr const char* kSourceKey = "distile:source";
 constexpr const char* kParamsKey = "distile:params";
 
-void initializeOpenVdb() {
-    static std::once_flag once;
-    std::call_once(once, [] { openvdb::initialize(); });
-}
-
-/// Texel space: voxel (i, j, k) centred at (i + 0.5, j + 0.5, k + 0.5).
-openvdb::math::Transform::Ptr texelTransform() {
-    auto transform = openvdb::math::Transform::createLinearTransform(1.0);
-    transform->postTranslate(openvdb::Vec3d(0.5));
-    return transform;
-}
+using detail::initializeOpenVdb;
+using detail::texelTransform;
 
 std::string stringMeta(const openvdb::FloatGrid& grid, const char* key) {
     auto meta = grid.getMetadata<openvdb::StringMetadata>(key);

@@ -1,0 +1,53 @@
+/// @file
+/// Baking a level set made elsewhere (a .vdb file read as vdb/vdb_volume.h VdbVolume) into a
+/// tile: placed in texel space, resampled at every voxel of the tile's level set, then resampled
+/// into the tile as every bake is (bake/resample.h).
+///
+/// Nothing is wrapped: the tile holds the volume where its texels land. For a repeating tile give
+/// one period of a larger volume as the window; the bake measures how well the window's opposite
+/// faces agree (the seam mismatch) and leaves the verdict to the caller.
+#pragma once
+
+#include <glm/vec2.hpp>
+#include <optional>
+#include <string>
+
+#include "bake/bake.h"
+#include "vdb/vdb_volume.h"
+
+namespace distile {
+
+/// Where the volume goes in the tile (texel = scale * world + offsetTexels).
+/// - Fit (default): the world box of the surface fitted as bake/bake.h fitToFootprint does.
+/// - Explicit: `scale` and `offsetTexels` as given.
+/// - Window: `windowWorld` is one period of the volume: its x/y extent maps exactly onto the
+///   footprint (so its x/y aspect must be the tile's), its bottom onto the floor z = 0; its
+///   height must fit in the tile depth.
+struct VdbPlacement {
+    enum class Mode { Fit, Explicit, Window };
+    Mode mode = Mode::Fit;
+    double scale = 1.0;            ///< Explicit: texels per world unit, > 0
+    glm::dvec3 offsetTexels{0.0};  ///< Explicit: where the world origin goes, texels
+    Bounds3 windowWorld;           ///< Window: world box, min < max on every axis
+};
+
+struct VdbBakeResult {
+    BakeResult bake;
+    TexelPlacement placement;  ///< the placement used (fit and window resolved)
+    /// Window only: the largest |d(x = 0) - d(x = W)| over the texel rows of the faces x = 0 and
+    /// x = W of the tile (y likewise), texels.
+    std::optional<glm::dvec2> seamMismatchTexels;
+    bool rebuilt = false;  ///< the surface was rebuilt beyond the source band (vdb/vdb_volume.h)
+};
+
+/// Bakes `volume` placed by `placement`; the tile's provenance is source "vdb" with params
+/// {"file": fileName, "grid", "placement", "scale", "offset" [, "window"] [, "iso"]}.
+/// @throws InputError bad sizes or band (as bakeProcedural); "placement.scale" or
+///   "placement.offsetTexels" not finite or scale <= 0; "placement.windowWorld" empty, not
+///   finite, not the tile's x/y aspect, taller than the tile depth, or outside the grid's active
+///   box in x or y or missing the surface; a fitted surface taller than the tile depth.
+VdbBakeResult bakeVdb(const VdbVolume& volume, const VdbPlacement& placement,
+                      const BakeOptions& options, const std::string& fileName,
+                      const ProgressCallback& progress = {});
+
+}  // namespace distile

@@ -1,0 +1,131 @@
+/// @file
+/// Float level sets (and fog volumes) made by other programs (Houdini, Blender, vdb_tool,
+/// OpenVDB's Python module), read from any .vdb file with any voxel size and index-to-world
+/// transform, and resampled into texel space.
+///
+/// The source keeps its own world space and units. A placement maps it to the tile's texel space
+/// with a uniform scale: texel = scale * world + offsetTexels (TexelPlacement). Index space of the
+/// source may be rotated, sheared or scaled non-uniformly: sampling happens in the source's index
+/// space (trilinear, OpenVDB's BoxSampler) at the world point of each texel, and the values there
+/// are world-unit distances (OpenVDB's level-set convention, whatever the voxel shape), so the
+/// uniform scale alone turns them into texels.
+///
+/// The source's narrow band is often thinner than the tile needs (3 voxels is OpenVDB's default;
+/// the tile wants the tile depth). Beyond the band the source holds only its background constant,
+/// which is not a distance. Where the tile needs more than the source band, the surface is
+/// rebuilt: polygonised at the iso value (OpenVDB's volumeToMesh, in the source's world space),
+/// placed in texel space, and converted to exact unsigned distances to those polygons
+/// (meshToUnsignedDistanceField, voxel = 1 texel); the sign comes from the source (below or above
+/// the iso value). Inside the source band the source's own values are kept.
+#pragma once
+
+#include <filesystem>
+#include <glm/vec3.hpp>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/size3.h"
+#include "common/triangle_soup.h"
+
+namespace distile {
+
+/// One grid of a .vdb file, as the file's metadata describes it.
+struct VdbGridInfo {
+    std::string name;
+    std::string valueType;  ///< "float", "vec3s", ...
+    std::string gridClass;  ///< "level set", "fog volume", "unknown", ...
+};
+
+/// Where the source's world space goes in the tile: texel = scale * world + offsetTexels.
+struct TexelPlacement {
+    double scale = 1.0;            ///< texels per world unit, finite and > 0
+    glm::dvec3 offsetTexels{0.0};  ///< where the world origin goes, texels
+};
+
+/// One scalar float grid of a .vdb file and the surface it describes.
+class VdbVolume {
+  public:
+    /// Reads grid `gridName` of `file` (empty: the only float level set of the file).
+    /// A level set's surface is its zero crossing, or the crossing of `iso` when given (values
+    /// below it inside). Any other float grid (a fog volume) needs `iso`: its surface is where the
+    /// value crosses it, inside above it.
+    /// @throws InputError the file is missing; `gridName` is not in the file (the message lists
+    ///   the grids); the grid is not a float grid; no grid was named and the file has no float
+    ///   level set or several (listed); the grid is not a level set and `iso` is not given; `iso`
+    ///   is not finite.
+    /// @throws FormatError the file is not a readable .vdb file (truncated, corrupt); the grid's
+    ///   transform is not finite or not invertible; the grid is empty or has no surface at the
+    ///   iso value.
+    static VdbVolume read(const std::filesystem::path& file, const std::string& gridName = {},
+                          std::optional<double> iso = {});
+
+    VdbVolume(VdbVolume&&) noexcept;
+    VdbVolume& operator=(VdbVolume&&) noexcept;
+    ~VdbVolume();
+
+    const std::string& gridName() const;
+    bool isLevelSet() const;
+    double iso() const;  ///< 0 for a level set read without an iso value
+    /// World-unit voxel size along the index axes (not equal for a non-uniform transform).
+    glm::dvec3 voxelSizeWorld() const;
+    /// World-space box of the active voxels' centres (the band of a level set): the region where
+    /// trilinear interpolation has voxel values on both sides.
+    Bounds3 activeBoundsWorld() const;
+    /// World-space box of the surface (the polygonised iso crossing).
+    Bounds3 surfaceBoundsWorld() const;
+
+  private:
+    friend class VdbTileSampler;
+    struct Impl;
+    explicit VdbVolume(std::unique_ptr<Impl> impl);
+    std::unique_ptr<Impl> impl_;
+};
+
+/// The grids of a .vdb file (metadata only). Throws as VdbVolume::read for a missing or
+/// unreadable file.
+std::vector<VdbGridInfo> listVdbGrids(const std::filesystem::path& file);
+
+/// Signed distances of a placed VdbVolume at texel-space positions, in texels, clamped to
+/// +-halfBandTexels: the source's own trilinear values inside its band, the rebuilt exact
+/// distances (see the file note) beyond it. Built for the tile's box, [0,W] x [0,H] x [0,D]
+/// widened by halfBandTexels + 1 on every side; positions outside it hold the clamped value.
+/// Thread-safe (`distanceTexels` only reads).
+class VdbTileSampler {
+  public:
+    /// @throws InputError placement.scale is not finite and > 0, the offset is not finite, or
+    ///   halfBandTexels is not in [1, 1024].
+    VdbTileSampler(const VdbVolume& volume, const TexelPlacement& placement, const Size3& tile,
+                   float halfBandTexels);
+    VdbTileSampler(VdbTileSampler&&) noexcept;
+    ~VdbTileSampler();
+
+    double distanceTexels(const glm::dvec3& texelPosition) const;
+    /// True when the surface had to be rebuilt (the source band is thinner than halfBandTexels or
+    /// the source is not a level set).
+    bool rebuilt() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Test and example volumes: a sphere of `radiusWorld` around `centreWorld`, as a level set
+/// (OpenVDB's createLevelSetSphere, half band `halfWidthVoxels`) or, with `fog`, as a fog volume
+/// (1 inside, 0 outside, a linear ramp across the band; surface at 0.5), in a grid named
+/// `gridName` with voxel size `voxelSizeWorld` and its index axes rotated by `rotationDegrees`
+/// about x, then by as much about y (world positions are unchanged: only the voxel lattice turns).
+/// Written to `file` (overwritten).
+struct SphereVolumeOptions {
+    double radiusWorld = 1.0;
+    glm::dvec3 centreWorld{0.0};
+    double voxelSizeWorld = 0.1;
+    double rotationDegrees = 0.0;
+    float halfWidthVoxels = 3.0f;
+    bool fog = false;
+    std::string gridName = "surface";
+};
+void writeSphereVolume(const std::filesystem::path& file, const SphereVolumeOptions& options);
+
+}  // namespace distile
