@@ -13,6 +13,7 @@
 #include "bake/bake.h"
 #include "bake/provenance.h"
 #include "bake/resample.h"
+#include "bake/soup_distance.h"
 #include "bake/vdb_bake.h"
 #include "cli/app.h"
 #include "cli/arguments.h"
@@ -113,6 +114,43 @@ bool isDistileLevelSet(const fs::path& file) {
     }
 }
 
+/// The exact signed distance (texels, periodic) to a detail mesh placed in `tile`: CGAL's for a
+/// closed mesh (its inside test); otherwise the distance signed by the generalized winding number
+/// (inside where it exceeds 1/2), as the bake signs open meshes and soups. A tile baked
+/// `--unsigned` (distile:params "sign": "unsigned") compares with the unsigned distance minus half
+/// its recorded thickness. `how` says which truth it is; `keepAlive` owns it.
+std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, const Tile& tile,
+                                                   std::shared_ptr<const void>& keepAlive,
+                                                   std::string& how) {
+    const nlohmann::json params =
+        nlohmann::json::parse(tile.provenance.params, nullptr, /*allow_exceptions=*/false);
+    const bool unsignedTile = params.is_object() && params.value("sign", "") == "unsigned";
+    // Farther than any point of the tile's box can be from detail inside it.
+    const double cutoff = double(tile.size().width + tile.size().height + tile.size().depth);
+    if (unsignedTile) {
+        const double thickness = params.is_object() && params.contains("thickness_texels") &&
+                                         params["thickness_texels"].is_number()
+                                     ? params["thickness_texels"].get<double>()
+                                     : 0.0;
+        auto soup = std::make_shared<const SoupDistance>(placed, tile.size());
+        keepAlive = soup;
+        how = "unsigned distance minus half the thickness";
+        return [soup, cutoff, thickness](const glm::dvec3& p) {
+            return soup->unsignedDistance(p, cutoff) - 0.5 * thickness;
+        };
+    }
+    auto mesh = std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
+    if (mesh->hasSign()) {
+        keepAlive = mesh;
+        how = "closed: CGAL's inside test";
+        return [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
+    }
+    auto soup = std::make_shared<const SoupDistance>(placed, tile.size());
+    keepAlive = soup;
+    how = "not closed: signed by its winding number";
+    return [soup, cutoff](const glm::dvec3& p) { return soup->signedDistance(p, cutoff); };
+}
+
 void runCheck(CheckArguments arguments) {
     const Tile tile = readTileExr(arguments.tile);
     if (!arguments.againstGiven && tile.provenance.source == "vdb") {
@@ -138,16 +176,10 @@ void runCheck(CheckArguments arguments) {
         } catch (const InputError& error) {
             throw InputError(std::string(error.what()) + "; pass --against FILE");
         }
-        auto mesh =
-            std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
-        if (!mesh->hasSign()) {
-            throw InputError(tileName + ": its source mesh " + tile.provenance.sourceFile.string() +
-                             " is not closed, so it has no inside; pass --against LEVEL.vdb");
-        }
-        keepAlive = mesh;
-        truth = [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
-        against =
-            "mesh " + tile.provenance.sourceFile.string() + " (recorded source, placed as baked)";
+        std::string how;
+        truth = meshTruth(placed, tile, keepAlive, how);
+        against = "mesh " + tile.provenance.sourceFile.string() +
+                  " (recorded source, placed as baked; " + how + ")";
     } else if (arguments.against == "analytic") {
         ProceduralOptions options;
         try {
@@ -237,17 +269,11 @@ void runCheck(CheckArguments arguments) {
             }
         }
         const TriangleSoup placed = placeMesh(soup, placement, tile.size());
-        auto mesh =
-            std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
-        if (!mesh->hasSign()) {
-            throw InputError(
-                "--against: mesh '" + arguments.against +
-                "' is not closed, so it has no inside; check against its level set (.vdb) instead");
-        }
-        keepAlive = mesh;
-        truth = [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
+        std::string how;
+        truth = meshTruth(placed, tile, keepAlive, how);
         against = "mesh " + arguments.against +
-                  (placement.fit ? " (fitted to the footprint)" : " (explicit placement)");
+                  (placement.fit ? " (fitted to the footprint; " : " (explicit placement; ") + how +
+                  ")";
     }
 
     TileErrorOptions options;
