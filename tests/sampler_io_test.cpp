@@ -17,6 +17,7 @@
 #include "common/error.h"
 #include "render/image.h"
 #include "sampler/tile_io.h"
+#include "tests/temp_folder.h"
 
 namespace distile {
 namespace {
@@ -26,30 +27,19 @@ namespace fs = std::filesystem;
 /// A fresh folder under the system temporary folder per test, removed afterwards.
 class SamplerIo : public ::testing::Test {
   protected:
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        folder_ = fs::temp_directory_path() /
-                  ("distile_sampler_io_" + std::to_string(::getpid()) + "_" + info->name());
-        fs::remove_all(folder_);
-        fs::create_directories(folder_);
-    }
-    void TearDown() override {
-        std::error_code ignored;
-        fs::remove_all(folder_, ignored);
-    }
-    fs::path path(const std::string& name) const { return folder_ / name; }
+    fs::path path(const std::string& name) const { return folder_.path(name); }
 
     /// Only `expected` in the folder: no temporary files left behind.
     std::vector<std::string> folderEntries() const {
         std::vector<std::string> names;
-        for (const auto& entry : fs::directory_iterator(folder_)) {
+        for (const auto& entry : fs::directory_iterator(folder_.folder())) {
             names.push_back(entry.path().filename().string());
         }
         return names;
     }
 
   private:
-    fs::path folder_;
+    TempFolder folder_{"distile_sampler_io"};
 };
 
 /// A tile whose distances vary smoothly and cross zero, with every texel distinct enough that a

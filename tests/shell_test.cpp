@@ -354,6 +354,7 @@ TEST(CurvedShell, MirroredUvsMirrorTheDetailAndItsNormals) {
     object.material.depthWorld = 0.05f;
     scene.objects.push_back(std::move(object));
     const SceneTracer tracer(scene, preciseOptions(ShellMapping::Curved));
+    const ShellMesh prisms = buildShellMesh(mesh, {1.0f, 1.0f}, {32, 32, 16}, 0.05);
     int checked = 0;
     for (const float x : {-0.6f, -0.35f, 0.35f, 0.6f}) {  // u in [0.2, 0.33]: inside one tile
         const Ray ray{{x, 0.05f, 2.0f}, {0.0f, 0.0f, -1.0f}};
@@ -369,16 +370,7 @@ TEST(CurvedShell, MirroredUvsMirrorTheDetailAndItsNormals) {
             if (top[0].x <= x && x <= top[1].x && (top[0].x < top[1].x)) break;
         }
         ASSERT_LT(shell, mesh.triangles.size());
-        const glm::uvec3 corners = mesh.triangles[shell];
-        glm::vec3 positions[3], normals[3];
-        glm::vec2 uvs[3];
-        for (int corner = 0; corner < 3; ++corner) {
-            positions[corner] = mesh.positions[corners[corner]];
-            normals[corner] = mesh.normals[corners[corner]];
-            uvs[corner] = mesh.uvs[corners[corner]];
-        }
-        const ShellPrism prism =
-            ShellPrism::make(positions, normals, uvs, {1.0f, 1.0f}, 32, 32, 16, 0.05);
+        const ShellPrism& prism = prisms.prisms[shell];
         PrismPoint point{1.0 / 3.0, 1.0 / 3.0, 0.0};
         ShellPrism::Jacobian jacobian;
         ASSERT_TRUE(prism.invert(glm::dvec3(hit.position) - prism.corner0, point, jacobian));

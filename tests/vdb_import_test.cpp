@@ -16,6 +16,7 @@
 #include "bake/vdb_bake.h"
 #include "common/error.h"
 #include "sampler/tile_error.h"
+#include "tests/temp_folder.h"
 #include "vdb/vdb_volume.h"
 
 namespace distile {
@@ -25,21 +26,10 @@ namespace fs = std::filesystem;
 
 class VdbImport : public ::testing::Test {
   protected:
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        folder_ = fs::temp_directory_path() /
-                  ("distile_vdb_import_" + std::to_string(::getpid()) + "_" + info->name());
-        fs::remove_all(folder_);
-        fs::create_directories(folder_);
-    }
-    void TearDown() override {
-        std::error_code ignored;
-        fs::remove_all(folder_, ignored);
-    }
-    fs::path path(const std::string& name) const { return folder_ / name; }
+    fs::path path(const std::string& name) const { return folder_.path(name); }
 
   private:
-    fs::path folder_;
+    TempFolder folder_{"distile_vdb_import"};
 };
 
 /// A unit-radius sphere off the origin, on a voxel lattice of 0.07 units turned 30 degrees: the
@@ -127,6 +117,8 @@ void expectTheSphere(const SphereErrors& errors) {
 TEST_F(VdbImport, RotatedSphereWithAThinBandMatchesTheAnalyticSphere) {
     const SphereVolumeOptions sphere = rotatedSphere();
     writeSphereVolume(path("sphere.vdb"), sphere);
+    const VdbVolume volume = VdbVolume::read(path("sphere.vdb"));
+    EXPECT_TRUE(VdbTileSampler(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
     const SphereErrors errors = measureSphere(path("sphere.vdb"), sphereInTile(sphere));
     expectTheSphere(errors);
 }
