@@ -8,6 +8,7 @@ Tile tileFromLevelSet(const LevelSet& levelSet, const ConservativeOptions& conse
     levelSet.copyTileVoxels(tile.distancesTexels());
     tile.provenance.source = levelSet.source();
     tile.provenance.params = levelSet.params();
+    tile.provenance.halfBandTexels = levelSet.halfBandTexels();
     makeConservative(tile, conservative, exactDistance);
     return tile;
 }

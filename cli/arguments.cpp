@@ -1,6 +1,8 @@
 #include "cli/arguments.h"
 
 #include <algorithm>
+#include <cmath>
+#include <sstream>
 #include <utility>
 
 #include "common/error.h"
@@ -21,6 +23,20 @@ InputError underFlag(const InputError& error, std::initializer_list<FieldFlag> f
             return error.renamed(std::string(entry.flag));
     }
     return error;
+}
+
+CLI::Validator finiteRange(double lowest, double highest) {
+    std::ostringstream range;
+    range << "[" << lowest << ", " << highest << "]";
+    return CLI::Validator(
+        [lowest, highest, text = range.str()](std::string& value) -> std::string {
+            double number = 0.0;
+            if (CLI::detail::lexical_cast(value, number) && std::isfinite(number) &&
+                number >= lowest && number <= highest)
+                return {};
+            return "value " + value + " is not accepted; give a finite number in " + text;
+        },
+        "FLOAT in " + range.str());
 }
 
 std::string lowerExtension(const fs::path& path) {

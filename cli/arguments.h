@@ -3,6 +3,7 @@
 /// leaves nothing behind.
 #pragma once
 
+#include <CLI/CLI.hpp>
 #include <filesystem>
 #include <initializer_list>
 #include <string>
@@ -30,6 +31,10 @@ InputError underFlag(const InputError& error, std::initializer_list<FieldFlag> f
 /// exists.
 void requireOutput(const std::filesystem::path& path, const std::string& option,
                    std::initializer_list<const char*> extensions);
+
+/// A CLI11 check that the value is a finite number in [lowest, highest]. CLI::Range alone lets NaN
+/// through (every comparison with NaN is false), which would switch a tolerance off.
+CLI::Validator finiteRange(double lowest, double highest);
 
 /// Lower-case extension with the dot, e.g. ".exr".
 std::string lowerExtension(const std::filesystem::path& path);

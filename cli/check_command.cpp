@@ -56,7 +56,7 @@ struct CheckArguments {
 namespace {
 
 void printReport(const CheckArguments& arguments, const std::string& against,
-                 const TileErrorReport& report, bool passed,
+                 const TileErrorReport& report, double bandTexels, bool bandDeclared, bool passed,
                  const std::vector<std::string>& failures) {
     if (arguments.json) {
         json out = {{"tile", arguments.tile.string()},
@@ -78,6 +78,9 @@ void printReport(const CheckArguments& arguments, const std::string& against,
                     {"overestimate_share", report.overestimateShare},
                     {"max_overestimate", report.maxOverestimateTexels},
                     {"sign_errors", report.signErrors},
+                    {"band", bandTexels},
+                    {"band_declared", bandDeclared},
+                    {"band_share", report.bandShare},
                     {"passed", passed},
                     {"failures", failures}};
         std::printf("%s\n", out.dump().c_str());
@@ -97,6 +100,10 @@ void printReport(const CheckArguments& arguments, const std::string& against,
         "  overestimates beyond %.3f: %d (%.4f%%), largest %.4f; sign errors (|d| > 1): %d\n",
         arguments.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
         report.maxOverestimateTexels, report.signErrors);
+    std::printf("  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
+                "inside it\n",
+                bandTexels, bandDeclared ? "declared by the tile" : "not declared: the tile depth",
+                100.0 * report.bandShare);
     if (passed) {
         std::printf("passed\n");
     } else {
@@ -163,6 +170,12 @@ void runCheck(CheckArguments arguments) {
         }
     }
     const std::string tileName = arguments.tile.string();
+    // The tile holds its level set's band: distances beyond it are clamped to +-band. The truth is
+    // clamped to the band the tile declares, never to one read off its values (a flat tile would
+    // then meet a flat truth). Tiles from before the declaration had the default band, the depth.
+    const bool bandDeclared = tile.provenance.halfBandTexels > 0.0;
+    const double bandTexels =
+        bandDeclared ? tile.provenance.halfBandTexels : double(tile.size().depth);
     std::function<double(const glm::dvec3&)> truth;
     std::string against;
     // Keep the truth's owners alive while sampling.
@@ -221,9 +234,7 @@ void runCheck(CheckArguments arguments) {
         explicitPlacement.offsetTexels = placement.offsetTexels;
         BakeOptions exact;
         exact.size = tile.size();
-        exact.halfBandTexels = 1.0f;
-        for (float value : tile.distancesTexels())
-            exact.halfBandTexels = std::max(exact.halfBandTexels, std::abs(value));
+        exact.halfBandTexels = float(bandTexels);
         exact.conservative.enabled = false;
         std::shared_ptr<const Tile> grid;
         try {
@@ -280,11 +291,7 @@ void runCheck(CheckArguments arguments) {
     options.samples = arguments.samples;
     options.seed = arguments.seed;
     options.overestimateToleranceTexels = arguments.maxOverestimateTexels;
-    // The tile holds its level set's band: distances beyond it are clamped to +-band, the largest
-    // |value| the tile stores. Compare with the truth clamped alike.
-    float bandTexels = 0.0f;
-    for (float value : tile.distancesTexels()) bandTexels = std::max(bandTexels, std::abs(value));
-    if (bandTexels > 0.0f) options.truthClampTexels = bandTexels;
+    options.truthClampTexels = bandTexels;
     TileErrorReport report;
     try {
         report = measureTileError(tile, truth, options);
@@ -317,7 +324,7 @@ void runCheck(CheckArguments arguments) {
         failures.push_back(std::to_string(report.signErrors) +
                            " sign errors more than 1 texel from the surface");
     }
-    printReport(arguments, against, report, failures.empty(), failures);
+    printReport(arguments, against, report, bandTexels, bandDeclared, failures.empty(), failures);
     if (!failures.empty()) {
         std::fflush(stdout);
         std::exit(kExitFailure);  // a tolerance is exceeded: the work failed (cli/app.h)
@@ -351,19 +358,19 @@ void addCheckCommand(CLI::App& app) {
             "--max-overestimate", arguments->maxOverestimateTexels,
             "Overestimate tolerance, texels: tile - truth above it counts as an overestimate")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1e6));
+        ->check(finiteRange(0.0, 1e6));
     command
         ->add_option("--max-overestimate-share", arguments->maxOverestimateShare,
                      "Largest accepted share of overestimates (0.001 = 0.1%)")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1.0));
+        ->check(finiteRange(0.0, 1.0));
     command->add_option("--max-rms", arguments->maxRmsTexels, "Largest accepted RMS error, texels")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 1e6));
+        ->check(finiteRange(0.0, 1e6));
     command
         ->add_option("--max-near-error", arguments->maxNearErrorTexels,
                      "Largest accepted error within 2 texels of the surface (default: not checked)")
-        ->check(CLI::Range(0.0, 1e6));
+        ->check(finiteRange(0.0, 1e6));
     command->add_flag("--allow-sign-errors", arguments->allowSignErrors,
                       "Do not fail on sign errors (samples more than 1 texel from the surface with "
                       "the wrong sign)");

@@ -348,7 +348,7 @@ void addRenderCommand(CLI::App& app) {
                      "(0, 16] "
                      "(2: voxels of half a texel)")
         ->capture_default_str()
-        ->check(CLI::Range(0.0, 16.0));
+        ->check(finiteRange(0.0, 16.0));
     command->callback([arguments, reference] {
         arguments->referenceGiven = reference->count() > 0;
         try {

@@ -25,6 +25,10 @@ struct TileProvenance {
     /// FNV-1a 64 of the source file's bytes as 16 hex digits (distile:source_hash); empty when
     /// sourceFile is.
     std::string sourceHash;
+    /// Half width of the narrow band the tile was resampled from, texels (distile:band_texels):
+    /// its distances beyond it are clamped to +-this, so it is what the tile can tell about its
+    /// source. 0 when unknown (tiles written before the attribute existed).
+    double halfBandTexels = 0.0;
 };
 
 class Tile {

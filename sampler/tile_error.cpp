@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -56,8 +57,17 @@ TileErrorReport measureTileError(const Tile& tile,
     double nearSumSquares = 0.0;
     std::vector<double> nearErrors;
     for (std::size_t i = 0; i < points.size(); ++i) {
+        const double exactDistance = truth(points[i]);
+        if (std::isnan(exactDistance)) {
+            throw std::runtime_error("the truth distance at (" + std::to_string(points[i].x) +
+                                     ", " + std::to_string(points[i].y) + ", " +
+                                     std::to_string(points[i].z) + ") is not a number");
+        }
+        // The tile stores the band and clamps beyond it; what it says about the surface (sign,
+        // nearness) is judged on the exact distance.
         const double trueDistance =
-            std::clamp(truth(points[i]), -options.truthClampTexels, options.truthClampTexels);
+            std::clamp(exactDistance, -options.truthClampTexels, options.truthClampTexels);
+        if (std::abs(exactDistance) < options.truthClampTexels) ++report.bandSamples;
         const double error = double(tileValues[i]) - trueDistance;
         const double absError = std::abs(error);
         sumSquares += error * error;
@@ -68,17 +78,18 @@ TileErrorReport measureTileError(const Tile& tile,
         }
         report.maxOverestimateTexels = std::max(report.maxOverestimateTexels, error);
         if (error > options.overestimateToleranceTexels) ++report.overestimates;
-        if (std::abs(trueDistance) > options.signMarginTexels &&
-            (tileValues[i] < 0.0f) != (trueDistance < 0.0)) {
+        if (std::abs(exactDistance) > options.signMarginTexels &&
+            (tileValues[i] < 0.0f) != (exactDistance < 0.0)) {
             ++report.signErrors;
         }
-        if (std::abs(trueDistance) <= options.nearSurfaceTexels) {
+        if (std::abs(exactDistance) <= options.nearSurfaceTexels) {
             nearErrors.push_back(absError);
             nearSumSquares += error * error;
         }
     }
     report.rmsTexels = std::sqrt(sumSquares / double(points.size()));
     report.overestimateShare = double(report.overestimates) / double(points.size());
+    report.bandShare = double(report.bandSamples) / double(points.size());
     report.nearSamples = int(nearErrors.size());
     if (!nearErrors.empty()) {
         std::sort(nearErrors.begin(), nearErrors.end());

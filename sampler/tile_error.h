@@ -24,8 +24,10 @@ struct TileErrorOptions {
         0.05;                       ///< tile - truth above this counts as an overestimate
     double signMarginTexels = 1.0;  ///< sign errors are counted where |truth| > this
     /// The truth is clamped to [-this, this] before comparing: a tile stores its level set's
-    /// narrow band, distances beyond it clamped to +-band (pass the band, e.g. the tile's largest
-    /// |value|). Infinity: no clamp.
+    /// narrow band, distances beyond it clamped to +-band (pass the band the tile declares,
+    /// TileProvenance::halfBandTexels; never one read off the tile's own values, which would let
+    /// a flat tile compare with a flat truth). Signs and "near the surface" are judged on the
+    /// unclamped truth. Infinity: no clamp.
     double truthClampTexels = std::numeric_limits<double>::infinity();
 };
 
@@ -44,12 +46,15 @@ struct TileErrorReport {
     int overestimates = 0;           ///< samples with tile - truth > overestimateToleranceTexels
     double overestimateShare = 0.0;  ///< overestimates / samples
     int signErrors = 0;  ///< samples with |truth| > signMarginTexels and the other sign in the tile
+    int bandSamples = 0;     ///< samples with |truth| < truthClampTexels (inside the band)
+    double bandShare = 0.0;  ///< bandSamples / samples: how much of the tile the band covers
 };
 
 /// Samples `tile` with options.filter and `truth` (signed distance in texels at a texel-space
 /// point; called on this thread only, in the order of the points) at options.samples uniform
 /// random points. Deterministic for a seed. Throws InputError (naming the
-/// TileErrorOptions member) when samples < 1 or a tolerance or margin is negative or not finite.
+/// TileErrorOptions member) when samples < 1 or a tolerance or margin is negative or not finite;
+/// std::runtime_error when the truth returns NaN.
 TileErrorReport measureTileError(const Tile& tile,
                                  const std::function<double(const glm::dvec3&)>& truth,
                                  const TileErrorOptions& options = {});

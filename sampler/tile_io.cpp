@@ -151,10 +151,33 @@ void setTileAttributes(OIIO::ImageSpec& spec, const Size3& size, const TileProve
     spec.attribute("distile:params", provenance.params.empty() ? kNoParams : provenance.params);
     spec.attribute("distile:version", kFormatVersion);
     spec.attribute("distile:hash", hexDigits(hash));
+    if (provenance.halfBandTexels > 0.0)
+        spec.attribute("distile:band_texels", float(provenance.halfBandTexels));
     if (!provenance.sourceFile.empty()) {
         spec.attribute("distile:source_file", recordedSourceFile(provenance.sourceFile, file));
         spec.attribute("distile:source_hash", provenance.sourceHash);
     }
+}
+
+/// What is wrong with the tile's distances against the band it declares, or "" (also when it
+/// declares none): a bake clamps them to +-band, and the conservative lowering takes them at most
+/// one tile depth below -band.
+std::string bandProblem(const Tile& tile) {
+    const double band = tile.provenance.halfBandTexels;
+    if (band == 0.0) return {};
+    if (!(std::isfinite(band) && band > 0.0))
+        return "the declared band (distile:band_texels) " + std::to_string(band) +
+               " is not a positive number";
+    const double lowest = -band - double(tile.size().depth);
+    const auto distances = tile.distancesTexels();
+    const auto outside = std::find_if(distances.begin(), distances.end(), [&](float d) {
+        return double(d) > band || double(d) < lowest;
+    });
+    if (outside == distances.end()) return {};
+    return "distance at " + texelName(tile.size(), std::size_t(outside - distances.begin())) +
+           " is " + std::to_string(*outside) +
+           " texels, outside the band the tile declares (distile:band_texels " +
+           std::to_string(band) + ")";
 }
 
 /// Opens `temporary` with OpenImageIO and writes `pixels` (one channel, row-major) into it.
@@ -174,7 +197,7 @@ void writeAtlas(const fs::path& temporary, const OIIO::ImageSpec& spec,
     }
 }
 
-void requireFinite(const Tile& tile, const fs::path& file) {
+void requireWritableDistances(const Tile& tile, const fs::path& file) {
     const auto distances = tile.distancesTexels();
     const auto bad =
         std::find_if(distances.begin(), distances.end(), [](float d) { return !std::isfinite(d); });
@@ -183,6 +206,8 @@ void requireFinite(const Tile& tile, const fs::path& file) {
                          texelName(tile.size(), std::size_t(bad - distances.begin())) + " is " +
                          std::to_string(*bad) + "; only finite distances can be written");
     }
+    if (const std::string problem = bandProblem(tile); !problem.empty())
+        throw InputError(file.string() + ": " + problem + "; it cannot be written");
 }
 
 Size3 parseSize(const std::string& text, const fs::path& file) {
@@ -223,7 +248,7 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
         throw InputError(file.string() + ": extension '" + file.extension().string() +
                          "' is not accepted for a tile; use .exr");
     }
-    requireFinite(tile, file);
+    requireWritableDistances(tile, file);
     const Size3& size = tile.size();
     std::span<const float> stored = tile.distancesTexels();
     std::vector<float> roundedToHalf;
@@ -333,6 +358,12 @@ Tile readTileExr(const fs::path& file) {
     }
     tile.provenance.source = spec.get_string_attribute("distile:source");
     tile.provenance.params = spec.get_string_attribute("distile:params");
+    if (const OIIO::ParamValue* band = spec.find_attribute("distile:band_texels")) {
+        tile.provenance.halfBandTexels =
+            band->type() == OIIO::TypeDesc::FLOAT ? band->get_float() : -1.0;
+        if (const std::string problem = bandProblem(tile); !problem.empty())
+            throw FormatError(file.string() + ": " + problem + "; the file was modified or corrupted");
+    }
     // Optional: tiles baked from a file name it, relative to the tile's folder.
     const std::string sourceFile = spec.get_string_attribute("distile:source_file");
     if (!sourceFile.empty()) {

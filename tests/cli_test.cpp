@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <initializer_list>
 #include <iterator>
 #include <nlohmann/json.hpp>
@@ -538,6 +539,67 @@ TEST_F(Cli, CheckAgainstTheLevelSetAndRejectsBadInput) {
     expectInputError({"check", "grating.exr", "--against", "missing.vdb"}, "missing.vdb",
                      {"missing.vdb"});
     expectInputError({"check", "grating.exr", "--samples", "0"}, "x", {"--samples"});
+}
+
+// `check` cannot be fooled by a tile that does not represent its source: the grating tile made
+// flat (+-0.001 everywhere, the campaign's case, which passed when the truth was clamped to the
+// tile's own largest value), shifted by half a texel, scaled by 0.8, sign-flipped or moved by
+// two texels fails against the analytic truth and against the level set, each with a valid
+// hash; the original passes both. The band the tile declares is in its report.
+TEST_F(Cli, CheckFailsTilesThatDoNotRepresentTheirSource) {
+    std::vector<std::string> bake = kBakeGrating;
+    bake.insert(bake.end(), {"--vdb", "grating.vdb"});
+    ASSERT_EQ(run(bake).status, 0);
+    const Tile original = readTileExr(path("grating.exr"));
+    EXPECT_EQ(original.provenance.halfBandTexels, 16.0);  // the default band: the tile depth
+    const RunResult good = run({"check", "grating.exr", "--samples", "20000", "--json"});
+    ASSERT_EQ(good.status, 0) << good.out << good.err;
+    const nlohmann::json report = nlohmann::json::parse(good.out);
+    EXPECT_EQ(report.at("band").get<double>(), 16.0);
+    EXPECT_TRUE(report.at("band_declared").get<bool>());
+    EXPECT_GT(report.at("band_share").get<double>(), 0.5);
+
+    const std::vector<std::pair<std::string, std::function<float(const Tile&, int, int, int)>>>
+        forgeries = {
+            {"flat+", [](const Tile&, int, int, int) { return 0.001f; }},
+            {"flat-", [](const Tile&, int, int, int) { return -0.001f; }},
+            {"shifted", [](const Tile& t, int x, int y, int z) { return t.at(x, y, z) + 0.5f; }},
+            {"scaled", [](const Tile& t, int x, int y, int z) { return 0.8f * t.at(x, y, z); }},
+            {"flipped", [](const Tile& t, int x, int y, int z) { return -t.at(x, y, z); }},
+            {"moved",
+             [](const Tile& t, int x, int y, int z) {
+                 return t.at((x + 2) % t.size().width, y, z);
+             }},
+        };
+    for (const auto& [name, value] : forgeries) {
+        Tile forged = original;
+        const Size3 size = original.size();
+        for (int z = 0; z < size.depth; ++z)
+            for (int y = 0; y < size.height; ++y)
+                for (int x = 0; x < size.width; ++x) forged.at(x, y, z) = value(original, x, y, z);
+        writeTileExr(forged, path(name + ".exr"));  // a valid file, hash included
+        for (const std::vector<std::string>& against :
+             {std::vector<std::string>{}, std::vector<std::string>{"--against", "grating.vdb"}}) {
+            std::vector<std::string> arguments = {"check", name + ".exr", "--samples", "20000"};
+            arguments.insert(arguments.end(), against.begin(), against.end());
+            const RunResult result = run(arguments);
+            EXPECT_EQ(result.status, 1) << name << " " << result.out << result.err;
+            EXPECT_NE(result.out.find("FAILED"), std::string::npos) << name << " " << result.out;
+        }
+    }
+}
+
+// NaN or infinite tolerances would switch a check off (every comparison with NaN is false).
+TEST_F(Cli, CheckRefusesToleranceThatIsNotAFiniteNumber) {
+    ASSERT_EQ(run(kBakeGrating).status, 0);
+    for (const char* option : {"--max-rms", "--max-overestimate-share", "--max-overestimate",
+                               "--max-near-error"}) {
+        for (const char* value : {"nan", "inf", "-nan"}) {
+            const RunResult result = run({"check", "grating.exr", option, value});
+            EXPECT_EQ(result.status, 2) << option << " " << value << result.out << result.err;
+            EXPECT_EQ(result.out.find("passed"), std::string::npos) << result.out;
+        }
+    }
 }
 
 TEST_F(Cli, BakeRepeatWritesTheTiledLevelSet) {

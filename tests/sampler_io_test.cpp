@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -292,6 +293,35 @@ TEST_F(SamplerIo, NonFiniteDistanceInFileIsAFormatError) {
     rewriteRaw(path("tile.exr"),
                [](RawImage& raw) { raw.pixels[5] = std::numeric_limits<float>::quiet_NaN(); });
     EXPECT_NE(formatErrorMessage(path("tile.exr")).find("texel (5, 0, 0)"), std::string::npos);
+}
+
+TEST_F(SamplerIo, DeclaredBandRoundTripsAndBoundsTheDistances) {
+    Tile tile = patternTile({16, 16, 4});
+    float largest = 0.0f;
+    for (float d : tile.distancesTexels()) largest = std::max(largest, std::abs(d));
+    tile.provenance.halfBandTexels = largest;
+    writeTileExr(tile, path("tile.exr"));
+    EXPECT_EQ(readTileExr(path("tile.exr")).provenance.halfBandTexels, double(largest));
+    // A bake clamps at +band and lowers at most a tile depth below -band; beyond that a tile is
+    // neither written nor read (a finite 3e38 with a valid hash rendered NaN).
+    Tile beyond = tile;
+    beyond.at(3, 0, 0) = largest + 0.5f;
+    EXPECT_THROW(writeTileExr(beyond, path("beyond.exr")), InputError);
+    beyond.at(3, 0, 0) = -largest - 4.5f;
+    EXPECT_THROW(writeTileExr(beyond, path("beyond.exr")), InputError);
+    beyond.at(3, 0, 0) = -largest - 3.5f;  // within the lowering's reach: written
+    writeTileExr(beyond, path("lowered.exr"));
+    EXPECT_EQ(readTileExr(path("lowered.exr")).at(3, 0, 0), -largest - 3.5f);
+    std::vector<std::string> written = folderEntries();
+    std::sort(written.begin(), written.end());
+    EXPECT_EQ(written, (std::vector<std::string>{"lowered.exr", "tile.exr"}));
+    Tile huge = patternTile({16, 16, 4});
+    huge.at(5, 0, 0) = 3e38f;  // no band declared: any finite distance
+    writeTileExr(huge, path("huge.exr"));
+    rewriteRaw(path("huge.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 4.0f); });
+    EXPECT_NE(formatErrorMessage(path("huge.exr")).find("outside the band"), std::string::npos);
+    rewriteRaw(path("tile.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", -1.0f); });
+    EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:band_texels"), std::string::npos);
 }
 
 TEST_F(SamplerIo, SizeThatDisagreesWithTheAtlasIsAFormatError) {
