@@ -48,7 +48,8 @@ struct SolidMeshBake {
 
 /// Bakes `mesh` (file units) placed by `placement` (placeMesh): every voxel of the level set
 /// (the tile and its band margin above and below, LevelSet::fromDistance) takes the exact
-/// periodic distance to the placed mesh, signed as `sign` says, clamped to the half band; the
+/// periodic distance to the placed mesh's surface (its triangles and, for a signed bake, the caps
+/// over its holes: bake/hole_caps.h), signed as `sign` says, clamped to the half band; the
 /// conservative correction measures against the same exact distance (bake/conservative.h).
 /// Multi-threaded; the result does not depend on the thread count. `file` names the mesh in
 /// messages.

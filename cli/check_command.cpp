@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/hole_caps.h"
 #include "bake/provenance.h"
 #include "bake/resample.h"
 #include "bake/soup_distance.h"
@@ -115,8 +116,9 @@ bool isDistileLevelSet(const fs::path& file) {
 }
 
 /// The exact signed distance (texels, periodic) to a detail mesh placed in `tile`: CGAL's for a
-/// closed mesh (its inside test); otherwise the distance signed by the generalized winding number
-/// (inside where it exceeds 1/2), as the bake signs open meshes and soups. A tile baked
+/// closed mesh (its inside test); otherwise, as the bake measures open meshes and soups, the
+/// distance to its triangles and the caps over its holes, signed by the generalized winding
+/// number (inside where it exceeds 1/2; bake/hole_caps.h). A tile baked
 /// `--unsigned` (distile:params "sign": "unsigned") compares with the unsigned distance minus half
 /// its recorded thickness. `how` says which truth it is; `keepAlive` owns it.
 std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, const Tile& tile,
@@ -145,10 +147,14 @@ std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, c
         how = "closed: CGAL's inside test";
         return [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
     }
-    auto soup = std::make_shared<const SoupDistance>(placed, tile.size());
-    keepAlive = soup;
+    auto surface = std::make_shared<const MeshSurfaceDistance>(placed, tile.size());
+    keepAlive = surface;
     how = "not closed: signed by its winding number";
-    return [soup, cutoff](const glm::dvec3& p) { return soup->signedDistance(p, cutoff); };
+    if (!surface->caps().triangles().triangles.empty()) {
+        how += ", its holes capped (" +
+               std::to_string(surface->caps().triangles().triangles.size()) + " cap triangles)";
+    }
+    return [surface, cutoff](const glm::dvec3& p) { return surface->signedDistance(p, cutoff); };
 }
 
 void runCheck(CheckArguments arguments) {

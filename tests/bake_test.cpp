@@ -8,6 +8,7 @@
 #include <glm/geometric.hpp>
 #include <random>
 
+#include "bake/hole_caps.h"
 #include "bake/solid_mesh.h"
 #include "bake/soup_distance.h"
 #include "common/error.h"
@@ -279,6 +280,98 @@ TEST(MeshBake, SheetWithoutInsideNeedsUnsigned) {
     EXPECT_EQ(shell.insideTexels, std::size_t(2 * 30 * 30));
     sign.thicknessTexels = -1.0;
     EXPECT_THROW(bakeSolidMesh(sheet, placement, options, "sheet.obj", {}, sign), InputError);
+}
+
+/// The box [lo, hi] without its top face (z = hi.z): open, its hole a known plane.
+TriangleSoup makeOpenBoxSoup(const glm::dvec3& lo, const glm::dvec3& hi) {
+    TriangleSoup box = makeBoxSoup(lo, hi);
+    // makeBoxSoup's second quad (triangles 2 and 3) is the top face.
+    box.triangles.erase(box.triangles.begin() + 2, box.triangles.begin() + 4);
+    return box;
+}
+
+TEST(HoleCaps, ClosedMeshesHaveNoCaps) {
+    const Size3 tile{32, 32, 16};
+    const TriangleSoup box = makeBoxSoup(glm::dvec3(5, 5, 2), glm::dvec3(15, 15, 12));
+    const SoupDistance soup(box, tile);
+    const HoleCaps caps(box, soup, tile);
+    EXPECT_TRUE(caps.triangles().triangles.empty());
+    EXPECT_EQ(caps.surfaceDistance(glm::dvec3(1.0), 3.25), 3.25);
+}
+
+// A box off the texel grid (its top plane between voxel layers, its sides across cells).
+const glm::dvec3 kBoxLow(5.3, 4.8, 2.2), kBoxHigh(15.6, 14.1, 11.7);
+
+TEST(HoleCaps, CapOfAnOpenBoxIsItsMissingFace) {
+    // A box that is closed but for its top face has w = 1/2 exactly on the missing face (the
+    // closed box's 1/2 on its surface, minus the face's solid angle, 0 in its own plane): the
+    // cap lies in the box's top plane, inside its top rectangle, and covers all of it (its
+    // corners on edges that cross the walls, in the cells along the border, move onto the
+    // border).
+    const Size3 tile{32, 32, 16};
+    const TriangleSoup open = makeOpenBoxSoup(kBoxLow, kBoxHigh);
+    const SoupDistance soup(open, tile);
+    ASSERT_FALSE(soup.windingChangesOnlyAcrossTheSurface());
+    const HoleCaps caps(open, soup, tile);
+    const TriangleSoup& cap = caps.triangles();
+    ASSERT_FALSE(cap.triangles.empty());
+    for (const glm::dvec3& p : cap.positions) {
+        EXPECT_NEAR(p.z, kBoxHigh.z, 1e-6);
+        EXPECT_GE(p.x, kBoxLow.x - 1e-9);
+        EXPECT_LE(p.x, kBoxHigh.x + 1e-9);
+        EXPECT_GE(p.y, kBoxLow.y - 1e-9);
+        EXPECT_LE(p.y, kBoxHigh.y + 1e-9);
+    }
+    // From a point of the missing face to the mesh and its cap: 0, but within a texel of the
+    // top's corners, where the border turns inside a cell and the cap's corners moved onto one
+    // side or the other may leave a sliver (0.18 texel measured).
+    double farthest = 0.0, farthestNearCorners = 0.0;
+    for (int y = 0; y <= 100; ++y) {
+        for (int x = 0; x <= 100; ++x) {
+            const glm::dvec3 p(glm::mix(kBoxLow.x, kBoxHigh.x, 0.01 * x),
+                               glm::mix(kBoxLow.y, kBoxHigh.y, 0.01 * y), kBoxHigh.z);
+            const double toSurface = caps.surfaceDistance(p, soup.unsignedDistance(p, 16.0));
+            const double toCorner = std::hypot(std::min(p.x - kBoxLow.x, kBoxHigh.x - p.x),
+                                               std::min(p.y - kBoxLow.y, kBoxHigh.y - p.y));
+            (toCorner < 1.0 ? farthestNearCorners : farthest) =
+                std::max(toCorner < 1.0 ? farthestNearCorners : farthest, toSurface);
+        }
+    }
+    EXPECT_LE(farthest, 1e-6);
+    EXPECT_LE(farthestNearCorners, 0.25);
+    // Above the middle of the hole the surface is the cap, not the walls 5 texels away.
+    EXPECT_NEAR(surfaceSignedDistance(soup, caps, glm::dvec3(10.2, 9.7, 13.5), 16.0), 1.8, 1e-6);
+    EXPECT_NEAR(surfaceSignedDistance(soup, caps, glm::dvec3(10.2, 9.7, 10.5), 16.0), -1.2, 1e-6);
+}
+
+TEST(HoleCaps, OpenBoxBakesAsTheClosedBoxForAnyThreadCount) {
+    // The open box's surface is the closed box's: the tiles agree (float storage) wherever the
+    // cap covers the hole; closed meshes bake without caps.
+    BakeOptions options;
+    options.size = {32, 32, 16};
+    options.conservative.enabled = false;
+    MeshPlacement placement;
+    placement.fit = false;
+    const TriangleSoup open = makeOpenBoxSoup(kBoxLow, kBoxHigh);
+    const TriangleSoup closed = makeBoxSoup(kBoxLow, kBoxHigh);
+    std::vector<float> single, dual;
+    {
+        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        const SolidMeshBake bake = bakeSolidMesh(open, placement, options, "open");
+        single.assign(bake.result.tile.distancesTexels().begin(),
+                      bake.result.tile.distancesTexels().end());
+    }
+    const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+    const SolidMeshBake bake = bakeSolidMesh(open, placement, options, "open");
+    dual.assign(bake.result.tile.distancesTexels().begin(),
+                bake.result.tile.distancesTexels().end());
+    EXPECT_EQ(single, dual);
+    const SolidMeshBake reference = bakeSolidMesh(closed, placement, options, "closed");
+    const std::span<const float> expected = reference.result.tile.distancesTexels();
+    double maxDifference = 0.0;
+    for (std::size_t n = 0; n < expected.size(); ++n)
+        maxDifference = std::max(maxDifference, double(std::abs(dual[n] - expected[n])));
+    EXPECT_LE(maxDifference, 1e-5);
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include <initializer_list>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <random>
 #include <set>
 #include <sstream>
@@ -834,6 +835,39 @@ TEST_F(Cli, BakesOpenMeshesByWindingNumberAndSheetsOnlyWithUnsigned) {
     EXPECT_NE(shell.out.find("unsigned distance, shell 2 texels thick"), std::string::npos)
         << shell.out;
     EXPECT_TRUE(fs::exists(path("sheet.exr")));
+}
+
+TEST_F(Cli, OpenCupPassesCheckAgainstItsCappedSurface) {
+    // A cup: a cylinder wall (radius 1, height 1.5, 48 segments) on a bottom disk, no top. Its
+    // winding number is 1/2 exactly on the missing top (the closed cup's 1/2 on its surface), so
+    // the surface the bake and `check` cap it with is that disk; without the cap the tile had
+    // sign errors above the hole (a lid the truth did not have).
+    std::ostringstream obj;
+    const int segments = 48;
+    obj << "v 0 0 0\n";
+    for (int s = 0; s < segments; ++s) {
+        const double angle = 2.0 * std::numbers::pi * s / segments;
+        obj << "v " << std::cos(angle) << " " << std::sin(angle) << " 0\nv " << std::cos(angle)
+            << " " << std::sin(angle) << " 1.5\n";
+    }
+    for (int s = 0; s < segments; ++s) {
+        const int bottom = 2 + 2 * s, top = bottom + 1, nextBottom = 2 + 2 * ((s + 1) % segments),
+                  nextTop = nextBottom + 1;
+        obj << "f 1 " << nextBottom << " " << bottom << "\nf " << bottom << " " << nextBottom << " "
+            << nextTop << " " << top << "\n";
+    }
+    writeText(path("cup.obj"), obj.str());
+    ASSERT_EQ(run({"bake", "mesh", "cup.obj", "-o", "cup.exr", "--size", "64x64x16", "--scale", "8",
+                   "--offset", "32,32,1"})
+                  .status,
+              0);
+    const RunResult check = run({"check", "cup.exr", "--json"});
+    EXPECT_EQ(check.status, 0) << check.out << check.err;
+    const nlohmann::json report = nlohmann::json::parse(check.out);
+    EXPECT_NE(report["against"].get<std::string>().find("its holes capped"), std::string::npos)
+        << check.out;
+    EXPECT_LE(report["near_max_abs"].get<double>(), 0.5);
+    EXPECT_EQ(report["sign_errors"].get<int>(), 0);
 }
 
 // `bake vdb` of the level set `bake chainmail --vdb` wrote, placed back where it came from (its
