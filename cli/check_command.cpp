@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "bake/bake.h"
-#include "bake/hole_caps.h"
+#include "bake/mesh_surface.h"
 #include "bake/provenance.h"
 #include "bake/resample.h"
 #include "bake/soup_distance.h"
@@ -116,9 +116,10 @@ bool isDistileLevelSet(const fs::path& file) {
 }
 
 /// The exact signed distance (texels, periodic) to a detail mesh placed in `tile`: CGAL's for a
-/// closed mesh (its inside test); otherwise, as the bake measures open meshes and soups, the
-/// distance to its triangles and the caps over its holes, signed by the generalized winding
-/// number (inside where it exceeds 1/2; bake/hole_caps.h). A tile baked
+/// closed mesh whose parts neither intersect nor nest (its inside test); otherwise, as the bake
+/// measures open meshes and soups, the distance to the boundary of its inside (the triangles
+/// that bound it and the caps over its holes), signed by the generalized winding number (inside
+/// where it exceeds 1/2; bake/mesh_surface.h). A tile baked
 /// `--unsigned` (distile:params "sign": "unsigned") compares with the unsigned distance minus half
 /// its recorded thickness. `how` says which truth it is; `keepAlive` owns it.
 std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, const Tile& tile,
@@ -142,18 +143,19 @@ std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, c
         };
     }
     auto mesh = std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
-    if (mesh->hasSign()) {
+    auto surface = std::make_shared<const MeshSurfaceDistance>(placed, tile.size());
+    if (insideTestSignsAlike(*mesh, surface->surface(), placed)) {
         keepAlive = mesh;
         how = "closed: CGAL's inside test";
         return [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
     }
-    auto surface = std::make_shared<const MeshSurfaceDistance>(placed, tile.size());
     keepAlive = surface;
-    how = "not closed: signed by its winding number";
-    if (!surface->caps().triangles().triangles.empty()) {
-        how += ", its holes capped (" +
-               std::to_string(surface->caps().triangles().triangles.size()) + " cap triangles)";
-    }
+    how = mesh->hasSign() ? "closed, its parts overlapping or nested: signed by its winding number"
+                          : "not closed: signed by its winding number";
+    if (const std::size_t trimmed = surface->surface().trimmedTriangles(); trimmed > 0)
+        how += ", " + std::to_string(trimmed) + " triangles trimmed to the parts that bound it";
+    const std::size_t caps = surface->surface().caps().triangles.size();
+    if (caps > 0) how += ", its holes capped (" + std::to_string(caps) + " cap triangles)";
     return [surface, cutoff](const glm::dvec3& p) { return surface->signedDistance(p, cutoff); };
 }
 

@@ -13,7 +13,7 @@
 
 #include "bake/bake.h"
 #include "bake/bake_cache.h"
-#include "bake/hole_caps.h"
+#include "bake/mesh_surface.h"
 #include "bake/provenance.h"
 #include "bake/solid_mesh.h"
 #include "common/error.h"
@@ -657,14 +657,15 @@ SceneFile demoScene(TileCache& tiles) {
 namespace {
 
 /// The mesh truth of a `"bake": "mesh"` tile as the material's exact hit and analytic distance;
-/// for a mesh that is not closed, the analytic distance the bake measured (its triangles and the
-/// caps over its holes, signed by its winding number: bake/hole_caps.h), sphere traced.
+/// for a mesh that is not closed or whose parts overlap or nest, the analytic distance the bake measured
+/// (its triangles and the caps over its holes, signed by its winding number: bake/mesh_surface.h),
+/// sphere traced.
 void attachMeshTruth(Material& material, const TriangleSoup& placedMesh) {
     auto truth = std::make_shared<const MeshDistance>(
         placedMesh, MeshDistance::Periodic{material.tile->size()});
-    if (!truth->hasSign()) {
-        const Size3 size = material.tile->size();
-        auto surface = std::make_shared<const MeshSurfaceDistance>(placedMesh, size);
+    const Size3 size = material.tile->size();
+    auto surface = std::make_shared<const MeshSurfaceDistance>(placedMesh, size);
+    if (!insideTestSignsAlike(*truth, surface->surface(), placedMesh)) {
         // Farther than any point of the tile's box can be from detail inside it.
         const double cutoff = double(size.width + size.height + size.depth);
         material.analyticDistance = [surface, cutoff](const glm::dvec3& texelPosition) {

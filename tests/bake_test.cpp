@@ -8,7 +8,7 @@
 #include <glm/geometric.hpp>
 #include <random>
 
-#include "bake/hole_caps.h"
+#include "bake/mesh_surface.h"
 #include "bake/solid_mesh.h"
 #include "bake/soup_distance.h"
 #include "common/error.h"
@@ -290,19 +290,66 @@ TriangleSoup makeOpenBoxSoup(const glm::dvec3& lo, const glm::dvec3& hi) {
     return box;
 }
 
-TEST(HoleCaps, ClosedMeshesHaveNoCaps) {
+TEST(MeshSurface, ClosedMeshIsAllItsTrianglesWithoutCaps) {
     const Size3 tile{32, 32, 16};
     const TriangleSoup box = makeBoxSoup(glm::dvec3(5, 5, 2), glm::dvec3(15, 15, 12));
     const SoupDistance soup(box, tile);
-    const HoleCaps caps(box, soup, tile);
-    EXPECT_TRUE(caps.triangles().triangles.empty());
-    EXPECT_EQ(caps.surfaceDistance(glm::dvec3(1.0), 3.25), 3.25);
+    const MeshSurface surface(box, soup, tile);
+    EXPECT_TRUE(surface.caps().triangles.empty());
+    EXPECT_EQ(surface.trimmedTriangles(), 0u);
+}
+
+TEST(MeshSurface, OverlappingSpheresMeasureTheirUnionsSurface) {
+    // Inside both spheres the walls of each are not surface (w = 2 on one side, 1 on the other):
+    // trimmed away, every point takes the distance to the union's surface, within the
+    // tessellation and the pieces (kSurfacePieceTexels) kept whole along the spheres' meeting
+    // circle. Untrimmed, a point by an inner wall was up to its depth (7 texels here) off.
+    const glm::dvec3 a(110.0, 128.0, 48.0), b(135.0, 130.0, 50.0);
+    TriangleSoup soup = makeIcosphereSoup(a, 20.0, 3);
+    append(soup, makeIcosphereSoup(b, 18.0, 3));
+    const double tolerance =
+        inscribedTessellationError(makeIcosphereSoup(a, 20.0, 3), a, 20.0) + kSurfacePieceTexels;
+    const SoupDistance distance(soup, kLargeTile);
+    const MeshSurface surface(soup, distance, kLargeTile);
+    EXPECT_GT(surface.trimmedTriangles(), 0u);
+    EXPECT_TRUE(surface.caps().triangles.empty());
+    // The union's surface: each sphere outside the other ball, bounded by their meeting circle.
+    const double ra = 20.0, rb = 18.0, apart = glm::length(b - a);
+    const glm::dvec3 axis = (b - a) / apart;
+    const double along = (apart * apart + ra * ra - rb * rb) / (2.0 * apart);
+    const glm::dvec3 circleCentre = a + along * axis;
+    const double circleRadius = std::sqrt(ra * ra - along * along);
+    const auto toCircle = [&](const glm::dvec3& p) {
+        const double height = glm::dot(p - circleCentre, axis);
+        const double radial = glm::length(p - circleCentre - height * axis);
+        return std::hypot(height, radial - circleRadius);
+    };
+    const auto toPart = [&](const glm::dvec3& p, const glm::dvec3& centre, double radius,
+                            const glm::dvec3& other, double otherRadius) {
+        const glm::dvec3 nearest = centre + radius * glm::normalize(p - centre);
+        return glm::length(nearest - other) >= otherRadius
+                   ? std::abs(glm::length(p - centre) - radius)
+                   : toCircle(p);
+    };
+    double maxError = 0.0;
+    int insideBoth = 0;
+    for (const glm::dvec3& p :
+         randomPoints(glm::dvec3(80, 100, 20), glm::dvec3(165, 160, 80), 20000, 3)) {
+        const bool inA = glm::length(p - a) < ra, inB = glm::length(p - b) < rb;
+        const double toSurface = std::min(toPart(p, a, ra, b, rb), toPart(p, b, rb, a, ra));
+        const double exact = inA || inB ? -toSurface : toSurface;
+        if (std::abs(exact) >= kCutoff - 1.0) continue;
+        insideBoth += inA && inB;
+        maxError = std::max(maxError, std::abs(surface.signedDistance(p, kCutoff) - exact));
+    }
+    EXPECT_LE(maxError, tolerance);
+    EXPECT_GT(insideBoth, 100);  // the test measures the overlap
 }
 
 // A box off the texel grid (its top plane between voxel layers, its sides across cells).
 const glm::dvec3 kBoxLow(5.3, 4.8, 2.2), kBoxHigh(15.6, 14.1, 11.7);
 
-TEST(HoleCaps, CapOfAnOpenBoxIsItsMissingFace) {
+TEST(MeshSurface, CapOfAnOpenBoxIsItsMissingFace) {
     // A box that is closed but for its top face has w = 1/2 exactly on the missing face (the
     // closed box's 1/2 on its surface, minus the face's solid angle, 0 in its own plane): the
     // cap lies in the box's top plane, inside its top rectangle, and covers all of it (its
@@ -312,8 +359,8 @@ TEST(HoleCaps, CapOfAnOpenBoxIsItsMissingFace) {
     const TriangleSoup open = makeOpenBoxSoup(kBoxLow, kBoxHigh);
     const SoupDistance soup(open, tile);
     ASSERT_FALSE(soup.windingChangesOnlyAcrossTheSurface());
-    const HoleCaps caps(open, soup, tile);
-    const TriangleSoup& cap = caps.triangles();
+    const MeshSurface surface(open, soup, tile);
+    const TriangleSoup& cap = surface.caps();
     ASSERT_FALSE(cap.triangles.empty());
     for (const glm::dvec3& p : cap.positions) {
         EXPECT_NEAR(p.z, kBoxHigh.z, 1e-6);
@@ -330,7 +377,8 @@ TEST(HoleCaps, CapOfAnOpenBoxIsItsMissingFace) {
         for (int x = 0; x <= 100; ++x) {
             const glm::dvec3 p(glm::mix(kBoxLow.x, kBoxHigh.x, 0.01 * x),
                                glm::mix(kBoxLow.y, kBoxHigh.y, 0.01 * y), kBoxHigh.z);
-            const double toSurface = caps.surfaceDistance(p, soup.unsignedDistance(p, 16.0));
+            SoupDistance::NearestHint hint;
+            const double toSurface = surface.unsignedDistance(p, 16.0, hint);
             const double toCorner = std::hypot(std::min(p.x - kBoxLow.x, kBoxHigh.x - p.x),
                                                std::min(p.y - kBoxLow.y, kBoxHigh.y - p.y));
             (toCorner < 1.0 ? farthestNearCorners : farthest) =
@@ -340,11 +388,11 @@ TEST(HoleCaps, CapOfAnOpenBoxIsItsMissingFace) {
     EXPECT_LE(farthest, 1e-6);
     EXPECT_LE(farthestNearCorners, 0.25);
     // Above the middle of the hole the surface is the cap, not the walls 5 texels away.
-    EXPECT_NEAR(surfaceSignedDistance(soup, caps, glm::dvec3(10.2, 9.7, 13.5), 16.0), 1.8, 1e-6);
-    EXPECT_NEAR(surfaceSignedDistance(soup, caps, glm::dvec3(10.2, 9.7, 10.5), 16.0), -1.2, 1e-6);
+    EXPECT_NEAR(surface.signedDistance(glm::dvec3(10.2, 9.7, 13.5), 16.0), 1.8, 1e-6);
+    EXPECT_NEAR(surface.signedDistance(glm::dvec3(10.2, 9.7, 10.5), 16.0), -1.2, 1e-6);
 }
 
-TEST(HoleCaps, OpenBoxBakesAsTheClosedBoxForAnyThreadCount) {
+TEST(MeshSurface, OpenBoxBakesAsTheClosedBoxForAnyThreadCount) {
     // The open box's surface is the closed box's: the tiles agree (float storage) wherever the
     // cap covers the hole; closed meshes bake without caps.
     BakeOptions options;

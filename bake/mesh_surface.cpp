@@ -1,4 +1,4 @@
-#include "bake/hole_caps.h"
+#include "bake/mesh_surface.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -13,6 +13,8 @@
 #include <optional>
 #include <unordered_map>
 #include <vector>
+
+#include "truth/mesh_truth.h"
 
 namespace distile {
 
@@ -204,10 +206,9 @@ struct CrossedEdge {
     std::optional<glm::dvec3> offset;
 };
 
-}  // namespace
-
-HoleCaps::HoleCaps(const TriangleSoup& placedTexels, const SoupDistance& soup, const Size3& tile) {
-    if (soup.windingChangesOnlyAcrossTheSurface()) return;
+/// The caps of `placedTexels` (the file note's steps 1 to 3).
+TriangleSoup capsOf(const TriangleSoup& placedTexels, const SoupDistance& soup, const Size3& tile) {
+    TriangleSoup caps;
     const Bounds3 bounds = boundsOf(placedTexels);
     CapGrid grid{tile, 0, 0};
     grid.firstLayer = int(std::floor(bounds.min.z)) - kLayerMarginTexels;
@@ -291,7 +292,7 @@ HoleCaps::HoleCaps(const TriangleSoup& placedTexels, const SoupDistance& soup, c
             }
         }
     }
-    if (tetrahedra.empty()) return;
+    if (tetrahedra.empty()) return caps;
 
     // 3. The cap's vertex on each crossed edge: the level surface's crossing on a cap edge, else
     // the nearest border point.
@@ -338,9 +339,9 @@ HoleCaps::HoleCaps(const TriangleSoup& placedTexels, const SoupDistance& soup, c
                               std::optional<glm::dvec3> c) {
             if (!a || !b || !c) return;
             if (glm::length(glm::cross(*b - *a, *c - *a)) < 1e-12) return;  // degenerate
-            const unsigned first = unsigned(triangles_.positions.size());
-            triangles_.positions.insert(triangles_.positions.end(), {*a, *b, *c});
-            triangles_.triangles.emplace_back(first, first + 1, first + 2);
+            const unsigned first = unsigned(caps.positions.size());
+            caps.positions.insert(caps.positions.end(), {*a, *b, *c});
+            caps.triangles.emplace_back(first, first + 1, first + 2);
         };
         const int insideCount = in[0] + in[1] + in[2] + in[3];
         if (insideCount == 1 || insideCount == 3) {
@@ -359,24 +360,103 @@ HoleCaps::HoleCaps(const TriangleSoup& placedTexels, const SoupDistance& soup, c
             emit(a, c, d);
         }
     }
-    if (!triangles_.triangles.empty())
-        distance_ = std::make_unique<const SoupDistance>(triangles_, tile);
+    return caps;
 }
 
-HoleCaps::HoleCaps() = default;
-HoleCaps::HoleCaps(HoleCaps&&) noexcept = default;
-HoleCaps::~HoleCaps() = default;
-
-double HoleCaps::surfaceDistance(const glm::dvec3& texelPosition, double meshDistanceTexels) const {
-    if (!distance_ || meshDistanceTexels <= 0.0) return meshDistanceTexels;
-    return distance_->unsignedDistance(texelPosition, meshDistanceTexels);
+/// Appends to `pieces` the parts of the triangle abc that bound the inside {w > 1/2}: where w
+/// differs in sign on its two sides (1e-5 of its longest edge off its plane). Sampled at its
+/// centroid and a tenth of the way from each corner to it: bounding at all four, it is kept;
+/// at none, dropped; at some, split in four at its edges' middles, each part sampled again,
+/// down to kSurfacePieceTexels, where a part bounding at one of its samples is kept whole.
+/// Returns whether it was kept whole.
+bool appendBoundingPieces(const SoupDistance& soup, const glm::dvec3& a, const glm::dvec3& b,
+                          const glm::dvec3& c, std::vector<glm::dvec3>& pieces) {
+    const glm::dvec3 normal = glm::cross(b - a, c - a);
+    const double area = glm::length(normal);
+    const double longest = std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
+    int bounding = 4;  // zero-area triangles have no sides; they change no distance: kept
+    if (area > 0.0) {
+        const glm::dvec3 offset = (1e-5 * longest / area) * normal;
+        const glm::dvec3 centroid = (a + b + c) / 3.0;
+        bounding = 0;
+        for (const glm::dvec3& sample : {centroid, glm::mix(a, centroid, 0.1),
+                                         glm::mix(b, centroid, 0.1), glm::mix(c, centroid, 0.1)}) {
+            bounding += (soup.windingNumber(sample + offset) > 0.5) !=
+                        (soup.windingNumber(sample - offset) > 0.5);
+        }
+    }
+    if (bounding == 4 || (bounding > 0 && longest <= kSurfacePieceTexels)) {
+        pieces.insert(pieces.end(), {a, b, c});
+        return bounding == 4;
+    }
+    if (bounding == 0) return false;
+    const glm::dvec3 ab = 0.5 * (a + b), bc = 0.5 * (b + c), ca = 0.5 * (c + a);
+    appendBoundingPieces(soup, a, ab, ca, pieces);
+    appendBoundingPieces(soup, ab, b, bc, pieces);
+    appendBoundingPieces(soup, ca, bc, c, pieces);
+    appendBoundingPieces(soup, ab, bc, ca, pieces);
+    return false;
 }
 
-double surfaceSignedDistance(const SoupDistance& soup, const HoleCaps& caps,
-                             const glm::dvec3& texelPosition, double cutoffTexels) {
-    const double distance =
-        caps.surfaceDistance(texelPosition, soup.unsignedDistance(texelPosition, cutoffTexels));
-    return soup.windingNumber(texelPosition) > 0.5 ? -distance : distance;
+}  // namespace
+
+MeshSurface::MeshSurface(const SoupDistance& soup) : soup_(&soup) {}
+
+MeshSurface::MeshSurface(const TriangleSoup& placedTexels, const SoupDistance& soup,
+                         const Size3& tile)
+    : soup_(&soup) {
+    // Each triangle's bounding pieces, in triangle order whatever the threads.
+    const std::size_t count = placedTexels.triangles.size();
+    std::vector<std::vector<glm::dvec3>> pieces(count);
+    std::vector<char> whole(count, 1);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t t = range.begin(); t != range.end(); ++t) {
+                              const glm::uvec3& triangle = placedTexels.triangles[t];
+                              whole[t] = appendBoundingPieces(
+                                  soup, placedTexels.positions[triangle.x],
+                                  placedTexels.positions[triangle.y],
+                                  placedTexels.positions[triangle.z], pieces[t]);
+                          }
+                      });
+    trimmedTriangles_ = std::size_t(std::count(whole.begin(), whole.end(), 0));
+    TriangleSoup kept;
+    for (const std::vector<glm::dvec3>& corners : pieces) {
+        for (std::size_t n = 0; n < corners.size(); n += 3) {
+            const unsigned first = unsigned(kept.positions.size());
+            kept.positions.insert(kept.positions.end(), corners.begin() + n,
+                                  corners.begin() + n + 3);
+            kept.triangles.emplace_back(first, first + 1, first + 2);
+        }
+    }
+    // Nothing bounds: no inside (the bake refuses it); then all count.
+    if (kept.triangles.empty()) trimmedTriangles_ = 0;
+    if (trimmedTriangles_ > 0) bounding_ = std::make_unique<const SoupDistance>(kept, tile);
+    if (!soup.windingChangesOnlyAcrossTheSurface()) caps_ = capsOf(placedTexels, soup, tile);
+    if (!caps_.triangles.empty()) capDistance_ = std::make_unique<const SoupDistance>(caps_, tile);
+}
+
+bool insideTestSignsAlike(const MeshDistance& mesh, const MeshSurface& surface,
+                          const TriangleSoup& placedTexels) {
+    return mesh.hasSign() && surface.trimmedTriangles() == 0 &&
+           !inspectMesh(placedTexels).selfIntersecting;
+}
+
+MeshSurface::MeshSurface(MeshSurface&&) noexcept = default;
+MeshSurface::~MeshSurface() = default;
+
+double MeshSurface::unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
+                                     SoupDistance::NearestHint& hint) const {
+    const SoupDistance& triangles = bounding_ ? *bounding_ : *soup_;
+    const double distance = triangles.unsignedDistance(texelPosition, cutoffTexels, hint);
+    if (!capDistance_ || distance <= 0.0) return distance;
+    return capDistance_->unsignedDistance(texelPosition, distance);
+}
+
+double MeshSurface::signedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const {
+    SoupDistance::NearestHint none;
+    const double distance = unsignedDistance(texelPosition, cutoffTexels, none);
+    return soup_->windingNumber(texelPosition) > 0.5 ? -distance : distance;
 }
 
 }  // namespace distile
