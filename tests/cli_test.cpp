@@ -837,6 +837,29 @@ TEST_F(Cli, BakesOpenMeshesByWindingNumberAndSheetsOnlyWithUnsigned) {
     EXPECT_TRUE(fs::exists(path("sheet.exr")));
 }
 
+TEST_F(Cli, OverlappingSpheresSoupPassesCheckAgainstItsUnionsSurface) {
+    // Two closed spheres overlapping in one soup: CGAL's crossing count would call the overlap
+    // outside, so `check` signs by the winding number (w = 2 there) and measures, as the bake,
+    // the distance to the union's surface (the walls inside the other sphere trimmed away).
+    TriangleSoup soup = test::makeIcosphereSoup(glm::dvec3(24.0, 30.0, 14.0), 12.0, 3);
+    const TriangleSoup second = test::makeIcosphereSoup(glm::dvec3(36.0, 33.6, 16.4), 9.6, 3);
+    const unsigned base = unsigned(soup.positions.size());
+    soup.positions.insert(soup.positions.end(), second.positions.begin(), second.positions.end());
+    for (const glm::uvec3& t : second.triangles) soup.triangles.push_back(t + glm::uvec3(base));
+    writeText(path("spheres.obj"), objText(soup));
+    ASSERT_EQ(run({"bake", "mesh", "spheres.obj", "-o", "spheres.exr", "--size", "64x64x32",
+                   "--scale", "1", "--offset", "0,0,0"})
+                  .status,
+              0);
+    const RunResult check = run({"check", "spheres.exr", "--json"});
+    EXPECT_EQ(check.status, 0) << check.out << check.err;
+    const nlohmann::json report = nlohmann::json::parse(check.out);
+    EXPECT_NE(report["against"].get<std::string>().find("overlapping"), std::string::npos)
+        << check.out;
+    EXPECT_LE(report["near_max_abs"].get<double>(), 0.5);
+    EXPECT_EQ(report["sign_errors"].get<int>(), 0);
+}
+
 TEST_F(Cli, OpenCupPassesCheckAgainstItsCappedSurface) {
     // A cup: a cylinder wall (radius 1, height 1.5, 48 segments) on a bottom disk, no top. Its
     // winding number is 1/2 exactly on the missing top (the closed cup's 1/2 on its surface), so
@@ -1149,6 +1172,32 @@ TEST_F(Cli, MeshRecipeRendersAgainstExactMeshHitsAndRebakesAnEditedMesh) {
     EXPECT_GT(
         nlohmann::json::parse(changed.out).at("all_both_hit").at("hit_error_max").get<double>(),
         1.0);
+}
+
+TEST_F(Cli, OpenMeshRecipeRendersAReferenceOfItsCappedSurface) {
+    // The unit cube without its top face: the reference render sphere traces the distance the
+    // bake measured (triangles and the cap over the hole, signed by the winding number), shadows
+    // included; it used to need a closed mesh. It sees the cube the tile shows, lid included.
+    writeText(path("open.obj"),
+              "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+              "f 1 4 3 2\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n");
+    writeText(path("scene.json"), planeScene(meshRecipeMaterial("open.obj")));
+    const auto render = [&](const std::string& output, bool reference) {
+        std::vector<std::string> arguments = {"render", "scene.json", "-o", output,  "--width",
+                                              "64",     "--height",   "48", "--aovs"};
+        if (reference) arguments.push_back("--reference");
+        return run(arguments);
+    };
+    const RunResult tile = render("tile.png", false);
+    ASSERT_EQ(tile.status, 0) << tile.err;
+    const RunResult truth = render("truth.png", true);
+    ASSERT_EQ(truth.status, 0) << truth.err;
+    const RunResult compared = run({"compare", "tile.png", "truth.png", "--json"});
+    ASSERT_EQ(compared.status, 0) << compared.err;
+    const nlohmann::json report = nlohmann::json::parse(compared.out);
+    // As the closed cube's (MeshRecipeRendersAgainstExactMeshHitsAndRebakesAnEditedMesh).
+    EXPECT_EQ(report.at("coverage_mismatches").get<int>(), 0);
+    EXPECT_LT(report.at("all_both_hit").at("hit_error_mean").get<double>(), 0.1);
 }
 
 TEST_F(Cli, SceneRecipesBakeTheSameTilesAsTheCommand) {
