@@ -343,7 +343,7 @@ void addCheckCommand(CLI::App& app) {
     command->add_option("tile", arguments->tile, "Tile file (.exr)")->required();
     command
         ->add_option("--against", arguments->against,
-                     "Truth: analytic (from the tile's distile:source/params), a closed mesh file "
+                     "Truth: analytic (from the tile's distile:source/params), a mesh file "
                      "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
                      "Default: the analytic truth, or for a tile baked from a mesh that mesh "
                      "(its recorded distile:source_file, placed as it was baked)")

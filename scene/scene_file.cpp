@@ -281,7 +281,7 @@ struct BakedTile {
     std::shared_ptr<const TriangleSoup> placedMesh;  ///< null unless "bake": "mesh"
 };
 
-/// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the closed
+/// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the detail
 /// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
 /// scale or offset is given. The mesh's warnings go to `warn`.
 BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
@@ -303,7 +303,7 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
         }
     }
     const auto [path, bytes] =
-        recipeFile(spec, folder, "a closed detail mesh: OBJ, PLY, OFF or STL");
+        recipeFile(spec, folder, "a detail mesh: OBJ, PLY, OFF or STL");
     const Field file = spec["file"];
     const std::string recipe = meshRecipe(bytes, placement, options);
     BakedTile baked;

@@ -13,6 +13,7 @@
 #include "bake/soup_distance.h"
 #include "common/error.h"
 #include "detail_meshes.h"
+#include "sampler/filters.h"
 #include "truth/mesh_truth.h"
 
 namespace distile {
@@ -344,6 +345,41 @@ TEST(MeshSurface, OverlappingSpheresMeasureTheirUnionsSurface) {
     }
     EXPECT_LE(maxError, tolerance);
     EXPECT_GT(insideBoth, 100);  // the test measures the overlap
+}
+
+TEST(MeshBake, UnsignedShellSurfaceIsExactFromThreeTexelsThick) {
+    // The unsigned distance has a crease on the sheet: trilinear filtering overestimates it by up
+    // to half a texel (the sheet midway between texel centres), so the conservative correction
+    // lowers the two texel layers beside it and the tile falls short of the truth within 1.5
+    // texels of the sheet. The shell's surface, thickness / 2 from the sheet, lies beyond that
+    // from 3 texels thick: there the tile is the exact distance within the correction's
+    // tolerance (0.05 texel); at 1 texel it is 0.45 texel off (docs/pipeline.md).
+    const auto shellSurfaceError = [](double height, double thickness) {
+        TriangleSoup sheet;
+        sheet.positions = {{2, 2, height}, {30, 2, height}, {30, 30, height}, {2, 30, height}};
+        sheet.triangles = {{0, 1, 2}, {0, 2, 3}};
+        MeshPlacement placement;
+        placement.fit = false;
+        BakeOptions options;
+        options.size = {32, 32, 12};
+        MeshSignOptions sign;
+        sign.unsignedDistance = true;
+        sign.thicknessTexels = thickness;
+        const SolidMeshBake shell = bakeSolidMesh(sheet, placement, options, "sheet", {}, sign);
+        const TrilinearFilter filter(shell.result.tile);
+        double largest = 0.0;
+        for (double x = 10.0; x < 20.0; x += 0.37) {
+            for (double y = 10.0; y < 20.0; y += 0.41) {
+                for (double z : {height - 0.5 * thickness, height + 0.5 * thickness}) {
+                    largest = std::max(largest,
+                                       std::abs(double(filter.distanceTexels(glm::vec3(x, y, z)))));
+                }
+            }
+        }
+        return largest;
+    };
+    for (double height : {4.0, 4.25, 4.5}) EXPECT_LE(shellSurfaceError(height, 3.0), 0.05 + 1e-6);
+    EXPECT_NEAR(shellSurfaceError(4.0, 1.0), 0.45, 1e-3);
 }
 
 // A box off the texel grid (its top plane between voxel layers, its sides across cells).
