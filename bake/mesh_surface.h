@@ -82,7 +82,7 @@ class MeshSurface {
 
   private:
     const SoupDistance* soup_;
-    std::unique_ptr<const SoupDistance> bounding_;  ///< the surface's triangles; null: all
+    std::unique_ptr<const SoupDistance> bounding_;  ///< the surface's triangles; null: soup_'s
     std::size_t trimmedTriangles_ = 0;
     TriangleSoup caps_;
     std::unique_ptr<const SoupDistance> capDistance_;  ///< of caps_; null when there are none
