@@ -6,6 +6,7 @@
 #include <sstream>
 #include <string>
 
+#include "bake/mesh_surface.h"
 #include "bake/resample.h"
 #include "bake/soup_distance.h"
 #include "common/error.h"
@@ -55,12 +56,17 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     const float halfBand =
         options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
     const SoupDistance soup(placed, options.size);
+    // What the distances measure (bake/mesh_surface.h): signed, the boundary of the inside (the
+    // triangles that bound it, caps over holes), as `check` and reference renders measure it.
+    const MeshSurface surface = sign.unsignedDistance ? MeshSurface(soup)
+                                                      : MeshSurface(placed, soup, options.size);
     const double halfThickness = sign.unsignedDistance ? 0.5 * sign.thicknessTexels : 0.0;
     // Nothing beyond the band is needed: the level set clamps there.
     const double cutoff = double(halfBand) + halfThickness;
     const ExactDistance exactDistance = [&](const glm::dvec3& p) {
-        if (sign.unsignedDistance) return soup.unsignedDistance(p, cutoff) - halfThickness;
-        return soup.signedDistance(p, cutoff);
+        SoupDistance::NearestHint none;
+        if (sign.unsignedDistance) return surface.unsignedDistance(p, cutoff, none) - halfThickness;
+        return surface.signedDistance(p, cutoff);
     };
     // The placement as used (also when fitted): `check` and reference renders place the source
     // mesh by it.
@@ -86,7 +92,7 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
         SoupDistance::NearestHint hint;
         for (std::size_t i = 0; i < row.size(); ++i) {
             const glm::dvec3 p(double(i) + 0.5, j + 0.5, k + 0.5);
-            const double distance = soup.unsignedDistance(p, cutoff, hint);
+            const double distance = surface.unsignedDistance(p, cutoff, hint);
             if (sign.unsignedDistance) {
                 row[i] = distance - halfThickness;
             } else {

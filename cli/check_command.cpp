@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/mesh_surface.h"
 #include "bake/provenance.h"
 #include "bake/resample.h"
 #include "bake/soup_distance.h"
@@ -122,8 +123,10 @@ bool isDistileLevelSet(const fs::path& file) {
 }
 
 /// The exact signed distance (texels, periodic) to a detail mesh placed in `tile`: CGAL's for a
-/// closed mesh (its inside test); otherwise the distance signed by the generalized winding number
-/// (inside where it exceeds 1/2), as the bake signs open meshes and soups. A tile baked
+/// closed mesh whose parts neither intersect nor nest (its inside test); otherwise, as the bake
+/// measures open meshes and soups, the distance to the boundary of its inside (the triangles
+/// that bound it and the caps over its holes), signed by the generalized winding number (inside
+/// where it exceeds 1/2; bake/mesh_surface.h). A tile baked
 /// `--unsigned` (distile:params "sign": "unsigned") compares with the unsigned distance minus half
 /// its recorded thickness. `how` says which truth it is; `keepAlive` owns it.
 std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, const Tile& tile,
@@ -147,15 +150,20 @@ std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, c
         };
     }
     auto mesh = std::make_shared<const MeshDistance>(placed, MeshDistance::Periodic{tile.size()});
-    if (mesh->hasSign()) {
+    auto surface = std::make_shared<const MeshSurfaceDistance>(placed, tile.size());
+    if (insideTestSignsAlike(*mesh, surface->surface(), placed)) {
         keepAlive = mesh;
         how = "closed: CGAL's inside test";
         return [mesh](const glm::dvec3& p) { return mesh->signedDistance(p); };
     }
-    auto soup = std::make_shared<const SoupDistance>(placed, tile.size());
-    keepAlive = soup;
-    how = "not closed: signed by its winding number";
-    return [soup, cutoff](const glm::dvec3& p) { return soup->signedDistance(p, cutoff); };
+    keepAlive = surface;
+    how = mesh->hasSign() ? "closed, its parts overlapping or nested: signed by its winding number"
+                          : "not closed: signed by its winding number";
+    if (const std::size_t trimmed = surface->surface().trimmedTriangles(); trimmed > 0)
+        how += ", " + std::to_string(trimmed) + " triangles trimmed to the parts that bound it";
+    const std::size_t caps = surface->surface().caps().triangles.size();
+    if (caps > 0) how += ", its holes capped (" + std::to_string(caps) + " cap triangles)";
+    return [surface, cutoff](const glm::dvec3& p) { return surface->signedDistance(p, cutoff); };
 }
 
 void runCheck(CheckArguments arguments) {
@@ -342,7 +350,7 @@ void addCheckCommand(CLI::App& app) {
     command->add_option("tile", arguments->tile, "Tile file (.exr)")->required();
     command
         ->add_option("--against", arguments->against,
-                     "Truth: analytic (from the tile's distile:source/params), a closed mesh file "
+                     "Truth: analytic (from the tile's distile:source/params), a mesh file "
                      "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
                      "Default: the analytic truth, or for a tile baked from a mesh that mesh "
                      "(its recorded distile:source_file, placed as it was baked)")

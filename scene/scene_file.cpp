@@ -13,6 +13,7 @@
 
 #include "bake/bake.h"
 #include "bake/bake_cache.h"
+#include "bake/mesh_surface.h"
 #include "bake/provenance.h"
 #include "bake/solid_mesh.h"
 #include "common/error.h"
@@ -280,7 +281,7 @@ struct BakedTile {
     std::shared_ptr<const TriangleSoup> placedMesh;  ///< null unless "bake": "mesh"
 };
 
-/// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the closed
+/// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the detail
 /// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
 /// scale or offset is given. The mesh's warnings go to `warn`.
 BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
@@ -302,7 +303,7 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
         }
     }
     const auto [path, bytes] =
-        recipeFile(spec, folder, "a closed detail mesh: OBJ, PLY, OFF or STL");
+        recipeFile(spec, folder, "a detail mesh: OBJ, PLY, OFF or STL");
     const Field file = spec["file"];
     const std::string recipe = meshRecipe(bytes, placement, options);
     BakedTile baked;
@@ -655,10 +656,23 @@ SceneFile demoScene(TileCache& tiles) {
 
 namespace {
 
-/// The mesh truth of a `"bake": "mesh"` tile as the material's exact hit and analytic distance.
+/// The mesh truth of a `"bake": "mesh"` tile as the material's exact hit and analytic distance;
+/// for a mesh that is not closed or whose parts overlap or nest, the analytic distance the bake measured
+/// (its triangles and the caps over its holes, signed by its winding number: bake/mesh_surface.h),
+/// sphere traced.
 void attachMeshTruth(Material& material, const TriangleSoup& placedMesh) {
     auto truth = std::make_shared<const MeshDistance>(
         placedMesh, MeshDistance::Periodic{material.tile->size()});
+    const Size3 size = material.tile->size();
+    auto surface = std::make_shared<const MeshSurfaceDistance>(placedMesh, size);
+    if (!insideTestSignsAlike(*truth, surface->surface(), placedMesh)) {
+        // Farther than any point of the tile's box can be from detail inside it.
+        const double cutoff = double(size.width + size.height + size.depth);
+        material.analyticDistance = [surface, cutoff](const glm::dvec3& texelPosition) {
+            return surface->signedDistance(texelPosition, cutoff);
+        };
+        return;
+    }
     const double meshTopTexels = boundsOf(placedMesh).max.z;
     material.analyticDistance = [truth](const glm::dvec3& texelPosition) {
         return truth->signedDistance(texelPosition);

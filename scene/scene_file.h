@@ -69,7 +69,9 @@ SceneFile demoScene(TileCache& tiles);
 ///   the procedural options in the tile's provenance (bake/provenance.h);
 /// - a `"bake": "mesh"` tile: the mesh truth (truth/mesh_truth.h, periodic over the tile) as
 ///   Material::exactHit (CGAL first ray hits and triangle normals) and analyticDistance (exact
-///   signed distance).
+///   signed distance); for a mesh that is not closed or whose parts overlap or nest, the distance
+///   to the surface its bake measured (bake/mesh_surface.h: triangles that bound its inside, caps
+///   over its holes, signed by its winding number) as analyticDistance only (sphere traced).
 /// - a tile file baked from a mesh: the same mesh truth, of its recorded source mesh placed as it
 ///   was baked (bake/provenance.h sourceMeshPlaced).
 /// Others (height maps, mesh tiles that do not record their source) are left as they are: the

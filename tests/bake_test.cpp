@@ -8,10 +8,12 @@
 #include <glm/geometric.hpp>
 #include <random>
 
+#include "bake/mesh_surface.h"
 #include "bake/solid_mesh.h"
 #include "bake/soup_distance.h"
 #include "common/error.h"
 #include "detail_meshes.h"
+#include "sampler/filters.h"
 #include "truth/mesh_truth.h"
 
 namespace distile {
@@ -279,6 +281,181 @@ TEST(MeshBake, SheetWithoutInsideNeedsUnsigned) {
     EXPECT_EQ(shell.insideTexels, std::size_t(2 * 30 * 30));
     sign.thicknessTexels = -1.0;
     EXPECT_THROW(bakeSolidMesh(sheet, placement, options, "sheet.obj", {}, sign), InputError);
+}
+
+/// The box [lo, hi] without its top face (z = hi.z): open, its hole a known plane.
+TriangleSoup makeOpenBoxSoup(const glm::dvec3& lo, const glm::dvec3& hi) {
+    TriangleSoup box = makeBoxSoup(lo, hi);
+    // makeBoxSoup's second quad (triangles 2 and 3) is the top face.
+    box.triangles.erase(box.triangles.begin() + 2, box.triangles.begin() + 4);
+    return box;
+}
+
+TEST(MeshSurface, ClosedMeshIsAllItsTrianglesWithoutCaps) {
+    const Size3 tile{32, 32, 16};
+    const TriangleSoup box = makeBoxSoup(glm::dvec3(5, 5, 2), glm::dvec3(15, 15, 12));
+    const SoupDistance soup(box, tile);
+    const MeshSurface surface(box, soup, tile);
+    EXPECT_TRUE(surface.caps().triangles.empty());
+    EXPECT_EQ(surface.trimmedTriangles(), 0u);
+}
+
+TEST(MeshSurface, OverlappingSpheresMeasureTheirUnionsSurface) {
+    // Inside both spheres the walls of each are not surface (w = 2 on one side, 1 on the other):
+    // trimmed away, every point takes the distance to the union's surface, within the
+    // tessellation and the pieces (kSurfacePieceTexels) kept whole along the spheres' meeting
+    // circle. Untrimmed, a point by an inner wall was up to its depth (7 texels here) off.
+    const glm::dvec3 a(110.0, 128.0, 48.0), b(135.0, 130.0, 50.0);
+    TriangleSoup soup = makeIcosphereSoup(a, 20.0, 3);
+    append(soup, makeIcosphereSoup(b, 18.0, 3));
+    const double tolerance =
+        inscribedTessellationError(makeIcosphereSoup(a, 20.0, 3), a, 20.0) + kSurfacePieceTexels;
+    const SoupDistance distance(soup, kLargeTile);
+    const MeshSurface surface(soup, distance, kLargeTile);
+    EXPECT_GT(surface.trimmedTriangles(), 0u);
+    EXPECT_TRUE(surface.caps().triangles.empty());
+    // The union's surface: each sphere outside the other ball, bounded by their meeting circle.
+    const double ra = 20.0, rb = 18.0, apart = glm::length(b - a);
+    const glm::dvec3 axis = (b - a) / apart;
+    const double along = (apart * apart + ra * ra - rb * rb) / (2.0 * apart);
+    const glm::dvec3 circleCentre = a + along * axis;
+    const double circleRadius = std::sqrt(ra * ra - along * along);
+    const auto toCircle = [&](const glm::dvec3& p) {
+        const double height = glm::dot(p - circleCentre, axis);
+        const double radial = glm::length(p - circleCentre - height * axis);
+        return std::hypot(height, radial - circleRadius);
+    };
+    const auto toPart = [&](const glm::dvec3& p, const glm::dvec3& centre, double radius,
+                            const glm::dvec3& other, double otherRadius) {
+        const glm::dvec3 nearest = centre + radius * glm::normalize(p - centre);
+        return glm::length(nearest - other) >= otherRadius
+                   ? std::abs(glm::length(p - centre) - radius)
+                   : toCircle(p);
+    };
+    double maxError = 0.0;
+    int insideBoth = 0;
+    for (const glm::dvec3& p :
+         randomPoints(glm::dvec3(80, 100, 20), glm::dvec3(165, 160, 80), 20000, 3)) {
+        const bool inA = glm::length(p - a) < ra, inB = glm::length(p - b) < rb;
+        const double toSurface = std::min(toPart(p, a, ra, b, rb), toPart(p, b, rb, a, ra));
+        const double exact = inA || inB ? -toSurface : toSurface;
+        if (std::abs(exact) >= kCutoff - 1.0) continue;
+        insideBoth += inA && inB;
+        maxError = std::max(maxError, std::abs(surface.signedDistance(p, kCutoff) - exact));
+    }
+    EXPECT_LE(maxError, tolerance);
+    EXPECT_GT(insideBoth, 100);  // the test measures the overlap
+}
+
+TEST(MeshBake, UnsignedShellSurfaceIsExactFromThreeTexelsThick) {
+    // The unsigned distance has a crease on the sheet: trilinear filtering overestimates it by up
+    // to half a texel (the sheet midway between texel centres), so the conservative correction
+    // lowers the two texel layers beside it and the tile falls short of the truth within 1.5
+    // texels of the sheet. The shell's surface, thickness / 2 from the sheet, lies beyond that
+    // from 3 texels thick: there the tile is the exact distance within the correction's
+    // tolerance (0.05 texel); at 1 texel it is 0.45 texel off (docs/pipeline.md).
+    const auto shellSurfaceError = [](double height, double thickness) {
+        TriangleSoup sheet;
+        sheet.positions = {{2, 2, height}, {30, 2, height}, {30, 30, height}, {2, 30, height}};
+        sheet.triangles = {{0, 1, 2}, {0, 2, 3}};
+        MeshPlacement placement;
+        placement.fit = false;
+        BakeOptions options;
+        options.size = {32, 32, 12};
+        MeshSignOptions sign;
+        sign.unsignedDistance = true;
+        sign.thicknessTexels = thickness;
+        const SolidMeshBake shell = bakeSolidMesh(sheet, placement, options, "sheet", {}, sign);
+        const TrilinearFilter filter(shell.result.tile);
+        double largest = 0.0;
+        for (double x = 10.0; x < 20.0; x += 0.37) {
+            for (double y = 10.0; y < 20.0; y += 0.41) {
+                for (double z : {height - 0.5 * thickness, height + 0.5 * thickness}) {
+                    largest = std::max(largest,
+                                       std::abs(double(filter.distanceTexels(glm::vec3(x, y, z)))));
+                }
+            }
+        }
+        return largest;
+    };
+    for (double height : {4.0, 4.25, 4.5}) EXPECT_LE(shellSurfaceError(height, 3.0), 0.05 + 1e-6);
+    EXPECT_NEAR(shellSurfaceError(4.0, 1.0), 0.45, 1e-3);
+}
+
+// A box off the texel grid (its top plane between voxel layers, its sides across cells).
+const glm::dvec3 kBoxLow(5.3, 4.8, 2.2), kBoxHigh(15.6, 14.1, 11.7);
+
+TEST(MeshSurface, CapOfAnOpenBoxIsItsMissingFace) {
+    // A box that is closed but for its top face has w = 1/2 exactly on the missing face (the
+    // closed box's 1/2 on its surface, minus the face's solid angle, 0 in its own plane): the
+    // cap lies in the box's top plane, inside its top rectangle, and covers all of it (its
+    // corners on edges that cross the walls, in the cells along the border, move onto the
+    // border).
+    const Size3 tile{32, 32, 16};
+    const TriangleSoup open = makeOpenBoxSoup(kBoxLow, kBoxHigh);
+    const SoupDistance soup(open, tile);
+    ASSERT_FALSE(soup.windingChangesOnlyAcrossTheSurface());
+    const MeshSurface surface(open, soup, tile);
+    const TriangleSoup& cap = surface.caps();
+    ASSERT_FALSE(cap.triangles.empty());
+    for (const glm::dvec3& p : cap.positions) {
+        EXPECT_NEAR(p.z, kBoxHigh.z, 1e-6);
+        EXPECT_GE(p.x, kBoxLow.x - 1e-9);
+        EXPECT_LE(p.x, kBoxHigh.x + 1e-9);
+        EXPECT_GE(p.y, kBoxLow.y - 1e-9);
+        EXPECT_LE(p.y, kBoxHigh.y + 1e-9);
+    }
+    // From a point of the missing face to the mesh and its cap: 0, but within a texel of the
+    // top's corners, where the border turns inside a cell and the cap's corners moved onto one
+    // side or the other may leave a sliver (0.18 texel measured).
+    double farthest = 0.0, farthestNearCorners = 0.0;
+    for (int y = 0; y <= 100; ++y) {
+        for (int x = 0; x <= 100; ++x) {
+            const glm::dvec3 p(glm::mix(kBoxLow.x, kBoxHigh.x, 0.01 * x),
+                               glm::mix(kBoxLow.y, kBoxHigh.y, 0.01 * y), kBoxHigh.z);
+            SoupDistance::NearestHint hint;
+            const double toSurface = surface.unsignedDistance(p, 16.0, hint);
+            const double toCorner = std::hypot(std::min(p.x - kBoxLow.x, kBoxHigh.x - p.x),
+                                               std::min(p.y - kBoxLow.y, kBoxHigh.y - p.y));
+            (toCorner < 1.0 ? farthestNearCorners : farthest) =
+                std::max(toCorner < 1.0 ? farthestNearCorners : farthest, toSurface);
+        }
+    }
+    EXPECT_LE(farthest, 1e-6);
+    EXPECT_LE(farthestNearCorners, 0.25);
+    // Above the middle of the hole the surface is the cap, not the walls 5 texels away.
+    EXPECT_NEAR(surface.signedDistance(glm::dvec3(10.2, 9.7, 13.5), 16.0), 1.8, 1e-6);
+    EXPECT_NEAR(surface.signedDistance(glm::dvec3(10.2, 9.7, 10.5), 16.0), -1.2, 1e-6);
+}
+
+TEST(MeshSurface, OpenBoxBakesAsTheClosedBoxForAnyThreadCount) {
+    // The open box's surface is the closed box's: the tiles agree (float storage) wherever the
+    // cap covers the hole; closed meshes bake without caps.
+    BakeOptions options;
+    options.size = {32, 32, 16};
+    options.conservative.enabled = false;
+    MeshPlacement placement;
+    placement.fit = false;
+    const TriangleSoup open = makeOpenBoxSoup(kBoxLow, kBoxHigh);
+    const TriangleSoup closed = makeBoxSoup(kBoxLow, kBoxHigh);
+    std::vector<float> single, dual;
+    {
+        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        const SolidMeshBake bake = bakeSolidMesh(open, placement, options, "open");
+        single.assign(bake.result.tile.distancesTexels().begin(),
+                      bake.result.tile.distancesTexels().end());
+    }
+    const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+    const SolidMeshBake bake = bakeSolidMesh(open, placement, options, "open");
+    dual.assign(bake.result.tile.distancesTexels().begin(),
+                bake.result.tile.distancesTexels().end());
+    EXPECT_EQ(single, dual);
+    const SolidMeshBake reference = bakeSolidMesh(closed, placement, options, "closed");
+    const std::span<const float> expected = reference.result.tile.distancesTexels();
+    double maxDifference = 0.0;
+    for (std::size_t n = 0; n < expected.size(); ++n)
+        maxDifference = std::max(maxDifference, double(std::abs(dual[n] - expected[n])));
+    EXPECT_LE(maxDifference, 1e-5);
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include <initializer_list>
 #include <iterator>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <random>
 #include <set>
 #include <sstream>
@@ -898,6 +899,56 @@ TEST_F(Cli, BakesOpenMeshesByWindingNumberAndSheetsOnlyWithUnsigned) {
     EXPECT_TRUE(fs::exists(path("sheet.exr")));
 }
 
+TEST_F(Cli, OpenMeshesAndSoupsPassCheckAgainstTheSurfaceTheyBound) {
+    // `bake mesh` then `check` against the recorded mesh: no sign error and the near-surface
+    // error of a closed mesh's tile (at most half a texel); `how` names the truth used.
+    const auto passesCheck = [&](const std::string& obj, const std::vector<std::string>& placement,
+                                 const std::string& how) {
+        SCOPED_TRACE(obj);
+        std::vector<std::string> bake = {"bake", "mesh", obj, "-o", "tile.exr"};
+        bake.insert(bake.end(), placement.begin(), placement.end());
+        ASSERT_EQ(run(bake).status, 0);
+        const RunResult check = run({"check", "tile.exr", "--json"});
+        EXPECT_EQ(check.status, 0) << check.out << check.err;
+        const nlohmann::json report = nlohmann::json::parse(check.out);
+        EXPECT_NE(report["against"].get<std::string>().find(how), std::string::npos) << check.out;
+        EXPECT_LE(report["near_max_abs"].get<double>(), 0.5);
+        EXPECT_EQ(report["sign_errors"].get<int>(), 0);
+    };
+    // A cup: a cylinder wall (radius 1, height 1.5, 48 segments) on a bottom disk, no top. Its
+    // winding number is 1/2 exactly on the missing top (the closed cup's 1/2 on its surface), so
+    // the surface the bake and `check` cap it with is that disk; without the cap the tile had
+    // sign errors above the hole (a lid the truth did not have).
+    std::ostringstream cup;
+    const int segments = 48;
+    cup << "v 0 0 0\n";
+    for (int s = 0; s < segments; ++s) {
+        const double angle = 2.0 * std::numbers::pi * s / segments;
+        cup << "v " << std::cos(angle) << " " << std::sin(angle) << " 0\nv " << std::cos(angle)
+            << " " << std::sin(angle) << " 1.5\n";
+    }
+    for (int s = 0; s < segments; ++s) {
+        const int bottom = 2 + 2 * s, top = bottom + 1, nextBottom = 2 + 2 * ((s + 1) % segments),
+                  nextTop = nextBottom + 1;
+        cup << "f 1 " << nextBottom << " " << bottom << "\nf " << bottom << " " << nextBottom << " "
+            << nextTop << " " << top << "\n";
+    }
+    writeText(path("cup.obj"), cup.str());
+    passesCheck("cup.obj", {"--size", "64x64x16", "--scale", "8", "--offset", "32,32,1"},
+                "its holes capped");
+    // Two closed spheres overlapping in one soup: CGAL's crossing count would call the overlap
+    // outside, so `check` signs by the winding number (w = 2 there) and measures, as the bake,
+    // the distance to the union's surface (the walls inside the other sphere trimmed away).
+    TriangleSoup soup = test::makeIcosphereSoup(glm::dvec3(24.0, 30.0, 14.0), 12.0, 3);
+    const TriangleSoup second = test::makeIcosphereSoup(glm::dvec3(36.0, 33.6, 16.4), 9.6, 3);
+    const unsigned base = unsigned(soup.positions.size());
+    soup.positions.insert(soup.positions.end(), second.positions.begin(), second.positions.end());
+    for (const glm::uvec3& t : second.triangles) soup.triangles.push_back(t + glm::uvec3(base));
+    writeText(path("spheres.obj"), objText(soup));
+    passesCheck("spheres.obj", {"--size", "64x64x32", "--scale", "1", "--offset", "0,0,0"},
+                "parts overlapping");
+}
+
 // `bake vdb` of the level set `bake chainmail --vdb` wrote, placed back where it came from (its
 // world space is texel space: scale 1, offset 0): every texel centre lands on a voxel centre, so
 // the level set is the same voxel for voxel and the tile, lowered by the same conservative
@@ -1138,30 +1189,39 @@ std::string meshRecipeMaterial(const std::string& obj) {
 }
 
 TEST_F(Cli, MeshRecipeRendersAgainstExactMeshHitsAndRebakesAnEditedMesh) {
-    writeText(path("cube.obj"), kCubeObj);
-    writeText(path("scene.json"), planeScene(meshRecipeMaterial("cube.obj")));
-    const std::vector<std::string> size = {"--width", "64",     "--height",
-                                           "48",      "--aovs", "--no-shadows"};
+    // The closed cube against CGAL's exact hits; the cube without its top face against the
+    // surface its bake measured (the cap over the hole), sphere traced, shadows included (its
+    // reference used to need a closed mesh): both see the cube the tile shows.
+    const std::string openCube =
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+        "f 1 4 3 2\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n";
+    const std::vector<std::string> size = {"--width", "64", "--height", "48", "--aovs"};
     auto render = [&](const std::string& output, bool reference) {
         std::vector<std::string> arguments = {"render", "scene.json", "-o", output};
         arguments.insert(arguments.end(), size.begin(), size.end());
         if (reference) arguments.push_back("--reference");
         return run(arguments);
     };
-    const RunResult tile = render("tile.png", false);
-    ASSERT_EQ(tile.status, 0) << tile.err;
-    const RunResult truth = render("truth.png", true);
-    ASSERT_EQ(truth.status, 0) << truth.err;
-    const RunResult compared = run({"compare", "tile.png", "truth.png", "--json"});
-    ASSERT_EQ(compared.status, 0) << compared.err;
-    const nlohmann::json report = nlohmann::json::parse(compared.out);
-    // Every pixel is on the plane (planeScene) in both. A cube's flat faces are reconstructed
-    // exactly by trilinear filtering away from its edges; its edges and corners are rounded (up
-    // to ~0.8 texel, see BakesAClosedMeshWithVerifiedSignAndChecksItAgainstTheMesh), and the
-    // default march stops within 0.02 texel of the surface.
-    EXPECT_EQ(report.at("coverage_mismatches").get<int>(), 0);
-    EXPECT_LT(report.at("all_both_hit").at("hit_error_mean").get<double>(), 0.1);
-    EXPECT_LT(report.at("all_both_hit").at("hit_error_max").get<double>(), 8.0);
+    for (const auto& [obj, text] :
+         {std::pair<std::string, std::string>{"open.obj", openCube}, {"cube.obj", kCubeObj}}) {
+        SCOPED_TRACE(obj);
+        writeText(path(obj), text);
+        writeText(path("scene.json"), planeScene(meshRecipeMaterial(obj)));
+        const RunResult tile = render("tile.png", false);
+        ASSERT_EQ(tile.status, 0) << tile.err;
+        const RunResult truth = render("truth.png", true);
+        ASSERT_EQ(truth.status, 0) << truth.err;
+        const RunResult compared = run({"compare", "tile.png", "truth.png", "--json"});
+        ASSERT_EQ(compared.status, 0) << compared.err;
+        const nlohmann::json report = nlohmann::json::parse(compared.out);
+        // Every pixel is on the plane (planeScene) in both. A cube's flat faces are reconstructed
+        // exactly by trilinear filtering away from its edges; its edges and corners are rounded
+        // (up to ~0.8 texel, see BakesAClosedMeshWithVerifiedSignAndChecksItAgainstTheMesh), and
+        // the default march stops within 0.02 texel of the surface.
+        EXPECT_EQ(report.at("coverage_mismatches").get<int>(), 0);
+        EXPECT_LT(report.at("all_both_hit").at("hit_error_mean").get<double>(), 0.1);
+        EXPECT_LT(report.at("all_both_hit").at("hit_error_max").get<double>(), 8.0);
+    }
 
     // An edited mesh file is baked again (the recipe hashes the file's bytes): the cube twice as
     // tall renders differently.
