@@ -8,6 +8,7 @@
 
 #include "bake/resample.h"
 #include "bake/soup_distance.h"
+#include "bake/soup_distance_grid.h"
 #include "common/error.h"
 #include "mesh/detail_mesh.h"
 #include "truth/mesh_truth.h"
@@ -74,33 +75,17 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
            << (sign.unsignedDistance ? "unsigned" : "winding number") << "\"";
     if (sign.unsignedDistance) params << ",\"thickness_texels\":" << sign.thicknessTexels;
     params << "}";
-    // Along a row, the previous texel's nearest triangle starts the search: the same exact
-    // result, much less of the tree visited.
-    // The sign likewise: where the winding number changes only across the surface, a texel 1
-    // texel from its row neighbour, nearer to it than the neighbour is to the surface, shares its
-    // sign (the segment between them crosses no surface).
-    const bool signPropagates = soup.windingChangesOnlyAcrossTheSurface();
+    // Every voxel of the level set: the tile and the band margin above and below it.
+    const int margin = int(std::ceil(halfBand));
+    const SoupDistanceGrid grid =
+        soupDistanceGrid(soup, -margin, options.size.depth + margin, cutoff,
+                         !sign.unsignedDistance, progress);
     const auto rowDistance = [&](int j, int k, std::span<double> row) {
-        double previous = cutoff;
-        bool previousInside = false;
-        SoupDistance::NearestHint hint;
-        for (std::size_t i = 0; i < row.size(); ++i) {
-            const glm::dvec3 p(double(i) + 0.5, j + 0.5, k + 0.5);
-            const double distance = soup.unsignedDistance(p, cutoff, hint);
-            if (sign.unsignedDistance) {
-                row[i] = distance - halfThickness;
-            } else {
-                const bool inside = signPropagates && i > 0 && previous > 1.0 + 1e-9
-                                        ? previousInside
-                                        : soup.windingNumber(p) > 0.5;
-                row[i] = inside ? -distance : distance;
-                previousInside = inside;
-            }
-            previous = distance;
-        }
+        const double* distances = grid.row(j, k);
+        for (std::size_t i = 0; i < row.size(); ++i) row[i] = distances[i] - halfThickness;
     };
-    LevelSet levelSet = LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh",
-                                                   params.str(), progress);
+    LevelSet levelSet =
+        LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh", params.str());
 
     std::vector<float> texels(options.size.texelCount());
     levelSet.copyTileVoxels(texels);
