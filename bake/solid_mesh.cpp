@@ -59,10 +59,6 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     const double halfThickness = sign.unsignedDistance ? 0.5 * sign.thicknessTexels : 0.0;
     // Nothing beyond the band is needed: the level set clamps there.
     const double cutoff = double(halfBand) + halfThickness;
-    const ExactDistance exactDistance = [&](const glm::dvec3& p) {
-        if (sign.unsignedDistance) return soup.unsignedDistance(p, cutoff) - halfThickness;
-        return soup.signedDistance(p, cutoff);
-    };
     // The placement as used (also when fitted): `check` and reference renders place the source
     // mesh by it.
     const MeshPlacement used = explicitPlacement(mesh, placement, options.size);
@@ -80,6 +76,10 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     const SoupDistanceGrid grid =
         soupDistanceGrid(soup, -margin, options.size.depth + margin, cutoff,
                          !sign.unsignedDistance, progress);
+    const ExactDistance exactDistance = [&](const glm::dvec3& p) {
+        if (sign.unsignedDistance) return soup.unsignedDistance(p, cutoff) - halfThickness;
+        return signedDistanceBesideGrid(soup, grid, p, cutoff);
+    };
     const auto rowDistance = [&](int j, int k, std::span<double> row) {
         const double* distances = grid.row(j, k);
         for (std::size_t i = 0; i < row.size(); ++i) row[i] = distances[i] - halfThickness;

@@ -19,6 +19,9 @@ namespace distile {
 namespace {
 
 constexpr std::uint32_t kLeafTriangles = 2;
+/// The winding number's exact near field takes clusters of up to this many triangles whole (its
+/// far field is tuned with them).
+constexpr std::uint32_t kWindingLeafTriangles = 4;
 /// Deeper than any median-split hierarchy of 2^32 triangles needs (two entries per level; four
 /// per level of the wide one, which has half as many).
 constexpr int kStackSize = 128;
@@ -172,6 +175,8 @@ void SoupDistance::build(std::uint32_t index, std::vector<std::uint32_t>& order,
                          std::uint32_t begin, std::uint32_t end,
                          const std::vector<Triangle>& input, std::vector<Box>& boxes) {
     Node node;
+    node.firstTriangle = begin;
+    node.triangleCount = end - begin;
     Dipole dipole;
     Box box{glm::dvec3(HUGE_VAL), glm::dvec3(-HUGE_VAL)};
     glm::dvec3 centroidMin(HUGE_VAL), centroidMax(-HUGE_VAL), weightedCentre(0.0);
@@ -486,8 +491,9 @@ double SoupDistance::windingNumberOfCopy(const glm::dvec3& point, double farFiel
                            (distanceSquared * std::sqrt(distanceSquared));
             continue;
         }
-        if (node.count > 0) {
-            for (std::uint32_t t = node.first; t < node.first + node.count; ++t) {
+        if (node.triangleCount <= kWindingLeafTriangles) {
+            for (std::uint32_t t = node.firstTriangle; t < node.firstTriangle + node.triangleCount;
+                 ++t) {
                 const Triangle& triangle = triangles_[t];
                 solidAngles += solidAngle(point, triangle.a, triangle.b, triangle.c);
             }

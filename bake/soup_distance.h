@@ -92,6 +92,8 @@ class SoupDistance {
     struct Node {
         std::uint32_t first = 0;  ///< leaf: first triangle; inner: index of the second child
         std::uint32_t count = 0;  ///< leaf: number of triangles; inner: 0 (first child follows)
+        /// All the triangles below the node (consecutive in leaf order).
+        std::uint32_t firstTriangle = 0, triangleCount = 0;
     };
     /// Four children of the binary hierarchy's collapsed form, which the distance and segment
     /// queries walk: their boxes side by side (float, rounded outward) for one four-wide test.

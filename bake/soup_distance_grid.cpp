@@ -4,8 +4,9 @@
 #include <tbb/parallel_for.h>
 
 #include <cassert>
+#include <cmath>
 #include <cstdint>
-#include <glm/vec3.hpp>
+#include <glm/geometric.hpp>
 
 namespace distile {
 
@@ -156,6 +157,24 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
                       });
     if (progress) progress(1.0);
     return grid;
+}
+
+double signedDistanceBesideGrid(const SoupDistance& soup, const SoupDistanceGrid& grid,
+                                const glm::dvec3& texelPosition, double cutoffTexels) {
+    const double distance = soup.unsignedDistance(texelPosition, cutoffTexels);
+    const Size3& tile = soup.tile();
+    const auto wrap = [](int index, int count) { return ((index % count) + count) % count; };
+    const int i = int(std::floor(texelPosition.x)), j = int(std::floor(texelPosition.y));
+    const int k = int(std::floor(texelPosition.z));
+    if (soup.windingChangesOnlyAcrossTheSurface() && k >= grid.zBegin && k < grid.zEnd) {
+        // The voxel of the copy of the tile the point lies in: the field is periodic.
+        const double voxelDistance = grid.row(wrap(j, tile.height), k)[wrap(i, tile.width)];
+        const glm::dvec3 centre(i + 0.5, j + 0.5, k + 0.5);
+        if (std::abs(voxelDistance) + distance > glm::length(texelPosition - centre) + 1e-9 ||
+            soup.segmentTouchesNoTriangle(centre, texelPosition))
+            return voxelDistance < 0.0 ? -distance : distance;
+    }
+    return soup.windingNumber(texelPosition) > 0.5 ? -distance : distance;
 }
 
 }  // namespace distile

@@ -11,6 +11,7 @@
 /// voxel farthest from the surface. Otherwise at every voxel.
 #pragma once
 
+#include <glm/vec3.hpp>
 #include <vector>
 
 #include "bake/soup_distance.h"
@@ -39,5 +40,12 @@ struct SoupDistanceGrid {
 SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd,
                                   double cutoffTexels, bool signedByWindingNumber,
                                   const ProgressCallback& progress = {});
+
+/// SoupDistance::signedDistance at any point whose nearest voxel centre lies in `grid` (a signed
+/// grid of `soup`), with the sign taken from that voxel when no surface can lie between them
+/// (as the file note says; for meshes whose winding number changes only across the surface),
+/// else from the winding number at the point. Thread-safe.
+double signedDistanceBesideGrid(const SoupDistance& soup, const SoupDistanceGrid& grid,
+                                const glm::dvec3& texelPosition, double cutoffTexels);
 
 }  // namespace distile
