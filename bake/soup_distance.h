@@ -6,7 +6,7 @@
 /// - **Distance**: the exact Euclidean distance (double precision) from a point to the nearest
 ///   triangle of the periodic union of the soup's copies shifted by (m W, n H, 0)
 ///   (common/triangle_soup.h periodicShifts), found with a bounding-volume hierarchy
-///   (median splits, leaves of at most 4 triangles) queried once per copy that can be nearer.
+///   (median splits, leaves of at most 2 triangles) queried once per copy that can be nearer.
 ///   The query walks a four-wide version of the hierarchy whose boxes are stored in float,
 ///   rounded outward, and compared with a margin that covers the float rounding of the point
 ///   and of the box arithmetic: a box is skipped only when it is provably no nearer than the
@@ -19,7 +19,8 @@
 ///   replaced by their dipole (the sum of their vector areas at their area-weighted centroid;
 ///   Barill et al. 2018, "Fast winding numbers for soups and clouds", first order): a node of
 ///   the hierarchy is taken whole when the point is farther than kWindingFarFieldRatio times the
-///   node's radius; nearer ones are opened down to the exact per-triangle solid angles. Where the
+///   node's radius; nearer ones are opened down to clusters of at most 4 triangles, whose exact
+///   per-triangle solid angles are summed. Where the
 ///   result is ambiguous (|w - 1/2| < kWindingRecheckMargin) it is evaluated again with
 ///   kWindingRecheckRatio, which is exact enough to decide the sign for any mesh whose
 ///   exact w stays clear of 1/2. Only the copies whose bounding box contains the point in x and
