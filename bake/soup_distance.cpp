@@ -304,31 +304,27 @@ double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
     const __m128 py = _mm_set1_ps(float(point.y));
     const __m128 pz = _mm_set1_ps(float(point.z));
     const __m128 zero = _mm_setzero_ps();
-    // Entries: a wide node (count 0) or a leaf, with the squared float distance of its box.
+    const auto testTriangle = [&](std::uint32_t t) {
+        const Triangle& triangle = triangles_[t];
+        const double squared = triangleDistanceSquared(point, triangle.a, triangle.b, triangle.c);
+        if (squared < bestSquared) {
+            bestSquared = squared;
+            bestTriangle = t;
+            threshold = skipThreshold(bestSquared, pointError);
+        }
+    };
+    // Wide nodes with the squared float distance of their box.
     struct Entry {
-        std::uint32_t child, count;
+        std::uint32_t node;
         float boxSquared;
     };
     std::array<Entry, kStackSize> stack;
     int size = 0;
-    stack[size++] = {0u, 0u, 0.0f};
+    stack[size++] = {0u, 0.0f};
     while (size > 0) {
         const Entry entry = stack[--size];
         if (!(entry.boxSquared < threshold)) continue;
-        if (entry.count > 0) {
-            for (std::uint32_t t = entry.child; t < entry.child + entry.count; ++t) {
-                const Triangle& triangle = triangles_[t];
-                const double squared =
-                    triangleDistanceSquared(point, triangle.a, triangle.b, triangle.c);
-                if (squared < bestSquared) {
-                    bestSquared = squared;
-                    bestTriangle = t;
-                    threshold = skipThreshold(bestSquared, pointError);
-                }
-            }
-            continue;
-        }
-        const WideNode& node = wideNodes_[entry.child];
+        const WideNode& node = wideNodes_[entry.node];
         const auto outside = [&zero](const float* lo, const float* hi, __m128 p) {
             const __m128 d = _mm_max_ps(_mm_max_ps(_mm_sub_ps(_mm_load_ps(lo), p),
                                                    _mm_sub_ps(p, _mm_load_ps(hi))),
@@ -339,22 +335,29 @@ double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
         _mm_store_ps(squared, _mm_add_ps(_mm_add_ps(outside(node.minX, node.maxX, px),
                                                     outside(node.minY, node.maxY, py)),
                                          outside(node.minZ, node.maxZ, pz)));
-        // Push the farther children first, so the nearest is visited next.
+        // Leaves at once (nearest first), inner children pushed farther first, so the nearest
+        // is visited next.
         std::array<int, 4> nearer;
         int hits = 0;
         for (int c = 0; c < 4; ++c) {
             if (!(squared[c] < threshold)) continue;
             int slot = hits++;
-            while (slot > 0 && squared[nearer[slot - 1]] < squared[c]) {
+            while (slot > 0 && squared[nearer[slot - 1]] > squared[c]) {
                 nearer[slot] = nearer[slot - 1];
                 --slot;
             }
             nearer[slot] = c;
         }
-        assert(size + hits <= kStackSize);
         for (int h = 0; h < hits; ++h) {
             const int c = nearer[h];
-            stack[size++] = {node.child[c], node.count[c], squared[c]};
+            if (node.count[c] == 0 || !(squared[c] < threshold)) continue;
+            for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t)
+                testTriangle(t);
+        }
+        assert(size + hits <= kStackSize);
+        for (int h = hits - 1; h >= 0; --h) {
+            const int c = nearer[h];
+            if (node.count[c] == 0) stack[size++] = {node.child[c], squared[c]};
         }
     }
     return bestSquared;

@@ -73,17 +73,21 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
     const int steps = slices + (signedByWindingNumber ? 1 : 0);
 
     // Along a row, the previous voxel's nearest triangle starts the search: the same exact
-    // result, much less of the tree visited.
+    // result (a hint only speeds a query up), much less of the tree visited.
     for (int slice = 0; slice < slices; ++slice) {
         tbb::parallel_for(tbb::blocked_range<int>(0, tile.height),
                           [&](const tbb::blocked_range<int>& rows) {
+                              // A row starts from the nearest triangle of the previous
+                              // row's first voxel.
+                              SoupDistance::NearestHint rowStart;
                               for (int j = rows.begin(); j != rows.end(); ++j) {
                                   const std::size_t first =
                                       std::size_t(slice) * slabSize + std::size_t(j) * rowLength;
-                                  SoupDistance::NearestHint hint;
+                                  SoupDistance::NearestHint hint = rowStart;
                                   for (std::size_t i = 0; i < rowLength; ++i) {
                                       distances[first + i] = soup.unsignedDistance(
                                           centre(first + i), cutoffTexels, hint);
+                                      if (i == 0) rowStart = hint;
                                   }
                               }
                           });
