@@ -2,13 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <span>
 #include <sstream>
 #include <string>
+#include <tbb/parallel_for.h>
 
 #include "bake/mesh_surface.h"
 #include "bake/resample.h"
 #include "bake/soup_distance.h"
+#include "bake/soup_distance_grid.h"
 #include "common/error.h"
 #include "mesh/detail_mesh.h"
 #include "truth/mesh_truth.h"
@@ -56,18 +59,9 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     const float halfBand =
         options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
     const SoupDistance soup(placed, options.size);
-    // What the distances measure (bake/mesh_surface.h): signed, the boundary of the inside (the
-    // triangles that bound it, caps over holes), as `check` and reference renders measure it.
-    const MeshSurface surface = sign.unsignedDistance ? MeshSurface(soup)
-                                                      : MeshSurface(placed, soup, options.size);
     const double halfThickness = sign.unsignedDistance ? 0.5 * sign.thicknessTexels : 0.0;
     // Nothing beyond the band is needed: the level set clamps there.
     const double cutoff = double(halfBand) + halfThickness;
-    const ExactDistance exactDistance = [&](const glm::dvec3& p) {
-        SoupDistance::NearestHint none;
-        if (sign.unsignedDistance) return surface.unsignedDistance(p, cutoff, none) - halfThickness;
-        return surface.signedDistance(p, cutoff);
-    };
     // The placement as used (also when fitted): `check` and reference renders place the source
     // mesh by it.
     const MeshPlacement used = explicitPlacement(mesh, placement, options.size);
@@ -80,33 +74,45 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
            << (sign.unsignedDistance ? "unsigned" : "winding number") << "\"";
     if (sign.unsignedDistance) params << ",\"thickness_texels\":" << sign.thicknessTexels;
     params << "}";
-    // Along a row, the previous texel's nearest triangle starts the search: the same exact
-    // result, much less of the tree visited.
-    // The sign likewise: where the winding number changes only across the surface, a texel 1
-    // texel from its row neighbour, nearer to it than the neighbour is to the surface, shares its
-    // sign (the segment between them crosses no surface).
-    const bool signPropagates = soup.windingChangesOnlyAcrossTheSurface();
-    const auto rowDistance = [&](int j, int k, std::span<double> row) {
-        double previous = cutoff;
-        bool previousInside = false;
-        SoupDistance::NearestHint hint;
-        for (std::size_t i = 0; i < row.size(); ++i) {
-            const glm::dvec3 p(double(i) + 0.5, j + 0.5, k + 0.5);
-            const double distance = surface.unsignedDistance(p, cutoff, hint);
-            if (sign.unsignedDistance) {
-                row[i] = distance - halfThickness;
-            } else {
-                const bool inside = signPropagates && i > 0 && previous > 1.0 + 1e-9
-                                        ? previousInside
-                                        : soup.windingNumber(p) > 0.5;
-                row[i] = inside ? -distance : distance;
-                previousInside = inside;
+    // Every voxel of the level set: the tile and the band margin above and below it, at first the
+    // distance to all triangles.
+    const int margin = int(std::ceil(halfBand));
+    SoupDistanceGrid grid = soupDistanceGrid(soup, -margin, options.size.depth + margin, cutoff,
+                                             !sign.unsignedDistance, progress);
+    // Signed, the distances measure the boundary of the inside (bake/mesh_surface.h), as `check`
+    // and reference renders do: for a closed mesh whose parts neither overlap nor touch, all its
+    // triangles, so nothing more to do. Otherwise (triangles trimmed, caps over holes) the
+    // distances are measured again to that surface, keeping their signs.
+    std::optional<MeshSurface> surface;
+    if (!sign.unsignedDistance) {
+        surface.emplace(placed, soup, options.size);
+        if (surface->trimmedTriangles() == 0 && surface->caps().triangles.empty()) surface.reset();
+    }
+    if (surface) {
+        const Size3 rows{options.size.width, options.size.height, grid.zEnd - grid.zBegin};
+        tbb::parallel_for(0, rows.height * rows.depth, [&](int row) {
+            const int j = row % rows.height;
+            const int k = grid.zBegin + row / rows.height;
+            double* distances = grid.distancesTexels.data() + std::size_t(row) * rows.width;
+            SoupDistance::NearestHint hint;
+            for (int i = 0; i < rows.width; ++i) {
+                const double distance =
+                    surface->unsignedDistance({i + 0.5, j + 0.5, k + 0.5}, cutoff, hint);
+                distances[i] = distances[i] < 0.0 ? -distance : distance;
             }
-            previous = distance;
-        }
+        });
+    }
+    const ExactDistance exactDistance = [&](const glm::dvec3& p) {
+        if (sign.unsignedDistance) return soup.unsignedDistance(p, cutoff) - halfThickness;
+        if (surface) return surface->signedDistance(p, cutoff);
+        return signedDistanceBesideGrid(soup, grid, p, cutoff);
     };
-    LevelSet levelSet = LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh",
-                                                   params.str(), progress);
+    const auto rowDistance = [&](int j, int k, std::span<double> row) {
+        const double* distances = grid.row(j, k);
+        for (std::size_t i = 0; i < row.size(); ++i) row[i] = distances[i] - halfThickness;
+    };
+    LevelSet levelSet =
+        LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh", params.str());
 
     std::vector<float> texels(options.size.texelCount());
     levelSet.copyTileVoxels(texels);

@@ -1,5 +1,10 @@
 #include "bake/soup_distance.h"
 
+#include <emmintrin.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+#include <tbb/parallel_sort.h>
+
 #include <algorithm>
 #include <array>
 #include <cassert>
@@ -7,21 +12,59 @@
 #include <cstdint>
 #include <glm/geometric.hpp>
 #include <numbers>
-#include <unordered_map>
 #include <utility>
 
 namespace distile {
 
 namespace {
 
-constexpr std::uint32_t kLeafTriangles = 4;
-/// Deeper than any median-split hierarchy of 2^32 triangles needs (two entries per level).
+constexpr std::uint32_t kLeafTriangles = 2;
+/// The winding number's exact near field takes clusters of up to this many triangles whole (its
+/// far field is tuned with them).
+constexpr std::uint32_t kWindingLeafTriangles = 4;
+/// Deeper than any median-split hierarchy of 2^32 triangles needs (two entries per level; four
+/// per level of the wide one, which has half as many).
 constexpr int kStackSize = 128;
 constexpr double kFourPi = 4.0 * std::numbers::pi;
+/// Ranges of more triangles than this build their two halves in parallel.
+constexpr std::uint32_t kParallelBuildTriangles = 8192;
 
-double boxDistanceSquared(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
-    const glm::dvec3 outside = glm::max(glm::max(lo - p, p - hi), glm::dvec3(0.0));
-    return glm::dot(outside, outside);
+/// Node counts of the median-split hierarchies of n and n + 1 triangles (n / 2 and n - n / 2 in
+/// the children, leaves of at most kLeafTriangles): the children of a node of n triangles hold
+/// n / 2 and n / 2 + 1 or n / 2 twice, so both counts follow from those of n / 2.
+std::pair<std::uint32_t, std::uint32_t> subtreeNodeCounts(std::uint32_t n) {
+    if (n + 1 <= kLeafTriangles) return {1, 1};
+    const std::uint32_t half = n / 2;
+    const auto [ofHalf, ofHalfPlusOne] = subtreeNodeCounts(half);
+    const auto count = [&, ofHalf = ofHalf, ofHalfPlusOne = ofHalfPlusOne](std::uint32_t m) {
+        if (m <= kLeafTriangles) return std::uint32_t(1);
+        const auto of = [&](std::uint32_t size) { return size == half ? ofHalf : ofHalfPlusOne; };
+        return 1 + of(m / 2) + of(m - m / 2);
+    };
+    return {count(n), count(n + 1)};
+}
+
+float roundedDown(double value) {
+    const float rounded = float(value);
+    return double(rounded) > value ? std::nextafter(rounded, -HUGE_VALF) : rounded;
+}
+float roundedUp(double value) {
+    const float rounded = float(value);
+    return double(rounded) < value ? std::nextafter(rounded, HUGE_VALF) : rounded;
+}
+
+/// Bound on how much the float box arithmetic of a query at `point` can understate a distance:
+/// the point rounded to float moves by at most 2^-24 |p| per axis (sqrt 3 of that in all).
+double floatPointError(const glm::dvec3& point) {
+    return (std::max({std::abs(point.x), std::abs(point.y), std::abs(point.z)}) + 1.0) * 0x1p-21;
+}
+
+/// The squared distance a float box distance must reach for the box to be skipped when the best
+/// so far is sqrt(bestSquared): the box arithmetic's relative error (a few 2^-24) and the point's
+/// rounding `pointError` are added, so a skipped box is never nearer than the best.
+float skipThreshold(double bestSquared, double pointError) {
+    const double reach = std::sqrt(bestSquared) + pointError;
+    return float(reach * reach * (1.0 + 0x1p-20));
 }
 
 /// Squared distance from p to the triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
@@ -64,74 +107,84 @@ double solidAngle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
     return 2.0 * std::atan2(determinant, divisor);
 }
 
-struct PositionHash {
-    std::size_t operator()(const glm::dvec3& p) const {
-        const std::hash<double> hash;
-        return hash(p.x) ^ (hash(p.y) * 0x9e3779b97f4a7c15ull) ^
-               (hash(p.z) * 0xc2b2ae3d27d4eb4full);
-    }
-};
-
 /// Whether every edge, its corners matched by exact position, is used as often in each
-/// direction.
+/// direction: the edges used from the lower to the higher position id, sorted, are the edges
+/// used the other way, sorted.
 bool edgeUsesCancel(const TriangleSoup& soup) {
-    std::unordered_map<glm::dvec3, std::uint32_t, PositionHash> ids;
-    ids.reserve(soup.positions.size());
+    // Position ids: equal positions (-0.0 and +0.0 alike) get one id, by sorting.
+    std::vector<std::uint32_t> byPosition(soup.positions.size());
+    for (std::uint32_t v = 0; v < byPosition.size(); ++v) byPosition[v] = v;
+    const auto less = [&soup](std::uint32_t l, std::uint32_t r) {
+        const glm::dvec3& a = soup.positions[l];
+        const glm::dvec3& b = soup.positions[r];
+        return a.x < b.x || (a.x == b.x && (a.y < b.y || (a.y == b.y && a.z < b.z)));
+    };
+    tbb::parallel_sort(byPosition.begin(), byPosition.end(), less);
     std::vector<std::uint32_t> idOf(soup.positions.size());
-    for (std::size_t v = 0; v < soup.positions.size(); ++v) {
-        // -0.0 and +0.0 are one position.
-        const glm::dvec3 p = soup.positions[v] + glm::dvec3(0.0);
-        idOf[v] = ids.try_emplace(p, std::uint32_t(ids.size())).first->second;
+    std::uint32_t id = 0;
+    for (std::size_t n = 0; n < byPosition.size(); ++n) {
+        if (n > 0 && less(byPosition[n - 1], byPosition[n])) ++id;
+        idOf[byPosition[n]] = id;
     }
-    std::unordered_map<std::uint64_t, std::int64_t> netUses;
-    netUses.reserve(3 * soup.triangles.size());
+    std::vector<std::uint64_t> upward, downward;
+    upward.reserve(3 * soup.triangles.size() / 2 + 1);
+    downward.reserve(upward.capacity());
     for (const glm::uvec3& t : soup.triangles) {
         for (int c = 0; c < 3; ++c) {
             const std::uint32_t from = idOf[t[c]], to = idOf[t[(c + 1) % 3]];
             if (from == to) continue;
             const std::uint64_t key =
                 (std::uint64_t(std::min(from, to)) << 32) | std::max(from, to);
-            netUses[key] += from < to ? 1 : -1;
+            (from < to ? upward : downward).push_back(key);
         }
     }
-    return std::all_of(netUses.begin(), netUses.end(),
-                       [](const auto& entry) { return entry.second == 0; });
+    if (upward.size() != downward.size()) return false;
+    tbb::parallel_invoke([&] { tbb::parallel_sort(upward.begin(), upward.end()); },
+                         [&] { tbb::parallel_sort(downward.begin(), downward.end()); });
+    return upward == downward;
 }
 
 }  // namespace
 
 SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     : tile_(tile), bounds_(boundsOf(soupTexels)) {
-    std::vector<Triangle> input;
-    input.reserve(soupTexels.triangles.size());
-    for (const glm::uvec3& t : soupTexels.triangles) {
-        input.push_back(
-            {soupTexels.positions[t.x], soupTexels.positions[t.y], soupTexels.positions[t.z]});
-    }
+    std::vector<Triangle> input(soupTexels.triangles.size());
+    tbb::parallel_for(std::size_t(0), input.size(), [&](std::size_t n) {
+        const glm::uvec3& t = soupTexels.triangles[n];
+        input[n] = {soupTexels.positions[t.x], soupTexels.positions[t.y],
+                    soupTexels.positions[t.z]};
+    });
     std::vector<std::uint32_t> order(input.size());
     for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;
-    triangles_.reserve(input.size());
-    nodes_.reserve(2 * (input.size() / kLeafTriangles + 1));
-    dipoles_.reserve(nodes_.capacity());
-    build(order, 0, std::uint32_t(order.size()), input);
-    windingPiecewiseConstant_ = edgeUsesCancel(soupTexels);
+    const std::uint32_t nodeCount = subtreeNodeCounts(std::uint32_t(input.size())).first;
+    nodes_.resize(nodeCount);
+    dipoles_.resize(nodeCount);
+    std::vector<Box> boxes(nodeCount);
+    tbb::parallel_invoke(
+        [&] { build(0, order, 0, std::uint32_t(order.size()), input, boxes); },
+        [&] { windingPiecewiseConstant_ = edgeUsesCancel(soupTexels); });
+    // Leaves hold consecutive triangles: the build's final order.
+    triangles_.resize(input.size());
+    tbb::parallel_for(std::size_t(0), input.size(),
+                      [&](std::size_t n) { triangles_[n] = input[order[n]]; });
+    wideNodes_.reserve(nodeCount / 3 + 1);
+    collapse(0, boxes);
 }
 
-std::uint32_t SoupDistance::build(std::vector<std::uint32_t>& order, std::uint32_t begin,
-                                  std::uint32_t end, const std::vector<Triangle>& input) {
-    const std::uint32_t index = std::uint32_t(nodes_.size());
-    nodes_.emplace_back();
-    dipoles_.emplace_back();
+void SoupDistance::build(std::uint32_t index, std::vector<std::uint32_t>& order,
+                         std::uint32_t begin, std::uint32_t end,
+                         const std::vector<Triangle>& input, std::vector<Box>& boxes) {
     Node node;
+    node.firstTriangle = begin;
+    node.triangleCount = end - begin;
     Dipole dipole;
-    node.boxMin = glm::dvec3(HUGE_VAL);
-    node.boxMax = glm::dvec3(-HUGE_VAL);
+    Box box{glm::dvec3(HUGE_VAL), glm::dvec3(-HUGE_VAL)};
     glm::dvec3 centroidMin(HUGE_VAL), centroidMax(-HUGE_VAL), weightedCentre(0.0);
     double area = 0.0;
     for (std::uint32_t i = begin; i < end; ++i) {
         const Triangle& t = input[order[i]];
-        node.boxMin = glm::min(node.boxMin, glm::min(t.a, glm::min(t.b, t.c)));
-        node.boxMax = glm::max(node.boxMax, glm::max(t.a, glm::max(t.b, t.c)));
+        box.min = glm::min(box.min, glm::min(t.a, glm::min(t.b, t.c)));
+        box.max = glm::max(box.max, glm::max(t.a, glm::max(t.b, t.c)));
         const glm::dvec3 centroid = (t.a + t.b + t.c) / 3.0;
         centroidMin = glm::min(centroidMin, centroid);
         centroidMax = glm::max(centroidMax, centroid);
@@ -141,19 +194,23 @@ std::uint32_t SoupDistance::build(std::vector<std::uint32_t>& order, std::uint32
         weightedCentre += triangleArea * centroid;
         area += triangleArea;
     }
-    dipole.centre = area > 0.0 ? weightedCentre / area : 0.5 * (node.boxMin + node.boxMax);
+    dipole.centre = area > 0.0 ? weightedCentre / area : 0.5 * (box.min + box.max);
+    double radiusSquared = 0.0;
     for (std::uint32_t i = begin; i < end; ++i) {
         const Triangle& t = input[order[i]];
-        for (const glm::dvec3& corner : {t.a, t.b, t.c})
-            dipole.radius = std::max(dipole.radius, glm::length(corner - dipole.centre));
+        for (const glm::dvec3& corner : {t.a, t.b, t.c}) {
+            const glm::dvec3 offset = corner - dipole.centre;
+            radiusSquared = std::max(radiusSquared, glm::dot(offset, offset));
+        }
     }
+    dipole.radius = std::sqrt(radiusSquared);
     dipoles_[index] = dipole;
+    boxes[index] = box;
     if (end - begin <= kLeafTriangles) {
-        node.first = std::uint32_t(triangles_.size());
+        node.first = begin;  // the triangles are stored in the final order
         node.count = end - begin;
-        for (std::uint32_t i = begin; i < end; ++i) triangles_.push_back(input[order[i]]);
         nodes_[index] = node;
-        return index;
+        return;
     }
     // Median split of the centroids along the longest axis of their box.
     const glm::dvec3 spread = centroidMax - centroidMin;
@@ -168,48 +225,139 @@ std::uint32_t SoupDistance::build(std::vector<std::uint32_t>& order, std::uint32
                          const double cb = b.a[axis] + b.b[axis] + b.c[axis];
                          return ca < cb || (ca == cb && l < r);
                      });
-    build(order, begin, middle, input);
-    node.first = build(order, middle, end, input);
+    // Depth-first numbering: the second child follows the first child's subtree.
+    const std::uint32_t second = index + 1 + subtreeNodeCounts(middle - begin).first;
+    node.first = second;
     node.count = 0;
     nodes_[index] = node;
+    const auto buildFirst = [&] { build(index + 1, order, begin, middle, input, boxes); };
+    const auto buildSecond = [&] { build(second, order, middle, end, input, boxes); };
+    if (end - begin > kParallelBuildTriangles) {
+        tbb::parallel_invoke(buildFirst, buildSecond);
+    } else {
+        buildFirst();
+        buildSecond();
+    }
+}
+
+std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex, const std::vector<Box>& boxes) {
+    // Up to four descendants: open the inner one with the largest box surface until there are
+    // four or only leaves.
+    std::array<std::uint32_t, 4> children{};
+    int childCount = 0;
+    if (nodes_[binaryIndex].count > 0) {
+        children[childCount++] = binaryIndex;  // a root that is a leaf (the soup is not empty)
+    } else {
+        children[childCount++] = binaryIndex + 1;
+        children[childCount++] = nodes_[binaryIndex].first;
+    }
+    const auto surface = [&](std::uint32_t index) {
+        const glm::dvec3 extent = boxes[index].max - boxes[index].min;
+        return extent.x * extent.y + extent.y * extent.z + extent.z * extent.x;
+    };
+    while (childCount < 4) {
+        int widest = -1;
+        for (int c = 0; c < childCount; ++c) {
+            if (nodes_[children[c]].count == 0 &&
+                (widest < 0 || surface(children[c]) > surface(children[widest])))
+                widest = c;
+        }
+        if (widest < 0) break;
+        const std::uint32_t opened = children[widest];
+        children[widest] = opened + 1;
+        children[childCount++] = nodes_[opened].first;
+    }
+    const std::uint32_t index = std::uint32_t(wideNodes_.size());
+    wideNodes_.emplace_back();
+    WideNode wide;
+    for (int c = 0; c < 4; ++c) {
+        wide.minX[c] = wide.minY[c] = wide.minZ[c] = HUGE_VALF;
+        wide.maxX[c] = wide.maxY[c] = wide.maxZ[c] = -HUGE_VALF;
+        wide.child[c] = 0;
+        wide.count[c] = 0;
+    }
+    for (int c = 0; c < childCount; ++c) {
+        const Box& box = boxes[children[c]];
+        wide.minX[c] = roundedDown(box.min.x);
+        wide.minY[c] = roundedDown(box.min.y);
+        wide.minZ[c] = roundedDown(box.min.z);
+        wide.maxX[c] = roundedUp(box.max.x);
+        wide.maxY[c] = roundedUp(box.max.y);
+        wide.maxZ[c] = roundedUp(box.max.z);
+        const Node& node = nodes_[children[c]];
+        if (node.count > 0) {
+            wide.child[c] = node.first;
+            wide.count[c] = node.count;
+        } else {
+            wide.child[c] = collapse(children[c], boxes);
+        }
+    }
+    wideNodes_[index] = wide;
     return index;
 }
 
 double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
                                     std::uint32_t& bestTriangle) const {
-    // Each entry keeps its box's squared distance, computed when it was pushed.
-    std::array<std::pair<std::uint32_t, double>, kStackSize> stack;
-    int size = 0;
-    stack[size++] = {0u, boxDistanceSquared(point, nodes_[0].boxMin, nodes_[0].boxMax)};
-    while (size > 0) {
-        const auto [index, boxSquared] = stack[--size];
-        if (boxSquared >= bestSquared) continue;
-        const Node& node = nodes_[index];
-        if (node.count > 0) {
-            for (std::uint32_t t = node.first; t < node.first + node.count; ++t) {
-                const Triangle& triangle = triangles_[t];
-                const double squared =
-                    triangleDistanceSquared(point, triangle.a, triangle.b, triangle.c);
-                if (squared < bestSquared) {
-                    bestSquared = squared;
-                    bestTriangle = t;
-                }
-            }
-            continue;
+    const double pointError = floatPointError(point);
+    float threshold = skipThreshold(bestSquared, pointError);
+    const __m128 px = _mm_set1_ps(float(point.x));
+    const __m128 py = _mm_set1_ps(float(point.y));
+    const __m128 pz = _mm_set1_ps(float(point.z));
+    const __m128 zero = _mm_setzero_ps();
+    const auto testTriangle = [&](std::uint32_t t) {
+        const Triangle& triangle = triangles_[t];
+        const double squared = triangleDistanceSquared(point, triangle.a, triangle.b, triangle.c);
+        if (squared < bestSquared) {
+            bestSquared = squared;
+            bestTriangle = t;
+            threshold = skipThreshold(bestSquared, pointError);
         }
-        // Visit the nearer child first: push it last.
-        const std::uint32_t left = index + 1, right = node.first;
-        const double leftSquared =
-            boxDistanceSquared(point, nodes_[left].boxMin, nodes_[left].boxMax);
-        const double rightSquared =
-            boxDistanceSquared(point, nodes_[right].boxMin, nodes_[right].boxMax);
-        assert(size + 2 <= kStackSize);
-        if (leftSquared <= rightSquared) {
-            if (rightSquared < bestSquared) stack[size++] = {right, rightSquared};
-            if (leftSquared < bestSquared) stack[size++] = {left, leftSquared};
-        } else {
-            if (leftSquared < bestSquared) stack[size++] = {left, leftSquared};
-            if (rightSquared < bestSquared) stack[size++] = {right, rightSquared};
+    };
+    // Wide nodes with the squared float distance of their box.
+    struct Entry {
+        std::uint32_t node;
+        float boxSquared;
+    };
+    std::array<Entry, kStackSize> stack;
+    int size = 0;
+    stack[size++] = {0u, 0.0f};
+    while (size > 0) {
+        const Entry entry = stack[--size];
+        if (!(entry.boxSquared < threshold)) continue;
+        const WideNode& node = wideNodes_[entry.node];
+        const auto outside = [&zero](const float* lo, const float* hi, __m128 p) {
+            const __m128 d = _mm_max_ps(_mm_max_ps(_mm_sub_ps(_mm_load_ps(lo), p),
+                                                   _mm_sub_ps(p, _mm_load_ps(hi))),
+                                        zero);
+            return _mm_mul_ps(d, d);
+        };
+        alignas(16) float squared[4];
+        _mm_store_ps(squared, _mm_add_ps(_mm_add_ps(outside(node.minX, node.maxX, px),
+                                                    outside(node.minY, node.maxY, py)),
+                                         outside(node.minZ, node.maxZ, pz)));
+        // Leaves at once (nearest first), inner children pushed farther first, so the nearest
+        // is visited next.
+        std::array<int, 4> nearer;
+        int hits = 0;
+        for (int c = 0; c < 4; ++c) {
+            if (!(squared[c] < threshold)) continue;
+            int slot = hits++;
+            while (slot > 0 && squared[nearer[slot - 1]] > squared[c]) {
+                nearer[slot] = nearer[slot - 1];
+                --slot;
+            }
+            nearer[slot] = c;
+        }
+        for (int h = 0; h < hits; ++h) {
+            const int c = nearer[h];
+            if (node.count[c] == 0 || !(squared[c] < threshold)) continue;
+            for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t)
+                testTriangle(t);
+        }
+        assert(size + hits <= kStackSize);
+        for (int h = hits - 1; h >= 0; --h) {
+            const int c = nearer[h];
+            if (node.count[c] == 0) stack[size++] = {node.child[c], squared[c]};
         }
     }
     return bestSquared;
@@ -244,6 +392,92 @@ double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cu
     return std::sqrt(bestSquared);
 }
 
+namespace {
+
+/// Whether the segment pq may touch the triangle abc: false only when it provably misses it (both
+/// ends strictly on one side of its plane, or its line strictly outside one of its edges), with
+/// a margin far above the rounding of the triple products.
+bool segmentMayTouchTriangle(const glm::dvec3& p, const glm::dvec3& q, const glm::dvec3& a,
+                             const glm::dvec3& b, const glm::dvec3& c) {
+    constexpr double kRelativeMargin = 1e-9;
+    const glm::dvec3 normal = glm::cross(b - a, c - a);
+    const double sideP = glm::dot(p - a, normal), sideQ = glm::dot(q - a, normal);
+    const double normalLength = glm::length(normal);
+    const double marginP = kRelativeMargin * glm::length(p - a) * normalLength;
+    const double marginQ = kRelativeMargin * glm::length(q - a) * normalLength;
+    if ((sideP > marginP && sideQ > marginQ) || (sideP < -marginP && sideQ < -marginQ))
+        return false;
+    // The line through p and q against the edges: the signs of [u, a - p, b - p] and so on.
+    const glm::dvec3 u = q - p, pa = a - p, pb = b - p, pc = c - p;
+    const double uLength = glm::length(u);
+    const double la = glm::length(pa), lb = glm::length(pb), lc = glm::length(pc);
+    const std::array<double, 3> sides{glm::dot(u, glm::cross(pa, pb)),
+                                      glm::dot(u, glm::cross(pb, pc)),
+                                      glm::dot(u, glm::cross(pc, pa))};
+    const std::array<double, 3> margins{kRelativeMargin * uLength * la * lb,
+                                        kRelativeMargin * uLength * lb * lc,
+                                        kRelativeMargin * uLength * lc * la};
+    bool positive = false, negative = false;
+    for (int e = 0; e < 3; ++e) {
+        positive = positive || sides[e] > margins[e];
+        negative = negative || sides[e] < -margins[e];
+    }
+    return !(positive && negative);
+}
+
+}  // namespace
+
+bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,
+                                                  const glm::dvec3& to) const {
+    const double pointError =
+        std::max(floatPointError(from), floatPointError(to));
+    const glm::dvec3 lo = glm::min(from, to) - pointError, hi = glm::max(from, to) + pointError;
+    const __m128 loX = _mm_set1_ps(roundedDown(lo.x)), loY = _mm_set1_ps(roundedDown(lo.y)),
+                 loZ = _mm_set1_ps(roundedDown(lo.z));
+    const __m128 hiX = _mm_set1_ps(roundedUp(hi.x)), hiY = _mm_set1_ps(roundedUp(hi.y)),
+                 hiZ = _mm_set1_ps(roundedUp(hi.z));
+    std::array<std::uint32_t, kStackSize> stack;
+    int size = 0;
+    stack[size++] = 0;
+    while (size > 0) {
+        const WideNode& node = wideNodes_[stack[--size]];
+        const __m128 overlapX = _mm_and_ps(_mm_cmple_ps(_mm_load_ps(node.minX), hiX),
+                                           _mm_cmpge_ps(_mm_load_ps(node.maxX), loX));
+        const __m128 overlapY = _mm_and_ps(_mm_cmple_ps(_mm_load_ps(node.minY), hiY),
+                                           _mm_cmpge_ps(_mm_load_ps(node.maxY), loY));
+        const __m128 overlapZ = _mm_and_ps(_mm_cmple_ps(_mm_load_ps(node.minZ), hiZ),
+                                           _mm_cmpge_ps(_mm_load_ps(node.maxZ), loZ));
+        const int overlaps = _mm_movemask_ps(_mm_and_ps(_mm_and_ps(overlapX, overlapY), overlapZ));
+        for (int c = 0; c < 4; ++c) {
+            if (!(overlaps & (1 << c))) continue;
+            if (node.count[c] == 0) {
+                assert(size < kStackSize);
+                stack[size++] = node.child[c];
+                continue;
+            }
+            for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t) {
+                const Triangle& triangle = triangles_[t];
+                if (segmentMayTouchTriangle(from, to, triangle.a, triangle.b, triangle.c))
+                    return false;
+            }
+        }
+    }
+    return true;
+}
+
+bool SoupDistance::segmentTouchesNoTriangle(const glm::dvec3& from, const glm::dvec3& to) const {
+    const glm::dvec3 middle = 0.5 * (from + to);
+    const PeriodicShifts shifts =
+        periodicShifts(middle, bounds_, tile_, 0.5 * glm::length(to - from) + 1e-6);
+    for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
+        for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
+            const glm::dvec3 shift(double(m) * tile_.width, double(n) * tile_.height, 0.0);
+            if (!segmentTouchesNoTriangleOfCopy(from - shift, to - shift)) return false;
+        }
+    }
+    return true;
+}
+
 double SoupDistance::windingNumberOfCopy(const glm::dvec3& point, double farFieldRatio) const {
     std::array<std::uint32_t, kStackSize> stack;
     int size = 0;
@@ -260,8 +494,9 @@ double SoupDistance::windingNumberOfCopy(const glm::dvec3& point, double farFiel
                            (distanceSquared * std::sqrt(distanceSquared));
             continue;
         }
-        if (node.count > 0) {
-            for (std::uint32_t t = node.first; t < node.first + node.count; ++t) {
+        if (node.triangleCount <= kWindingLeafTriangles) {
+            for (std::uint32_t t = node.firstTriangle; t < node.firstTriangle + node.triangleCount;
+                 ++t) {
                 const Triangle& triangle = triangles_[t];
                 solidAngles += solidAngle(point, triangle.a, triangle.b, triangle.c);
             }

@@ -6,7 +6,12 @@
 /// - **Distance**: the exact Euclidean distance (double precision) from a point to the nearest
 ///   triangle of the periodic union of the soup's copies shifted by (m W, n H, 0)
 ///   (common/triangle_soup.h periodicShifts), found with a bounding-volume hierarchy
-///   (median splits, leaves of at most 4 triangles) queried once per copy that can be nearer.
+///   (median splits, leaves of at most 2 triangles) queried once per copy that can be nearer.
+///   The query walks a four-wide version of the hierarchy whose boxes are stored in float,
+///   rounded outward, and compared with a margin that covers the float rounding of the point
+///   and of the box arithmetic: a box is skipped only when it is provably no nearer than the
+///   best triangle so far, and every triangle distance is computed in double, so the result is
+///   the exact double-precision minimum.
 /// - **Sign**: the generalized winding number w (Jacobson et al. 2013): the sum of the signed
 ///   solid angles of the triangles over 4 pi. It is 1 inside and 0 outside a closed,
 ///   outward-oriented mesh, adds up over overlapping closed parts, and degrades gracefully
@@ -14,7 +19,8 @@
 ///   replaced by their dipole (the sum of their vector areas at their area-weighted centroid;
 ///   Barill et al. 2018, "Fast winding numbers for soups and clouds", first order): a node of
 ///   the hierarchy is taken whole when the point is farther than kWindingFarFieldRatio times the
-///   node's radius; nearer ones are opened down to the exact per-triangle solid angles. Where the
+///   node's radius; nearer ones are opened down to clusters of at most 4 triangles, whose exact
+///   per-triangle solid angles are summed. Where the
 ///   result is ambiguous (|w - 1/2| < kWindingRecheckMargin) it is evaluated again with
 ///   kWindingRecheckRatio, which is exact enough to decide the sign for any mesh whose
 ///   exact w stays clear of 1/2. Only the copies whose bounding box contains the point in x and
@@ -62,10 +68,17 @@ class SoupDistance {
     /// Generalized winding number of the periodic union at the point (see the file note).
     double windingNumber(const glm::dvec3& texelPosition) const;
 
+    /// False when the segment from `from` to `to` (texels) may touch a triangle of the periodic
+    /// union; true only when it provably touches none (near misses, within rounding, count as
+    /// touching). With windingChangesOnlyAcrossTheSurface, true means both ends have the same
+    /// winding number.
+    bool segmentTouchesNoTriangle(const glm::dvec3& from, const glm::dvec3& to) const;
+
     /// unsignedDistance, negative where windingNumber > 1/2; +-cutoffTexels beyond it.
     double signedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const;
 
     std::size_t triangleCount() const { return triangles_.size(); }
+    const Size3& tile() const { return tile_; }
 
     /// True when every edge (corners matched by exact position) is used as often in one
     /// direction as in the other: closed, consistently oriented parts, however they overlap or
@@ -76,11 +89,23 @@ class SoupDistance {
     bool windingChangesOnlyAcrossTheSurface() const { return windingPiecewiseConstant_; }
 
   private:
-    /// What the distance query reads, kept small (the winding number's data apart).
+    /// The binary hierarchy, which the winding number walks.
     struct Node {
-        glm::dvec3 boxMin{0.0}, boxMax{0.0};
         std::uint32_t first = 0;  ///< leaf: first triangle; inner: index of the second child
         std::uint32_t count = 0;  ///< leaf: number of triangles; inner: 0 (first child follows)
+        /// All the triangles below the node (consecutive in leaf order).
+        std::uint32_t firstTriangle = 0, triangleCount = 0;
+    };
+    /// Four children of the binary hierarchy's collapsed form, which the distance and segment
+    /// queries walk: their boxes side by side (float, rounded outward) for one four-wide test.
+    /// An empty slot has an empty box (min +inf, max -inf).
+    struct alignas(16) WideNode {
+        float minX[4], minY[4], minZ[4], maxX[4], maxY[4], maxZ[4];
+        std::uint32_t child[4];  ///< inner: index of a wide node; leaf: first triangle
+        std::uint32_t count[4];  ///< leaf: number of triangles; inner or empty: 0
+    };
+    struct Box {
+        glm::dvec3 min, max;
     };
     struct Dipole {
         glm::dvec3 centre{0.0};      ///< area-weighted centroid of the node's triangles
@@ -91,10 +116,12 @@ class SoupDistance {
         glm::dvec3 a, b, c;
     };
 
-    std::uint32_t build(std::vector<std::uint32_t>& order, std::uint32_t begin, std::uint32_t end,
-                        const std::vector<Triangle>& input);
+    void build(std::uint32_t index, std::vector<std::uint32_t>& order, std::uint32_t begin,
+               std::uint32_t end, const std::vector<Triangle>& input, std::vector<Box>& boxes);
+    std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<Box>& boxes);
     double closestSquared(const glm::dvec3& point, double bestSquared,
                           std::uint32_t& bestTriangle) const;
+    bool segmentTouchesNoTriangleOfCopy(const glm::dvec3& from, const glm::dvec3& to) const;
     double windingNumberOfCopy(const glm::dvec3& point, double farFieldRatio) const;
 
     bool windingPiecewiseConstant_ = false;
@@ -102,6 +129,7 @@ class SoupDistance {
     Bounds3 bounds_;
     std::vector<Triangle> triangles_;  ///< in leaf order
     std::vector<Node> nodes_;          ///< depth-first, root first
+    std::vector<WideNode> wideNodes_;  ///< root first
     std::vector<Dipole> dipoles_;      ///< one per node
 };
 

@@ -11,6 +11,7 @@
 #include "bake/mesh_surface.h"
 #include "bake/solid_mesh.h"
 #include "bake/soup_distance.h"
+#include "bake/soup_distance_grid.h"
 #include "common/error.h"
 #include "detail_meshes.h"
 #include "sampler/filters.h"
@@ -189,6 +190,104 @@ TEST(SoupDistance, PeriodicDistanceMatchesTheExactMeshDistanceAcrossTheWrap) {
         const double exact = truth.signedDistance(p);
         EXPECT_NEAR(distance.signedDistance(p, 100.0), exact, 1e-9);
     }
+}
+
+TEST(SoupDistance, SegmentTouchesNoTriangleOnlyWhenItMissesEveryCopy) {
+    // A closed box overhanging the +x edge of a 64-wide tile: its copy shifted by -64 spans
+    // x in [-4, 6].
+    const Size3 tile{64, 64, 32};
+    const SoupDistance box(makeBoxSoup(glm::dvec3(60, 20, 10), glm::dvec3(70, 30, 20)), tile);
+    ASSERT_TRUE(box.windingChangesOnlyAcrossTheSurface());
+    // Clear of it: below the floor, inside it, beside the copy.
+    EXPECT_TRUE(box.segmentTouchesNoTriangle({62.5, 25.5, 8.5}, {62.5, 25.5, 9.5}));
+    EXPECT_TRUE(box.segmentTouchesNoTriangle({62.5, 25.5, 14.5}, {63.5, 25.5, 14.5}));
+    EXPECT_TRUE(box.segmentTouchesNoTriangle({7.5, 25.5, 14.5}, {8.5, 25.5, 14.5}));
+    // Across a face, across the copy's face at x = 6, ending on a face, through an edge.
+    EXPECT_FALSE(box.segmentTouchesNoTriangle({62.5, 25.5, 9.5}, {62.5, 25.5, 10.5}));
+    EXPECT_FALSE(box.segmentTouchesNoTriangle({5.5, 25.5, 14.5}, {6.5, 25.5, 14.5}));
+    EXPECT_FALSE(box.segmentTouchesNoTriangle({62.5, 25.5, 9.0}, {62.5, 25.5, 10.0}));
+    EXPECT_FALSE(box.segmentTouchesNoTriangle({61.5, 20.5, 9.5}, {61.5, 19.5, 10.5}));
+}
+
+/// A closed soup whose winding number reaches 2 (a box listed twice) and 1 where a torus and a
+/// sphere overlap, and the open cup's wall (no inside of its own).
+TriangleSoup overlappingClosedParts() {
+    TriangleSoup soup = makeTorusSoup(glm::dvec3(20.0, 30.0, 8.0), 12.0, 4.0, 48, 16);
+    append(soup, makeIcosphereSoup(glm::dvec3(30.0, 32.0, 9.0), 6.0, 2));
+    const TriangleSoup box = makeBoxSoup(glm::dvec3(50.0, 4.0, 2.0), glm::dvec3(60.2, 14.7, 13.1));
+    append(soup, box);
+    append(soup, box);
+    return soup;
+}
+
+TEST(SoupDistanceGrid, EveryVoxelIsTheExactDistanceSignedByItsWindingNumber) {
+    const Size3 tile{64, 64, 16};
+    const TriangleSoup soup = overlappingClosedParts();
+    const SoupDistance distance(soup, tile);
+    ASSERT_TRUE(distance.windingChangesOnlyAcrossTheSurface());
+    const MeshDistance truth(soup, MeshDistance::Periodic{tile});
+    const double cutoff = 6.0;
+    std::vector<double> single, dual;
+    {
+        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
+        single = soupDistanceGrid(distance, -3, 19, cutoff, true).distancesTexels;
+    }
+    const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+    const SoupDistanceGrid grid = soupDistanceGrid(distance, -3, 19, cutoff, true);
+    dual = grid.distancesTexels;
+    EXPECT_EQ(single, dual);
+    int inside = 0, checkedSigns = 0;
+    for (int k = -3; k < 19; ++k) {
+        for (int j = 0; j < tile.height; ++j) {
+            for (int i = 0; i < tile.width; ++i) {
+                const glm::dvec3 p(i + 0.5, j + 0.5, k + 0.5);
+                const double baked = grid.row(j, k)[i];
+                // The same double as a query of its own (the row hint never changes a result),
+                // and CGAL's exact distance.
+                ASSERT_EQ(std::abs(baked), distance.unsignedDistance(p, cutoff));
+                ASSERT_NEAR(std::abs(baked), std::min(truth.unsignedDistance(p), cutoff), 1e-9);
+                // Where the far-field winding number is unambiguous it decides alone.
+                const double winding = distance.windingNumber(p);
+                if (std::abs(winding - 0.5) < 0.25) continue;
+                ++checkedSigns;
+                ASSERT_EQ(baked < 0.0, winding > 0.5) << p.x << " " << p.y << " " << p.z;
+                inside += baked < 0.0;
+            }
+        }
+    }
+    EXPECT_GT(checkedSigns, 64 * 64 * 20);
+    EXPECT_GT(inside, 1500);  // the box alone holds ~1100 voxels, the torus ~1800
+    // Points between the voxels (as the conservative pass asks) take the same signed distance
+    // as a query of their own.
+    for (const glm::dvec3& p : randomPoints(glm::dvec3(0.0), glm::dvec3(64, 64, 16), 3000, 8)) {
+        const double winding = distance.windingNumber(p);
+        if (std::abs(winding - 0.5) < 0.25) continue;
+        EXPECT_EQ(signedDistanceBesideGrid(distance, grid, p, cutoff),
+                  distance.signedDistance(p, cutoff));
+    }
+}
+
+TEST(SoupDistanceGrid, OpenMeshesTakeTheWindingNumberAtEveryVoxel) {
+    // Half of an icosphere: open, so the winding number varies off the surface too.
+    TriangleSoup half = makeIcosphereSoup(glm::dvec3(32.0, 32.0, 8.0), 7.0, 2);
+    std::erase_if(half.triangles, [&](const glm::uvec3& t) {
+        return half.positions[t.x].z + half.positions[t.y].z + half.positions[t.z].z < 24.0;
+    });
+    const Size3 tile{64, 64, 16};
+    const SoupDistance distance(half, tile);
+    ASSERT_FALSE(distance.windingChangesOnlyAcrossTheSurface());
+    const SoupDistanceGrid grid = soupDistanceGrid(distance, 0, 16, 8.0, true);
+    int inside = 0;
+    for (int k = 0; k < 16; ++k) {
+        for (int j = 0; j < tile.height; ++j) {
+            for (int i = 0; i < tile.width; ++i) {
+                const glm::dvec3 p(i + 0.5, j + 0.5, k + 0.5);
+                ASSERT_EQ(grid.row(j, k)[i], distance.signedDistance(p, 8.0));
+                inside += grid.row(j, k)[i] < 0.0;
+            }
+        }
+    }
+    EXPECT_GT(inside, 100);
 }
 
 /// A sphere of radius 6 texels at `centre` in a 32x32x16 tile, baked with exact texels.

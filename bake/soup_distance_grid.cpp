@@ -1,0 +1,184 @@
+#include "bake/soup_distance_grid.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <cassert>
+#include <cmath>
+#include <cstdint>
+#include <glm/geometric.hpp>
+
+namespace distile {
+
+namespace {
+
+/// Union-find over voxel indices where a region's root is its smallest voxel: joining two roots
+/// hangs the larger under the smaller, so every parent index is below its child's, and the roots
+/// do not depend on the order of the joins.
+class VoxelRegions {
+  public:
+    explicit VoxelRegions(std::size_t voxels) : parent_(voxels) {}
+
+    void reset(std::size_t voxel) { parent_[voxel] = std::uint32_t(voxel); }
+
+    std::uint32_t root(std::uint32_t voxel) {
+        while (parent_[voxel] != voxel) {
+            parent_[voxel] = parent_[parent_[voxel]];
+            voxel = parent_[voxel];
+        }
+        return voxel;
+    }
+
+    void join(std::uint32_t a, std::uint32_t b) {
+        a = root(a);
+        b = root(b);
+        if (a < b) parent_[b] = a;
+        if (b < a) parent_[a] = b;
+    }
+
+    /// Numbers the regions 0, 1, ... in the order of their roots; the region of every voxel.
+    std::vector<std::uint32_t> regionOfEachVoxel(std::uint32_t& regionCount) const {
+        std::vector<std::uint32_t> region(parent_.size());
+        regionCount = 0;
+        // Parents precede their children: a parent's region is known when its child asks.
+        for (std::size_t v = 0; v < parent_.size(); ++v)
+            region[v] = parent_[v] == v ? regionCount++ : region[parent_[v]];
+        return region;
+    }
+
+  private:
+    std::vector<std::uint32_t> parent_;
+};
+
+}  // namespace
+
+SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd,
+                                  double cutoffTexels, bool signedByWindingNumber,
+                                  const ProgressCallback& progress) {
+    const Size3& tile = soup.tile();
+    SoupDistanceGrid grid{tile.width, tile.height, zBegin, zEnd, {}};
+    const int slices = zEnd - zBegin;
+    const std::size_t rowLength = std::size_t(tile.width);
+    const std::size_t slabSize = rowLength * std::size_t(tile.height);
+    const std::size_t voxels = slabSize * std::size_t(slices);
+    assert(voxels < std::size_t(UINT32_MAX));
+    grid.distancesTexels.resize(voxels);
+    std::vector<double>& distances = grid.distancesTexels;
+    const auto centre = [&](std::size_t voxel) {
+        const std::size_t i = voxel % rowLength, j = (voxel / rowLength) % std::size_t(tile.height);
+        const std::size_t k = voxel / slabSize;
+        return glm::dvec3(double(i) + 0.5, double(j) + 0.5, double(zBegin + int(k)) + 0.5);
+    };
+    // Progress: the distances are most of the work; the sign takes the last step.
+    const int steps = slices + (signedByWindingNumber ? 1 : 0);
+
+    // Along a row, the previous voxel's nearest triangle starts the search: the same exact
+    // result (a hint only speeds a query up), much less of the tree visited.
+    for (int slice = 0; slice < slices; ++slice) {
+        tbb::parallel_for(tbb::blocked_range<int>(0, tile.height),
+                          [&](const tbb::blocked_range<int>& rows) {
+                              // A row starts from the nearest triangle of the previous
+                              // row's first voxel.
+                              SoupDistance::NearestHint rowStart;
+                              for (int j = rows.begin(); j != rows.end(); ++j) {
+                                  const std::size_t first =
+                                      std::size_t(slice) * slabSize + std::size_t(j) * rowLength;
+                                  SoupDistance::NearestHint hint = rowStart;
+                                  for (std::size_t i = 0; i < rowLength; ++i) {
+                                      distances[first + i] = soup.unsignedDistance(
+                                          centre(first + i), cutoffTexels, hint);
+                                      if (i == 0) rowStart = hint;
+                                  }
+                              }
+                          });
+        if (progress) progress(double(slice + 1) / steps);
+    }
+    if (!signedByWindingNumber) return grid;
+
+    if (!soup.windingChangesOnlyAcrossTheSurface()) {
+        // The winding number also varies off the surface: evaluated at every voxel.
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, voxels),
+                          [&](const tbb::blocked_range<std::size_t>& range) {
+                              for (std::size_t v = range.begin(); v != range.end(); ++v) {
+                                  if (soup.windingNumber(centre(v)) > 0.5)
+                                      distances[v] = -distances[v];
+                              }
+                          });
+        if (progress) progress(1.0);
+        return grid;
+    }
+
+    // Two neighbours 1 texel apart are in one region when no surface can lie between them.
+    const auto joined = [&](std::size_t a, std::size_t b) {
+        return distances[a] + distances[b] > 1.0 + 1e-9 ||
+               soup.segmentTouchesNoTriangle(centre(a), centre(b));
+    };
+    VoxelRegions regions(voxels);
+    // Within each slice (its voxels only, so slices are independent), then across slices.
+    tbb::parallel_for(0, slices, [&](int slice) {
+        const std::size_t first = std::size_t(slice) * slabSize;
+        for (std::size_t v = first; v < first + slabSize; ++v) regions.reset(v);
+        for (std::size_t v = first; v < first + slabSize; ++v) {
+            const std::size_t i = v % rowLength;
+            if (i + 1 < rowLength && joined(v, v + 1))
+                regions.join(std::uint32_t(v), std::uint32_t(v + 1));
+            if (v + rowLength < first + slabSize && joined(v, v + rowLength))
+                regions.join(std::uint32_t(v), std::uint32_t(v + rowLength));
+        }
+    });
+    if (slices > 1) {
+        const std::size_t pairs = voxels - slabSize;
+        std::vector<std::uint8_t> joinedAbove(pairs);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pairs),
+                          [&](const tbb::blocked_range<std::size_t>& range) {
+                              for (std::size_t v = range.begin(); v != range.end(); ++v)
+                                  joinedAbove[v] = joined(v, v + slabSize);
+                          });
+        for (std::size_t v = 0; v < pairs; ++v) {
+            if (joinedAbove[v]) regions.join(std::uint32_t(v), std::uint32_t(v + slabSize));
+        }
+    }
+    std::uint32_t regionCount = 0;
+    const std::vector<std::uint32_t> region = regions.regionOfEachVoxel(regionCount);
+    // Each region's winding number at its voxel farthest from the surface (the first of equals),
+    // where the far field approximates it best.
+    std::vector<std::uint32_t> farthest(regionCount, UINT32_MAX);
+    for (std::size_t v = 0; v < voxels; ++v) {
+        std::uint32_t& best = farthest[region[v]];
+        if (best == UINT32_MAX || distances[v] > distances[best]) best = std::uint32_t(v);
+    }
+    std::vector<std::uint8_t> inside(regionCount);
+    tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, regionCount),
+                      [&](const tbb::blocked_range<std::uint32_t>& range) {
+                          for (std::uint32_t r = range.begin(); r != range.end(); ++r)
+                              inside[r] = soup.windingNumber(centre(farthest[r])) > 0.5;
+                      });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, voxels),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t v = range.begin(); v != range.end(); ++v) {
+                              if (inside[region[v]]) distances[v] = -distances[v];
+                          }
+                      });
+    if (progress) progress(1.0);
+    return grid;
+}
+
+double signedDistanceBesideGrid(const SoupDistance& soup, const SoupDistanceGrid& grid,
+                                const glm::dvec3& texelPosition, double cutoffTexels) {
+    const double distance = soup.unsignedDistance(texelPosition, cutoffTexels);
+    const Size3& tile = soup.tile();
+    const auto wrap = [](int index, int count) { return ((index % count) + count) % count; };
+    const int i = int(std::floor(texelPosition.x)), j = int(std::floor(texelPosition.y));
+    const int k = int(std::floor(texelPosition.z));
+    if (soup.windingChangesOnlyAcrossTheSurface() && k >= grid.zBegin && k < grid.zEnd) {
+        // The voxel of the copy of the tile the point lies in: the field is periodic.
+        const double voxelDistance = grid.row(wrap(j, tile.height), k)[wrap(i, tile.width)];
+        const glm::dvec3 centre(i + 0.5, j + 0.5, k + 0.5);
+        if (std::abs(voxelDistance) + distance > glm::length(texelPosition - centre) + 1e-9 ||
+            soup.segmentTouchesNoTriangle(centre, texelPosition))
+            return voxelDistance < 0.0 ? -distance : distance;
+    }
+    return soup.windingNumber(texelPosition) > 0.5 ? -distance : distance;
+}
+
+}  // namespace distile
