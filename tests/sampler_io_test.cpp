@@ -294,6 +294,26 @@ TEST_F(SamplerIo, NonFiniteDistanceInFileIsAFormatError) {
     EXPECT_NE(formatErrorMessage(path("tile.exr")).find("texel (5, 0, 0)"), std::string::npos);
 }
 
+TEST_F(SamplerIo, DistancesBeyondTwiceTheWidestBandAreAFormatError) {
+    // A 16x16x4 tile's widest band is 2 x 4 = 8 texels: it holds distances within +-16. Far
+    // distances near the float range, with a valid hash, made the tracer compute NaN.
+    const Size3 size{16, 16, 4};
+    ASSERT_EQ(maxHalfBandTexels(size), 8.0f);
+    Tile edge = patternTile(size);
+    edge.at(3, 0, 0) = 16.0f;
+    edge.at(4, 0, 0) = -16.0f;
+    writeTileExr(edge, path("edge.exr"));
+    EXPECT_EQ(readTileExr(path("edge.exr")).at(4, 0, 0), -16.0f);
+    for (const float far : {16.01f, -3.4e38f}) {
+        Tile tile = patternTile(size);
+        tile.at(3, 0, 0) = far;
+        writeTileExr(tile, path("far.exr"));
+        const std::string message = formatErrorMessage(path("far.exr"));
+        EXPECT_NE(message.find("texel (3, 0, 0)"), std::string::npos) << message;
+        EXPECT_NE(message.find("+-16"), std::string::npos) << message;
+    }
+}
+
 TEST_F(SamplerIo, SizeThatDisagreesWithTheAtlasIsAFormatError) {
     writeTileExr(patternTile({16, 16, 4}), path("tile.exr"));
     rewriteRaw(path("tile.exr"),
