@@ -24,8 +24,8 @@ void validateBakeOptions(const BakeOptions& options) {
     const float widest = maxHalfBandTexels(options.size);
     if (!(options.halfBandTexels >= 0.0f && options.halfBandTexels <= widest)) {
         std::ostringstream message;
-        message << options.halfBandTexels << " texels is not accepted; it must be in [1, "
-                << widest << "] (twice the tile depth, at most 1024), or 0 for the tile depth";
+        message << options.halfBandTexels << " texels is not accepted; it must be in [1, " << widest
+                << "] (twice the tile depth, at most 1024), or 0 for the tile depth";
         throw InputError::inField("halfBandTexels", message.str());
     }
 }
@@ -92,7 +92,8 @@ void requireMeshInTile(const Bounds3& placedTexels, const Size3& tile) {
     } else {
         for (int axis = 0; axis < 3; ++axis) {
             if (placedTexels.max[axis] < 0.0 || placedTexels.min[axis] > tileTexels[axis]) {
-                problem << "lies at " << "xyz"[axis] << " in [" << placedTexels.min[axis] << ", "
+                problem << "lies at "
+                        << "xyz"[axis] << " in [" << placedTexels.min[axis] << ", "
                         << placedTexels.max[axis] << "], outside the tile's [0, "
                         << tileTexels[axis] << "]";
                 break;

@@ -49,9 +49,9 @@ HeightImage readHeightImage(const fs::path& file) {
         throw FormatError(message.str());
     }
     const int channels = spec.nchannels;
-    requireWithinMemoryBudget(file, "a height map of " + std::to_string(pixels) + " pixels",
-                              saturatingProduct(std::uint64_t(pixels),
-                                                (std::uint64_t(channels) + 1) * sizeof(float)));
+    requireWithinMemoryBudget(
+        file, "a height map of " + std::to_string(pixels) + " pixels",
+        saturatingProduct(std::uint64_t(pixels), (std::uint64_t(channels) + 1) * sizeof(float)));
     std::vector<float> all(std::size_t(pixels) * std::size_t(channels));
     if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, all.data())) {
         throw FormatError(file.string() + ": cannot read the pixels (" +

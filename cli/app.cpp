@@ -53,7 +53,8 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
     } catch (const CLI::Success& success) {  // --help, --version
         return app.exit(success);
     } catch (const CLI::ParseError& error) {
-        std::fprintf(stderr, "distile: error: %s (see distile --help)\n", oneLine(error.what()).c_str());
+        std::fprintf(stderr, "distile: error: %s (see distile --help)\n",
+                     oneLine(error.what()).c_str());
         return kExitInput;
     }
     return 0;
@@ -70,7 +71,8 @@ namespace {
     int status = kExitBug;
     std::string message = "internal failure: an exception escaped a library (a bug)";
     try {
-        if (const std::exception_ptr escaped = std::current_exception()) std::rethrow_exception(escaped);
+        if (const std::exception_ptr escaped = std::current_exception())
+            std::rethrow_exception(escaped);
     } catch (const std::bad_alloc&) {
         status = kExitInput;
         message = "out of memory: the input or options need more memory than there is";

@@ -295,7 +295,8 @@ void runBake(const BakeArguments& arguments) {
         }
     }
     // Every output is written to its temporary file first and renamed only once all are.
-    writeTileExr(result->tile, outputs.tile, arguments.half ? TileStorage::Half16 : TileStorage::Float32);
+    writeTileExr(result->tile, outputs.tile,
+                 arguments.half ? TileStorage::Half16 : TileStorage::Float32);
     if (!outputs.png8.empty()) writeTilePng(result->tile, outputs.png8, 8);
     if (!outputs.png16.empty()) writeTilePng(result->tile, outputs.png16, 16);
     const LevelSet* levelSet = repeatedLevelSet ? &*repeatedLevelSet : &result->levelSet;

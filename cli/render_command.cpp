@@ -1,8 +1,8 @@
 // distile render: a scene (or the built-in demo) to an image, with optional AOVs.
 #include <chrono>
+#include <cstdio>
 #include <initializer_list>
 #include <map>
-#include <cstdio>
 #include <memory>
 #include <optional>
 #include <string>
@@ -55,7 +55,8 @@ class RenderOutputs {
         : image_(files_.add(image, "-o")) {
         if (!withAovs) return;
         for (const auto& [name, extension] : aovs)
-            aovs_[name] = files_.add(aovPath(image, name, extension), "-o (its AOV " + std::string(name) + ")");
+            aovs_[name] = files_.add(aovPath(image, name, extension),
+                                     "-o (its AOV " + std::string(name) + ")");
     }
     const fs::path& image() const { return image_; }
     const fs::path& aov(const std::string& name) const { return aovs_.at(name); }

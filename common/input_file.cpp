@@ -61,8 +61,7 @@ void requireDeclaredCount(const fs::path& file, std::string_view what, std::uint
                           " bytes, but only " + std::to_string(fileBytes) +
                           " are there; the file is truncated or corrupted");
     }
-    requireWithinMemoryBudget(file,
-                              std::string(what) + " of " + std::to_string(count) + " items",
+    requireWithinMemoryBudget(file, std::string(what) + " of " + std::to_string(count) + " items",
                               saturatingProduct(count, memoryBytesEach));
 }
 

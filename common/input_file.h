@@ -32,8 +32,8 @@ std::uint64_t saturatingSum(std::uint64_t a, std::uint64_t b);
 /// them, and all
 /// of them, at `memoryBytesEach` bytes each once read, fit in kInputMemoryBudgetBytes.
 void requireDeclaredCount(const std::filesystem::path& file, std::string_view what,
-                          std::uint64_t count, std::uint64_t fileBytesEach,
-                          std::uint64_t fileBytes, std::uint64_t memoryBytesEach);
+                          std::uint64_t count, std::uint64_t fileBytesEach, std::uint64_t fileBytes,
+                          std::uint64_t memoryBytesEach);
 
 /// Throws FormatError unless `bytes` of memory that reading `file` needs (`what`, e.g. "a
 /// 65536x65536 image") fit in kInputMemoryBudgetBytes.
@@ -42,8 +42,9 @@ void requireWithinMemoryBudget(const std::filesystem::path& file, std::string_vi
 
 /// Throws FormatError if `file` starts with the PNG signature and its chunks are broken: a chunk
 /// running past the end of the file, a chunk type that is not four letters, a CRC that does not
-/// match, a first chunk other than IHDR, no IDAT or no IEND. libpng reports such files on stderr by itself before OpenImageIO gets the
-/// error, so image readers check them first; other files pass unchecked.
+/// match, a first chunk other than IHDR, no IDAT or no IEND. libpng reports such files on stderr by
+/// itself before OpenImageIO gets the error, so image readers check them first; other files pass
+/// unchecked.
 void checkPngChunks(const std::filesystem::path& file);
 
 /// `bytes` from an input file as it can be quoted in a one-line message: control and non-ASCII

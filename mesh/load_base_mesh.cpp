@@ -163,8 +163,9 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
     }
     if (in.bad()) throw InputError(name + ": read error");
     requireWithinMemoryBudget(
-        file, "OBJ of " + std::to_string(positionCount) + " vertices and " +
-                  std::to_string(facts.faceCount) + " faces",
+        file,
+        "OBJ of " + std::to_string(positionCount) + " vertices and " +
+            std::to_string(facts.faceCount) + " faces",
         saturatingProduct(std::uint64_t(positionCount + uvCount) + facts.faceCount,
                           kBytesPerMeshElement));
     if (!requireUvs) return facts;
@@ -322,7 +323,9 @@ class PlyValues {
         if (!value || !std::isfinite(*value) || std::abs(*value) > limit) {
             throw FormatError(name_ + ": PLY " + where(element, item) + " has '" +
                               quotedInput(token) + "'; expected a finite " +
-                              (type.bytes == 8 ? "double" : type.isFloat ? "float" : "integer") +
+                              (type.bytes == 8 ? "double"
+                               : type.isFloat  ? "float"
+                                               : "integer") +
                               " number");
         }
         if (!type.isFloat) {
@@ -331,8 +334,9 @@ class PlyValues {
             const double highest = type.isSigned ? std::exp2(bits - 1) - 1 : std::exp2(bits) - 1;
             if (*value != std::floor(*value) || *value < lowest || *value > highest) {
                 throw FormatError(name_ + ": PLY " + where(element, item) + " has '" +
-                                  quotedInput(token) + "'; expected an integer in [" + std::to_string((long long)lowest) +
-                                  ", " + std::to_string((long long)highest) + "]");
+                                  quotedInput(token) + "'; expected an integer in [" +
+                                  std::to_string((long long)lowest) + ", " +
+                                  std::to_string((long long)highest) + "]");
             }
         }
         return *value;
@@ -404,8 +408,8 @@ void checkPlyFile(const std::filesystem::path& file) {
         if (tokens[0] == "element" && tokens.size() >= 3) {
             PlyElement element;
             element.name = quotedInput(tokens[1]);
-            const auto [end, error] =
-                std::from_chars(tokens[2].data(), tokens[2].data() + tokens[2].size(), element.count);
+            const auto [end, error] = std::from_chars(
+                tokens[2].data(), tokens[2].data() + tokens[2].size(), element.count);
             if (error != std::errc() || end != tokens[2].data() + tokens[2].size()) {
                 throw FormatError(name + ": PLY element count '" + quotedInput(tokens[2]) +
                                   "' is not a number");
@@ -416,7 +420,8 @@ void checkPlyFile(const std::filesystem::path& file) {
             if (elements.empty()) throw FormatError(name + ": PLY property before any element");
             PlyProperty property;
             if (tokens[1] == "list") {
-                if (tokens.size() < 5) throw FormatError(name + ": PLY list property needs two types");
+                if (tokens.size() < 5)
+                    throw FormatError(name + ": PLY list property needs two types");
                 property.isList = true;
                 property.count = plyType(tokens[2], name);
                 property.value = plyType(tokens[3], name);
@@ -444,8 +449,8 @@ void checkPlyFile(const std::filesystem::path& file) {
         for (const PlyProperty& property : element.properties) {
             leastBytes += ascii ? 2 : property.isList ? property.count.bytes : property.value.bytes;
         }
-        requireDeclaredCount(file, "PLY element '" + element.name + "'", element.count,
-                             leastBytes, dataBytes, kBytesPerMeshElement);
+        requireDeclaredCount(file, "PLY element '" + element.name + "'", element.count, leastBytes,
+                             dataBytes, kBytesPerMeshElement);
         allElements = saturatingSum(allElements, element.count);
     }
     requireWithinMemoryBudget(file, "PLY elements, " + std::to_string(allElements) + " in all,",
@@ -461,9 +466,8 @@ void checkPlyFile(const std::filesystem::path& file) {
                 }
                 const double corners = values.read(property.count, element, item);
                 if (!(corners >= 0.0 && corners <= double(kMaxPolygonCorners))) {
-                    throw FormatError(name + ": PLY " + element.name + " " +
-                                      std::to_string(item) + " has a list of " +
-                                      std::to_string((long long)corners) +
+                    throw FormatError(name + ": PLY " + element.name + " " + std::to_string(item) +
+                                      " has a list of " + std::to_string((long long)corners) +
                                       " values; accepted: 0 to " +
                                       std::to_string(kMaxPolygonCorners));
                 }
@@ -522,8 +526,8 @@ void checkOffFile(const std::filesystem::path& file) {
     std::string line;
     if (!tokens.endedLine()) std::getline(in, line);  // the rest of the counts line (edges)
     std::uint64_t vertices = 0, faces = 0;
-    for (std::size_t lineNumber = 0; vertices + faces < counts[0] + counts[1] &&
-                                     std::getline(in, line);) {
+    for (std::size_t lineNumber = 0;
+         vertices + faces < counts[0] + counts[1] && std::getline(in, line);) {
         ++lineNumber;
         const std::vector<std::string_view> values = splitWhitespace(line);
         if (values.empty() || values[0][0] == '#') continue;
@@ -539,7 +543,8 @@ void checkOffFile(const std::filesystem::path& file) {
             }
         }
         if (isVertex) {
-            if (values.size() < 3) throw FormatError(name + ": " + what + " has fewer than 3 numbers");
+            if (values.size() < 3)
+                throw FormatError(name + ": " + what + " has fewer than 3 numbers");
             ++vertices;
             continue;
         }

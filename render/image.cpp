@@ -172,8 +172,9 @@ Image readImage(const fs::path& file) {
     // The pixels as read (up to 3 float channels) and as kept (3 floats).
     requireWithinMemoryBudget(
         file, "an image of " + std::to_string(spec.width) + "x" + std::to_string(spec.height),
-        saturatingProduct(std::uint64_t(std::max(spec.width, 0)) * std::uint64_t(std::max(spec.height, 0)),
-                          6 * sizeof(float)));
+        saturatingProduct(
+            std::uint64_t(std::max(spec.width, 0)) * std::uint64_t(std::max(spec.height, 0)),
+            6 * sizeof(float)));
     Image image;
     try {
         image = Image(spec.width, spec.height);

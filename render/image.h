@@ -65,8 +65,8 @@ float linearFromSrgb(float encoded);
 ///   .exr         32-bit float linear RGB, unclamped, zip-compressed.
 /// Throws InputError for another extension, for an image whose pixel count is not
 /// width * height, or if the target's folder does not exist; InternalError naming the first NaN
-/// or infinite pixel (a renderer bug); std::runtime_error if OpenImageIO fails. Never leaves a partial
-/// file at `file`.
+/// or infinite pixel (a renderer bug); std::runtime_error if OpenImageIO fails. Never leaves a
+/// partial file at `file`.
 void writeImage(const Image& image, const std::filesystem::path& file);
 
 /// Reads any image OpenImageIO reads as linear RGB: float and half pixels as they are; integer

@@ -109,8 +109,8 @@ inline constexpr std::int64_t kAovImages = 8;
 /// reference render, also for an object whose tile has no analytic distance (naming the object)
 /// (width/height in [1, 16384], iterations in [1, 4096], epsilon in (0, 1], samples per pixel
 /// in [1, 256], width x height x samples per pixel at most kMaxRenderSamples, with AOVs width x
-/// height at most 2^22, shadow-map resolution 0 or in [16, 16384]). `progress` is called on the calling
-/// thread; it is not called while the shadow maps are built, before the first row.
+/// height at most 2^22, shadow-map resolution 0 or in [16, 16384]). `progress` is called on the
+/// calling thread; it is not called while the shadow maps are built, before the first row.
 RenderResult renderScene(const Scene& scene, const RenderOptions& options,
                          const ProgressCallback& progress = {});
 

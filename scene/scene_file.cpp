@@ -531,8 +531,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
 }  // namespace
 
 SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarningCallback& warn) {
-    requireWithinMemoryBudget(file, "a scene file",
-                              requireRegularFile(file, "a scene .json file"));
+    requireWithinMemoryBudget(file, "a scene file", requireRegularFile(file, "a scene .json file"));
     std::ifstream in(file);
     json document;
     try {

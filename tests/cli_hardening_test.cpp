@@ -70,7 +70,8 @@ TEST_F(Hardening, EveryReaderRefusesADevice) {
     expectRefused({"bake", "vdb", device, "-o", "t.exr"}, "t.exr", {device, refused});
     expectRefused({"render", device, "-o", "r.png"}, "r.png", {device, refused});
     // A scene's tile and colour texture.
-    writeText(path("tile.json"), R"({"objects": [{"mesh": "plane", "material": {"tile": "/dev/zero"}}]})");
+    writeText(path("tile.json"),
+              R"({"objects": [{"mesh": "plane", "material": {"tile": "/dev/zero"}}]})");
     expectRefused({"render", "tile.json", "-o", "r.png"}, "r.png", {device, refused});
     writeText(path("color.json"),
               R"({"objects": [{"mesh": "plane", "material": {"color": "/dev/urandom"}}]})");
@@ -85,11 +86,10 @@ TEST_F(Hardening, PlyCountsThatOverflowThePreCheckAreRefused) {
     const unsigned long long vertices = 400'000'000ull;
     const unsigned long long faces = 1'418'980'312'993'042'432ull;
     ASSERT_EQ(12ull * vertices + 13ull * faces, 0ull);
-    std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex " +
-                      std::to_string(vertices) +
-                      "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
-                      std::to_string(faces) +
-                      "\nproperty list uchar int vertex_indices\nend_header\n";
+    std::string ply =
+        "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(vertices) +
+        "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+        std::to_string(faces) + "\nproperty list uchar int vertex_indices\nend_header\n";
     ply.resize(251, '\0');
     writeText(path("overflow.ply"), ply);
     expectRefused({"bake", "mesh", "overflow.ply", "-o", "t.exr"}, "t.exr",
@@ -129,14 +129,16 @@ TEST_F(Hardening, AFlippedVdbHeaderByteIsRefusedBeforeOpenVdbAllocates) {
     bytes = readText(path("level.vdb"));
     bytes[123] = char(bytes[123] ^ 0x80);
     writeText(path("offset.vdb"), bytes);
-    expectRefused({"bake", "vdb", "offset.vdb", "-o", "t2.exr"}, "t2.exr", {"offset.vdb", "grid 0"});
+    expectRefused({"bake", "vdb", "offset.vdb", "-o", "t2.exr"}, "t2.exr",
+                  {"offset.vdb", "grid 0"});
 }
 
 TEST_F(Hardening, ImagesLargerThanTheMemoryBudgetAreRefused) {
     // A PNG header of 16000 x 16000 RGB pixels (and no pixel data): within the sizes the
     // readers accept, but 3 GB as float pixels.
-    const unsigned char png[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 0, 0, 0, 13, 'I', 'H',
-                                 'D', 'R', 0, 0, 0x3e, 0x80, 0, 0, 0x3e, 0x80, 8, 2, 0, 0, 0};
+    const unsigned char png[] = {0x89, 'P', 'N',  'G',  '\r', '\n', 0x1a, '\n', 0,    0,
+                                 0,    13,  'I',  'H',  'D',  'R',  0,    0,    0x3e, 0x80,
+                                 0,    0,   0x3e, 0x80, 8,    2,    0,    0,    0};
     std::string bytes(reinterpret_cast<const char*>(png), sizeof png);
     // Its CRC, so that only the size is wrong.
     std::uint32_t crc = 0xffffffffu;
@@ -186,10 +188,10 @@ TEST_F(Hardening, CostlyOptionsHaveUpperBounds) {
 
 TEST_F(Hardening, AWorldLevelSetBeyondTheMemoryBudgetIsRefusedNotAborted) {
     limitRuns({60, kTwoGigabytesKiB});  // building the world mesh takes a few seconds
-    expectRefused({"render", sourceFile("data/scenes/sheet.json"), "--width", "64", "--height",
-                   "48", "--reference", "world-levelset", "--reference-voxels", "16", "-o",
-                   "r.png"},
-                  "r.png", {"voxels per texel", "16", "GB"});
+    expectRefused(
+        {"render", sourceFile("data/scenes/sheet.json"), "--width", "64", "--height", "48",
+         "--reference", "world-levelset", "--reference-voxels", "16", "-o", "r.png"},
+        "r.png", {"voxels per texel", "16", "GB"});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -210,8 +212,8 @@ TEST_F(Hardening, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
                   {"--png16", "o.png"});
     // A render's image and AOVs.
     writeText(path("bare.json"), kBareScene);
-    expectRefused({"render", "bare.json", "-o", "/proc/r.png", "--width", "8", "--height", "8"},
-                  "", {"-o", "/proc/r.png"});
+    expectRefused({"render", "bare.json", "-o", "/proc/r.png", "--width", "8", "--height", "8"}, "",
+                  {"-o", "/proc/r.png"});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -243,9 +245,8 @@ int exitStatusOf(const std::function<void()>& command) {
     char program[] = "distile";
     char name[] = "run";
     char* argv[] = {program, name, nullptr};
-    return cli::runCommandLine(2, argv, [&](CLI::App& app) {
-        app.add_subcommand("run", "throws")->callback(command);
-    });
+    return cli::runCommandLine(
+        2, argv, [&](CLI::App& app) { app.add_subcommand("run", "throws")->callback(command); });
 }
 
 TEST(ExitStatus, OneMeaningEach) {

@@ -78,7 +78,6 @@ std::string chainmailMaterial(const std::string& tile) {
     return R"({"tile": )" + tile + R"(, "uv_scale": [1, 1], "depth": 0.25})";
 }
 
-
 // ---------------------------------------------------------------------------------------------
 // Working runs.
 

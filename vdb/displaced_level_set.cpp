@@ -12,8 +12,8 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <limits>
@@ -87,9 +87,11 @@ double surfaceAreaWorld(const DisplacedMesh& mesh) {
     const auto& p = mesh.positions;
     double area = 0.0;
     for (const glm::uvec3& t : mesh.triangles)
-        area += 0.5 * glm::length(glm::cross(glm::dvec3(p[t.y] - p[t.x]), glm::dvec3(p[t.z] - p[t.x])));
+        area +=
+            0.5 * glm::length(glm::cross(glm::dvec3(p[t.y] - p[t.x]), glm::dvec3(p[t.z] - p[t.x])));
     for (const glm::uvec4& q : mesh.quads) {
-        area += 0.5 * glm::length(glm::cross(glm::dvec3(p[q.z] - p[q.x]), glm::dvec3(p[q.w] - p[q.y])));
+        area +=
+            0.5 * glm::length(glm::cross(glm::dvec3(p[q.z] - p[q.x]), glm::dvec3(p[q.w] - p[q.y])));
     }
     return area;
 }
@@ -806,12 +808,13 @@ DisplacedLevelSet DisplacedLevelSet::build(const DisplacedMesh& mesh,
     const auto start = std::chrono::steady_clock::now();
     stats.voxelSizeWorld = mesh.stats.texelSizeWorld / options.voxelsPerTexel;
     // The band's voxels, estimated from the surface before OpenVDB allocates for them.
-    const double bandVoxels = surfaceAreaWorld(mesh) / (stats.voxelSizeWorld * stats.voxelSizeWorld) *
-                              2.0 * double(options.halfBandVoxels);
+    const double bandVoxels = surfaceAreaWorld(mesh) /
+                              (stats.voxelSizeWorld * stats.voxelSizeWorld) * 2.0 *
+                              double(options.halfBandVoxels);
     if (!(bandVoxels * kBuildBytesPerBandVoxel <= kLevelSetBuildBudgetBytes)) {
         const double largest =
-            options.voxelsPerTexel * std::sqrt(kLevelSetBuildBudgetBytes /
-                                               (bandVoxels * kBuildBytesPerBandVoxel));
+            options.voxelsPerTexel *
+            std::sqrt(kLevelSetBuildBudgetBytes / (bandVoxels * kBuildBytesPerBandVoxel));
         char message[200];
         std::snprintf(message, sizeof message,
                       "%g needs about %.1f GB for this detail's surface; at most 1 GiB is "

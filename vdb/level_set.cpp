@@ -15,8 +15,8 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/input_file.h"
-#include "vdb/detail/vdb_header_check.h"
 #include "vdb/detail/openvdb_setup.h"
+#include "vdb/detail/vdb_header_check.h"
 
 namespace distile {
 

@@ -1,8 +1,8 @@
 #include "vdb/detail/vdb_header_check.h"
 
 #include <fstream>
-#include <vector>
 #include <string>
+#include <vector>
 
 #include "common/error.h"
 #include "common/input_file.h"
@@ -14,11 +14,11 @@ namespace {
 // OpenVDB's file format (openvdb/io/Archive.cc, GridDescriptor.cc, MetaMap.cc): little-endian
 // fields, strings as a 32-bit length and that many bytes.
 constexpr std::int64_t kVdbMagic = 0x56444220;
-constexpr std::uint32_t kVersionLibraryVersion = 211;  ///< library major/minor follow
-constexpr std::uint32_t kVersionGridOffsets = 212;     ///< the has-grid-offsets flag follows
-constexpr std::uint32_t kVersionUuidText = 220;        ///< the UUID is 36 characters, not 16 bytes
-constexpr std::uint32_t kVersionGridInstancing = 216;  ///< descriptors name an instance parent
-constexpr std::uint32_t kVersionMaskCompression = 222; ///< grids start with a compression flag
+constexpr std::uint32_t kVersionLibraryVersion = 211;   ///< library major/minor follow
+constexpr std::uint32_t kVersionGridOffsets = 212;      ///< the has-grid-offsets flag follows
+constexpr std::uint32_t kVersionUuidText = 220;         ///< the UUID is 36 characters, not 16 bytes
+constexpr std::uint32_t kVersionGridInstancing = 216;   ///< descriptors name an instance parent
+constexpr std::uint32_t kVersionMaskCompression = 222;  ///< grids start with a compression flag
 
 /// Reads fields from a position, refusing any that would run past the end of the file.
 class FieldReader {
@@ -68,8 +68,8 @@ class FieldReader {
     }
 
     [[noreturn]] void fail(const char* what, const std::string& problem) const {
-        throw FormatError(file_.string() + ": not a readable .vdb file (its " + what +
-                          " at byte " + std::to_string(fieldOffset_) + " " + problem + ", but the file has " +
+        throw FormatError(file_.string() + ": not a readable .vdb file (its " + what + " at byte " +
+                          std::to_string(fieldOffset_) + " " + problem + ", but the file has " +
                           std::to_string(fileBytes_) + " bytes; the file is truncated or corrupt)");
     }
 
@@ -103,7 +103,8 @@ void checkVdbHeader(const std::filesystem::path& file, std::uint64_t fileBytes) 
     const std::uint64_t version = reader.unsignedField(4, "file version");
     if (version >= kVersionLibraryVersion) reader.skip(8, "library version");
     bool gridOffsets = false;
-    if (version >= kVersionGridOffsets) gridOffsets = reader.unsignedField(1, "grid offset flag") != 0;
+    if (version >= kVersionGridOffsets)
+        gridOffsets = reader.unsignedField(1, "grid offset flag") != 0;
     reader.skip(version >= kVersionUuidText ? 36 : 16, "file identifier");
     skipMetadata(reader);
     if (!gridOffsets) return;  // grids follow one after the other; OpenVDB checks them as it reads

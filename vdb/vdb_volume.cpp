@@ -15,8 +15,8 @@
 
 #include "common/error.h"
 #include "common/input_file.h"
-#include "vdb/detail/vdb_header_check.h"
 #include "vdb/detail/openvdb_setup.h"
+#include "vdb/detail/vdb_header_check.h"
 
 namespace distile {
 
@@ -170,7 +170,8 @@ VdbVolume VdbVolume::read(const std::filesystem::path& file, const std::string& 
             chosen->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_MEM_BYTES);
         bytes && bytes->value() < 0) {
         throw FormatError(name + ": grid '" + chosen->getName() + "' says it needs " +
-                          std::to_string(bytes->value()) + " bytes in memory (the file is corrupt)");
+                          std::to_string(bytes->value()) +
+                          " bytes in memory (the file is corrupt)");
     } else if (bytes) {
         requireWithinMemoryBudget(file, "grid '" + chosen->getName() + "'",
                                   std::uint64_t(bytes->value()));

@@ -51,7 +51,8 @@ class VdbVolume {
     /// A level set's surface is its zero crossing, or the crossing of `iso` when given (values
     /// below it inside). Any other float grid (a fog volume) needs `iso`: its surface is where the
     /// value crosses it, inside above it.
-    /// @throws InputError the file is missing or not a regular file; `gridName` is not in the file (the message lists
+    /// @throws InputError the file is missing or not a regular file; `gridName` is not in the file
+    /// (the message lists
     ///   the grids); the grid is not a float grid; no grid was named and the file has no float
     ///   level set or several (listed); the grid is not a level set and `iso` is not given; `iso`
     ///   is not finite.
