@@ -268,6 +268,7 @@ std::pair<fs::path, std::string> recipeFile(const Field& spec, const fs::path& f
     if (!spec.has("file")) spec.fail("missing field 'file' (" + what + ")");
     const Field file = spec["file"];
     const fs::path path = folder / file.string();
+    if (!fs::exists(path)) file.fail("file '" + path.string() + "' does not exist");
     std::uint64_t bytesInFile = 0;
     try {
         bytesInFile = requireRegularFile(path, "the recipe's input file");

@@ -63,7 +63,7 @@ std::string sourceFile(const std::string& relative) {
 TEST_F(Hardening, EveryReaderRefusesADevice) {
     const std::string device = "/dev/zero";
     const std::string refused = "not a regular file";
-    expectRefused({"check", device}, "", {device, refused});
+    expectRefused({"check", device}, "none", {device, refused});
     expectRefused({"compare", device, device, "-o", "d.png"}, "d.png", {device, refused});
     expectRefused({"bake", "heightmap", device, "-o", "t.exr"}, "t.exr", {device, refused});
     expectRefused({"bake", "mesh", device, "-o", "t.exr"}, "t.exr", {device, refused});
@@ -176,7 +176,7 @@ TEST_F(Hardening, CostlyOptionsHaveUpperBounds) {
     expectRefused({"bake", "mesh", ring, "--size", "64x64x8", "--scale", "8", "--offset",
                    "1e6,-1e6,1e6", "-o", "t.exr"},
                   "t.exr", {"detail mesh", "outside the tile"});
-    expectRefused({"check", "t.exr", "--samples", "100000000"}, "", {"--samples"});
+    expectRefused({"check", "t.exr", "--samples", "100000000"}, "none", {"--samples"});
     writeText(path("bare.json"), kBareScene);
     expectRefused({"render", "bare.json", "-o", "r.png", "--width", "16384", "--height", "16384"},
                   "r.png", {"--spp", "2^24"});
@@ -212,8 +212,8 @@ TEST_F(Hardening, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
                   {"--png16", "o.png"});
     // A render's image and AOVs.
     writeText(path("bare.json"), kBareScene);
-    expectRefused({"render", "bare.json", "-o", "/proc/r.png", "--width", "8", "--height", "8"}, "",
-                  {"-o", "/proc/r.png"});
+    expectRefused({"render", "bare.json", "-o", "/proc/r.png", "--width", "8", "--height", "8"},
+                  "r.png", {"-o", "/proc/r.png"});
 }
 
 // ---------------------------------------------------------------------------------------------
