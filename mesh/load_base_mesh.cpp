@@ -32,7 +32,8 @@ using OpenMeshPolygons = OpenMesh::PolyMesh_ArrayKernelT<>;
 
 /// Memory one vertex or face of a mesh file takes once read, bytes: OpenMesh's polygon mesh
 /// (point, vertex, face, two halfedges per edge, properties) and the loader's welded copy, with
-/// room to spare. A file's declared counts are checked against the memory budget with it.
+/// room to spare (an estimate, not a measurement). A file's declared counts are checked against
+/// the memory budget with it.
 constexpr std::uint64_t kBytesPerMeshElement = 256;
 
 std::string lowercase(std::string text) {

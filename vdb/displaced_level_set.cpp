@@ -74,9 +74,9 @@ void validateInput(const Size3& tile, const DisplacementShell& shell,
 /// cross them).
 constexpr double kMinVoxelsPerTexel = 0.25;
 
-/// Bytes OpenVDB's meshToVolume holds per voxel of the narrow band while it builds (the distance
-/// grid, the closest-polygon index grid and their partitions): measured ~25 on the sheet scene,
-/// with room.
+/// Bytes OpenVDB's meshToVolume holds per voxel of the narrow band while it builds: a float
+/// distance and an int32 closest-polygon index per voxel, their partitions and tree overhead,
+/// with room (an estimate, not a measurement).
 constexpr double kBuildBytesPerBandVoxel = 40.0;
 
 /// The most memory building one world level set may take, bytes.
