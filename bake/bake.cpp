@@ -21,11 +21,12 @@ bool isFinite(const glm::dvec3& v) {
 
 void validateBakeOptions(const BakeOptions& options) {
     validateTileSize(options.size, "size");
-    if (!(options.halfBandTexels >= 0.0f)) {
-        throw InputError::inField(
-            "halfBandTexels",
-            std::to_string(options.halfBandTexels) +
-                " texels is not accepted; it must be at least 1 (or 0 for the tile depth)");
+    const float widest = maxHalfBandTexels(options.size);
+    if (!(options.halfBandTexels >= 0.0f && options.halfBandTexels <= widest)) {
+        std::ostringstream message;
+        message << options.halfBandTexels << " texels is not accepted; it must be in [1, " << widest
+                << "] (twice the tile depth, at most 1024), or 0 for the tile depth";
+        throw InputError::inField("halfBandTexels", message.str());
     }
 }
 
@@ -73,6 +74,36 @@ FootprintFit fitToFootprint(const Bounds3& box, const Size3& tile, const std::st
         throw InputError(message.str());
     }
     return {scale, offset};
+}
+
+void requireMeshInTile(const Bounds3& placedTexels, const Size3& tile) {
+    const glm::dvec3 extent = placedTexels.max - placedTexels.min;
+    const glm::dvec3 tileTexels(tile.width, tile.height, tile.depth);
+    const double largestExtent = std::max({extent.x, extent.y, extent.z});
+    std::ostringstream problem;
+    if (!(largestExtent >= 1.0)) {
+        problem << "is " << largestExtent << " texels across, less than one texel";
+    } else if (!(extent.x <= kMaxPlacedFootprints * tile.width &&
+                 extent.y <= kMaxPlacedFootprints * tile.height &&
+                 extent.z <= kMaxPlacedFootprints * std::max(tile.width, tile.height))) {
+        problem << "spans " << extent.x << " x " << extent.y << " x " << extent.z
+                << " texels; at most " << kMaxPlacedFootprints
+                << " tile footprints in x and y (and as much in z) are accepted";
+    } else {
+        for (int axis = 0; axis < 3; ++axis) {
+            if (placedTexels.max[axis] < 0.0 || placedTexels.min[axis] > tileTexels[axis]) {
+                problem << "lies at "
+                        << "xyz"[axis] << " in [" << placedTexels.min[axis] << ", "
+                        << placedTexels.max[axis] << "], outside the tile's [0, "
+                        << tileTexels[axis] << "]";
+                break;
+            }
+        }
+    }
+    if (!problem.str().empty()) {
+        throw InputError("detail mesh: placed in the " + toString(tile) + " tile it " +
+                         problem.str() + " (check the scale and offset)");
+    }
 }
 
 MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
@@ -132,6 +163,7 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
         }
         placed.positions.push_back(texel);
     }
+    requireMeshInTile(boundsOf(placed), tile);
     return placed;
 }
 

@@ -40,7 +40,8 @@ struct BakeResult {
 };
 
 /// Throws InputError::inField naming "size" or "halfBandTexels" when the tile size is invalid
-/// (validateTileSize) or the half band is negative or not a number.
+/// (validateTileSize) or the half band is negative, not a number or wider than
+/// maxHalfBandTexels(size).
 void validateBakeOptions(const BakeOptions& options);
 
 /// Chain mail (vdb/chainmail.h) baked into a level set and its tile. Throws InputError for bad
@@ -82,6 +83,16 @@ FootprintFit fitToFootprint(const Bounds3& box, const Size3& tile, const std::st
 /// positions) resolves less than 1/8 texel.
 inline constexpr double kMaxPlacedTexelCoordinate = 1 << 20;
 
+/// Widest placed mesh a bake accepts, in tile footprints along x and y (and footprint widths
+/// along z): the bake's time grows with the periods the mesh covers (a ring 2.5 footprints wide
+/// takes ~20 s on a 64x64x8 tile); a repeating mesh covers one.
+inline constexpr double kMaxPlacedFootprints = 2.0;
+
+/// Throws InputError unless a mesh placed in `tile` with bounds `placedTexels` (texels) overlaps
+/// the tile (x in [0, W], y in [0, H], z in [0, D]), is at least one texel across, and at most
+/// kMaxPlacedFootprints tile footprints wide.
+void requireMeshInTile(const Bounds3& placedTexels, const Size3& tile);
+
 /// The explicit placement `placement` amounts to for this mesh and tile: itself when explicit,
 /// the fitted scale and offset (texels) otherwise. Throws InputError as placeMesh.
 MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
@@ -90,7 +101,8 @@ MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPla
 /// The mesh (file units) placed in the tile by `placement`, positions in texels.
 /// @throws InputError the mesh fails validateTriangleSoup, has no x/y extent (Fit), is taller
 ///   than the tile depth after fitting, the scale is not finite and > 0, the offset is not
-///   finite, or a placed coordinate exceeds kMaxPlacedTexelCoordinate.
+///   finite, a placed coordinate exceeds kMaxPlacedTexelCoordinate, or the placed mesh fails
+///   requireMeshInTile.
 TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                        const Size3& tile);
 

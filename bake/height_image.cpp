@@ -8,6 +8,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/input_file.h"
 
 namespace distile {
 
@@ -28,12 +29,8 @@ int wrap(int index, int count) {
 }  // namespace
 
 HeightImage readHeightImage(const fs::path& file) {
-    std::error_code status;
-    if (!fs::exists(file, status)) throw InputError(file.string() + ": no such file");
-    if (fs::is_directory(file, status)) {
-        throw InputError(file.string() +
-                         ": is a folder; a height map image (.png, .exr) is expected");
-    }
+    requireRegularFile(file, "a height map image (.png, .exr)");
+    checkPngChunks(file);  // libpng would report a broken one on stderr itself
     auto input = OIIO::ImageInput::open(file.string());
     if (!input) {
         throw FormatError(file.string() + ": not a readable image (" +
@@ -52,6 +49,9 @@ HeightImage readHeightImage(const fs::path& file) {
         throw FormatError(message.str());
     }
     const int channels = spec.nchannels;
+    requireWithinMemoryBudget(
+        file, "a height map of " + std::to_string(pixels) + " pixels",
+        saturatingProduct(std::uint64_t(pixels), (std::uint64_t(channels) + 1) * sizeof(float)));
     std::vector<float> all(std::size_t(pixels) * std::size_t(channels));
     if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, all.data())) {
         throw FormatError(file.string() + ": cannot read the pixels (" +

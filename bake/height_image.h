@@ -25,9 +25,10 @@ inline constexpr long long kMaxHeightImagePixels = 1ll << 28;
 /// Reads `file` as float grey: one or two channels (grey, grey + alpha) give the first channel,
 /// three or more the Rec. 709 luminance of the first three. 8- and 16-bit files are normalised to
 /// [0, 1] by OpenImageIO; float (EXR) values must already be in [0, 1].
-/// @throws InputError  the file does not exist or is a folder.
-/// @throws FormatError OpenImageIO cannot read it (empty, truncated, corrupted, not an image), it
-///                     has no pixels or more than kMaxHeightImagePixels, or a value is NaN/Inf or
+/// @throws InputError  the file does not exist or is not a regular file (a folder, a device).
+/// @throws FormatError OpenImageIO cannot read it (empty, truncated, corrupted, not an image, a
+///                     broken PNG), it has no pixels or more than kMaxHeightImagePixels, reading
+///                     it needs more than kInputMemoryBudgetBytes, or a value is NaN/Inf or
 ///                     outside [0, 1] (naming the pixel).
 HeightImage readHeightImage(const std::filesystem::path& file);
 

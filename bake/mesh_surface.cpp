@@ -2,6 +2,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
@@ -398,6 +399,35 @@ bool appendBoundingPieces(const SoupDistance& soup, const glm::dvec3& a, const g
     return false;
 }
 
+/// For a mesh whose winding number changes only across the surface (closed, consistently
+/// oriented parts), whether every triangle has the winding number 0 just in front of its
+/// centroid. Crossing a triangle backwards adds exactly 1 (its own solid angle) unless another
+/// triangle lies in the same place, so such a triangle has 0 in front and 1 behind: it bounds the
+/// inside. One evaluation per triangle, where testing every triangle for what it bounds takes
+/// eight or more: parts that overlap, nest or touch face to face (a face of one inside another,
+/// or against it) put some front in another part and fail it.
+bool allTrianglesFaceOutside(const TriangleSoup& placedTexels, const SoupDistance& soup) {
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, placedTexels.triangles.size()), true,
+        [&](const tbb::blocked_range<std::size_t>& range, bool outside) {
+            for (std::size_t t = range.begin(); outside && t != range.end(); ++t) {
+                const glm::uvec3& triangle = placedTexels.triangles[t];
+                const glm::dvec3 a = placedTexels.positions[triangle.x];
+                const glm::dvec3 b = placedTexels.positions[triangle.y];
+                const glm::dvec3 c = placedTexels.positions[triangle.z];
+                const glm::dvec3 normal = glm::cross(b - a, c - a);
+                const double area = glm::length(normal);
+                if (!(area > 0.0)) continue;  // no sides; changes no distance
+                const double longest =
+                    std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
+                const glm::dvec3 front = (a + b + c) / 3.0 + (1e-5 * longest / area) * normal;
+                outside = std::abs(soup.windingNumber(front)) < 0.5;
+            }
+            return outside;
+        },
+        [](bool x, bool y) { return x && y; });
+}
+
 }  // namespace
 
 MeshSurface::MeshSurface(const SoupDistance& soup) : soup_(&soup) {}
@@ -405,6 +435,8 @@ MeshSurface::MeshSurface(const SoupDistance& soup) : soup_(&soup) {}
 MeshSurface::MeshSurface(const TriangleSoup& placedTexels, const SoupDistance& soup,
                          const Size3& tile)
     : soup_(&soup) {
+    if (soup.windingChangesOnlyAcrossTheSurface() && allTrianglesFaceOutside(placedTexels, soup))
+        return;  // all triangles bound the inside, no holes: the surface is the mesh
     // Each triangle's bounding pieces, in triangle order whatever the threads.
     const std::size_t count = placedTexels.triangles.size();
     std::vector<std::vector<glm::dvec3>> pieces(count);

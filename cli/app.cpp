@@ -3,13 +3,27 @@
 #include <tbb/global_control.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <exception>
 #include <memory>
+#include <new>
+#include <string>
+#include <system_error>
 
 #include "common/error.h"
 
 namespace distile::cli {
 
 namespace {
+
+/// `message` on one line: line breaks and other control characters become spaces, so an error
+/// is always exactly one line on stderr.
+std::string oneLine(std::string message) {
+    for (char& c : message) {
+        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = ' ';
+    }
+    return message;
+}
 
 int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& addCommands) {
     CLI::App app{
@@ -39,7 +53,8 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
     } catch (const CLI::Success& success) {  // --help, --version
         return app.exit(success);
     } catch (const CLI::ParseError& error) {
-        std::fprintf(stderr, "distile: error: %s (see distile --help)\n", error.what());
+        std::fprintf(stderr, "distile: error: %s (see distile --help)\n",
+                     oneLine(error.what()).c_str());
         return kExitInput;
     }
     return 0;
@@ -47,18 +62,56 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
 
 }  // namespace
 
+namespace {
+
+/// The last resort when an exception escapes where none may (a destructor or a noexcept function
+/// in a library, while another unwinds): one line and the exit status its kind calls for, not
+/// an abort.
+[[noreturn]] void terminateInOneLine() {
+    int status = kExitBug;
+    std::string message = "internal failure: an exception escaped a library (a bug)";
+    try {
+        if (const std::exception_ptr escaped = std::current_exception())
+            std::rethrow_exception(escaped);
+    } catch (const std::bad_alloc&) {
+        status = kExitInput;
+        message = "out of memory: the input or options need more memory than there is";
+    } catch (const std::exception& error) {
+        message += std::string(" (") + error.what() + ")";
+    } catch (...) {
+    }
+    std::fprintf(stderr, "distile: error: %s\n", oneLine(message).c_str());
+    std::fflush(stderr);
+    std::_Exit(status);
+}
+
+}  // namespace
+
 int runCommandLine(int argc, char** argv, const std::function<void(CLI::App&)>& addCommands) {
+    std::set_terminate(terminateInOneLine);
+    const auto fail = [](int status, const std::string& message) {
+        std::fprintf(stderr, "distile: error: %s\n", oneLine(message).c_str());
+        return status;
+    };
     try {
         return parseAndRun(argc, argv, addCommands);
     } catch (const InputError& error) {
-        std::fprintf(stderr, "distile: error: %s\n", error.what());
-        return kExitInput;
+        return fail(kExitInput, error.what());
     } catch (const FormatError& error) {
-        std::fprintf(stderr, "distile: error: %s\n", error.what());
-        return kExitInput;
+        return fail(kExitInput, error.what());
+    } catch (const std::bad_alloc&) {
+        return fail(kExitInput,
+                    "out of memory: the input or options need more memory than there is; use "
+                    "smaller sizes, bands or sample counts");
+    } catch (const std::system_error& error) {  // a write refused by the system (disk full, ...)
+        return fail(kExitInput, error.what());
+    } catch (const InternalError& error) {
+        return fail(kExitBug, std::string(error.what()) + " (internal failure)");
     } catch (const std::exception& error) {
-        std::fprintf(stderr, "distile: error: %s\n", error.what());
-        return kExitFailure;
+        return fail(kExitBug, std::string(error.what()) +
+                                  " (internal failure: an unexpected error, a bug in distile)");
+    } catch (...) {
+        return fail(kExitBug, "internal failure: an unknown exception, a bug in distile");
     }
 }
 

@@ -16,6 +16,7 @@
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "cli/progress_bar.h"
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "sampler/tile_io.h"
 
@@ -51,6 +52,12 @@ struct BakeArguments {
     std::string gridName;
     std::optional<double> iso;
     std::vector<double> window;
+};
+
+/// The files a bake writes: the temporary path of each output given (empty when not given).
+struct BakeOutputs {
+    OutputFiles files;
+    fs::path tile, vdb, png8, png16;
 };
 
 /// How `bake mesh` places the mesh: --fit (default) or --scale/--offset.
@@ -247,6 +254,14 @@ void runBake(const BakeArguments& arguments) {
             throw InputError("--repeat: needs --vdb FILE (it tiles the level set written there)");
         repeat = parseRepeat(arguments.repeat);
     }
+    // Checked before the work, written together after it (common/atomic_file.h).
+    BakeOutputs outputs;
+    outputs.tile = outputs.files.add(arguments.output, "-o");
+    if (!arguments.vdbOutput.empty()) outputs.vdb = outputs.files.add(arguments.vdbOutput, "--vdb");
+    if (!arguments.png8Output.empty())
+        outputs.png8 = outputs.files.add(arguments.png8Output, "--png8");
+    if (!arguments.png16Output.empty())
+        outputs.png16 = outputs.files.add(arguments.png16Output, "--png16");
     options.conservative.enabled = !arguments.exactTexels;
 
     const auto start = std::chrono::steady_clock::now();
@@ -279,29 +294,29 @@ void runBake(const BakeArguments& arguments) {
             throw underFlag(error, {{"repeatX, repeatY", "--repeat"}});
         }
     }
-    writeTileExr(result->tile, arguments.output,
+    // Every output is written to its temporary file first and renamed only once all are.
+    writeTileExr(result->tile, outputs.tile,
                  arguments.half ? TileStorage::Half16 : TileStorage::Float32);
+    if (!outputs.png8.empty()) writeTilePng(result->tile, outputs.png8, 8);
+    if (!outputs.png16.empty()) writeTilePng(result->tile, outputs.png16, 16);
+    const LevelSet* levelSet = repeatedLevelSet ? &*repeatedLevelSet : &result->levelSet;
+    if (!outputs.vdb.empty()) levelSet->save(outputs.vdb);
+    outputs.files.commit();
+
     std::printf("tile %s (%s, %s) written to %s\n", toString(options.size).c_str(),
                 arguments.detail.c_str(), arguments.half ? "half" : "float",
                 arguments.output.c_str());
-    if (!arguments.png8Output.empty()) {
-        writeTilePng(result->tile, arguments.png8Output, 8);
+    if (!arguments.png8Output.empty())
         std::printf("8-bit PNG atlas written to %s\n", arguments.png8Output.c_str());
-    }
-    if (!arguments.png16Output.empty()) {
-        writeTilePng(result->tile, arguments.png16Output, 16);
+    if (!arguments.png16Output.empty())
         std::printf("16-bit PNG atlas written to %s\n", arguments.png16Output.c_str());
-    }
     if (repeatedLevelSet) {
-        const LevelSet& repeated = *repeatedLevelSet;
-        repeated.save(arguments.vdbOutput);
         std::printf("level set tiled %dx%d (%s texels, %zu active voxels) written to %s\n",
-                    repeat.first, repeat.second, toString(repeated.tileSize()).c_str(),
-                    repeated.activeVoxelCount(), arguments.vdbOutput.c_str());
+                    repeat.first, repeat.second, toString(levelSet->tileSize()).c_str(),
+                    levelSet->activeVoxelCount(), arguments.vdbOutput.c_str());
     } else if (!arguments.vdbOutput.empty()) {
-        result->levelSet.save(arguments.vdbOutput);
         std::printf("level set (%zu active voxels, half band %.1f texels) written to %s\n",
-                    result->levelSet.activeVoxelCount(), result->levelSet.halfBandTexels(),
+                    levelSet->activeVoxelCount(), levelSet->halfBandTexels(),
                     arguments.vdbOutput.c_str());
     }
     const double seconds =
@@ -331,7 +346,8 @@ void addBakeCommand(CLI::App& app) {
     command->add_flag("--half", arguments->half, "Store half floats instead of 32-bit floats");
     command->add_option(
         "--band", arguments->halfBandTexels,
-        "Half width of the level set's narrow band in texels (default: the tile depth)");
+        "Half width of the level set's narrow band in texels, at most twice the tile depth "
+        "(and 1024): the time grows steeply with it (default: the tile depth)");
     auto* chainmail = command->add_option_group(
         "chainmail", "European 4-in-1 chain mail (defaults fill 256x256x16)");
     chainmail
@@ -378,7 +394,8 @@ void addBakeCommand(CLI::App& app) {
     command->add_option("--png16", arguments->png16Output,
                         "Also write a 16-bit PNG atlas (distance / depth, ch. 8)");
     command->add_option("--repeat", arguments->repeat,
-                        "Write the --vdb level set tiled NxM (world units = texels)");
+                        "Write the --vdb level set tiled NxM (world units = texels), N and M in "
+                        "[1, 64], at most 2^28 voxels (1 GiB) in all");
     auto* mesh =
         command->add_option_group("mesh",
                                   "bake mesh FILE: a triangle mesh (OBJ, PLY, OFF, STL; corners "
@@ -400,7 +417,8 @@ void addBakeCommand(CLI::App& app) {
     mesh->add_flag("--fit", arguments->fit,
                    "Fit the x/y bounding box to the footprint, floor at z = 0 (the default)");
     mesh->add_option("--scale", arguments->meshScale,
-                     "Explicit placement: texels per file unit S (> 0)");
+                     "Explicit placement: texels per file unit S (> 0); the placed mesh must "
+                     "overlap the tile, be at least a texel and at most 2 footprints across");
     mesh->add_option("--offset", arguments->meshOffset,
                      "Explicit placement: where the file's origin goes, X,Y,Z texels")
         ->expected(3)

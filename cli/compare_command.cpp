@@ -6,6 +6,7 @@
 
 #include "cli/arguments.h"
 #include "cli/commands.h"
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "render/compare.h"
 #include "render/image.h"
@@ -87,12 +88,16 @@ void runCompare(const CompareArguments& arguments) {
                                      : arguments.heatMap;
     requireOutput(differencePath, "-o", {".png", ".exr", ".tif", ".tiff"});
     requireOutput(heatMapPath, "--heatmap", {".png", ".exr", ".tif", ".tiff"});
+    OutputFiles outputs;  // checked now, written together after the comparison
+    const fs::path differenceTemporary = outputs.add(differencePath, "-o");
+    const fs::path heatMapTemporary = outputs.add(heatMapPath, "--heatmap");
     const RenderFiles a = readRender(arguments.a, "A");
     const RenderFiles b = readRender(arguments.b, "B");
     Image difference, heatMap;
     const RenderComparison c = compareRenders(a.view(), b.view(), &difference, &heatMap);
-    writeImage(difference, differencePath);
-    writeImage(heatMap, heatMapPath);
+    writeImage(difference, differenceTemporary);
+    writeImage(heatMap, heatMapTemporary);
+    outputs.commit();
     if (arguments.json) {
         // JSON has no infinity: identical images give "psnr_db": null.
         const nlohmann::json psnr =

@@ -1,6 +1,8 @@
 // distile render: a scene (or the built-in demo) to an image, with optional AOVs.
 #include <chrono>
 #include <cstdio>
+#include <initializer_list>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -9,6 +11,7 @@
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "cli/progress_bar.h"
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "render/renderer.h"
 #include "render/world_reference.h"
@@ -42,6 +45,29 @@ fs::path aovPath(const fs::path& image, const std::string& name, const std::stri
     return image.parent_path() / (image.stem().string() + "." + name + extension);
 }
 
+/// The files a render writes, checked before the work and renamed together after it
+/// (common/atomic_file.h): the image and, with --aovs, the AOVs beside it.
+class RenderOutputs {
+  public:
+    /// `aovs`: name and extension of each AOV the render writes with --aovs.
+    RenderOutputs(const fs::path& image, bool withAovs,
+                  std::initializer_list<std::pair<const char*, const char*>> aovs)
+        : image_(files_.add(image, "-o")) {
+        if (!withAovs) return;
+        for (const auto& [name, extension] : aovs)
+            aovs_[name] = files_.add(aovPath(image, name, extension),
+                                     "-o (its AOV " + std::string(name) + ")");
+    }
+    const fs::path& image() const { return image_; }
+    const fs::path& aov(const std::string& name) const { return aovs_.at(name); }
+    void commit() { files_.commit(); }
+
+  private:
+    OutputFiles files_;
+    fs::path image_;
+    std::map<std::string, fs::path> aovs_;
+};
+
 /// distile render --reference world | world-levelset: the scene against world-space meshes of
 /// its detail (a BVH, or level sets of the same meshes).
 void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
@@ -53,6 +79,8 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
                                                                  : WorldReferenceMethod::Bvh;
     options.levelSet.voxelsPerTexel = arguments.referenceVoxelsPerTexel;
     attachTruth(sceneFile);  // analytic detail where there is one, else the tile
+    RenderOutputs outputs(arguments.output, options.outputAovs,
+                          {{"depth", ".exr"}, {"normal", ".png"}, {"texel_scale", ".exr"}});
     const auto start = std::chrono::steady_clock::now();
     WorldReferenceResult result;
     {
@@ -62,13 +90,13 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
     }
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    writeImage(result.render.image, arguments.output);
+    writeImage(result.render.image, outputs.image());
     if (result.render.aovs) {
-        writeImage(result.render.aovs->depth, aovPath(arguments.output, "depth", ".exr"));
-        writeImage(result.render.aovs->normal, aovPath(arguments.output, "normal", ".png"));
-        writeImage(result.render.aovs->texelScale,
-                   aovPath(arguments.output, "texel_scale", ".exr"));
+        writeImage(result.render.aovs->depth, outputs.aov("depth"));
+        writeImage(result.render.aovs->normal, outputs.aov("normal"));
+        writeImage(result.render.aovs->texelScale, outputs.aov("texel_scale"));
     }
+    outputs.commit();
     for (std::size_t index = 0; index < result.meshes.size(); ++index) {
         const DisplacedMeshStats& mesh = result.meshes[index];
         std::printf(
@@ -122,6 +150,7 @@ InputError underRenderNames(const InputError& error) {
     const InputError flagged = underFlag(error, {{"width", "--width"},
                                                  {"height", "--height"},
                                                  {"samplesPerPixel", "--spp"},
+                                                 {"outputAovs", "--aovs"},
                                                  {"march.maxIterations", "--iterations"},
                                                  {"march.epsilonTexels", "--epsilon"},
                                                  {"march.relaxation", "--relaxation"}});
@@ -157,6 +186,14 @@ void runRender(RenderArguments arguments) {
     }
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachTruth(sceneFile);
+    RenderOutputs outputs(arguments.output, options.outputAovs,
+                          {{"depth", ".exr"},
+                           {"normal", ".png"},
+                           {"iterations", ".png"},
+                           {"shadow_samples", ".png"},
+                           {"shadow_map_samples", ".png"},
+                           {"curvature", ".png"},
+                           {"texel_scale", ".exr"}});
 
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;
@@ -171,17 +208,17 @@ void runRender(RenderArguments arguments) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     for (const std::string& warning : result.warnings)
         std::fprintf(stderr, "warning: %s\n", warning.c_str());
-    writeImage(result.image, arguments.output);
+    writeImage(result.image, outputs.image());
     if (result.aovs) {
-        writeImage(result.aovs->depth, aovPath(arguments.output, "depth", ".exr"));
-        writeImage(result.aovs->normal, aovPath(arguments.output, "normal", ".png"));
-        writeImage(result.aovs->iterations, aovPath(arguments.output, "iterations", ".png"));
-        writeImage(result.aovs->shadowSamples, aovPath(arguments.output, "shadow_samples", ".png"));
-        writeImage(result.aovs->shadowMapSamples,
-                   aovPath(arguments.output, "shadow_map_samples", ".png"));
-        writeImage(result.aovs->curvature, aovPath(arguments.output, "curvature", ".png"));
-        writeImage(result.aovs->texelScale, aovPath(arguments.output, "texel_scale", ".exr"));
+        writeImage(result.aovs->depth, outputs.aov("depth"));
+        writeImage(result.aovs->normal, outputs.aov("normal"));
+        writeImage(result.aovs->iterations, outputs.aov("iterations"));
+        writeImage(result.aovs->shadowSamples, outputs.aov("shadow_samples"));
+        writeImage(result.aovs->shadowMapSamples, outputs.aov("shadow_map_samples"));
+        writeImage(result.aovs->curvature, outputs.aov("curvature"));
+        writeImage(result.aovs->texelScale, outputs.aov("texel_scale"));
     }
+    outputs.commit();
     const RenderStats& stats = result.stats;
     std::printf(
         "rendered %s (%dx%d, %d spp) in %.2f s: %llu rays, %.1f%% hit a surface, mean %.2f "
@@ -229,7 +266,8 @@ void addRenderCommand(CLI::App& app) {
         ->required();
     command
         ->add_option("--width", arguments->width,
-                     "Image width in pixels (default: the scene's, else 1280)")
+                     "Image width in pixels (default: the scene's, else 1280); see --spp for "
+                     "the bound on width x height")
         ->check(CLI::Range(1, 16384));
     command
         ->add_option("--height", arguments->height,
@@ -237,7 +275,8 @@ void addRenderCommand(CLI::App& app) {
         ->check(CLI::Range(1, 16384));
     command
         ->add_option("--spp", arguments->samplesPerPixel,
-                     "Samples per pixel (default: the scene's, else 1)")
+                     "Samples per pixel (default: the scene's, else 1); width x height x spp at "
+                     "most 2^24 (~40 s on two cores)")
         ->check(CLI::Range(1, 256));
     command
         ->add_option("--iterations", arguments->options.march.maxIterations,
@@ -345,10 +384,10 @@ void addRenderCommand(CLI::App& app) {
     command
         ->add_option("--reference-voxels", arguments->referenceVoxelsPerTexel,
                      "With --reference world-levelset: world voxels per world size of a texel, in "
-                     "(0, 16] "
-                     "(2: voxels of half a texel)")
+                     "[0.25, 16] (2: voxels of half a texel); memory grows as its square, and "
+                     "a level set estimated to need more than 1 GiB is refused")
         ->capture_default_str()
-        ->check(finiteRange(0.0, 16.0));
+        ->check(finiteRange(0.25, 16.0));
     command->callback([arguments, reference] {
         arguments->referenceGiven = reference->count() > 0;
         try {

@@ -1,8 +1,11 @@
 #include "common/atomic_file.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
+#include <cstring>
 #include <system_error>
 
 #include "common/error.h"
@@ -11,15 +14,28 @@ namespace distile {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+fs::path folderOf(const fs::path& target) {
+    return target.has_parent_path() ? target.parent_path() : fs::path(".");
+}
+
+/// A name beside `target` no other write of this process or another uses, with its extension.
+fs::path temporaryBeside(const fs::path& target) {
+    static std::atomic<int> counter{0};
+    return folderOf(target) /
+           ("." + target.stem().string() + ".partial-" + std::to_string(::getpid()) + "-" +
+            std::to_string(counter++) + target.extension().string());
+}
+
+}  // namespace
+
 void writeAtomically(const fs::path& target, const std::function<void(const fs::path&)>& write) {
-    const fs::path folder = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    const fs::path folder = folderOf(target);
     if (!fs::is_directory(folder)) {
         throw InputError(target.string() + ": folder '" + folder.string() + "' does not exist");
     }
-    static std::atomic<int> counter{0};
-    const fs::path temporary =
-        folder / ("." + target.stem().string() + ".partial-" + std::to_string(::getpid()) + "-" +
-                  std::to_string(counter++) + target.extension().string());
+    const fs::path temporary = temporaryBeside(target);
     try {
         write(temporary);
         fs::rename(temporary, target);
@@ -27,6 +43,47 @@ void writeAtomically(const fs::path& target, const std::function<void(const fs::
         std::error_code ignored;
         fs::remove(temporary, ignored);
         throw;
+    }
+}
+
+OutputFiles::~OutputFiles() {
+    for (const auto& [temporary, target] : files_) {
+        std::error_code ignored;
+        fs::remove(temporary, ignored);
+    }
+}
+
+fs::path OutputFiles::add(const fs::path& target, const std::string& shownAs) {
+    const std::string name = shownAs + ": '" + target.string() + "'";
+    std::error_code status;
+    if (fs::is_directory(target, status)) {
+        throw InputError(name + " is a folder; give a file name to write");
+    }
+    const fs::path folder = folderOf(target);
+    if (!fs::is_directory(folder, status)) {
+        throw InputError(name + " cannot be written: folder '" + folder.string() +
+                         "' does not exist");
+    }
+    for (const auto& [temporary, added] : files_) {
+        if (fs::absolute(added).lexically_normal() == fs::absolute(target).lexically_normal())
+            throw InputError(name + " is also another output of this command; give each its own");
+    }
+    const fs::path temporary = temporaryBeside(target);
+    const int descriptor = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0666);
+    if (descriptor < 0) {
+        throw InputError(name + " cannot be written: folder '" + folder.string() +
+                         "' refuses a new file (" + std::strerror(errno) + ")");
+    }
+    ::close(descriptor);
+    files_.emplace_back(temporary, target);
+    return temporary;
+}
+
+void OutputFiles::commit() {
+    while (!files_.empty()) {
+        const auto& [temporary, target] = files_.front();
+        fs::rename(temporary, target);
+        files_.erase(files_.begin());
     }
 }
 

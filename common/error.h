@@ -1,6 +1,7 @@
 /// @file
-/// The two exception types every distile entry point throws. Messages name the file or field,
-/// the bad value and what is accepted, in one line, so the command can print them as they are.
+/// The exception types distile throws: two for bad input, which every entry point checks, and
+/// one for bugs. Messages name the file or field, the bad value and what is accepted, in one
+/// line, so the command can print them as they are.
 #pragma once
 
 #include <stdexcept>
@@ -44,6 +45,12 @@ private:
 /// A file exists but its contents are not what distile reads (truncated, corrupted, wrong kind).
 struct FormatError : std::runtime_error {
     using std::runtime_error::runtime_error;
+};
+
+/// A broken invariant: distile computed something it never should (a NaN pixel from valid
+/// input). Not the user's fault; the message says so and the command exits with its own status.
+struct InternalError : std::logic_error {
+    using std::logic_error::logic_error;
 };
 
 }  // namespace distile

@@ -1,5 +1,6 @@
 #include "common/size3.h"
 
+#include <algorithm>
 #include <charconv>
 
 #include "common/error.h"
@@ -65,6 +66,10 @@ void validateTileSize(const Size3& size, const std::string& what) {
                                             " texels; at most " + std::to_string(kMaxTileTexels) +
                                             " (1 GiB of floats) are accepted");
     }
+}
+
+float maxHalfBandTexels(const Size3& size) {
+    return std::min(1024.0f, 2.0f * float(size.depth));
 }
 
 }  // namespace distile

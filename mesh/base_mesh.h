@@ -39,9 +39,11 @@ struct BaseMesh {
 /// Not thread-safe with other code that uses OpenMesh's global log streams at the same time
 /// (they are redirected during the read); concurrent loadBaseMesh calls are serialised.
 /// @throws InputError  the file does not exist, is not a regular file or cannot be opened.
-/// @throws FormatError the extension is not one of the above, OpenMesh cannot read the file,
-///                     the mesh has no faces or no texture coordinates, a position or UV is
-///                     NaN/Inf, or an OBJ face refers to a missing vertex or texture coordinate.
+/// @throws FormatError the extension is not one of the above, the counts a header declares do
+///                     not fit in the file or in kInputMemoryBudgetBytes, a PLY/OFF value is not
+///                     a number within its type's range, OpenMesh cannot read the file, the mesh
+///                     has no faces or no texture coordinates, a position or UV is NaN/Inf, or
+///                     an OBJ face refers to a missing vertex or texture coordinate.
 BaseMesh loadBaseMesh(const std::filesystem::path& file);
 
 /// Fills mesh.normals and mesh.tangents (resized to one per position) from positions, uvs and

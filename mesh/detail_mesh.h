@@ -27,7 +27,9 @@ inline constexpr double kMaxDetailCoordinate = 1e9;
 /// Thread-safety as loadBaseMesh (reads are serialised).
 /// @throws InputError  the file does not exist, is not a regular file or cannot be opened.
 /// @throws FormatError the extension is not one of the above, the file is truncated or
-///                     corrupted, OpenMesh cannot read it, the mesh has no faces, a face refers
+///                     corrupted, the counts a header declares do not fit in the file or in
+///                     kInputMemoryBudgetBytes, a PLY/OFF value is not a number within its
+///                     type's range, OpenMesh cannot read it, the mesh has no faces, a face refers
 ///                     to a missing vertex, a coordinate is NaN/Inf or beyond
 ///                     +-kMaxDetailCoordinate.
 TriangleSoup loadDetailMesh(const std::filesystem::path& file);

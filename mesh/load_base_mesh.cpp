@@ -3,6 +3,7 @@
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <OpenMesh/Core/System/omstream.hh>
 #include <algorithm>
+#include <bit>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -11,6 +12,7 @@
 #include <fstream>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -19,6 +21,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/input_file.h"
 #include "mesh/base_mesh.h"
 #include "mesh/detail_mesh.h"
 
@@ -26,6 +29,12 @@ namespace distile {
 namespace {
 
 using OpenMeshPolygons = OpenMesh::PolyMesh_ArrayKernelT<>;
+
+/// Memory one vertex or face of a mesh file takes once read, bytes: OpenMesh's polygon mesh
+/// (point, vertex, face, two halfedges per edge, properties) and the loader's welded copy, with
+/// room to spare (an estimate, not a measurement). A file's declared counts are checked against
+/// the memory budget with it.
+constexpr std::uint64_t kBytesPerMeshElement = 256;
 
 std::string lowercase(std::string text) {
     std::transform(text.begin(), text.end(), text.begin(),
@@ -89,10 +98,12 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
                 char* end = nullptr;
                 const double value = std::strtod(token.c_str(), &end);
                 if (end != token.c_str() + token.size()) {
-                    throw FormatError(where + what + " has '" + token + "'; expected a number");
+                    throw FormatError(where + what + " has '" + quotedInput(token) +
+                                      "'; expected a number");
                 }
                 if (!std::isfinite(value) || std::abs(value) > std::numeric_limits<float>::max()) {
-                    throw FormatError(where + what + " has the non-finite value '" + token +
+                    throw FormatError(where + what + " has the non-finite value '" +
+                                      quotedInput(token) +
                                       "'; coordinates must be finite float numbers");
                 }
             }
@@ -120,13 +131,13 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
                     const auto [end, error] =
                         std::from_chars(text.data(), text.data() + text.size(), index);
                     if (error != std::errc() || end != text.data() + text.size() || index == 0) {
-                        throw FormatError(where + "face corner '" + std::string(corner) +
+                        throw FormatError(where + "face corner '" + quotedInput(corner) +
                                           "' has a bad " + kind +
                                           " index; expected a nonzero integer");
                     }
                     const long long resolved = index < 0 ? count + index + 1 : index;
                     if (resolved < 1 || resolved > count) {
-                        throw FormatError(where + "face corner '" + std::string(corner) +
+                        throw FormatError(where + "face corner '" + quotedInput(corner) +
                                           "' refers to " + kind + " " + std::to_string(index) +
                                           "; only " + std::to_string(count) +
                                           " are defined above it");
@@ -138,7 +149,7 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
                     if (!requireUvs) continue;
                     // Reported at the end: a file without any vt gets the plainer message.
                     if (cornerWithoutUv.empty()) {
-                        cornerWithoutUv = where + "face corner '" + std::string(corner) +
+                        cornerWithoutUv = where + "face corner '" + quotedInput(corner) +
                                           "' has no texture coordinate; every corner needs v/vt";
                     }
                 } else {
@@ -152,6 +163,12 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
         }
     }
     if (in.bad()) throw InputError(name + ": read error");
+    requireWithinMemoryBudget(
+        file,
+        "OBJ of " + std::to_string(positionCount) + " vertices and " +
+            std::to_string(facts.faceCount) + " faces",
+        saturatingProduct(std::uint64_t(positionCount + uvCount) + facts.faceCount,
+                          kBytesPerMeshElement));
     if (!requireUvs) return facts;
     if (uvCount == 0) {
         throw FormatError(name + ": has no texture coordinates (vt lines); base meshes need UVs");
@@ -190,7 +207,7 @@ class OpenMeshLogCapture {
         while (std::getline(lines, line)) {
             const std::string lower = lowercase(line);
             for (const char* word : {"invalid", "error", "could not", "cannot", "can't"}) {
-                if (lower.find(word) != std::string::npos) return line;
+                if (lower.find(word) != std::string::npos) return quotedInput(line, 160);
             }
         }
         return {};
@@ -203,26 +220,364 @@ class OpenMeshLogCapture {
     std::streambuf* previousErrBuffer_;
 };
 
-/// Throws InputError unless `file` exists and is a regular file.
-void requireMeshFile(const std::filesystem::path& file) {
-    std::error_code error;
-    if (!std::filesystem::exists(file, error)) throw InputError(file.string() + ": no such file");
-    if (!std::filesystem::is_regular_file(file, error)) {
-        throw InputError(file.string() + ": is not a regular file; expected a mesh file");
-    }
-}
-
 /// OpenMesh's log streams are process globals: one read at a time.
 std::mutex& openMeshReadMutex() {
     static std::mutex mutex;
     return mutex;
 }
 
+/// The most corners a polygon of a mesh file may have.
+constexpr std::uint64_t kMaxPolygonCorners = 65536;
+
+/// A token of a text mesh file, read without allocating more than a number needs.
+class TextTokens {
+  public:
+    TextTokens(std::istream& in, const std::string& name) : in_(in), name_(name) {}
+
+    /// The next whitespace-separated token; empty at the end of the file.
+    std::string_view next() {
+        token_.clear();
+        int c = in_.get();
+        while (c != EOF && std::isspace(c)) c = in_.get();
+        while (c != EOF && !std::isspace(c)) {
+            if (token_.size() == kMaxTokenLength) {
+                throw FormatError(name_ + ": '" + quotedInput(token_) +
+                                  "' is too long for a number; the file is corrupted");
+            }
+            token_ += char(c);
+            c = in_.get();
+        }
+        endedLine_ = c == '\n';
+        return token_;
+    }
+
+    /// Whether the character read after the last token ended its line.
+    bool endedLine() const { return endedLine_; }
+
+  private:
+    static constexpr std::size_t kMaxTokenLength = 64;
+    std::istream& in_;
+    const std::string& name_;
+    std::string token_;
+    bool endedLine_ = false;
+};
+
+/// `token` as a number, or nothing when it is not one (the whole token must be a number).
+std::optional<double> numberIn(std::string_view token) {
+    const std::string text(token);
+    char* end = nullptr;
+    const double value = std::strtod(text.c_str(), &end);
+    if (text.empty() || end != text.c_str() + text.size()) return std::nullopt;
+    return value;
+}
+
+/// A PLY property's value type: its size in a binary file and the range of its values.
+struct PlyType {
+    std::uint64_t bytes = 4;
+    bool isFloat = false;
+    bool isSigned = false;
+};
+
+PlyType plyType(std::string_view type, const std::string& name) {
+    if (type == "char" || type == "int8") return {1, false, true};
+    if (type == "uchar" || type == "uint8") return {1, false, false};
+    if (type == "short" || type == "int16") return {2, false, true};
+    if (type == "ushort" || type == "uint16") return {2, false, false};
+    if (type == "int" || type == "int32") return {4, false, true};
+    if (type == "uint" || type == "uint32") return {4, false, false};
+    if (type == "float" || type == "float32") return {4, true, true};
+    if (type == "double" || type == "float64") return {8, true, true};
+    throw FormatError(name + ": PLY property type '" + quotedInput(type) + "' is unknown");
+}
+
+struct PlyProperty {
+    PlyType value;
+    bool isList = false;
+    PlyType count;  ///< the type of a list's item count
+};
+
+struct PlyElement {
+    std::string name;
+    std::uint64_t count = 0;
+    std::vector<PlyProperty> properties;
+};
+
+/// Reads PLY values, ASCII or binary, checking each against its type as OpenMesh would need it.
+class PlyValues {
+  public:
+    PlyValues(std::istream& in, const std::string& name, bool ascii, bool bigEndian)
+        : in_(in), name_(name), ascii_(ascii), bigEndian_(bigEndian), tokens_(in, name) {}
+
+    /// The next value of `type` in element `element` (for messages); FormatError when the file
+    /// ends, the value is not a number of that type, or a float is out of its type's range.
+    double read(const PlyType& type, const PlyElement& element, std::uint64_t item) {
+        return ascii_ ? readText(type, element, item) : readBinary(type, element, item);
+    }
+
+  private:
+    double readText(const PlyType& type, const PlyElement& element, std::uint64_t item) {
+        const std::string_view token = tokens_.next();
+        if (token.empty()) truncated(element, item);
+        const std::optional<double> value = numberIn(token);
+        const double limit = type.bytes == 8 ? std::numeric_limits<double>::max()
+                                             : double(std::numeric_limits<float>::max());
+        if (!value || !std::isfinite(*value) || std::abs(*value) > limit) {
+            throw FormatError(name_ + ": PLY " + where(element, item) + " has '" +
+                              quotedInput(token) + "'; expected a finite " +
+                              (type.bytes == 8 ? "double"
+                               : type.isFloat  ? "float"
+                                               : "integer") +
+                              " number");
+        }
+        if (!type.isFloat) {
+            const double bits = double(type.bytes * 8);
+            const double lowest = type.isSigned ? -std::exp2(bits - 1) : 0.0;
+            const double highest = type.isSigned ? std::exp2(bits - 1) - 1 : std::exp2(bits) - 1;
+            if (*value != std::floor(*value) || *value < lowest || *value > highest) {
+                throw FormatError(name_ + ": PLY " + where(element, item) + " has '" +
+                                  quotedInput(token) + "'; expected an integer in [" +
+                                  std::to_string((long long)lowest) + ", " +
+                                  std::to_string((long long)highest) + "]");
+            }
+        }
+        return *value;
+    }
+
+    double readBinary(const PlyType& type, const PlyElement& element, std::uint64_t item) {
+        unsigned char bytes[8] = {};
+        in_.read(reinterpret_cast<char*>(bytes), std::streamsize(type.bytes));
+        if (std::uint64_t(in_.gcount()) != type.bytes) truncated(element, item);
+        if (bigEndian_) std::reverse(bytes, bytes + type.bytes);
+        std::uint64_t bits = 0;
+        for (std::uint64_t k = 0; k < type.bytes; ++k) bits |= std::uint64_t(bytes[k]) << (8 * k);
+        if (type.isFloat) {
+            return type.bytes == 8 ? std::bit_cast<double>(bits)
+                                   : double(std::bit_cast<float>(std::uint32_t(bits)));
+        }
+        if (!type.isSigned) return double(bits);
+        const std::uint64_t sign = std::uint64_t(1) << (type.bytes * 8 - 1);
+        return bits & sign ? double(std::int64_t(bits) - std::int64_t(sign << 1)) : double(bits);
+    }
+
+    static std::string where(const PlyElement& element, std::uint64_t item) {
+        return element.name + " " + std::to_string(item);
+    }
+
+    [[noreturn]] void truncated(const PlyElement& element, std::uint64_t item) const {
+        throw FormatError(name_ + ": PLY data ends inside " + where(element, item) +
+                          "; the file is truncated");
+    }
+
+    std::istream& in_;
+    const std::string& name_;
+    bool ascii_;
+    bool bigEndian_;
+    TextTokens tokens_;
+};
+
+/// PLY: reads the header, checks each element's declared count against the bytes after
+/// `end_header` (in a binary file each item takes at least its fixed-size properties and list
+/// counts, in an ASCII file a character and a separator per property) and against the memory
+/// budget, in overflow-safe arithmetic, then reads every value: OpenMesh's ASCII reader leaves
+/// uninitialised memory behind a number out of its type's range (a float coordinate of -1e308),
+/// and a list's item count must be followed by that many values.
+void checkPlyFile(const std::filesystem::path& file) {
+    const std::string name = file.string();
+    const std::uint64_t fileBytes = std::filesystem::file_size(file);
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw InputError(name + ": cannot open for reading");
+    std::string line;
+    std::getline(in, line);
+    if (line.rfind("ply", 0) != 0) throw FormatError(name + ": does not start with 'ply'");
+    std::string format;
+    std::vector<PlyElement> elements;
+    bool headerEnded = false;
+    // Header lines are short; a "line" of megabytes is not a PLY header.
+    constexpr std::size_t kMaxHeaderLine = 4096;
+    while (std::getline(in, line)) {
+        if (line.size() > kMaxHeaderLine) {
+            throw FormatError(name + ": PLY header line of " + std::to_string(line.size()) +
+                              " bytes; the file is corrupted");
+        }
+        const std::vector<std::string_view> tokens = splitWhitespace(line);
+        if (tokens.empty()) continue;
+        if (tokens[0] == "end_header") {
+            headerEnded = true;
+            break;
+        }
+        if (tokens[0] == "format" && tokens.size() >= 2) format = std::string(tokens[1]);
+        if (tokens[0] == "element" && tokens.size() >= 3) {
+            PlyElement element;
+            element.name = quotedInput(tokens[1]);
+            const auto [end, error] = std::from_chars(
+                tokens[2].data(), tokens[2].data() + tokens[2].size(), element.count);
+            if (error != std::errc() || end != tokens[2].data() + tokens[2].size()) {
+                throw FormatError(name + ": PLY element count '" + quotedInput(tokens[2]) +
+                                  "' is not a number");
+            }
+            elements.push_back(std::move(element));
+        }
+        if (tokens[0] == "property" && tokens.size() >= 3) {
+            if (elements.empty()) throw FormatError(name + ": PLY property before any element");
+            PlyProperty property;
+            if (tokens[1] == "list") {
+                if (tokens.size() < 5)
+                    throw FormatError(name + ": PLY list property needs two types");
+                property.isList = true;
+                property.count = plyType(tokens[2], name);
+                property.value = plyType(tokens[3], name);
+                if (property.count.isFloat) {
+                    throw FormatError(name + ": PLY list count type '" + quotedInput(tokens[2]) +
+                                      "' is not an integer type");
+                }
+            } else {
+                property.value = plyType(tokens[1], name);
+            }
+            elements.back().properties.push_back(property);
+        }
+    }
+    if (!headerEnded) throw FormatError(name + ": PLY header has no end_header");
+    const bool ascii = format == "ascii";
+    if (!ascii && format != "binary_little_endian" && format != "binary_big_endian") {
+        throw FormatError(name + ": PLY format '" + quotedInput(format) +
+                          "' is unknown; accepted: ascii, binary_little_endian, binary_big_endian");
+    }
+    const std::uint64_t dataStart = std::uint64_t(in.tellg());
+    const std::uint64_t dataBytes = fileBytes - std::min(fileBytes, dataStart);
+    std::uint64_t allElements = 0;
+    for (const PlyElement& element : elements) {
+        std::uint64_t leastBytes = 0;
+        for (const PlyProperty& property : element.properties) {
+            leastBytes += ascii ? 2 : property.isList ? property.count.bytes : property.value.bytes;
+        }
+        requireDeclaredCount(file, "PLY element '" + element.name + "'", element.count, leastBytes,
+                             dataBytes, kBytesPerMeshElement);
+        allElements = saturatingSum(allElements, element.count);
+    }
+    requireWithinMemoryBudget(file, "PLY elements, " + std::to_string(allElements) + " in all,",
+                              saturatingProduct(allElements, kBytesPerMeshElement));
+
+    PlyValues values(in, name, ascii, format == "binary_big_endian");
+    for (const PlyElement& element : elements) {
+        for (std::uint64_t item = 0; item < element.count; ++item) {
+            for (const PlyProperty& property : element.properties) {
+                if (!property.isList) {
+                    values.read(property.value, element, item);
+                    continue;
+                }
+                const double corners = values.read(property.count, element, item);
+                if (!(corners >= 0.0 && corners <= double(kMaxPolygonCorners))) {
+                    throw FormatError(name + ": PLY " + element.name + " " + std::to_string(item) +
+                                      " has a list of " + std::to_string((long long)corners) +
+                                      " values; accepted: 0 to " +
+                                      std::to_string(kMaxPolygonCorners));
+                }
+                for (std::uint64_t k = 0; k < std::uint64_t(corners); ++k)
+                    values.read(property.value, element, item);
+            }
+        }
+    }
+}
+
+/// OFF (ASCII; OpenMesh also reads "OFF BINARY"): the header's vertex and face counts against
+/// the file's size and the memory budget before OpenMesh allocates for them, then every line:
+/// vertices of finite numbers within a float's range (OpenMesh's reader leaves uninitialised
+/// memory behind one that is not), faces of a corner count and that many vertex indices.
+void checkOffFile(const std::filesystem::path& file) {
+    const std::string name = file.string();
+    const std::uint64_t fileBytes = std::filesystem::file_size(file);
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw InputError(name + ": cannot open for reading");
+    TextTokens tokens(in, name);
+    const std::string keyword(tokens.next());
+    if (keyword.size() < 3 || keyword.compare(keyword.size() - 3, 3, "OFF") != 0 ||
+        keyword.find_first_of("4n") != std::string::npos) {
+        throw FormatError(name + ": starts with '" + quotedInput(keyword) +
+                          "'; expected an OFF header (OFF, COFF, NOFF, STOFF, ...)");
+    }
+    std::string_view token = tokens.next();
+    const bool binary = token == "BINARY";
+    std::uint64_t counts[2] = {0, 0};
+    for (int k = 0; k < 2; ++k) {
+        if (binary) {
+            unsigned char bytes[4] = {};
+            in.read(reinterpret_cast<char*>(bytes), 4);
+            if (in.gcount() != 4) throw FormatError(name + ": OFF header ends before its counts");
+            counts[k] = std::uint64_t(bytes[0]) | std::uint64_t(bytes[1]) << 8 |
+                        std::uint64_t(bytes[2]) << 16 | std::uint64_t(bytes[3]) << 24;
+            continue;
+        }
+        if (k > 0) token = tokens.next();
+        const auto [end, error] =
+            std::from_chars(token.data(), token.data() + token.size(), counts[k]);
+        if (error != std::errc() || end != token.data() + token.size()) {
+            throw FormatError(name + ": OFF " + (k == 0 ? "vertex" : "face") + " count '" +
+                              quotedInput(token) + "' is not a number");
+        }
+    }
+    // The least a vertex and a face take: "0 0 0" and "3 0 1 2" with a separator, or 3 floats
+    // and a count with 3 indices in a binary file.
+    requireDeclaredCount(file, "OFF vertex count", counts[0], binary ? 12 : 6, fileBytes,
+                         kBytesPerMeshElement);
+    requireDeclaredCount(file, "OFF face count", counts[1], binary ? 16 : 8, fileBytes,
+                         kBytesPerMeshElement);
+    requireDeclaredCount(file, "OFF vertex and face counts", counts[0] + counts[1], 6, fileBytes,
+                         kBytesPerMeshElement);
+    if (binary) return;
+    std::string line;
+    if (!tokens.endedLine()) std::getline(in, line);  // the rest of the counts line (edges)
+    std::uint64_t vertices = 0, faces = 0;
+    for (std::size_t lineNumber = 0;
+         vertices + faces < counts[0] + counts[1] && std::getline(in, line);) {
+        ++lineNumber;
+        const std::vector<std::string_view> values = splitWhitespace(line);
+        if (values.empty() || values[0][0] == '#') continue;
+        const bool isVertex = vertices < counts[0];
+        const std::string what = isVertex ? "OFF vertex " + std::to_string(vertices)
+                                          : "OFF face " + std::to_string(faces);
+        for (const std::string_view value : values) {
+            const std::optional<double> number = numberIn(value);
+            if (!number || !std::isfinite(*number) ||
+                std::abs(*number) > double(std::numeric_limits<float>::max())) {
+                throw FormatError(name + ": " + what + " has '" + quotedInput(value) +
+                                  "'; expected finite numbers within a float's range");
+            }
+        }
+        if (isVertex) {
+            if (values.size() < 3)
+                throw FormatError(name + ": " + what + " has fewer than 3 numbers");
+            ++vertices;
+            continue;
+        }
+        const double corners = *numberIn(values[0]);
+        if (!(corners >= 1.0 && corners <= double(kMaxPolygonCorners) &&
+              corners == std::floor(corners) && double(values.size()) >= corners + 1.0)) {
+            throw FormatError(name + ": " + what + " '" + quotedInput(line) +
+                              "' is not a corner count followed by that many vertex indices");
+        }
+        for (std::size_t k = 1; k <= std::size_t(corners); ++k) {
+            const double index = *numberIn(values[k]);
+            if (index != std::floor(index) || index < 0.0 || index >= double(counts[0])) {
+                throw FormatError(name + ": " + what + " has an invalid vertex index '" +
+                                  quotedInput(values[k]) + "'; the file has " +
+                                  std::to_string(counts[0]) + " vertices (from 0)");
+            }
+        }
+        ++faces;
+    }
+    if (vertices < counts[0] || faces < counts[1]) {
+        throw FormatError(name + ": OFF header promises " + std::to_string(counts[0]) +
+                          " vertices and " + std::to_string(counts[1]) + " faces but only " +
+                          std::to_string(vertices) + " and " + std::to_string(faces) +
+                          " follow; the file is truncated");
+    }
+}
+
 }  // namespace
 
 BaseMesh loadBaseMesh(const std::filesystem::path& file) {
     const std::string name = file.string();
-    requireMeshFile(file);
+    requireRegularFile(file, "a mesh file");
     const std::string extension = lowercase(file.extension().string());
     if (extension != ".obj" && extension != ".off" && extension != ".ply") {
         throw FormatError(name + ": unsupported mesh format '" + file.extension().string() +
@@ -230,6 +585,8 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file) {
     }
     ObjFacts objFacts;
     if (extension == ".obj") objFacts = checkObjFile(file);
+    if (extension == ".ply") checkPlyFile(file);
+    if (extension == ".off") checkOffFile(file);
 
     OpenMeshPolygons polygons;
     polygons.request_vertex_texcoords2D();
@@ -352,83 +709,10 @@ void checkStlFile(const std::filesystem::path& file) {
             char* end = nullptr;
             const double value = std::strtod(token.c_str(), &end);
             if (end != token.c_str() + token.size() || !std::isfinite(value)) {
-                throw FormatError(name + ": line " + std::to_string(lineNumber) + ": '" + token +
-                                  "' is not a finite number");
+                throw FormatError(name + ": line " + std::to_string(lineNumber) + ": '" +
+                                  quotedInput(token) + "' is not a finite number");
             }
         }
-    }
-}
-
-/// PLY: compares the data after `end_header` with what the header's elements promise: for
-/// binary files at least the bytes of their fixed-size properties (lists counted with their
-/// count field plus three entries, the least a face has), for ASCII files one line per element.
-void checkPlyFile(const std::filesystem::path& file) {
-    const std::string name = file.string();
-    std::ifstream in(file, std::ios::binary);
-    if (!in) throw InputError(name + ": cannot open for reading");
-    const auto typeBytes = [&](std::string_view type) -> std::uintmax_t {
-        if (type == "char" || type == "uchar" || type == "int8" || type == "uint8") return 1;
-        if (type == "short" || type == "ushort" || type == "int16" || type == "uint16") return 2;
-        if (type == "int" || type == "uint" || type == "int32" || type == "uint32" ||
-            type == "float" || type == "float32") {
-            return 4;
-        }
-        if (type == "double" || type == "float64") return 8;
-        throw FormatError(name + ": PLY property type '" + std::string(type) + "' is unknown");
-    };
-    std::string line;
-    std::getline(in, line);
-    if (line.rfind("ply", 0) != 0) throw FormatError(name + ": does not start with 'ply'");
-    bool ascii = false;
-    std::uintmax_t elementCount = 0;  // all elements
-    std::uintmax_t minimumBytes = 0;  // binary data the header promises at least
-    std::uintmax_t currentCount = 0;
-    bool headerEnded = false;
-    while (std::getline(in, line)) {
-        const std::vector<std::string_view> tokens = splitWhitespace(line);
-        if (tokens.empty()) continue;
-        if (tokens[0] == "end_header") {
-            headerEnded = true;
-            break;
-        }
-        if (tokens[0] == "format" && tokens.size() >= 2) ascii = tokens[1] == "ascii";
-        if (tokens[0] == "element" && tokens.size() >= 3) {
-            currentCount = 0;
-            const auto [end, error] = std::from_chars(
-                tokens[2].data(), tokens[2].data() + tokens[2].size(), currentCount);
-            if (error != std::errc() || end != tokens[2].data() + tokens[2].size()) {
-                throw FormatError(name + ": PLY element count '" + std::string(tokens[2]) +
-                                  "' is not a number");
-            }
-            elementCount += currentCount;
-        }
-        if (tokens[0] == "property" && tokens.size() >= 3) {
-            const std::uintmax_t bytes = tokens[1] == "list" && tokens.size() >= 5
-                                             ? typeBytes(tokens[2]) + 3 * typeBytes(tokens[3])
-                                             : typeBytes(tokens[1]);
-            minimumBytes += bytes * currentCount;
-        }
-    }
-    if (!headerEnded) throw FormatError(name + ": PLY header has no end_header");
-    const std::uintmax_t dataStart = std::uintmax_t(in.tellg());
-    const std::uintmax_t size = std::filesystem::file_size(file);
-    if (!ascii) {
-        if (size - dataStart < minimumBytes) {
-            throw FormatError(name + ": PLY header promises " + std::to_string(elementCount) +
-                              " elements (at least " + std::to_string(minimumBytes) +
-                              " bytes) but only " + std::to_string(size - dataStart) +
-                              " bytes follow it; the file is truncated");
-        }
-        return;
-    }
-    std::uintmax_t lines = 0;
-    while (std::getline(in, line)) {
-        if (!splitWhitespace(line).empty()) ++lines;
-    }
-    if (lines < elementCount) {
-        throw FormatError(name + ": PLY header promises " + std::to_string(elementCount) +
-                          " elements but only " + std::to_string(lines) +
-                          " data lines follow it; the file is truncated");
     }
 }
 
@@ -453,7 +737,7 @@ struct PositionKeyHash {
 
 TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
     const std::string name = file.string();
-    requireMeshFile(file);
+    requireRegularFile(file, "a mesh file");
     const std::string extension = lowercase(file.extension().string());
     ObjFacts objFacts;
     if (extension == ".obj") {
@@ -462,7 +746,9 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
         checkStlFile(file);
     } else if (extension == ".ply") {
         checkPlyFile(file);
-    } else if (extension != ".off") {
+    } else if (extension == ".off") {
+        checkOffFile(file);
+    } else {
         throw FormatError(name + ": unsupported mesh format '" + file.extension().string() +
                           "'; accepted: .obj, .ply, .off, .stl");
     }

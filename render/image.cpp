@@ -14,6 +14,7 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/input_file.h"
 
 namespace distile {
 
@@ -121,7 +122,7 @@ void writeImage(const Image& image, const fs::path& file) {
     for (std::size_t i = 0; i < image.rgbLinear.size(); ++i) {
         const glm::vec3& rgb = image.rgbLinear[i];
         if (!std::isfinite(rgb.r) || !std::isfinite(rgb.g) || !std::isfinite(rgb.b)) {
-            throw std::runtime_error(
+            throw InternalError(
                 file.string() + ": pixel (" + std::to_string(i % std::size_t(image.width)) + ", " +
                 std::to_string(i / std::size_t(image.width)) + ") is " + pixelText(rgb) +
                 "; rendered pixels must be finite (this is a renderer bug)");
@@ -154,13 +155,8 @@ void writeImage(const Image& image, const fs::path& file) {
 }
 
 Image readImage(const fs::path& file) {
-    std::error_code status;
-    if (!fs::exists(file, status)) {
-        throw InputError(file.string() + ": no such file");
-    }
-    if (fs::is_directory(file, status)) {
-        throw InputError(file.string() + ": is a folder; an image file is expected");
-    }
+    requireRegularFile(file, "an image file");
+    checkPngChunks(file);  // libpng would report a broken one on stderr itself
     auto input = OIIO::ImageInput::open(file.string());
     if (!input) {
         throw FormatError(file.string() + ": not a readable image (" + firstLine(OIIO::geterror()) +
@@ -173,6 +169,12 @@ Image readImage(const fs::path& file) {
                           (spec.deep ? ", deep" : "") +
                           "; a flat 2D image with at least one channel is accepted");
     }
+    // The pixels as read (up to 3 float channels) and as kept (3 floats).
+    requireWithinMemoryBudget(
+        file, "an image of " + std::to_string(spec.width) + "x" + std::to_string(spec.height),
+        saturatingProduct(
+            std::uint64_t(std::max(spec.width, 0)) * std::uint64_t(std::max(spec.height, 0)),
+            6 * sizeof(float)));
     Image image;
     try {
         image = Image(spec.width, spec.height);

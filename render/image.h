@@ -64,16 +64,17 @@ float linearFromSrgb(float encoded);
 ///   .tif / .tiff 16-bit RGB, sRGB-encoded, clamped, zip-compressed;
 ///   .exr         32-bit float linear RGB, unclamped, zip-compressed.
 /// Throws InputError for another extension, for an image whose pixel count is not
-/// width * height, or if the target's folder does not exist; std::runtime_error naming the
-/// first NaN or infinite pixel (a renderer bug) or if OpenImageIO fails. Never leaves a partial
-/// file at `file`.
+/// width * height, or if the target's folder does not exist; InternalError naming the first NaN
+/// or infinite pixel (a renderer bug); std::runtime_error if OpenImageIO fails. Never leaves a
+/// partial file at `file`.
 void writeImage(const Image& image, const std::filesystem::path& file);
 
 /// Reads any image OpenImageIO reads as linear RGB: float and half pixels as they are; integer
 /// pixels sRGB-decoded unless the file says it is linear (or gamma-decoded for a PNG gAMA).
 /// One or two channels (grey, grey + alpha) become grey RGB; channels past the third are
-/// ignored. Throws InputError if `file` does not exist; FormatError if OpenImageIO cannot read
-/// it, it is larger than Image accepts, or it holds NaN or infinite values.
+/// ignored. Throws InputError if `file` does not exist or is not a regular file; FormatError if
+/// it is a broken PNG (checkPngChunks), OpenImageIO cannot read it, it is larger than Image
+/// accepts or than kInputMemoryBudgetBytes, or it holds NaN or infinite values.
 Image readImage(const std::filesystem::path& file);
 
 }  // namespace distile

@@ -515,6 +515,21 @@ void validateOptions(const RenderOptions& options) {
         reject("samplesPerPixel", std::to_string(options.samplesPerPixel),
                "it must be in [1, 256]");
     }
+    const std::int64_t pixels = std::int64_t(options.width) * options.height;
+    if (pixels * options.samplesPerPixel > kMaxRenderSamples) {
+        reject("samplesPerPixel", std::to_string(options.samplesPerPixel),
+               "width x height x samples per pixel must be at most 2^24 camera samples (" +
+                   std::to_string(options.width) + " x " + std::to_string(options.height) +
+                   " allows " +
+                   std::to_string(std::max<std::int64_t>(1, kMaxRenderSamples / pixels)) +
+                   " or less; ~40 s on two cores)");
+    }
+    if (options.outputAovs && pixels * kAovImages > kMaxRenderSamples * 2) {
+        reject("outputAovs",
+               "with a " + std::to_string(options.width) + "x" + std::to_string(options.height) +
+                   " image",
+               "the AOVs need width x height at most 2^22 pixels (8 float images in memory)");
+    }
     if (options.shadowMapResolution != 0 &&
         (options.shadowMapResolution < 16 || options.shadowMapResolution > 16384)) {
         reject("shadowMapResolution", std::to_string(options.shadowMapResolution),

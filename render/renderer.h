@@ -97,12 +97,20 @@ struct RenderResult {
     std::vector<std::string> warnings;
 };
 
+/// The most camera samples (width x height x samples per pixel) a render takes: 2^24, about 40 s
+/// on two cores for a scene of detail tiles. The time grows linearly with them.
+inline constexpr std::int64_t kMaxRenderSamples = std::int64_t(1) << 24;
+
+/// The images a render with AOVs holds in memory at once (the image and seven AOVs).
+inline constexpr std::int64_t kAovImages = 8;
+
 /// Renders `scene`. Throws InputError for an invalid scene (validateScene) or options (naming the
 /// RenderOptions member, e.g. "march.epsilonTexels"); for a
 /// reference render, also for an object whose tile has no analytic distance (naming the object)
 /// (width/height in [1, 16384], iterations in [1, 4096], epsilon in (0, 1], samples per pixel
-/// in [1, 256], shadow-map resolution 0 or in [16, 16384]). `progress` is called on the calling
-/// thread; it is not called while the shadow maps are built, before the first row.
+/// in [1, 256], width x height x samples per pixel at most kMaxRenderSamples, with AOVs width x
+/// height at most 2^22, shadow-map resolution 0 or in [16, 16384]). `progress` is called on the
+/// calling thread; it is not called while the shadow maps are built, before the first row.
 RenderResult renderScene(const Scene& scene, const RenderOptions& options,
                          const ProgressCallback& progress = {});
 

@@ -774,6 +774,11 @@ void validateOptions(const WorldReferenceOptions& options) {
                          std::to_string(options.height) +
                          " is not accepted; each side must be in [1, 16384] pixels");
     }
+    if (std::int64_t(options.width) * options.height > kMaxRenderSamples) {
+        throw InputError("world reference: image size " + std::to_string(options.width) + "x" +
+                         std::to_string(options.height) +
+                         " is not accepted; width x height must be at most 2^24 pixels");
+    }
     if (options.shadowSamples < 1 || options.shadowSamples > 256) {
         throw InputError("world reference: shadow samples " +
                          std::to_string(options.shadowSamples) +

@@ -15,6 +15,7 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/input_file.h"
 
 namespace distile {
 
@@ -287,13 +288,8 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
 }
 
 Tile readTileExr(const fs::path& file) {
-    std::error_code status;
-    if (!fs::exists(file, status)) {
-        throw InputError(file.string() + ": no such file");
-    }
-    if (fs::is_directory(file, status)) {
-        throw InputError(file.string() + ": is a folder; a tile .exr file is expected");
-    }
+    requireRegularFile(file, "a tile .exr file");
+    checkPngChunks(file);  // libpng would report a broken one on stderr itself
     auto input = OIIO::ImageInput::open(file.string());
     if (!input) {
         throw FormatError(file.string() + ": not a readable image (" +
@@ -332,7 +328,10 @@ Tile readTileExr(const fs::path& file) {
                           std::to_string(atlas.width) + "x" + std::to_string(atlas.height));
     }
 
-    std::vector<float> pixels(std::size_t(atlas.width) * std::size_t(atlas.height));
+    const std::uint64_t atlasPixelCount = std::uint64_t(atlas.width) * std::uint64_t(atlas.height);
+    requireWithinMemoryBudget(file, "a " + toString(size) + " tile",
+                              saturatingProduct(atlasPixelCount + size.texelCount(), 4));
+    std::vector<float> pixels(atlasPixelCount);
     if (!input->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, pixels.data())) {
         throw FormatError(file.string() + ": cannot read the pixels (" +
                           firstLine(input->geterror(), "unknown OpenImageIO error") +
@@ -348,6 +347,19 @@ Tile readTileExr(const fs::path& file) {
         throw FormatError(file.string() + ": distance at " +
                           texelName(size, std::size_t(bad - distances.begin())) + " is " +
                           std::to_string(*bad) + "; a tile holds only finite distances");
+    }
+    // A bake clamps distances to its band, at most maxHalfBandTexels(size) wide, and the
+    // conservative lowering takes little more off; a distance beyond twice that is not one a bake
+    // wrote (and sums of distances near the float range overflow in the tracer).
+    const float limit = 2.0f * maxHalfBandTexels(size);
+    const auto far = std::find_if(distances.begin(), distances.end(),
+                                  [limit](float d) { return std::abs(d) > limit; });
+    if (far != distances.end()) {
+        throw FormatError(file.string() + ": distance at " +
+                          texelName(size, std::size_t(far - distances.begin())) + " is " +
+                          std::to_string(*far) + " texels; a " + toString(size) +
+                          " tile holds distances within +-" + std::to_string(int(limit)) +
+                          " (twice its widest band)");
     }
     const std::string storedHash = spec.get_string_attribute("distile:hash");
     const std::string actualHash = hexDigits(tileHash(tile));

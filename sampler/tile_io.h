@@ -52,10 +52,12 @@ void writeTileExr(const Tile& tile, const std::filesystem::path& file,
 
 /// Reads a tile written by writeTileExr(), half or float, into float distances in texel units,
 /// with its provenance (a recorded relative source file resolved from the tile file's folder).
-/// Throws InputError if `file` does not exist; FormatError if it is not an OpenEXR file OpenImageIO
-/// can read, has no distile: attributes ("not a distile tile"), does not have exactly one channel
-/// named "distance", has atlas dimensions that disagree with distile:size, holds NaN or infinite
-/// distances, or fails the distile:hash check.
+/// Throws InputError if `file` does not exist or is not a regular file (a folder, a device);
+/// FormatError if it is not an OpenEXR file OpenImageIO can read, has no distile: attributes ("not
+/// a distile tile"), does not have exactly one channel named "distance", has atlas dimensions that
+/// disagree with distile:size, needs more than kInputMemoryBudgetBytes to read, holds NaN or
+/// infinite distances or distances beyond +-2 maxHalfBandTexels(size), or fails the distile:hash
+/// check.
 Tile readTileExr(const std::filesystem::path& file);
 
 /// Writes `tile` as a one-channel grey PNG atlas of `bitsPerChannel` 8 or 16 bits, for GPU

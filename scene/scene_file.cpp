@@ -17,6 +17,7 @@
 #include "bake/provenance.h"
 #include "bake/solid_mesh.h"
 #include "common/error.h"
+#include "common/input_file.h"
 #include "mesh/base_mesh.h"
 #include "render/demo_scene.h"
 #include "render/image.h"
@@ -268,7 +269,14 @@ std::pair<fs::path, std::string> recipeFile(const Field& spec, const fs::path& f
     if (!spec.has("file")) spec.fail("missing field 'file' (" + what + ")");
     const Field file = spec["file"];
     const fs::path path = folder / file.string();
-    if (!fs::is_regular_file(path)) file.fail("file '" + path.string() + "' does not exist");
+    if (!fs::exists(path)) file.fail("file '" + path.string() + "' does not exist");
+    std::uint64_t bytesInFile = 0;
+    try {
+        bytesInFile = requireRegularFile(path, "the recipe's input file");
+    } catch (const InputError& error) {
+        file.fail(error.what());
+    }
+    requireWithinMemoryBudget(path, "the recipe's input file", bytesInFile);
     std::ifstream in(path, std::ios::binary);
     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     if (!in.good() && !in.eof()) file.fail("cannot read '" + path.string() + "'");
@@ -525,9 +533,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
 }  // namespace
 
 SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarningCallback& warn) {
-    if (!fs::exists(file)) throw InputError(file.string() + ": no such file");
-    if (fs::is_directory(file))
-        throw InputError(file.string() + ": is a folder; a scene .json file is expected");
+    requireWithinMemoryBudget(file, "a scene file", requireRegularFile(file, "a scene .json file"));
     std::ifstream in(file);
     json document;
     try {

@@ -147,7 +147,9 @@ TEST_F(SamplerIo, HalfStorageRejectsDistancesBeyondHalfRange) {
     EXPECT_THROW(writeTileExr(tile, path("tile.exr"), TileStorage::Half16), InputError);
     EXPECT_TRUE(folderEntries().empty());
     writeTileExr(tile, path("tile.exr"), TileStorage::Float32);  // float holds it
-    EXPECT_EQ(readTileExr(path("tile.exr")).at(1, 2, 1), 1.0e5f);
+    // ... but no bake writes it: beyond twice the widest band (+-8 texels here), reading
+    // refuses it.
+    EXPECT_THROW(readTileExr(path("tile.exr")), FormatError);
 }
 
 TEST_F(SamplerIo, EmptyProvenanceIsSpelledOut) {
@@ -316,12 +318,32 @@ TEST_F(SamplerIo, DeclaredBandRoundTripsAndBoundsTheDistances) {
     std::sort(written.begin(), written.end());
     EXPECT_EQ(written, (std::vector<std::string>{"lowered.exr", "tile.exr"}));
     Tile huge = patternTile({16, 16, 4});
-    huge.at(5, 0, 0) = 3e38f;  // no band declared: any finite distance
+    huge.at(5, 0, 0) = 12.0f;  // no band declared: any distance a bake of its size could make
     writeTileExr(huge, path("huge.exr"));
     rewriteRaw(path("huge.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 4.0f); });
     EXPECT_NE(formatErrorMessage(path("huge.exr")).find("outside the band"), std::string::npos);
     rewriteRaw(path("tile.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", -1.0f); });
     EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:band_texels"), std::string::npos);
+}
+
+TEST_F(SamplerIo, DistancesBeyondTwiceTheWidestBandAreAFormatError) {
+    // A 16x16x4 tile's widest band is 2 x 4 = 8 texels: it holds distances within +-16. Far
+    // distances near the float range, with a valid hash, made the tracer compute NaN.
+    const Size3 size{16, 16, 4};
+    ASSERT_EQ(maxHalfBandTexels(size), 8.0f);
+    Tile edge = patternTile(size);
+    edge.at(3, 0, 0) = 16.0f;
+    edge.at(4, 0, 0) = -16.0f;
+    writeTileExr(edge, path("edge.exr"));
+    EXPECT_EQ(readTileExr(path("edge.exr")).at(4, 0, 0), -16.0f);
+    for (const float far : {16.01f, -3.4e38f}) {
+        Tile tile = patternTile(size);
+        tile.at(3, 0, 0) = far;
+        writeTileExr(tile, path("far.exr"));
+        const std::string message = formatErrorMessage(path("far.exr"));
+        EXPECT_NE(message.find("texel (3, 0, 0)"), std::string::npos) << message;
+        EXPECT_NE(message.find("+-16"), std::string::npos) << message;
+    }
 }
 
 TEST_F(SamplerIo, SizeThatDisagreesWithTheAtlasIsAFormatError) {
@@ -471,7 +493,7 @@ TEST_F(SamplerIo, NonFinitePixelIsReportedAndWritesNothing) {
     try {
         writeImage(image, path("image.png"));
         FAIL() << "no exception";
-    } catch (const std::runtime_error& error) {
+    } catch (const InternalError& error) {  // a renderer bug, not the caller's input
         EXPECT_NE(std::string(error.what()).find("pixel (5, 2)"), std::string::npos);
     }
     EXPECT_TRUE(folderEntries().empty());

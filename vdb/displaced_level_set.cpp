@@ -13,6 +13,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <limits>
@@ -69,9 +70,36 @@ void validateInput(const Size3& tile, const DisplacementShell& shell,
     }
 }
 
+/// Voxels coarser than four texels miss the detail altogether (and rays take ever longer to
+/// cross them).
+constexpr double kMinVoxelsPerTexel = 0.25;
+
+/// Bytes OpenVDB's meshToVolume holds per voxel of the narrow band while it builds: a float
+/// distance and an int32 closest-polygon index per voxel, their partitions and tree overhead,
+/// with room (an estimate, not a measurement).
+constexpr double kBuildBytesPerBandVoxel = 40.0;
+
+/// The most memory building one world level set may take, bytes.
+constexpr double kLevelSetBuildBudgetBytes = double(1u << 30);
+
+/// World area of the mesh's triangles and quads, world units squared.
+double surfaceAreaWorld(const DisplacedMesh& mesh) {
+    const auto& p = mesh.positions;
+    double area = 0.0;
+    for (const glm::uvec3& t : mesh.triangles)
+        area +=
+            0.5 * glm::length(glm::cross(glm::dvec3(p[t.y] - p[t.x]), glm::dvec3(p[t.z] - p[t.x])));
+    for (const glm::uvec4& q : mesh.quads) {
+        area +=
+            0.5 * glm::length(glm::cross(glm::dvec3(p[q.z] - p[q.x]), glm::dvec3(p[q.w] - p[q.y])));
+    }
+    return area;
+}
+
 void validateLevelSetOptions(const DisplacedLevelSetOptions& options) {
-    if (!(options.voxelsPerTexel > 0.0 && options.voxelsPerTexel <= 16.0)) {
-        reject("voxels per texel", std::to_string(options.voxelsPerTexel) + " is not in (0, 16]");
+    if (!(options.voxelsPerTexel >= kMinVoxelsPerTexel && options.voxelsPerTexel <= 16.0)) {
+        reject("voxels per texel",
+               std::to_string(options.voxelsPerTexel) + " is not in [0.25, 16]");
     }
     if (!(options.halfBandVoxels >= 2.0f && options.halfBandVoxels <= 16.0f)) {
         reject("half band", std::to_string(options.halfBandVoxels) + " voxels is not in [2, 16]");
@@ -779,6 +807,21 @@ DisplacedLevelSet DisplacedLevelSet::build(const DisplacedMesh& mesh,
     stats.mesh = mesh.stats;
     const auto start = std::chrono::steady_clock::now();
     stats.voxelSizeWorld = mesh.stats.texelSizeWorld / options.voxelsPerTexel;
+    // The band's voxels, estimated from the surface before OpenVDB allocates for them.
+    const double bandVoxels = surfaceAreaWorld(mesh) /
+                              (stats.voxelSizeWorld * stats.voxelSizeWorld) * 2.0 *
+                              double(options.halfBandVoxels);
+    if (!(bandVoxels * kBuildBytesPerBandVoxel <= kLevelSetBuildBudgetBytes)) {
+        const double largest =
+            options.voxelsPerTexel *
+            std::sqrt(kLevelSetBuildBudgetBytes / (bandVoxels * kBuildBytesPerBandVoxel));
+        char message[200];
+        std::snprintf(message, sizeof message,
+                      "%g needs about %.1f GB for this detail's surface; at most 1 GiB is "
+                      "accepted, so use at most %.2f",
+                      options.voxelsPerTexel, bandVoxels * kBuildBytesPerBandVoxel / 1e9, largest);
+        reject("voxels per texel", message);
+    }
     const auto transform = openvdb::math::Transform::createLinearTransform(stats.voxelSizeWorld);
     impl->grid = openvdb::tools::meshToVolume<openvdb::FloatGrid>(
         MeshAdapter(mesh, *transform), *transform, options.halfBandVoxels, options.halfBandVoxels);

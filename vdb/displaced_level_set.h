@@ -110,8 +110,8 @@ DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Siz
 
 struct DisplacedLevelSetOptions {
     DisplacedMeshOptions mesh;
-    /// World voxels per world size of one texel (DisplacedMeshStats::texelSizeWorld): 2 gives
-    /// voxels of half a texel.
+    /// World voxels per world size of one texel (DisplacedMeshStats::texelSizeWorld), in
+    /// [0.25, 16]: 2 gives voxels of half a texel. Memory grows as its square.
     double voxelsPerTexel = 2.0;
     /// Half width of the world level set's narrow band, voxels.
     float halfBandVoxels = 3.0f;
@@ -133,7 +133,8 @@ class DisplacedLevelSet {
     /// Builds the world level set of `detail` (tile size `tile`) mapped through `shell`: the
     /// narrow-band level set of buildDisplacedMesh's surface.
     /// @throws InputError as buildDisplacedMesh, and options out of range (voxelsPerTexel in
-    ///         (0, 16], halfBandVoxels in [2, 16]).
+    ///         [0.25, 16], halfBandVoxels in [2, 16]) or a band estimated to need more than 1 GiB
+    ///         while it builds (the surface's area over the voxel area, times the band's width).
     static DisplacedLevelSet build(const DistanceFunction& detail, const Size3& tile,
                                    const DisplacementShell& shell,
                                    const DisplacedLevelSetOptions& options = {});

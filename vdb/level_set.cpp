@@ -14,7 +14,9 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/input_file.h"
 #include "vdb/detail/openvdb_setup.h"
+#include "vdb/detail/vdb_header_check.h"
 
 namespace distile {
 
@@ -149,12 +151,12 @@ LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
                                std::size_t(tile.height) * std::size_t(std::max(repeatY, 1)) *
                                std::size_t(tile.depth + 2 * margin);
     if (repeatX < 1 || repeatX > 64 || repeatY < 1 || repeatY > 64 ||
-        voxels > (std::size_t(1) << 30)) {
+        voxels > (std::size_t(1) << 28)) {  // 1 GiB of float voxels
         throw InputError::inField("repeatX, repeatY", std::to_string(repeatX) + "x" +
                                                           std::to_string(repeatY) +
                                                           " is not accepted; each count must be "
                                                           "in [1, 64] and the repeated level "
-                                                          "set at most 2^30 voxels");
+                                                          "set at most 2^28 voxels (1 GiB)");
     }
     const openvdb::CoordBBox source(
         openvdb::Coord(0, 0, -margin),
@@ -194,7 +196,7 @@ LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
 }
 
 LevelSet LevelSet::load(const std::filesystem::path& file) {
-    if (!std::filesystem::exists(file)) throw InputError(file.string() + ": no such file");
+    detail::checkVdbHeader(file, requireRegularFile(file, "an OpenVDB .vdb file"));
     initializeOpenVdb();
     openvdb::GridPtrVecPtr grids;
     try {

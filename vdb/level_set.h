@@ -56,7 +56,7 @@ class LevelSet {
     /// (i + m W, j + n H, k) holds voxel (i, j, k) for 0 <= m < repeatX, 0 <= n < repeatY. The tile
     /// is periodic, so the copy is exact and seamless; its distile:size is (repeatX W) x
     /// (repeatY H) x D, provenance and band as this one. Throws InputError unless both counts are
-    /// in [1, 64] and the result has at most 2^30 voxels.
+    /// in [1, 64] and the result has at most 2^28 voxels (1 GiB).
     LevelSet repeated(int repeatX, int repeatY) const;
 
     /// Writes the grid to `file` atomically (see common/atomic_file.h).

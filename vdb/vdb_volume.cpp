@@ -14,7 +14,9 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/input_file.h"
 #include "vdb/detail/openvdb_setup.h"
+#include "vdb/detail/vdb_header_check.h"
 
 namespace distile {
 
@@ -38,9 +40,7 @@ std::string listGrids(const openvdb::GridPtrVec& grids) {
 /// All grids' metadata, without their voxels. OpenVDB throws on a corrupt or truncated file and a
 /// flipped header can ask for a huge allocation: both become FormatError.
 openvdb::GridPtrVecPtr readGridMetadata(const std::filesystem::path& file) {
-    if (!std::filesystem::is_regular_file(file)) {
-        throw InputError(file.string() + ": no such file (expected an OpenVDB .vdb file)");
-    }
+    detail::checkVdbHeader(file, requireRegularFile(file, "an OpenVDB .vdb file"));
     initializeOpenVdb();
     openvdb::GridPtrVecPtr grids;
     try {
@@ -164,15 +164,17 @@ VdbVolume VdbVolume::read(const std::filesystem::path& file, const std::string& 
                        "where the value is above it), e.g. 0.5 for a fog volume");
     }
 
-    // The writer's record of the grid's size in memory: a corrupt one is refused before the
-    // voxels are read (larger grids than this are not detail tiles).
-    constexpr std::int64_t kMaxGridBytes = std::int64_t(1) << 34;
+    // The writer's record of the grid's size in memory: a grid beyond the memory budget (or a
+    // corrupt record) is refused before the voxels are read.
     if (const auto bytes =
             chosen->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_MEM_BYTES);
-        bytes && (bytes->value() < 0 || bytes->value() > kMaxGridBytes)) {
+        bytes && bytes->value() < 0) {
         throw FormatError(name + ": grid '" + chosen->getName() + "' says it needs " +
                           std::to_string(bytes->value()) +
-                          " bytes in memory; accepted: up to 16 GiB (is the file corrupt?)");
+                          " bytes in memory (the file is corrupt)");
+    } else if (bytes) {
+        requireWithinMemoryBudget(file, "grid '" + chosen->getName() + "'",
+                                  std::uint64_t(bytes->value()));
     }
     openvdb::FloatGrid::Ptr grid;
     try {

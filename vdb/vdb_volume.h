@@ -51,11 +51,14 @@ class VdbVolume {
     /// A level set's surface is its zero crossing, or the crossing of `iso` when given (values
     /// below it inside). Any other float grid (a fog volume) needs `iso`: its surface is where the
     /// value crosses it, inside above it.
-    /// @throws InputError the file is missing; `gridName` is not in the file (the message lists
+    /// @throws InputError the file is missing or not a regular file; `gridName` is not in the file
+    /// (the message lists
     ///   the grids); the grid is not a float grid; no grid was named and the file has no float
     ///   level set or several (listed); the grid is not a level set and `iso` is not given; `iso`
     ///   is not finite.
-    /// @throws FormatError the file is not a readable .vdb file (truncated, corrupt); the grid's
+    /// @throws FormatError the file is not a readable .vdb file (truncated, corrupt: its header's
+    ///   lengths, counts and offsets are checked against its size before OpenVDB reads it,
+    ///   detail::checkVdbHeader); the grid needs more than kInputMemoryBudgetBytes; the grid's
     ///   transform is not finite or not invertible; the grid is empty or has no surface at the
     ///   iso value.
     static VdbVolume read(const std::filesystem::path& file, const std::string& gridName = {},

@@ -1,0 +1,283 @@
+// Bad input from a fuzz campaign against the `distile` command: every run must end within its
+// limits (10 s, 2 GB of address space here) with exit status 2 and one line naming the file,
+// field or value, and leave no output behind. Also the exit statuses of the program's frame
+// (cli/app.h).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <new>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "cli/app.h"
+#include "cli_fixture.h"
+#include "common/error.h"
+#include "sampler/tile_io.h"
+
+namespace distile {
+namespace {
+
+/// 2 GB of address space: the budget the tests hold every run to.
+constexpr long long kTwoGigabytesKiB = 2'000'000;
+
+class Hardening : public Cli {
+  protected:
+    void SetUp() override {
+        Cli::SetUp();
+        limitRuns({10, kTwoGigabytesKiB});
+    }
+
+    /// expectInputError, and the exit status is 2 (refused input), not another failure.
+    void expectRefused(const std::vector<std::string>& arguments, const std::string& output,
+                       std::initializer_list<std::string> keywords) const {
+        expectInputError(arguments, output, keywords);
+        EXPECT_EQ(run(arguments).status, 2);
+    }
+
+    /// A small chain mail tile and its level set in work().
+    void bakeChainmail() const {
+        const RunResult bake =
+            run({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x8", "--vdb", "level.vdb"});
+        ASSERT_EQ(bake.status, 0) << bake.err;
+    }
+};
+
+/// A plane without detail: renders in no time.
+constexpr const char* kBareScene =
+    R"({"objects": [{"mesh": "plane", "material": {"color": [0.8, 0.8, 0.8]}}]})";
+
+std::string sourceFile(const std::string& relative) {
+    return (fs::path(DISTILE_SOURCE_DIR) / relative).string();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Non-regular files: a device never ends, so every reader refuses it before reading.
+
+TEST_F(Hardening, EveryReaderRefusesADevice) {
+    const std::string device = "/dev/zero";
+    const std::string refused = "not a regular file";
+    expectRefused({"check", device}, "none", {device, refused});
+    expectRefused({"compare", device, device, "-o", "d.png"}, "d.png", {device, refused});
+    expectRefused({"bake", "heightmap", device, "-o", "t.exr"}, "t.exr", {device, refused});
+    expectRefused({"bake", "mesh", device, "-o", "t.exr"}, "t.exr", {device, refused});
+    expectRefused({"bake", "vdb", device, "-o", "t.exr"}, "t.exr", {device, refused});
+    expectRefused({"render", device, "-o", "r.png"}, "r.png", {device, refused});
+    // A scene's tile and colour texture.
+    writeText(path("tile.json"),
+              R"({"objects": [{"mesh": "plane", "material": {"tile": "/dev/zero"}}]})");
+    expectRefused({"render", "tile.json", "-o", "r.png"}, "r.png", {device, refused});
+    writeText(path("color.json"),
+              R"({"objects": [{"mesh": "plane", "material": {"color": "/dev/urandom"}}]})");
+    expectRefused({"render", "color.json", "-o", "r.png"}, "r.png", {"/dev/urandom", refused});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Declared counts against the file's size and the memory budget, before anything is allocated.
+
+TEST_F(Hardening, PlyCountsThatOverflowThePreCheckAreRefused) {
+    // 12 V + 13 F wraps around 2^64 to 0: an unchecked sum of the promised bytes passes any size.
+    const unsigned long long vertices = 400'000'000ull;
+    const unsigned long long faces = 1'418'980'312'993'042'432ull;
+    ASSERT_EQ(12ull * vertices + 13ull * faces, 0ull);
+    std::string ply =
+        "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(vertices) +
+        "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+        std::to_string(faces) + "\nproperty list uchar int vertex_indices\nend_header\n";
+    ply.resize(251, '\0');
+    writeText(path("overflow.ply"), ply);
+    expectRefused({"bake", "mesh", "overflow.ply", "-o", "t.exr"}, "t.exr",
+                  {"overflow.ply", "element 'vertex'", "400000000"});
+}
+
+TEST_F(Hardening, OffHeaderCountsAreCheckedAgainstTheFileSize) {
+    writeText(path("big.off"), "OFF\n3 1000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectRefused({"bake", "mesh", "big.off", "-o", "t.exr"}, "t.exr",
+                  {"big.off", "OFF face count", "1000000000"});
+}
+
+TEST_F(Hardening, MeshNumbersBeyondAFloatAreRefusedBeforeOpenMeshReadsThem) {
+    const std::string header =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    writeText(path("huge.ply"), header + "-1e308 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectRefused({"bake", "mesh", "huge.ply", "-o", "t.exr"}, "t.exr",
+                  {"huge.ply", "vertex 0", "-1e308", "float"});
+    writeText(path("huge.off"), "OFF\n3 1 0\n0 0 1e39\n1 0 0\n0 1 0\n3 0 1 2\n");
+    expectRefused({"bake", "mesh", "huge.off", "-o", "t.exr"}, "t.exr", {"huge.off", "1e39"});
+}
+
+TEST_F(Hardening, AFlippedVdbHeaderByteIsRefusedBeforeOpenVdbAllocates) {
+    bakeChainmail();
+    // The file's metadata count is bytes 57-60 (after the magic number, version, library
+    // version, grid offset flag and UUID: 8 + 4 + 8 + 1 + 36); byte 59 flipped promises 2^23
+    // entries, more than the file could hold.
+    std::string bytes = readText(path("level.vdb"));
+    ASSERT_GT(bytes.size(), 60u);
+    bytes[59] = char(bytes[59] ^ 0x80);
+    writeText(path("flipped.vdb"), bytes);
+    expectRefused({"bake", "vdb", "flipped.vdb", "-o", "t2.exr"}, "t2.exr",
+                  {"flipped.vdb", "metadata count at byte 57", "8388608"});
+    // Byte 123 is the top byte of the grid's end offset (bytes 116-123 of its descriptor):
+    // flipped, it points far past the end of the file, where OpenVDB sought and waited.
+    bytes = readText(path("level.vdb"));
+    bytes[123] = char(bytes[123] ^ 0x80);
+    writeText(path("offset.vdb"), bytes);
+    expectRefused({"bake", "vdb", "offset.vdb", "-o", "t2.exr"}, "t2.exr",
+                  {"offset.vdb", "grid 0"});
+}
+
+TEST_F(Hardening, ImagesLargerThanTheMemoryBudgetAreRefused) {
+    // A PNG header of 16000 x 16000 RGB pixels (and no pixel data): within the sizes the
+    // readers accept, but 3 GB as float pixels.
+    const unsigned char png[] = {0x89, 'P', 'N',  'G',  '\r', '\n', 0x1a, '\n', 0,    0,
+                                 0,    13,  'I',  'H',  'D',  'R',  0,    0,    0x3e, 0x80,
+                                 0,    0,   0x3e, 0x80, 8,    2,    0,    0,    0};
+    std::string bytes(reinterpret_cast<const char*>(png), sizeof png);
+    // Its CRC, so that only the size is wrong.
+    std::uint32_t crc = 0xffffffffu;
+    for (std::size_t i = 12; i < bytes.size(); ++i) {
+        crc ^= static_cast<unsigned char>(bytes[i]);
+        for (int k = 0; k < 8; ++k) crc = (crc & 1) ? 0xedb88320u ^ (crc >> 1) : crc >> 1;
+    }
+    crc = ~crc;
+    for (int k = 3; k >= 0; --k) bytes += char((crc >> (8 * k)) & 0xff);
+    // An empty IDAT and the IEND, each with its CRC.
+    const unsigned char idat[] = {0, 0, 0, 0, 'I', 'D', 'A', 'T', 0x35, 0xaf, 0x06, 0x1e};
+    bytes.append(reinterpret_cast<const char*>(idat), sizeof idat);
+    const unsigned char iend[] = {0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xae, 0x42, 0x60, 0x82};
+    bytes.append(reinterpret_cast<const char*>(iend), sizeof iend);
+    writeText(path("wide.png"), bytes);
+    expectRefused({"bake", "heightmap", "wide.png", "-o", "t.exr"}, "t.exr",
+                  {"wide.png", "memory"});
+    expectRefused({"compare", "wide.png", "wide.png", "-o", "d.png"}, "d.png",
+                  {"wide.png", "memory"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Options whose cost grows with their value have an upper bound.
+
+TEST_F(Hardening, CostlyOptionsHaveUpperBounds) {
+    // The widest band of a 64x64x8 tile is 16 texels.
+    expectRefused({"bake", "chainmail", "--size", "64x64x8", "--band", "1024", "-o", "t.exr"},
+                  "t.exr", {"--band", "1024", "16"});
+    const std::string ring = sourceFile("data/meshes/ring.obj");
+    expectRefused({"bake", "mesh", ring, "--size", "64x64x8", "--scale", "1000", "-o", "t.exr"},
+                  "t.exr", {"detail mesh", "footprints"});
+    expectRefused({"bake", "mesh", ring, "--size", "64x64x8", "--scale", "1e-300", "--offset",
+                   "32,32,4", "--unsigned", "-o", "t.exr"},
+                  "t.exr", {"detail mesh", "less than one texel"});
+    expectRefused({"bake", "mesh", ring, "--size", "64x64x8", "--scale", "8", "--offset",
+                   "1e6,-1e6,1e6", "-o", "t.exr"},
+                  "t.exr", {"detail mesh", "outside the tile"});
+    expectRefused({"check", "t.exr", "--samples", "100000000"}, "none", {"--samples"});
+    writeText(path("bare.json"), kBareScene);
+    expectRefused({"render", "bare.json", "-o", "r.png", "--width", "16384", "--height", "16384"},
+                  "r.png", {"--spp", "2^24"});
+    const std::string sheet = sourceFile("data/scenes/sheet.json");
+    expectRefused({"render", sheet, "-o", "r.png", "--reference", "world-levelset",
+                   "--reference-voxels", "1e-30"},
+                  "r.png", {"--reference-voxels"});
+}
+
+TEST_F(Hardening, AWorldLevelSetBeyondTheMemoryBudgetIsRefusedNotAborted) {
+    limitRuns({60, kTwoGigabytesKiB});  // building the world mesh takes a few seconds
+    expectRefused(
+        {"render", sourceFile("data/scenes/sheet.json"), "--width", "64", "--height", "48",
+         "--reference", "world-levelset", "--reference-voxels", "16", "-o", "r.png"},
+        "r.png", {"voxels per texel", "16", "GB"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// No partial output: every output is checked before the work and written together after it.
+
+TEST_F(Hardening, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
+    const std::vector<std::string> bake = {"bake", "chainmail", "--size", "64x64x8", "-o", "o.exr"};
+    auto with = [&](std::initializer_list<std::string> more) {
+        std::vector<std::string> arguments = bake;
+        arguments.insert(arguments.end(), more);
+        return arguments;
+    };
+    expectRefused(with({"--vdb", "/proc/o.vdb"}), "o.exr", {"--vdb", "/proc/o.vdb"});
+    expectRefused(with({"--png8", "/proc/o.png"}), "o.exr", {"--png8", "/proc/o.png"});
+    fs::create_directories(path("folder.vdb"));
+    expectRefused(with({"--vdb", "folder.vdb"}), "o.exr", {"--vdb", "folder.vdb", "folder"});
+    expectRefused(with({"--vdb", "same.vdb", "--png8", "o.png", "--png16", "o.png"}), "o.exr",
+                  {"--png16", "o.png"});
+    // A render's image and AOVs.
+    writeText(path("bare.json"), kBareScene);
+    expectRefused({"render", "bare.json", "-o", "/proc/r.png", "--width", "8", "--height", "8"},
+                  "r.png", {"-o", "/proc/r.png"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// One line: no libpng line of its own, no raw bytes of the file quoted.
+
+TEST_F(Hardening, ABrokenPngIsOneLineWithoutLibpngsOwn) {
+    const std::string checker = readText(sourceFile("data/textures/checker.png"));
+    writeText(path("truncated.png"), checker.substr(0, 300));
+    expectRefused({"compare", "truncated.png", "truncated.png", "-o", "d.png"}, "d.png",
+                  {"truncated.png", "truncated"});
+    std::string flipped = checker;
+    flipped[60] = char(flipped[60] ^ 0xff);
+    writeText(path("flipped.png"), flipped);
+    expectRefused({"bake", "heightmap", "flipped.png", "-o", "t.exr"}, "t.exr", {"flipped.png"});
+}
+
+TEST_F(Hardening, MeshErrorsQuoteOnlyPrintableBytes) {
+    writeText(path("escape.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \x1b[31mX\r\n");
+    expectRefused({"bake", "mesh", "escape.obj", "-o", "t.exr"}, "t.exr", {"escape.obj", "?[31mX"});
+    const RunResult result = run({"bake", "mesh", "escape.obj", "-o", "t.exr"});
+    for (char c : result.err.substr(0, result.err.size() - 1))
+        EXPECT_TRUE(c >= 0x20 && c < 0x7f) << "byte " << int(c) << " in: " << result.err;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Exit statuses (cli/app.h): 2 for refused input and memory, 3 for a bug.
+
+int exitStatusOf(const std::function<void()>& command) {
+    char program[] = "distile";
+    char name[] = "run";
+    char* argv[] = {program, name, nullptr};
+    return cli::runCommandLine(
+        2, argv, [&](CLI::App& app) { app.add_subcommand("run", "throws")->callback(command); });
+}
+
+TEST(ExitStatus, OneMeaningEach) {
+    EXPECT_EQ(exitStatusOf([] {}), 0);
+    EXPECT_EQ(exitStatusOf([] { throw InputError("x: bad"); }), cli::kExitInput);
+    EXPECT_EQ(exitStatusOf([] { throw FormatError("f: broken"); }), cli::kExitInput);
+    EXPECT_EQ(exitStatusOf([] { throw std::bad_alloc(); }), cli::kExitInput);
+    EXPECT_EQ(exitStatusOf([] { throw InternalError("NaN pixel"); }), cli::kExitBug);
+    EXPECT_EQ(exitStatusOf([] { throw std::runtime_error("unexpected"); }), cli::kExitBug);
+    EXPECT_EQ(exitStatusOf([] { throw 42; }), cli::kExitBug);
+    EXPECT_EQ(cli::kExitBug, 3);
+}
+
+template <typename Error>
+[[noreturn]] void raise(const Error& error) {
+    throw error;
+}
+
+/// Throws `error` out of a function that may not throw: std::terminate.
+template <typename Error>
+void throwThroughNoexcept(const Error& error) noexcept {
+    raise(error);
+}
+
+TEST(ExitStatus, AnExceptionEscapingWhereNoneMayIsOneLineNotAnAbort) {
+    EXPECT_EXIT(exitStatusOf([] { throwThroughNoexcept(std::bad_alloc()); }),
+                ::testing::ExitedWithCode(cli::kExitInput), "distile: error: out of memory");
+    EXPECT_EXIT(exitStatusOf([] { throwThroughNoexcept(std::runtime_error("lost")); }),
+                ::testing::ExitedWithCode(cli::kExitBug),
+                "distile: error: internal failure.*\\(lost\\)");
+}
+
+}  // namespace
+}  // namespace distile
