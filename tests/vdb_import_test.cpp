@@ -118,7 +118,7 @@ TEST_F(VdbImport, RotatedSphereWithAThinBandMatchesTheAnalyticSphere) {
     const SphereVolumeOptions sphere = rotatedSphere();
     writeSphereVolume(path("sphere.vdb"), sphere);
     const VdbVolume volume = VdbVolume::read(path("sphere.vdb"));
-    EXPECT_TRUE(VdbTileSampler(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
+    EXPECT_TRUE(VdbDistance(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
     const SphereErrors errors = measureSphere(path("sphere.vdb"), sphereInTile(sphere));
     expectTheSphere(errors);
 }
@@ -129,7 +129,7 @@ TEST_F(VdbImport, RotatedSphereWithAWideBandUsesTheSourceValues) {
     sphere.halfWidthVoxels = 40.0f;  // 40 * 0.07 * 12 = 33.6 texels >= 32
     writeSphereVolume(path("wide.vdb"), sphere);
     const VdbVolume volume = VdbVolume::read(path("wide.vdb"));
-    EXPECT_FALSE(VdbTileSampler(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
+    EXPECT_FALSE(VdbDistance(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
     const SphereErrors errors = measureSphere(path("wide.vdb"), sphereInTile(sphere));
     expectTheSphere(errors);
 }
