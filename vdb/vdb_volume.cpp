@@ -53,6 +53,11 @@ openvdb::GridPtrVecPtr readGridMetadata(const std::filesystem::path& file) {
         throw FormatError(file.string() +
                           ": not a readable .vdb file (its header asks for more "
                           "memory than there is; the file is corrupt)");
+    } catch (const openvdb::ArithmeticError& error) {
+        // A transform whose matrix holds NaN or infinity cannot be inverted when it is read.
+        throw FormatError(file.string() +
+                          ": a grid's transform is not finite and invertible (" + error.what() +
+                          ")");
     } catch (const std::exception& error) {
         throw FormatError(file.string() + ": not a readable .vdb file (" + error.what() + ")");
     }
