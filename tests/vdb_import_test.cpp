@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <tbb/global_control.h>
+
 #include "bake/vdb_bake.h"
 #include "common/error.h"
 #include "sampler/tile_error.h"
@@ -124,6 +126,24 @@ TEST_F(VdbImport, RotatedSphereWithAThinBandMatchesTheAnalyticSphere) {
 }
 
 // A band as wide as the tile needs: the source's own values everywhere, no rebuild.
+// The rebuilt band (surface refined in parallel, distances a row per task) is the same on one
+// thread as on two.
+TEST_F(VdbImport, RebuiltBandDoesNotDependOnTheThreadCount) {
+    const SphereVolumeOptions sphere = rotatedSphere();
+    writeSphereVolume(path("sphere.vdb"), sphere);
+    const VdbVolume volume = VdbVolume::read(path("sphere.vdb"));
+    BakeOptions options;
+    options.size = {64, 64, 32};
+    auto bake = [&](int threads) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+        return bakeVdb(volume, sphereInTile(sphere), options, "sphere.vdb").bake.tile;
+    };
+    const Tile one = bake(1);
+    const Tile two = bake(2);
+    EXPECT_TRUE(std::equal(one.distancesTexels().begin(), one.distancesTexels().end(),
+                           two.distancesTexels().begin()));
+}
+
 TEST_F(VdbImport, RotatedSphereWithAWideBandUsesTheSourceValues) {
     SphereVolumeOptions sphere = rotatedSphere();
     sphere.halfWidthVoxels = 40.0f;  // 40 * 0.07 * 12 = 33.6 texels >= 32
