@@ -322,6 +322,28 @@ struct BakedTile {
     std::shared_ptr<const TriangleSoup> placedMesh;  ///< null unless "bake": "mesh"
 };
 
+/// The tile of a recipe that bakes the file at `path` (`bake` bakes it): from `tiles` or the bake
+/// cache when there, else baked and recorded there, its source file recorded in its provenance.
+/// The bake's errors are told under the spec's keys or its "file".
+BakedTile bakedFileTile(const Field& spec, TileCache& tiles, const std::string& recipe,
+                        const fs::path& path, const std::function<Tile()>& bake) {
+    const std::string key = "bake:" + recipe;
+    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
+    try {
+        auto tile = cachedBake(recipe, [&] {
+            Tile baked = bake();
+            recordSourceFile(baked.provenance, path);
+            return baked;
+        });
+        tiles[key] = tile;
+        return {tile, nullptr};
+    } catch (const InputError& error) {
+        failInSpec(spec, spec["file"], error);
+    } catch (const FormatError& error) {
+        spec["file"].fail(error.what());
+    }
+}
+
 /// The placement of a mesh or vdb recipe under the names of `distile bake`'s flags: "fit"
 /// (the default) or "scale" and "offset" (texels).
 MeshPlacement meshPlacementOf(const Field& spec) {
@@ -370,22 +392,10 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
     if (spec.has("iso")) iso = spec["iso"].number();
     const auto [path, bytes] = recipeFile(spec, folder, "an OpenVDB .vdb file");
     const std::string recipe = vdbRecipe(bytes, gridName, iso, placement, options);
-    const std::string key = "bake:" + recipe;
-    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
-    try {
-        auto tile = cachedBake(recipe, [&] {
-            const VdbVolume volume = VdbVolume::read(path, gridName, iso);
-            Tile baked = bakeVdb(volume, placement, options, path.filename().string()).bake.tile;
-            recordSourceFile(baked.provenance, path);
-            return baked;
-        });
-        tiles[key] = tile;
-        return {tile, nullptr};
-    } catch (const InputError& error) {
-        failInSpec(spec, spec["file"], error);
-    } catch (const FormatError& error) {
-        spec["file"].fail(error.what());
-    }
+    return bakedFileTile(spec, tiles, recipe, path, [&] {
+        const VdbVolume volume = VdbVolume::read(path, gridName, iso);
+        return bakeVdb(volume, placement, options, path.filename().string()).bake.tile;
+    });
 }
 
 /// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the closed
@@ -448,21 +458,9 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     spec.numberInto("height_texels", heightMap.heightTexels, 0.0, 65536.0);
     const auto [path, bytes] = recipeFile(spec, folder, "a grey image: PNG or EXR");
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
-    const std::string key = "bake:" + recipe;
-    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
-    try {
-        auto tile = cachedBake(recipe, [&] {
-            Tile baked = bakeHeightMap(readHeightImage(path), heightMap, options).tile;
-            recordSourceFile(baked.provenance, path);
-            return baked;
-        });
-        tiles[key] = tile;
-        return {tile, nullptr};
-    } catch (const InputError& error) {
-        failInSpec(spec, spec["file"], error);
-    } catch (const FormatError& error) {
-        spec["file"].fail(error.what());
-    }
+    return bakedFileTile(spec, tiles, recipe, path, [&] {
+        return bakeHeightMap(readHeightImage(path), heightMap, options).tile;
+    });
 }
 
 /// The chain mail of `"bake": "chainmail"`, under the names of `distile bake chainmail`'s flags
