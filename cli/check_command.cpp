@@ -324,8 +324,8 @@ void addCheckCommand(CLI::App& app) {
         ->add_option("--against", arguments->against,
                      "Truth: analytic (from the tile's distile:source/params), a closed mesh file "
                      "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
-                     "Default: the analytic truth, or for a tile baked from a mesh that mesh "
-                     "(its recorded distile:source_file, placed as it was baked)")
+                     "Default: the analytic truth, or for a tile baked from a mesh or a .vdb file "
+                     "that file (its recorded distile:source_file, placed as it was baked)")
         ->capture_default_str();
     command->add_option("--samples", arguments->samples, "Uniform random sample points")
         ->capture_default_str()
