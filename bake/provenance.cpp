@@ -178,4 +178,20 @@ TriangleSoup sourceMeshPlaced(const Tile& tile, const std::string& tileName,
     return placeMesh(mesh, placement, tile.size());
 }
 
+VdbProvenance vdbFromProvenance(const TileProvenance& provenance, const std::string& tileName) {
+    VdbProvenance vdb;
+    try {
+        const json params = json::parse(provenance.params);
+        vdb.gridName = params.at("grid").get<std::string>();
+        vdb.placement.scale = params.at("scale").get<double>();
+        const auto offset = params.at("offset").get<std::vector<double>>();
+        vdb.placement.offsetTexels = {offset.at(0), offset.at(1), offset.at(2)};
+        if (params.contains("iso")) vdb.iso = params.at("iso").get<double>();
+    } catch (const std::exception& error) {
+        throw FormatError(tileName + ": distile:params do not describe a vdb placement (" +
+                          error.what() + ")");
+    }
+    return vdb;
+}
+
 }  // namespace distile

@@ -6,11 +6,13 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "common/triangle_soup.h"
 #include "sampler/tile.h"
 #include "vdb/procedural.h"
+#include "vdb/vdb_volume.h"
 
 namespace distile {
 
@@ -42,5 +44,16 @@ std::filesystem::path recordedSourceFile(const Tile& tile, const std::string& ti
 /// @throws FormatError the params do not hold a placement, or the file is not a mesh.
 TriangleSoup sourceMeshPlaced(const Tile& tile, const std::string& tileName,
                               const std::filesystem::path& tileFile = {});
+
+/// What a tile baked from a .vdb file (distile:source "vdb", bake/vdb_bake.h) records in its
+/// distile:params: the grid, the iso value when one was given, and the placement as used.
+struct VdbProvenance {
+    std::string gridName;
+    std::optional<double> iso;
+    TexelPlacement placement;
+};
+/// @throws FormatError naming `tileName` when the params are not JSON or lack grid, scale or
+///   offset.
+VdbProvenance vdbFromProvenance(const TileProvenance& provenance, const std::string& tileName);
 
 }  // namespace distile

@@ -1,8 +1,11 @@
 #include "bake/vdb_bake.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
+#include <glm/common.hpp>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <sstream>
 
 #include "bake/resample.h"
@@ -84,7 +87,7 @@ TexelPlacement resolvePlacement(const VdbPlacement& placement, const VdbVolume& 
 
 /// The largest difference between the faces x = 0 and x = W (y = 0 and y = H) at the texel
 /// rows that cross them, texels.
-glm::dvec2 seamMismatch(const VdbTileSampler& sampler, const Size3& tile) {
+glm::dvec2 seamMismatch(const VdbDistance& sampler, const Size3& tile) {
     glm::dvec2 mismatch(0.0);
     for (int k = 0; k < tile.depth; ++k) {
         for (int j = 0; j < tile.height; ++j) {
@@ -104,14 +107,94 @@ glm::dvec2 seamMismatch(const VdbTileSampler& sampler, const Size3& tile) {
     return mismatch;
 }
 
+/// The triangles of `soup` whose box comes within `reach` of `box`, as a soup of their own.
+TriangleSoup trianglesNear(const TriangleSoup& soup, const Bounds3& box, double reach) {
+    TriangleSoup near;
+    near.positions = soup.positions;
+    for (const glm::uvec3& t : soup.triangles) {
+        bool overlaps = true;
+        for (int axis = 0; axis < 3 && overlaps; ++axis) {
+            const double lo = std::min(
+                {soup.positions[t.x][axis], soup.positions[t.y][axis], soup.positions[t.z][axis]});
+            const double hi = std::max(
+                {soup.positions[t.x][axis], soup.positions[t.y][axis], soup.positions[t.z][axis]});
+            overlaps = lo <= box.max[axis] + reach && hi >= box.min[axis] - reach;
+        }
+        if (overlaps) near.triangles.push_back(t);
+    }
+    return near;
+}
+
 }  // namespace
+
+VdbDistance::VdbDistance(const VdbVolume& volume, const TexelPlacement& placement,
+                         const Size3& tile, float halfBandTexels)
+    : source_(volume, placement), tile_(tile), halfBandTexels_(halfBandTexels) {
+    validateTileSize(tile, "size");
+    if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
+        throw InputError::inField("halfBandTexels", std::to_string(halfBandTexels) +
+                                                        " texels is not accepted; it must be in "
+                                                        "[1, 1024]");
+    }
+    const glm::dvec3 voxel = volume.voxelSizeWorld() * placement.scale;
+    const double voxelTexels = std::max({voxel.x, voxel.y, voxel.z});
+    if (source_.isLevelSet() && source_.bandTexels() >= halfBandTexels) return;
+
+    // The surface near the tile's box, placed in texel space.
+    const Bounds3 queries{glm::dvec3(-(halfBandTexels_ + 1.0)),
+                          glm::dvec3(tile.width, tile.height, tile.depth) + halfBandTexels_ + 1.0};
+    const double reach = halfBandTexels_ + voxelTexels;
+    const Bounds3 regionWorld{(queries.min - reach - placement.offsetTexels) / placement.scale,
+                              (queries.max + reach - placement.offsetTexels) / placement.scale};
+    TriangleSoup placed =
+        volume.refinedSurfaceWorld(kVdbSurfaceEdgeTexels / placement.scale, regionWorld);
+    for (glm::dvec3& position : placed.positions)
+        position = placement.scale * position + placement.offsetTexels;
+    placed = trianglesNear(placed, queries, halfBandTexels_);
+    rebuilt_ = true;
+    if (placed.triangles.empty()) return;  // nothing within the band: +-band everywhere
+    // SoupDistance repeats the soup with a period; one wider than the soup and the queries
+    // together plus the search radius keeps every other copy out of reach.
+    const Bounds3 soupBox = boundsOf(placed);
+    const glm::dvec3 span = glm::max(soupBox.max, queries.max) - glm::min(soupBox.min, queries.min);
+    const double period = std::ceil(std::max(span.x, span.y) + halfBandTexels_ + 1.0);
+    if (!(period < double(INT_MAX))) {
+        throw InputError::inField("placement.scale",
+                                  std::to_string(placement.scale) +
+                                      " texels per unit makes the source's voxels too large to "
+                                      "rebuild its band");
+    }
+    surface_ =
+        std::make_shared<const SoupDistance>(placed, Size3{int(period), int(period), tile.depth});
+}
+
+double VdbDistance::distanceTexels(const glm::dvec3& texelPosition) const {
+    SoupDistance::NearestHint none;
+    return distanceTexels(texelPosition, none);
+}
+
+double VdbDistance::distanceTexels(const glm::dvec3& texelPosition,
+                                   SoupDistance::NearestHint& hint) const {
+    const double band = halfBandTexels_;
+    const VdbSourceSampler::Sample sample = source_.sample(texelPosition);
+    const double sourceTexels = std::clamp(sample.valueTexels, -band, band);
+    if (!rebuilt_) return sourceTexels;
+    const double outside = band + 1.0;
+    const bool inReach = texelPosition.x >= -outside && texelPosition.y >= -outside &&
+                         texelPosition.z >= -outside && texelPosition.x <= tile_.width + outside &&
+                         texelPosition.y <= tile_.height + outside &&
+                         texelPosition.z <= tile_.depth + outside;
+    if (!surface_ || !inReach) return sample.inside ? -band : band;
+    const double unsignedTexels = surface_->unsignedDistance(texelPosition, band, hint);
+    return sample.inside ? -unsignedTexels : unsignedTexels;
+}
 
 VdbBakeResult bakeVdb(const VdbVolume& volume, const VdbPlacement& placement,
                       const BakeOptions& options, const std::string& fileName,
                       const ProgressCallback& progress) {
     const float halfBand = validatedHalfBandTexels(options);
     const TexelPlacement texelPlacement = resolvePlacement(placement, volume, options.size);
-    const VdbTileSampler sampler(volume, texelPlacement, options.size, halfBand);
+    const VdbDistance sampler(volume, texelPlacement, options.size, halfBand);
 
     nlohmann::json params = {
         {"file", fileName},
@@ -131,8 +214,13 @@ VdbBakeResult bakeVdb(const VdbVolume& volume, const VdbPlacement& placement,
     if (!volume.isLevelSet() || volume.iso() != 0.0) params["iso"] = volume.iso();
 
     VdbBakeResult result{
-        {LevelSet::fromDistance(
-             [&sampler](const glm::dvec3& texel) { return sampler.distanceTexels(texel); },
+        {LevelSet::fromDistanceRows(
+             [&sampler](int j, int k, std::span<double> row) {
+                 // The previous texel's nearest triangle starts the search: the same result.
+                 SoupDistance::NearestHint hint;
+                 for (std::size_t i = 0; i < row.size(); ++i)
+                     row[i] = sampler.distanceTexels({double(i) + 0.5, j + 0.5, k + 0.5}, hint);
+             },
              options.size, halfBand, "vdb", params.dump(), progress),
          Tile(options.size)},
         texelPlacement,

@@ -9,10 +9,12 @@
 #pragma once
 
 #include <glm/vec2.hpp>
+#include <memory>
 #include <optional>
 #include <string>
 
 #include "bake/bake.h"
+#include "bake/soup_distance.h"
 #include "vdb/vdb_volume.h"
 
 namespace distile {
@@ -29,6 +31,46 @@ struct VdbPlacement {
     double scale = 1.0;            ///< Explicit: texels per world unit, > 0
     glm::dvec3 offsetTexels{0.0};  ///< Explicit: where the world origin goes, texels
     Bounds3 windowWorld;           ///< Window: world box, min < max on every axis
+};
+
+/// Signed distances of a placed VdbVolume at texel-space positions, texels, clamped to
+/// +-halfBandTexels: what the tile of bakeVdb holds at its texel centres.
+/// - A level set whose band covers halfBandTexels: its own values (VdbSourceSampler, trilinear).
+/// - Otherwise the band is rebuilt, not extrapolated: the exact distance (double precision,
+///   bake/soup_distance.h) to the source's surface, polygonised, cut into triangles no longer than
+///   kVdbSurfaceEdgeTexels and moved onto the iso crossing of the source's triquadratic
+///   reconstruction (VdbVolume::refinedSurfaceWorld), placed in texel space; signed by the source
+///   (inside below the iso value for a level set, above it otherwise). It is used at every texel,
+///   also within the source's band: against an exact torus it errs less than the file's trilinear
+///   values do (docs/pipeline.md gives the figures).
+/// Positions farther than halfBandTexels + 1 from the tile's box [0,W] x [0,H] x [0,D] hold the
+/// clamped value with the source's sign. Thread-safe.
+/// The rebuilt surface's longest edge, texels: the chord of a 2-texel edge lies within
+/// 2^2 / (8 R) texel of a surface of radius R texels (0.05 for R = 10).
+inline constexpr double kVdbSurfaceEdgeTexels = 2.0;
+
+class VdbDistance {
+  public:
+    /// @throws InputError placement.scale is not finite and > 0, the offset is not finite, or
+    ///   halfBandTexels is not in [1, 1024].
+    VdbDistance(const VdbVolume& volume, const TexelPlacement& placement, const Size3& tile,
+                float halfBandTexels);
+
+    double distanceTexels(const glm::dvec3& texelPosition) const;
+    /// distanceTexels starting the rebuilt distance's search from `hint` (the same result, found
+    /// sooner for a point near the last one).
+    double distanceTexels(const glm::dvec3& texelPosition, SoupDistance::NearestHint& hint) const;
+    /// True when the band was rebuilt (the source band is thinner than halfBandTexels or the
+    /// source is not a level set).
+    bool rebuilt() const { return rebuilt_; }
+
+  private:
+    VdbSourceSampler source_;
+    Size3 tile_;
+    double halfBandTexels_;
+    bool rebuilt_ = false;
+    /// The placed surface near the tile; null when not rebuilt or nothing is near.
+    std::shared_ptr<const SoupDistance> surface_;
 };
 
 struct VdbBakeResult {

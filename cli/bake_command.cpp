@@ -444,8 +444,9 @@ void addBakeCommand(CLI::App& app) {
         "bake vdb FILE: a float level set (or, with --iso, a fog volume) from any .vdb file, any "
         "voxel size and transform. Placement as for meshes, in the file's world units: --fit "
         "(default; the surface's box) or --scale/--offset (texel = S * world + (X, Y, Z)), or "
-        "--window. Distances are the file's inside its band and rebuilt from its surface beyond "
-        "it; nothing is wrapped");
+        "--window. Distances are the file's own where its band covers the tile's; a thinner band "
+        "is rebuilt: the exact distance to its surface, refined on its triquadratic "
+        "reconstruction, signed by the file. Nothing is wrapped");
     vdb->add_option("--grid", arguments->gridName,
                     "The grid to bake (default: the file's only float level set)");
     vdb->add_option("--iso", arguments->iso,

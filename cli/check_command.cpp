@@ -221,25 +221,12 @@ void runCheck(CheckArguments arguments) {
                !isDistileLevelSet(arguments.against)) {
         // A tile of `bake vdb`: its source file placed as its params say, resampled at the texel
         // centres without the conservative lowering (as for distile's own level sets below).
-        json params;
-        TexelPlacement placement;
-        std::string gridName;
-        std::optional<double> iso;
-        try {
-            params = json::parse(tile.provenance.params);
-            placement.scale = params.at("scale").get<double>();
-            const auto offset = params.at("offset").get<std::vector<double>>();
-            placement.offsetTexels = {offset.at(0), offset.at(1), offset.at(2)};
-            gridName = params.at("grid").get<std::string>();
-            if (params.contains("iso")) iso = params.at("iso").get<double>();
-        } catch (const std::exception& error) {
-            throw FormatError(tileName + ": distile:params do not describe a vdb placement (" +
-                              error.what() + ")");
-        }
+        const VdbProvenance recorded = vdbFromProvenance(tile.provenance, tileName);
+        const std::string& gridName = recorded.gridName;
         VdbPlacement explicitPlacement;
         explicitPlacement.mode = VdbPlacement::Mode::Explicit;
-        explicitPlacement.scale = placement.scale;
-        explicitPlacement.offsetTexels = placement.offsetTexels;
+        explicitPlacement.scale = recorded.placement.scale;
+        explicitPlacement.offsetTexels = recorded.placement.offsetTexels;
         BakeOptions exact;
         exact.size = tile.size();
         exact.halfBandTexels = float(bandTexels);
@@ -247,8 +234,8 @@ void runCheck(CheckArguments arguments) {
         std::shared_ptr<const Tile> grid;
         try {
             grid = std::make_shared<const Tile>(
-                bakeVdb(VdbVolume::read(arguments.against, gridName, iso), explicitPlacement, exact,
-                        arguments.against)
+                bakeVdb(VdbVolume::read(arguments.against, gridName, recorded.iso),
+                        explicitPlacement, exact, arguments.against)
                     .bake.tile);
         } catch (const InputError& error) {
             throw InputError("--against: " + std::string(error.what()));
@@ -352,8 +339,8 @@ void addCheckCommand(CLI::App& app) {
         ->add_option("--against", arguments->against,
                      "Truth: analytic (from the tile's distile:source/params), a mesh file "
                      "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
-                     "Default: the analytic truth, or for a tile baked from a mesh that mesh "
-                     "(its recorded distile:source_file, placed as it was baked)")
+                     "Default: the analytic truth, or for a tile baked from a mesh or a .vdb file "
+                     "that file (its recorded distile:source_file, placed as it was baked)")
         ->capture_default_str();
     // Time and memory grow linearly: 10^7 points take ~5 s and ~400 MB.
     command

@@ -556,12 +556,14 @@ void validateReference(const Scene& scene) {
         if (!material.tile || material.analyticDistance) continue;
         const std::string source =
             material.tile->provenance.source.empty() ? "unknown" : material.tile->provenance.source;
-        std::string message = "objects[" + std::to_string(index) +
-                              "].material.tile: a reference render needs the detail's exact "
-                              "truth: procedural detail (chainmail, grating) or a mesh (a scene's "
-                              "\"bake\": \"mesh\", or a tile file that records its source mesh); "
-                              "this tile's source '" +
-                              source + "' has none";
+        std::string message =
+            "objects[" + std::to_string(index) +
+            "].material.tile: a reference render needs the detail's exact "
+            "truth: procedural detail (chainmail, grating), a mesh or a level set "
+            "(a scene's \"bake\": \"mesh\" or \"vdb\", or a tile file that "
+            "records its source file); "
+            "this tile's source '" +
+            source + "' has none";
         if (source == "mesh") {
             message +=
                 " (this tile file does not record its source mesh: bake it again with `distile "

@@ -16,6 +16,7 @@
 #include "bake/mesh_surface.h"
 #include "bake/provenance.h"
 #include "bake/solid_mesh.h"
+#include "bake/vdb_bake.h"
 #include "common/error.h"
 #include "common/input_file.h"
 #include "mesh/base_mesh.h"
@@ -210,7 +211,7 @@ std::string heightMapRecipe(const std::string& imageFileBytes, const HeightMapOp
 /// Everything a scene's mesh bake depends on (bake/bake_cache.h): the mesh file's bytes (by
 /// hash), the placement and the bake options.
 std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& placement,
-                       const BakeOptions& options) {
+                       const MeshSignOptions& sign, const BakeOptions& options) {
     std::ostringstream recipe;
     recipe.precision(17);
     recipe << fileRecipe("mesh", meshFileBytes) << "\nplacement ";
@@ -221,9 +222,46 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
                << placement.offsetTexels.y << " " << placement.offsetTexels.z;
     }
     // The recipe's text is part of its hash: changing a word here bakes every cached tile again.
+    recipe << "\n" << bakeOptionsRecipe(options);
+    if (sign.unsignedDistance) {
+        recipe << "\nexact BVH distance, unsigned, thickness " << sign.thicknessTexels << "\n";
+    } else {
+        recipe << "\nexact BVH distance, winding-number sign (solid mesh bake)\n";
+    }
+    return recipe.str();
+}
+
+/// Everything a scene's vdb bake depends on (bake/bake_cache.h): the file's bytes (by hash), the
+/// grid, iso value, placement and the bake options.
+std::string vdbRecipe(const std::string& vdbFileBytes, const std::string& gridName,
+                      std::optional<double> iso, const VdbPlacement& placement,
+                      const BakeOptions& options) {
+    std::ostringstream recipe;
+    recipe.precision(17);
+    recipe << fileRecipe("vdb", vdbFileBytes) << "\ngrid '" << gridName << "' iso ";
+    if (iso) {
+        recipe << *iso;
+    } else {
+        recipe << "none";
+    }
+    recipe << "\nplacement ";
+    switch (placement.mode) {
+        case VdbPlacement::Mode::Fit:
+            recipe << "fit";
+            break;
+        case VdbPlacement::Mode::Explicit:
+            recipe << "scale " << placement.scale << " offset " << placement.offsetTexels.x << " "
+                   << placement.offsetTexels.y << " " << placement.offsetTexels.z;
+            break;
+        case VdbPlacement::Mode::Window:
+            recipe << "window " << placement.windowWorld.min.x << " " << placement.windowWorld.min.y
+                   << " " << placement.windowWorld.min.z << " " << placement.windowWorld.max.x
+                   << " " << placement.windowWorld.max.y << " " << placement.windowWorld.max.z;
+            break;
+    }
     recipe << "\n"
            << bakeOptionsRecipe(options)
-           << "\nexact BVH distance, winding-number sign (solid mesh bake)\n";
+           << "\nband rebuilt: exact BVH distance to the refined surface\n";
     return recipe.str();
 }
 
@@ -234,7 +272,11 @@ std::string meshRecipe(const std::string& meshFileBytes, const MeshPlacement& pl
                                                             {"halfBandTexels", "band"},
                                                             {"heightTexels", "height_texels"},
                                                             {"placement.scale", "scale"},
-                                                            {"placement.offsetTexels", "offset"}};
+                                                            {"placement.offsetTexels", "offset"},
+                                                            {"placement.windowWorld", "window"},
+                                                            {"sign.thicknessTexels", "thickness"},
+                                                            {"grid", "grid"},
+                                                            {"iso", "iso"}};
     const auto found = keys.find(error.field());
     if (found != keys.end() && spec.has(found->second)) spec[found->second].fail(error.problem());
     // The mesh's sign options have no key in a recipe: their problem (it names the mesh) only.
@@ -263,9 +305,14 @@ std::optional<Field> aliased(const Field& spec, const char* name, const char* ol
     return std::nullopt;
 }
 
-/// The recipe's input file (`"file"`, relative to the scene's folder): its path and bytes.
-std::pair<fs::path, std::string> recipeFile(const Field& spec, const fs::path& folder,
-                                            const std::string& what) {
+/// A recipe's input file (`"file"`, relative to the scene's folder).
+struct RecipeFile {
+    fs::path path;
+    std::string bytes;
+};
+
+/// The recipe's input file, read; `what` says what it must be.
+RecipeFile recipeFile(const Field& spec, const fs::path& folder, const std::string& what) {
     if (!spec.has("file")) spec.fail("missing field 'file' (" + what + ")");
     const Field file = spec["file"];
     const fs::path path = folder / file.string();
@@ -289,13 +336,31 @@ struct BakedTile {
     std::shared_ptr<const TriangleSoup> placedMesh;  ///< null unless "bake": "mesh"
 };
 
-/// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the detail
-/// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
-/// scale or offset is given. The mesh's warnings go to `warn`.
-BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                        const SceneWarningCallback& warn) {
-    spec.requireObject({"bake", "file", "size", "band", "exact_texels", "fit", "scale", "offset"});
-    const BakeOptions options = bakeOptionsOf(spec);
+/// The tile of a recipe that bakes the file at `path` (`bake` bakes it): from `tiles` or the bake
+/// cache when there, else baked and recorded there, its source file recorded in its provenance.
+/// The bake's errors are told under the spec's keys or its "file".
+BakedTile bakedFileTile(const Field& spec, TileCache& tiles, const std::string& recipe,
+                        const fs::path& path, const std::function<Tile()>& bake) {
+    const std::string key = "bake:" + recipe;
+    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
+    try {
+        auto tile = cachedBake(recipe, [&] {
+            Tile baked = bake();
+            recordSourceFile(baked.provenance, path);
+            return baked;
+        });
+        tiles[key] = tile;
+        return {tile, nullptr};
+    } catch (const InputError& error) {
+        failInSpec(spec, spec["file"], error);
+    } catch (const FormatError& error) {
+        spec["file"].fail(error.what());
+    }
+}
+
+/// The placement of a mesh or vdb recipe under the names of `distile bake`'s flags: "fit"
+/// (the default) or "scale" and "offset" (texels).
+MeshPlacement meshPlacementOf(const Field& spec) {
     MeshPlacement placement;
     if (spec.has("fit") && spec["fit"].boolean() && (spec.has("scale") || spec.has("offset")))
         spec["fit"].fail("cannot be combined with scale/offset; give one placement");
@@ -310,10 +375,68 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
                 placement.offsetTexels[axis] = offset[std::size_t(axis)].number(-1e6, 1e6);
         }
     }
-    const auto [path, bytes] =
-        recipeFile(spec, folder, "a detail mesh: OBJ, PLY, OFF or STL");
+    return placement;
+}
+
+/// `"tile": {"bake": "vdb", "file": ..., "grid": ..., "iso": ..., "fit" | "scale"/"offset" |
+/// "window": [X0, Y0, Z0, X1, Y1, Z1]}`: the level set baked as `distile bake vdb` does
+/// (bake/vdb_bake.h).
+BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& tiles) {
+    spec.requireObject({"bake", "file", "size", "band", "exact_texels", "grid", "iso", "fit",
+                        "scale", "offset", "window"});
+    const BakeOptions options = bakeOptionsOf(spec);
+    VdbPlacement placement;
+    if (spec.has("window")) {
+        if (spec.has("fit") || spec.has("scale") || spec.has("offset"))
+            spec["window"].fail("cannot be combined with fit/scale/offset; give one placement");
+        const Field window = spec["window"];
+        if (!window.value().is_array() || window.value().size() != 6)
+            window.fail("must be an array of 6 numbers [X0, Y0, Z0, X1, Y1, Z1] (world units)");
+        glm::dvec3 corners[2];
+        for (int i = 0; i < 6; ++i) corners[i / 3][i % 3] = window[std::size_t(i)].number();
+        placement.mode = VdbPlacement::Mode::Window;
+        placement.windowWorld = {corners[0], corners[1]};
+    } else if (const MeshPlacement fitOrExplicit = meshPlacementOf(spec); !fitOrExplicit.fit) {
+        placement.mode = VdbPlacement::Mode::Explicit;
+        placement.scale = fitOrExplicit.scale;
+        placement.offsetTexels = fitOrExplicit.offsetTexels;
+    }
+    const std::string gridName = spec.has("grid") ? spec["grid"].string() : std::string();
+    std::optional<double> iso;
+    if (spec.has("iso")) iso = spec["iso"].number();
+    const RecipeFile source = recipeFile(spec, folder, "an OpenVDB .vdb file");
+    const fs::path& path = source.path;
+    const std::string& bytes = source.bytes;
+    const std::string recipe = vdbRecipe(bytes, gridName, iso, placement, options);
+    return bakedFileTile(spec, tiles, recipe, path, [&] {
+        const VdbVolume volume = VdbVolume::read(path, gridName, iso);
+        return bakeVdb(volume, placement, options, path.filename().string()).bake.tile;
+    });
+}
+
+/// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the detail
+/// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
+/// scale or offset is given. The mesh's warnings go to `warn`.
+BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
+                        const SceneWarningCallback& warn) {
+    spec.requireObject({"bake", "file", "size", "band", "exact_texels", "fit", "scale", "offset",
+                        "unsigned", "thickness"});
+    const BakeOptions options = bakeOptionsOf(spec);
+    const MeshPlacement placement = meshPlacementOf(spec);
+    MeshSignOptions sign;
+    if (spec.has("unsigned")) sign.unsignedDistance = spec["unsigned"].boolean();
+    if (spec.has("thickness")) {
+        if (!sign.unsignedDistance)
+            spec["thickness"].fail(
+                "needs \"unsigned\": true (it is the thickness of the shell around an unsigned "
+                "surface)");
+        sign.thicknessTexels = spec["thickness"].number(0.0, 65536.0);
+    }
+    const RecipeFile source = recipeFile(spec, folder, "a detail mesh: OBJ, PLY, OFF or STL");
+    const fs::path& path = source.path;
+    const std::string& bytes = source.bytes;
     const Field file = spec["file"];
-    const std::string recipe = meshRecipe(bytes, placement, options);
+    const std::string recipe = meshRecipe(bytes, placement, sign, options);
     BakedTile baked;
     try {
         const SolidDetailMesh solid = loadSolidDetailMesh(path);
@@ -325,7 +448,8 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
             baked.tile = found->second;
         } else {
             baked.tile = cachedBake(recipe, [&] {
-                Tile tile = bakeSolidMesh(mesh, placement, options, path.string()).result.tile;
+                Tile tile =
+                    bakeSolidMesh(mesh, placement, options, path.string(), {}, sign).result.tile;
                 recordSourceFile(tile.provenance, path);
                 return tile;
             });
@@ -350,23 +474,13 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     const BakeOptions options = bakeOptionsOf(spec);
     HeightMapOptions heightMap;
     spec.numberInto("height_texels", heightMap.heightTexels, 0.0, 65536.0);
-    const auto [path, bytes] = recipeFile(spec, folder, "a grey image: PNG or EXR");
+    const RecipeFile source = recipeFile(spec, folder, "a grey image: PNG or EXR");
+    const fs::path& path = source.path;
+    const std::string& bytes = source.bytes;
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
-    const std::string key = "bake:" + recipe;
-    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
-    try {
-        auto tile = cachedBake(recipe, [&] {
-            Tile baked = bakeHeightMap(readHeightImage(path), heightMap, options).tile;
-            recordSourceFile(baked.provenance, path);
-            return baked;
-        });
-        tiles[key] = tile;
-        return {tile, nullptr};
-    } catch (const InputError& error) {
-        failInSpec(spec, spec["file"], error);
-    } catch (const FormatError& error) {
-        spec["file"].fail(error.what());
-    }
+    return bakedFileTile(spec, tiles, recipe, path, [&] {
+        return bakeHeightMap(readHeightImage(path), heightMap, options).tile;
+    });
 }
 
 /// The chain mail of `"bake": "chainmail"`, under the names of `distile bake chainmail`'s flags
@@ -414,11 +528,13 @@ GratingOptions gratingOf(const Field& spec) {
 BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
                     const SceneWarningCallback& warn) {
     if (!spec.has("bake")) {
-        spec.fail("missing field 'bake' (the detail to bake: chainmail, grating, heightmap, mesh)");
+        spec.fail(
+            "missing field 'bake' (the detail to bake: chainmail, grating, heightmap, mesh, vdb)");
     }
     const std::string kind = spec["bake"].string();
     if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn);
     if (kind == "heightmap") return bakedHeightMapTile(spec, folder, tiles);
+    if (kind == "vdb") return bakedVdbTile(spec, folder, tiles);
     ProceduralOptions procedural;
     std::string recipe;
     if (kind == "chainmail") {
@@ -431,7 +547,8 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
         recipe = gratingRecipe(procedural.grating, bakeOptionsOf(spec));
     } else {
         spec["bake"].fail("'" + kind +
-                          "' is not a known detail; accepted: chainmail, grating, heightmap, mesh");
+                          "' is not a known detail; accepted: chainmail, grating, heightmap, mesh, "
+                          "vdb");
     }
     const BakeOptions options = bakeOptionsOf(spec);
     const std::string key = "bake:" + recipe;
@@ -697,6 +814,27 @@ void attachMeshTruth(Material& material, const TriangleSoup& placedMesh) {
     };
 }
 
+/// The source level set of a tile baked from a .vdb file, placed as recorded, as the material's
+/// analytic distance: what the bake resampled (VdbDistance: the file's values, or beyond its band
+/// the exact distance to its refined surface), evaluated exactly at any point, periodic in x and
+/// y as the tile is sampled.
+void attachVdbTruth(Material& material, const std::string& where) {
+    const Tile& tile = *material.tile;
+    const std::filesystem::path file = recordedSourceFile(tile, where);
+    const VdbProvenance recorded = vdbFromProvenance(tile.provenance, where);
+    const VdbVolume volume = VdbVolume::read(file, recorded.gridName, recorded.iso);
+    const Size3 size = tile.size();
+    auto distance = std::make_shared<const VdbDistance>(volume, recorded.placement, size,
+                                                        float(std::min(size.depth, 1024)));
+    material.analyticDistance = [distance, size](const glm::dvec3& texelPosition) {
+        const glm::dvec3 wrapped(
+            texelPosition.x - size.width * std::floor(texelPosition.x / size.width),
+            texelPosition.y - size.height * std::floor(texelPosition.y / size.height),
+            texelPosition.z);
+        return distance->distanceTexels(wrapped);
+    };
+}
+
 }  // namespace
 
 void attachTruth(SceneFile& sceneFile) {
@@ -718,6 +856,10 @@ void attachTruth(SceneFile& sceneFile) {
                     std::string(error.what()) +
                     "; or bake it in the scene with {\"bake\": \"mesh\", \"file\": ...}");
             }
+            continue;
+        }
+        if (provenance.source == "vdb" && !provenance.sourceFile.empty()) {
+            attachVdbTruth(material, where);
             continue;
         }
         if (provenance.source != proceduralSourceName(ProceduralKind::Chainmail) &&

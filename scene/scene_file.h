@@ -1,8 +1,8 @@
 /// @file
 /// Scene files: JSON to the renderer's structs (render/scene.h). Every field but `objects` has a
 /// default; unknown fields are errors; relative paths resolve from the scene's folder. Tiles a
-/// scene bakes (`"tile": {"bake": "chainmail" | "grating" | "heightmap" | "mesh", ...}`, with the
-/// options of `distile bake` under its flags' names) are baked with distile::bake and kept in its
+/// scene bakes (`"tile": {"bake": "chainmail" | "grating" | "heightmap" | "mesh" | "vdb", ...}`,
+/// with the options of `distile bake` under its flags' names) are baked with distile::bake and kept in its
 /// bake cache (bake/bake_cache.h). Errors are InputError (FormatError for unparsable JSON) naming
 /// the file and the JSON path of the bad field, e.g. "scene.json: objects[0].material.depth: -1 is
 /// not accepted; ...".
@@ -74,10 +74,13 @@ SceneFile demoScene(TileCache& tiles);
 ///   over its holes, signed by its winding number) as analyticDistance only (sphere traced).
 /// - a tile file baked from a mesh: the same mesh truth, of its recorded source mesh placed as it
 ///   was baked (bake/provenance.h sourceMeshPlaced).
-/// Others (height maps, mesh tiles that do not record their source) are left as they are: the
-/// renderer rejects a reference render of them. Throws FormatError for a procedural tile whose
-/// params cannot be read; InputError for a mesh tile whose recorded source mesh is not found or
-/// has changed since the bake.
+/// - a tile baked from a .vdb file (a `"bake": "vdb"` recipe or a tile file that records its
+///   source): the source level set placed as recorded (bake/vdb_bake.h VdbDistance, band the tile
+///   depth) as analyticDistance, periodic in x and y as the tile is sampled.
+/// Others (height maps, tiles that do not record their source) are left as they are: the
+/// renderer rejects a reference render of them. Throws FormatError for a procedural or vdb tile
+/// whose params cannot be read or a source .vdb that cannot be read; InputError for a mesh or vdb
+/// tile whose recorded source file is not found or has changed since the bake.
 void attachTruth(SceneFile& sceneFile);
 
 /// A Scene member path as validateScene names it ("objects[0].material.depthWorld") to the

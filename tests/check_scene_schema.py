@@ -96,6 +96,17 @@ BAD_SCENES = [
          tile={"bake": "mesh", "file": "ring.obj", "rings_per_row": 8}))),
     ("mesh recipe without file", "objects[0].material.tile",
      edited(lambda s: material(s).update(tile={"bake": "mesh"}))),
+    ("unsigned given as text", "objects[0].material.tile.unsigned",
+     edited(lambda s: material(s).update(tile={"bake": "mesh", "file": "ring.obj",
+                                               "unsigned": "yes"}))),
+    ("vdb recipe without file", "objects[0].material.tile",
+     edited(lambda s: material(s).update(tile={"bake": "vdb"}))),
+    ("vdb window of five numbers", "objects[0].material.tile.window",
+     edited(lambda s: material(s).update(tile={"bake": "vdb", "file": "level.vdb",
+                                               "window": [0, 0, 0, 1, 1]}))),
+    ("mesh option on a vdb recipe", "objects[0].material.tile.thickness",
+     edited(lambda s: material(s).update(tile={"bake": "vdb", "file": "level.vdb",
+                                               "thickness": 1}))),
 ]
 
 

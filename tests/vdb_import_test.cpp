@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <tbb/global_control.h>
+
 #include "bake/vdb_bake.h"
 #include "common/error.h"
 #include "sampler/tile_error.h"
@@ -118,18 +120,36 @@ TEST_F(VdbImport, RotatedSphereWithAThinBandMatchesTheAnalyticSphere) {
     const SphereVolumeOptions sphere = rotatedSphere();
     writeSphereVolume(path("sphere.vdb"), sphere);
     const VdbVolume volume = VdbVolume::read(path("sphere.vdb"));
-    EXPECT_TRUE(VdbTileSampler(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
+    EXPECT_TRUE(VdbDistance(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
     const SphereErrors errors = measureSphere(path("sphere.vdb"), sphereInTile(sphere));
     expectTheSphere(errors);
 }
 
 // A band as wide as the tile needs: the source's own values everywhere, no rebuild.
+// The rebuilt band (surface refined in parallel, distances a row per task) is the same on one
+// thread as on two.
+TEST_F(VdbImport, RebuiltBandDoesNotDependOnTheThreadCount) {
+    const SphereVolumeOptions sphere = rotatedSphere();
+    writeSphereVolume(path("sphere.vdb"), sphere);
+    const VdbVolume volume = VdbVolume::read(path("sphere.vdb"));
+    BakeOptions options;
+    options.size = {64, 64, 32};
+    auto bake = [&](int threads) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+        return bakeVdb(volume, sphereInTile(sphere), options, "sphere.vdb").bake.tile;
+    };
+    const Tile one = bake(1);
+    const Tile two = bake(2);
+    EXPECT_TRUE(std::equal(one.distancesTexels().begin(), one.distancesTexels().end(),
+                           two.distancesTexels().begin()));
+}
+
 TEST_F(VdbImport, RotatedSphereWithAWideBandUsesTheSourceValues) {
     SphereVolumeOptions sphere = rotatedSphere();
     sphere.halfWidthVoxels = 40.0f;  // 40 * 0.07 * 12 = 33.6 texels >= 32
     writeSphereVolume(path("wide.vdb"), sphere);
     const VdbVolume volume = VdbVolume::read(path("wide.vdb"));
-    EXPECT_FALSE(VdbTileSampler(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
+    EXPECT_FALSE(VdbDistance(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
     const SphereErrors errors = measureSphere(path("wide.vdb"), sphereInTile(sphere));
     expectTheSphere(errors);
 }

@@ -3,9 +3,10 @@
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Interpolation.h>
-#include <openvdb/tools/MeshToVolume.h>
 #include <openvdb/tools/SignedFloodFill.h>
 #include <openvdb/tools/VolumeToMesh.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -52,6 +53,11 @@ openvdb::GridPtrVecPtr readGridMetadata(const std::filesystem::path& file) {
         throw FormatError(file.string() +
                           ": not a readable .vdb file (its header asks for more "
                           "memory than there is; the file is corrupt)");
+    } catch (const openvdb::ArithmeticError& error) {
+        // A transform whose matrix holds NaN or infinity cannot be inverted when it is read.
+        throw FormatError(file.string() +
+                          ": a grid's transform is not finite and invertible (" + error.what() +
+                          ")");
     } catch (const std::exception& error) {
         throw FormatError(file.string() + ": not a readable .vdb file (" + error.what() + ")");
     }
@@ -86,6 +92,45 @@ bool isFiniteBox(const Bounds3& box) {
     return true;
 }
 
+/// The grid's value at an index-space point: triquadratic (OpenVDB's QuadraticSampler, third-order
+/// accurate for a smooth field) where its 27 voxels are all active, else trilinear.
+double sampleSmooth(const Accessor& accessor, const openvdb::Vec3d& index) {
+    const openvdb::Coord base = openvdb::Coord::floor(index);
+    bool active = true;
+    for (int dx = -1; dx <= 1 && active; ++dx)
+        for (int dy = -1; dy <= 1 && active; ++dy)
+            for (int dz = -1; dz <= 1 && active; ++dz)
+                active = accessor.isValueOn(base.offsetBy(dx, dy, dz));
+    if (active) return openvdb::tools::QuadraticSampler::sample(accessor, index);
+    return openvdb::tools::BoxSampler::sample(accessor, index);
+}
+
+/// `world` moved onto the grid's iso crossing by Newton steps along the gradient of the smooth
+/// reconstruction; as it is when that does not converge within a voxel.
+glm::dvec3 projectOntoIso(const openvdb::FloatGrid& grid, const Accessor& accessor, double iso,
+                          const glm::dvec3& world, double voxelWorld) {
+    const openvdb::math::Transform& transform = grid.transform();
+    const auto value = [&](const glm::dvec3& p) {
+        return sampleSmooth(accessor, transform.worldToIndex(openvdb::Vec3d(p.x, p.y, p.z))) - iso;
+    };
+    const double step = 0.25 * voxelWorld;
+    glm::dvec3 p = world;
+    for (int iteration = 0; iteration < 4; ++iteration) {
+        const double f = value(p);
+        if (std::abs(f) < 1e-9 * voxelWorld) break;
+        const glm::dvec3 gradient(
+            (value(p + glm::dvec3(step, 0, 0)) - value(p - glm::dvec3(step, 0, 0))) / (2 * step),
+            (value(p + glm::dvec3(0, step, 0)) - value(p - glm::dvec3(0, step, 0))) / (2 * step),
+            (value(p + glm::dvec3(0, 0, step)) - value(p - glm::dvec3(0, 0, step))) / (2 * step));
+        const double gradientSquared = glm::dot(gradient, gradient);
+        if (!(gradientSquared > 0.0)) return world;
+        p -= (f / gradientSquared) * gradient;
+    }
+    const bool converged =
+        std::abs(value(p)) < 1e-3 * voxelWorld && glm::length(p - world) < voxelWorld;
+    return converged ? p : world;
+}
+
 }  // namespace
 
 struct VdbVolume::Impl {
@@ -95,10 +140,7 @@ struct VdbVolume::Impl {
     double iso = 0.0;
     Bounds3 activeBounds;
     Bounds3 surfaceBounds;
-    /// The polygonised iso surface, world space.
-    std::vector<openvdb::Vec3s> points;
-    std::vector<openvdb::Vec3I> triangles;
-    std::vector<openvdb::Vec4I> quads;
+    TriangleSoup surface;  ///< the polygonised iso crossing, world units
 };
 
 VdbVolume::VdbVolume(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -221,21 +263,27 @@ VdbVolume VdbVolume::read(const std::filesystem::path& file, const std::string& 
     impl->iso = iso.value_or(0.0);
     impl->activeBounds =
         worldBoundsOfIndexBox(transform, active.min().asVec3d(), active.max().asVec3d());
-    openvdb::tools::volumeToMesh(*grid, impl->points, impl->triangles, impl->quads, impl->iso,
-                                 /*adaptivity=*/0.0);
-    if (impl->points.empty() || (impl->triangles.empty() && impl->quads.empty())) {
+    std::vector<openvdb::Vec3s> points;
+    std::vector<openvdb::Vec3I> triangles;
+    std::vector<openvdb::Vec4I> quads;
+    openvdb::tools::volumeToMesh(*grid, points, triangles, quads, impl->iso, /*adaptivity=*/0.0);
+    if (points.empty() || (triangles.empty() && quads.empty())) {
         std::ostringstream message;
         message << name << ": grid '" << grid->getName() << "' has no surface: its values never "
                 << "cross " << impl->iso;
         throw FormatError(message.str());
     }
-    Bounds3 surface{glm::dvec3(HUGE_VAL), glm::dvec3(-HUGE_VAL)};
-    for (const openvdb::Vec3s& point : impl->points) {
-        for (int axis = 0; axis < 3; ++axis) {
-            surface.min[axis] = std::min(surface.min[axis], double(point[axis]));
-            surface.max[axis] = std::max(surface.max[axis], double(point[axis]));
-        }
+    TriangleSoup& soup = impl->surface;
+    soup.positions.reserve(points.size());
+    for (const openvdb::Vec3s& point : points)
+        soup.positions.emplace_back(point.x(), point.y(), point.z());
+    soup.triangles.reserve(triangles.size() + 2 * quads.size());
+    for (const openvdb::Vec3I& t : triangles) soup.triangles.emplace_back(t[0], t[1], t[2]);
+    for (const openvdb::Vec4I& q : quads) {
+        soup.triangles.emplace_back(q[0], q[1], q[2]);
+        soup.triangles.emplace_back(q[0], q[2], q[3]);
     }
+    const Bounds3 surface = boundsOf(soup);
     if (!isFiniteBox(surface) || !isFiniteBox(impl->activeBounds)) {
         throw FormatError(name + ": grid '" + grid->getName() +
                           "' has world positions that are not finite (check its transform)");
@@ -265,23 +313,90 @@ Bounds3 VdbVolume::activeBoundsWorld() const {
 Bounds3 VdbVolume::surfaceBoundsWorld() const {
     return impl_->surfaceBounds;
 }
+const TriangleSoup& VdbVolume::surfaceWorld() const {
+    return impl_->surface;
+}
 
-struct VdbTileSampler::Impl {
+TriangleSoup VdbVolume::refinedSurfaceWorld(double maxEdgeWorld, const Bounds3& regionWorld) const {
+    const Impl& impl = *impl_;
+    const TriangleSoup& coarse = impl.surface;
+    const openvdb::Vec3d voxel = impl.grid->transform().voxelSize();
+    const double voxelWorld = std::max({voxel.x(), voxel.y(), voxel.z()});
+    double longestEdge = 0.0;
+    for (const glm::uvec3& t : coarse.triangles) {
+        for (int corner = 0; corner < 3; ++corner) {
+            longestEdge = std::max(longestEdge, glm::length(coarse.positions[t[corner]] -
+                                                            coarse.positions[t[(corner + 1) % 3]]));
+        }
+    }
+    // One subdivision count for every triangle, so neighbours share their edges' new vertices.
+    const int parts =
+        std::clamp(int(std::ceil(longestEdge / std::max(maxEdgeWorld, 1e-300))), 1, 16);
+    std::vector<glm::uvec3> kept;
+    for (const glm::uvec3& t : coarse.triangles) {
+        bool near = true;
+        for (int axis = 0; axis < 3 && near; ++axis) {
+            const double lo = std::min({coarse.positions[t.x][axis], coarse.positions[t.y][axis],
+                                        coarse.positions[t.z][axis]});
+            const double hi = std::max({coarse.positions[t.x][axis], coarse.positions[t.y][axis],
+                                        coarse.positions[t.z][axis]});
+            near = lo <= regionWorld.max[axis] && hi >= regionWorld.min[axis];
+        }
+        if (near) kept.push_back(t);
+    }
+    // Triangle n's (parts + 1)(parts + 2) / 2 vertices and parts^2 triangles follow triangle
+    // n - 1's; vertex (i, j) is a + (b - a) i / parts + (c - a) j / parts, i + j <= parts.
+    const std::size_t vertices = std::size_t(parts + 1) * std::size_t(parts + 2) / 2;
+    const std::size_t triangles = std::size_t(parts) * std::size_t(parts);
+    TriangleSoup fine;
+    fine.positions.resize(kept.size() * vertices);
+    fine.triangles.resize(kept.size() * triangles);
+    const openvdb::FloatGrid& grid = *impl.grid;
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, kept.size()),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            Accessor accessor(grid.tree());
+            for (std::size_t n = range.begin(); n != range.end(); ++n) {
+                const glm::uvec3& t = kept[n];
+                const glm::dvec3 a = coarse.positions[t.x], b = coarse.positions[t.y],
+                                 c = coarse.positions[t.z];
+                const std::uint32_t first = std::uint32_t(n * vertices);
+                auto vertex = [&](int i, int j) {
+                    return first + std::uint32_t(j * (parts + 1) - j * (j - 1) / 2 + i);
+                };
+                for (int j = 0; j <= parts; ++j) {
+                    for (int i = 0; i + j <= parts; ++i) {
+                        const glm::dvec3 p =
+                            a + (b - a) * (double(i) / parts) + (c - a) * (double(j) / parts);
+                        fine.positions[vertex(i, j)] =
+                            projectOntoIso(grid, accessor, impl.iso, p, voxelWorld);
+                    }
+                }
+                std::size_t next = n * triangles;
+                for (int j = 0; j < parts; ++j) {
+                    for (int i = 0; i + j < parts; ++i) {
+                        fine.triangles[next++] = {vertex(i, j), vertex(i + 1, j), vertex(i, j + 1)};
+                        if (i + j + 1 < parts) {
+                            fine.triangles[next++] = {vertex(i + 1, j), vertex(i + 1, j + 1),
+                                                      vertex(i, j + 1)};
+                        }
+                    }
+                }
+            }
+        });
+    return fine;
+}
+
+struct VdbSourceSampler::Impl {
     openvdb::FloatGrid::ConstPtr source;
     bool levelSet = true;
     double iso = 0.0;
     double scale = 1.0;
     glm::dvec3 offsetTexels{0.0};
-    float halfBandTexels = 1.0f;
-    /// Unsigned distances to the polygonised surface, texel space (voxel (i, j, k) centred at
-    /// texel (i + 0.5, j + 0.5, k + 0.5)); null when the source band is wide enough.
-    openvdb::FloatGrid::Ptr rebuilt;
 };
 
-VdbTileSampler::VdbTileSampler(const VdbVolume& volume, const TexelPlacement& placement,
-                               const Size3& tile, float halfBandTexels)
+VdbSourceSampler::VdbSourceSampler(const VdbVolume& volume, const TexelPlacement& placement)
     : impl_(std::make_unique<Impl>()) {
-    validateTileSize(tile, "size");
     if (!(std::isfinite(placement.scale) && placement.scale > 0.0)) {
         throw InputError::inField("placement.scale",
                                   std::to_string(placement.scale) +
@@ -293,99 +408,44 @@ VdbTileSampler::VdbTileSampler(const VdbVolume& volume, const TexelPlacement& pl
         throw InputError::inField("placement.offsetTexels",
                                   "must be three finite numbers (texels)");
     }
-    if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
-        throw InputError::inField("halfBandTexels", std::to_string(halfBandTexels) +
-                                                        " texels is not accepted; it must be in "
-                                                        "[1, 1024]");
-    }
     const VdbVolume::Impl& source = *volume.impl_;
-    Impl& impl = *impl_;
-    impl.source = source.grid;
-    impl.levelSet = source.levelSet;
-    impl.iso = source.iso;
-    impl.scale = placement.scale;
-    impl.offsetTexels = placement.offsetTexels;
-    impl.halfBandTexels = halfBandTexels;
-    // A level set's band (background minus the iso shift, world units) covers the tile's band:
-    // its values are distances wherever the tile needs them.
-    const double sourceBandTexels =
-        (double(source.grid->background()) - std::abs(source.iso)) * placement.scale;
-    if (source.levelSet && sourceBandTexels >= halfBandTexels) return;
-
-    // Rebuild: the polygons near the tile's box, placed in texel space.
-    const double reach = 2.0 * double(halfBandTexels) + 2.0;
-    const glm::dvec3 boxMin(-reach),
-        boxMax(tile.width + reach, tile.height + reach, tile.depth + reach);
-    std::vector<openvdb::Vec3s> points(source.points.size());
-    for (std::size_t i = 0; i < points.size(); ++i) {
-        const openvdb::Vec3s& world = source.points[i];
-        for (int axis = 0; axis < 3; ++axis) {
-            points[i][axis] =
-                float(placement.scale * double(world[axis]) + placement.offsetTexels[axis]);
-        }
-    }
-    auto near = [&](std::initializer_list<openvdb::Index32> corners) {
-        glm::dvec3 lo(HUGE_VAL), hi(-HUGE_VAL);
-        for (openvdb::Index32 corner : corners) {
-            for (int axis = 0; axis < 3; ++axis) {
-                lo[axis] = std::min(lo[axis], double(points[corner][axis]));
-                hi[axis] = std::max(hi[axis], double(points[corner][axis]));
-            }
-        }
-        return lo.x <= boxMax.x && lo.y <= boxMax.y && lo.z <= boxMax.z && hi.x >= boxMin.x &&
-               hi.y >= boxMin.y && hi.z >= boxMin.z;
-    };
-    std::vector<openvdb::Vec3I> triangles;
-    std::vector<openvdb::Vec4I> quads;
-    for (const openvdb::Vec3I& t : source.triangles)
-        if (near({t[0], t[1], t[2]})) triangles.push_back(t);
-    for (const openvdb::Vec4I& q : source.quads)
-        if (near({q[0], q[1], q[2], q[3]})) quads.push_back(q);
-    const auto texels = detail::texelTransform();
-    if (triangles.empty() && quads.empty()) {
-        impl.rebuilt = openvdb::FloatGrid::create(halfBandTexels);
-    } else {
-        impl.rebuilt = openvdb::tools::meshToUnsignedDistanceField<openvdb::FloatGrid>(
-            *texels, points, triangles, quads, halfBandTexels + 1.0f);
-    }
+    impl_->source = source.grid;
+    impl_->levelSet = source.levelSet;
+    impl_->iso = source.iso;
+    impl_->scale = placement.scale;
+    impl_->offsetTexels = placement.offsetTexels;
 }
 
-VdbTileSampler::VdbTileSampler(VdbTileSampler&&) noexcept = default;
-VdbTileSampler::~VdbTileSampler() = default;
+VdbSourceSampler::VdbSourceSampler(VdbSourceSampler&&) noexcept = default;
+VdbSourceSampler::~VdbSourceSampler() = default;
 
-bool VdbTileSampler::rebuilt() const {
-    return impl_->rebuilt != nullptr;
+bool VdbSourceSampler::isLevelSet() const {
+    return impl_->levelSet;
 }
 
-double VdbTileSampler::distanceTexels(const glm::dvec3& texelPosition) const {
+double VdbSourceSampler::bandTexels() const {
     const Impl& impl = *impl_;
-    const double band = impl.halfBandTexels;
-    // Texel -> the file's world -> the source's index space, where trilinear interpolation runs
-    // on the voxel lattice whatever its rotation or aspect; the values are world distances.
+    if (!impl.levelSet) return 0.0;
+    return std::max(0.0, (double(impl.source->background()) - std::abs(impl.iso)) * impl.scale);
+}
+
+VdbSourceSampler::Sample VdbSourceSampler::sample(const glm::dvec3& texelPosition) const {
+    const Impl& impl = *impl_;
     const glm::dvec3 world = (texelPosition - impl.offsetTexels) / impl.scale;
     const openvdb::Vec3d index =
         impl.source->transform().worldToIndex(openvdb::Vec3d(world.x, world.y, world.z));
     Accessor source(impl.source->tree());
     const double value = openvdb::tools::BoxSampler::sample(source, index) - impl.iso;
-    const bool inside = impl.levelSet ? value < 0.0 : value > 0.0;
-    if (!impl.rebuilt) return std::clamp(value * impl.scale, -band, band);
-
-    if (impl.levelSet) {
-        // Inside the source band (all eight voxels of the trilinear stencil active) keep the
-        // source's distance.
-        const openvdb::Coord base = openvdb::Coord::floor(index);
-        bool inBand = true;
-        for (int corner = 0; corner < 8 && inBand; ++corner) {
-            inBand = source.isValueOn(base.offsetBy(corner & 1, (corner >> 1) & 1, corner >> 2));
-        }
-        if (inBand) return std::clamp(value * impl.scale, -band, band);
+    const openvdb::Coord base = openvdb::Coord::floor(index);
+    bool inBand = true;
+    for (int corner = 0; corner < 8 && inBand; ++corner) {
+        inBand = source.isValueOn(base.offsetBy(corner & 1, (corner >> 1) & 1, corner >> 2));
     }
-    Accessor rebuilt(impl.rebuilt->tree());
-    const openvdb::Vec3d texelIndex(texelPosition.x - 0.5, texelPosition.y - 0.5,
-                                    texelPosition.z - 0.5);
-    const double unsignedTexels =
-        std::min(double(openvdb::tools::BoxSampler::sample(rebuilt, texelIndex)), band);
-    return inside ? -unsignedTexels : unsignedTexels;
+    Sample result;
+    result.valueTexels = (impl.levelSet ? value : -value) * impl.scale;
+    result.inside = result.valueTexels < 0.0;
+    result.inBand = inBand;
+    return result;
 }
 
 void writeSphereVolume(const std::filesystem::path& file, const SphereVolumeOptions& options) {

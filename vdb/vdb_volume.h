@@ -12,11 +12,8 @@
 ///
 /// The source's narrow band is often thinner than the tile needs (3 voxels is OpenVDB's default;
 /// the tile wants the tile depth). Beyond the band the source holds only its background constant,
-/// which is not a distance. Where the tile needs more than the source band, the surface is
-/// rebuilt: polygonised at the iso value (OpenVDB's volumeToMesh, in the source's world space),
-/// placed in texel space, and converted to exact unsigned distances to those polygons
-/// (meshToUnsignedDistanceField, voxel = 1 texel); the sign comes from the source (below or above
-/// the iso value). Inside the source band the source's own values are kept.
+/// which is not a distance: there the tile's distances are rebuilt from the surface
+/// (surfaceWorld(), bake/vdb_bake.h VdbDistance).
 #pragma once
 
 #include <filesystem>
@@ -78,9 +75,20 @@ class VdbVolume {
     Bounds3 activeBoundsWorld() const;
     /// World-space box of the surface (the polygonised iso crossing).
     Bounds3 surfaceBoundsWorld() const;
+    /// The iso crossing polygonised on the source's voxel lattice (OpenVDB's volumeToMesh, one
+    /// vertex per crossed voxel, quads split into triangles), world units; closed wherever the
+    /// band is.
+    const TriangleSoup& surfaceWorld() const;
+    /// The triangles of surfaceWorld() whose box meets `regionWorld`, each cut into equal parts
+    /// until no edge is longer than `maxEdgeWorld` (at most 16 x 16 parts), every vertex moved
+    /// onto the iso crossing of the source's smooth reconstruction (triquadratic where its 27
+    /// voxels are active, else trilinear) by Newton steps along its gradient. Where the surface is
+    /// curved this keeps the polygons within a small fraction of a voxel of it; volumeToMesh's
+    /// vertices alone cut inside convex parts by up to about diagonal^2 / (8 radius).
+    TriangleSoup refinedSurfaceWorld(double maxEdgeWorld, const Bounds3& regionWorld) const;
 
   private:
-    friend class VdbTileSampler;
+    friend class VdbSourceSampler;
     struct Impl;
     explicit VdbVolume(std::unique_ptr<Impl> impl);
     std::unique_ptr<Impl> impl_;
@@ -90,24 +98,33 @@ class VdbVolume {
 /// unreadable file.
 std::vector<VdbGridInfo> listVdbGrids(const std::filesystem::path& file);
 
-/// Signed distances of a placed VdbVolume at texel-space positions, in texels, clamped to
-/// +-halfBandTexels: the source's own trilinear values inside its band, the rebuilt exact
-/// distances (see the file note) beyond it. Built for the tile's box, [0,W] x [0,H] x [0,D]
-/// widened by halfBandTexels + 1 on every side; positions outside it hold the clamped value.
-/// Thread-safe (`distanceTexels` only reads).
-class VdbTileSampler {
+/// The source's own values at texel-space positions of a placement: the file's world point of the
+/// texel (world = (texel - offsetTexels) / scale), mapped to the source's index space, where
+/// trilinear interpolation (OpenVDB's BoxSampler) runs on the voxel lattice whatever its rotation
+/// or aspect. Thread-safe (`sample` only reads).
+class VdbSourceSampler {
   public:
-    /// @throws InputError placement.scale is not finite and > 0, the offset is not finite, or
-    ///   halfBandTexels is not in [1, 1024].
-    VdbTileSampler(const VdbVolume& volume, const TexelPlacement& placement, const Size3& tile,
-                   float halfBandTexels);
-    VdbTileSampler(VdbTileSampler&&) noexcept;
-    ~VdbTileSampler();
+    /// @throws InputError placement.scale is not finite and > 0, or the offset is not finite.
+    VdbSourceSampler(const VdbVolume& volume, const TexelPlacement& placement);
+    VdbSourceSampler(VdbSourceSampler&&) noexcept;
+    ~VdbSourceSampler();
 
-    double distanceTexels(const glm::dvec3& texelPosition) const;
-    /// True when the surface had to be rebuilt (the source band is thinner than halfBandTexels or
-    /// the source is not a level set).
-    bool rebuilt() const;
+    struct Sample {
+        /// A level set's distance (value minus iso, times the scale), texels; for any other grid
+        /// (iso minus value) times the scale, which is not a distance.
+        double valueTexels = 0.0;
+        /// Inside the surface: below the iso value for a level set, above it otherwise.
+        bool inside = false;
+        /// All eight voxels of the trilinear stencil are active: for a level set, `valueTexels`
+        /// interpolates the file's distances (not its background).
+        bool inBand = false;
+    };
+    Sample sample(const glm::dvec3& texelPosition) const;
+
+    /// A level set's half band less the iso offset, in texels ((background - |iso|) * scale): how
+    /// far from the surface its values are distances; 0 for other grids.
+    double bandTexels() const;
+    bool isLevelSet() const;
 
   private:
     struct Impl;
