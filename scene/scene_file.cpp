@@ -301,8 +301,11 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
                 placement.offsetTexels[axis] = offset[std::size_t(axis)].number(-1e6, 1e6);
         }
     }
-    const auto [path, bytes] =
-        recipeFile(spec, folder, "a closed detail mesh: OBJ, PLY, OFF or STL");
+    // Named copies, not structured bindings: lambdas below capture them (Clang 14 cannot capture
+    // a binding).
+    const auto source = recipeFile(spec, folder, "a closed detail mesh: OBJ, PLY, OFF or STL");
+    const fs::path& path = source.first;
+    const std::string& bytes = source.second;
     const Field file = spec["file"];
     const std::string recipe = meshRecipe(bytes, placement, options);
     BakedTile baked;
@@ -341,7 +344,9 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     const BakeOptions options = bakeOptionsOf(spec);
     HeightMapOptions heightMap;
     spec.numberInto("height_texels", heightMap.heightTexels, 0.0, 65536.0);
-    const auto [path, bytes] = recipeFile(spec, folder, "a grey image: PNG or EXR");
+    const auto source = recipeFile(spec, folder, "a grey image: PNG or EXR");
+    const fs::path& path = source.first;
+    const std::string& bytes = source.second;
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
     const std::string key = "bake:" + recipe;
     if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
