@@ -9,6 +9,7 @@
 
 #include "common/error.h"
 #include "common/input_file.h"
+#include "sampler/detail/image_input.h"
 
 namespace distile {
 
@@ -31,10 +32,11 @@ int wrap(int index, int count) {
 HeightImage readHeightImage(const fs::path& file) {
     requireRegularFile(file, "a height map image (.png, .exr)");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
-    auto input = OIIO::ImageInput::open(file.string());
+    std::string openError;
+    auto input = detail::openImageByExtension(file, openError);
     if (!input) {
         throw FormatError(file.string() + ": not a readable image (" +
-                          firstLineOf(OIIO::geterror(), "unknown OpenImageIO error") +
+                          firstLineOf(openError, "unknown OpenImageIO error") +
                           "); a height map must be an 8/16-bit PNG or an EXR");
     }
     const OIIO::ImageSpec& spec = input->spec();

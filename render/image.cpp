@@ -15,6 +15,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/input_file.h"
+#include "sampler/detail/image_input.h"
 
 namespace distile {
 
@@ -157,9 +158,10 @@ void writeImage(const Image& image, const fs::path& file) {
 Image readImage(const fs::path& file) {
     requireRegularFile(file, "an image file");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
-    auto input = OIIO::ImageInput::open(file.string());
+    std::string openError;
+    auto input = detail::openImageByExtension(file, openError);
     if (!input) {
-        throw FormatError(file.string() + ": not a readable image (" + firstLine(OIIO::geterror()) +
+        throw FormatError(file.string() + ": not a readable image (" + firstLine(openError) +
                           ")");
     }
     const OIIO::ImageSpec& spec = input->spec();

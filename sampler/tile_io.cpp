@@ -16,6 +16,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/input_file.h"
+#include "sampler/detail/image_input.h"
 
 namespace distile {
 
@@ -290,10 +291,11 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
 Tile readTileExr(const fs::path& file) {
     requireRegularFile(file, "a tile .exr file");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
-    auto input = OIIO::ImageInput::open(file.string());
+    std::string openError;
+    auto input = detail::openImageByExtension(file, openError);
     if (!input) {
         throw FormatError(file.string() + ": not a readable image (" +
-                          firstLine(OIIO::geterror(), "unknown OpenImageIO error") +
+                          firstLine(openError, "unknown OpenImageIO error") +
                           "); the file is truncated, corrupted or not an image");
     }
     if (std::string(input->format_name()) != "openexr") {
