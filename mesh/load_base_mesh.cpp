@@ -401,6 +401,23 @@ void checkPlyFile(const std::filesystem::path& file) {
         }
         const std::vector<std::string_view> tokens = splitWhitespace(line);
         if (tokens.empty()) continue;
+        // Only the header lines PLY defines, well formed and printable: OpenMesh's header parser
+        // loops without end (gigabytes in seconds) on some malformed ones.
+        const bool printable = std::all_of(line.begin(), line.end(), [](char c) {
+            return (c >= 0x20 && c < 0x7f) || c == '\t' || c == '\r';
+        });
+        const bool wellFormed =
+            tokens[0] == "comment" || tokens[0] == "obj_info" ||
+            (tokens[0] == "end_header" && tokens.size() == 1) ||
+            (tokens[0] == "format" && tokens.size() == 3) ||
+            (tokens[0] == "element" && tokens.size() == 3) ||
+            (tokens[0] == "property" &&
+             (tokens.size() == 3 || (tokens.size() == 5 && tokens[1] == "list")));
+        if (!printable || !wellFormed) {
+            throw FormatError(name + ": PLY header line '" + quotedInput(line) +
+                              "' is not one PLY defines (format, element, property, comment, "
+                              "obj_info, end_header); the file is corrupted");
+        }
         if (tokens[0] == "end_header") {
             headerEnded = true;
             break;

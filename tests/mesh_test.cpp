@@ -695,6 +695,16 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
         "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
         "end_header\n0 0 0\n1 0 0\n",
         "truncated");
+    // Found by fuzzing (fuzz/corpus/mesh_ply/malformed_header.ply): OpenMesh's header parser
+    // took gigabytes in seconds on header lines PLY does not define.
+    expectFormatError("malformed_header.ply",
+                      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                      "property float y\nproperty float z\nelement facproperty list2uchar int "
+                      "vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
+                      "not one PLY defines");
+    expectFormatError("unprintable_header.ply",
+                      "ply\nformat ascii 1.0\nelement ver\xf7" "ex 3\nproperty float x\nend_header\n",
+                      "not one PLY defines");
     expectFormatError("huge.obj", "v -1e30 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n", "within +-1e+09");
     expectFormatError("mesh.xyz", "", "unsupported mesh format");
     EXPECT_THROW(loadDetailMesh(std::filesystem::temp_directory_path() / "no_such_detail.stl"),
