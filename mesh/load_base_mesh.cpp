@@ -389,7 +389,7 @@ void checkPlyFile(const std::filesystem::path& file) {
     std::string line;
     std::getline(in, line);
     if (line.rfind("ply", 0) != 0) throw FormatError(name + ": does not start with 'ply'");
-    std::string format;
+    std::string format, formatVersion;
     std::vector<PlyElement> elements;
     bool headerEnded = false;
     // Header lines are short; a "line" of megabytes is not a PLY header.
@@ -422,7 +422,10 @@ void checkPlyFile(const std::filesystem::path& file) {
             headerEnded = true;
             break;
         }
-        if (tokens[0] == "format" && tokens.size() >= 2) format = std::string(tokens[1]);
+        if (tokens[0] == "format") {
+            format = std::string(tokens[1]);
+            formatVersion = std::string(tokens[2]);
+        }
         if (tokens[0] == "element" && tokens.size() >= 3) {
             PlyElement element;
             element.name = quotedInput(tokens[1]);
@@ -454,6 +457,14 @@ void checkPlyFile(const std::filesystem::path& file) {
         }
     }
     if (!headerEnded) throw FormatError(name + ": PLY header has no end_header");
+    if (std::none_of(elements.begin(), elements.end(),
+                     [](const PlyElement& element) { return element.name == "vertex"; })) {
+        throw FormatError(name + ": PLY header declares no vertex element");
+    }
+    if (formatVersion != "1.0") {
+        throw FormatError(name + ": PLY format version '" + quotedInput(formatVersion) +
+                          "' is not accepted; only 1.0");
+    }
     const bool ascii = format == "ascii";
     if (!ascii && format != "binary_little_endian" && format != "binary_big_endian") {
         throw FormatError(name + ": PLY format '" + quotedInput(format) +
@@ -512,8 +523,18 @@ void checkOffFile(const std::filesystem::path& file) {
         throw FormatError(name + ": starts with '" + quotedInput(keyword) +
                           "'; expected an OFF header (OFF, COFF, NOFF, STOFF, ...)");
     }
-    std::string_view token = tokens.next();
-    const bool binary = token == "BINARY";
+    // OpenMesh reads the counts from the line after the keyword's, whatever follows the keyword:
+    // counts on the keyword's line would be checked here and ignored there.
+    std::string rest;
+    if (!tokens.endedLine()) std::getline(in, rest);
+    const std::vector<std::string_view> restTokens = splitWhitespace(rest);
+    const bool binary = restTokens.size() == 1 && restTokens[0] == "BINARY";
+    if (!binary && !restTokens.empty()) {
+        throw FormatError(name + ": OFF keyword line '" + quotedInput(keyword + " " + rest) +
+                          "' has more than the keyword (and BINARY); the counts go on the next "
+                          "line");
+    }
+    std::string_view token = binary ? std::string_view() : tokens.next();
     std::uint64_t counts[2] = {0, 0};
     for (int k = 0; k < 2; ++k) {
         if (binary) {

@@ -702,6 +702,16 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
                       "property float y\nproperty float z\nelement facproperty list2uchar int "
                       "vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
                       "not one PLY defines");
+    expectFormatError("bad_format.ply",
+                      "ply\nformat ascii ertex_indices\nelement vertex 1\nproperty float x\n"
+                      "end_header\n0\n",
+                      "format version 'ertex_indices' is not accepted");
+    expectFormatError("no_vertices.ply", "ply\nformat ascii 1.0\nend_header\n0 0 0\n",
+                      "declares no vertex element");
+    // OpenMesh reads an OFF file's counts from the line after the keyword's (it reserved 3.5 GB
+    // for these, found by fuzzing).
+    expectFormatError("counts_on_keyword_line.off", "OFF 0 0\n1  0877777777 0\n",
+                      "the counts go on the next line");
     expectFormatError("unprintable_header.ply",
                       "ply\nformat ascii 1.0\nelement ver\xf7" "ex 3\nproperty float x\nend_header\n",
                       "not one PLY defines");
