@@ -35,44 +35,10 @@ glm::dvec3 nearestOnSegment(const glm::dvec3& p, const Segment& s) {
     return s.a + t * ab;
 }
 
-struct PositionHash {
-    std::size_t operator()(const glm::dvec3& p) const {
-        const std::hash<double> hash;
-        return hash(p.x) ^ (hash(p.y) * 0x9e3779b97f4a7c15ull) ^
-               (hash(p.z) * 0xc2b2ae3d27d4eb4full);
-    }
-};
-
-/// The mesh's border: its edges (corners matched by exact position) used more often in one
-/// direction than in the other, in order of first use.
+/// The mesh's border: its unbalanced edges (bake/soup_distance.h).
 std::vector<Segment> borderSegments(const TriangleSoup& soup) {
-    std::unordered_map<glm::dvec3, std::uint32_t, PositionHash> ids;
-    std::vector<glm::dvec3> positionOfId;
-    std::vector<std::uint32_t> idOf(soup.positions.size());
-    for (std::size_t v = 0; v < soup.positions.size(); ++v) {
-        const glm::dvec3 p = soup.positions[v] + glm::dvec3(0.0);  // -0.0 and +0.0 are one
-        const auto [entry, added] = ids.try_emplace(p, std::uint32_t(ids.size()));
-        if (added) positionOfId.push_back(p);
-        idOf[v] = entry->second;
-    }
-    std::unordered_map<std::uint64_t, std::int64_t> netUses;
-    std::vector<std::uint64_t> firstUse;
-    for (const glm::uvec3& t : soup.triangles) {
-        for (int c = 0; c < 3; ++c) {
-            const std::uint32_t from = idOf[t[c]], to = idOf[t[(c + 1) % 3]];
-            if (from == to) continue;
-            const std::uint64_t key =
-                (std::uint64_t(std::min(from, to)) << 32) | std::max(from, to);
-            const auto [entry, added] = netUses.try_emplace(key, 0);
-            if (added) firstUse.push_back(key);
-            entry->second += from < to ? 1 : -1;
-        }
-    }
     std::vector<Segment> border;
-    for (const std::uint64_t key : firstUse) {
-        if (netUses[key] == 0) continue;
-        border.push_back({positionOfId[key >> 32], positionOfId[key & 0xffffffffu]});
-    }
+    for (const UnbalancedEdge& edge : unbalancedEdges(soup)) border.push_back({edge.a, edge.b});
     return border;
 }
 

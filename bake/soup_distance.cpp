@@ -107,10 +107,9 @@ double solidAngle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
     return 2.0 * std::atan2(determinant, divisor);
 }
 
-/// Whether every edge, its corners matched by exact position, is used as often in each
-/// direction: the edges used from the lower to the higher position id, sorted, are the edges
-/// used the other way, sorted.
-bool edgeUsesCancel(const TriangleSoup& soup) {
+}  // namespace
+
+std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
     // Position ids: equal positions (-0.0 and +0.0 alike) get one id, by sorting.
     std::vector<std::uint32_t> byPosition(soup.positions.size());
     for (std::uint32_t v = 0; v < byPosition.size(); ++v) byPosition[v] = v;
@@ -121,10 +120,11 @@ bool edgeUsesCancel(const TriangleSoup& soup) {
     };
     tbb::parallel_sort(byPosition.begin(), byPosition.end(), less);
     std::vector<std::uint32_t> idOf(soup.positions.size());
-    std::uint32_t id = 0;
+    std::vector<glm::dvec3> positionOfId;
     for (std::size_t n = 0; n < byPosition.size(); ++n) {
-        if (n > 0 && less(byPosition[n - 1], byPosition[n])) ++id;
-        idOf[byPosition[n]] = id;
+        if (n == 0 || less(byPosition[n - 1], byPosition[n]))
+            positionOfId.push_back(soup.positions[byPosition[n]]);
+        idOf[byPosition[n]] = std::uint32_t(positionOfId.size() - 1);
     }
     std::vector<std::uint64_t> upward, downward;
     upward.reserve(3 * soup.triangles.size() / 2 + 1);
@@ -138,11 +138,26 @@ bool edgeUsesCancel(const TriangleSoup& soup) {
             (from < to ? upward : downward).push_back(key);
         }
     }
-    if (upward.size() != downward.size()) return false;
+    // The edges used from the lower to the higher position id, sorted, against those used the
+    // other way: an edge is unbalanced where its two counts differ.
     tbb::parallel_invoke([&] { tbb::parallel_sort(upward.begin(), upward.end()); },
                          [&] { tbb::parallel_sort(downward.begin(), downward.end()); });
-    return upward == downward;
+    std::vector<UnbalancedEdge> edges;
+    std::size_t u = 0, d = 0;
+    while (u < upward.size() || d < downward.size()) {
+        const bool upwardFirst =
+            d == downward.size() || (u < upward.size() && upward[u] < downward[d]);
+        const std::uint64_t key = upwardFirst ? upward[u] : downward[d];
+        std::size_t ups = 0, downs = 0;
+        for (; u < upward.size() && upward[u] == key; ++u) ++ups;
+        for (; d < downward.size() && downward[d] == key; ++d) ++downs;
+        if (ups != downs)
+            edges.push_back({positionOfId[key >> 32], positionOfId[key & 0xffffffffu]});
+    }
+    return edges;
 }
+
+namespace {
 
 }  // namespace
 
@@ -162,7 +177,7 @@ SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     std::vector<Box> boxes(nodeCount);
     tbb::parallel_invoke(
         [&] { build(0, order, 0, std::uint32_t(order.size()), input, boxes); },
-        [&] { windingPiecewiseConstant_ = edgeUsesCancel(soupTexels); });
+        [&] { windingPiecewiseConstant_ = unbalancedEdges(soupTexels).empty(); });
     // Leaves hold consecutive triangles: the build's final order.
     triangles_.resize(input.size());
     tbb::parallel_for(std::size_t(0), input.size(),

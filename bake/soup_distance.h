@@ -44,6 +44,16 @@ inline constexpr double kWindingFarFieldRatio = 2.0;
 inline constexpr double kWindingRecheckMargin = 0.25;
 inline constexpr double kWindingRecheckRatio = 8.0;
 
+/// An edge of a triangle soup, its corners matched by exact position, used more often in one
+/// direction than in the other: where open parts end, sheets, flipped faces.
+struct UnbalancedEdge {
+    glm::dvec3 a, b;
+};
+
+/// Every unbalanced edge of `soup`, once, in an order that depends only on the soup (its
+/// position ids). Empty for closed, consistently oriented parts, however they overlap or repeat.
+std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup);
+
 class SoupDistance {
   public:
     /// `soupTexels`: positions in texel space of `tile` (placeMesh's result). Builds the
