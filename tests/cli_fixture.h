@@ -116,9 +116,10 @@ class Cli : public ::testing::Test {
 
     /// Runs a command that must fail on bad input: a non-zero exit (not a crash), exactly one line
     /// on stderr starting "distile: error:" that contains every one of `keywords`, no `output`
-    /// file and nothing new (no partial or temporary file) in the folder.
-    void expectInputError(const std::vector<std::string>& arguments, const std::string& output,
-                          std::initializer_list<std::string> keywords) const {
+    /// file and nothing new (no partial or temporary file) in the folder. Returns the run, for
+    /// what a caller asserts further (its exit status).
+    RunResult expectInputError(const std::vector<std::string>& arguments, const std::string& output,
+                               std::initializer_list<std::string> keywords) const {
         std::string shown = "distile";
         for (const std::string& argument : arguments) shown += " " + argument;
         SCOPED_TRACE(shown);
@@ -126,7 +127,8 @@ class Cli : public ::testing::Test {
         const RunResult result = run(arguments);
         EXPECT_GT(result.status, 0) << "stderr: " << result.err;
         const std::vector<std::string> lines = result.errLines();
-        ASSERT_EQ(lines.size(), 1u) << "stderr: " << result.err;
+        EXPECT_EQ(lines.size(), 1u) << "stderr: " << result.err;
+        if (lines.size() != 1) return result;
         EXPECT_EQ(lines[0].rfind("distile: error:", 0), 0u) << lines[0];
         for (const std::string& keyword : keywords) {
             EXPECT_NE(lines[0].find(keyword), std::string::npos)
@@ -134,6 +136,7 @@ class Cli : public ::testing::Test {
         }
         EXPECT_FALSE(fs::exists(path(output))) << output;
         EXPECT_EQ(workEntries(), before) << "files were left behind";
+        return result;
     }
 
     /// Writes a scene file and expects `render` of it to fail naming `keywords`.
