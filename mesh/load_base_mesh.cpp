@@ -390,6 +390,7 @@ void checkPlyFile(const std::filesystem::path& file) {
     std::getline(in, line);
     if (line.rfind("ply", 0) != 0) throw FormatError(name + ": does not start with 'ply'");
     std::string format, formatVersion;
+    bool firstLine = true;
     std::vector<PlyElement> elements;
     bool headerEnded = false;
     // Header lines are short; a "line" of megabytes is not a PLY header.
@@ -422,6 +423,13 @@ void checkPlyFile(const std::filesystem::path& file) {
             headerEnded = true;
             break;
         }
+        // One format line, the first after "ply" as PLY places it: OpenMesh loops without end on
+        // a second one.
+        if ((tokens[0] == "format") != firstLine) {
+            throw FormatError(name + ": PLY header line '" + quotedInput(line) +
+                              "': the format line must come once, right after 'ply'");
+        }
+        firstLine = false;
         if (tokens[0] == "format") {
             format = std::string(tokens[1]);
             formatVersion = std::string(tokens[2]);

@@ -706,6 +706,16 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
                       "ply\nformat ascii ertex_indices\nelement vertex 1\nproperty float x\n"
                       "end_header\n0\n",
                       "format version 'ertex_indices' is not accepted");
+    // Found by fuzzing (fuzz/corpus/mesh_ply/second_format_line.ply): OpenMesh's header parser
+    // loops without end on a second format line.
+    expectFormatError("second_format_line.ply",
+                      "ply\nformat binary_little_endian ply\nformat binary_little_endian 1.0\n"
+                      "element vertex 1\nproperty float x\nend_header\n" +
+                          std::string(4, '\0'),
+                      "the format line must come once");
+    expectFormatError("format_not_first.ply",
+                      "ply\nelement vertex 1\nformat ascii 1.0\nproperty float x\nend_header\n0\n",
+                      "the format line must come once");
     expectFormatError("no_vertices.ply", "ply\nformat ascii 1.0\nend_header\n0 0 0\n",
                       "declares no vertex element");
     // OpenMesh reads an OFF file's counts from the line after the keyword's (it reserved 3.5 GB
