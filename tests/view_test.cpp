@@ -1,0 +1,155 @@
+// Pictures of a tile: the reference shader's page in headless Chromium against the CPU renderer,
+// the contact sheet's colours, contour and colour bar, and the commands' refusals.
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <vector>
+
+#include "cli_fixture.h"
+#include "sampler/tile.h"
+#include "sampler/tile_io.h"
+#include "view/contact_sheet.h"
+#include "view/tile_page.h"
+
+namespace distile {
+namespace {
+
+/// Pixels of an 8-bit image as read, no colour conversion: channels() values per pixel.
+struct Pixels {
+    int width = 0, height = 0, channels = 0;
+    std::vector<std::uint8_t> values;
+    const std::uint8_t* at(int x, int y) const {
+        return &values[(std::size_t(y) * std::size_t(width) + std::size_t(x)) * channels];
+    }
+};
+
+Pixels readPixels8(const fs::path& file) {
+    auto input = OIIO::ImageInput::open(file.string());
+    if (!input) throw std::runtime_error("cannot open " + file.string());
+    const OIIO::ImageSpec& spec = input->spec();
+    Pixels pixels{spec.width, spec.height, spec.nchannels, {}};
+    pixels.values.resize(std::size_t(spec.width) * spec.height * spec.nchannels);
+    if (!input->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, pixels.values.data()))
+        throw std::runtime_error("cannot read " + file.string());
+    return pixels;
+}
+
+/// First channel of a float image (an AOV), row 0 at the top.
+std::vector<float> readChannel0(const fs::path& file, int& width, int& height) {
+    auto input = OIIO::ImageInput::open(file.string());
+    if (!input) throw std::runtime_error("cannot open " + file.string());
+    width = input->spec().width;
+    height = input->spec().height;
+    std::vector<float> values(std::size_t(width) * height);
+    if (!input->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, values.data()))
+        throw std::runtime_error("cannot read " + file.string());
+    return values;
+}
+
+/// Headless Chromium, or empty when it is not installed (DISTILE_CHROMIUM overrides the path).
+fs::path chromium() {
+    const char* chosen = std::getenv("DISTILE_CHROMIUM");
+    const fs::path program = chosen ? fs::path(chosen) : fs::path("/usr/bin/chromium");
+    return fs::exists(program) ? program : fs::path();
+}
+
+using ViewCommand = Cli;
+
+// The page's shader draws the flat chain-mail sheet with the hit depth in 24 bits per pixel;
+// the CPU renderer draws the same view (data/scenes/sheet.json's plane, uv scale and depth) with
+// its depth AOV. Both march the same tile the same way, so they agree up to the half-float
+// storage of the page's tile (relative 2^-11, 0.004 texel at the 7-texel largest distance)
+// against the renderer's 16-bit codes, float rounding on two machines, and the ray's pixel
+// centre. A ray whose march ends within epsilon (0.02 texel) of the surface ends within
+// 0.02 / cos(angle to the normal) along it; where the rounding tips one comparison of the march
+// (a sample just below or above epsilon, a step landing inside or not), the two part by up to a
+// step of the budgeted march (about a texel at grazing angles). So: 99 % of the pixels that both
+// hit lie within 0.1 texel along the ray, and at most 0.5 % of pixels are hit in one picture
+// and missed in the other (the plane's edge against the sky, a pixel wide).
+TEST_F(ViewCommand, ShaderPageAgreesWithTheCpuRenderInChromium) {
+    const fs::path browser = chromium();
+    if (browser.empty()) GTEST_SKIP() << "chromium is not installed (Debian: chromium)";
+    constexpr int kWidth = 320, kHeight = 256;
+    ASSERT_EQ(run({"bake", "chainmail", "-o", "tile.exr"}).status, 0);
+    writeText(path("sheet.json"), R"({
+      "camera": {"eye": [0.0, -2.1, 1.47], "target": [0.0, 0.0, 0.0], "up": [0, 0, 1], "fov_deg": 40},
+      "lights": [{"direction": [-0.4, 0.3, -1.0]}],
+      "objects": [{"mesh": "plane", "transform": {"scale": 2.0},
+                   "material": {"tile": "tile.exr", "uv_scale": [4, 4], "depth": 0.0625}}]})");
+    const RunResult render = run({"render", "sheet.json", "-o", "cpu.png", "--width",
+                                  std::to_string(kWidth), "--height", std::to_string(kHeight),
+                                  "--no-shadows", "--aovs"});
+    ASSERT_EQ(render.status, 0) << render.err;
+    const RunResult view = run({"view", "tile.exr", "-o", "tile.html"});
+    ASSERT_EQ(view.status, 0) << view.err;
+
+    const std::string url = "file://" + path("tile.html").string() +
+                            "?object=plane&eye=0,-2.1,1.47&target=0,0,0&up=0,0,1&fov=40"
+                            "&plane_size=4&uv_scale=4,4&depth=0.0625&output=depth&depth_range=16";
+    // SwiftShader: Chromium's software WebGL2, the same on every machine.
+    const std::string flags =
+        " --headless=new --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader"
+        " --hide-scrollbars --force-device-scale-factor=1 --user-data-dir=" +
+        shellQuote(path("profile").string()) + " --window-size=" + std::to_string(kWidth) + "," +
+        std::to_string(kHeight);
+    const std::string screenshot = "timeout 60 " + shellQuote(browser.string()) + flags +
+                                   " --screenshot=" + shellQuote(path("gpu.png").string()) + " " +
+                                   shellQuote(url) + " >/dev/null 2>" +
+                                   shellQuote(path("chromium.log").string());
+    ASSERT_EQ(std::system(screenshot.c_str()), 0) << readText(path("chromium.log"));
+    ASSERT_TRUE(fs::exists(path("gpu.png"))) << readText(path("chromium.log"));
+
+    const Pixels gpu = readPixels8(path("gpu.png"));
+    int width = 0, height = 0;
+    const std::vector<float> cpuDepth = readChannel0(path("cpu.depth.exr"), width, height);
+    const std::vector<float> texelScale = readChannel0(path("cpu.texel_scale.exr"), width, height);
+    ASSERT_EQ(gpu.width, kWidth);
+    ASSERT_EQ(gpu.height, kHeight);
+    ASSERT_EQ(width, kWidth);
+    int bothHit = 0, coverageMismatch = 0, within = 0, withinHundredth = 0, gpuHits = 0;
+    double sumTexels = 0.0;
+    for (int y = 0; y < kHeight; ++y) {
+        for (int x = 0; x < kWidth; ++x) {
+            const std::uint8_t* rgb = gpu.at(x, y);
+            const double code = double(rgb[0]) * 65536.0 + double(rgb[1]) * 256.0 + rgb[2];
+            const double gpuDepth = code / 16777215.0 * 16.0;
+            const std::size_t index = std::size_t(y) * kWidth + x;
+            const bool gpuHit = code > 0.0, cpuHit = cpuDepth[index] > 0.0f;
+            gpuHits += gpuHit;
+            if (gpuHit != cpuHit) ++coverageMismatch;
+            if (!gpuHit || !cpuHit) continue;
+            ++bothHit;
+            const double texels = std::abs(gpuDepth - cpuDepth[index]) * texelScale[index];
+            sumTexels += texels;
+            within += texels <= 0.1;
+            withinHundredth += texels <= 0.01;
+        }
+    }
+    if (gpuHits == 0) {
+        // Nothing drawn: the page says why in its body's data-status.
+        const std::string dump = "timeout 60 " + shellQuote(browser.string()) + flags +
+                                 " --dump-dom " + shellQuote(url) + " 2>/dev/null";
+        FILE* pipe = popen(dump.c_str(), "r");
+        std::string dom;
+        for (char buffer[4096]; pipe && std::fgets(buffer, sizeof buffer, pipe);) dom += buffer;
+        if (pipe) pclose(pipe);
+        const std::size_t at = dom.find("data-status");
+        FAIL() << "the page drew nothing in Chromium: "
+               << (at == std::string::npos ? dom.substr(0, 400) : dom.substr(at, 400));
+    }
+    const double pixels = double(kWidth) * kHeight;
+    std::printf("shader vs CPU depth: %d pixels both hit, %.4f %% coverage mismatch, %.3f %% within "
+                "0.1 texel, %.3f %% within 0.01 texel, mean |difference| %.4f texel\n",
+                bothHit, 100.0 * coverageMismatch / pixels, 100.0 * within / bothHit,
+                100.0 * withinHundredth / bothHit, sumTexels / bothHit);
+    EXPECT_GT(bothHit, int(0.7 * pixels));  // the sheet fills the lower 80 % of the view
+    EXPECT_LE(coverageMismatch, 0.005 * pixels);
+    EXPECT_GE(within, 0.99 * bothHit);
+}
+
+}  // namespace
+}  // namespace distile
