@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <glm/geometric.hpp>
 #include <vector>
 
 #include "cli_fixture.h"
@@ -149,6 +150,106 @@ TEST_F(ViewCommand, ShaderPageAgreesWithTheCpuRenderInChromium) {
     EXPECT_GT(bothHit, int(0.7 * pixels));  // the sheet fills the lower 80 % of the view
     EXPECT_LE(coverageMismatch, 0.005 * pixels);
     EXPECT_GE(within, 0.99 * bothHit);
+}
+
+/// Pixel (x, y) of an 8-bit RGB picture as colour components in [0, 1].
+glm::vec3 colorAt(const Pixels& pixels, int x, int y) {
+    const std::uint8_t* rgb = pixels.at(x, y);
+    return glm::vec3(rgb[0], rgb[1], rgb[2]) / 255.0f;
+}
+
+void expectColor(const glm::vec3& actual, const glm::vec3& expected, const char* what) {
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(actual[c], expected[c], 0.5f / 255.0f + 1e-6f) << what;
+}
+
+/// A 32 x 16 x 2 field: a ball of radius 5 texels at (10.5, 4.5, 1) (exact distances, texel
+/// centres), so the inside, the outside and the sign change sit at known texels.
+Tile ballTile() {
+    Tile tile({32, 16, 2});
+    for (int z = 0; z < 2; ++z)
+        for (int y = 0; y < 16; ++y)
+            for (int x = 0; x < 32; ++x)
+                tile.at(x, y, z) = std::hypot(float(x) - 10.0f, float(y) - 4.0f, float(z) - 0.5f) - 5.0f;
+    return tile;
+}
+
+TEST(ContactSheet, InsideIsBlueOutsideRedContourBlackAndYIsUp) {
+    const fs::path file = fs::temp_directory_path() / ("distile_sheet_" + std::to_string(::getpid()) + ".png");
+    const Tile tile = ballTile();
+    writeTilePreview(tile, file);
+    const Pixels sheet = readPixels8(file);
+    fs::remove(file);
+    const ContactSheetLayout layout(tile.size());
+    ASSERT_EQ(sheet.width, layout.width);
+    ASSERT_EQ(sheet.height, layout.height);
+    EXPECT_EQ(layout.magnify, 8);  // 256 / 32
+    const float range = std::hypot(21.0f, 11.0f, 0.5f) - 5.0f;  // largest |distance|: (31, 15, z)
+    // The ball's centre texel (10, 4): deep inside, on the blue side; its colour is the map's.
+    const glm::vec3 centre = colorAt(sheet, layout.pixelX(0, 10), layout.pixelY(0, 4));
+    EXPECT_GT(centre.b, centre.r);
+    expectColor(centre, divergingColor(tile.at(10, 4, 0) / range), "centre");
+    // A far texel: outside, on the red side.
+    const glm::vec3 far = colorAt(sheet, layout.pixelX(1, 26), layout.pixelY(1, 12));
+    EXPECT_GT(far.r, far.b);
+    expectColor(far, divergingColor(tile.at(26, 12, 1) / range), "far texel");
+    // The sign changes between x = 14 (inside, 4.03 from the centre) and x = 15 (outside): 14 is
+    // on the contour, 13 is not.
+    ASSERT_LT(tile.at(14, 4, 0), 0.0f);
+    ASSERT_GT(tile.at(15, 4, 0), 0.0f);
+    expectColor(colorAt(sheet, layout.pixelX(0, 14), layout.pixelY(0, 4)), kContourColor, "contour");
+    EXPECT_NE(colorAt(sheet, layout.pixelX(0, 13), layout.pixelY(0, 4)), kContourColor);
+    // y up: texel row y = 0 is the cell's bottom pixel row, y = 15 its top one.
+    EXPECT_EQ(layout.pixelY(0, 0) + layout.magnify, layout.cellTop(0) + layout.cellHeight);
+    EXPECT_EQ(layout.pixelY(0, 15), layout.cellTop(0));
+    // The colour bar's ends: +range on top (the map's red end), -range at the bottom.
+    expectColor(colorAt(sheet, layout.barLeft() + 4, layout.barTop()), divergingColor(1.0f), "bar top");
+    expectColor(colorAt(sheet, layout.barLeft() + 4, layout.barBottom()), divergingColor(-1.0f),
+                "bar bottom");
+}
+
+TEST(ContactSheet, DivergingMapIsWhiteAtZeroAndClampedBeyondItsEnds) {
+    EXPECT_EQ(divergingColor(0.0f), glm::vec3(0.97f));
+    EXPECT_EQ(divergingColor(-3.0f), divergingColor(-1.0f));
+    EXPECT_EQ(divergingColor(2.0f), divergingColor(1.0f));
+    EXPECT_GT(divergingColor(-1.0f).b, divergingColor(-1.0f).r);
+    EXPECT_GT(divergingColor(1.0f).r, divergingColor(1.0f).b);
+}
+
+TEST_F(ViewCommand, PreviewOfTheChainMailTileIsWritten) {
+    ASSERT_EQ(run({"bake", "chainmail", "--size", "64x64x8", "-o", "tile.exr"}).status, 0);
+    const RunResult preview = run({"preview", "tile.exr", "-o", "preview.png"});
+    ASSERT_EQ(preview.status, 0) << preview.err;
+    EXPECT_TRUE(preview.err.empty()) << preview.err;  // labelled: the font was found
+    const Pixels sheet = readPixels8(path("preview.png"));
+    EXPECT_EQ(sheet.width, ContactSheetLayout({64, 64, 8}).width);
+}
+
+TEST_F(ViewCommand, BadInputIsRefusedWithoutOutput) {
+    ASSERT_EQ(run({"bake", "chainmail", "--size", "32x32x4", "-o", "tile.exr"}).status, 0);
+    writeText(path("broken.exr"), "not an exr");
+    EXPECT_EQ(expectInputError({"view", "absent.exr", "-o", "page.html"}, "page.html", {"absent.exr"}).status, 2);
+    EXPECT_EQ(expectInputError({"view", "broken.exr", "-o", "page.html"}, "page.html", {"broken.exr"}).status, 2);
+    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.png"}, "page.png", {"-o", ".html"}).status, 2);
+    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.html", "--object", "cube"}, "page.html",
+                               {"--object", "cube", "plane or sphere"}).status, 2);
+    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.html", "--depth", "-1"}, "page.html",
+                               {"--depth", "> 0"}).status, 2);
+    EXPECT_EQ(expectInputError({"preview", "broken.exr", "-o", "sheet.png"}, "sheet.png", {"broken.exr"}).status, 2);
+    EXPECT_EQ(expectInputError({"preview", "tile.exr", "-o", "sheet.jpg"}, "sheet.jpg", {"-o", ".png"}).status, 2);
+}
+
+// The page holds the shader as shipped and the whole tile: the half floats of its distances.
+TEST(TilePage, EmbedsTheShaderAndTheTile) {
+    const Tile tile = ballTile();
+    const std::string page = tilePageHtml(tile, "ball <test>");
+    EXPECT_NE(page.find(referenceShaderSource()), std::string::npos);
+    EXPECT_NE(page.find("ball &lt;test&gt;"), std::string::npos);
+    EXPECT_EQ(page.find("@TILE_JSON@"), std::string::npos);
+    const std::string key = "\"halfFloatsBase64\":\"";
+    const std::size_t start = page.find(key);
+    ASSERT_NE(start, std::string::npos);
+    const std::size_t end = page.find('"', start + key.size());
+    EXPECT_EQ(end - start - key.size(), (tile.size().texelCount() * 2 + 2) / 3 * 4);
 }
 
 }  // namespace
