@@ -215,6 +215,36 @@ TEST(ContactSheet, DivergingMapIsWhiteAtZeroAndClampedBeyondItsEnds) {
     EXPECT_GT(divergingColor(1.0f).r, divergingColor(1.0f).b);
 }
 
+// A tile exact but for one texel: the plot shows that texel at the map's red end (the largest
+// error, an overestimate) and the others at its white middle.
+TEST(ContactSheet, ErrorPlotShowsWhereTheTileErrs) {
+    const fs::path file = fs::temp_directory_path() / ("distile_plot_" + std::to_string(::getpid()) + ".png");
+    Tile tile = ballTile();
+    tile.at(20, 8, 1) += 0.5f;
+    const auto truth = [](const glm::dvec3& p) {
+        return std::hypot(p.x - 10.5, p.y - 4.5, p.z - 1.0) - 5.0;
+    };
+    writeTileErrorPlot(tile, truth, 100.0, file);
+    const Pixels plot = readPixels8(file);
+    fs::remove(file);
+    const ContactSheetLayout layout(tile.size());
+    expectColor(colorAt(plot, layout.pixelX(1, 20), layout.pixelY(1, 8)), divergingColor(1.0f),
+                "planted error");
+    expectColor(colorAt(plot, layout.pixelX(1, 26), layout.pixelY(1, 12)), divergingColor(0.0f),
+                "exact texel");
+    expectColor(colorAt(plot, layout.pixelX(0, 14), layout.pixelY(0, 4)), kContourColor,
+                "the truth's surface");
+}
+
+TEST_F(ViewCommand, CheckPlotIsWrittenBesideTheReport) {
+    ASSERT_EQ(run({"bake", "chainmail", "--size", "64x64x8", "-o", "tile.exr"}).status, 0);
+    // A tile this coarse fails check's tolerances (exit 1): the plot is written all the same.
+    const RunResult check = run({"check", "tile.exr", "--samples", "1000", "--plot", "plot.png"});
+    ASSERT_EQ(check.status, 1) << check.err;
+    EXPECT_EQ(readPixels8(path("plot.png")).width, ContactSheetLayout({64, 64, 8}).width);
+    EXPECT_EQ(expectInputError({"check", "tile.exr", "--plot", "plot.tif"}, "plot.tif", {"--plot", ".png"}).status, 2);
+}
+
 TEST_F(ViewCommand, PreviewOfTheChainMailTileIsWritten) {
     ASSERT_EQ(run({"bake", "chainmail", "--size", "64x64x8", "-o", "tile.exr"}).status, 0);
     const RunResult preview = run({"preview", "tile.exr", "-o", "preview.png"});

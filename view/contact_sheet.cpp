@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <glm/common.hpp>
 #include <stdexcept>
+#include <vector>
 
 #include "common/atomic_file.h"
 #include "common/error.h"
@@ -177,6 +178,36 @@ bool writeTilePreview(const Tile& tile, const fs::path& file) {
     options.rangeTexels = range > 0.0f ? range : 1.0f;
     options.barTitle = "distance, texels";
     return writeContactSheet(distances, tile.size(), options, file);
+}
+
+bool writeTileErrorPlot(const Tile& tile, const std::function<double(const glm::dvec3&)>& truth,
+                        double truthClampTexels, const fs::path& file) {
+    const Size3& size = tile.size();
+    std::vector<float> errors(size.texelCount());
+    std::vector<float> truths(size.texelCount());
+    float largest = 0.0f;
+    std::size_t index = 0;
+    for (int z = 0; z < size.depth; ++z) {
+        for (int y = 0; y < size.height; ++y) {
+            for (int x = 0; x < size.width; ++x, ++index) {
+                const double exact = truth({x + 0.5, y + 0.5, z + 0.5});
+                if (std::isnan(exact)) {
+                    throw std::runtime_error("the truth is NaN at texel (" + std::to_string(x) +
+                                             ", " + std::to_string(y) + ", " + std::to_string(z) +
+                                             ")");
+                }
+                truths[index] = float(exact);
+                const double clamped = std::clamp(exact, -truthClampTexels, truthClampTexels);
+                errors[index] = float(double(tile.at(x, y, z)) - clamped);
+                largest = std::max(largest, std::abs(errors[index]));
+            }
+        }
+    }
+    ContactSheetOptions options;
+    options.rangeTexels = largest > 0.0f ? largest : 1.0f;
+    options.barTitle = "tile - truth, texels";
+    options.contourField = truths;
+    return writeContactSheet(errors, size, options, file);
 }
 
 }  // namespace distile

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <glm/vec3.hpp>
 #include <span>
 #include <string>
@@ -41,7 +42,7 @@ struct ContactSheetLayout {
     int margin = 8;       ///< around and between cells
     int labelHeight = 18; ///< above each cell
     int barWidth = 24;    ///< the colour bar, right of the cells
-    int barLabelWidth = 96;
+    int barLabelWidth = 128;
     int width = 0;        ///< of the whole picture
     int height = 0;
 
@@ -84,5 +85,13 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
 
 /// `distile preview`: the tile's distances, the map's range the tile's largest |distance|.
 bool writeTilePreview(const Tile& tile, const std::filesystem::path& file);
+
+/// `distile check --plot`: where the tile errs. Each texel shows tile - truth at its centre (red:
+/// the tile overestimates, blue: it underestimates), the truth clamped to [-truthClampTexels,
+/// truthClampTexels] (the band the tile holds), the map's range the largest |error|; the zero
+/// contour is the truth's surface. `truth` is called on this thread only, once per texel, in tile
+/// order. Throws as writeContactSheet, and std::runtime_error when the truth returns NaN.
+bool writeTileErrorPlot(const Tile& tile, const std::function<double(const glm::dvec3&)>& truth,
+                        double truthClampTexels, const std::filesystem::path& file);
 
 }  // namespace distile
