@@ -64,8 +64,8 @@ using ViewCommand = Cli;
 // the CPU renderer draws the same view (data/scenes/sheet.json's plane, uv scale and depth) with
 // its depth AOV. Both march the same tile the same way, so they agree up to the half-float
 // storage of the page's tile (relative 2^-11, 0.004 texel at the 7-texel largest distance)
-// against the renderer's 16-bit codes, float rounding on two machines, and the ray's pixel
-// centre. A ray whose march ends within epsilon (0.02 texel) of the surface ends within
+// against the renderer's 16-bit codes (the signed PNG's codes: steps of 2 x 7.2 / 65535 texel),
+// float rounding on two machines, and the ray's pixel centre. A ray whose march ends within epsilon (0.02 texel) of the surface ends within
 // 0.02 / cos(angle to the normal) along it; where the rounding tips one comparison of the march
 // (a sample just below or above epsilon, a step landing inside or not), the two part by up to a
 // step of the budgeted march (about a texel at grazing angles). So: 99 % of the pixels that both
@@ -88,68 +88,77 @@ TEST_F(ViewCommand, ShaderPageAgreesWithTheCpuRenderInChromium) {
     const RunResult view = run({"view", "tile.exr", "-o", "tile.html"});
     ASSERT_EQ(view.status, 0) << view.err;
 
-    const std::string url = "file://" + path("tile.html").string() +
-                            "?object=plane&eye=0,-2.1,1.47&target=0,0,0&up=0,0,1&fov=40"
-                            "&plane_size=4&uv_scale=4,4&depth=0.0625&output=depth&depth_range=16";
-    // SwiftShader: Chromium's software WebGL2, the same on every machine.
-    const std::string flags =
-        " --headless=new --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader"
-        " --hide-scrollbars --force-device-scale-factor=1 --user-data-dir=" +
-        shellQuote(path("profile").string()) + " --window-size=" + std::to_string(kWidth) + "," +
-        std::to_string(kHeight);
-    const std::string screenshot = "timeout 60 " + shellQuote(browser.string()) + flags +
-                                   " --screenshot=" + shellQuote(path("gpu.png").string()) + " " +
-                                   shellQuote(url) + " >/dev/null 2>" +
-                                   shellQuote(path("chromium.log").string());
-    ASSERT_EQ(std::system(screenshot.c_str()), 0) << readText(path("chromium.log"));
-    ASSERT_TRUE(fs::exists(path("gpu.png"))) << readText(path("chromium.log"));
-
-    const Pixels gpu = readPixels8(path("gpu.png"));
     int width = 0, height = 0;
     const std::vector<float> cpuDepth = readChannel0(path("cpu.depth.exr"), width, height);
     const std::vector<float> texelScale = readChannel0(path("cpu.texel_scale.exr"), width, height);
-    ASSERT_EQ(gpu.width, kWidth);
-    ASSERT_EQ(gpu.height, kHeight);
     ASSERT_EQ(width, kWidth);
-    int bothHit = 0, coverageMismatch = 0, within = 0, withinHundredth = 0, gpuHits = 0;
-    double sumTexels = 0.0;
-    for (int y = 0; y < kHeight; ++y) {
-        for (int x = 0; x < kWidth; ++x) {
-            const std::uint8_t* rgb = gpu.at(x, y);
-            const double code = double(rgb[0]) * 65536.0 + double(rgb[1]) * 256.0 + rgb[2];
-            const double gpuDepth = code / 16777215.0 * 16.0;
-            const std::size_t index = std::size_t(y) * kWidth + x;
-            const bool gpuHit = code > 0.0, cpuHit = cpuDepth[index] > 0.0f;
-            gpuHits += gpuHit;
-            if (gpuHit != cpuHit) ++coverageMismatch;
-            if (!gpuHit || !cpuHit) continue;
-            ++bothHit;
-            const double texels = std::abs(gpuDepth - cpuDepth[index]) * texelScale[index];
-            sumTexels += texels;
-            within += texels <= 0.1;
-            withinHundredth += texels <= 0.01;
+    ASSERT_EQ(height, kHeight);
+    // The tile as half floats (the EXR's), then as the signed 16-bit PNG atlas's codes.
+    for (const std::string texture : {"half", "png16-signed"}) {
+        SCOPED_TRACE("texture=" + texture);
+        const std::string url = "file://" + path("tile.html").string() +
+                                "?object=plane&eye=0,-2.1,1.47&target=0,0,0&up=0,0,1&fov=40"
+                                "&plane_size=4&uv_scale=4,4&depth=0.0625&output=depth"
+                                "&depth_range=16&texture=" + texture;
+        // SwiftShader: Chromium's software WebGL2, the same on every machine.
+        const std::string flags =
+            " --headless=new --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader"
+            " --hide-scrollbars --force-device-scale-factor=1 --user-data-dir=" +
+            shellQuote(path("profile").string()) + " --window-size=" + std::to_string(kWidth) +
+            "," + std::to_string(kHeight);
+        const fs::path shot = path("gpu_" + texture + ".png");
+        const std::string screenshot = "timeout 60 " + shellQuote(browser.string()) + flags +
+                                       " --screenshot=" + shellQuote(shot.string()) + " " +
+                                       shellQuote(url) + " >/dev/null 2>" +
+                                       shellQuote(path("chromium.log").string());
+        ASSERT_EQ(std::system(screenshot.c_str()), 0) << readText(path("chromium.log"));
+        ASSERT_TRUE(fs::exists(shot)) << readText(path("chromium.log"));
+
+        const Pixels gpu = readPixels8(shot);
+        ASSERT_EQ(gpu.width, kWidth);
+        ASSERT_EQ(gpu.height, kHeight);
+        int bothHit = 0, coverageMismatch = 0, within = 0, withinHundredth = 0, gpuHits = 0;
+        double sumTexels = 0.0;
+        for (int y = 0; y < kHeight; ++y) {
+            for (int x = 0; x < kWidth; ++x) {
+                const std::uint8_t* rgb = gpu.at(x, y);
+                const double code = double(rgb[0]) * 65536.0 + double(rgb[1]) * 256.0 + rgb[2];
+                const double gpuDepth = code / 16777215.0 * 16.0;
+                const std::size_t index = std::size_t(y) * kWidth + x;
+                const bool gpuHit = code > 0.0, cpuHit = cpuDepth[index] > 0.0f;
+                gpuHits += gpuHit;
+                if (gpuHit != cpuHit) ++coverageMismatch;
+                if (!gpuHit || !cpuHit) continue;
+                ++bothHit;
+                const double texels = std::abs(gpuDepth - cpuDepth[index]) * texelScale[index];
+                sumTexels += texels;
+                within += texels <= 0.1;
+                withinHundredth += texels <= 0.01;
+            }
         }
+        if (gpuHits == 0) {
+            // Nothing drawn: the page says why in its body's data-status.
+            const std::string dump = "timeout 60 " + shellQuote(browser.string()) + flags +
+                                     " --dump-dom " + shellQuote(url) + " 2>/dev/null";
+            FILE* pipe = popen(dump.c_str(), "r");
+            std::string dom;
+            for (char buffer[4096]; pipe && std::fgets(buffer, sizeof buffer, pipe);) dom += buffer;
+            if (pipe) pclose(pipe);
+            const std::size_t at = dom.find("data-status");
+            FAIL() << "the page drew nothing in Chromium: "
+                   << (at == std::string::npos ? dom.substr(0, 400) : dom.substr(at, 400));
+        }
+        const double pixels = double(kWidth) * kHeight;
+        std::printf("shader (%s) vs CPU depth: %d pixels both hit, %.4f %% coverage mismatch, "
+                    "%.3f %% within 0.1 texel, %.3f %% within 0.01 texel, mean |difference| "
+                    "%.4f texel\n",
+                    texture.c_str(), bothHit, 100.0 * coverageMismatch / pixels,
+                    100.0 * within / bothHit, 100.0 * withinHundredth / bothHit,
+                    sumTexels / bothHit);
+        EXPECT_GT(bothHit, int(0.7 * pixels));  // the sheet fills the lower 80 % of the view
+        EXPECT_LE(coverageMismatch, 0.005 * pixels);
+        EXPECT_GE(within, 0.99 * bothHit);
     }
-    if (gpuHits == 0) {
-        // Nothing drawn: the page says why in its body's data-status.
-        const std::string dump = "timeout 60 " + shellQuote(browser.string()) + flags +
-                                 " --dump-dom " + shellQuote(url) + " 2>/dev/null";
-        FILE* pipe = popen(dump.c_str(), "r");
-        std::string dom;
-        for (char buffer[4096]; pipe && std::fgets(buffer, sizeof buffer, pipe);) dom += buffer;
-        if (pipe) pclose(pipe);
-        const std::size_t at = dom.find("data-status");
-        FAIL() << "the page drew nothing in Chromium: "
-               << (at == std::string::npos ? dom.substr(0, 400) : dom.substr(at, 400));
-    }
-    const double pixels = double(kWidth) * kHeight;
-    std::printf("shader vs CPU depth: %d pixels both hit, %.4f %% coverage mismatch, %.3f %% within "
-                "0.1 texel, %.3f %% within 0.01 texel, mean |difference| %.4f texel\n",
-                bothHit, 100.0 * coverageMismatch / pixels, 100.0 * within / bothHit,
-                100.0 * withinHundredth / bothHit, sumTexels / bothHit);
-    EXPECT_GT(bothHit, int(0.7 * pixels));  // the sheet fills the lower 80 % of the view
-    EXPECT_LE(coverageMismatch, 0.005 * pixels);
-    EXPECT_GE(within, 0.99 * bothHit);
 }
 
 /// Pixel (x, y) of an 8-bit RGB picture as colour components in [0, 1].

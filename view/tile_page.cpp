@@ -12,6 +12,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "sampler/occupancy.h"
+#include "sampler/tile_io.h"
 
 namespace distile {
 
@@ -136,6 +137,7 @@ std::string tilePageHtml(const Tile& tile, const std::string& title, const TileP
         occupancy.hasEmptySpace() ? occupancy.highestTopTexels() : float(size.depth);
     const nlohmann::json tileJson = {{"size", {size.width, size.height, size.depth}},
                                      {"highestTopTexels", highestTop},
+                                     {"signedRangeTexels", signedPngRangeTexels(tile)},
                                      {"halfFloatsBase64", base64(bytes.data(), bytes.size())}};
     const nlohmann::json viewJson = {
         {"object", view.object},
