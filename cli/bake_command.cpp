@@ -317,8 +317,7 @@ void runBake(const BakeArguments& arguments) {
     if (!arguments.png16Output.empty())
         std::printf("16-bit PNG atlas written to %s\n", arguments.png16Output.c_str());
     if (!arguments.png16SignedOutput.empty()) {
-        std::printf("signed 16-bit PNG atlas written to %s\n",
-                    arguments.png16SignedOutput.c_str());
+        std::printf("signed 16-bit PNG atlas written to %s\n", arguments.png16SignedOutput.c_str());
     }
     if (repeatedLevelSet) {
         std::printf("level set tiled %dx%d (%s texels, %zu active voxels) written to %s\n",

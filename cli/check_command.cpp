@@ -25,10 +25,10 @@
 #include "sampler/tile_error.h"
 #include "sampler/tile_io.h"
 #include "truth/mesh_truth.h"
-#include "view/contact_sheet.h"
 #include "vdb/level_set.h"
 #include "vdb/procedural.h"
 #include "vdb/vdb_volume.h"
+#include "view/contact_sheet.h"
 
 namespace distile::cli {
 
@@ -104,10 +104,11 @@ void printReport(const CheckArguments& arguments, const std::string& against,
         "  overestimates beyond %.3f: %d (%.4f%%), largest %.4f; sign errors (|d| > 1): %d\n",
         arguments.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
         report.maxOverestimateTexels, report.signErrors);
-    std::printf("  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
-                "inside it\n",
-                bandTexels, bandDeclared ? "declared by the tile" : "not declared: the tile depth",
-                100.0 * report.bandShare);
+    std::printf(
+        "  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
+        "inside it\n",
+        bandTexels, bandDeclared ? "declared by the tile" : "not declared: the tile depth",
+        100.0 * report.bandShare);
     if (passed) {
         std::printf("passed\n");
     } else {
@@ -333,11 +334,13 @@ void runCheck(CheckArguments arguments) {
         const bool labelled = writeTileErrorPlot(tile, truth, bandTexels, plot);
         outputs.commit();
         if (!labelled) {
-            std::fprintf(stderr, "distile: warning: --plot: the labels were left out: no DejaVu "
-                                 "Sans font (Debian: fonts-dejavu-core)\n");
+            std::fprintf(stderr,
+                         "distile: warning: --plot: the labels were left out: no DejaVu "
+                         "Sans font (Debian: fonts-dejavu-core)\n");
         }
         if (!arguments.json)
-            std::printf("error plot (tile - truth per texel) written to %s\n", arguments.plot.c_str());
+            std::printf("error plot (tile - truth per texel) written to %s\n",
+                        arguments.plot.c_str());
     }
     if (!failures.empty()) {
         std::fflush(stdout);

@@ -92,8 +92,7 @@ void addViewCommands(CLI::App& app) {
     command->add_option("--depth", view->view.depthWorld, "Shell depth on the plane, world units")
         ->capture_default_str();
     command
-        ->add_option("--sphere-uv-scale", view->sphereUvScale,
-                     "Tile repeats over the sphere, U V")
+        ->add_option("--sphere-uv-scale", view->sphereUvScale, "Tile repeats over the sphere, U V")
         ->expected(2);
     command
         ->add_option("--sphere-depth", view->view.sphereDepthWorld,

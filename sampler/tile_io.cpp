@@ -376,7 +376,8 @@ Tile readTileExr(const fs::path& file) {
         tile.provenance.halfBandTexels =
             band->type() == OIIO::TypeDesc::FLOAT ? band->get_float() : -1.0;
         if (const std::string problem = bandProblem(tile); !problem.empty())
-            throw FormatError(file.string() + ": " + problem + "; the file was modified or corrupted");
+            throw FormatError(file.string() + ": " + problem +
+                              "; the file was modified or corrupted");
     }
     // Optional: tiles baked from a file name it, relative to the tile's folder.
     const std::string sourceFile = spec.get_string_attribute("distile:source_file");
@@ -414,7 +415,8 @@ void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
         throw InputError(file.string() + ": PNG bit depth " + std::to_string(bitsPerChannel) +
                          " is not accepted; use 8 or 16");
     }
-    requirePngExport(tile, file, [](float d) { return std::isnan(d); }, "NaN");
+    requirePngExport(
+        tile, file, [](float d) { return std::isnan(d); }, "NaN");
     const auto distances = tile.distancesTexels();
     const Size3& size = tile.size();
     const float depthTexels = float(size.depth);
@@ -457,7 +459,8 @@ float signedPngRangeTexels(const Tile& tile) {
 }
 
 void writeSignedTilePng(const Tile& tile, const fs::path& file) {
-    requirePngExport(tile, file, [](float d) { return !std::isfinite(d); }, "not finite");
+    requirePngExport(
+        tile, file, [](float d) { return !std::isfinite(d); }, "not finite");
     const Size3& size = tile.size();
     const float range = signedPngRangeTexels(tile);
     const auto distances = tile.distancesTexels();

@@ -320,9 +320,11 @@ TEST_F(SamplerIo, DeclaredBandRoundTripsAndBoundsTheDistances) {
     Tile huge = patternTile({16, 16, 4});
     huge.at(5, 0, 0) = 12.0f;  // no band declared: any distance a bake of its size could make
     writeTileExr(huge, path("huge.exr"));
-    rewriteRaw(path("huge.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 4.0f); });
+    rewriteRaw(path("huge.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 4.0f); });
     EXPECT_NE(formatErrorMessage(path("huge.exr")).find("outside the band"), std::string::npos);
-    rewriteRaw(path("tile.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", -1.0f); });
+    rewriteRaw(path("tile.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:band_texels", -1.0f); });
     EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:band_texels"), std::string::npos);
 }
 
@@ -441,7 +443,7 @@ TEST_F(SamplerIo, SignedPngRoundTripIsWithinOneStep) {
         }
     }
     EXPECT_LE(largestError, 0.5 * step + 1e-6);
-    EXPECT_EQ(raw.at(size.width + 3, 2), 0.0f);                           // -R: code 0
+    EXPECT_EQ(raw.at(size.width + 3, 2), 0.0f);                          // -R: code 0
     EXPECT_NEAR(raw.at(size.width + 4, 2), 32768.0f / 65535.0f, 1e-7f);  // 0: the middle code
 }
 

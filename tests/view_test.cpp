@@ -1,8 +1,7 @@
 // Pictures of a tile: the reference shader's page in headless Chromium against the CPU renderer,
 // the contact sheet's colours, contour and colour bar, and the commands' refusals.
-#include <gtest/gtest.h>
-
 #include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
@@ -65,12 +64,13 @@ using ViewCommand = Cli;
 // its depth AOV. Both march the same tile the same way, so they agree up to the half-float
 // storage of the page's tile (relative 2^-11, 0.004 texel at the 7-texel largest distance)
 // against the renderer's 16-bit codes (the signed PNG's codes: steps of 2 x 7.2 / 65535 texel),
-// float rounding on two machines, and the ray's pixel centre. A ray whose march ends within epsilon (0.02 texel) of the surface ends within
-// 0.02 / cos(angle to the normal) along it; where the rounding tips one comparison of the march
-// (a sample just below or above epsilon, a step landing inside or not), the two part by up to a
-// step of the budgeted march (about a texel at grazing angles). So: 99 % of the pixels that both
-// hit lie within 0.1 texel along the ray, and at most 0.5 % of pixels are hit in one picture
-// and missed in the other (the plane's edge against the sky, a pixel wide).
+// float rounding on two machines, and the ray's pixel centre. A ray whose march ends within epsilon
+// (0.02 texel) of the surface ends within 0.02 / cos(angle to the normal) along it; where the
+// rounding tips one comparison of the march (a sample just below or above epsilon, a step landing
+// inside or not), the two part by up to a step of the budgeted march (about a texel at grazing
+// angles). So: 99 % of the pixels that both hit lie within 0.1 texel along the ray, and at most 0.5
+// % of pixels are hit in one picture and missed in the other (the plane's edge against the sky, a
+// pixel wide).
 TEST_F(ViewCommand, ShaderPageAgreesWithTheCpuRenderInChromium) {
     const fs::path browser = chromium();
     if (browser.empty()) GTEST_SKIP() << "chromium is not installed (Debian: chromium)";
@@ -81,9 +81,9 @@ TEST_F(ViewCommand, ShaderPageAgreesWithTheCpuRenderInChromium) {
       "lights": [{"direction": [-0.4, 0.3, -1.0]}],
       "objects": [{"mesh": "plane", "transform": {"scale": 2.0},
                    "material": {"tile": "tile.exr", "uv_scale": [4, 4], "depth": 0.0625}}]})");
-    const RunResult render = run({"render", "sheet.json", "-o", "cpu.png", "--width",
-                                  std::to_string(kWidth), "--height", std::to_string(kHeight),
-                                  "--no-shadows", "--aovs"});
+    const RunResult render =
+        run({"render", "sheet.json", "-o", "cpu.png", "--width", std::to_string(kWidth), "--height",
+             std::to_string(kHeight), "--no-shadows", "--aovs"});
     ASSERT_EQ(render.status, 0) << render.err;
     const RunResult view = run({"view", "tile.exr", "-o", "tile.html"});
     ASSERT_EQ(view.status, 0) << view.err;
@@ -99,7 +99,8 @@ TEST_F(ViewCommand, ShaderPageAgreesWithTheCpuRenderInChromium) {
         const std::string url = "file://" + path("tile.html").string() +
                                 "?object=plane&eye=0,-2.1,1.47&target=0,0,0&up=0,0,1&fov=40"
                                 "&plane_size=4&uv_scale=4,4&depth=0.0625&output=depth"
-                                "&depth_range=16&texture=" + texture;
+                                "&depth_range=16&texture=" +
+                                texture;
         // SwiftShader: Chromium's software WebGL2, the same on every machine.
         const std::string flags =
             " --headless=new --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader"
@@ -149,12 +150,12 @@ TEST_F(ViewCommand, ShaderPageAgreesWithTheCpuRenderInChromium) {
                    << (at == std::string::npos ? dom.substr(0, 400) : dom.substr(at, 400));
         }
         const double pixels = double(kWidth) * kHeight;
-        std::printf("shader (%s) vs CPU depth: %d pixels both hit, %.4f %% coverage mismatch, "
-                    "%.3f %% within 0.1 texel, %.3f %% within 0.01 texel, mean |difference| "
-                    "%.4f texel\n",
-                    texture.c_str(), bothHit, 100.0 * coverageMismatch / pixels,
-                    100.0 * within / bothHit, 100.0 * withinHundredth / bothHit,
-                    sumTexels / bothHit);
+        std::printf(
+            "shader (%s) vs CPU depth: %d pixels both hit, %.4f %% coverage mismatch, "
+            "%.3f %% within 0.1 texel, %.3f %% within 0.01 texel, mean |difference| "
+            "%.4f texel\n",
+            texture.c_str(), bothHit, 100.0 * coverageMismatch / pixels, 100.0 * within / bothHit,
+            100.0 * withinHundredth / bothHit, sumTexels / bothHit);
         EXPECT_GT(bothHit, int(0.7 * pixels));  // the sheet fills the lower 80 % of the view
         EXPECT_LE(coverageMismatch, 0.005 * pixels);
         EXPECT_GE(within, 0.99 * bothHit);
@@ -178,12 +179,14 @@ Tile ballTile() {
     for (int z = 0; z < 2; ++z)
         for (int y = 0; y < 16; ++y)
             for (int x = 0; x < 32; ++x)
-                tile.at(x, y, z) = std::hypot(float(x) - 10.0f, float(y) - 4.0f, float(z) - 0.5f) - 5.0f;
+                tile.at(x, y, z) =
+                    std::hypot(float(x) - 10.0f, float(y) - 4.0f, float(z) - 0.5f) - 5.0f;
     return tile;
 }
 
 TEST(ContactSheet, InsideIsBlueOutsideRedContourBlackAndYIsUp) {
-    const fs::path file = fs::temp_directory_path() / ("distile_sheet_" + std::to_string(::getpid()) + ".png");
+    const fs::path file =
+        fs::temp_directory_path() / ("distile_sheet_" + std::to_string(::getpid()) + ".png");
     const Tile tile = ballTile();
     writeTilePreview(tile, file);
     const Pixels sheet = readPixels8(file);
@@ -191,7 +194,7 @@ TEST(ContactSheet, InsideIsBlueOutsideRedContourBlackAndYIsUp) {
     const ContactSheetLayout layout(tile.size());
     ASSERT_EQ(sheet.width, layout.width);
     ASSERT_EQ(sheet.height, layout.height);
-    EXPECT_EQ(layout.magnify, 8);  // 256 / 32
+    EXPECT_EQ(layout.magnify, 8);                               // 256 / 32
     const float range = std::hypot(21.0f, 11.0f, 0.5f) - 5.0f;  // largest |distance|: (31, 15, z)
     // The ball's centre texel (10, 4): deep inside, on the blue side; its colour is the map's.
     const glm::vec3 centre = colorAt(sheet, layout.pixelX(0, 10), layout.pixelY(0, 4));
@@ -205,13 +208,15 @@ TEST(ContactSheet, InsideIsBlueOutsideRedContourBlackAndYIsUp) {
     // on the contour, 13 is not.
     ASSERT_LT(tile.at(14, 4, 0), 0.0f);
     ASSERT_GT(tile.at(15, 4, 0), 0.0f);
-    expectColor(colorAt(sheet, layout.pixelX(0, 14), layout.pixelY(0, 4)), kContourColor, "contour");
+    expectColor(colorAt(sheet, layout.pixelX(0, 14), layout.pixelY(0, 4)), kContourColor,
+                "contour");
     EXPECT_NE(colorAt(sheet, layout.pixelX(0, 13), layout.pixelY(0, 4)), kContourColor);
     // y up: texel row y = 0 is the cell's bottom pixel row, y = 15 its top one.
     EXPECT_EQ(layout.pixelY(0, 0) + layout.magnify, layout.cellTop(0) + layout.cellHeight);
     EXPECT_EQ(layout.pixelY(0, 15), layout.cellTop(0));
     // The colour bar's ends: +range on top (the map's red end), -range at the bottom.
-    expectColor(colorAt(sheet, layout.barLeft() + 4, layout.barTop()), divergingColor(1.0f), "bar top");
+    expectColor(colorAt(sheet, layout.barLeft() + 4, layout.barTop()), divergingColor(1.0f),
+                "bar top");
     expectColor(colorAt(sheet, layout.barLeft() + 4, layout.barBottom()), divergingColor(-1.0f),
                 "bar bottom");
 }
@@ -227,7 +232,8 @@ TEST(ContactSheet, DivergingMapIsWhiteAtZeroAndClampedBeyondItsEnds) {
 // A tile exact but for one texel: the plot shows that texel at the map's red end (the largest
 // error, an overestimate) and the others at its white middle.
 TEST(ContactSheet, ErrorPlotShowsWhereTheTileErrs) {
-    const fs::path file = fs::temp_directory_path() / ("distile_plot_" + std::to_string(::getpid()) + ".png");
+    const fs::path file =
+        fs::temp_directory_path() / ("distile_plot_" + std::to_string(::getpid()) + ".png");
     Tile tile = ballTile();
     tile.at(20, 8, 1) += 0.5f;
     const auto truth = [](const glm::dvec3& p) {
@@ -251,7 +257,10 @@ TEST_F(ViewCommand, CheckPlotIsWrittenBesideTheReport) {
     const RunResult check = run({"check", "tile.exr", "--samples", "1000", "--plot", "plot.png"});
     ASSERT_EQ(check.status, 1) << check.err;
     EXPECT_EQ(readPixels8(path("plot.png")).width, ContactSheetLayout({64, 64, 8}).width);
-    EXPECT_EQ(expectInputError({"check", "tile.exr", "--plot", "plot.tif"}, "plot.tif", {"--plot", ".png"}).status, 2);
+    EXPECT_EQ(expectInputError({"check", "tile.exr", "--plot", "plot.tif"}, "plot.tif",
+                               {"--plot", ".png"})
+                  .status,
+              2);
 }
 
 TEST_F(ViewCommand, PreviewOfTheChainMailTileIsWritten) {
@@ -266,15 +275,33 @@ TEST_F(ViewCommand, PreviewOfTheChainMailTileIsWritten) {
 TEST_F(ViewCommand, BadInputIsRefusedWithoutOutput) {
     ASSERT_EQ(run({"bake", "chainmail", "--size", "32x32x4", "-o", "tile.exr"}).status, 0);
     writeText(path("broken.exr"), "not an exr");
-    EXPECT_EQ(expectInputError({"view", "absent.exr", "-o", "page.html"}, "page.html", {"absent.exr"}).status, 2);
-    EXPECT_EQ(expectInputError({"view", "broken.exr", "-o", "page.html"}, "page.html", {"broken.exr"}).status, 2);
-    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.png"}, "page.png", {"-o", ".html"}).status, 2);
-    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.html", "--object", "cube"}, "page.html",
-                               {"--object", "cube", "plane or sphere"}).status, 2);
-    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.html", "--depth", "-1"}, "page.html",
-                               {"--depth", "> 0"}).status, 2);
-    EXPECT_EQ(expectInputError({"preview", "broken.exr", "-o", "sheet.png"}, "sheet.png", {"broken.exr"}).status, 2);
-    EXPECT_EQ(expectInputError({"preview", "tile.exr", "-o", "sheet.jpg"}, "sheet.jpg", {"-o", ".png"}).status, 2);
+    EXPECT_EQ(
+        expectInputError({"view", "absent.exr", "-o", "page.html"}, "page.html", {"absent.exr"})
+            .status,
+        2);
+    EXPECT_EQ(
+        expectInputError({"view", "broken.exr", "-o", "page.html"}, "page.html", {"broken.exr"})
+            .status,
+        2);
+    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.png"}, "page.png", {"-o", ".html"})
+                  .status,
+              2);
+    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.html", "--object", "cube"},
+                               "page.html", {"--object", "cube", "plane or sphere"})
+                  .status,
+              2);
+    EXPECT_EQ(expectInputError({"view", "tile.exr", "-o", "page.html", "--depth", "-1"},
+                               "page.html", {"--depth", "> 0"})
+                  .status,
+              2);
+    EXPECT_EQ(
+        expectInputError({"preview", "broken.exr", "-o", "sheet.png"}, "sheet.png", {"broken.exr"})
+            .status,
+        2);
+    EXPECT_EQ(
+        expectInputError({"preview", "tile.exr", "-o", "sheet.jpg"}, "sheet.jpg", {"-o", ".png"})
+            .status,
+        2);
 }
 
 // The page holds the shader as shipped and the whole tile: the half floats of its distances.

@@ -114,8 +114,8 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
     auto at = [&](std::span<const float> field, int x, int y, int z) {
         x = (x % size.width + size.width) % size.width;  // periodic neighbours
         y = (y % size.height + size.height) % size.height;
-        return field[std::size_t(x) + std::size_t(size.width) * (std::size_t(y) +
-                                                                 std::size_t(size.height) * z)];
+        return field[std::size_t(x) +
+                     std::size_t(size.width) * (std::size_t(y) + std::size_t(size.height) * z)];
     };
     for (int z = 0; z < size.depth; ++z) {
         for (int y = 0; y < size.height; y += layout.stride) {
@@ -123,10 +123,9 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
                 const bool inside = at(contour, x, y, z) < 0.0f;
                 // A contour texel: inside, with a neighbour outside (one line, on the inner side).
                 const bool onContour =
-                    inside && (!(at(contour, x + 1, y, z) < 0.0f) ||
-                               !(at(contour, x - 1, y, z) < 0.0f) ||
-                               !(at(contour, x, y + 1, z) < 0.0f) ||
-                               !(at(contour, x, y - 1, z) < 0.0f));
+                    inside &&
+                    (!(at(contour, x + 1, y, z) < 0.0f) || !(at(contour, x - 1, y, z) < 0.0f) ||
+                     !(at(contour, x, y + 1, z) < 0.0f) || !(at(contour, x, y - 1, z) < 0.0f));
                 const glm::vec3 color =
                     onContour ? kContourColor
                               : divergingColor(at(values, x, y, z) / options.rangeTexels);
@@ -163,8 +162,8 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
         OIIO::ImageBuf encoded = picture;
         encoded.specmod().attribute("oiio:ColorSpace", "sRGB");
         if (!encoded.write(temporary.string(), OIIO::TypeDesc::UINT8)) {
-            throw std::runtime_error(file.string() + ": cannot write the picture: " +
-                                     encoded.geterror());
+            throw std::runtime_error(file.string() +
+                                     ": cannot write the picture: " + encoded.geterror());
         }
     });
     return labelled;

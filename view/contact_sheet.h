@@ -32,18 +32,18 @@ inline constexpr glm::vec3 kContourColor{0.0f, 0.0f, 0.0f};
 /// Where a contact sheet puts things, in pixels (x right, y down from the top left).
 struct ContactSheetLayout {
     static constexpr int kCellTargetPixels = 256;
-    Size3 size;           ///< of the field drawn
-    int cols = 1;         ///< cells per row (the atlas grid's)
+    Size3 size;    ///< of the field drawn
+    int cols = 1;  ///< cells per row (the atlas grid's)
     int rows = 1;
-    int magnify = 1;      ///< pixels per texel (>= 1)
-    int stride = 1;       ///< texels per pixel (>= 1; magnify or stride is 1)
-    int cellWidth = 0;    ///< pixels
+    int magnify = 1;    ///< pixels per texel (>= 1)
+    int stride = 1;     ///< texels per pixel (>= 1; magnify or stride is 1)
+    int cellWidth = 0;  ///< pixels
     int cellHeight = 0;
-    int margin = 8;       ///< around and between cells
-    int labelHeight = 18; ///< above each cell
-    int barWidth = 24;    ///< the colour bar, right of the cells
+    int margin = 8;        ///< around and between cells
+    int labelHeight = 18;  ///< above each cell
+    int barWidth = 24;     ///< the colour bar, right of the cells
     int barLabelWidth = 128;
-    int width = 0;        ///< of the whole picture
+    int width = 0;  ///< of the whole picture
     int height = 0;
 
     /// The layout for a field of `size`.

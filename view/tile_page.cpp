@@ -44,11 +44,20 @@ std::string htmlEscaped(const std::string& text) {
     std::string escaped;
     for (char c : text) {
         switch (c) {
-            case '<': escaped += "&lt;"; break;
-            case '>': escaped += "&gt;"; break;
-            case '&': escaped += "&amp;"; break;
-            case '"': escaped += "&quot;"; break;
-            default: escaped += c;
+            case '<':
+                escaped += "&lt;";
+                break;
+            case '>':
+                escaped += "&gt;";
+                break;
+            case '&':
+                escaped += "&amp;";
+                break;
+            case '"':
+                escaped += "&quot;";
+                break;
+            default:
+                escaped += c;
         }
     }
     return escaped;
@@ -78,8 +87,8 @@ void requireFinite(const std::string& field, std::initializer_list<float> values
 
 void requirePositive(const std::string& field, float value) {
     if (!(std::isfinite(value) && value > 0.0f)) {
-        throw InputError::inField(field, std::to_string(value) +
-                                             " is not accepted; it must be finite and > 0");
+        throw InputError::inField(
+            field, std::to_string(value) + " is not accepted; it must be finite and > 0");
     }
 }
 
@@ -95,8 +104,8 @@ void validateView(const TilePageView& view) {
                   {view.lightDirection.x, view.lightDirection.y, view.lightDirection.z});
     requireFinite("color", {view.color.r, view.color.g, view.color.b});
     if (!(view.fovDeg > 0.0f && view.fovDeg < 180.0f)) {
-        throw InputError::inField("fovDeg", std::to_string(view.fovDeg) +
-                                                " is not accepted; it must be in (0, 180)");
+        throw InputError::inField(
+            "fovDeg", std::to_string(view.fovDeg) + " is not accepted; it must be in (0, 180)");
     }
     requirePositive("planeSizeWorld", view.planeSizeWorld);
     requirePositive("uvScale.x", view.uvScale.x);
@@ -107,7 +116,9 @@ void validateView(const TilePageView& view) {
     requirePositive("sphereDepthWorld", view.sphereDepthWorld);
 }
 
-nlohmann::json vector3(const glm::vec3& v) { return {v.x, v.y, v.z}; }
+nlohmann::json vector3(const glm::vec3& v) {
+    return {v.x, v.y, v.z};
+}
 
 }  // namespace
 
