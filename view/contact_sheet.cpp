@@ -170,13 +170,10 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
 }
 
 bool writeTilePreview(const Tile& tile, const fs::path& file) {
-    const std::span<const float> distances = tile.distancesTexels();
-    float range = 0.0f;
-    for (float distance : distances) range = std::max(range, std::abs(distance));
     ContactSheetOptions options;
-    options.rangeTexels = range > 0.0f ? range : 1.0f;
+    options.rangeTexels = signedPngRangeTexels(tile);  // the largest |distance| (1 for zeros)
     options.barTitle = "distance, texels";
-    return writeContactSheet(distances, tile.size(), options, file);
+    return writeContactSheet(tile.distancesTexels(), tile.size(), options, file);
 }
 
 bool writeTileErrorPlot(const Tile& tile, const std::function<double(const glm::dvec3&)>& truth,
