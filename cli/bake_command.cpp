@@ -39,6 +39,7 @@ struct BakeArguments {
     GratingOptions grating;
     fs::path png8Output;
     fs::path png16Output;
+    fs::path png16SignedOutput;
     std::string repeat;
     bool exactTexels = false;
     /// Chain-mail options given on the command line (the others take the weave's defaults).
@@ -57,7 +58,7 @@ struct BakeArguments {
 /// The files a bake writes: the temporary path of each output given (empty when not given).
 struct BakeOutputs {
     OutputFiles files;
-    fs::path tile, vdb, png8, png16;
+    fs::path tile, vdb, png8, png16, png16Signed;
 };
 
 /// How `bake mesh` places the mesh: --fit (default) or --scale/--offset.
@@ -248,6 +249,8 @@ void runBake(const BakeArguments& arguments) {
     if (!arguments.vdbOutput.empty()) requireOutput(arguments.vdbOutput, "--vdb", {".vdb"});
     if (!arguments.png8Output.empty()) requireOutput(arguments.png8Output, "--png8", {".png"});
     if (!arguments.png16Output.empty()) requireOutput(arguments.png16Output, "--png16", {".png"});
+    if (!arguments.png16SignedOutput.empty())
+        requireOutput(arguments.png16SignedOutput, "--png16-signed", {".png"});
     std::pair<int, int> repeat{1, 1};
     if (!arguments.repeat.empty()) {
         if (arguments.vdbOutput.empty())
@@ -262,6 +265,8 @@ void runBake(const BakeArguments& arguments) {
         outputs.png8 = outputs.files.add(arguments.png8Output, "--png8");
     if (!arguments.png16Output.empty())
         outputs.png16 = outputs.files.add(arguments.png16Output, "--png16");
+    if (!arguments.png16SignedOutput.empty())
+        outputs.png16Signed = outputs.files.add(arguments.png16SignedOutput, "--png16-signed");
     options.conservative.enabled = !arguments.exactTexels;
 
     const auto start = std::chrono::steady_clock::now();
@@ -299,6 +304,7 @@ void runBake(const BakeArguments& arguments) {
                  arguments.half ? TileStorage::Half16 : TileStorage::Float32);
     if (!outputs.png8.empty()) writeTilePng(result->tile, outputs.png8, 8);
     if (!outputs.png16.empty()) writeTilePng(result->tile, outputs.png16, 16);
+    if (!outputs.png16Signed.empty()) writeSignedTilePng(result->tile, outputs.png16Signed);
     const LevelSet* levelSet = repeatedLevelSet ? &*repeatedLevelSet : &result->levelSet;
     if (!outputs.vdb.empty()) levelSet->save(outputs.vdb);
     outputs.files.commit();
@@ -310,6 +316,9 @@ void runBake(const BakeArguments& arguments) {
         std::printf("8-bit PNG atlas written to %s\n", arguments.png8Output.c_str());
     if (!arguments.png16Output.empty())
         std::printf("16-bit PNG atlas written to %s\n", arguments.png16Output.c_str());
+    if (!arguments.png16SignedOutput.empty()) {
+        std::printf("signed 16-bit PNG atlas written to %s\n", arguments.png16SignedOutput.c_str());
+    }
     if (repeatedLevelSet) {
         std::printf("level set tiled %dx%d (%s texels, %zu active voxels) written to %s\n",
                     repeat.first, repeat.second, toString(levelSet->tileSize()).c_str(),
@@ -393,6 +402,9 @@ void addBakeCommand(CLI::App& app) {
                         "Also write an 8-bit PNG atlas (distance / depth, ch. 8)");
     command->add_option("--png16", arguments->png16Output,
                         "Also write a 16-bit PNG atlas (distance / depth, ch. 8)");
+    command->add_option("--png16-signed", arguments->png16SignedOutput,
+                        "Also write a 16-bit PNG atlas that keeps the sign: 0.5 + distance / 2R, "
+                        "R the largest |distance| (its distile:png_range_texels)");
     command->add_option("--repeat", arguments->repeat,
                         "Write the --vdb level set tiled NxM (world units = texels), N and M in "
                         "[1, 64], at most 2^28 voxels (1 GiB) in all");

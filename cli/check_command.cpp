@@ -19,6 +19,7 @@
 #include "cli/app.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "mesh/detail_mesh.h"
 #include "sampler/tile_error.h"
@@ -27,6 +28,7 @@
 #include "vdb/level_set.h"
 #include "vdb/procedural.h"
 #include "vdb/vdb_volume.h"
+#include "view/contact_sheet.h"
 
 namespace distile::cli {
 
@@ -50,6 +52,7 @@ struct CheckArguments {
     bool allowSignErrors = false;
     std::optional<double> meshScale;
     std::vector<double> meshOffset;
+    fs::path plot;  ///< --plot: where the error lies, as a contact sheet (.png)
 };
 
 }  // namespace
@@ -101,10 +104,11 @@ void printReport(const CheckArguments& arguments, const std::string& against,
         "  overestimates beyond %.3f: %d (%.4f%%), largest %.4f; sign errors (|d| > 1): %d\n",
         arguments.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
         report.maxOverestimateTexels, report.signErrors);
-    std::printf("  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
-                "inside it\n",
-                bandTexels, bandDeclared ? "declared by the tile" : "not declared: the tile depth",
-                100.0 * report.bandShare);
+    std::printf(
+        "  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
+        "inside it\n",
+        bandTexels, bandDeclared ? "declared by the tile" : "not declared: the tile depth",
+        100.0 * report.bandShare);
     if (passed) {
         std::printf("passed\n");
     } else {
@@ -167,6 +171,12 @@ std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, c
 }
 
 void runCheck(CheckArguments arguments) {
+    OutputFiles outputs;
+    fs::path plot;
+    if (!arguments.plot.empty()) {
+        requireOutput(arguments.plot, "--plot", {".png"});
+        plot = outputs.add(arguments.plot, "--plot");
+    }
     const Tile tile = readTileExr(arguments.tile);
     if (!arguments.againstGiven && tile.provenance.source == "vdb") {
         // The level set the tile was baked from (distile:source_file), placed as its params say.
@@ -320,6 +330,18 @@ void runCheck(CheckArguments arguments) {
                            " sign errors more than 1 texel from the surface");
     }
     printReport(arguments, against, report, bandTexels, bandDeclared, failures.empty(), failures);
+    if (!plot.empty()) {
+        const bool labelled = writeTileErrorPlot(tile, truth, bandTexels, plot);
+        outputs.commit();
+        if (!labelled) {
+            std::fprintf(stderr,
+                         "distile: warning: --plot: the labels were left out: no DejaVu "
+                         "Sans font (Debian: fonts-dejavu-core)\n");
+        }
+        if (!arguments.json)
+            std::printf("error plot (tile - truth per texel) written to %s\n",
+                        arguments.plot.c_str());
+    }
     if (!failures.empty()) {
         std::fflush(stdout);
         std::exit(kExitFailure);  // a tolerance is exceeded: the work failed (cli/app.h)
@@ -351,6 +373,9 @@ void addCheckCommand(CLI::App& app) {
     command->add_option("--seed", arguments->seed, "Seed of the sample points")
         ->capture_default_str();
     command->add_flag("--json", arguments->json, "Print the report as one JSON object");
+    command->add_option("--plot", arguments->plot,
+                        "Also draw where the error lies: tile - truth at every texel, slice by "
+                        "slice (.png; red: the tile overestimates)");
     command
         ->add_option(
             "--max-overestimate", arguments->maxOverestimateTexels,

@@ -12,6 +12,8 @@ void addBakeCommand(CLI::App& app);
 void addRenderCommand(CLI::App& app);
 void addCheckCommand(CLI::App& app);
 void addCompareCommand(CLI::App& app);
+/// `view` (a web page of the tile) and `preview` (a contact sheet of its slices).
+void addViewCommands(CLI::App& app);
 /// The benchmarks (bench/bench_command.cpp), in distile-bench.
 void addBenchCommand(CLI::App& app);
 /// `bench` in the `distile` command: runs distile-bench with `argv` (cli/bench_launcher.cpp), or

@@ -9,6 +9,7 @@ int main(int argc, char** argv) {
         distile::cli::addRenderCommand(app);
         distile::cli::addCheckCommand(app);
         distile::cli::addCompareCommand(app);
+        distile::cli::addViewCommands(app);
         distile::cli::addBenchLauncher(app, argv);
     });
 }

@@ -17,6 +17,8 @@ foreach(folder common vdb sampler mesh truth bake render scene)
     install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/distile
             FILES_MATCHING PATTERN "*.h" PATTERN "detail" EXCLUDE)
 endforeach()
+# The reference shader, for engines to copy (docs/shader.md).
+install(FILES ${PROJECT_SOURCE_DIR}/shaders/distile_march.glsl DESTINATION ${CMAKE_INSTALL_DATADIR}/distile)
 install(EXPORT distileTargets NAMESPACE distile:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/distile)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/distileConfig.cmake.in
     ${CMAKE_BINARY_DIR}/distileConfig.cmake INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/distile)

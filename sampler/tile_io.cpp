@@ -376,7 +376,8 @@ Tile readTileExr(const fs::path& file) {
         tile.provenance.halfBandTexels =
             band->type() == OIIO::TypeDesc::FLOAT ? band->get_float() : -1.0;
         if (const std::string problem = bandProblem(tile); !problem.empty())
-            throw FormatError(file.string() + ": " + problem + "; the file was modified or corrupted");
+            throw FormatError(file.string() + ": " + problem +
+                              "; the file was modified or corrupted");
     }
     // Optional: tiles baked from a file name it, relative to the tile's folder.
     const std::string sourceFile = spec.get_string_attribute("distile:source_file");
@@ -388,23 +389,35 @@ Tile readTileExr(const fs::path& file) {
     return tile;
 }
 
-void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
-    if (bitsPerChannel != 8 && bitsPerChannel != 16) {
-        throw InputError(file.string() + ": PNG bit depth " + std::to_string(bitsPerChannel) +
-                         " is not accepted; use 8 or 16");
-    }
+namespace {
+
+/// The checks of every PNG export: the extension, and no distance rejected by `refused`
+/// (described as `what`).
+void requirePngExport(const Tile& tile, const fs::path& file, bool (*refused)(float),
+                      const char* what) {
     if (lowerExtension(file) != ".png") {
         throw InputError(file.string() + ": extension '" + file.extension().string() +
                          "' is not accepted for a PNG export; use .png");
     }
     const auto distances = tile.distancesTexels();
-    const auto nan =
-        std::find_if(distances.begin(), distances.end(), [](float d) { return std::isnan(d); });
-    if (nan != distances.end()) {
+    const auto bad = std::find_if(distances.begin(), distances.end(), refused);
+    if (bad != distances.end()) {
         throw InputError(file.string() + ": distance at " +
-                         texelName(tile.size(), std::size_t(nan - distances.begin())) +
-                         " is NaN; only numbers can be exported");
+                         texelName(tile.size(), std::size_t(bad - distances.begin())) + " is " +
+                         what + "; only finite numbers can be exported");
     }
+}
+
+}  // namespace
+
+void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
+    if (bitsPerChannel != 8 && bitsPerChannel != 16) {
+        throw InputError(file.string() + ": PNG bit depth " + std::to_string(bitsPerChannel) +
+                         " is not accepted; use 8 or 16");
+    }
+    requirePngExport(
+        tile, file, [](float d) { return std::isnan(d); }, "NaN");
+    const auto distances = tile.distancesTexels();
     const Size3& size = tile.size();
     const float depthTexels = float(size.depth);
     const std::uint32_t maxCode = bitsPerChannel == 8 ? 255u : 65535u;
@@ -437,6 +450,42 @@ void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
             writeAtlas(temporary, spec, pixels, OIIO::TypeDesc::UINT16, file);
         });
     }
+}
+
+float signedPngRangeTexels(const Tile& tile) {
+    float range = 0.0f;
+    for (float distance : tile.distancesTexels()) range = std::max(range, std::abs(distance));
+    return range > 0.0f ? range : 1.0f;
+}
+
+void writeSignedTilePng(const Tile& tile, const fs::path& file) {
+    requirePngExport(
+        tile, file, [](float d) { return !std::isfinite(d); }, "not finite");
+    const Size3& size = tile.size();
+    const float range = signedPngRangeTexels(tile);
+    const auto distances = tile.distancesTexels();
+    std::vector<std::uint16_t> codes(distances.size());
+    std::transform(distances.begin(), distances.end(), codes.begin(), [&](float distance) {
+        const double unit = std::clamp(0.5 + double(distance) / (2.0 * double(range)), 0.0, 1.0);
+        return static_cast<std::uint16_t>(std::lround(unit * 65535.0));
+    });
+    const std::uint16_t fill = *std::max_element(codes.begin(), codes.end());
+    const std::vector<std::uint16_t> pixels =
+        toAtlas(size, std::span<const std::uint16_t>(codes), fill);
+    const AtlasPixels atlas = atlasPixels(size);
+    OIIO::ImageSpec spec(atlas.width, atlas.height, 1, OIIO::TypeDesc::UINT16);
+    spec.channelnames = {kChannelName};
+    spec.attribute("oiio:ColorSpace", "Linear");  // data, not colour: no sRGB decoding
+    setTileAttributes(spec, size, tile.provenance, tileHash(tile), file);
+    char rangeText[32];
+    std::snprintf(rangeText, sizeof rangeText, "%.9g", double(range));
+    spec.attribute("distile:units", std::string("0.5 + distance / (2 x ") + rangeText +
+                                        " texels), signed: distance = value x " +
+                                        "2 R - R with R = distile:png_range_texels");
+    spec.attribute("distile:png_range_texels", std::string(rangeText));
+    writeAtomically(file, [&](const fs::path& temporary) {
+        writeAtlas(temporary, spec, pixels, OIIO::TypeDesc::UINT16, file);
+    });
 }
 
 }  // namespace distile

@@ -71,4 +71,17 @@ Tile readTileExr(const std::filesystem::path& file);
 /// the target's folder does not exist.
 void writeTilePng(const Tile& tile, const std::filesystem::path& file, int bitsPerChannel);
 
+/// The half range R (texels) of writeSignedTilePng for `tile`: its largest |distance|, 1 for a
+/// tile of zeros.
+float signedPngRangeTexels(const Tile& tile);
+
+/// Writes `tile` as a 16-bit grey PNG atlas that keeps the sign (same layout as the EXR):
+/// value = 0.5 + distanceTexels / (2 R) with R = signedPngRangeTexels(tile), stored as the nearest
+/// code round(value * 65535), so a reader gets distance = code / 65535 * 2 R - R back within half
+/// a code step (R / 65535 texels); 0 texels is code 32768 (up to rounding), inside the material is
+/// below. R is recorded as the text attribute distile:png_range_texels (and in distile:units);
+/// the rest as writeTilePng. Throws InputError if `file` does not end in .png, if a distance is
+/// not finite, or if the target's folder does not exist.
+void writeSignedTilePng(const Tile& tile, const std::filesystem::path& file);
+
 }  // namespace distile

@@ -320,9 +320,11 @@ TEST_F(SamplerIo, DeclaredBandRoundTripsAndBoundsTheDistances) {
     Tile huge = patternTile({16, 16, 4});
     huge.at(5, 0, 0) = 12.0f;  // no band declared: any distance a bake of its size could make
     writeTileExr(huge, path("huge.exr"));
-    rewriteRaw(path("huge.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 4.0f); });
+    rewriteRaw(path("huge.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 4.0f); });
     EXPECT_NE(formatErrorMessage(path("huge.exr")).find("outside the band"), std::string::npos);
-    rewriteRaw(path("tile.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", -1.0f); });
+    rewriteRaw(path("tile.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:band_texels", -1.0f); });
     EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:band_texels"), std::string::npos);
 }
 
@@ -408,6 +410,49 @@ TEST_F(SamplerIo, PngNormalisesDistanceByTileDepth) {
         EXPECT_EQ(raw.spec.get_string_attribute("distile:size"), "8x8x4");
         EXPECT_EQ(raw.spec.get_string_attribute("distile:source"), tile.provenance.source);
     }
+}
+
+// The signed export keeps the inside: every distance comes back within half a code step
+// (R / 65535 texels, R the largest |distance|), the largest |distance| sits on the end codes and
+// 0 on the middle one.
+TEST_F(SamplerIo, SignedPngRoundTripIsWithinOneStep) {
+    const Size3 size{8, 8, 4};
+    Tile tile(size);
+    for (int z = 0; z < size.depth; ++z)
+        for (int y = 0; y < size.height; ++y)
+            for (int x = 0; x < size.width; ++x)
+                tile.at(x, y, z) = 0.37f * float(x) - 0.61f * float(y) + 0.23f * float(z) - 0.5f;
+    tile.at(3, 2, 1) = -6.5f;  // the largest |distance|: R
+    tile.at(4, 2, 1) = 0.0f;
+    tile.provenance.source = "test:ramp";
+    const float range = signedPngRangeTexels(tile);
+    EXPECT_EQ(range, 6.5f);
+    writeSignedTilePng(tile, path("signed.png"));
+    const RawImage raw = readRaw(path("signed.png"));
+    ASSERT_EQ(raw.spec.format, OIIO::TypeDesc::UINT16);
+    EXPECT_EQ(raw.spec.get_string_attribute("distile:png_range_texels"), "6.5");
+    const float step = 2.0f * range / 65535.0f;
+    double largestError = 0.0;
+    for (int z = 0; z < size.depth; ++z) {
+        const int left = (z % 2) * size.width, top = (z / 2) * size.height;  // 2 x 2 atlas
+        for (int y = 0; y < size.height; ++y) {
+            for (int x = 0; x < size.width; ++x) {
+                const float decoded = raw.at(left + x, top + y) * 2.0f * range - range;
+                largestError = std::max(largestError, double(std::abs(decoded - tile.at(x, y, z))));
+            }
+        }
+    }
+    EXPECT_LE(largestError, 0.5 * step + 1e-6);
+    EXPECT_EQ(raw.at(size.width + 3, 2), 0.0f);                          // -R: code 0
+    EXPECT_NEAR(raw.at(size.width + 4, 2), 32768.0f / 65535.0f, 1e-7f);  // 0: the middle code
+}
+
+TEST_F(SamplerIo, SignedPngRefusesNonFiniteDistancesAndOtherExtensions) {
+    Tile tile({4, 4, 2});
+    EXPECT_THROW(writeSignedTilePng(tile, path("tile.exr")), InputError);
+    tile.at(1, 1, 1) = std::numeric_limits<float>::infinity();
+    EXPECT_THROW(writeSignedTilePng(tile, path("tile.png")), InputError);
+    EXPECT_TRUE(folderEntries().empty());
 }
 
 TEST_F(SamplerIo, PngBitDepthOtherThan8Or16IsAnInputError) {
