@@ -263,6 +263,8 @@ void runBake(const BakeArguments& arguments) {
     if (!arguments.png16Output.empty())
         outputs.png16 = outputs.files.add(arguments.png16Output, "--png16");
     options.conservative.enabled = !arguments.exactTexels;
+    // Only a written level set needs its margin above and below the tile.
+    options.fillLevelSetMargins = !arguments.vdbOutput.empty();
 
     const auto start = std::chrono::steady_clock::now();
     std::optional<BakeResult> result;
