@@ -451,8 +451,9 @@ SegmentMeeting segmentMeeting(const glm::dvec3& p, const glm::dvec3& q, const gl
 
 }  // namespace
 
-bool SoupDistance::signedCrossingsOfCopy(const glm::dvec3& from, const glm::dvec3& to,
-                                         int& crossings) const {
+template <class Visit>
+bool SoupDistance::everyTriangleNearSegment(const glm::dvec3& from, const glm::dvec3& to,
+                                            Visit&& visit) const {
     const double pointError = std::max(floatPointError(from), floatPointError(to));
     const glm::dvec3 lo = glm::min(from, to) - pointError, hi = glm::max(from, to) + pointError;
     const __m128 loX = _mm_set1_ps(roundedDown(lo.x)), loY = _mm_set1_ps(roundedDown(lo.y)),
@@ -479,17 +480,24 @@ bool SoupDistance::signedCrossingsOfCopy(const glm::dvec3& from, const glm::dvec
                 continue;
             }
             for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t) {
-                const Triangle& triangle = triangles_[t];
-                switch (segmentMeeting(from, to, triangle.a, triangle.b, triangle.c)) {
-                    case SegmentMeeting::Misses: break;
-                    case SegmentMeeting::BackToFront: ++crossings; break;
-                    case SegmentMeeting::FrontToBack: --crossings; break;
-                    case SegmentMeeting::Unclear: return false;
-                }
+                if (!visit(triangles_[t])) return false;
             }
         }
     }
     return true;
+}
+
+bool SoupDistance::signedCrossingsOfCopy(const glm::dvec3& from, const glm::dvec3& to,
+                                         int& crossings) const {
+    return everyTriangleNearSegment(from, to, [&](const Triangle& triangle) {
+        switch (segmentMeeting(from, to, triangle.a, triangle.b, triangle.c)) {
+            case SegmentMeeting::Misses: return true;
+            case SegmentMeeting::BackToFront: ++crossings; return true;
+            case SegmentMeeting::FrontToBack: --crossings; return true;
+            case SegmentMeeting::Unclear: return false;
+        }
+        return false;
+    });
 }
 
 std::optional<int> SoupDistance::windingNumberByCrossings(const glm::dvec3& texelPosition) const {
@@ -513,41 +521,10 @@ std::optional<int> SoupDistance::windingNumberByCrossings(const glm::dvec3& texe
 
 bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,
                                                   const glm::dvec3& to) const {
-    const double pointError =
-        std::max(floatPointError(from), floatPointError(to));
-    const glm::dvec3 lo = glm::min(from, to) - pointError, hi = glm::max(from, to) + pointError;
-    const __m128 loX = _mm_set1_ps(roundedDown(lo.x)), loY = _mm_set1_ps(roundedDown(lo.y)),
-                 loZ = _mm_set1_ps(roundedDown(lo.z));
-    const __m128 hiX = _mm_set1_ps(roundedUp(hi.x)), hiY = _mm_set1_ps(roundedUp(hi.y)),
-                 hiZ = _mm_set1_ps(roundedUp(hi.z));
-    std::array<std::uint32_t, kStackSize> stack;
-    int size = 0;
-    stack[size++] = 0;
-    while (size > 0) {
-        const WideNode& node = wideNodes_[stack[--size]];
-        const __m128 overlapX = _mm_and_ps(_mm_cmple_ps(_mm_load_ps(node.minX), hiX),
-                                           _mm_cmpge_ps(_mm_load_ps(node.maxX), loX));
-        const __m128 overlapY = _mm_and_ps(_mm_cmple_ps(_mm_load_ps(node.minY), hiY),
-                                           _mm_cmpge_ps(_mm_load_ps(node.maxY), loY));
-        const __m128 overlapZ = _mm_and_ps(_mm_cmple_ps(_mm_load_ps(node.minZ), hiZ),
-                                           _mm_cmpge_ps(_mm_load_ps(node.maxZ), loZ));
-        const int overlaps = _mm_movemask_ps(_mm_and_ps(_mm_and_ps(overlapX, overlapY), overlapZ));
-        for (int c = 0; c < 4; ++c) {
-            if (!(overlaps & (1 << c))) continue;
-            if (node.count[c] == 0) {
-                assert(size < kStackSize);
-                stack[size++] = node.child[c];
-                continue;
-            }
-            for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t) {
-                const Triangle& triangle = triangles_[t];
-                if (segmentMeeting(from, to, triangle.a, triangle.b, triangle.c) !=
-                    SegmentMeeting::Misses)
-                    return false;
-            }
-        }
-    }
-    return true;
+    return everyTriangleNearSegment(from, to, [&](const Triangle& triangle) {
+        return segmentMeeting(from, to, triangle.a, triangle.b, triangle.c) ==
+               SegmentMeeting::Misses;
+    });
 }
 
 bool SoupDistance::segmentTouchesNoTriangle(const glm::dvec3& from, const glm::dvec3& to) const {

@@ -142,6 +142,11 @@ class SoupDistance {
     std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<Box>& boxes);
     double closestSquared(const glm::dvec3& point, double bestSquared,
                           std::uint32_t& bestTriangle) const;
+    /// Calls visit(triangle) for every triangle whose box (float, rounded outward, with the
+    /// point's rounding) overlaps the segment's, until it returns false; false if it did.
+    template <class Visit>
+    bool everyTriangleNearSegment(const glm::dvec3& from, const glm::dvec3& to,
+                                  Visit&& visit) const;
     bool segmentTouchesNoTriangleOfCopy(const glm::dvec3& from, const glm::dvec3& to) const;
     /// Adds to `crossings` the triangles the segment crosses from back to front less those it
     /// crosses from front to back; false when a crossing is unclear.
