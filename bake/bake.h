@@ -28,6 +28,11 @@ struct BakeOptions {
     /// Resampling into the tile lowers texels so trilinear interpolation does not overestimate
     /// (bake/conservative.h); on by default.
     ConservativeOptions conservative;
+    /// Whether a mesh bake fills the level set's band margin above and below the tile (what a
+    /// .vdb file needs for its band to close around detail near the top and the floor). The tile
+    /// never reads it; without it a mesh bake measures a third of the voxels and the margin's
+    /// voxels stay inactive at the background. The other bakes always fill it (they are cheap).
+    bool fillLevelSetMargins = true;
 };
 
 /// Checks `options` (InputError naming "size" or "halfBandTexels") and returns the level set's

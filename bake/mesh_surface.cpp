@@ -387,7 +387,9 @@ bool allTrianglesFaceOutside(const TriangleSoup& placedTexels, const SoupDistanc
                 const double longest =
                     std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
                 const glm::dvec3 front = (a + b + c) / 3.0 + (1e-5 * longest / area) * normal;
-                outside = std::abs(soup.windingNumber(front)) < 0.5;
+                // Integral here: the count of crossings where it is clear.
+                const std::optional<int> crossings = soup.windingNumberByCrossings(front);
+                outside = crossings ? *crossings == 0 : std::abs(soup.windingNumber(front)) < 0.5;
             }
             return outside;
         },

@@ -74,9 +74,9 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
            << (sign.unsignedDistance ? "unsigned" : "winding number") << "\"";
     if (sign.unsignedDistance) params << ",\"thickness_texels\":" << sign.thicknessTexels;
     params << "}";
-    // Every voxel of the level set: the tile and the band margin above and below it, at first the
-    // distance to all triangles.
-    const int margin = int(std::ceil(halfBand));
+    // Every voxel of the level set that is asked for: the tile and, unless left out, the band
+    // margin above and below it; at first the distance to all triangles.
+    const int margin = options.fillLevelSetMargins ? int(std::ceil(halfBand)) : 0;
     SoupDistanceGrid grid = soupDistanceGrid(soup, -margin, options.size.depth + margin, cutoff,
                                              !sign.unsignedDistance, progress);
     // Signed, the distances measure the boundary of the inside (bake/mesh_surface.h), as `check`
@@ -112,7 +112,8 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
         for (std::size_t i = 0; i < row.size(); ++i) row[i] = distances[i] - halfThickness;
     };
     LevelSet levelSet =
-        LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh", params.str());
+        LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh", params.str(), {},
+                                   options.fillLevelSetMargins);
 
     std::vector<float> texels(options.size.texelCount());
     levelSet.copyTileVoxels(texels);

@@ -47,7 +47,8 @@ struct SolidMeshBake {
 };
 
 /// Bakes `mesh` (file units) placed by `placement` (placeMesh): every voxel of the level set
-/// (the tile and its band margin above and below, LevelSet::fromDistance) takes the exact
+/// (the tile and, when options.fillLevelSetMargins, its band margin above and below,
+/// LevelSet::fromDistanceRows) takes the exact
 /// periodic distance to the placed mesh's surface (signed: the boundary of its inside, i.e. the
 /// triangles that bound it and caps over its holes, bake/mesh_surface.h; unsigned: its
 /// triangles), signed as `sign` says, clamped to the half band; the

@@ -409,11 +409,15 @@ double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cu
 
 namespace {
 
-/// Whether the segment pq may touch the triangle abc: false only when it provably misses it (both
-/// ends strictly on one side of its plane, or its line strictly outside one of its edges), with
-/// a margin far above the rounding of the triple products.
-bool segmentMayTouchTriangle(const glm::dvec3& p, const glm::dvec3& q, const glm::dvec3& a,
-                             const glm::dvec3& b, const glm::dvec3& c) {
+/// How the segment pq meets the triangle abc: Misses only when it provably misses it (both ends
+/// strictly on one side of its plane, or its line strictly outside one of its edges), a crossing
+/// only when it provably passes through its interior (its line strictly inside all three edges,
+/// its ends strictly on either side), with a margin far above the rounding of the triple
+/// products.
+enum class SegmentMeeting { Misses, FrontToBack, BackToFront, Unclear };
+
+SegmentMeeting segmentMeeting(const glm::dvec3& p, const glm::dvec3& q, const glm::dvec3& a,
+                              const glm::dvec3& b, const glm::dvec3& c) {
     constexpr double kRelativeMargin = 1e-9;
     const glm::dvec3 normal = glm::cross(b - a, c - a);
     const double sideP = glm::dot(p - a, normal), sideQ = glm::dot(q - a, normal);
@@ -421,8 +425,7 @@ bool segmentMayTouchTriangle(const glm::dvec3& p, const glm::dvec3& q, const glm
     const double marginP = kRelativeMargin * glm::length(p - a) * normalLength;
     const double marginQ = kRelativeMargin * glm::length(q - a) * normalLength;
     if ((sideP > marginP && sideQ > marginQ) || (sideP < -marginP && sideQ < -marginQ))
-        return false;
-    // The line through p and q against the edges: the signs of [u, a - p, b - p] and so on.
+        return SegmentMeeting::Misses;
     const glm::dvec3 u = q - p, pa = a - p, pb = b - p, pc = c - p;
     const double uLength = glm::length(u);
     const double la = glm::length(pa), lb = glm::length(pb), lc = glm::length(pc);
@@ -432,20 +435,26 @@ bool segmentMayTouchTriangle(const glm::dvec3& p, const glm::dvec3& q, const glm
     const std::array<double, 3> margins{kRelativeMargin * uLength * la * lb,
                                         kRelativeMargin * uLength * lb * lc,
                                         kRelativeMargin * uLength * lc * la};
-    bool positive = false, negative = false;
+    int positive = 0, negative = 0;
     for (int e = 0; e < 3; ++e) {
-        positive = positive || sides[e] > margins[e];
-        negative = negative || sides[e] < -margins[e];
+        positive += sides[e] > margins[e];
+        negative += sides[e] < -margins[e];
     }
-    return !(positive && negative);
+    if (positive > 0 && negative > 0) return SegmentMeeting::Misses;  // the line passes beside
+    // Through the interior: the line strictly inside all three edges, the ends strictly apart.
+    if ((positive == 3 || negative == 3) && sideP > marginP && sideQ < -marginQ)
+        return SegmentMeeting::FrontToBack;
+    if ((positive == 3 || negative == 3) && sideP < -marginP && sideQ > marginQ)
+        return SegmentMeeting::BackToFront;
+    return SegmentMeeting::Unclear;
 }
 
 }  // namespace
 
-bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,
-                                                  const glm::dvec3& to) const {
-    const double pointError =
-        std::max(floatPointError(from), floatPointError(to));
+template <class Visit>
+bool SoupDistance::everyTriangleNearSegment(const glm::dvec3& from, const glm::dvec3& to,
+                                            Visit&& visit) const {
+    const double pointError = std::max(floatPointError(from), floatPointError(to));
     const glm::dvec3 lo = glm::min(from, to) - pointError, hi = glm::max(from, to) + pointError;
     const __m128 loX = _mm_set1_ps(roundedDown(lo.x)), loY = _mm_set1_ps(roundedDown(lo.y)),
                  loZ = _mm_set1_ps(roundedDown(lo.z));
@@ -471,13 +480,51 @@ bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,
                 continue;
             }
             for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t) {
-                const Triangle& triangle = triangles_[t];
-                if (segmentMayTouchTriangle(from, to, triangle.a, triangle.b, triangle.c))
-                    return false;
+                if (!visit(triangles_[t])) return false;
             }
         }
     }
     return true;
+}
+
+bool SoupDistance::signedCrossingsOfCopy(const glm::dvec3& from, const glm::dvec3& to,
+                                         int& crossings) const {
+    return everyTriangleNearSegment(from, to, [&](const Triangle& triangle) {
+        switch (segmentMeeting(from, to, triangle.a, triangle.b, triangle.c)) {
+            case SegmentMeeting::Misses: return true;
+            case SegmentMeeting::BackToFront: ++crossings; return true;
+            case SegmentMeeting::FrontToBack: --crossings; return true;
+            case SegmentMeeting::Unclear: return false;
+        }
+        return false;
+    });
+}
+
+std::optional<int> SoupDistance::windingNumberByCrossings(const glm::dvec3& texelPosition) const {
+    assert(windingPiecewiseConstant_);
+    // Out of the bounds by the nearer way, up or down, where the winding number is 0: it drops
+    // by 1 across a triangle passed from back to front and rises by 1 the other way.
+    const bool up = bounds_.max.z - texelPosition.z <= texelPosition.z - bounds_.min.z;
+    const double endZ = up ? bounds_.max.z + 1.0 : bounds_.min.z - 1.0;
+    const PeriodicShifts shifts = periodicShifts(texelPosition, bounds_, tile_, 0.0);
+    int winding = 0;
+    for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
+        for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
+            const glm::dvec3 shift(double(m) * tile_.width, double(n) * tile_.height, 0.0);
+            const glm::dvec3 from = texelPosition - shift;
+            if (!signedCrossingsOfCopy(from, glm::dvec3(from.x, from.y, endZ), winding))
+                return std::nullopt;
+        }
+    }
+    return winding;
+}
+
+bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,
+                                                  const glm::dvec3& to) const {
+    return everyTriangleNearSegment(from, to, [&](const Triangle& triangle) {
+        return segmentMeeting(from, to, triangle.a, triangle.b, triangle.c) ==
+               SegmentMeeting::Misses;
+    });
 }
 
 bool SoupDistance::segmentTouchesNoTriangle(const glm::dvec3& from, const glm::dvec3& to) const {

@@ -8,9 +8,14 @@
 // And the mesh bake (bake/solid_mesh.h: exact BVH distance, winding-number sign) against OpenVDB's
 // mesh-to-level-set (bake/bake.h bakeMesh) on the chain mail tessellated at three sizes (argument:
 // triangles per ring, about 3 k, 100 k and 1 M triangles in all), both at voxel size 1 texel and
-// the half band `bake mesh` uses (the tile depth), conservative lowering off. Counters: the error
-// against the exact distance to the same mesh (CGAL, truth/mesh_truth.h) at random voxel centres
-// within 2 texels of the surface (max, RMS) and the sign errors at all sampled voxels.
+// the half band `bake mesh` uses (the tile depth), conservative lowering off. meshToLevelSet
+// always fills the whole level set, the tile and its band margin above and below it (three times
+// the tile's voxels); the mesh bake does so only when the level set is kept (`--vdb`), so it is
+// timed both ways: bakeMeshWindingNumber (the tile only, as `bake mesh` without --vdb and scenes
+// bake) and bakeMeshWindingNumberWithMargins (the same voxels as meshToLevelSet). Counters: the
+// error against the exact distance to the same mesh (CGAL, truth/mesh_truth.h) at random voxel
+// centres of the tile within 2 texels of the surface (max, RMS), at all of them (all_max, against
+// the exact distance clamped to the half band) and the sign errors at all sampled voxels.
 // Run: build/bin/bake_bench [--benchmark_filter=...]; compare the times of one run.
 #include <benchmark/benchmark.h>
 
@@ -127,12 +132,15 @@ void setMeshErrorCounters(benchmark::State& state, const Tile& tile, const Chain
     std::mt19937 random(7);
     std::uniform_int_distribution<int> i(0, kTile.width - 1), j(0, kTile.height - 1),
         k(0, kTile.depth - 1);
-    double maxError = 0.0, sumSquares = 0.0, near = 0.0, signErrors = 0.0;
+    // Both bakes clamp at the half band, the tile depth.
+    const double halfBand = double(kTile.depth);
+    double maxError = 0.0, allMaxError = 0.0, sumSquares = 0.0, near = 0.0, signErrors = 0.0;
     for (int n = 0; n < 20000; ++n) {
         const int x = i(random), y = j(random), z = k(random);
         const double truth = mesh.truth->signedDistance({x + 0.5, y + 0.5, z + 0.5});
         const double baked = tile.at(x, y, z);
         if (std::abs(truth) > 1e-6 && (truth < 0.0) != (baked < 0.0)) signErrors += 1.0;
+        allMaxError = std::max(allMaxError, std::abs(baked - std::clamp(truth, -halfBand, halfBand)));
         if (std::abs(truth) > 2.0) continue;
         near += 1.0;
         maxError = std::max(maxError, std::abs(baked - truth));
@@ -141,6 +149,7 @@ void setMeshErrorCounters(benchmark::State& state, const Tile& tile, const Chain
     state.counters["triangles"] = double(mesh.soup.triangles.size());
     state.counters["near_max_error_texels"] = maxError;
     state.counters["near_rms_error_texels"] = near > 0.0 ? std::sqrt(sumSquares / near) : 0.0;
+    state.counters["all_max_error_texels"] = allMaxError;
     state.counters["sign_errors"] = signErrors;
 }
 
@@ -149,9 +158,10 @@ void meshSizes(benchmark::internal::Benchmark* benchmark) {
     benchmark->Args({8, 3})->Args({48, 13})->Args({160, 40});
 }
 
-BakeOptions exactTexelOptions() {
+BakeOptions exactTexelOptions(bool fillLevelSetMargins) {
     BakeOptions options;
     options.conservative.enabled = false;
+    options.fillLevelSetMargins = fillLevelSetMargins;
     return options;
 }
 
@@ -161,16 +171,30 @@ MeshPlacement asTessellated() {
     return placement;
 }
 
-void bakeMeshWindingNumber(benchmark::State& state) {
+void bakeMeshWindingNumberOf(benchmark::State& state, bool fillLevelSetMargins) {
     const ChainmailMesh& mesh = chainmailMeshOfSize(int(state.range(0)), int(state.range(1)));
     std::optional<SolidMeshBake> bake;
     for (auto _ : state) {
-        bake.emplace(bakeSolidMesh(mesh.soup, asTessellated(), exactTexelOptions(), "chainmail"));
+        bake.emplace(bakeSolidMesh(mesh.soup, asTessellated(),
+                                   exactTexelOptions(fillLevelSetMargins), "chainmail"));
         benchmark::DoNotOptimize(bake->result.tile.distancesTexels().data());
     }
     setMeshErrorCounters(state, bake->result.tile, mesh);
 }
+
+/// The tile alone: what `bake mesh` without --vdb and a scene compute.
+void bakeMeshWindingNumber(benchmark::State& state) { bakeMeshWindingNumberOf(state, false); }
 BENCHMARK(bakeMeshWindingNumber)
+    ->Apply(meshSizes)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
+
+/// The whole level set, margins included, as meshToLevelSet computes it (`bake mesh --vdb`).
+void bakeMeshWindingNumberWithMargins(benchmark::State& state) {
+    bakeMeshWindingNumberOf(state, true);
+}
+BENCHMARK(bakeMeshWindingNumberWithMargins)
     ->Apply(meshSizes)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1)
@@ -180,7 +204,7 @@ void bakeMeshOpenVdb(benchmark::State& state) {
     const ChainmailMesh& mesh = chainmailMeshOfSize(int(state.range(0)), int(state.range(1)));
     std::optional<BakeResult> bake;
     for (auto _ : state) {
-        bake.emplace(bakeMesh(mesh.soup, asTessellated(), exactTexelOptions()));
+        bake.emplace(bakeMesh(mesh.soup, asTessellated(), exactTexelOptions(true)));
         benchmark::DoNotOptimize(bake->tile.distancesTexels().data());
     }
     setMeshErrorCounters(state, bake->tile, mesh);

@@ -268,6 +268,8 @@ void runBake(const BakeArguments& arguments) {
     if (!arguments.png16SignedOutput.empty())
         outputs.png16Signed = outputs.files.add(arguments.png16SignedOutput, "--png16-signed");
     options.conservative.enabled = !arguments.exactTexels;
+    // Only a written level set needs its margin above and below the tile.
+    options.fillLevelSetMargins = !arguments.vdbOutput.empty();
 
     const auto start = std::chrono::steady_clock::now();
     std::optional<BakeResult> result;

@@ -421,7 +421,8 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
                         const SceneWarningCallback& warn) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "fit", "scale", "offset",
                         "unsigned", "thickness"});
-    const BakeOptions options = bakeOptionsOf(spec);
+    BakeOptions options = bakeOptionsOf(spec);
+    options.fillLevelSetMargins = false;  // a scene keeps the tile only
     const MeshPlacement placement = meshPlacementOf(spec);
     MeshSignOptions sign;
     if (spec.has("unsigned")) sign.unsignedDistance = spec["unsigned"].boolean();

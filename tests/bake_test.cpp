@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <optional>
 #include <random>
+#include <span>
 
 #include "bake/mesh_surface.h"
 #include "bake/solid_mesh.h"
@@ -209,6 +211,49 @@ TEST(SoupDistance, SegmentTouchesNoTriangleOnlyWhenItMissesEveryCopy) {
     EXPECT_FALSE(box.segmentTouchesNoTriangle({61.5, 20.5, 9.5}, {61.5, 19.5, 10.5}));
 }
 
+TEST(SoupDistance, WindingNumberByCrossingsCountsOverlapsAndCopies) {
+    // A torus and a sphere that overlap (w = 2 where both are), a box listed twice (w = 2) and a
+    // box overhanging the +x edge of the tile (its copy shifted by -64 spans x in [-4, 6]).
+    const Size3 tile{64, 64, 32};
+    const glm::dvec3 torusCentre(20.0, 30.0, 8.0), sphereCentre(30.0, 32.0, 9.0);
+    TriangleSoup soup = makeTorusSoup(torusCentre, 12.0, 4.0, 48, 16);
+    const TriangleSoup sphere = makeIcosphereSoup(sphereCentre, 6.0, 2);
+    append(soup, sphere);
+    const glm::dvec3 twiceLo(40.0, 4.0, 2.0), twiceHi(50.2, 14.7, 13.1);
+    append(soup, makeBoxSoup(twiceLo, twiceHi));
+    append(soup, makeBoxSoup(twiceLo, twiceHi));
+    const glm::dvec3 edgeLo(60.0, 40.0, 10.0), edgeHi(70.0, 50.0, 20.0);
+    append(soup, makeBoxSoup(edgeLo, edgeHi));
+    const SoupDistance distance(soup, tile);
+    ASSERT_TRUE(distance.windingChangesOnlyAcrossTheSurface());
+    // The faces lie within this of the analytic torus and sphere (inscribed tessellations).
+    const double tessellation = inscribedTessellationError(sphere, sphereCentre, 6.0);
+    const auto insideBox = [](glm::dvec3 p, const glm::dvec3& lo, const glm::dvec3& hi) {
+        return p.x > lo.x && p.x < hi.x && p.y > lo.y && p.y < hi.y && p.z > lo.z && p.z < hi.z;
+    };
+    int counted = 0, unclear = 0;
+    for (const glm::dvec3& p : randomPoints(glm::dvec3(0.0), glm::dvec3(64.0, 64.0, 24.0), 20000,
+                                            11)) {
+        const double tube =
+            std::hypot(std::hypot(p.x - torusCentre.x, p.y - torusCentre.y) - 12.0,
+                       p.z - torusCentre.z) - 4.0;
+        const double ball = glm::length(p - sphereCentre) - 6.0;
+        if (std::abs(tube) <= tessellation || std::abs(ball) <= tessellation) continue;
+        const int expected = (tube < 0.0) + (ball < 0.0) + 2 * insideBox(p, twiceLo, twiceHi) +
+                             insideBox(p, edgeLo, edgeHi) +
+                             insideBox(p + glm::dvec3(64.0, 0.0, 0.0), edgeLo, edgeHi);
+        const std::optional<int> crossings = distance.windingNumberByCrossings(p);
+        if (!crossings) {
+            ++unclear;
+            continue;
+        }
+        ASSERT_EQ(*crossings, expected) << p.x << " " << p.y << " " << p.z;
+        counted += expected;
+    }
+    EXPECT_GT(counted, 1000);   // the test measures the insides
+    EXPECT_LT(unclear, 20);     // a random ray grazes an edge almost never
+}
+
 /// A closed soup whose winding number reaches 2 (a box listed twice) and 1 where a torus and a
 /// sphere overlap, and the open cup's wall (no inside of its own).
 TriangleSoup overlappingClosedParts() {
@@ -337,6 +382,30 @@ TEST(MeshBake, SphereTileIsTheAnalyticDistanceForAnyThreadCount) {
         }
     }
     EXPECT_LE(maxError, tolerance + 1e-5);  // float storage
+}
+
+TEST(MeshBake, LevelSetMarginsAreLeftOutOnlyWhenAsked) {
+    // A sphere 2 texels above the floor: the margin below the tile holds distances under the
+    // band when filled.
+    BakeOptions options;
+    options.size = {32, 32, 16};
+    options.conservative.enabled = false;
+    const glm::dvec3 centre(16.0, 16.0, 2.0);
+    const SolidMeshBake filled = bakeSphere(options, centre);
+    options.fillLevelSetMargins = false;
+    const SolidMeshBake tileOnly = bakeSphere(options, centre);
+    const std::span<const float> a = filled.result.tile.distancesTexels();
+    const std::span<const float> b = tileOnly.result.tile.distancesTexels();
+    EXPECT_TRUE(std::equal(a.begin(), a.end(), b.begin(), b.end()));
+    // Voxel (16, 16, -3), centred at (16.5, 16.5, -2.5): inside the sphere, sqrt(20.75) - 6 =
+    // -1.445 (the faces lie within 0.02 of it), far inside the band of 16.
+    EXPECT_NEAR(filled.result.levelSet.voxelDistanceTexels(16, 16, -3), std::sqrt(20.75) - 6.0,
+                0.02);
+    EXPECT_EQ(tileOnly.result.levelSet.voxelDistanceTexels(16, 16, -3), 16.0f);
+    EXPECT_EQ(tileOnly.result.levelSet.voxelDistanceTexels(16, 16, 0),
+              filled.result.levelSet.voxelDistanceTexels(16, 16, 0));
+    EXPECT_LT(tileOnly.result.levelSet.activeVoxelCount(),
+              filled.result.levelSet.activeVoxelCount());
 }
 
 TEST(MeshBake, ConservativeTileNeverOverestimatesAtTexelCentres) {

@@ -100,7 +100,8 @@ LevelSet LevelSet::fromDistance(const DistanceFunction& distance, const Size3& t
 
 LevelSet LevelSet::fromDistanceRows(const RowDistanceFunction& rowDistance, const Size3& tile,
                                     float halfBandTexels, const std::string& source,
-                                    const std::string& params, const ProgressCallback& progress) {
+                                    const std::string& params, const ProgressCallback& progress,
+                                    bool fillMargins) {
     validateTileSize(tile, "level set");
     if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
         throw InputError("level set: half band width " + std::to_string(halfBandTexels) +
@@ -121,6 +122,10 @@ LevelSet LevelSet::fromDistanceRows(const RowDistanceFunction& rowDistance, cons
     for (int slab = 0; slab < slabs; ++slab) {
         const int k = box.min().z() + slab;
         float* slabValues = values + std::size_t(slab) * slabStride;
+        if (!fillMargins && (k < 0 || k >= tile.depth)) {
+            std::fill_n(slabValues, slabStride, halfBandTexels);  // the background: inactive
+            continue;
+        }
         tbb::parallel_for(
             tbb::blocked_range<int>(0, tile.height), [&](const tbb::blocked_range<int>& rows) {
                 std::vector<double> row(std::size_t(tile.width));

@@ -41,11 +41,14 @@ class LevelSet {
         std::function<void(int j, int k, std::span<double> distancesTexels)>;
 
     /// fromDistance with the distances given a row at a time; `rowDistance` is called
-    /// concurrently for different rows. Same voxels, band and errors as fromDistance.
+    /// concurrently for different rows. Same voxels, band and errors as fromDistance; with
+    /// `fillMargins` false the rows of the margin are not asked for and stay inactive at the
+    /// background (for a level set of which only the tile's voxels are read).
     static LevelSet fromDistanceRows(const RowDistanceFunction& rowDistance, const Size3& tile,
                                      float halfBandTexels, const std::string& source,
                                      const std::string& params,
-                                     const ProgressCallback& progress = {});
+                                     const ProgressCallback& progress = {},
+                                     bool fillMargins = true);
 
     /// Reads the grid named "surface" (or the first float level set) of a .vdb file written by
     /// save(). Throws InputError for a missing file, FormatError for anything unreadable or not
