@@ -15,6 +15,7 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/exr_header.h"
 #include "common/input_file.h"
 #include "sampler/detail/image_input.h"
 
@@ -291,6 +292,7 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
 Tile readTileExr(const fs::path& file) {
     requireRegularFile(file, "a tile .exr file");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
+    checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
     std::string openError;
     auto input = detail::openImageByExtension(file, openError);
     if (!input) {

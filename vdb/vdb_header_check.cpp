@@ -3,11 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <fstream>
 #include <string>
 #include <vector>
 
 #include "common/error.h"
+#include "common/field_reader.h"
 #include "common/input_file.h"
 
 namespace distile::detail {
@@ -45,80 +45,12 @@ constexpr std::uint64_t kInternalMemoryBytes[] = {0, 0, 0, 0,
 /// A node mask of 2^(3 log2) bits, as 64-bit words.
 using LeafMask = std::array<std::uint64_t, 8>;
 
-/// Reads fields from a position, refusing any that would run past the end of the file.
-class FieldReader {
-  public:
-    FieldReader(const std::filesystem::path& file, std::uint64_t fileBytes)
-        : in_(file, std::ios::binary), file_(file), fileBytes_(fileBytes) {
-        if (!in_) throw InputError(file.string() + ": cannot open for reading");
-    }
-
-    std::uint64_t offset() const { return offset_; }
-    std::uint64_t remaining() const { return fileBytes_ - offset_; }
-
-    void seek(std::uint64_t offset, const char* what) {
-        if (offset > fileBytes_) fail(what, "points to byte " + std::to_string(offset));
-        in_.seekg(std::streamoff(offset));
-        offset_ = offset;
-    }
-
-    std::uint64_t unsignedField(int bytes, const char* what) {
-        unsigned char data[8] = {};
-        readBytes(data, std::uint64_t(bytes), what);
-        std::uint64_t value = 0;
-        for (int k = 0; k < bytes; ++k) value |= std::uint64_t(data[k]) << (8 * k);
-        return value;
-    }
-
-    void readBytes(void* to, std::uint64_t bytes, const char* what) {
-        fieldOffset_ = offset_;
-        require(bytes, what);
-        in_.read(static_cast<char*>(to), std::streamsize(bytes));
-        if (std::uint64_t(in_.gcount()) != bytes) fail(what, "cannot be read");
-        offset_ += bytes;
-    }
-
-    /// A 32-bit length and that many bytes.
-    std::string string(const char* what) {
-        std::string text(unsignedField(4, what), '\0');
-        readBytes(text.data(), text.size(), what);
-        return text;
-    }
-
-    void skip(std::uint64_t bytes, const char* what) {
-        fieldOffset_ = offset_;
-        require(bytes, what);
-        seek(offset_ + bytes, what);
-    }
-
-    /// `count` items of at least `leastBytes` each must fit in the rest of the file.
-    void requireCount(std::uint64_t count, std::uint64_t leastBytes, const char* what) {
-        if (saturatingProduct(count, leastBytes) > remaining())
-            fail(what, "is " + std::to_string(count));
-    }
-
-    /// Refuses the field read last: it `problem`s (e.g. "is 7; accepted: 0 to 6").
-    [[noreturn]] void refuse(const char* what, const std::string& problem) const {
-        throw FormatError(file_.string() + ": not a readable .vdb file (its " + what + " at byte " +
-                          std::to_string(fieldOffset_) + " " + problem + ")");
-    }
-
-    [[noreturn]] void fail(const char* what, const std::string& problem) const {
-        refuse(what, problem + ", but the file has " + std::to_string(fileBytes_) +
-                         " bytes; the file is truncated or corrupt");
-    }
-
-  private:
-    void require(std::uint64_t bytes, const char* what) {
-        if (bytes > remaining()) fail(what, "needs " + std::to_string(bytes) + " bytes");
-    }
-
-    std::ifstream in_;
-    const std::filesystem::path& file_;
-    std::uint64_t fileBytes_;
-    std::uint64_t offset_ = 0;
-    std::uint64_t fieldOffset_ = 0;  ///< where the last field read starts (for messages)
-};
+/// A string: a 32-bit length and that many bytes.
+std::string vdbString(FieldReader& reader, const char* what) {
+    std::string text(reader.unsignedField(4, what), '\0');
+    reader.readBytes(text.data(), text.size(), what);
+    return text;
+}
 
 /// Bytes of the metadata value types OpenVDB registers whose reader takes a fixed size whatever
 /// the value's declared size says (TypedMetadata<T>); 0 for the others, which read what the size
@@ -191,7 +123,7 @@ void checkMetadata(FieldReader& reader) {
     reader.requireCount(count, 12, "metadata count");
     for (std::uint64_t entry = 0; entry < count; ++entry) {
         reader.skip(reader.unsignedField(4, "metadata name"), "metadata name");
-        const std::string type = reader.string("metadata type name");
+        const std::string type = vdbString(reader, "metadata type name");
         const std::uint64_t valueBytes = reader.unsignedField(4, "metadata value size");
         const std::uint64_t fixedBytes = fixedMetadataBytes(type);
         if (fixedBytes != 0 && valueBytes != fixedBytes) {
@@ -211,7 +143,7 @@ void checkMetadata(FieldReader& reader) {
 /// A transform: a map type name and the map's values (math/Maps.h: each map reads a fixed
 /// number of doubles; a frustum also reads a second map).
 void checkTransform(FieldReader& reader, int depth = 0) {
-    const std::string type = reader.string("transform map type");
+    const std::string type = vdbString(reader, "transform map type");
     struct MapBytes {
         const char* type;
         std::uint64_t bytes;
@@ -372,7 +304,7 @@ class FloatTreeWalk {
 }  // namespace
 
 void checkVdbHeader(const std::filesystem::path& file, std::uint64_t fileBytes) {
-    FieldReader reader(file, fileBytes);
+    FieldReader reader(file, fileBytes, ".vdb file");
     if (fileBytes < 8 || std::int64_t(reader.unsignedField(8, "magic number")) != kVdbMagic) {
         throw FormatError(file.string() +
                           ": not a readable .vdb file (it does not start with OpenVDB's magic "
@@ -399,7 +331,7 @@ void checkVdbHeader(const std::filesystem::path& file, std::uint64_t fileBytes) 
     std::vector<GridOffsets> offsets;
     for (std::uint64_t index = 0; index < grids; ++index) {
         reader.skip(reader.unsignedField(4, "grid name"), "grid name");
-        const std::string type = reader.string("grid type");
+        const std::string type = vdbString(reader, "grid type");
         GridOffsets grid{};
         grid.half = type.ends_with(kHalfSuffix);
         grid.floatTree =
@@ -407,7 +339,7 @@ void checkVdbHeader(const std::filesystem::path& file, std::uint64_t fileBytes) 
             kFloatTreeType;
         // An instance shares its parent's tree: only its metadata and transform are stored.
         if (version >= kVersionGridInstancing)
-            grid.instance = !reader.string("instance parent name").empty();
+            grid.instance = !vdbString(reader, "instance parent name").empty();
         grid.grid = reader.unsignedField(8, "grid offset");
         grid.block = reader.unsignedField(8, "grid data offset");
         grid.end = reader.unsignedField(8, "grid end offset");
