@@ -4,6 +4,7 @@
 // (cli/app.h).
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <bit>
 #include <cmath>
@@ -373,6 +374,22 @@ TEST_F(Hardening, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
                   "r.png", {"-o", "/proc/r.png"})
                   .status,
               cli::kExitInput);
+}
+
+TEST_F(Hardening, AKilledRunsReservedOutputsAreRemovedByTheNextRun) {
+    // A killed run leaves its reservations ".NAME.partial-PID-N.EXT". PIDs above 2^22 (Linux's
+    // largest pid_max) belong to no process; this process is alive. The next write of o.exr
+    // removes the dead run's reservation only, and leaves other targets' alone.
+    const std::string dead = ".o.partial-4194399-0.exr";
+    const std::string alive = ".o.partial-" + std::to_string(::getpid()) + "-7.exr";
+    const std::string other = ".p.partial-4194399-0.exr";
+    for (const std::string& name : {dead, alive, other}) writeText(path(name), "x");
+    const RunResult bake = run({"bake", "chainmail", "--size", "64x64x8", "-o", "o.exr"});
+    ASSERT_EQ(bake.status, 0) << bake.err;
+    EXPECT_FALSE(fs::exists(path(dead)));
+    EXPECT_TRUE(fs::exists(path(alive)));
+    EXPECT_TRUE(fs::exists(path(other)));
+    EXPECT_TRUE(fs::exists(path("o.exr")));
 }
 
 // ---------------------------------------------------------------------------------------------
