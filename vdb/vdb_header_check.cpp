@@ -258,9 +258,10 @@ class FloatTreeWalk {
     void chunk(std::uint64_t expectedBytes) {
         const auto declared = std::int64_t(reader_.unsignedField(8, "compressed chunk size"));
         if (declared <= 0) {
-            if (std::uint64_t(-declared) != expectedBytes)
+            const std::uint64_t rawBytes = 0 - std::uint64_t(declared);  // no overflow at INT64_MIN
+            if (rawBytes != expectedBytes)
                 reader_.refuse("uncompressed chunk size",
-                               "is " + std::to_string(-declared) +
+                               "is " + std::to_string(rawBytes) +
                                    " bytes; accepted: " + std::to_string(expectedBytes));
             reader_.skip(expectedBytes, "uncompressed chunk");
             return;
