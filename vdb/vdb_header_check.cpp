@@ -47,7 +47,9 @@ using LeafMask = std::array<std::uint64_t, 8>;
 
 /// A string: a 32-bit length and that many bytes.
 std::string vdbString(FieldReader& reader, const char* what) {
-    std::string text(reader.unsignedField(4, what), '\0');
+    const std::uint64_t length = reader.unsignedField(4, what);
+    reader.requireCount(length, 1, what);  // before the string is allocated
+    std::string text(length, '\0');
     reader.readBytes(text.data(), text.size(), what);
     return text;
 }
