@@ -8,6 +8,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/exr_header.h"
 #include "common/input_file.h"
 #include "sampler/detail/image_input.h"
 
@@ -32,6 +33,7 @@ int wrap(int index, int count) {
 HeightImage readHeightImage(const fs::path& file) {
     requireRegularFile(file, "a height map image (.png, .exr)");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
+    checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
     std::string openError;
     auto input = detail::openImageByExtension(file, openError);
     if (!input) {

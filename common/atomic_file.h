@@ -1,7 +1,9 @@
 /// @file
 /// The one way distile writes output files: into a temporary file beside the target, renamed
 /// over the target only once the write succeeded. A failed run never leaves a half-written file
-/// where a good one was, and a command with several outputs writes all of them or none.
+/// where a good one was, and a command with several outputs writes all of them or none. A run
+/// killed before it could remove its temporaries (".NAME.partial-PID-N.EXT") leaves them; the
+/// next write of the same target removes those of processes that no longer exist.
 #pragma once
 
 #include <filesystem>

@@ -14,6 +14,7 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/exr_header.h"
 #include "common/input_file.h"
 #include "sampler/detail/image_input.h"
 
@@ -158,6 +159,7 @@ void writeImage(const Image& image, const fs::path& file) {
 Image readImage(const fs::path& file) {
     requireRegularFile(file, "an image file");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
+    checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
     std::string openError;
     auto input = detail::openImageByExtension(file, openError);
     if (!input) {

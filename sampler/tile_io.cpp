@@ -15,6 +15,7 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/exr_header.h"
 #include "common/input_file.h"
 #include "sampler/detail/image_input.h"
 
@@ -161,25 +162,47 @@ void setTileAttributes(OIIO::ImageSpec& spec, const Size3& size, const TileProve
     }
 }
 
-/// What is wrong with the tile's distances against the band it declares, or "" (also when it
-/// declares none): a bake clamps them to +-band, and the conservative lowering takes them at most
-/// one tile depth below -band.
-std::string bandProblem(const Tile& tile) {
-    const double band = tile.provenance.halfBandTexels;
-    if (band == 0.0) return {};
-    if (!(std::isfinite(band) && band > 0.0))
-        return "the declared band (distile:band_texels) " + std::to_string(band) +
-               " is not a positive number";
-    const double lowest = -band - double(tile.size().depth);
+/// The distances a tile may hold, texels, and why.
+struct DistanceInterval {
+    double lowest = 0.0, highest = 0.0;
+    std::string reason;  ///< completes "... texels, outside ..."
+};
+
+/// The one bound on a tile's distances. With a declared band (`halfBandTexels` > 0): a bake
+/// clamps distances to +-band and the conservative lowering takes them at most one tile depth
+/// below -band. Without one: twice the widest band a bake of `size` accepts
+/// (maxHalfBandTexels), so the lowering fits and sums of distances stay far from the float range.
+DistanceInterval acceptedDistances(const Size3& size, double halfBandTexels) {
+    if (halfBandTexels > 0.0) {
+        return {-halfBandTexels - double(size.depth), halfBandTexels,
+                "outside the band the tile declares (distile:band_texels " +
+                    std::to_string(halfBandTexels) + ": at most the band, at least minus the band "
+                    "minus the tile depth)"};
+    }
+    const double limit = 2.0 * double(maxHalfBandTexels(size));
+    return {-limit, limit,
+            "outside +-" + std::to_string(int(limit)) + ", the distances a " + toString(size) +
+                " tile holds (twice its widest band)"};
+}
+
+/// What is wrong with the tile's distances against `accepted`, or "".
+std::string distanceProblem(const Tile& tile, const DistanceInterval& accepted) {
     const auto distances = tile.distancesTexels();
     const auto outside = std::find_if(distances.begin(), distances.end(), [&](float d) {
-        return double(d) > band || double(d) < lowest;
+        return double(d) > accepted.highest || double(d) < accepted.lowest;
     });
     if (outside == distances.end()) return {};
     return "distance at " + texelName(tile.size(), std::size_t(outside - distances.begin())) +
-           " is " + std::to_string(*outside) +
-           " texels, outside the band the tile declares (distile:band_texels " +
-           std::to_string(band) + ")";
+           " is " + std::to_string(*outside) + " texels, " + accepted.reason;
+}
+
+/// What is wrong with the band (distile:band_texels) a tile of `size` declares, or "": 0 declares
+/// none; a declared band is positive and within the interval of a tile without one.
+std::string bandValueProblem(const Size3& size, double halfBandTexels) {
+    const double most = acceptedDistances(size, 0.0).highest;
+    if (halfBandTexels == 0.0 || (halfBandTexels > 0.0 && halfBandTexels <= most)) return {};
+    return "the declared band (distile:band_texels) " + std::to_string(halfBandTexels) +
+           " is not a positive number of at most " + std::to_string(int(most)) + " texels";
 }
 
 /// Opens `temporary` with OpenImageIO and writes `pixels` (one channel, row-major) into it.
@@ -208,8 +231,12 @@ void requireWritableDistances(const Tile& tile, const fs::path& file) {
                          texelName(tile.size(), std::size_t(bad - distances.begin())) + " is " +
                          std::to_string(*bad) + "; only finite distances can be written");
     }
-    if (const std::string problem = bandProblem(tile); !problem.empty())
-        throw InputError(file.string() + ": " + problem + "; it cannot be written");
+    // A tile that declares a band keeps to it; one without may hold any finite distance.
+    const double band = tile.provenance.halfBandTexels;
+    std::string problem = bandValueProblem(tile.size(), band);
+    if (problem.empty() && band > 0.0)
+        problem = distanceProblem(tile, acceptedDistances(tile.size(), band));
+    if (!problem.empty()) throw InputError(file.string() + ": " + problem + "; it cannot be written");
 }
 
 Size3 parseSize(const std::string& text, const fs::path& file) {
@@ -291,6 +318,7 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
 Tile readTileExr(const fs::path& file) {
     requireRegularFile(file, "a tile .exr file");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
+    checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
     std::string openError;
     auto input = detail::openImageByExtension(file, openError);
     if (!input) {
@@ -350,19 +378,17 @@ Tile readTileExr(const fs::path& file) {
                           texelName(size, std::size_t(bad - distances.begin())) + " is " +
                           std::to_string(*bad) + "; a tile holds only finite distances");
     }
-    // A bake clamps distances to its band, at most maxHalfBandTexels(size) wide, and the
-    // conservative lowering takes little more off; a distance beyond twice that is not one a bake
-    // wrote (and sums of distances near the float range overflow in the tracer).
-    const float limit = 2.0f * maxHalfBandTexels(size);
-    const auto far = std::find_if(distances.begin(), distances.end(),
-                                  [limit](float d) { return std::abs(d) > limit; });
-    if (far != distances.end()) {
-        throw FormatError(file.string() + ": distance at " +
-                          texelName(size, std::size_t(far - distances.begin())) + " is " +
-                          std::to_string(*far) + " texels; a " + toString(size) +
-                          " tile holds distances within +-" + std::to_string(int(limit)) +
-                          " (twice its widest band)");
+    if (const OIIO::ParamValue* band = spec.find_attribute("distile:band_texels")) {
+        tile.provenance.halfBandTexels =
+            band->type() == OIIO::TypeDesc::FLOAT ? band->get_float() : -1.0;
+        if (const std::string problem = bandValueProblem(size, tile.provenance.halfBandTexels);
+            !problem.empty())
+            throw FormatError(file.string() + ": " + problem + "; the file was modified or corrupted");
     }
+    if (const std::string problem =
+            distanceProblem(tile, acceptedDistances(size, tile.provenance.halfBandTexels));
+        !problem.empty())
+        throw FormatError(file.string() + ": " + problem);
     const std::string storedHash = spec.get_string_attribute("distile:hash");
     const std::string actualHash = hexDigits(tileHash(tile));
     if (storedHash != actualHash) {
@@ -372,13 +398,6 @@ Tile readTileExr(const fs::path& file) {
     }
     tile.provenance.source = spec.get_string_attribute("distile:source");
     tile.provenance.params = spec.get_string_attribute("distile:params");
-    if (const OIIO::ParamValue* band = spec.find_attribute("distile:band_texels")) {
-        tile.provenance.halfBandTexels =
-            band->type() == OIIO::TypeDesc::FLOAT ? band->get_float() : -1.0;
-        if (const std::string problem = bandProblem(tile); !problem.empty())
-            throw FormatError(file.string() + ": " + problem +
-                              "; the file was modified or corrupted");
-    }
     // Optional: tiles baked from a file name it, relative to the tile's folder.
     const std::string sourceFile = spec.get_string_attribute("distile:source_file");
     if (!sourceFile.empty()) {

@@ -56,7 +56,9 @@ void writeTileExr(const Tile& tile, const std::filesystem::path& file,
 /// FormatError if it is not an OpenEXR file OpenImageIO can read, has no distile: attributes ("not
 /// a distile tile"), does not have exactly one channel named "distance", has atlas dimensions that
 /// disagree with distile:size, needs more than kInputMemoryBudgetBytes to read, holds NaN or
-/// infinite distances or distances beyond +-2 maxHalfBandTexels(size), or fails the distile:hash
+/// infinite distances, declares a band (distile:band_texels) that is not positive or beyond
+/// 2 maxHalfBandTexels(size), holds distances outside the declared band (at least minus the band
+/// minus the tile depth) or, without one, beyond +-2 maxHalfBandTexels(size), or fails the distile:hash
 /// check.
 Tile readTileExr(const std::filesystem::path& file);
 

@@ -4,7 +4,9 @@
 // (cli/app.h).
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -157,6 +159,105 @@ TEST_F(Hardening, AFlippedVdbHeaderByteIsRefusedBeforeOpenVdbAllocates) {
               cli::kExitInput);
 }
 
+/// The little-endian 64-bit field at `at` of `bytes`.
+std::uint64_t field64(const std::string& bytes, std::size_t at) {
+    std::uint64_t value = 0;
+    for (int k = 7; k >= 0; --k) value = value << 8 | static_cast<unsigned char>(bytes[at + k]);
+    return value;
+}
+
+void setField64(std::string& bytes, std::size_t at, std::uint64_t value) {
+    for (int k = 0; k < 8; ++k) bytes[at + k] = char((value >> (8 * k)) & 0xff);
+}
+
+TEST_F(Hardening, AVdbChunkSizeBeyondTheFileIsRefusedBeforeOpenVdbAllocatesIt) {
+    bakeChainmail();
+    // The grid's data (its leaves) starts at the offset in bytes 108-115 of the descriptor. The
+    // first leaf: its 64-byte value mask, a compression flag (0 for distile's level sets: no
+    // inactive values follow), then the blosc chunk's 64-bit size, which OpenVDB allocates.
+    std::string bytes = readText(path("level.vdb"));
+    const std::uint64_t data = field64(bytes, 108);
+    ASSERT_LT(data + 73, bytes.size());
+    ASSERT_EQ(bytes[data + 64], 0);
+    const std::uint64_t chunkSize = field64(bytes, data + 65);
+    ASSERT_GT(chunkSize, 0u);
+    ASSERT_LT(chunkSize, bytes.size());
+    setField64(bytes, data + 65, std::uint64_t(1) << 40);
+    writeText(path("chunk.vdb"), bytes);
+    const std::string chunkAt = "compressed chunk size at byte " + std::to_string(data + 65);
+    EXPECT_EQ(expectInputError({"bake", "vdb", "chunk.vdb", "-o", "t2.exr"}, "t2.exr",
+                               {"chunk.vdb", chunkAt, "1099511627776"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError({"check", "tile.exr", "--against", "chunk.vdb"}, "none",
+                               {"chunk.vdb", chunkAt})
+                  .status,
+              cli::kExitInput);
+    // The blosc header inside the chunk says how many bytes it decompresses to (bytes 4-7): the
+    // leaf's active values as floats (4 bytes each, 64 bits of the mask per 8 bytes); another
+    // count is refused.
+    bytes = readText(path("level.vdb"));
+    std::uint64_t active = 0;
+    for (int word = 0; word < 8; ++word) active += std::popcount(field64(bytes, data + 8 * word));
+    ASSERT_EQ(field64(bytes, data + 73 + 4) & 0xffffffffu, 4 * active);
+    bytes[data + 73 + 5] = char(bytes[data + 73 + 5] ^ 0x40);
+    writeText(path("blosc.vdb"), bytes);
+    EXPECT_EQ(expectInputError({"bake", "vdb", "blosc.vdb", "-o", "t2.exr"}, "t2.exr",
+                               {"blosc.vdb", "blosc header",
+                                "accepted: " + std::to_string(4 * active) + " bytes"})
+                  .status,
+              cli::kExitInput);
+}
+
+/// The offset of the 32-bit size of EXR attribute `name` in `bytes` (after its name and type).
+std::size_t exrAttributeSize(const std::string& bytes, const std::string& name) {
+    const std::size_t at = bytes.find(name + '\0');
+    EXPECT_NE(at, std::string::npos) << name;
+    return bytes.find('\0', at + name.size() + 1) + 1;
+}
+
+TEST_F(Hardening, ATileExrHeaderIsWalkedBeforeOpenExrAllocates) {
+    bakeChainmail();
+    const std::string tile = readText(path("tile.exr"));
+    // An attribute size far past the end of the file: OpenEXR took 2.2 GB on it.
+    std::string bytes = tile;
+    const std::size_t size = exrAttributeSize(bytes, "distile:units");
+    bytes[size + 3] = 0x7f;
+    writeText(path("attribute.exr"), bytes);
+    EXPECT_EQ(expectInputError({"check", "attribute.exr"}, "none",
+                               {"attribute.exr", "attribute size at byte " + std::to_string(size),
+                                "'distile:units'", "bytes of the file follow"})
+                  .status,
+              cli::kExitInput);
+    // A data window of 65536 x 65536 pixels: 16 GiB as floats.
+    bytes = tile;
+    const std::size_t window = exrAttributeSize(bytes, "dataWindow") + 4;
+    for (const std::size_t corner : {window + 8, window + 12}) {
+        bytes[corner] = char(0xff);
+        bytes[corner + 1] = char(0xff);
+        bytes[corner + 2] = 0;
+        bytes[corner + 3] = 0;
+    }
+    writeText(path("window.exr"), bytes);
+    EXPECT_EQ(expectInputError({"check", "window.exr"}, "none",
+                               {"window.exr", "65536x65536 image", "memory"})
+                  .status,
+              cli::kExitInput);
+    // The version field's multi-part flag (bit 12): distile writes single-part files only.
+    bytes = tile;
+    bytes[5] = char(bytes[5] | 0x10);
+    writeText(path("parts.exr"), bytes);
+    EXPECT_EQ(expectInputError({"check", "parts.exr"}, "none",
+                               {"parts.exr", "version field", "multi-part", "single-part"})
+                  .status,
+              cli::kExitInput);
+    // The file cut short: the offset table points past its end.
+    writeText(path("cut.exr"), tile.substr(0, tile.size() - 100));
+    EXPECT_EQ(expectInputError({"check", "cut.exr"}, "none", {"cut.exr", "chunk", "truncated"})
+                  .status,
+              cli::kExitInput);
+}
+
 TEST_F(Hardening, ImagesLargerThanTheMemoryBudgetAreRefused) {
     // A PNG header of 16000 x 16000 RGB pixels (and no pixel data): within the sizes the
     // readers accept, but 3 GB as float pixels.
@@ -273,6 +374,22 @@ TEST_F(Hardening, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
                   "r.png", {"-o", "/proc/r.png"})
                   .status,
               cli::kExitInput);
+}
+
+TEST_F(Hardening, AKilledRunsReservedOutputsAreRemovedByTheNextRun) {
+    // A killed run leaves its reservations ".NAME.partial-PID-N.EXT". PIDs above 2^22 (Linux's
+    // largest pid_max) belong to no process; this process is alive. The next write of o.exr
+    // removes the dead run's reservation only, and leaves other targets' alone.
+    const std::string dead = ".o.partial-4194399-0.exr";
+    const std::string alive = ".o.partial-" + std::to_string(::getpid()) + "-7.exr";
+    const std::string other = ".p.partial-4194399-0.exr";
+    for (const std::string& name : {dead, alive, other}) writeText(path(name), "x");
+    const RunResult bake = run({"bake", "chainmail", "--size", "64x64x8", "-o", "o.exr"});
+    ASSERT_EQ(bake.status, 0) << bake.err;
+    EXPECT_FALSE(fs::exists(path(dead)));
+    EXPECT_TRUE(fs::exists(path(alive)));
+    EXPECT_TRUE(fs::exists(path(other)));
+    EXPECT_TRUE(fs::exists(path("o.exr")));
 }
 
 // ---------------------------------------------------------------------------------------------

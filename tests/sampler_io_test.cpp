@@ -326,6 +326,12 @@ TEST_F(SamplerIo, DeclaredBandRoundTripsAndBoundsTheDistances) {
     rewriteRaw(path("tile.exr"),
                [](RawImage& raw) { raw.spec.attribute("distile:band_texels", -1.0f); });
     EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:band_texels"), std::string::npos);
+    // One bound: the declared band replaces the bound by size (+-16 texels here), and may not
+    // exceed it.
+    rewriteRaw(path("huge.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 12.0f); });
+    EXPECT_EQ(readTileExr(path("huge.exr")).at(5, 0, 0), 12.0f);
+    rewriteRaw(path("huge.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 1e30f); });
+    EXPECT_NE(formatErrorMessage(path("huge.exr")).find("at most 16 texels"), std::string::npos);
 }
 
 TEST_F(SamplerIo, DistancesBeyondTwiceTheWidestBandAreAFormatError) {

@@ -203,22 +203,24 @@ LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
 LevelSet LevelSet::load(const std::filesystem::path& file) {
     detail::checkVdbHeader(file, requireRegularFile(file, "an OpenVDB .vdb file"));
     initializeOpenVdb();
-    openvdb::GridPtrVecPtr grids;
+    // Only the chosen float level set's voxels are read (the header check walked float trees).
+    openvdb::FloatGrid::Ptr grid;
     try {
         openvdb::io::File vdbFile(file.string());
         vdbFile.open(/*delayLoad=*/false);
-        grids = vdbFile.getGrids();
+        openvdb::GridBase::ConstPtr chosen;
+        const openvdb::GridPtrVecPtr metadata = vdbFile.readAllGridMetadata();
+        for (const auto& candidate : *metadata) {
+            if (candidate->isType<openvdb::FloatGrid>() &&
+                candidate->getGridClass() == openvdb::GRID_LEVEL_SET &&
+                (!chosen || candidate->getName() == kGridName)) {
+                chosen = candidate;
+            }
+        }
+        if (chosen) grid = openvdb::gridPtrCast<openvdb::FloatGrid>(vdbFile.readGrid(chosen->getName()));
         vdbFile.close();
     } catch (const std::exception& error) {
         throw FormatError(file.string() + ": not a readable .vdb file (" + error.what() + ")");
-    }
-    openvdb::FloatGrid::Ptr grid;
-    for (const auto& candidate : *grids) {
-        auto floatGrid = openvdb::gridPtrCast<openvdb::FloatGrid>(candidate);
-        if (floatGrid && floatGrid->getGridClass() == openvdb::GRID_LEVEL_SET &&
-            (!grid || floatGrid->getName() == kGridName)) {
-            grid = floatGrid;
-        }
     }
     if (!grid) throw FormatError(file.string() + ": holds no float level set grid");
     const std::string sizeText = stringMeta(*grid, kSizeKey);
