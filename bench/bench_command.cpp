@@ -100,6 +100,10 @@ double tileMiB(const Tile& tile, Storage storage) {
     return double(tile.distancesTexels().size()) * bytes / (1024.0 * 1024.0);
 }
 
+/// Coverage mismatch a distile row may have beyond the row it is compared with (0.5% of the
+/// pixels): a row that misses more pixels does not match the other's error.
+constexpr double kCoverageMismatchSlack = 0.005;
+
 /// distile's sheet rows not dominated in (seconds, mean hit error) by another of them (with no
 /// more coverage mismatch, within 0.5%) get paretoFront; peers and the torus rows are shown beside
 /// the front.
@@ -113,9 +117,142 @@ void markParetoFront(std::vector<Row>& rows) {
             const bool better = other.seconds < row.seconds ||
                                 other.error.meanHitErrorTexels < row.error.meanHitErrorTexels;
             return &other != &row && noWorse && better &&
-                   other.error.coverageMismatchShare <= row.error.coverageMismatchShare + 0.005;
+                   other.error.coverageMismatchShare <=
+                                                  row.error.coverageMismatchShare +
+                                                      kCoverageMismatchSlack;
         });
     }
+}
+
+/// True for a row of the Embree peer (any configuration).
+bool isEmbree(const Row& row) {
+    return row.peer && row.group == "embree";
+}
+
+/// True for a distile row of the sheet (neither a peer nor the torus).
+bool isDistileSheet(const Row& row) {
+    return !row.peer && !row.torus;
+}
+
+/// distile's fastest sheet row whose mean hit error is at most `meanErrorTexels`, with no more
+/// coverage mismatch than `mismatchShare` (plus kCoverageMismatchSlack); null when none.
+const Row* fastestDistileWithin(const std::vector<Row>& rows, double meanErrorTexels,
+                                double mismatchShare) {
+    const Row* fastest = nullptr;
+    for (const Row& r : rows) {
+        if (!isDistileSheet(r) || r.error.meanHitErrorTexels > meanErrorTexels ||
+            r.error.coverageMismatchShare > mismatchShare + kCoverageMismatchSlack)
+            continue;
+        if (!fastest || r.seconds < fastest->seconds) fastest = &r;
+    }
+    return fastest;
+}
+
+/// distile's default configuration on the sheet (tile 256x256x16, float, trilinear, budgeted 16).
+const Row* distileDefault(const std::vector<Row>& rows) {
+    for (const Row& r : rows)
+        if (isDistileSheet(r) && r.tile == "256x256x16" && r.storage == "float" &&
+            r.filter == "trilinear" && r.method == marchMethodName(MarchMethod::Budgeted) &&
+            r.budget == 16)
+            return &r;
+    return nullptr;
+}
+
+/// The Embree row to hold distile's default against: the one whose mean hit error is nearest
+/// above (or equal to) `meanErrorTexels`, the most accurate Embree that is no more accurate than
+/// distile (the fastest of them if several share that error); null when every Embree row is more
+/// accurate.
+const Row* embreeNearestAbove(const std::vector<Row>& rows, double meanErrorTexels) {
+    const Row* nearest = nullptr;
+    for (const Row& r : rows) {
+        if (!isEmbree(r) || r.error.meanHitErrorTexels < meanErrorTexels) continue;
+        if (!nearest || r.error.meanHitErrorTexels < nearest->error.meanHitErrorTexels ||
+            (r.error.meanHitErrorTexels == nearest->error.meanHitErrorTexels &&
+             r.seconds < nearest->seconds))
+            nearest = &r;
+    }
+    return nearest;
+}
+
+/// Embree's fastest row at a mean hit error at most `meanErrorTexels`; null when none.
+const Row* fastestEmbreeWithin(const std::vector<Row>& rows, double meanErrorTexels) {
+    const Row* fastest = nullptr;
+    for (const Row& r : rows)
+        if (isEmbree(r) && r.error.meanHitErrorTexels <= meanErrorTexels &&
+            (!fastest || r.seconds < fastest->seconds))
+            fastest = &r;
+    return fastest;
+}
+
+/// The largest distile / Embree time ratio that meets the goal: distile in at most half the time
+/// of Embree at the error nearest above its own.
+constexpr double kGoalDistileOverEmbree = 0.5;
+
+/// The report's section on distile against Embree's curve, with its verdicts.
+std::string embreeSection(const std::vector<Row>& rows) {
+    std::ostringstream md;
+    md.precision(4);
+    bool anyEmbree = false;
+    for (const Row& r : rows) anyEmbree = anyEmbree || isEmbree(r);
+    if (!anyEmbree) return "";
+    md << "## distile against Embree's curve\n\n"
+       << "Each Embree configuration against distile's fastest sheet configuration at the same or "
+          "a lower mean hit error (and no more than 0.5% more coverage mismatch); times are "
+          "medians of 3 (Embree: 3 traces of one built scene; distile: 3 renders).\n\n"
+       << "| Embree configuration | Embree s | Embree mean err | distile at <= that error | "
+          "distile s | distile mean err | distile / Embree |\n|---|---|---|---|---|---|---|\n";
+    bool everyLevel = true;
+    for (const Row& r : rows) {
+        if (!isEmbree(r)) continue;
+        const Row* match = fastestDistileWithin(rows, r.error.meanHitErrorTexels,
+                                                r.error.coverageMismatchShare);
+        const bool faster = match && match->seconds < r.seconds;
+        everyLevel = everyLevel && faster;
+        md << "| " << r.label << " | " << r.seconds << " | " << r.error.meanHitErrorTexels << " | "
+           << (match ? match->label : std::string("none")) << " | "
+           << (match ? std::to_string(match->seconds).substr(0, 6) : std::string("-")) << " | "
+           << (match ? std::to_string(match->error.meanHitErrorTexels).substr(0, 6)
+                     : std::string("-"))
+           << " | " << (match ? std::to_string(match->seconds / r.seconds).substr(0, 5)
+                              : std::string("-"))
+           << " |\n";
+    }
+    md << "\n";
+    const Row* own = distileDefault(rows);
+    std::string goalVerdict = "not measured: distile's default row is missing";
+    if (own) {
+        const Row* above = embreeNearestAbove(rows, own->error.meanHitErrorTexels);
+        const Row* within = fastestEmbreeWithin(rows, own->error.meanHitErrorTexels);
+        md << "distile's default (" << own->label << "): " << own->seconds << " s at mean "
+           << own->error.meanHitErrorTexels << " texel.\n\n";
+        if (within)
+            md << "- Embree's time at distile's error (its fastest configuration at that error "
+                  "or lower): "
+               << within->label << ", " << within->seconds << " s; distile / Embree "
+               << own->seconds / within->seconds << ".\n";
+        else
+            md << "- Embree's time at distile's error: no Embree configuration here is that "
+                  "accurate.\n";
+        if (above) {
+            const double ratio = own->seconds / above->seconds;
+            md << "- Embree nearest above distile's error: " << above->label << ", "
+               << above->seconds << " s at " << above->error.meanHitErrorTexels
+               << " texel; distile / Embree " << ratio << ".\n";
+            goalVerdict = std::string(ratio <= kGoalDistileOverEmbree ? "**pass**" : "**FAIL**") +
+                          " distile's default / Embree nearest above its error = " +
+                          std::to_string(ratio).substr(0, 5) + " (target <= 0.5)";
+        } else {
+            md << "- Embree nearest above distile's error: none (every Embree configuration is "
+                  "more accurate).\n";
+            goalVerdict = "not measured: every Embree configuration is more accurate than "
+                          "distile's default";
+        }
+    }
+    md << "\nVerdicts:\n\n- " << goalVerdict << "\n- "
+       << (everyLevel ? "**pass**" : "**FAIL**")
+       << " at every Embree error level distile has a faster configuration at the same or lower "
+          "error\n\n";
+    return md.str();
 }
 
 std::string csvOf(const std::vector<Row>& rows, int threads, int width, int height) {
@@ -158,7 +295,10 @@ std::string gnuplotScript(const std::vector<Row>& rows, const fs::path& png) {
                                                   "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
                                                   "#000000", "#17becf"};
     for (std::size_t g = 0; g < groups.size(); ++g) {
-        gp << "'-' using 1:2 with points pt " << (groups[g] == "peer" ? 3 : 5 + 2 * int(g % 4))
+        gp << "'-' using 1:2 with "
+           << (groups[g] == "embree" ? "linespoints pt 3" : groups[g] == "peer" ? "points pt 3"
+                                                                                : "points pt ")
+           << (groups[g] == "peer" || groups[g] == "embree" ? "" : std::to_string(5 + 2 * int(g % 4)))
            << " ps 1.6 lc rgb '" << kColors[g % kColors.size()] << "' title '" << groups[g]
            << "', ";
     }
@@ -227,7 +367,8 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
             md << "- **" << r.label << "**: " << r.seconds << " s trace (" << r.setupSeconds
                << " s setup, " << r.memoryMiB << " MiB), mean " << r.error.meanHitErrorTexels
                << " texel, coverage mismatch " << 100.0 * r.error.coverageMismatchShare << "%\n";
-    md << "\n## Curved shells: the torus on the sheet\n\n"
+    md << "\n" << embreeSection(rows);
+    md << "## Curved shells: the torus on the sheet\n\n"
        << "data/scenes/torus_on_sheet.json (chain mail on a torus, a curved base, lying on the "
           "sheet) at the same size, rendered with the curved shell march (the default: the ray "
           "follows the shell map prism by prism) and with the planar one (ch. 8: the ray mapped "
@@ -363,6 +504,35 @@ RenderSkips chapter8Skips() {
     return skips;
 }
 
+/// Timed runs of every distile row and every Embree configuration: the row's time is their median.
+constexpr int kRunsPerRow = 3;
+
+/// The Embree configurations of the sweep: the plain one (one ray per call, triangles, the
+/// default BVH, 0.02 texel), and Embree as its documentation recommends for camera rays (native
+/// packets over pixel tiles, quads, the high-quality BVH) at four tessellation bounds, plus the
+/// packets with triangles and the default BVH at 0.05 texel to show what each choice gives.
+std::vector<EmbreePeerOptions> embreeConfigurations() {
+    const int packet = embreeNativePacketWidth();
+    std::vector<EmbreePeerOptions> configurations;
+    EmbreePeerOptions plain;
+    configurations.push_back(plain);
+    if (packet > 1) {
+        EmbreePeerOptions packets;
+        packets.raysPerPacket = packet;
+        packets.tessellationErrorTexels = 0.05;
+        configurations.push_back(packets);
+        for (double errorTexels : {0.02, 0.05, 0.1, 0.2}) {
+            EmbreePeerOptions best = packets;
+            best.quads = true;
+            best.highQualityBvh = true;
+            best.tessellationErrorTexels = errorTexels;
+            configurations.push_back(best);
+        }
+    }
+    for (EmbreePeerOptions& options : configurations) options.traceRuns = kRunsPerRow;
+    return configurations;
+}
+
 void runBench(const BenchArguments& arguments) {
     if (arguments.stress) {
         runStressReport(arguments.outputDir);
@@ -428,7 +598,8 @@ void runBench(const BenchArguments& arguments) {
         rows.push_back(row);
     };
     auto measure = [&](Row row, const Scene& scene, const RenderOptions& options, Storage storage) {
-        record(std::move(row), timedRender(scene, options), scene, options, storage, truth);
+        record(std::move(row), medianRender(scene, options, kRunsPerRow), scene, options, storage,
+               truth);
     };
     const RenderOptions defaults = benchRenderOptions(width, height);
 
@@ -541,18 +712,19 @@ void runBench(const BenchArguments& arguments) {
     // Peers.
     if (arguments.peers) {
         say("bench: peers");
-        auto peerRow = [&](const PeerRender& peer) {
+        auto peerRow = [&](const PeerRender& peer, const std::string& group,
+                           const std::string& label) {
             if (!peer.available) {
-                notes.push_back(peer.name + ": " + peer.unavailableReason);
-                say("  " + peer.name + ": " + peer.unavailableReason);
+                notes.push_back(label + ": " + peer.unavailableReason);
+                say("  " + label + ": " + peer.unavailableReason);
                 return;
             }
             // Peers shade nothing and know no texel scale: the reference's converts their depth.
             const Image blank(peer.depth.width, peer.depth.height);
             const Image noScale(peer.depth.width, peer.depth.height);
             Row row;
-            row.group = "peer";
-            row.label = peer.name;
+            row.group = group;
+            row.label = label;
             row.peer = true;
             row.tile = "-";
             row.storage = "-";
@@ -573,10 +745,13 @@ void runBench(const BenchArguments& arguments) {
             say(line);
             rows.push_back(row);
         };
-        peerRow(renderSheetWithEmbree(sheet, width, height, threads));
+        for (const EmbreePeerOptions& options : embreeConfigurations())
+            peerRow(renderSheetWithEmbree(sheet, width, height, threads, options), "embree",
+                    embreePeerLabel(options));
         const fs::path work = arguments.outputDir / "vdb_render";
         fs::create_directories(work);
-        peerRow(renderSheetWithVdbRender(sheet, width, height, threads, work));
+        peerRow(renderSheetWithVdbRender(sheet, width, height, threads, work), "peer",
+                "vdb_render");
         notes.push_back(
             "vdb_render's level set has no floor: pixels where distile and the reference hit the "
             "sheet's solid floor are misses there (its coverage mismatch).");

@@ -108,9 +108,9 @@ TEST(EmbreePeer, HitsTheReferenceSurfaceWithinTheTessellationBound) {
     // traced, so both cover the same pixels.
     EXPECT_EQ(a.peerHits, a.referenceHits);
     EXPECT_EQ(a.peerOnly, 0);
-    // Faces lie within kEmbreeTessellationErrorTexels (0.02) of the surface; along the ray that is
+    // Faces lie within the default tessellation bound (0.02 texel) of the surface; along the ray that is
     // 0.02 / cos(incidence); the reference converges to 1e-3 texel, float rays add ~1e-4.
-    EXPECT_LT(a.quantile(0.5), 0.5 * kEmbreeTessellationErrorTexels);
+    EXPECT_LT(a.quantile(0.5), 0.5 * EmbreePeerOptions{}.tessellationErrorTexels);
     EXPECT_LT(a.quantile(0.95), 0.1);
     // Silhouettes: a ray grazing a wire within 0.02 texel hits the true surface but passes the
     // inscribed faces and lands on what is behind (measured: 0.3% of the pixels here).
