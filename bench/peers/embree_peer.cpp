@@ -488,6 +488,7 @@ PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int 
     const PinholeProjection projection(scene.camera, width, height);
     std::vector<double> traceSeconds;
     for (int run = 0; run < options.traceRuns; ++run) {
+        if (options.beforeEachTrace) options.beforeEachTrace();
         result.depth = Image(width, height);
         result.normal = Image(width, height);
         const auto traceStart = std::chrono::steady_clock::now();

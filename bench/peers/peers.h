@@ -15,6 +15,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "render/image.h"
@@ -56,6 +57,9 @@ struct EmbreePeerOptions {
     bool highQualityBvh = false;
     /// Traces of the one built scene (>= 1); traceSeconds is their median.
     int traceRuns = 1;
+    /// Called before each trace, untimed (may be empty): a caller times its own work there, so
+    /// that a slow spell of a shared machine hits both alike.
+    std::function<void()> beforeEachTrace;
 };
 
 /// Embree's native packet width on this machine and build (16, 8 or 4; 1 when Embree is missing
