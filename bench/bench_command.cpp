@@ -85,8 +85,9 @@ struct Row {
     /// series), not from the sheet against the analytic reference: beside the front, not on it.
     bool torus = false;
     bool paretoFront = false;
-    /// distile rows rendered on the sheet's own scene: their options, to render them again.
-    std::optional<RenderOptions> sheetOptions;
+    /// distile's sheet rows: what they rendered, to render it again beside the peers.
+    std::shared_ptr<const Scene> scene;
+    std::optional<RenderOptions> options;
     /// Embree rows: distile rows (index into the rows) rendered again before each of this
     /// configuration's traces, with the median of those renders' times, seconds.
     std::vector<std::pair<std::size_t, double>> pairedDistileSeconds;
@@ -168,7 +169,7 @@ double pairedSeconds(const Row& embree, std::size_t index) {
 /// the row rendered on the sheet's own scene.
 const Row* distileDefault(const std::vector<Row>& rows) {
     for (const Row& r : rows)
-        if (isDistileSheet(r) && r.sheetOptions && r.tile == "256x256x16" && r.storage == "float" &&
+        if (isDistileSheet(r) && r.options && r.tile == "256x256x16" && r.storage == "float" &&
             r.filter == "trilinear" && r.method == marchMethodName(MarchMethod::Budgeted) &&
             r.budget == 16)
             return &r;
@@ -618,7 +619,8 @@ void runBench(const BenchArguments& arguments) {
         rows.push_back(row);
     };
     auto measure = [&](Row row, const Scene& scene, const RenderOptions& options, Storage storage) {
-        if (&scene == &sheet) row.sheetOptions = options;
+        row.scene = std::make_shared<const Scene>(scene);
+        row.options = options;
         record(std::move(row), medianRender(scene, options, kRunsPerRow), scene, options, storage,
                truth);
     };
@@ -628,8 +630,10 @@ void runBench(const BenchArguments& arguments) {
     say("bench: tile sizes");
     std::vector<Size3> sizes{{128, 128, 8}, {256, 256, 16}};
     if (!arguments.quick) sizes.push_back({512, 512, 32});
+    std::optional<Scene> largeTileSheet;  // the largest tile, for the accuracy rows
     for (const Size3& size : sizes) {
         const Scene scene = size == defaultSize ? sheet : loadSheet(size);
+        if (size.width > defaultSize.width) largeTileSheet = scene;
         Row row;
         row.group = "size";
         row.label = "tile " + std::to_string(size.width) + "x" + std::to_string(size.height) + "x" +
@@ -677,6 +681,29 @@ void runBench(const BenchArguments& arguments) {
             measure(row, sheet, options, Storage::Float32);
             if (method == MarchMethod::SphereTracing)
                 claims.push_back({"chain mail (sheet)", budget, rows.back().convergedShare});
+        }
+    }
+    // Accuracy: what distile's lowest errors cost (the budget rows end at the default tile's
+    // trilinear error): the larger tile, the tricubic march filter and a finer hit epsilon, each
+    // with the budgets they need.
+    say("bench: accuracy");
+    {
+        auto accuracyRow = [&](const std::string& label, const Scene& scene, RenderOptions options,
+                               int budget) {
+            options.march.maxIterations = budget;
+            Row row;
+            row.group = "accuracy";
+            row.label = label + ", budgeted " + std::to_string(budget);
+            measure(row, scene, options, Storage::Float32);
+        };
+        RenderOptions tricubic = defaults;
+        tricubic.filter = FilterKind::TricubicBSpline;
+        RenderOptions fineEpsilon = defaults;
+        fineEpsilon.march.epsilonTexels = 0.005f;
+        for (int budget : {32, 64}) {
+            if (largeTileSheet) accuracyRow("tile 512x512x32", *largeTileSheet, defaults, budget);
+            accuracyRow("march filter tricubic", sheet, tricubic, budget);
+            accuracyRow("epsilon 0.005", sheet, fineEpsilon, budget);
         }
     }
     // Ch. 8's smooth height field claim: the sheet with a smooth height-field tile.
@@ -770,14 +797,14 @@ void runBench(const BenchArguments& arguments) {
         markParetoFront(rows);
         std::vector<std::size_t> paired;
         for (std::size_t i = 0; i < rows.size(); ++i)
-            if (rows[i].sheetOptions && (rows[i].paretoFront || &rows[i] == distileDefault(rows)))
+            if (rows[i].options && (rows[i].paretoFront || &rows[i] == distileDefault(rows)))
                 paired.push_back(i);
         for (EmbreePeerOptions options : embreeConfigurations()) {
             std::vector<std::vector<double>> pairedRuns(paired.size());
             options.beforeEachTrace = [&] {
                 for (std::size_t p = 0; p < paired.size(); ++p)
                     pairedRuns[p].push_back(
-                        timedRender(sheet, *rows[paired[p]].sheetOptions).seconds);
+                        timedRender(*rows[paired[p]].scene, *rows[paired[p]].options).seconds);
             };
             const PeerRender peer = renderSheetWithEmbree(sheet, width, height, threads, options);
             std::vector<std::pair<std::size_t, double>> pairedSeconds;
