@@ -2,8 +2,9 @@
 /// Peer renderers for `distile bench` (docs/reports.md): the same scene, camera rays and
 /// thread count traced by other tools on the same detail, so distile's time and error can be put
 /// next to theirs in one run.
-///  - Embree 3 on the chain mail tessellated finely (vdb/chainmail.h tessellateChainmail) and
-///    placed on the sheet in world space, with the solid floor as two triangles.
+///  - Embree 3 on the chain mail tessellated to a chosen error bound (vdb/chainmail.h
+///    tessellateChainmail) and placed on the sheet in world space, with the solid floor as two
+///    triangles; one ray per call or packets, triangles or quads, either BVH quality.
 ///  - OpenVDB's vdb_render (a separate program) on the chain mail's level set repeated over the
 ///    sheet (vdb/level_set.h), with its camera converted to the level set's texel space.
 /// Both accept one kind of scene, a "sheet": one object, a planar base mesh with orthogonal,
