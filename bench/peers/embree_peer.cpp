@@ -244,34 +244,21 @@ void placeRings(const detail::SheetPlacement& sheet, const std::vector<glm::dvec
     }
 }
 
-/// Embree's packet types and calls by width.
+/// Embree's packet type, call and pixel tile by width N (4, 8 or 16): 2 x 2, 4 x 2 or 4 x 4.
 template <int N>
-struct Packet;
-template <>
-struct Packet<4> {
-    using RayHit = RTCRayHit4;
-    static constexpr int kWidth = 2;
+struct Packet {
+    static_assert(N == 4 || N == 8 || N == 16);
+    using RayHit = std::conditional_t<N == 4, RTCRayHit4,
+                                      std::conditional_t<N == 8, RTCRayHit8, RTCRayHit16>>;
+    static constexpr int kWidth = N == 4 ? 2 : 4;
     static void intersect(const int* valid, RTCScene scene, RTCIntersectContext* context,
                           RayHit* rays) {
-        rtcIntersect4(valid, scene, context, rays);
-    }
-};
-template <>
-struct Packet<8> {
-    using RayHit = RTCRayHit8;
-    static constexpr int kWidth = 4;
-    static void intersect(const int* valid, RTCScene scene, RTCIntersectContext* context,
-                          RayHit* rays) {
-        rtcIntersect8(valid, scene, context, rays);
-    }
-};
-template <>
-struct Packet<16> {
-    using RayHit = RTCRayHit16;
-    static constexpr int kWidth = 4;
-    static void intersect(const int* valid, RTCScene scene, RTCIntersectContext* context,
-                          RayHit* rays) {
-        rtcIntersect16(valid, scene, context, rays);
+        if constexpr (N == 4)
+            rtcIntersect4(valid, scene, context, rays);
+        else if constexpr (N == 8)
+            rtcIntersect8(valid, scene, context, rays);
+        else
+            rtcIntersect16(valid, scene, context, rays);
     }
 };
 
