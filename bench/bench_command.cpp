@@ -133,7 +133,7 @@ void markParetoFront(std::vector<Row>& rows) {
 
 /// True for a row of the Embree peer (any configuration).
 bool isEmbree(const Row& row) {
-    return row.peer && row.group == "embree";
+    return row.peer && row.label.rfind("embree", 0) == 0;
 }
 
 /// True for a distile row of the sheet (neither a peer nor the torus).
@@ -312,14 +312,17 @@ std::string gnuplotScript(const std::vector<Row>& rows, const fs::path& png) {
         if (std::find(groups.begin(), groups.end(), r.group) == groups.end())
             groups.push_back(r.group);
     gp << "plot ";
+    // Embree's recommended configurations are a curve; the other peers' points are stars.
+    auto style = [](const std::string& group, std::size_t g) {
+        if (group == "embree") return std::string("linespoints pt 3");
+        if (group == "peer" || group == "embree, other") return std::string("points pt 3");
+        return "points pt " + std::to_string(5 + 2 * int(g % 4));
+    };
     constexpr std::array<const char*, 10> kColors{"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
                                                   "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
                                                   "#000000", "#17becf"};
     for (std::size_t g = 0; g < groups.size(); ++g) {
-        gp << "'-' using 1:2 with "
-           << (groups[g] == "embree" ? "linespoints pt 3" : groups[g] == "peer" ? "points pt 3"
-                                                                                : "points pt ")
-           << (groups[g] == "peer" || groups[g] == "embree" ? "" : std::to_string(5 + 2 * int(g % 4)))
+        gp << "'-' using 1:2 with " << style(groups[g], g)
            << " ps 1.6 lc rgb '" << kColors[g % kColors.size()] << "' title '" << groups[g]
            << "', ";
     }
@@ -821,7 +824,9 @@ void runBench(const BenchArguments& arguments) {
                     pairedSeconds.emplace_back(paired[p],
                                                pairedRuns[p][pairedRuns[p].size() / 2]);
             }
-            peerRow(peer, "embree", embreePeerLabel(options));
+            // Embree's curve (its recommended configuration at each bound) is a series of its own.
+            const bool recommended = options.raysPerPacket > 1 && options.quads;
+            peerRow(peer, recommended ? "embree" : "embree, other", embreePeerLabel(options));
             if (peer.available) rows.back().pairedDistileSeconds = std::move(pairedSeconds);
         }
         const fs::path work = arguments.outputDir / "vdb_render";
