@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -84,6 +85,12 @@ struct Row {
     /// series), not from the sheet against the analytic reference: beside the front, not on it.
     bool torus = false;
     bool paretoFront = false;
+    /// distile's sheet rows: what they rendered, to render it again beside the peers.
+    std::shared_ptr<const Scene> scene;
+    std::optional<RenderOptions> options;
+    /// Embree rows: distile rows (index into the rows) rendered again before each of this
+    /// configuration's traces, with the median of those renders' times, seconds.
+    std::vector<std::pair<std::size_t, double>> pairedDistileSeconds;
 };
 
 /// The series of the torus on the sheet, one per shell mapping.
@@ -100,6 +107,10 @@ double tileMiB(const Tile& tile, Storage storage) {
     return double(tile.distancesTexels().size()) * bytes / (1024.0 * 1024.0);
 }
 
+/// Coverage mismatch a distile row may have beyond the row it is compared with (0.5% of the
+/// pixels): a row that misses more pixels does not match the other's error.
+constexpr double kCoverageMismatchSlack = 0.005;
+
 /// distile's sheet rows not dominated in (seconds, mean hit error) by another of them (with no
 /// more coverage mismatch, within 0.5%) get paretoFront; peers and the torus rows are shown beside
 /// the front.
@@ -113,9 +124,156 @@ void markParetoFront(std::vector<Row>& rows) {
             const bool better = other.seconds < row.seconds ||
                                 other.error.meanHitErrorTexels < row.error.meanHitErrorTexels;
             return &other != &row && noWorse && better &&
-                   other.error.coverageMismatchShare <= row.error.coverageMismatchShare + 0.005;
+                   other.error.coverageMismatchShare <=
+                                                  row.error.coverageMismatchShare +
+                                                      kCoverageMismatchSlack;
         });
     }
+}
+
+/// True for a row of the Embree peer (any configuration).
+bool isEmbree(const Row& row) {
+    return row.peer && row.label.rfind("embree", 0) == 0;
+}
+
+/// True for a distile row of the sheet (neither a peer nor the torus).
+bool isDistileSheet(const Row& row) {
+    return !row.peer && !row.torus;
+}
+
+/// Of the distile rows paired with Embree row `embree` (timed alongside its traces), the fastest
+/// whose mean hit error is at most Embree's, with no more coverage mismatch than Embree's (plus
+/// kCoverageMismatchSlack): its index and paired time; nullopt when none.
+std::optional<std::pair<std::size_t, double>> fastestPairedWithin(const std::vector<Row>& rows,
+                                                                  const Row& embree) {
+    std::optional<std::pair<std::size_t, double>> fastest;
+    for (const auto& [index, seconds] : embree.pairedDistileSeconds) {
+        const Row& r = rows[index];
+        if (r.error.meanHitErrorTexels > embree.error.meanHitErrorTexels ||
+            r.error.coverageMismatchShare >
+                embree.error.coverageMismatchShare + kCoverageMismatchSlack)
+            continue;
+        if (!fastest || seconds < fastest->second) fastest = std::pair{index, seconds};
+    }
+    return fastest;
+}
+
+/// The paired time of distile row `index` in Embree row `embree`'s run; NaN when not paired.
+double pairedSeconds(const Row& embree, std::size_t index) {
+    for (const auto& [paired, seconds] : embree.pairedDistileSeconds)
+        if (paired == index) return seconds;
+    return std::nan("");
+}
+
+/// distile's default configuration on the sheet (tile 256x256x16, float, trilinear, budgeted 16),
+/// the row rendered on the sheet's own scene.
+const Row* distileDefault(const std::vector<Row>& rows) {
+    for (const Row& r : rows)
+        if (isDistileSheet(r) && r.options && r.tile == "256x256x16" && r.storage == "float" &&
+            r.filter == "trilinear" && r.method == marchMethodName(MarchMethod::Budgeted) &&
+            r.budget == 16)
+            return &r;
+    return nullptr;
+}
+
+/// The Embree row to hold distile's default against: the one whose mean hit error is nearest
+/// above (or equal to) `meanErrorTexels`, the most accurate Embree that is no more accurate than
+/// distile (the fastest of them if several share that error); null when every Embree row is more
+/// accurate.
+const Row* embreeNearestAbove(const std::vector<Row>& rows, double meanErrorTexels) {
+    const Row* nearest = nullptr;
+    for (const Row& r : rows) {
+        if (!isEmbree(r) || r.error.meanHitErrorTexels < meanErrorTexels) continue;
+        if (!nearest || r.error.meanHitErrorTexels < nearest->error.meanHitErrorTexels ||
+            (r.error.meanHitErrorTexels == nearest->error.meanHitErrorTexels &&
+             r.seconds < nearest->seconds))
+            nearest = &r;
+    }
+    return nearest;
+}
+
+/// Embree's fastest row at a mean hit error at most `meanErrorTexels`; null when none.
+const Row* fastestEmbreeWithin(const std::vector<Row>& rows, double meanErrorTexels) {
+    const Row* fastest = nullptr;
+    for (const Row& r : rows)
+        if (isEmbree(r) && r.error.meanHitErrorTexels <= meanErrorTexels &&
+            (!fastest || r.seconds < fastest->seconds))
+            fastest = &r;
+    return fastest;
+}
+
+/// The largest distile / Embree time ratio that meets the goal: distile in at most half the time
+/// of Embree at the error nearest above its own.
+constexpr double kGoalDistileOverEmbree = 0.5;
+
+/// The report's section on distile against Embree's curve, with its verdicts.
+std::string embreeSection(const std::vector<Row>& rows) {
+    std::ostringstream md;
+    md.precision(4);
+    bool anyEmbree = false;
+    for (const Row& r : rows) anyEmbree = anyEmbree || isEmbree(r);
+    if (!anyEmbree) return "";
+    md << "## distile against Embree's curve\n\n"
+       << "Each Embree configuration against distile's fastest configuration at the same or a "
+          "lower mean hit error (and no more than 0.5% more coverage mismatch) among distile's "
+          "Pareto front and its default. Before each of Embree's traces (3 of one built scene) "
+          "every one of those distile configurations renders once, so both are timed in the same "
+          "spell of the machine; the times here are the medians of those runs (the other tables "
+          "hold the sweep's own medians).\n\n"
+       << "| Embree configuration | Embree s | Embree mean err | distile at <= that error | "
+          "distile s | distile mean err | distile / Embree |\n|---|---|---|---|---|---|---|\n";
+    bool everyLevel = true;
+    for (const Row& r : rows) {
+        if (!isEmbree(r)) continue;
+        const auto match = fastestPairedWithin(rows, r);
+        everyLevel = everyLevel && match && match->second < r.seconds;
+        md << "| " << r.label << " | " << r.seconds << " | " << r.error.meanHitErrorTexels << " | ";
+        if (match)
+            md << rows[match->first].label << " | " << match->second << " | "
+               << rows[match->first].error.meanHitErrorTexels << " | " << match->second / r.seconds
+               << " |\n";
+        else
+            md << "none | - | - | - |\n";
+    }
+    md << "\n";
+    const Row* own = distileDefault(rows);
+    std::string goalVerdict = "not measured: distile's default row is missing";
+    if (own) {
+        const auto ownIndex = std::size_t(own - rows.data());
+        const double ownError = own->error.meanHitErrorTexels;
+        const Row* above = embreeNearestAbove(rows, ownError);
+        const Row* within = fastestEmbreeWithin(rows, ownError);
+        md << "distile's default (" << own->label << ", mean " << ownError << " texel):\n\n";
+        if (within)
+            md << "- Embree's time at distile's error (its fastest configuration at that error "
+                  "or lower): "
+               << within->label << ", " << within->seconds << " s against distile's "
+               << pairedSeconds(*within, ownIndex)
+               << " s; distile / Embree = " << pairedSeconds(*within, ownIndex) / within->seconds
+               << ".\n";
+        else
+            md << "- Embree's time at distile's error: no Embree configuration here is that "
+                  "accurate.\n";
+        if (above) {
+            const double ratio = pairedSeconds(*above, ownIndex) / above->seconds;
+            md << "- Embree nearest above distile's error: " << above->label << ", "
+               << above->seconds << " s at " << above->error.meanHitErrorTexels
+               << " texel, against distile's " << pairedSeconds(*above, ownIndex)
+               << " s; distile / Embree = " << ratio << ".\n";
+            goalVerdict = std::string(ratio <= kGoalDistileOverEmbree ? "**pass**" : "**FAIL**") +
+                          " distile's default / Embree nearest above its error = " +
+                          std::to_string(ratio).substr(0, 5) + " (target <= 0.5)";
+        } else {
+            md << "- Embree nearest above distile's error: none (every Embree configuration is "
+                  "more accurate).\n";
+            goalVerdict = "not measured: every Embree configuration is more accurate than "
+                          "distile's default";
+        }
+    }
+    md << "\nVerdicts:\n\n- " << goalVerdict << "\n- " << (everyLevel ? "**pass**" : "**FAIL**")
+       << " at every Embree error level distile has a faster configuration at the same or lower "
+          "error\n\n";
+    return md.str();
 }
 
 std::string csvOf(const std::vector<Row>& rows, int threads, int width, int height) {
@@ -154,11 +312,17 @@ std::string gnuplotScript(const std::vector<Row>& rows, const fs::path& png) {
         if (std::find(groups.begin(), groups.end(), r.group) == groups.end())
             groups.push_back(r.group);
     gp << "plot ";
+    // Embree's recommended configurations are a curve; the other peers' points are stars.
+    auto style = [](const std::string& group, std::size_t g) {
+        if (group == "embree") return std::string("linespoints pt 3");
+        if (group == "peer" || group == "embree, other") return std::string("points pt 3");
+        return "points pt " + std::to_string(5 + 2 * int(g % 4));
+    };
     constexpr std::array<const char*, 10> kColors{"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728",
                                                   "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
                                                   "#000000", "#17becf"};
     for (std::size_t g = 0; g < groups.size(); ++g) {
-        gp << "'-' using 1:2 with points pt " << (groups[g] == "peer" ? 3 : 5 + 2 * int(g % 4))
+        gp << "'-' using 1:2 with " << style(groups[g], g)
            << " ps 1.6 lc rgb '" << kColors[g % kColors.size()] << "' title '" << groups[g]
            << "', ";
     }
@@ -212,7 +376,8 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
           "render (double precision, 512 sphere-tracing steps, epsilon 0.001 texel; "
        << referenceSeconds
        << " s). distile rows are renders without shadows (primary rays, march, normals, "
-          "shading); peer rows are their primary-ray trace times. Hit error: distance along the "
+          "shading), timed without AOVs (the median of 3; the error from one more render with "
+          "them); peer rows are their primary-ray trace times. Hit error: distance along the "
           "ray to the reference hit, in texels. The two torus-on-sheet series are another scene "
           "against another truth (see Curved shells below).\n\n";
     if (plotted) md << "![time against error](pareto.png)\n\n";
@@ -227,7 +392,8 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
             md << "- **" << r.label << "**: " << r.seconds << " s trace (" << r.setupSeconds
                << " s setup, " << r.memoryMiB << " MiB), mean " << r.error.meanHitErrorTexels
                << " texel, coverage mismatch " << 100.0 * r.error.coverageMismatchShare << "%\n";
-    md << "\n## Curved shells: the torus on the sheet\n\n"
+    md << "\n" << embreeSection(rows);
+    md << "## Curved shells: the torus on the sheet\n\n"
        << "data/scenes/torus_on_sheet.json (chain mail on a torus, a curved base, lying on the "
           "sheet) at the same size, rendered with the curved shell march (the default: the ray "
           "follows the shell map prism by prism) and with the planar one (ch. 8: the ray mapped "
@@ -363,6 +529,35 @@ RenderSkips chapter8Skips() {
     return skips;
 }
 
+/// Timed runs of every distile row and every Embree configuration: the row's time is their median.
+constexpr int kRunsPerRow = 3;
+
+/// The Embree configurations of the sweep: the plain one (one ray per call, triangles, the
+/// default BVH, 0.02 texel), and Embree as its documentation recommends for camera rays (native
+/// packets over pixel tiles, quads, the high-quality BVH) at four tessellation bounds, plus the
+/// packets with triangles and the default BVH at 0.05 texel to show what each choice gives.
+std::vector<EmbreePeerOptions> embreeConfigurations() {
+    const int packet = embreeNativePacketWidth();
+    std::vector<EmbreePeerOptions> configurations;
+    EmbreePeerOptions plain;
+    configurations.push_back(plain);
+    if (packet > 1) {
+        EmbreePeerOptions packets;
+        packets.raysPerPacket = packet;
+        packets.tessellationErrorTexels = 0.05;
+        configurations.push_back(packets);
+        for (double errorTexels : {0.02, 0.05, 0.1, 0.2}) {
+            EmbreePeerOptions best = packets;
+            best.quads = true;
+            best.highQualityBvh = true;
+            best.tessellationErrorTexels = errorTexels;
+            configurations.push_back(best);
+        }
+    }
+    for (EmbreePeerOptions& options : configurations) options.traceRuns = kRunsPerRow;
+    return configurations;
+}
+
 void runBench(const BenchArguments& arguments) {
     if (arguments.stress) {
         runStressReport(arguments.outputDir);
@@ -428,7 +623,16 @@ void runBench(const BenchArguments& arguments) {
         rows.push_back(row);
     };
     auto measure = [&](Row row, const Scene& scene, const RenderOptions& options, Storage storage) {
-        record(std::move(row), timedRender(scene, options), scene, options, storage, truth);
+        // The error from a render with AOVs (the depth a comparison reads); the time from renders
+        // without them, as a user renders a picture and as the peers trace: writing seven more
+        // images is no part of the render.
+        RenderOptions timed = options;
+        timed.outputAovs = false;
+        row.scene = std::make_shared<const Scene>(scene);
+        row.options = timed;
+        TimedRender render = timedRender(scene, options);
+        render.seconds = medianRender(scene, timed, kRunsPerRow).seconds;
+        record(std::move(row), render, scene, options, storage, truth);
     };
     const RenderOptions defaults = benchRenderOptions(width, height);
 
@@ -436,8 +640,10 @@ void runBench(const BenchArguments& arguments) {
     say("bench: tile sizes");
     std::vector<Size3> sizes{{128, 128, 8}, {256, 256, 16}};
     if (!arguments.quick) sizes.push_back({512, 512, 32});
+    std::optional<Scene> largeTileSheet;  // the largest tile, for the accuracy rows
     for (const Size3& size : sizes) {
         const Scene scene = size == defaultSize ? sheet : loadSheet(size);
+        if (size.width > defaultSize.width) largeTileSheet = scene;
         Row row;
         row.group = "size";
         row.label = "tile " + std::to_string(size.width) + "x" + std::to_string(size.height) + "x" +
@@ -485,6 +691,29 @@ void runBench(const BenchArguments& arguments) {
             measure(row, sheet, options, Storage::Float32);
             if (method == MarchMethod::SphereTracing)
                 claims.push_back({"chain mail (sheet)", budget, rows.back().convergedShare});
+        }
+    }
+    // Accuracy: what distile's lowest errors cost (the budget rows end at the default tile's
+    // trilinear error): the larger tile, the tricubic march filter and a finer hit epsilon, each
+    // with the budgets they need.
+    say("bench: accuracy");
+    {
+        auto accuracyRow = [&](const std::string& label, const Scene& scene, RenderOptions options,
+                               int budget) {
+            options.march.maxIterations = budget;
+            Row row;
+            row.group = "accuracy";
+            row.label = label + ", budgeted " + std::to_string(budget);
+            measure(row, scene, options, Storage::Float32);
+        };
+        RenderOptions tricubic = defaults;
+        tricubic.filter = FilterKind::TricubicBSpline;
+        RenderOptions fineEpsilon = defaults;
+        fineEpsilon.march.epsilonTexels = 0.005f;
+        for (int budget : {32, 64}) {
+            if (largeTileSheet) accuracyRow("tile 512x512x32", *largeTileSheet, defaults, budget);
+            accuracyRow("march filter tricubic", sheet, tricubic, budget);
+            accuracyRow("epsilon 0.005", sheet, fineEpsilon, budget);
         }
     }
     // Ch. 8's smooth height field claim: the sheet with a smooth height-field tile.
@@ -541,18 +770,19 @@ void runBench(const BenchArguments& arguments) {
     // Peers.
     if (arguments.peers) {
         say("bench: peers");
-        auto peerRow = [&](const PeerRender& peer) {
+        auto peerRow = [&](const PeerRender& peer, const std::string& group,
+                           const std::string& label) {
             if (!peer.available) {
-                notes.push_back(peer.name + ": " + peer.unavailableReason);
-                say("  " + peer.name + ": " + peer.unavailableReason);
+                notes.push_back(label + ": " + peer.unavailableReason);
+                say("  " + label + ": " + peer.unavailableReason);
                 return;
             }
             // Peers shade nothing and know no texel scale: the reference's converts their depth.
             const Image blank(peer.depth.width, peer.depth.height);
             const Image noScale(peer.depth.width, peer.depth.height);
             Row row;
-            row.group = "peer";
-            row.label = peer.name;
+            row.group = group;
+            row.label = label;
             row.peer = true;
             row.tile = "-";
             row.storage = "-";
@@ -573,10 +803,36 @@ void runBench(const BenchArguments& arguments) {
             say(line);
             rows.push_back(row);
         };
-        peerRow(renderSheetWithEmbree(sheet, width, height, threads));
+        // distile's front so far and its default, rendered again beside each Embree trace.
+        markParetoFront(rows);
+        std::vector<std::size_t> paired;
+        for (std::size_t i = 0; i < rows.size(); ++i)
+            if (rows[i].options && (rows[i].paretoFront || &rows[i] == distileDefault(rows)))
+                paired.push_back(i);
+        for (EmbreePeerOptions options : embreeConfigurations()) {
+            std::vector<std::vector<double>> pairedRuns(paired.size());
+            options.beforeEachTrace = [&] {
+                for (std::size_t p = 0; p < paired.size(); ++p)
+                    pairedRuns[p].push_back(
+                        timedRender(*rows[paired[p]].scene, *rows[paired[p]].options).seconds);
+            };
+            const PeerRender peer = renderSheetWithEmbree(sheet, width, height, threads, options);
+            std::vector<std::pair<std::size_t, double>> pairedSeconds;
+            for (std::size_t p = 0; p < paired.size(); ++p) {
+                std::sort(pairedRuns[p].begin(), pairedRuns[p].end());
+                if (!pairedRuns[p].empty())
+                    pairedSeconds.emplace_back(paired[p],
+                                               pairedRuns[p][pairedRuns[p].size() / 2]);
+            }
+            // Embree's curve (its recommended configuration at each bound) is a series of its own.
+            const bool recommended = options.raysPerPacket > 1 && options.quads;
+            peerRow(peer, recommended ? "embree" : "embree, other", embreePeerLabel(options));
+            if (peer.available) rows.back().pairedDistileSeconds = std::move(pairedSeconds);
+        }
         const fs::path work = arguments.outputDir / "vdb_render";
         fs::create_directories(work);
-        peerRow(renderSheetWithVdbRender(sheet, width, height, threads, work));
+        peerRow(renderSheetWithVdbRender(sheet, width, height, threads, work), "peer",
+                "vdb_render");
         notes.push_back(
             "vdb_render's level set has no floor: pixels where distile and the reference hit the "
             "sheet's solid floor are misses there (its coverage mismatch).");

@@ -1,10 +1,12 @@
 #include "bench/bench_common.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <sstream>
 #include <utility>
+#include <vector>
 
 #include "common/atomic_file.h"
 #include "common/error.h"
@@ -87,6 +89,18 @@ TimedRender timedRender(const Scene& scene, const RenderOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     TimedRender timed{renderScene(scene, options), 0.0};
     timed.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return timed;
+}
+
+TimedRender medianRender(const Scene& scene, const RenderOptions& options, int runs) {
+    std::vector<double> seconds;
+    TimedRender timed;
+    for (int run = 0; run < std::max(runs, 1); ++run) {
+        timed = timedRender(scene, options);
+        seconds.push_back(timed.seconds);
+    }
+    std::sort(seconds.begin(), seconds.end());
+    timed.seconds = seconds[seconds.size() / 2];
     return timed;
 }
 

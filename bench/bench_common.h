@@ -76,6 +76,10 @@ struct TimedRender {
 
 TimedRender timedRender(const Scene& scene, const RenderOptions& options);
 
+/// `runs` renders (at least one) of one configuration: the last one's result, with the median of
+/// their times (renders are deterministic, so every run's image is the same).
+TimedRender medianRender(const Scene& scene, const RenderOptions& options, int runs);
+
 /// The fastest of `runs` renders of each of two configurations, run alternately (A, B, A, B, ...)
 /// so that a slow spell of the shared machine hits both alike.
 struct FastestPair {

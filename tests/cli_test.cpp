@@ -1338,9 +1338,10 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
         EXPECT_TRUE(std::isfinite(std::stod(fields[7]))) << line;
         EXPECT_TRUE(std::isfinite(std::stod(fields[11]))) << line;
     }
-    // --quick: 2 sizes + 2 storages + 1 filter + 5 march methods x 3 budgets, and the torus on the
-    // sheet with curved and planar shells.
-    EXPECT_EQ(rows, 22);
+    // --quick: 2 sizes + 2 storages + 1 filter + 5 march methods x 3 budgets + 4 accuracy rows
+    // (tricubic, epsilon 0.005; budgets 32, 64; no 512 tile), and the torus on the sheet with
+    // curved and planar shells.
+    EXPECT_EQ(rows, 26);
     EXPECT_EQ(torusRows, 2);
     const std::string report = readText(path("bench/report.md"));
     EXPECT_NE(report.find("Pareto front"), std::string::npos);

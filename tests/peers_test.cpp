@@ -10,9 +10,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <vector>
 
 #include "bake/bake.h"
+#include "common/error.h"
 #include "render/renderer.h"
 
 namespace distile {
@@ -108,13 +110,97 @@ TEST(EmbreePeer, HitsTheReferenceSurfaceWithinTheTessellationBound) {
     // traced, so both cover the same pixels.
     EXPECT_EQ(a.peerHits, a.referenceHits);
     EXPECT_EQ(a.peerOnly, 0);
-    // Faces lie within kEmbreeTessellationErrorTexels (0.02) of the surface; along the ray that is
+    // Faces lie within the default tessellation bound (0.02 texel) of the surface; along the ray that is
     // 0.02 / cos(incidence); the reference converges to 1e-3 texel, float rays add ~1e-4.
-    EXPECT_LT(a.quantile(0.5), 0.5 * kEmbreeTessellationErrorTexels);
+    EXPECT_LT(a.quantile(0.5), 0.5 * EmbreePeerOptions{}.tessellationErrorTexels);
     EXPECT_LT(a.quantile(0.95), 0.1);
     // Silhouettes: a ray grazing a wire within 0.02 texel hits the true surface but passes the
     // inscribed faces and lands on what is behind (measured: 0.3% of the pixels here).
     EXPECT_LT(a.shareAbove(0.1), 0.01);
+}
+
+TEST(EmbreePeer, PacketsOfQuadsAtACoarserBoundHitWithinThatBound) {
+    EmbreePeerOptions options;
+    options.tessellationErrorTexels = 0.1;
+    options.raysPerPacket = embreeNativePacketWidth();
+    options.quads = true;
+    options.highQualityBvh = true;
+    const PeerRender peer = renderSheetWithEmbree(smallSheet(), kWidth, kHeight, 2, options);
+    if (!peer.available) GTEST_SKIP() << peer.unavailableReason;
+    const DepthAgreement a = agreement(peer);
+    EXPECT_EQ(a.peerHits, a.referenceHits);
+    EXPECT_EQ(a.peerOnly, 0);
+    // The faces lie inside the rings, at most 0.1 texel from the surface (0.1 / cos(incidence)
+    // along the ray); a typical hit is well inside that, as at the finer bound above.
+    EXPECT_LT(a.quantile(0.5), 0.5 * options.tessellationErrorTexels);
+    EXPECT_LT(a.quantile(0.95), 5.0 * options.tessellationErrorTexels);
+}
+
+/// Pixels where two renders of the same Embree scene differ: in coverage, or in depth by more
+/// than `relative` of it.
+int differingPixels(const PeerRender& a, const PeerRender& b, float relative) {
+    int differing = 0;
+    for (int y = 0; y < a.depth.height; ++y)
+        for (int x = 0; x < a.depth.width; ++x) {
+            const float depthA = a.depth.at(x, y).x;
+            const float depthB = b.depth.at(x, y).x;
+            differing += (depthA > 0.0f) != (depthB > 0.0f) ||
+                         std::abs(depthA - depthB) > relative * std::max(depthA, depthB);
+        }
+    return differing;
+}
+
+TEST(EmbreePeer, PacketsAndQuadsHitWhatSingleRaysOnTrianglesHit) {
+    // Not a multiple of any tile size: the last packets of each row and column are partly empty.
+    constexpr int kOddWidth = 61;
+    constexpr int kOddHeight = 45;
+    EmbreePeerOptions single;
+    single.tessellationErrorTexels = 0.05;
+    const PeerRender singleRays = renderSheetWithEmbree(smallSheet(), kOddWidth, kOddHeight, 2,
+                                                        single);
+    if (!singleRays.available) GTEST_SKIP() << singleRays.unavailableReason;
+    int hits = 0;
+    for (const glm::vec3& depth : singleRays.depth.rgbLinear) hits += depth.x > 0.0f;
+    ASSERT_GT(hits, kOddWidth * kOddHeight / 2);
+    for (const int rays : {4, 8, 16}) {
+        for (const bool quads : {false, true}) {
+            EmbreePeerOptions options = single;
+            options.raysPerPacket = rays;
+            options.quads = quads;
+            const PeerRender packets =
+                renderSheetWithEmbree(smallSheet(), kOddWidth, kOddHeight, 2, options);
+            if (!packets.available) continue;  // no native packets of this width
+            const int differing = differingPixels(singleRays, packets, 1e-5f);
+            std::printf("%d rays per packet, %s: %d of %d pixels differ\n", rays,
+                        quads ? "quads" : "triangles", differing, kOddWidth * kOddHeight);
+            // The same planar faces (a quad is its two triangles) and the same rays: the hits
+            // agree to float rounding (1e-5 of the depth); a ray through a shared edge or
+            // grazing a silhouette may land on either side (measured: no pixel here).
+            EXPECT_LE(differing, kOddWidth * kOddHeight / 1000)
+                << rays << " rays per packet, quads " << quads;
+        }
+    }
+}
+
+TEST(EmbreePeer, CallsItsHookBeforeEachTraceAndRefusesBadOptions) {
+    EmbreePeerOptions options;
+    options.tessellationErrorTexels = 0.2;
+    options.traceRuns = 3;
+    int calls = 0;
+    options.beforeEachTrace = [&] { ++calls; };
+    const PeerRender peer = renderSheetWithEmbree(smallSheet(), 16, 16, 1, options);
+    if (!peer.available) GTEST_SKIP() << peer.unavailableReason;
+    EXPECT_EQ(calls, 3);
+    EXPECT_GT(peer.traceSeconds, 0.0);
+    for (const auto& change : std::vector<std::function<void(EmbreePeerOptions&)>>{
+             [](EmbreePeerOptions& o) { o.tessellationErrorTexels = 0.0; },
+             [](EmbreePeerOptions& o) { o.tessellationErrorTexels = std::nan(""); },
+             [](EmbreePeerOptions& o) { o.raysPerPacket = 2; },
+             [](EmbreePeerOptions& o) { o.traceRuns = 0; }}) {
+        EmbreePeerOptions bad;
+        change(bad);
+        EXPECT_THROW(renderSheetWithEmbree(smallSheet(), 16, 16, 1, bad), InputError);
+    }
 }
 
 TEST(VdbRenderPeer, HitsTheReferenceSurfaceWithinTheLevelSetAccuracy) {

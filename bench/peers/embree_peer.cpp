@@ -1,6 +1,7 @@
-// Embree 3 peer (peers.h): the sheet's chain mail as triangles in world space, one rtcIntersect1
-// per pixel centre.
+// Embree 3 peer (peers.h): the sheet's chain mail as triangles or quads in world space, the
+// camera rays through the pixel centres one at a time or in packets of pixel tiles.
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "bench/peers/peers.h"
@@ -13,6 +14,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cassert>
 #include <chrono>
@@ -27,12 +29,49 @@
 #include "vdb/chainmail.h"
 #endif
 
+#include "common/error.h"
+
 namespace distile {
+
+std::string embreePeerLabel(const EmbreePeerOptions& options) {
+    char label[160];
+    std::snprintf(label, sizeof label, "embree %s, %s%s, %g texel",
+                  options.raysPerPacket == 1
+                      ? "1 ray"
+                      : (std::to_string(options.raysPerPacket) + "-wide packets").c_str(),
+                  options.quads ? "quads" : "triangles", options.highQualityBvh ? ", high BVH" : "",
+                  options.tessellationErrorTexels);
+    return label;
+}
+
+namespace {
+
+void validateEmbreeOptions(const EmbreePeerOptions& options) {
+    if (!(options.tessellationErrorTexels > 0.0) || !std::isfinite(options.tessellationErrorTexels))
+        throw InputError("tessellationErrorTexels: " +
+                         std::to_string(options.tessellationErrorTexels) +
+                         " is not accepted; it must be a finite number > 0");
+    const int rays = options.raysPerPacket;
+    if (rays != 1 && rays != 4 && rays != 8 && rays != 16)
+        throw InputError("raysPerPacket: " + std::to_string(rays) +
+                         " is not accepted; it must be 1, 4, 8 or 16");
+    if (options.traceRuns < 1)
+        throw InputError("traceRuns: " + std::to_string(options.traceRuns) +
+                         " is not accepted; it must be >= 1");
+}
+
+}  // namespace
 
 #ifndef DISTILE_HAVE_EMBREE
 
-PeerRender renderSheetWithEmbree(const Scene&, int width, int height, int threads) {
+int embreeNativePacketWidth() {
+    return 1;
+}
+
+PeerRender renderSheetWithEmbree(const Scene&, int width, int height, int threads,
+                                 const EmbreePeerOptions& options) {
     detail::validatePeerRequest(width, height, threads);
+    validateEmbreeOptions(options);
     return detail::unavailablePeer("embree", "not available: libembree-dev not installed");
 }
 
@@ -89,20 +128,36 @@ class Device {
     std::atomic<long long> allocatedBytes_{0};
 };
 
-/// A triangle geometry with Embree-allocated buffers holding `positions` and `triangles`.
-RTCGeometry triangleGeometry(const Device& device, const std::vector<glm::vec3>& positions,
-                             const std::vector<glm::uvec3>& triangles) {
-    RTCGeometry geometry = rtcNewGeometry(device.get(), RTC_GEOMETRY_TYPE_TRIANGLE);
+/// A triangle (`Polygon` glm::uvec3) or quad (glm::uvec4) geometry with Embree-allocated buffers
+/// holding `positions` and `polygons`.
+template <typename Polygon>
+RTCGeometry meshGeometry(const Device& device, const std::vector<glm::vec3>& positions,
+                         const std::vector<Polygon>& polygons) {
+    constexpr bool kQuads = Polygon::length() == 4;
+    RTCGeometry geometry = rtcNewGeometry(
+        device.get(), kQuads ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* vertices = static_cast<float*>(
         rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                 3 * sizeof(float), positions.size()));
-    auto* indices = static_cast<unsigned*>(
-        rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                3 * sizeof(unsigned), triangles.size()));
+    auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_INDEX, 0, kQuads ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3,
+        sizeof(Polygon), polygons.size()));
     device.check("allocating the geometry buffers");
     std::copy_n(&positions.front().x, 3 * positions.size(), vertices);
-    std::copy_n(&triangles.front().x, 3 * triangles.size(), indices);
+    std::copy_n(&polygons.front().x, Polygon::length() * polygons.size(), indices);
     return geometry;
+}
+
+/// The quads of tessellateChainmail's triangles: it emits each quad (a, b, c, d) as the triangles
+/// (a, b, c) and (a, c, d), one after the other.
+std::vector<glm::uvec4> quadsOf(const std::vector<glm::uvec3>& triangles) {
+    std::vector<glm::uvec4> quads;
+    quads.reserve(triangles.size() / 2);
+    for (std::size_t t = 0; t + 1 < triangles.size(); t += 2) {
+        assert(triangles[t].x == triangles[t + 1].x && triangles[t].z == triangles[t + 1].y);
+        quads.emplace_back(triangles[t].x, triangles[t].y, triangles[t].z, triangles[t + 1].z);
+    }
+    return quads;
 }
 
 /// The part of sheet texel space (x, y) rays can reach: distile marches a ray that entered the
@@ -146,15 +201,17 @@ bool entersThroughTheBase(const detail::SheetPlacement& sheet, const Ray& ray) {
 }
 
 /// The rings of every tile repeat that can reach into `reachable`, in world space (float), with
-/// their triangles.
-void placeRings(const detail::SheetPlacement& sheet, const TriangleSoup& tileRings,
-                std::size_t verticesPerRing, const TexelRectangle& reachable,
-                std::vector<glm::vec3>& positions, std::vector<glm::uvec3>& triangles) {
+/// their polygons (the tile's `tilePolygons`, triangles or quads, indexing `tilePositions`).
+template <typename Polygon>
+void placeRings(const detail::SheetPlacement& sheet, const std::vector<glm::dvec3>& tilePositions,
+                const std::vector<Polygon>& tilePolygons, std::size_t verticesPerRing,
+                const TexelRectangle& reachable, std::vector<glm::vec3>& positions,
+                std::vector<Polygon>& polygons) {
     const glm::dvec2 tileTexels(sheet.tile.width, sheet.tile.height);
     const glm::dvec2 footprintMin = reachable.min;
     const glm::dvec2 footprintMax = reachable.max;
-    const std::size_t rings = tileRings.positions.size() / verticesPerRing;
-    const std::size_t trianglesPerRing = tileRings.triangles.size() / rings;
+    const std::size_t rings = tilePositions.size() / verticesPerRing;
+    const std::size_t polygonsPerRing = tilePolygons.size() / rings;
     // One repeat more on each side: rings centred in a neighbouring tile cross into this one.
     const int firstX = int(std::floor(footprintMin.x / tileTexels.x)) - 1;
     const int lastX = int(std::ceil(footprintMax.x / tileTexels.x));
@@ -164,8 +221,7 @@ void placeRings(const detail::SheetPlacement& sheet, const TriangleSoup& tileRin
         for (int repeatX = firstX; repeatX <= lastX; ++repeatX) {
             const glm::dvec3 shift(repeatX * tileTexels.x, repeatY * tileTexels.y, 0.0);
             for (std::size_t ring = 0; ring < rings; ++ring) {
-                const auto begin =
-                    tileRings.positions.begin() + std::ptrdiff_t(ring * verticesPerRing);
+                const auto begin = tilePositions.begin() + std::ptrdiff_t(ring * verticesPerRing);
                 glm::dvec3 low(begin[0]), high(begin[0]);
                 for (std::size_t v = 0; v < verticesPerRing; ++v) {
                     low = glm::min(low, begin[std::ptrdiff_t(v)]);
@@ -181,17 +237,180 @@ void placeRings(const detail::SheetPlacement& sheet, const TriangleSoup& tileRin
                 for (std::size_t v = 0; v < verticesPerRing; ++v)
                     positions.push_back(
                         glm::vec3(sheet.worldFromTexel(begin[std::ptrdiff_t(v)] + shift)));
-                for (std::size_t t = 0; t < trianglesPerRing; ++t)
-                    triangles.push_back(tileRings.triangles[ring * trianglesPerRing + t] + offset);
+                for (std::size_t p = 0; p < polygonsPerRing; ++p)
+                    polygons.push_back(tilePolygons[ring * polygonsPerRing + p] + offset);
             }
         }
     }
 }
 
+/// Embree's packet type, call and pixel tile by width N (4, 8 or 16): 2 x 2, 4 x 2 or 4 x 4.
+template <int N>
+struct Packet {
+    static_assert(N == 4 || N == 8 || N == 16);
+    using RayHit = std::conditional_t<N == 4, RTCRayHit4,
+                                      std::conditional_t<N == 8, RTCRayHit8, RTCRayHit16>>;
+    static constexpr int kWidth = N == 4 ? 2 : 4;
+    static void intersect(const int* valid, RTCScene scene, RTCIntersectContext* context,
+                          RayHit* rays) {
+        if constexpr (N == 4)
+            rtcIntersect4(valid, scene, context, rays);
+        else if constexpr (N == 8)
+            rtcIntersect8(valid, scene, context, rays);
+        else
+            rtcIntersect16(valid, scene, context, rays);
+    }
+};
+
+/// What a trace writes for a hit: the distance along the ray and the geometric normal facing the
+/// ray, n * 0.5 + 0.5 (peers.h PeerRender).
+void storeHit(PeerRender& result, int x, int y, const Ray& ray, float distance,
+              const glm::vec3& geometricNormal) {
+    glm::vec3 normal = glm::normalize(geometricNormal);
+    if (glm::dot(normal, ray.direction) > 0.0f) normal = -normal;
+    result.depth.at(x, y) = glm::vec3(distance);
+    result.normal.at(x, y) = normal * 0.5f + 0.5f;
+}
+
+/// Traces every pixel centre one ray at a time, rows in parallel.
+void traceSingleRays(RTCScene scene, const detail::SheetPlacement& sheet,
+                     const PinholeProjection& projection, PeerRender& result) {
+    const int width = result.depth.width;
+    tbb::parallel_for(tbb::blocked_range<int>(0, result.depth.height),
+                      [&](const tbb::blocked_range<int>& rows) {
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        for (int y = rows.begin(); y != rows.end(); ++y) {
+            for (int x = 0; x < width; ++x) {
+                const Ray ray = projection.ray(float(x) + 0.5f, float(y) + 0.5f);
+                if (!entersThroughTheBase(sheet, ray)) continue;
+                RTCRayHit query{};
+                query.ray.org_x = ray.origin.x;
+                query.ray.org_y = ray.origin.y;
+                query.ray.org_z = ray.origin.z;
+                query.ray.dir_x = ray.direction.x;
+                query.ray.dir_y = ray.direction.y;
+                query.ray.dir_z = ray.direction.z;
+                query.ray.tnear = 0.0f;
+                query.ray.tfar = std::numeric_limits<float>::infinity();
+                query.ray.mask = 0xFFFFFFFFu;
+                query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+                rtcIntersect1(scene, &context, &query);
+                if (query.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+                storeHit(result, x, y, ray, query.ray.tfar,
+                         {query.hit.Ng_x, query.hit.Ng_y, query.hit.Ng_z});
+            }
+        }
+    });
+}
+
+/// Traces every pixel centre in packets of N rays, one per pixel of a Packet<N>::kWidth x
+/// (N / kWidth) tile (coherent camera rays), rows of tiles in parallel. Lanes outside the image or
+/// whose ray does not enter through the base are masked off.
+template <int N>
+void tracePackets(RTCScene scene, const detail::SheetPlacement& sheet,
+                  const PinholeProjection& projection, PeerRender& result) {
+    constexpr int kTileWidth = Packet<N>::kWidth;
+    constexpr int kTileHeight = N / kTileWidth;
+    const int width = result.depth.width;
+    const int height = result.depth.height;
+    const int tileRows = (height + kTileHeight - 1) / kTileHeight;
+    tbb::parallel_for(tbb::blocked_range<int>(0, tileRows), [&](const tbb::blocked_range<int>&
+                                                                    range) {
+        RTCIntersectContext context;
+        rtcInitIntersectContext(&context);
+        context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+        alignas(64) typename Packet<N>::RayHit packet;
+        alignas(64) int valid[N];
+        std::array<Ray, N> rays;
+        for (int tileRow = range.begin(); tileRow != range.end(); ++tileRow) {
+            for (int tileX = 0; tileX < width; tileX += kTileWidth) {
+                bool any = false;
+                for (int lane = 0; lane < N; ++lane) {
+                    const int x = tileX + lane % kTileWidth;
+                    const int y = tileRow * kTileHeight + lane / kTileWidth;
+                    valid[lane] = 0;
+                    packet.ray.tnear[lane] = 0.0f;
+                    packet.ray.tfar[lane] = std::numeric_limits<float>::infinity();
+                    packet.ray.mask[lane] = 0xFFFFFFFFu;
+                    packet.ray.time[lane] = 0.0f;
+                    packet.ray.flags[lane] = 0;
+                    packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+                    if (x >= width || y >= height) continue;
+                    rays[lane] = projection.ray(float(x) + 0.5f, float(y) + 0.5f);
+                    const Ray& ray = rays[lane];
+                    if (!entersThroughTheBase(sheet, ray)) continue;
+                    valid[lane] = -1;
+                    any = true;
+                    packet.ray.org_x[lane] = ray.origin.x;
+                    packet.ray.org_y[lane] = ray.origin.y;
+                    packet.ray.org_z[lane] = ray.origin.z;
+                    packet.ray.dir_x[lane] = ray.direction.x;
+                    packet.ray.dir_y[lane] = ray.direction.y;
+                    packet.ray.dir_z[lane] = ray.direction.z;
+                }
+                if (!any) continue;
+                Packet<N>::intersect(valid, scene, &context, &packet);
+                for (int lane = 0; lane < N; ++lane) {
+                    if (!valid[lane] || packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID)
+                        continue;
+                    storeHit(result, tileX + lane % kTileWidth,
+                             tileRow * kTileHeight + lane / kTileWidth, rays[lane],
+                             packet.ray.tfar[lane],
+                             {packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]});
+                }
+            }
+        }
+    });
+}
+
+/// The tessellated rings placed over the reachable rectangle, with their polygons, then the floor,
+/// attached to `scene` and committed.
+template <typename Polygon>
+void buildScene(const Device& device, RTCScene scene, const detail::SheetPlacement& sheet,
+                const TriangleSoup& tileRings, const std::vector<Polygon>& tilePolygons,
+                std::size_t verticesPerRing, const TexelRectangle& reachable) {
+    std::vector<glm::vec3> ringPositions;
+    std::vector<Polygon> ringPolygons;
+    placeRings(sheet, tileRings.positions, tilePolygons, verticesPerRing, reachable, ringPositions,
+               ringPolygons);
+    if (!ringPolygons.empty()) {
+        RTCGeometry rings = meshGeometry(device, ringPositions, ringPolygons);
+        rtcCommitGeometry(rings);
+        rtcAttachGeometry(scene, rings);
+        rtcReleaseGeometry(rings);
+    }
+    // The solid floor at the bottom of the shell, as far as rays reach.
+    const std::vector<glm::vec3> floorPositions{
+        glm::vec3(sheet.worldFromTexel({reachable.min.x, reachable.min.y, 0.0})),
+        glm::vec3(sheet.worldFromTexel({reachable.max.x, reachable.min.y, 0.0})),
+        glm::vec3(sheet.worldFromTexel({reachable.max.x, reachable.max.y, 0.0})),
+        glm::vec3(sheet.worldFromTexel({reachable.min.x, reachable.max.y, 0.0}))};
+    const std::vector<glm::uvec3> floorTriangles{{0, 1, 2}, {0, 2, 3}};
+    RTCGeometry floor = meshGeometry(device, floorPositions, floorTriangles);
+    rtcCommitGeometry(floor);
+    rtcAttachGeometry(scene, floor);
+    rtcReleaseGeometry(floor);
+    rtcCommitScene(scene);
+}
+
 }  // namespace
 
-PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int threads) {
+int embreeNativePacketWidth() {
+    Device device(1);
+    for (const auto& [property, width] :
+         {std::pair{RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED, 16},
+          std::pair{RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED, 8},
+          std::pair{RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED, 4}}) {
+        if (rtcGetDeviceProperty(device.get(), property) != 0) return width;
+    }
+    return 1;
+}
+
+PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int threads,
+                                 const EmbreePeerOptions& options) {
     detail::validatePeerRequest(width, height, threads);
+    validateEmbreeOptions(options);
     validateScene(scene);
     auto found = detail::findSheet(scene);
     if (const auto* reason = std::get_if<std::string>(&found))
@@ -203,15 +422,14 @@ PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int 
     result.available = true;
     const auto setupStart = std::chrono::steady_clock::now();
     // Half the error budget to each circle: chainmailTessellationErrorTexels is their sum.
+    const double errorTexels = options.tessellationErrorTexels;
     const Chainmail chainmail(sheet.chainmail, sheet.tile);
     const double spacing = double(sheet.tile.width) / sheet.chainmail.ringsPerRow;
     const double ringRadius = sheet.chainmail.ringRadiusSpacings * spacing;
     const double wireRadius = sheet.chainmail.wireRadiusSpacings * spacing;
-    const int around =
-        segmentsForSagitta(ringRadius + wireRadius, 0.5 * kEmbreeTessellationErrorTexels);
-    const int tube = segmentsForSagitta(wireRadius, 0.5 * kEmbreeTessellationErrorTexels);
-    assert(chainmailTessellationErrorTexels(chainmail, around, tube) <=
-           kEmbreeTessellationErrorTexels);
+    const int around = segmentsForSagitta(ringRadius + wireRadius, 0.5 * errorTexels);
+    const int tube = segmentsForSagitta(wireRadius, 0.5 * errorTexels);
+    assert(chainmailTessellationErrorTexels(chainmail, around, tube) <= errorTexels);
     const TriangleSoup tileRings = tessellateChainmail(chainmail, around, tube);
 
     const TexelRectangle reachable = reachableRectangle(sheet, glm::dvec3(scene.camera.eye));
@@ -221,76 +439,66 @@ PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int 
         return detail::unavailablePeer(
             "embree", "not available: the sheet would need more than 2^28 triangles");
     }
-    std::vector<glm::vec3> ringPositions;
-    std::vector<glm::uvec3> ringTriangles;
-    placeRings(sheet, tileRings, std::size_t(around) * std::size_t(tube), reachable, ringPositions,
-               ringTriangles);
-    // The solid floor at the bottom of the shell, as far as rays reach.
-    const std::vector<glm::vec3> floorPositions{
-        glm::vec3(sheet.worldFromTexel({reachable.min.x, reachable.min.y, 0.0})),
-        glm::vec3(sheet.worldFromTexel({reachable.max.x, reachable.min.y, 0.0})),
-        glm::vec3(sheet.worldFromTexel({reachable.max.x, reachable.max.y, 0.0})),
-        glm::vec3(sheet.worldFromTexel({reachable.min.x, reachable.max.y, 0.0}))};
-    const std::vector<glm::uvec3> floorTriangles{{0, 1, 2}, {0, 2, 3}};
 
     tbb::task_arena arena(threads);
     Device device(threads);
+    if (options.raysPerPacket > 1) {
+        const RTCDeviceProperty native =
+            options.raysPerPacket == 16  ? RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED
+            : options.raysPerPacket == 8 ? RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED
+                                         : RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED;
+        if (rtcGetDeviceProperty(device.get(), native) == 0)
+            return detail::unavailablePeer(
+                "embree", "not available: this Embree build has no native " +
+                              std::to_string(options.raysPerPacket) + "-wide packets");
+    }
     // Released before the device (declared after it).
     const std::unique_ptr<std::remove_pointer_t<RTCScene>, void (*)(RTCScene)> embreeScene(
         rtcNewScene(device.get()), &rtcReleaseScene);
+    rtcSetSceneBuildQuality(embreeScene.get(),
+                            options.highQualityBvh ? RTC_BUILD_QUALITY_HIGH
+                                                   : RTC_BUILD_QUALITY_MEDIUM);
+    const std::size_t verticesPerRing = std::size_t(around) * std::size_t(tube);
     arena.execute([&] {
-        if (!ringTriangles.empty()) {
-            RTCGeometry rings = triangleGeometry(device, ringPositions, ringTriangles);
-            rtcCommitGeometry(rings);
-            rtcAttachGeometry(embreeScene.get(), rings);
-            rtcReleaseGeometry(rings);
+        if (options.quads) {
+            buildScene(device, embreeScene.get(), sheet, tileRings, quadsOf(tileRings.triangles),
+                       verticesPerRing, reachable);
+        } else {
+            buildScene(device, embreeScene.get(), sheet, tileRings, tileRings.triangles,
+                       verticesPerRing, reachable);
         }
-        RTCGeometry floor = triangleGeometry(device, floorPositions, floorTriangles);
-        rtcCommitGeometry(floor);
-        rtcAttachGeometry(embreeScene.get(), floor);
-        rtcReleaseGeometry(floor);
-        rtcCommitScene(embreeScene.get());
     });
     device.check("building the scene");
     result.setupSeconds = secondsSince(setupStart);
     result.memoryBytes = device.allocatedBytes();
 
-    result.depth = Image(width, height);
-    result.normal = Image(width, height);
     const PinholeProjection projection(scene.camera, width, height);
-    const auto traceStart = std::chrono::steady_clock::now();
-    arena.execute([&] {
-        tbb::parallel_for(
-            tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
-                RTCIntersectContext context;
-                rtcInitIntersectContext(&context);
-                for (int y = rows.begin(); y != rows.end(); ++y) {
-                    for (int x = 0; x < width; ++x) {
-                        const Ray ray = projection.ray(float(x) + 0.5f, float(y) + 0.5f);
-                        if (!entersThroughTheBase(sheet, ray)) continue;
-                        RTCRayHit query{};
-                        query.ray.org_x = ray.origin.x;
-                        query.ray.org_y = ray.origin.y;
-                        query.ray.org_z = ray.origin.z;
-                        query.ray.dir_x = ray.direction.x;
-                        query.ray.dir_y = ray.direction.y;
-                        query.ray.dir_z = ray.direction.z;
-                        query.ray.tnear = 0.0f;
-                        query.ray.tfar = std::numeric_limits<float>::infinity();
-                        query.ray.mask = 0xFFFFFFFFu;
-                        query.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                        rtcIntersect1(embreeScene.get(), &context, &query);
-                        if (query.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-                        glm::vec3 normal = glm::normalize(
-                            glm::vec3(query.hit.Ng_x, query.hit.Ng_y, query.hit.Ng_z));
-                        if (glm::dot(normal, ray.direction) > 0.0f) normal = -normal;
-                        result.depth.at(x, y) = glm::vec3(query.ray.tfar);
-                        result.normal.at(x, y) = normal * 0.5f + 0.5f;
-                    }
-                }
-            });
-    });
-    result.traceSeconds = secondsSince(traceStart);
+    std::vector<double> traceSeconds;
+    for (int run = 0; run < options.traceRuns; ++run) {
+        if (options.beforeEachTrace) options.beforeEachTrace();
+        result.depth = Image(width, height);
+        result.normal = Image(width, height);
+        const auto traceStart = std::chrono::steady_clock::now();
+        arena.execute([&] {
+            switch (options.raysPerPacket) {
+                case 4:
+                    tracePackets<4>(embreeScene.get(), sheet, projection, result);
+                    break;
+                case 8:
+                    tracePackets<8>(embreeScene.get(), sheet, projection, result);
+                    break;
+                case 16:
+                    tracePackets<16>(embreeScene.get(), sheet, projection, result);
+                    break;
+                default:
+                    traceSingleRays(embreeScene.get(), sheet, projection, result);
+            }
+        });
+        traceSeconds.push_back(secondsSince(traceStart));
+    }
+    device.check("tracing");
+    std::sort(traceSeconds.begin(), traceSeconds.end());
+    result.traceSeconds = traceSeconds[traceSeconds.size() / 2];
     return result;
 }
 

@@ -2,8 +2,9 @@
 /// Peer renderers for `distile bench` (docs/reports.md): the same scene, camera rays and
 /// thread count traced by other tools on the same detail, so distile's time and error can be put
 /// next to theirs in one run.
-///  - Embree 3 on the chain mail tessellated finely (vdb/chainmail.h tessellateChainmail) and
-///    placed on the sheet in world space, with the solid floor as two triangles.
+///  - Embree 3 on the chain mail tessellated to a chosen error bound (vdb/chainmail.h
+///    tessellateChainmail) and placed on the sheet in world space, with the solid floor as two
+///    triangles; one ray per call or packets, triangles or quads, either BVH quality.
 ///  - OpenVDB's vdb_render (a separate program) on the chain mail's level set repeated over the
 ///    sheet (vdb/level_set.h), with its camera converted to the level set's texel space.
 /// Both accept one kind of scene, a "sheet": one object, a planar base mesh with orthogonal,
@@ -15,6 +16,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "render/image.h"
@@ -39,20 +41,50 @@ struct PeerRender {
     Image normal;
 };
 
+/// How the Embree peer builds and traces the sheet: a configuration a user of Embree could pick.
+struct EmbreePeerOptions {
+    /// Bound on the distance of every face from the analytic surface, texels (> 0): the rings'
+    /// polygon counts follow from it (vdb/chainmail.h chainmailTessellationErrorTexels).
+    double tessellationErrorTexels = 0.02;
+    /// Rays traced per call: 1 (rtcIntersect1 per pixel), or 4, 8 or 16 (rtcIntersect4/8/16 on
+    /// 2 x 2, 4 x 2 or 4 x 4 pixel tiles, with the coherent-ray hint Embree's documentation gives
+    /// for camera rays).
+    int raysPerPacket = 1;
+    /// The rings as quads (each tessellation quad is planar: Embree intersects it as one
+    /// primitive) rather than two triangles each.
+    bool quads = false;
+    /// RTC_BUILD_QUALITY_HIGH (spatial splits: a slower build, faster traces) rather than Embree's
+    /// default medium quality.
+    bool highQualityBvh = false;
+    /// Traces of the one built scene (>= 1); traceSeconds is their median.
+    int traceRuns = 1;
+    /// Called before each trace, untimed (may be empty): a caller times its own work there, so
+    /// that a slow spell of a shared machine hits both alike.
+    std::function<void()> beforeEachTrace;
+};
+
+/// Embree's native packet width on this machine and build (16, 8 or 4; 1 when Embree is missing
+/// or has no packet support): the widest rtcIntersectN that runs without emulation.
+int embreeNativePacketWidth();
+
 /// Embree 3 on the sheet's chain mail, tessellated so that no face is more than
-/// kEmbreeTessellationErrorTexels from the analytic surface (vdb/chainmail.h), every tile repeat
+/// options.tessellationErrorTexels from the analytic surface (vdb/chainmail.h), every tile repeat
 /// placed in world space, plus the solid floor at the bottom of the shell as two triangles. As in
 /// distile, only rays entering the shell through the base mesh's uv rectangle can hit, and beyond
 /// its edges the rings and the floor go on as far as those rays reach below the surface (distile's
-/// march does not stop at the mesh's edge either). One rtcIntersect1 per pixel centre (the
-/// renderer's camera rays, PinholeProjection) on `threads` threads. Not available when distile was
-/// built without Embree or the sheet would need more than 2^28 triangles.
-/// @throws InputError width, height or threads out of range ([1, 16384], [1, 16384], [1, 256]) or
-///   an invalid scene (validateScene); std::runtime_error when Embree fails.
-PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int threads);
+/// march does not stop at the mesh's edge either). The renderer's camera rays through every pixel
+/// centre (PinholeProjection), alone or in packets (options), on `threads` threads. Not available
+/// when distile was built without Embree, the sheet would need more than 2^28 triangles, or the
+/// packet width is not supported by the Embree build.
+/// @throws InputError width, height or threads out of range ([1, 16384], [1, 16384], [1, 256]),
+///   options out of range (tessellation error not > 0, rays per packet not 1, 4, 8 or 16, trace
+///   runs < 1) or an invalid scene (validateScene); std::runtime_error when Embree fails.
+PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int threads,
+                                 const EmbreePeerOptions& options = {});
 
-/// The bound on the tessellation error of renderSheetWithEmbree, texels.
-inline constexpr double kEmbreeTessellationErrorTexels = 0.02;
+/// A short label of an Embree configuration, e.g. "embree 16-wide packets, quads, high BVH,
+/// 0.05 texel".
+std::string embreePeerLabel(const EmbreePeerOptions& options);
 
 /// /usr/bin/vdb_render on the sheet's chain-mail level set (half band 3 texels, the tile
 /// repeated uv_scale times; texels must be cubes and the uv footprint whole tiles) written to
