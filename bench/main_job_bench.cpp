@@ -61,8 +61,9 @@ double amdahlSerialShare(const std::vector<double>& secondsByThreads) {
 
 }  // namespace
 
-MainJobReport measureMainJob(const fs::path& outputDir, const Scene& demo, int processRuns,
-                             int renderRuns, const std::function<void(const std::string&)>& say) {
+MainJobReport measureMainJob(const fs::path& outputDir, const Scene& demo, int width, int height,
+                             int processRuns, int renderRuns,
+                             const std::function<void(const std::string&)>& say) {
     MainJobReport report;
     const fs::path workDir = outputDir / "main_job";
     fs::create_directories(workDir);
@@ -78,8 +79,16 @@ MainJobReport measureMainJob(const fs::path& outputDir, const Scene& demo, int p
     // F. Whole processes, alternated so a slow spell of the shared machine hits both alike; one
     // untimed run first (the tile from the bake cache into the page cache).
     const std::string image = (workDir / "demo.png").string();
-    const std::vector<std::string> shadowed{"render", "-o", image};
-    const std::vector<std::string> unshadowed{"render", "-o", image, "--shadows", "none"};
+    const std::string size = std::to_string(width) + "x" + std::to_string(height);
+    const std::vector<std::string> shadowed{"render",
+                                            "-o",
+                                            image,
+                                            "--width",
+                                            std::to_string(width),
+                                            "--height",
+                                            std::to_string(height)};
+    std::vector<std::string> unshadowed = shadowed;
+    unshadowed.insert(unshadowed.end(), {"--shadows", "none"});
     processSeconds(program, shadowed, workDir, "render_shadows");
     std::vector<double> withShadows, withoutShadows, start;
     for (int run = 0; run < processRuns; ++run) {
@@ -102,9 +111,8 @@ MainJobReport measureMainJob(const fs::path& outputDir, const Scene& demo, int p
                   "," + fixed(startSeconds, 4) + ",\n";
     report.markdown +=
         "\n## F. The main job: `distile render` of the demo, whole processes\n\n"
-        "Process start to image written (`distile render -o demo.png`, 1280x1024, the demo scene), "
-        "median wall time of " +
-        std::to_string(processRuns) +
+        "Process start to image written (`distile render -o demo.png`, " +
+        size + ", the demo scene), median wall time of " + std::to_string(processRuns) +
         " runs each, the two alternated after one untimed run; the process start alone is "
         "`distile --help`.\n\n| run | s |\n|---|---|\n| shadows (default) | " +
         fixed(shadowsSeconds, 3) + " |\n| --shadows none | " + fixed(noneSeconds, 3) +
@@ -114,14 +122,16 @@ MainJobReport measureMainJob(const fs::path& outputDir, const Scene& demo, int p
                               " main job: the demo with shadows / without = " + fixed(ratio, 3) +
                               " (whole processes, <= 2)");
     report.verdicts.push_back(std::string(shadowsSeconds <= 0.6 ? "**pass**" : "**FAIL**") +
-                              " main job: `distile render` of the demo, process start to image "
-                              "written, " +
-                              fixed(shadowsSeconds, 3) + " s on " + std::to_string(threads) +
+                              " main job: `distile render` of the demo at " + size +
+                              ", process start to image written, " + fixed(shadowsSeconds, 3) +
+                              " s on " + std::to_string(threads) +
                               " threads (<= 0.6 s on 2 cores; the machine's load counts here)");
 
     // G. Scaling: the demo's render (shadows on) in this process on 1 ... N threads.
     const int hardwareThreads = std::max(1, tbb::info::default_concurrency());
     RenderOptions options;
+    options.width = width;
+    options.height = height;
     std::vector<double> secondsByThreads;
     report.markdown +=
         "\n## G. Scaling: the demo's render against the thread count\n\n"

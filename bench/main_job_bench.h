@@ -20,14 +20,15 @@ struct MainJobReport {
     std::string csv;  ///< main_job.csv: one row per measurement
 };
 
-/// Times `distile render -o DIR/main_job/demo.png` (the program beside this one) with adaptive
-/// shadows and with --shadows none, alternated, `processRuns` of each, and `distile --help` (the
-/// process start alone); then renders `demo` (shadows on, the default options) in this process
-/// on 1 ... N threads (N: the hardware threads), the median of `renderRuns` each. Times are
+/// Times `distile render -o DIR/main_job/demo.png` (the program beside this one) at `width` x
+/// `height` with adaptive shadows and with --shadows none, alternated, `processRuns` of each, and
+/// `distile --help` (the process start alone); then renders `demo` at that size (shadows on, the
+/// other options at their defaults) in this process on 1 ... N threads (N: the hardware
+/// threads), the median of `renderRuns` each. Times are
 /// medians of wall time. `say` gets a line per measurement. Throws std::runtime_error when the
 /// program is missing or fails.
-MainJobReport measureMainJob(const std::filesystem::path& outputDir, const Scene& demo,
-                             int processRuns, int renderRuns,
+MainJobReport measureMainJob(const std::filesystem::path& outputDir, const Scene& demo, int width,
+                             int height, int processRuns, int renderRuns,
                              const std::function<void(const std::string&)>& say);
 
 }  // namespace distile::cli

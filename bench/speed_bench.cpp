@@ -716,8 +716,8 @@ void runSpeedBench(const BenchArguments& arguments) {
 
     // F and G. The main job as whole processes, and the demo's scaling with the thread count.
     say("bench --speed: F. distile render of the demo as whole processes; G. scaling");
-    const MainJobReport mainJob =
-        measureMainJob(arguments.outputDir, demo.scene, arguments.quick ? 3 : 5, runs, say);
+    const MainJobReport mainJob = measureMainJob(arguments.outputDir, demo.scene, width, height,
+                                                 arguments.quick ? 3 : 5, runs, say);
     writeText(arguments.outputDir / "main_job.csv", mainJob.csv);
 
     writeText(arguments.outputDir / "speed.csv", csvOf(rows, threads, width, height));

@@ -426,17 +426,24 @@ TEST(ShadowMap, RejectsBadResolutions) {
     EXPECT_THROW(renderScene(scene, options), InputError);
 }
 
-TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
-    // A sphere of radius 0.3 floating 0.3 above a plane, under a light of 6 degrees: penumbrae
-    // of tan(3 deg) * 0.3..0.9 = 16..47 mm around the shadow, seen from above.
+/// A sphere of radius 0.3 floating 0.3 above a 3 x 3 plane, under a light of 6 degrees:
+/// penumbrae of tan(3 deg) * 0.3..0.9 = 16..47 mm around the shadow, seen by `camera`.
+Scene sphereAbovePlane(const Camera& camera) {
     Scene scene;
-    scene.camera = {{0.4f, -1.2f, 1.8f}, {0.15f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f};
+    scene.camera = camera;
     scene.lights = {DirectionalLight{{-0.5f, 0.3f, -1.0f}, {1.0f, 1.0f, 1.0f}, 6.0f}};
     scene.objects.push_back(bareSquare(3.0f, 0.0f));
     SceneObject sphere;
     sphere.mesh = makeUvSphere(0.3f, 64, 32);
     applyTransform(sphere.mesh, {{0.0f, 0.0f, 0.6f}, {0.0f, 0.0f, 0.0f}, 1.0f});
     scene.objects.push_back(std::move(sphere));
+    return scene;
+}
+
+TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
+    // The sphere and its shadow seen from above.
+    const Scene scene =
+        sphereAbovePlane({{0.4f, -1.2f, 1.8f}, {0.15f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f});
 
     RenderOptions options;
     options.width = 160;
@@ -480,17 +487,11 @@ TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
 }
 
 TEST(Renderer, ShadowMapsTraceWhatTheViewNeedsAndDoNotDependOnTheThreadCount) {
-    // The sphere over the plane of the test above, seen from close by: the view holds a part of
+    // The sphere above the plane, seen from close by: the view holds a part of
     // the plane, so only a part of the light's map is traced; the tiles are traced by whichever
     // thread first needs them, and the image is the same on 1 and 2 threads.
-    Scene scene;
-    scene.camera = {{0.3f, -0.9f, 0.9f}, {0.15f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
-    scene.lights = {DirectionalLight{{-0.5f, 0.3f, -1.0f}, {1.0f, 1.0f, 1.0f}, 6.0f}};
-    scene.objects.push_back(bareSquare(3.0f, 0.0f));
-    SceneObject sphere;
-    sphere.mesh = makeUvSphere(0.3f, 64, 32);
-    applyTransform(sphere.mesh, {{0.0f, 0.0f, 0.6f}, {0.0f, 0.0f, 0.0f}, 1.0f});
-    scene.objects.push_back(std::move(sphere));
+    const Scene scene =
+        sphereAbovePlane({{0.3f, -0.9f, 0.9f}, {0.15f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f});
     RenderOptions options;
     options.width = 160;
     options.height = 128;
