@@ -21,6 +21,7 @@
 
 #include "bake/bake.h"
 #include "bake/bake_cache.h"
+#include "bench/main_job_bench.h"
 #include "bench/peers/peers.h"
 #include "common/error.h"
 #include "sampler/tile_io.h"
@@ -713,6 +714,12 @@ void runSpeedBench(const BenchArguments& arguments) {
         say(line);
     }
 
+    // F and G. The main job as whole processes, and the demo's scaling with the thread count.
+    say("bench --speed: F. distile render of the demo as whole processes; G. scaling");
+    const MainJobReport mainJob = measureMainJob(arguments.outputDir, demo.scene, width, height,
+                                                 arguments.quick ? 3 : 5, runs, say);
+    writeText(arguments.outputDir / "main_job.csv", mainJob.csv);
+
     writeText(arguments.outputDir / "speed.csv", csvOf(rows, threads, width, height));
 
     // The report.
@@ -942,6 +949,8 @@ void runSpeedBench(const BenchArguments& arguments) {
     for (const std::string& v : curvedVerdicts) acceptance.push_back(v);
     acceptance.push_back(verdict(threadRow.note == "bit-identical") + " threads: 1 thread and " +
                          std::to_string(threads) + " give " + threadRow.note + " images");
+    md << mainJob.markdown;
+    for (const std::string& v : mainJob.verdicts) acceptance.push_back(v);
     md << "\n## Verdicts\n\n";
     for (const std::string& v : acceptance) md << "- " << v << "\n";
     if (!notes.empty()) {

@@ -237,9 +237,13 @@ void runRender(RenderArguments arguments) {
                 stats.rays ? double(stats.shellsTraced) / double(stats.rays) : 0.0,
                 options.skips.shellCulling ? "on" : "off");
     if (options.shadowFilter != ShadowFilter::None) {
-        std::printf("shadow maps: %llu samples (%.1f per surface hit)\n",
-                    static_cast<unsigned long long>(stats.shadowMapSamples),
-                    stats.baseHits ? double(stats.shadowMapSamples) / double(stats.baseHits) : 0.0);
+        std::printf(
+            "shadow maps: %llu samples (%.1f per surface hit); %llu of %llu texels traced "
+            "(where lookups reached)\n",
+            static_cast<unsigned long long>(stats.shadowMapSamples),
+            stats.baseHits ? double(stats.shadowMapSamples) / double(stats.baseHits) : 0.0,
+            static_cast<unsigned long long>(stats.shadowMapTexels),
+            static_cast<unsigned long long>(stats.shadowMapTexelsAll));
     }
     if (result.aovs) {
         std::printf("AOVs written beside it: %s, %s, %s, %s, %s, %s\n",

@@ -174,7 +174,8 @@ class Renderer {
                 options.shadowMapResolution > 0
                     ? options.shadowMapResolution
                     : std::clamp(3 * std::max(options.width, options.height) / 2, 256, 4096);
-            shadowMaps_[light].emplace(tracer_, scene.lights[light], resolution);
+            shadowMaps_[light] =
+                std::make_unique<ShadowMap>(tracer_, scene.lights[light], resolution);
         }
     }
 
@@ -282,6 +283,17 @@ class Renderer {
         for (std::size_t slot = 0; slot < facingHits.size(); ++slot) {
             if (facingHits[slot] != 0) facingHits_[slot].fetch_add(facingHits[slot]);
         }
+    }
+
+    /// Texels of the shadow maps: traced so far, or `all` of them.
+    std::uint64_t shadowMapTexels(bool all) const {
+        std::uint64_t texels = 0;
+        for (const std::unique_ptr<ShadowMap>& map : shadowMaps_) {
+            if (!map) continue;
+            texels += all ? std::uint64_t(map->width()) * std::uint64_t(map->height())
+                          : map->tracedTexels();
+        }
+        return texels;
     }
 
   private:
@@ -471,8 +483,8 @@ class Renderer {
     const Scene& scene_;
     const RenderOptions& options_;
     SceneTracer tracer_;
-    std::vector<std::optional<ShadowMap>>
-        shadowMaps_;  ///< per light; empty: no map needed or wanted
+    std::vector<std::unique_ptr<ShadowMap>>
+        shadowMaps_;  ///< per light; null: no map needed or wanted
     PinholeProjection projection_;
     std::vector<glm::vec3> toLights_;   ///< per light: unit direction toward it
     std::vector<float> tanHalfAngles_;  ///< per light: tan of its angular radius (at least 1e-3)
@@ -661,6 +673,8 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
     result.stats = {rays, baseHits, iterations, converged, shadowSteps, shadowMapSamples};
     result.stats.shellsTested = shellsTested;
     result.stats.shellsTraced = shellsTraced;
+    result.stats.shadowMapTexels = renderer.shadowMapTexels(false);
+    result.stats.shadowMapTexelsAll = renderer.shadowMapTexels(true);
     result.warnings = renderer.warnings();
     return result;
 }

@@ -59,6 +59,8 @@ struct RenderStats {
     std::uint64_t converged = 0;         ///< camera rays that hit detail or floor within the budget
     std::uint64_t shadowSteps = 0;       ///< steps of self-shadow rays
     std::uint64_t shadowMapSamples = 0;  ///< shadow-map depth comparisons (PCF samples), all lights
+    std::uint64_t shadowMapTexels = 0;   ///< shadow-map texels traced (tiles the lookups reached)
+    std::uint64_t shadowMapTexelsAll = 0;  ///< texels of the shadow maps, traced or not
     std::uint64_t shellsTested =
         0;  ///< camera rays x binned shells whose pixel coverage was tested
     std::uint64_t shellsTraced =

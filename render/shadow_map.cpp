@@ -1,8 +1,5 @@
 #include "render/shadow_map.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -60,8 +57,8 @@ glm::vec2 diskOffset(int angular, int radial, std::uint32_t seed, float rotation
 
 }  // namespace
 
-ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
-                     int resolutionTexels) {
+ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels)
+    : tracer_(tracer) {
     if (resolutionTexels < 16 || resolutionTexels > 16384) {
         throw InputError::inField("resolutionTexels", std::to_string(resolutionTexels) +
                                                           " is not accepted; it must be in [16, "
@@ -107,40 +104,143 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
     height_ = std::clamp(int(std::ceil(extent.y / texelWorld_)), 1, resolutionTexels);
     originPlane_ = planeLow;
     // Rays start a little in front of everything.
-    const float startDepth = depthLow - std::max(texelWorld_, 1e-3f * longer);
+    startDepth_ = depthLow - std::max(texelWorld_, 1e-3f * longer);
 
     depths_.assign(std::size_t(width_) * std::size_t(height_),
                    std::numeric_limits<float>::infinity());
-    tbb::parallel_for(tbb::blocked_range<int>(0, height_, 8), [&](const tbb::blocked_range<int>&
-                                                                      rows) {
-        TraceCounters counters;
-        constexpr int kBatch = int(SceneTracer::kMaxBatchRays);
-        Ray rays[kBatch];
-        SurfaceHit hits[kBatch];
-        bool found[kBatch];
-        for (int y = rows.begin(); y != rows.end(); ++y) {
-            // Runs of a row traced together: their marches interleave (SceneTracer).
-            for (int x0 = 0; x0 < width_; x0 += kBatch) {
-                const int count = std::min(kBatch, width_ - x0);
-                const float along = originPlane_.y + (float(y) + 0.5f) * texelWorld_;
-                for (int k = 0; k < count; ++k) {
-                    const float across = originPlane_.x + (float(x0 + k) + 0.5f) * texelWorld_;
-                    rays[k] = {axisX_ * across + axisY_ * along - toLight_ * startDepth, -toLight_};
-                }
-                // Only where the rays stop matters here: no detail normals.
-                tracer.traceNearestBatch(std::span(rays, std::size_t(count)), 0.0f,
-                                         std::span(hits, std::size_t(count)),
-                                         std::span(found, std::size_t(count)), counters,
-                                         /*withNormals=*/false);
-                for (int k = 0; k < count; ++k) {
-                    if (!found[k]) continue;
-                    depths_[std::size_t(x0 + k) + std::size_t(width_) * std::size_t(y)] =
-                        startDepth + hits[k].distanceWorld;
-                }
-            }
+    tilesX_ = (width_ + kTileTexels - 1) / kTileTexels;
+    tilesY_ = (height_ + kTileTexels - 1) / kTileTexels;
+    const std::size_t tiles = std::size_t(tilesX_) * std::size_t(tilesY_);
+    tileOnce_ = std::make_unique<std::once_flag[]>(tiles);
+    tileDone_ = std::make_unique<std::atomic<bool>[]>(tiles);
+    for (std::size_t tile = 0; tile < tiles; ++tile) tileDone_[tile].store(false);
+    nearestDepth_ = findNearestDepth();
+}
+
+float ShadowMap::findNearestDepth() const {
+    // A lower bound of the depths of each tile from every shell over it. A shell's points are
+    // bilinear in its six corners, so they project into the corners' bounds on the light plane and
+    // lie no nearer than the nearest corner. A flat shell (its bottom the top moved by one vector)
+    // is bounded more tightly, as a large one must be: its depth over a light-plane point is the
+    // top's plane, or the bottom's, whichever is nearer, least at a corner of the tile's square.
+    // Rounding of a stored depth (start + distance along the ray) is allowed for.
+    const float rounding = 1e-5f * (std::abs(startDepth_) + texelWorld_ * float(width_ + height_)) +
+                           1e-3f * texelWorld_;
+    std::vector<float> bound(std::size_t(tilesX_) * std::size_t(tilesY_),
+                             std::numeric_limits<float>::infinity());
+    const float tileWorld = texelWorld_ * float(kTileTexels);
+    for (std::uint32_t shell = 0; shell < tracer_.shellCount(); ++shell) {
+        glm::vec3 corners[6];
+        tracer_.shellCorners(shell, corners, corners + 3);
+        glm::vec2 plane[6];
+        float depth[6];
+        glm::vec2 low(std::numeric_limits<float>::max()), high(-std::numeric_limits<float>::max());
+        float nearestCorner = std::numeric_limits<float>::infinity();
+        for (int corner = 0; corner < 6; ++corner) {
+            plane[corner] = {glm::dot(corners[corner], axisX_), glm::dot(corners[corner], axisY_)};
+            depth[corner] = -glm::dot(corners[corner], toLight_);
+            low = glm::min(low, plane[corner]);
+            high = glm::max(high, plane[corner]);
+            nearestCorner = std::min(nearestCorner, depth[corner]);
         }
+        // The top's depth as a + b u + c v over light-plane points (u, v), when the shell is flat
+        // and the top is not seen edge-on by the light.
+        const glm::vec3 offset = corners[3] - corners[0];
+        const bool flat = glm::length(corners[4] - corners[1] - offset) <= 1e-6f * tileWorld &&
+                          glm::length(corners[5] - corners[2] - offset) <= 1e-6f * tileWorld;
+        const glm::vec2 edge1 = plane[1] - plane[0], edge2 = plane[2] - plane[0];
+        const double determinant = double(edge1.x) * edge2.y - double(edge1.y) * edge2.x;
+        const bool planar = flat && std::abs(determinant) > 1e-6 * double(tileWorld) * tileWorld;
+        double slopeU = 0.0, slopeV = 0.0;
+        if (planar) {
+            const double rise1 = depth[1] - depth[0], rise2 = depth[2] - depth[0];
+            slopeU = (rise1 * edge2.y - rise2 * edge1.y) / determinant;
+            slopeV = (rise2 * edge1.x - rise1 * edge2.x) / determinant;
+        }
+        const float bottomShift = std::min(depth[3] - depth[0], 0.0f);
+        // Tiles whose square touches the bounds, one tile of margin for rounding.
+        const int x0 = std::max(int(std::floor((low.x - originPlane_.x) / tileWorld)) - 1, 0);
+        const int y0 = std::max(int(std::floor((low.y - originPlane_.y) / tileWorld)) - 1, 0);
+        const int x1 =
+            std::min(int(std::floor((high.x - originPlane_.x) / tileWorld)) + 1, tilesX_ - 1);
+        const int y1 =
+            std::min(int(std::floor((high.y - originPlane_.y) / tileWorld)) + 1, tilesY_ - 1);
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+                float least = nearestCorner;
+                if (planar) {
+                    // The plane's least value over the square: at the corner its slopes point away
+                    // from.
+                    const double u =
+                        originPlane_.x + (slopeU > 0.0 ? x : x + 1) * double(tileWorld);
+                    const double v =
+                        originPlane_.y + (slopeV > 0.0 ? y : y + 1) * double(tileWorld);
+                    const double top =
+                        depth[0] + slopeU * (u - plane[0].x) + slopeV * (v - plane[0].y);
+                    least = std::max(least, float(top) + bottomShift);
+                }
+                float& tileBound = bound[std::size_t(x) + std::size_t(tilesX_) * std::size_t(y)];
+                tileBound = std::min(tileBound, least - rounding);
+            }
+    }
+    // Tiles by increasing bound, traced until the nearest depth found is below every bound left:
+    // the least depth of the whole map, from the few tiles near the surface nearest the light.
+    std::vector<int> order;
+    for (std::size_t tile = 0; tile < bound.size(); ++tile)
+        if (!std::isinf(bound[tile])) order.push_back(int(tile));
+    std::sort(order.begin(), order.end(), [&](int a, int b) {
+        return bound[std::size_t(a)] < bound[std::size_t(b)] ||
+               (bound[std::size_t(a)] == bound[std::size_t(b)] && a < b);
     });
-    nearestDepth_ = *std::min_element(depths_.begin(), depths_.end());
+    float nearest = std::numeric_limits<float>::infinity();
+    for (int tile : order) {
+        if (bound[std::size_t(tile)] >= nearest) break;
+        traceTileOnce(tile);
+        const int x0 = (tile % tilesX_) * kTileTexels, y0 = (tile / tilesX_) * kTileTexels;
+        for (int y = y0; y < std::min(y0 + kTileTexels, height_); ++y)
+            for (int x = x0; x < std::min(x0 + kTileTexels, width_); ++x)
+                nearest = std::min(nearest,
+                                   depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)]);
+    }
+    return nearest;
+}
+
+void ShadowMap::traceTile(int tile) const {
+    const int x0 = (tile % tilesX_) * kTileTexels;
+    const int y0 = (tile / tilesX_) * kTileTexels;
+    const int x1 = std::min(x0 + kTileTexels, width_);
+    const int y1 = std::min(y0 + kTileTexels, height_);
+    TraceCounters counters;
+    constexpr int kBatch = int(SceneTracer::kMaxBatchRays);
+    Ray rays[kBatch];
+    SurfaceHit hits[kBatch];
+    bool found[kBatch];
+    int texels[kBatch];
+    // The tile's texels in batches traced together: their marches interleave (SceneTracer). A
+    // ray's hit does not depend on the others in its batch.
+    const int tileWidth = x1 - x0;
+    const int count = tileWidth * (y1 - y0);
+    for (int first = 0; first < count; first += kBatch) {
+        const int batch = std::min(kBatch, count - first);
+        for (int k = 0; k < batch; ++k) {
+            const int x = x0 + (first + k) % tileWidth;
+            const int y = y0 + (first + k) / tileWidth;
+            const float across = originPlane_.x + (float(x) + 0.5f) * texelWorld_;
+            const float along = originPlane_.y + (float(y) + 0.5f) * texelWorld_;
+            rays[k] = {axisX_ * across + axisY_ * along - toLight_ * startDepth_, -toLight_};
+            texels[k] = x + width_ * y;
+        }
+        // Only where the rays stop matters here: no detail normals.
+        tracer_.traceNearestBatch(std::span(rays, std::size_t(batch)), 0.0f,
+                                  std::span(hits, std::size_t(batch)),
+                                  std::span(found, std::size_t(batch)), counters,
+                                  /*withNormals=*/false);
+        for (int k = 0; k < batch; ++k) {
+            if (found[k]) depths_[std::size_t(texels[k])] = startDepth_ + hits[k].distanceWorld;
+        }
+    }
+    tracedTexels_.fetch_add(std::uint64_t(count), std::memory_order_relaxed);
+    tileDone_[std::size_t(tile)].store(true, std::memory_order_release);
 }
 
 float ShadowMap::lookup(const glm::vec2& planeWorld) const {
@@ -176,7 +276,7 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
         return stored < reference - bias ? stored : std::numeric_limits<float>::infinity();
     };
 
-    // The widest penumbra possible here: the nearest blocker anywhere in the map.
+    // The widest penumbra possible here: from the surface nearest to the light anywhere.
     const float searchRadius =
         std::min(tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f),
                  kMaxSearchTexels * texelWorld_);

@@ -6,14 +6,19 @@
 /// A map is an orthographic grid of rays along the light direction over the scene's bounds,
 /// each traced with SceneTracer::traceNearest, so the displaced detail (not only the base mesh)
 /// casts the shadow. A texel stores the depth of the nearest hit along the light direction, in
-/// world units. Lookups filter it with 64 jittered samples warped to a disk (an 8 x 8 stratified
-/// grid, polar warp); the adaptive filter first takes the 8 samples of the outer ring and stops
-/// when they agree.
+/// world units. The map is traced in square tiles of kTileTexels, each the first time a lookup
+/// reaches it: only where a receiver looks (a view sees a fraction of the scene, and its
+/// receivers' filter disks a fraction of the light's view of it). Lookups filter it with 64
+/// jittered samples warped to a disk (an 8 x 8 stratified grid, polar warp); the adaptive filter
+/// first takes the 8 samples of the outer ring and stops when they agree.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 #include "render/scene.h"
@@ -44,11 +49,16 @@ class ShadowMap {
     /// tile texel there (3.9 mm), so the map resolves what the camera resolves.
     static constexpr int kDefaultResolution = 2048;
 
-    /// Renders the map of `light` over the scene of `tracer`: bounds of every base mesh grown by
-    /// the deepest detail shell, `resolutionTexels` texels along the longer side, square texels.
-    /// Built in parallel; the result does not depend on the thread count. Preconditions:
-    /// validateScene passed for tracer.scene(). Throws InputError unless resolutionTexels is in
-    /// [16, 16384].
+    /// Side of the square tiles the map is traced in, texels: small enough that a tile holds
+    /// little a receiver does not ask for, large enough for whole batches of light rays.
+    static constexpr int kTileTexels = 16;
+
+    /// The map of `light` over the scene of `tracer`: bounds of every base mesh grown by the
+    /// deepest detail shell, `resolutionTexels` texels along the longer side, square texels.
+    /// Nothing is traced yet: a tile is traced by the thread whose lookup first reaches it (others
+    /// wait for it), so every texel holds what a full build gives, whatever the thread count and
+    /// order. Preconditions: validateScene passed for tracer.scene(); `tracer` outlives the map.
+    /// Throws InputError unless resolutionTexels is in [16, 16384].
     ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
               int resolutionTexels = kDefaultResolution);
 
@@ -67,25 +77,45 @@ class ShadowMap {
     int height() const { return height_; }
     float texelWorld() const { return texelWorld_; }
     /// Stored depth of texel (x, y) along the light direction, world units; +infinity where the
-    /// light ray hit nothing. Preconditions: 0 <= x < width(), 0 <= y < height().
+    /// light ray hit nothing. Traces the texel's tile if no lookup has. Preconditions:
+    /// 0 <= x < width(), 0 <= y < height(). Thread-safe.
     float depthAt(int x, int y) const {
+        traceTileOnce((x / kTileTexels) + tilesX_ * (y / kTileTexels));
         return depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)];
     }
+    /// Texels traced so far (whole tiles, clipped to the map), at most width() x height().
+    std::uint64_t tracedTexels() const { return tracedTexels_.load(std::memory_order_relaxed); }
 
   private:
     /// Depth stored at the texel containing light-plane point `planeWorld`; +infinity outside.
     float lookup(const glm::vec2& planeWorld) const;
+    /// Traces tile `tile` (row-major over tilesX_ x tilesY_) unless it is done; returns once it is.
+    void traceTileOnce(int tile) const {
+        if (tileDone_[std::size_t(tile)].load(std::memory_order_acquire)) return;
+        std::call_once(tileOnce_[std::size_t(tile)], [&] { traceTile(tile); });
+    }
+    void traceTile(int tile) const;
+    /// The smallest depth of the whole map, from only the tiles that may hold it.
+    float findNearestDepth() const;
 
+    const SceneTracer& tracer_;
     glm::vec3 toLight_{0.0f, 0.0f, 1.0f};  ///< unit, from surfaces toward the light
     glm::vec3 axisX_{1.0f, 0.0f, 0.0f};    ///< unit, across the map
     glm::vec3 axisY_{0.0f, 1.0f, 0.0f};    ///< unit, across the map
     glm::vec2 originPlane_{0.0f};  ///< light-plane coordinates of the map's corner, world units
     float tanHalfAngle_ = 0.0f;
     float nearestDepth_ = 0.0f;  ///< smallest stored depth (the blocker nearest the light)
+    float startDepth_ = 0.0f;    ///< where the light rays start: in front of everything
     float texelWorld_ = 1.0f;
     int width_ = 0;
     int height_ = 0;
-    std::vector<float> depths_;
+    int tilesX_ = 0;
+    int tilesY_ = 0;
+    mutable std::vector<float>
+        depths_;  ///< row-major; a tile's texels are written once, by traceTile
+    std::unique_ptr<std::once_flag[]> tileOnce_;
+    std::unique_ptr<std::atomic<bool>[]> tileDone_;
+    mutable std::atomic<std::uint64_t> tracedTexels_{0};
 };
 
 /// Whether `light` reaches any base surface the camera of `scene` sees the front of: a triangle

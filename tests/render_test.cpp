@@ -377,6 +377,45 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     EXPECT_EQ(samples, std::uint64_t(72 * lookups));
 }
 
+TEST(ShadowMap, TracesOnlyWhereLookupsReachAndAgreesWithEveryTileTraced) {
+    const Scene scene = occluderScene();
+    const SceneTracer tracer(scene, TraceOptions{});
+    const ShadowMap lazy(tracer, scene.lights[0], 1024);
+    const ShadowMap whole(tracer, scene.lights[0], 1024);
+    const std::uint64_t allTexels = std::uint64_t(whole.width()) * std::uint64_t(whole.height());
+    for (int y = 0; y < whole.height(); y += ShadowMap::kTileTexels)
+        for (int x = 0; x < whole.width(); x += ShadowMap::kTileTexels) whole.depthAt(x, y);
+    EXPECT_EQ(whole.tracedTexels(), allTexels);
+    // Before any lookup only the tiles that may hold the nearest depth are traced: those over the
+    // occluder (256 x 256 of the 1024 x 1024 texels) and a tile of margin around it.
+    const std::uint64_t searched = lazy.tracedTexels();
+    EXPECT_GE(searched, std::uint64_t(256 * 256));
+    EXPECT_LE(searched, std::uint64_t(320 * 320));
+    // A lookup beside the occluder traces the tiles its disk (8.7 mm, 4.5 texels) reaches: a few.
+    std::uint64_t samples = 0;
+    EXPECT_EQ(
+        lazy.visibility({{0.8f, 0.7f, 0.0f}, {0.0f, 0.0f, 1.0f}}, ShadowFilter::Full, 1, samples),
+        1.0f);
+    EXPECT_GT(lazy.tracedTexels(), searched);
+    EXPECT_LE(lazy.tracedTexels(), searched + 4 * ShadowMap::kTileTexels * ShadowMap::kTileTexels);
+    // Every lookup gives what the fully traced map gives, bit for bit (the nearest depth, which
+    // sets the blocker search's radius, included): over a grid across the occluder's edges.
+    for (float y = -0.4f; y < 0.4f; y += 0.0173f)
+        for (float x = -0.4f; x < 0.4f; x += 0.0173f) {
+            const ShadowReceiver receiver{{x, y, 0.0f}, {0.0f, 0.0f, 1.0f}};
+            const auto seed = std::uint32_t(std::lround(1000.0f * (x + 2.0f * y)));
+            std::uint64_t lazySamples = 0, wholeSamples = 0;
+            ASSERT_EQ(lazy.visibility(receiver, ShadowFilter::Adaptive, seed, lazySamples),
+                      whole.visibility(receiver, ShadowFilter::Adaptive, seed, wholeSamples))
+                << x << " " << y;
+            ASSERT_EQ(lazySamples, wholeSamples);
+        }
+    EXPECT_LT(lazy.tracedTexels(), allTexels / 4);  // the grid spans 0.8 of the 2 units
+    for (int y = 0; y < whole.height(); y += 7)
+        for (int x = 0; x < whole.width(); x += 7)
+            ASSERT_EQ(lazy.depthAt(x, y), whole.depthAt(x, y));
+}
+
 TEST(ShadowMap, RejectsBadResolutions) {
     const Scene scene = occluderScene();
     const SceneTracer tracer(scene, TraceOptions{});
@@ -387,17 +426,24 @@ TEST(ShadowMap, RejectsBadResolutions) {
     EXPECT_THROW(renderScene(scene, options), InputError);
 }
 
-TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
-    // A sphere of radius 0.3 floating 0.3 above a plane, under a light of 6 degrees: penumbrae
-    // of tan(3 deg) * 0.3..0.9 = 16..47 mm around the shadow, seen from above.
+/// A sphere of radius 0.3 floating 0.3 above a 3 x 3 plane, under a light of 6 degrees:
+/// penumbrae of tan(3 deg) * 0.3..0.9 = 16..47 mm around the shadow, seen by `camera`.
+Scene sphereAbovePlane(const Camera& camera) {
     Scene scene;
-    scene.camera = {{0.4f, -1.2f, 1.8f}, {0.15f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f};
+    scene.camera = camera;
     scene.lights = {DirectionalLight{{-0.5f, 0.3f, -1.0f}, {1.0f, 1.0f, 1.0f}, 6.0f}};
     scene.objects.push_back(bareSquare(3.0f, 0.0f));
     SceneObject sphere;
     sphere.mesh = makeUvSphere(0.3f, 64, 32);
     applyTransform(sphere.mesh, {{0.0f, 0.0f, 0.6f}, {0.0f, 0.0f, 0.0f}, 1.0f});
     scene.objects.push_back(std::move(sphere));
+    return scene;
+}
+
+TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
+    // The sphere and its shadow seen from above.
+    const Scene scene =
+        sphereAbovePlane({{0.4f, -1.2f, 1.8f}, {0.15f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f});
 
     RenderOptions options;
     options.width = 160;
@@ -438,6 +484,33 @@ TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
         100.0 * double(close) / double(full.image.rgbLinear.size()), shadowed);
     EXPECT_GE(double(close), 0.995 * double(full.image.rgbLinear.size()));
     EXPECT_GT(shadowed, 500u);  // the sphere casts a visible shadow on the plane
+}
+
+TEST(Renderer, ShadowMapsTraceWhatTheViewNeedsAndDoNotDependOnTheThreadCount) {
+    // The sphere above the plane, seen from close by: the view holds a part of
+    // the plane, so only a part of the light's map is traced; the tiles are traced by whichever
+    // thread first needs them, and the image is the same on 1 and 2 threads.
+    const Scene scene =
+        sphereAbovePlane({{0.3f, -0.9f, 0.9f}, {0.15f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f});
+    RenderOptions options;
+    options.width = 160;
+    options.height = 128;
+    options.shadowMapResolution = 512;
+    RenderResult one, two;
+    {
+        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+        one = renderScene(scene, options);
+    }
+    {
+        tbb::global_control pair(tbb::global_control::max_allowed_parallelism, 2);
+        two = renderScene(scene, options);
+    }
+    EXPECT_EQ(one.image.rgbLinear, two.image.rgbLinear);
+    EXPECT_EQ(one.stats.shadowMapSamples, two.stats.shadowMapSamples);
+    EXPECT_EQ(one.stats.shadowMapTexels, two.stats.shadowMapTexels);
+    EXPECT_GT(one.stats.shadowMapSamples, 0u);
+    EXPECT_GT(one.stats.shadowMapTexels, 0u);
+    EXPECT_LT(one.stats.shadowMapTexels, one.stats.shadowMapTexelsAll / 2);
 }
 
 TEST(Renderer, RejectsBadOptionsAndScenes) {

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "render/image.h"
 #include "render/scene.h"
@@ -98,5 +99,12 @@ std::string embreePeerLabel(const EmbreePeerOptions& options);
 ///   message).
 PeerRender renderSheetWithVdbRender(const Scene& scene, int width, int height, int threads,
                                     const std::filesystem::path& workDir);
+
+/// Runs `program` with `arguments` (no shell), its stdout and stderr captured in files of
+/// `workDir` named after `logName`; returns stdout. Throws std::runtime_error with the exit status
+/// and stderr when the program fails.
+std::string runProgram(const std::filesystem::path& program,
+                       const std::vector<std::string>& arguments,
+                       const std::filesystem::path& workDir, const std::string& logName);
 
 }  // namespace distile

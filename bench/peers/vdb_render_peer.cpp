@@ -47,9 +47,8 @@ std::string readText(const fs::path& file) {
     return text.str();
 }
 
-/// Runs `program` with `arguments` (no shell), its stdout and stderr captured in files of
-/// `workDir` named after `logName`; returns stdout. Throws std::runtime_error with the exit status
-/// and stderr when the program fails.
+}  // namespace
+
 std::string runProgram(const fs::path& program, const std::vector<std::string>& arguments,
                        const fs::path& workDir, const std::string& logName) {
     const fs::path out = workDir / (logName + ".stdout.txt");
@@ -88,6 +87,8 @@ std::string runProgram(const fs::path& program, const std::vector<std::string>& 
     }
     return readText(out);
 }
+
+namespace {
 
 /// The value after "key:" on a line of vdb_print's output, e.g. "file_bbox_min: [0, 0, -3]".
 std::string printedValue(const std::string& printout, const std::string& key) {
