@@ -28,7 +28,7 @@ namespace {
 
 /// The tile's own truth cannot be found (`error` says why): the caller must name one.
 InputError noTruth(const InputError& error) {
-    return InputError::inField("against", std::string(error.what()) + "; pass the truth's file");
+    return InputError::inField("against", std::string(error.what()) + "; give the truth's file");
 }
 
 /// Throws InputError::inField(field) unless `value` is a finite number in [0, highest].

@@ -10,7 +10,7 @@ share (a network file system), a mesh baked once by any worker is never baked ag
 
     PYTHONPATH=build/python /usr/bin/python3 examples/dask_bake.py data/meshes tiles
     PYTHONPATH=build/python /usr/bin/python3 examples/dask_bake.py meshes tiles \\
-        --scheduler tcp://scheduler:8786 --cache /shared/distile-cache
+        --scheduler tcp://scheduler:8786 --cache /mnt/cluster/distile-cache
 """
 
 import argparse
