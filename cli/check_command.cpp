@@ -22,17 +22,9 @@ namespace {
 
 struct CheckArguments {
     fs::path tile;
-    std::string against = "analytic";
-    bool againstGiven = false;  ///< --against given: it overrides the tile's recorded source
-    int samples = 100000;
-    std::uint64_t seed = 1;
+    /// --against (empty unless given: it overrides the tile's recorded source) and the others.
+    TileCheckOptions options;
     bool json = false;
-    double maxOverestimateTexels = 0.05;
-    double maxOverestimateShare = 0.001;
-    double maxRmsTexels = 0.1;
-    std::optional<double> maxNearErrorTexels;
-    bool allowSignErrors = false;
-    std::optional<double> meshScale;
     std::vector<double> meshOffset;
 };
 
@@ -53,7 +45,7 @@ void printReport(const CheckArguments& arguments, const TileCheckOptions& option
     }
     std::printf("%s against %s, %d samples (seed %llu), trilinear, texels:\n",
                 arguments.tile.c_str(), against.c_str(), report.samples,
-                static_cast<unsigned long long>(arguments.seed));
+                static_cast<unsigned long long>(options.seed));
     std::printf("  near surface (|d| <= 2, %d samples): max %.4f  RMS %.4f  p99.9 %.4f\n",
                 report.nearSamples, report.nearMaxAbsTexels, report.nearRmsTexels,
                 report.nearP999Texels);
@@ -63,7 +55,7 @@ void printReport(const CheckArguments& arguments, const TileCheckOptions& option
         report.maxAbsTruthTexels, report.rmsTexels);
     std::printf(
         "  overestimates beyond %.3f: %d (%.4f%%), largest %.4f; sign errors (|d| > 1): %d\n",
-        arguments.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
+        options.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
         report.maxOverestimateTexels, report.signErrors);
     std::printf("  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
                 "inside it\n",
@@ -79,16 +71,7 @@ void printReport(const CheckArguments& arguments, const TileCheckOptions& option
 
 void runCheck(const CheckArguments& arguments) {
     const Tile tile = readTileExr(arguments.tile);
-    TileCheckOptions options;
-    if (arguments.againstGiven) options.against = arguments.against;
-    options.samples = arguments.samples;
-    options.seed = arguments.seed;
-    options.maxOverestimateTexels = arguments.maxOverestimateTexels;
-    options.maxOverestimateShare = arguments.maxOverestimateShare;
-    options.maxRmsTexels = arguments.maxRmsTexels;
-    options.maxNearErrorTexels = arguments.maxNearErrorTexels;
-    options.allowSignErrors = arguments.allowSignErrors;
-    options.meshScale = arguments.meshScale;
+    TileCheckOptions options = arguments.options;
     if (!arguments.meshOffset.empty()) {
         if (arguments.meshOffset.size() != 3)
             throw InputError("--offset: give three numbers X Y Z (texels)");
@@ -122,50 +105,48 @@ void addCheckCommand(CLI::App& app) {
                                            "is exceeded");
     command->add_option("tile", arguments->tile, "Tile file (.exr)")->required();
     command
-        ->add_option("--against", arguments->against,
+        ->add_option("--against", arguments->options.against,
                      "Truth: analytic (from the tile's distile:source/params), a mesh file "
                      "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
                      "Default: the analytic truth, or for a tile baked from a mesh or a .vdb file "
-                     "that file (its recorded distile:source_file, placed as it was baked)")
-        ->capture_default_str();
+                     "that file (its recorded distile:source_file, placed as it was baked)");
     // Time and memory grow linearly: 10^7 points take ~5 s and ~400 MB.
     command
-        ->add_option("--samples", arguments->samples,
+        ->add_option("--samples", arguments->options.samples,
                      "Uniform random sample points, at most 10^7 (~5 s, ~400 MB)")
         ->capture_default_str()
         ->check(CLI::Range(1, 10000000));
-    command->add_option("--seed", arguments->seed, "Seed of the sample points")
+    command->add_option("--seed", arguments->options.seed, "Seed of the sample points")
         ->capture_default_str();
     command->add_flag("--json", arguments->json, "Print the report as one JSON object");
     command
         ->add_option(
-            "--max-overestimate", arguments->maxOverestimateTexels,
+            "--max-overestimate", arguments->options.maxOverestimateTexels,
             "Overestimate tolerance, texels: tile - truth above it counts as an overestimate")
         ->capture_default_str()
         ->check(finiteRange(0.0, 1e6));
     command
-        ->add_option("--max-overestimate-share", arguments->maxOverestimateShare,
+        ->add_option("--max-overestimate-share", arguments->options.maxOverestimateShare,
                      "Largest accepted share of overestimates (0.001 = 0.1%)")
         ->capture_default_str()
         ->check(finiteRange(0.0, 1.0));
-    command->add_option("--max-rms", arguments->maxRmsTexels, "Largest accepted RMS error, texels")
+    command->add_option("--max-rms", arguments->options.maxRmsTexels, "Largest accepted RMS error, texels")
         ->capture_default_str()
         ->check(finiteRange(0.0, 1e6));
     command
-        ->add_option("--max-near-error", arguments->maxNearErrorTexels,
+        ->add_option("--max-near-error", arguments->options.maxNearErrorTexels,
                      "Largest accepted error within 2 texels of the surface (default: not checked)")
         ->check(finiteRange(0.0, 1e6));
-    command->add_flag("--allow-sign-errors", arguments->allowSignErrors,
+    command->add_flag("--allow-sign-errors", arguments->options.allowSignErrors,
                       "Do not fail on sign errors (samples more than 1 texel from the surface with "
                       "the wrong sign)");
-    command->add_option("--scale", arguments->meshScale,
+    command->add_option("--scale", arguments->options.meshScale,
                         "Mesh truth: explicit placement, texels per file unit");
     command
         ->add_option("--offset", arguments->meshOffset,
                      "Mesh truth: explicit placement, offset X Y Z in texels")
         ->expected(3);
     command->callback([arguments, command] {
-        arguments->againstGiven = command->count("--against") > 0;
         runCheck(*arguments);
     });
 }
