@@ -105,8 +105,8 @@ std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, c
 TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::path& tileFile,
                     const TileCheckOptions& options) {
     if (options.samples < 1 || options.samples > 10000000) {
-        throw InputError::inField("samples", std::to_string(options.samples) +
-                                                 " is not accepted; give 1 to 10^7 points");
+        throw InputError::inField(
+            "samples", std::to_string(options.samples) + " is not accepted; give 1 to 10^7 points");
     }
     requireTolerance("maxOverestimateTexels", options.maxOverestimateTexels, 1e6);
     requireTolerance("maxOverestimateShare", options.maxOverestimateShare, 1.0);
@@ -181,8 +181,8 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
         std::shared_ptr<const Tile> grid;
         try {
             grid = std::make_shared<const Tile>(
-                bakeVdb(VdbVolume::read(againstFile, gridName, recorded.iso),
-                        explicitPlacement, exact, againstFile)
+                bakeVdb(VdbVolume::read(againstFile, gridName, recorded.iso), explicitPlacement,
+                        exact, againstFile)
                     .bake.tile);
         } catch (const InputError& error) {
             throw InputError::inField("against", error.what());

@@ -27,7 +27,8 @@ struct TileCheckOptions {
     double maxOverestimateTexels = 0.05;  ///< tile - truth above it is an overestimate
     double maxOverestimateShare = 0.001;  ///< largest accepted share of overestimates
     double maxRmsTexels = 0.1;
-    std::optional<double> maxNearErrorTexels;  ///< within 2 texels of the surface; unchecked if unset
+    std::optional<double>
+        maxNearErrorTexels;  ///< within 2 texels of the surface; unchecked if unset
     bool allowSignErrors = false;
     /// Mesh truth, explicit placement: texels per file unit and where the file's origin goes
     /// (texels); either given means explicit placement (scale 1, offset 0 by default).
@@ -38,8 +39,8 @@ struct TileCheckOptions {
 struct TileCheck {
     std::string against;  ///< which truth, in words ("analytic chainmail {...}", "mesh ...")
     TileErrorReport report;
-    double bandTexels = 0.0;    ///< the truth is clamped to +-this (the tile's band)
-    bool bandDeclared = false;  ///< the tile declares its band (else: its depth)
+    double bandTexels = 0.0;            ///< the truth is clamped to +-this (the tile's band)
+    bool bandDeclared = false;          ///< the tile declares its band (else: its depth)
     std::vector<std::string> failures;  ///< one sentence per tolerance exceeded
     bool passed() const { return failures.empty(); }
 };

@@ -84,8 +84,7 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
                                                                  : WorldReferenceMethod::Bvh;
     options.levelSet.voxelsPerTexel = arguments.referenceVoxelsPerTexel;
     attachTruth(sceneFile);  // analytic detail where there is one, else the tile
-    RenderOutputs outputs(arguments.output, options.outputAovs,
-                          {"depth", "normal", "texel_scale"});
+    RenderOutputs outputs(arguments.output, options.outputAovs, {"depth", "normal", "texel_scale"});
     const auto start = std::chrono::steady_clock::now();
     WorldReferenceResult result;
     {
@@ -196,8 +195,8 @@ void runRender(RenderArguments arguments) {
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachTruth(sceneFile);
     RenderOutputs outputs(arguments.output, options.outputAovs,
-                          {"depth", "normal", "iterations", "shadow_samples",
-                           "shadow_map_samples", "curvature", "texel_scale"});
+                          {"depth", "normal", "iterations", "shadow_samples", "shadow_map_samples",
+                           "curvature", "texel_scale"});
 
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;

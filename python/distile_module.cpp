@@ -6,7 +6,6 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
-
 #include <tbb/global_control.h>
 
 #include <cstdint>
@@ -225,8 +224,7 @@ PYBIND11_MODULE(_distile, module) {
     // "distile: error: " prefix.
     static py::exception<InputError> inputError(module, "InputError", PyExc_ValueError);
     static py::exception<FormatError> formatError(module, "FormatError", PyExc_ValueError);
-    static py::exception<InternalError> internalError(module, "InternalError",
-                                                      PyExc_RuntimeError);
+    static py::exception<InternalError> internalError(module, "InternalError", PyExc_RuntimeError);
     py::register_exception_translator([](std::exception_ptr thrown) {
         try {
             if (thrown) std::rethrow_exception(thrown);
@@ -271,8 +269,8 @@ PYBIND11_MODULE(_distile, module) {
                 out["size"] = toString(tile.size());
                 out["units"] = "texels";
                 out["source"] = provenance.source;
-                out["params"] =
-                    provenance.params.empty() ? py::object(py::dict()) : jsonValue(provenance.params);
+                out["params"] = provenance.params.empty() ? py::object(py::dict())
+                                                          : jsonValue(provenance.params);
                 out["band_texels"] = provenance.halfBandTexels;
                 out["hash"] = std::string(hash);
                 if (!provenance.sourceFile.empty()) {
@@ -281,7 +279,8 @@ PYBIND11_MODULE(_distile, module) {
                 }
                 return out;
             },
-            "What the tile file's distile: attributes say, without the prefix (docs/tile_format.md)")
+            "What the tile file's distile: attributes say, without the prefix "
+            "(docs/tile_format.md)")
         .def(
             "save",
             [](const PyTile& self, const fs::path& file, bool half) {
@@ -326,7 +325,10 @@ PYBIND11_MODULE(_distile, module) {
 
     py::class_<PyRender>(module, "Render", "A rendered image with its statistics and AOVs")
         .def_property_readonly(
-            "image", [](py::object self) { return imageView(self.cast<const PyRender&>().result->image, self); },
+            "image",
+            [](py::object self) {
+                return imageView(self.cast<const PyRender&>().result->image, self);
+            },
             "Linear RGB as a read-only (height, width, 3) float32 view, row 0 at the top")
         .def_property_readonly(
             "aovs",
@@ -356,8 +358,8 @@ PYBIND11_MODULE(_distile, module) {
     module.def(
         "render_scene_file",
         [](const fs::path& file, const PyRenderArguments& arguments) {
-            return renderLoaded(
-                [&](TileCache& tiles) { return loadSceneFile(file, tiles); }, arguments);
+            return renderLoaded([&](TileCache& tiles) { return loadSceneFile(file, tiles); },
+                                arguments);
         },
         py::arg("file"), py::arg("arguments"));
     module.def(

@@ -30,7 +30,9 @@ inline constexpr ShadowFilter kShadowFilters[] = {ShadowFilter::None, ShadowFilt
 
 /// "none", "full", "adaptive": the names programs show and accept.
 inline const char* shadowFilterName(ShadowFilter filter) {
-    return filter == ShadowFilter::None ? "none" : filter == ShadowFilter::Full ? "full" : "adaptive";
+    return filter == ShadowFilter::None   ? "none"
+           : filter == ShadowFilter::Full ? "full"
+                                          : "adaptive";
 }
 
 /// Samples per lookup: the outer ring (blocker search and penumbra test) and the full disk.
