@@ -4,12 +4,14 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "check/reports.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "render/compare.h"
 #include "render/image.h"
+#include "render/render_files.h"
 
 namespace distile::cli {
 
@@ -25,52 +27,6 @@ struct CompareArguments {
     bool json = false;
 };
 
-/// A render read back from its files: the image and the AOVs written beside it by render --aovs.
-struct RenderFiles {
-    Image image, depth, normal, texelScale;
-    RenderLayersView view() const { return {image, depth, normal, texelScale}; }
-};
-
-fs::path besidePath(const fs::path& image, const std::string& name, const std::string& extension) {
-    return image.parent_path() / (image.stem().string() + "." + name + extension);
-}
-
-Image readLayer(const fs::path& file, const std::string& role) {
-    if (!fs::exists(file)) {
-        throw InputError(role + ": " + file.string() +
-                         " does not exist; compare needs renders written with --aovs");
-    }
-    return readImage(file);
-}
-
-RenderFiles readRender(const fs::path& image, const std::string& role) {
-    if (!fs::exists(image))
-        throw InputError(role + ": image " + image.string() + " does not exist");
-    return {readImage(image), readLayer(besidePath(image, "depth", ".exr"), role),
-            readLayer(besidePath(image, "normal", ".png"), role),
-            readLayer(besidePath(image, "texel_scale", ".exr"), role)};
-}
-
-nlohmann::json classJson(const HitErrorSummary& summary) {
-    return {{"pixels", summary.pixels},
-            {"hit_error_samples", summary.hitErrorSamples},
-            {"hit_error_mean", summary.meanHitErrorTexels},
-            {"hit_error_p99", summary.p99HitErrorTexels},
-            {"hit_error_max", summary.maxHitErrorTexels},
-            {"normal_error_mean_deg", summary.meanNormalErrorDeg}};
-}
-
-/// The all-pixel figures of `c` as one more class.
-HitErrorSummary allBothHit(const RenderComparison& c) {
-    return {c.bothHit,           c.hitErrorSamples,   c.meanHitErrorTexels,
-            c.p99HitErrorTexels, c.maxHitErrorTexels, c.meanNormalErrorDeg};
-}
-
-const char* const kSilhouetteRule =
-    "silhouette: a pixel where both hit and, in either render, one of its 8 neighbours misses or "
-    "lies across a depth jump (a step over 1 texel and over twice the steps beside it on the same "
-    "line); interior: the other both-hit pixels";
-
 void printClass(const char* name, const HitErrorSummary& summary) {
     std::printf("  %-10s %9llu %9llu %10.4f %10.4f %12.4f %10.3f\n", name,
                 static_cast<unsigned long long>(summary.pixels),
@@ -81,46 +37,29 @@ void printClass(const char* name, const HitErrorSummary& summary) {
 
 void runCompare(const CompareArguments& arguments) {
     const fs::path differencePath = arguments.difference.empty()
-                                        ? besidePath(arguments.a, "diff", ".png")
+                                        ? aovPath(arguments.a, "diff", ".png")
                                         : arguments.difference;
     const fs::path heatMapPath = arguments.heatMap.empty()
-                                     ? besidePath(arguments.a, "hit_error", ".png")
+                                     ? aovPath(arguments.a, "hit_error", ".png")
                                      : arguments.heatMap;
     requireOutput(differencePath, "-o", {".png", ".exr", ".tif", ".tiff"});
     requireOutput(heatMapPath, "--heatmap", {".png", ".exr", ".tif", ".tiff"});
     OutputFiles outputs;  // checked now, written together after the comparison
     const fs::path differenceTemporary = outputs.add(differencePath, "-o");
     const fs::path heatMapTemporary = outputs.add(heatMapPath, "--heatmap");
-    const RenderFiles a = readRender(arguments.a, "A");
-    const RenderFiles b = readRender(arguments.b, "B");
+    const RenderFiles a = readRenderFiles(arguments.a, "A");
+    const RenderFiles b = readRenderFiles(arguments.b, "B");
     Image difference, heatMap;
     const RenderComparison c = compareRenders(a.view(), b.view(), &difference, &heatMap);
     writeImage(difference, differenceTemporary);
     writeImage(heatMap, heatMapTemporary);
     outputs.commit();
     if (arguments.json) {
-        // JSON has no infinity: identical images give "psnr_db": null.
-        const nlohmann::json psnr =
-            std::isfinite(c.psnrDb) ? nlohmann::json(c.psnrDb) : nlohmann::json(nullptr);
-        const nlohmann::json out = {
-            {"a", arguments.a.string()},
-            {"b", arguments.b.string()},
-            {"width", c.width},
-            {"height", c.height},
-            {"pixels", c.pixels},
-            {"both_hit", c.bothHit},
-            {"coverage_mismatches", c.coverageMismatches},
-            {"coverage_mismatch_share", c.coverageMismatchShare},
-            {"hit_error_units", "texels"},
-            {"interior", classJson(c.interior)},
-            {"silhouette", classJson(c.silhouette)},
-            {"all_both_hit", classJson(allBothHit(c))},
-            {"silhouette_rule", kSilhouetteRule},
-            {"psnr_db", psnr},
-            {"psnr_of", "sRGB-encoded values in [0, 1], peak 1 (8-bit PSNR for PNGs)"},
-            {"difference", differencePath.string()},
-            {"heatmap", heatMapPath.string()},
-            {"heatmap_scale", "hit error, log scale from 0.01 texel (blue) to 100 texels (red)"}};
+        nlohmann::json out = renderComparisonJson(c);
+        out["a"] = arguments.a.string();
+        out["b"] = arguments.b.string();
+        out["difference"] = differencePath.string();
+        out["heatmap"] = heatMapPath.string();
         std::printf("%s\n", out.dump().c_str());
         return;
     }
@@ -141,7 +80,8 @@ void runCompare(const CompareArguments& arguments) {
                 "p99", "max", "normal");
     printClass("interior", c.interior);
     printClass("silhouette", c.silhouette);
-    printClass("all", allBothHit(c));
+    printClass("all", {c.bothHit, c.hitErrorSamples, c.meanHitErrorTexels, c.p99HitErrorTexels,
+                       c.maxHitErrorTexels, c.meanNormalErrorDeg});
     std::printf("%s\n", kSilhouetteRule);
     std::printf("PSNR (sRGB-encoded [0, 1], 8-bit for PNGs): %.2f dB\n", c.psnrDb);
     std::printf("difference image written to %s\n", fs::absolute(differencePath).c_str());

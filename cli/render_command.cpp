@@ -1,4 +1,5 @@
 // distile render: a scene (or the built-in demo) to an image, with optional AOVs.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <initializer_list>
@@ -13,6 +14,7 @@
 #include "cli/progress_bar.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "render/render_files.h"
 #include "render/renderer.h"
 #include "render/world_reference.h"
 #include "scene/scene_file.h"
@@ -40,26 +42,29 @@ struct RenderArguments {
     double referenceVoxelsPerTexel = DisplacedLevelSetOptions{}.voxelsPerTexel;
 };
 
-/// "out.png" + "depth" -> "out.depth.exr" (AOVs beside the image).
-fs::path aovPath(const fs::path& image, const std::string& name, const std::string& extension) {
-    return image.parent_path() / (image.stem().string() + "." + name + extension);
-}
-
 /// The files a render writes, checked before the work and renamed together after it
 /// (common/atomic_file.h): the image and, with --aovs, the AOVs beside it.
 class RenderOutputs {
   public:
-    /// `aovs`: name and extension of each AOV the render writes with --aovs.
-    RenderOutputs(const fs::path& image, bool withAovs,
-                  std::initializer_list<std::pair<const char*, const char*>> aovs)
+    /// `aovs`: the names of the AOVs (render/render_files.h kAovFiles) the render writes with
+    /// --aovs.
+    RenderOutputs(const fs::path& image, bool withAovs, std::initializer_list<std::string> aovs)
         : image_(files_.add(image, "-o")) {
         if (!withAovs) return;
-        for (const auto& [name, extension] : aovs)
-            aovs_[name] = files_.add(aovPath(image, name, extension),
-                                     "-o (its AOV " + std::string(name) + ")");
+        for (const AovFile& aov : kAovFiles) {
+            if (std::find(aovs.begin(), aovs.end(), aov.name) == aovs.end()) continue;
+            aovs_[aov.name] = files_.add(aovPath(image, aov.name, aov.extension),
+                                         "-o (its AOV " + std::string(aov.name) + ")");
+        }
+    }
+    /// Writes each AOV added of `aovs`.
+    void writeAovs(const RenderAovs& aovs) const {
+        for (const AovFile& aov : kAovFiles) {
+            if (const auto found = aovs_.find(aov.name); found != aovs_.end())
+                writeImage(aovs.*aov.layer, found->second);
+        }
     }
     const fs::path& image() const { return image_; }
-    const fs::path& aov(const std::string& name) const { return aovs_.at(name); }
     void commit() { files_.commit(); }
 
   private:
@@ -79,8 +84,7 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
                                                                  : WorldReferenceMethod::Bvh;
     options.levelSet.voxelsPerTexel = arguments.referenceVoxelsPerTexel;
     attachTruth(sceneFile);  // analytic detail where there is one, else the tile
-    RenderOutputs outputs(arguments.output, options.outputAovs,
-                          {{"depth", ".exr"}, {"normal", ".png"}, {"texel_scale", ".exr"}});
+    RenderOutputs outputs(arguments.output, options.outputAovs, {"depth", "normal", "texel_scale"});
     const auto start = std::chrono::steady_clock::now();
     WorldReferenceResult result;
     {
@@ -91,11 +95,7 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     writeImage(result.render.image, outputs.image());
-    if (result.render.aovs) {
-        writeImage(result.render.aovs->depth, outputs.aov("depth"));
-        writeImage(result.render.aovs->normal, outputs.aov("normal"));
-        writeImage(result.render.aovs->texelScale, outputs.aov("texel_scale"));
-    }
+    if (result.render.aovs) outputs.writeAovs(*result.render.aovs);
     outputs.commit();
     for (std::size_t index = 0; index < result.meshes.size(); ++index) {
         const DisplacedMeshStats& mesh = result.meshes[index];
@@ -143,6 +143,14 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
     std::printf("image written to %s\n", fs::absolute(arguments.output).c_str());
 }
 
+/// The library's names of `values` (named by `nameOf`), as CLI11's transformers take them.
+template <class Value, std::size_t N>
+std::map<std::string, Value> namesOf(const Value (&values)[N], const char* (*nameOf)(Value)) {
+    std::map<std::string, Value> names;
+    for (const Value value : values) names[nameOf(value)] = value;
+    return names;
+}
+
 /// A library's InputError as the user wrote the value: under the render command's flag, or the
 /// scene file's JSON path (validateScene's Scene members).
 InputError underRenderNames(const InputError& error) {
@@ -187,13 +195,8 @@ void runRender(RenderArguments arguments) {
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachTruth(sceneFile);
     RenderOutputs outputs(arguments.output, options.outputAovs,
-                          {{"depth", ".exr"},
-                           {"normal", ".png"},
-                           {"iterations", ".png"},
-                           {"shadow_samples", ".png"},
-                           {"shadow_map_samples", ".png"},
-                           {"curvature", ".png"},
-                           {"texel_scale", ".exr"}});
+                          {"depth", "normal", "iterations", "shadow_samples", "shadow_map_samples",
+                           "curvature", "texel_scale"});
 
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;
@@ -209,15 +212,7 @@ void runRender(RenderArguments arguments) {
     for (const std::string& warning : result.warnings)
         std::fprintf(stderr, "warning: %s\n", warning.c_str());
     writeImage(result.image, outputs.image());
-    if (result.aovs) {
-        writeImage(result.aovs->depth, outputs.aov("depth"));
-        writeImage(result.aovs->normal, outputs.aov("normal"));
-        writeImage(result.aovs->iterations, outputs.aov("iterations"));
-        writeImage(result.aovs->shadowSamples, outputs.aov("shadow_samples"));
-        writeImage(result.aovs->shadowMapSamples, outputs.aov("shadow_map_samples"));
-        writeImage(result.aovs->curvature, outputs.aov("curvature"));
-        writeImage(result.aovs->texelScale, outputs.aov("texel_scale"));
-    }
+    if (result.aovs) outputs.writeAovs(*result.aovs);
     outputs.commit();
     const RenderStats& stats = result.stats;
     std::printf(
@@ -290,11 +285,7 @@ void addRenderCommand(CLI::App& app) {
     command
         ->add_option("--epsilon", arguments->options.march.epsilonTexels, "Hit threshold in texels")
         ->capture_default_str();
-    const std::map<std::string, MarchMethod> methods{{"sphere", MarchMethod::SphereTracing},
-                                                     {"relaxed", MarchMethod::OverRelaxed},
-                                                     {"budgeted", MarchMethod::Budgeted},
-                                                     {"relief", MarchMethod::Relief},
-                                                     {"fixed", MarchMethod::FixedSteps}};
+    const auto methods = namesOf(kMarchMethods, marchMethodName);
     command
         ->add_option("--march", arguments->options.march.method,
                      "March method: sphere (ch. 8 sphere tracing), relaxed (over-relaxed sphere "
@@ -308,10 +299,7 @@ void addRenderCommand(CLI::App& app) {
         ->add_option("--relaxation", arguments->options.march.relaxation,
                      "Step factor of --march relaxed, in [1, 2)")
         ->capture_default_str();
-    const std::map<std::string, FilterKind> filters{{"nearest", FilterKind::Nearest},
-                                                    {"trilinear", FilterKind::Trilinear},
-                                                    {"tricubic", FilterKind::TricubicBSpline},
-                                                    {"catmullrom", FilterKind::CatmullRom}};
+    const auto filters = namesOf(kFilterKinds, filterKindName);
     command->add_option("--filter", arguments->options.filter, "Tile reconstruction filter")
         ->transform(CLI::CheckedTransformer(filters, CLI::ignore_case))
         ->default_str("trilinear");
@@ -320,8 +308,7 @@ void addRenderCommand(CLI::App& app) {
                      "Filter whose gradient gives the shading normal (same names as --filter)")
         ->transform(CLI::CheckedTransformer(filters, CLI::ignore_case))
         ->default_str("tricubic");
-    const std::map<std::string, ShellMapping> shellMappings{{"curved", ShellMapping::Curved},
-                                                            {"planar", ShellMapping::Planar}};
+    const auto shellMappings = namesOf(kShellMappings, shellMappingName);
     command
         ->add_option("--shell", arguments->options.shellMapping,
                      "How rays cross the detail shell of a curved base mesh: curved (follow the "
@@ -331,9 +318,7 @@ void addRenderCommand(CLI::App& app) {
                      "bases). Flat faces take the planar march either way (exact there)")
         ->transform(CLI::CheckedTransformer(shellMappings, CLI::ignore_case))
         ->default_str("curved");
-    const std::map<std::string, ShadowFilter> shadowFilters{{"none", ShadowFilter::None},
-                                                            {"full", ShadowFilter::Full},
-                                                            {"adaptive", ShadowFilter::Adaptive}};
+    const auto shadowFilters = namesOf(kShadowFilters, shadowFilterName);
     CLI::Option* shadows =
         command
             ->add_option(

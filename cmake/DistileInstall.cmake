@@ -4,7 +4,7 @@ include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
 set(distile_libraries distile_common distile_vdb distile_sampler distile_mesh distile_truth distile_bake
-                       distile_render distile_scene)
+                       distile_render distile_scene distile_check)
 install(TARGETS ${distile_libraries} distile_warnings distile_sanitizers EXPORT distileTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS distile RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
@@ -13,7 +13,7 @@ if(TARGET distile-bench)  # next to distile, which runs it for `distile bench`
 endif()
 # The public headers: every header of a library's folder but those in its detail/ subfolder (the
 # SIMD lanes and the kernels only its own sources include).
-foreach(folder common vdb sampler mesh truth bake render scene)
+foreach(folder common vdb sampler mesh truth bake render scene check)
     install(DIRECTORY ${PROJECT_SOURCE_DIR}/${folder} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/distile
             FILES_MATCHING PATTERN "*.h" PATTERN "detail" EXCLUDE)
 endforeach()

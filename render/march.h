@@ -36,6 +36,9 @@
 namespace distile {
 
 enum class MarchMethod { SphereTracing, OverRelaxed, Budgeted, Relief, FixedSteps };
+inline constexpr MarchMethod kMarchMethods[] = {MarchMethod::SphereTracing,
+                                                MarchMethod::OverRelaxed, MarchMethod::Budgeted,
+                                                MarchMethod::Relief, MarchMethod::FixedSteps};
 
 /// "sphere", "relaxed", "budgeted", "relief", "fixed": the names of the command line and the
 /// benchmark.

@@ -30,6 +30,15 @@ namespace distile {
 /// Full: every lookup takes the 8 blocker-search samples and the 64 filter samples.
 /// Adaptive (ch. 17): the 8 outer-ring samples first; the 64 only where they disagree.
 enum class ShadowFilter { None, Full, Adaptive };
+inline constexpr ShadowFilter kShadowFilters[] = {ShadowFilter::None, ShadowFilter::Full,
+                                                  ShadowFilter::Adaptive};
+
+/// "none", "full", "adaptive": the names programs show and accept.
+inline const char* shadowFilterName(ShadowFilter filter) {
+    return filter == ShadowFilter::None   ? "none"
+           : filter == ShadowFilter::Full ? "full"
+                                          : "adaptive";
+}
 
 /// Samples per lookup: the outer ring (blocker search and penumbra test) and the full disk.
 constexpr int kShadowRingSamples = 8;

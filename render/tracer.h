@@ -57,6 +57,8 @@ enum class ShellMapping {
     Planar,
 };
 
+inline constexpr ShellMapping kShellMappings[] = {ShellMapping::Curved, ShellMapping::Planar};
+
 /// "curved", "planar": the names of the command line.
 inline const char* shellMappingName(ShellMapping mapping) {
     return mapping == ShellMapping::Curved ? "curved" : "planar";

@@ -10,6 +10,23 @@ namespace distile {
 
 /// The reconstruction filters a renderer or a check can choose.
 enum class FilterKind { Nearest, Trilinear, TricubicBSpline, CatmullRom };
+inline constexpr FilterKind kFilterKinds[] = {FilterKind::Nearest, FilterKind::Trilinear,
+                                              FilterKind::TricubicBSpline, FilterKind::CatmullRom};
+
+/// "nearest", "trilinear", "tricubic", "catmullrom": the names programs show and accept.
+inline const char* filterKindName(FilterKind kind) {
+    switch (kind) {
+        case FilterKind::Nearest:
+            return "nearest";
+        case FilterKind::TricubicBSpline:
+            return "tricubic";
+        case FilterKind::CatmullRom:
+            return "catmullrom";
+        case FilterKind::Trilinear:
+            break;
+    }
+    return "trilinear";
+}
 
 /// Calls `function(filter)` with the filter of `kind` reading `texels` (TileTexels or
 /// ColumnTexels, sampler/filters.h) and returns its result.

@@ -648,19 +648,37 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
     return material;
 }
 
+/// `text` parsed as JSON; FormatError naming `name` when it is not JSON.
+json parseJson(const std::string& text, const std::string& name) {
+    try {
+        return json::parse(text);
+    } catch (const json::exception& error) {
+        throw FormatError(name + ": not valid JSON (" + error.what() + ")");
+    }
+}
+
 }  // namespace
 
 SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarningCallback& warn) {
     requireWithinMemoryBudget(file, "a scene file", requireRegularFile(file, "a scene .json file"));
     std::ifstream in(file);
-    json document;
-    try {
-        document = json::parse(in);
-    } catch (const json::exception& error) {
-        throw FormatError(file.string() + ": not valid JSON (" + error.what() + ")");
-    }
-    const std::string fileName = file.string();
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     const fs::path folder = file.has_parent_path() ? file.parent_path() : fs::path(".");
+    return loadSceneJson(text, folder, file.string(), tiles, warn);
+}
+
+std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson, const fs::path& folder,
+                                           const std::string& name, TileCache& tiles,
+                                           const SceneWarningCallback& warn) {
+    const json document = parseJson(recipeJson, name);
+    return bakedTile(Field(document, "", name), folder, tiles, warn).tile;
+}
+
+SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
+                        const std::string& name, TileCache& tiles,
+                        const SceneWarningCallback& warn) {
+    const json document = parseJson(sceneJson, name);
+    const std::string& fileName = name;
     const Field root(document, "", fileName);
     // "$schema" lets editors find docs/scene.schema.json; the reader only checks it is a string.
     root.requireObject({"$schema", "camera", "image", "lights", "objects"});

@@ -61,6 +61,22 @@ using SceneWarningCallback = std::function<void(const std::string& warning)>;
 SceneFile loadSceneFile(const std::filesystem::path& file, TileCache& tiles,
                         const SceneWarningCallback& warn = {});
 
+/// The scene in `sceneJson` (the text of a scene file), named `name` in its errors (as a file's
+/// name is), its relative paths resolved from `folder`; otherwise as loadSceneFile.
+SceneFile loadSceneJson(const std::string& sceneJson, const std::filesystem::path& folder,
+                        const std::string& name, TileCache& tiles,
+                        const SceneWarningCallback& warn = {});
+
+/// The tile of one bake recipe, as a scene material's `"tile"` writes it (JSON text, e.g.
+/// `{"bake": "chainmail", "size": "64x64x8"}`; the keys are `distile bake`'s flags without the
+/// dashes, '-' written '_'; docs/scene.md), baked as the command bakes it, once through `tiles`
+/// and the bake cache. Errors as loadSceneJson's, the recipe's keys as their paths under `name`;
+/// a relative "file" resolves from `folder`.
+std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson,
+                                           const std::filesystem::path& folder,
+                                           const std::string& name, TileCache& tiles,
+                                           const SceneWarningCallback& warn = {});
+
 /// The built-in demo: chain mail on a torus (curved) lying on a plane (flat).
 SceneFile demoScene(TileCache& tiles);
 

@@ -590,8 +590,9 @@ TEST_F(Cli, CheckFindsTheRecordedSourceMeshOfAMeshTile) {
     // Moved: refused (exit 2) naming the recorded path, relative to the tile's folder.
     fs::rename(path("meshes/cube.obj"), path("meshes/moved.obj"));
     expectInputError({"check", "tiles/cube.exr"}, "none",
-                     {"tiles/cube.exr: its source mesh ../meshes/cube.obj (recorded) is not found",
-                      "pass --against FILE"});
+                     {"--against: tiles/cube.exr: its source mesh ../meshes/cube.obj (recorded) "
+                      "is not found",
+                      "give the truth's file"});
     EXPECT_EQ(run({"check", "tiles/cube.exr"}).status, 2);
     // --against still overrides.
     EXPECT_EQ(check({"check", "tiles/cube.exr", "--against", "meshes/moved.obj", "--scale", "16",
@@ -939,7 +940,8 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
     std::ofstream(path("fog.vdb"), std::ios::app) << "edited";
     expectInputError(
         {"check", "fog.exr"}, "no-output",
-        {"fog.exr", "its source vdb", "fog.vdb", "has changed since the bake", "--against FILE"});
+        {"--against: fog.exr", "its source vdb", "fog.vdb", "has changed since the bake",
+         "give the truth's file"});
 }
 
 // ---------------------------------------------------------------------------------------------

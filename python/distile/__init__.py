@@ -1,0 +1,126 @@
+"""distile from Python: bake detail into distance tiles, read and write tiles, check them
+against their truth, render scenes and compare renders (docs/python.md).
+
+Every function calls the library function the `distile` command calls, with the command's
+options under their flags' names in snake_case (``--rings-per-row`` is ``rings_per_row``).
+Bad input raises :class:`InputError` or :class:`FormatError` (both ValueError) with the
+command's message. Bakes and renders release the GIL.
+
+    >>> import distile
+    >>> tile = distile.bake_chainmail(size="64x64x8")
+    >>> tile.array.shape            # (D, H, W) float32, no copy
+    (8, 64, 64)
+"""
+
+import json as _json
+import os as _os
+import warnings as _warnings
+
+from ._distile import (  # noqa: F401  (the package's names)
+    FormatError,
+    InputError,
+    InternalError,
+    Render,
+    Tile,
+    load_tile,
+    set_threads,
+)
+from . import _distile
+
+__all__ = [
+    "FormatError", "InputError", "InternalError", "Render", "Tile", "bake", "bake_chainmail",
+    "bake_grating", "bake_heightmap", "bake_mesh", "bake_vdb", "check", "compare", "load_tile",
+    "render", "set_threads",
+]
+
+
+def bake(detail, file=None, **options):
+    """Bake `detail` ("chainmail", "grating", "mesh", "heightmap" or "vdb"; the last three
+    read `file`) into a Tile, as ``distile bake DETAIL [FILE]`` does, with its options as
+    keywords: size="WxHxD" (or (W, H, D)), band, exact_texels, and the detail's own (a scene's
+    bake recipe takes the same; docs/scene.md). The tile is kept in the bake cache
+    (DISTILE_CACHE), so baking the same recipe again reads it back. What is odd about a mesh
+    is told as a UserWarning."""
+    recipe = {"bake": detail}
+    if file is not None:
+        recipe["file"] = _os.path.abspath(_os.fspath(file))
+    for name, value in options.items():
+        recipe[name] = list(value) if isinstance(value, tuple) else value
+    tile, found = _distile.bake_recipe(_json.dumps(recipe), "bake " + str(detail))
+    for warning in found:
+        _warnings.warn(warning, stacklevel=2)
+    return tile
+
+
+def bake_chainmail(**options):
+    """Chain mail (``distile bake chainmail``): weave, rings_per_row, rows, ring_radius,
+    wire_radius, tilt, small_ring_radius, small_wire_radius, and size, band, exact_texels."""
+    return bake("chainmail", **options)
+
+
+def bake_grating(**options):
+    """A grating (``distile bake grating``): bars, bar_width, bar_height, edge_radius,
+    layer_gap, and size, band, exact_texels."""
+    return bake("grating", **options)
+
+
+def bake_mesh(file, **options):
+    """A detail mesh, OBJ, PLY, OFF or STL (``distile bake mesh FILE``): fit, scale,
+    offset=(x, y, z), unsigned, thickness, and size, band, exact_texels."""
+    return bake("mesh", file, **options)
+
+
+def bake_heightmap(file, **options):
+    """A grey image as heights (``distile bake heightmap IMAGE``): height_texels, and size,
+    band, exact_texels."""
+    return bake("heightmap", file, **options)
+
+
+def bake_vdb(file, **options):
+    """A level set or fog volume from a .vdb file (``distile bake vdb FILE``): grid, iso, fit,
+    scale, offset, window=(x0, y0, z0, x1, y1, z1), and size, band, exact_texels."""
+    return bake("vdb", file, **options)
+
+
+def check(tile, against=None, **options):
+    """How far `tile` (a Tile or a tile file) is from its truth, as ``distile check --json``:
+    the report as a dict (``passed``, ``failures``, ``rms``, ``max_abs``, ...). `against`:
+    None (the tile's own truth), "analytic", a mesh file or a level set (.vdb). Keywords:
+    samples, seed, max_overestimate, max_overestimate_share, max_rms, max_near_error,
+    allow_sign_errors, scale, offset=(x, y, z)."""
+    settings = _distile.CheckOptions()
+    if against is not None:
+        settings.against = _os.fspath(against)
+    for name, value in options.items():
+        if not hasattr(settings, name):
+            raise TypeError(f"check() got an unexpected keyword argument '{name}'")
+        setattr(settings, name, value)
+    if isinstance(tile, Tile):
+        return _distile.check_tile(tile, "tile", "", settings)
+    path = _os.fspath(tile)
+    return _distile.check_tile(load_tile(path), path, path, settings)
+
+
+def render(scene, **options):
+    """Render `scene` (a scene file, or a dict in the scene format; its relative paths from
+    the current folder) as ``distile render`` does, to a Render: ``.image`` (linear RGB,
+    (height, width, 3) float32), ``.aovs`` (with aovs=True), ``.stats``, ``.save(path)``.
+    Keywords as the command's flags: width, height, spp, aovs, reference (True: the analytic
+    reference), iterations, epsilon, march, relaxation, filter, normal_filter, shell, shadows
+    ("none", "full", "adaptive")."""
+    arguments = _distile.RenderArguments()
+    for name, value in options.items():
+        if not hasattr(arguments, name):
+            raise TypeError(f"render() got an unexpected keyword argument '{name}'")
+        setattr(arguments, name, value)
+    if isinstance(scene, dict):
+        return _distile.render_scene_json(_json.dumps(scene), ".", "scene", arguments)
+    return _distile.render_scene_file(_os.fspath(scene), arguments)
+
+
+def compare(a, b):
+    """How far render `a` is from render `b` (usually the reference), as
+    ``distile compare --json``: a dict of coverage mismatches, hit errors in texels (interior,
+    silhouette, all), normal error and PSNR. Each is a Render made with aovs=True, or the
+    image file of one written with its AOVs."""
+    return _distile.compare(a, b)

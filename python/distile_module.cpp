@@ -1,0 +1,416 @@
+// The compiled part of the Python package `distile` (python/distile/__init__.py is the rest):
+// bake recipes, tiles as NumPy views, renders, checks and comparisons, each through the library
+// function the command calls. The GIL is released while the libraries work; they never call
+// back into Python.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+#include <tbb/global_control.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include "check/reports.h"
+#include "check/tile_check.h"
+#include "common/error.h"
+#include "common/size3.h"
+#include "render/compare.h"
+#include "render/render_files.h"
+#include "render/renderer.h"
+#include "sampler/tile.h"
+#include "sampler/tile_io.h"
+#include "scene/scene_file.h"
+
+namespace py = pybind11;
+namespace fs = std::filesystem;
+
+namespace distile::python {
+
+namespace {
+
+/// A tile as Python holds it: shared with every NumPy view of it, which keeps it alive.
+struct PyTile {
+    std::shared_ptr<const Tile> tile;
+};
+
+/// A render as Python holds it.
+struct PyRender {
+    std::shared_ptr<const RenderResult> result;
+};
+
+/// `values` (row-major, `channels` floats per element) as a read-only NumPy array of `shape`
+/// that keeps `owner` alive instead of copying.
+py::array readOnlyView(const float* values, std::vector<py::ssize_t> shape, py::handle owner) {
+    std::vector<py::ssize_t> strides(shape.size());
+    py::ssize_t stride = sizeof(float);
+    for (std::size_t axis = shape.size(); axis-- > 0;) {
+        strides[axis] = stride;
+        stride *= shape[axis];
+    }
+    py::array view(py::dtype::of<float>(), shape, strides, values, owner);
+    view.attr("setflags")(py::arg("write") = false);
+    return view;
+}
+
+/// An image (linear RGB, row 0 at the top) as a read-only (height, width, 3) float32 view.
+py::array imageView(const Image& image, py::handle owner) {
+    return readOnlyView(reinterpret_cast<const float*>(image.rgbLinear.data()),
+                        {image.height, image.width, 3}, owner);
+}
+
+py::object jsonValue(const std::string& text) {
+    return py::module_::import("json").attr("loads")(text);
+}
+
+/// The value the library names by `name` among `values` (named by `nameOf`), or InputError
+/// naming `field` with the accepted names.
+template <class Value, std::size_t N>
+Value named(const std::string& name, const Value (&values)[N], const char* (*nameOf)(Value),
+            const std::string& field) {
+    std::string accepted;
+    for (const Value value : values) {
+        if (name == nameOf(value)) return value;
+        accepted += std::string(accepted.empty() ? "" : ", ") + nameOf(value);
+    }
+    throw InputError::inField(field, "'" + name + "' is not accepted; accepted: " + accepted);
+}
+
+/// The tile of a bake recipe (scene/scene_file.h bakeRecipeTile) and the warnings of its bake.
+std::pair<PyTile, std::vector<std::string>> bakeRecipe(const std::string& recipeJson,
+                                                       const std::string& name) {
+    std::vector<std::string> warnings;
+    std::shared_ptr<const Tile> tile;
+    {
+        py::gil_scoped_release released;
+        TileCache tiles;
+        tile = bakeRecipeTile(recipeJson, fs::path("."), name, tiles,
+                              [&](const std::string& warning) { warnings.push_back(warning); });
+    }
+    return {PyTile{tile}, warnings};
+}
+
+/// The options of `distile render` under their flags' names, as the command fills them.
+struct PyRenderArguments {
+    std::optional<int> width, height, spp;
+    bool aovs = false;
+    bool reference = false;
+    std::optional<int> iterations;
+    std::optional<float> epsilon;
+    std::optional<std::string> march;
+    std::optional<float> relaxation;
+    std::optional<std::string> filter;
+    std::optional<std::string> normalFilter;
+    std::optional<std::string> shell;
+    std::optional<std::string> shadows;
+};
+
+RenderOptions renderOptions(const PyRenderArguments& arguments, const ImageSettings& image) {
+    RenderOptions options;
+    options.width = arguments.width.value_or(image.width);
+    options.height = arguments.height.value_or(image.height);
+    options.samplesPerPixel = arguments.spp.value_or(image.samplesPerPixel);
+    options.outputAovs = arguments.aovs;
+    options.reference = arguments.reference;
+    if (arguments.iterations) options.march.maxIterations = *arguments.iterations;
+    if (arguments.epsilon) options.march.epsilonTexels = *arguments.epsilon;
+    if (arguments.relaxation) options.march.relaxation = *arguments.relaxation;
+    if (arguments.march)
+        options.march.method = named(*arguments.march, kMarchMethods, marchMethodName, "march");
+    if (arguments.filter)
+        options.filter = named(*arguments.filter, kFilterKinds, filterKindName, "filter");
+    if (arguments.normalFilter)
+        options.normalFilter =
+            named(*arguments.normalFilter, kFilterKinds, filterKindName, "normal_filter");
+    if (arguments.shell)
+        options.shellMapping = named(*arguments.shell, kShellMappings, shellMappingName, "shell");
+    if (arguments.shadows)
+        options.shadowFilter =
+            named(*arguments.shadows, kShadowFilters, shadowFilterName, "shadows");
+    options.selfShadows = options.shadowFilter != ShadowFilter::None;
+    return options;
+}
+
+/// A library's error about a RenderOptions member under the keyword that filled it.
+InputError underRenderKeyword(const InputError& error) {
+    static const std::pair<const char*, const char*> keywords[] = {
+        {"samplesPerPixel", "spp"},
+        {"outputAovs", "aovs"},
+        {"march.maxIterations", "iterations"},
+        {"march.epsilonTexels", "epsilon"},
+        {"march.relaxation", "relaxation"}};
+    for (const auto& [field, keyword] : keywords) {
+        if (error.field() == field) return error.renamed(keyword);
+    }
+    return underSceneJsonPath(error);
+}
+
+/// Renders the scene `load` reads, as `distile render` does.
+PyRender renderLoaded(const std::function<SceneFile(TileCache&)>& load,
+                      const PyRenderArguments& arguments) {
+    auto result = std::make_shared<RenderResult>();
+    py::gil_scoped_release released;
+    try {
+        TileCache tiles;
+        SceneFile sceneFile = load(tiles);
+        const RenderOptions options = renderOptions(arguments, sceneFile.image);
+        if (options.reference) attachTruth(sceneFile);
+        *result = renderScene(sceneFile.scene, options);
+    } catch (const InputError& error) {
+        throw underRenderKeyword(error);
+    }
+    return PyRender{result};
+}
+
+py::dict renderStats(const RenderStats& stats) {
+    py::dict out;
+    out["rays"] = stats.rays;
+    out["base_hits"] = stats.baseHits;
+    out["march_iterations"] = stats.marchIterations;
+    out["mean_iterations"] = stats.meanIterations();
+    out["converged"] = stats.converged;
+    out["shadow_steps"] = stats.shadowSteps;
+    out["shadow_map_samples"] = stats.shadowMapSamples;
+    out["shells_tested"] = stats.shellsTested;
+    out["shells_traced"] = stats.shellsTraced;
+    return out;
+}
+
+RenderLayersView layers(const PyRender& render) {
+    if (!render.result->aovs)
+        throw InputError("compare: needs renders made with aovs=True (depth, normal, texel scale)");
+    const RenderAovs& aovs = *render.result->aovs;
+    return {render.result->image, aovs.depth, aovs.normal, aovs.texelScale};
+}
+
+/// Each Render's layers in memory; each path's read back from the files `distile render --aovs`
+/// writes.
+py::object compareAny(const py::object& a, const py::object& b) {
+    auto compareViews = [](const RenderLayersView& viewA, const RenderLayersView& viewB) {
+        RenderComparison comparison;
+        {
+            py::gil_scoped_release released;
+            comparison = compareRenders(viewA, viewB);
+        }
+        return jsonValue(renderComparisonJson(comparison).dump());
+    };
+    std::optional<RenderFiles> filesA, filesB;
+    auto view = [](const py::object& render, std::optional<RenderFiles>& files,
+                   const std::string& role) -> RenderLayersView {
+        if (py::isinstance<PyRender>(render)) return layers(render.cast<const PyRender&>());
+        files.emplace(readRenderFiles(render.cast<fs::path>(), role));
+        return files->view();
+    };
+    const RenderLayersView viewA = view(a, filesA, "A");
+    const RenderLayersView viewB = view(b, filesB, "B");
+    return compareViews(viewA, viewB);
+}
+
+}  // namespace
+
+}  // namespace distile::python
+
+PYBIND11_MODULE(_distile, module) {
+    using namespace distile;
+    using namespace distile::python;
+    module.doc() = "distile's compiled core; use the package `distile`";
+    // Bad input: ValueError subclasses; their text is the command's message without the
+    // "distile: error: " prefix.
+    static py::exception<InputError> inputError(module, "InputError", PyExc_ValueError);
+    static py::exception<FormatError> formatError(module, "FormatError", PyExc_ValueError);
+    static py::exception<InternalError> internalError(module, "InternalError", PyExc_RuntimeError);
+    py::register_exception_translator([](std::exception_ptr thrown) {
+        try {
+            if (thrown) std::rethrow_exception(thrown);
+        } catch (const InputError& error) {
+            inputError(error.what());
+        } catch (const FormatError& error) {
+            formatError(error.what());
+        } catch (const InternalError& error) {
+            internalError(error.what());
+        } catch (const std::system_error& error) {
+            PyErr_SetString(PyExc_OSError, error.what());
+        }
+    });
+
+    py::class_<PyTile>(module, "Tile", "A distance tile (signed distances in texels)")
+        .def_property_readonly(
+            "size",
+            [](const PyTile& self) {
+                const Size3& size = self.tile->size();
+                return py::make_tuple(size.width, size.height, size.depth);
+            },
+            "(W, H, D) in texels")
+        .def_property_readonly(
+            "array",
+            [](py::object self) {
+                const PyTile& tile = self.cast<const PyTile&>();
+                const Size3& size = tile.tile->size();
+                return readOnlyView(tile.tile->distancesTexels().data(),
+                                    {size.depth, size.height, size.width}, self);
+            },
+            "The distances as a read-only (D, H, W) float32 view (no copy): array[z, y, x] is "
+            "texel (x, y, z), centred at (x + 0.5, y + 0.5, z + 0.5); negative inside")
+        .def_property_readonly(
+            "metadata",
+            [](const PyTile& self) {
+                const Tile& tile = *self.tile;
+                const TileProvenance& provenance = tile.provenance;
+                char hash[17];
+                std::snprintf(hash, sizeof hash, "%016llx",
+                              static_cast<unsigned long long>(tileHash(tile)));
+                py::dict out;
+                out["size"] = toString(tile.size());
+                out["units"] = "texels";
+                out["source"] = provenance.source;
+                out["params"] = provenance.params.empty() ? py::object(py::dict())
+                                                          : jsonValue(provenance.params);
+                out["band_texels"] = provenance.halfBandTexels;
+                out["hash"] = std::string(hash);
+                if (!provenance.sourceFile.empty()) {
+                    out["source_file"] = provenance.sourceFile.string();
+                    out["source_hash"] = provenance.sourceHash;
+                }
+                return out;
+            },
+            "What the tile file's distile: attributes say, without the prefix "
+            "(docs/tile_format.md)")
+        .def(
+            "save",
+            [](const PyTile& self, const fs::path& file, bool half) {
+                py::gil_scoped_release released;
+                writeTileExr(*self.tile, file, half ? TileStorage::Half16 : TileStorage::Float32);
+            },
+            py::arg("file"), py::arg("half") = false,
+            "Write the tile as an EXR atlas (as `distile bake -o`, `--half` with half=True)")
+        .def(
+            "save_png",
+            [](const PyTile& self, const fs::path& file, int bits) {
+                py::gil_scoped_release released;
+                writeTilePng(*self.tile, file, bits);
+            },
+            py::arg("file"), py::arg("bits") = 16,
+            "Write the 8- or 16-bit PNG atlas (as `distile bake --png8/--png16`)");
+
+    module.def(
+        "load_tile",
+        [](const fs::path& file) {
+            py::gil_scoped_release released;
+            return PyTile{std::make_shared<const Tile>(readTileExr(file))};
+        },
+        py::arg("file"), "Read a tile file (.exr) written by distile");
+    module.def("bake_recipe", &bakeRecipe, py::arg("recipe_json"), py::arg("name"));
+
+    py::class_<PyRenderArguments>(module, "RenderArguments")
+        .def(py::init<>())
+        .def_readwrite("width", &PyRenderArguments::width)
+        .def_readwrite("height", &PyRenderArguments::height)
+        .def_readwrite("spp", &PyRenderArguments::spp)
+        .def_readwrite("aovs", &PyRenderArguments::aovs)
+        .def_readwrite("reference", &PyRenderArguments::reference)
+        .def_readwrite("iterations", &PyRenderArguments::iterations)
+        .def_readwrite("epsilon", &PyRenderArguments::epsilon)
+        .def_readwrite("march", &PyRenderArguments::march)
+        .def_readwrite("relaxation", &PyRenderArguments::relaxation)
+        .def_readwrite("filter", &PyRenderArguments::filter)
+        .def_readwrite("normal_filter", &PyRenderArguments::normalFilter)
+        .def_readwrite("shell", &PyRenderArguments::shell)
+        .def_readwrite("shadows", &PyRenderArguments::shadows);
+
+    py::class_<PyRender>(module, "Render", "A rendered image with its statistics and AOVs")
+        .def_property_readonly(
+            "image",
+            [](py::object self) {
+                return imageView(self.cast<const PyRender&>().result->image, self);
+            },
+            "Linear RGB as a read-only (height, width, 3) float32 view, row 0 at the top")
+        .def_property_readonly(
+            "aovs",
+            [](py::object self) {
+                const PyRender& render = self.cast<const PyRender&>();
+                py::dict out;
+                if (!render.result->aovs) return out;
+                for (const AovFile& aov : kAovFiles)
+                    out[aov.name] = imageView((*render.result->aovs).*aov.layer, self);
+                return out;
+            },
+            "The AOVs by name (depth, normal, ...), each a (height, width, 3) view; empty "
+            "without aovs=True")
+        .def_property_readonly("stats",
+                               [](const PyRender& self) { return renderStats(self.result->stats); })
+        .def_property_readonly("warnings",
+                               [](const PyRender& self) { return self.result->warnings; })
+        .def(
+            "save",
+            [](const PyRender& self, const fs::path& file) {
+                py::gil_scoped_release released;
+                writeRenderFiles(*self.result, file);
+            },
+            py::arg("file"),
+            "Write the image (.png, .exr, .tif) and, with AOVs, each beside it as `distile "
+            "render --aovs` does");
+    module.def(
+        "render_scene_file",
+        [](const fs::path& file, const PyRenderArguments& arguments) {
+            return renderLoaded([&](TileCache& tiles) { return loadSceneFile(file, tiles); },
+                                arguments);
+        },
+        py::arg("file"), py::arg("arguments"));
+    module.def(
+        "render_scene_json",
+        [](const std::string& sceneJson, const fs::path& folder, const std::string& name,
+           const PyRenderArguments& arguments) {
+            return renderLoaded(
+                [&](TileCache& tiles) { return loadSceneJson(sceneJson, folder, name, tiles); },
+                arguments);
+        },
+        py::arg("scene_json"), py::arg("folder"), py::arg("name"), py::arg("arguments"));
+    module.def("compare", &compareAny, py::arg("a"), py::arg("b"));
+
+    module.def(
+        "check_tile",
+        [](const PyTile& tile, const std::string& tileName, const fs::path& tileFile,
+           const TileCheckOptions& options) {
+            TileCheck check;
+            {
+                py::gil_scoped_release released;
+                check = checkTile(*tile.tile, tileName, tileFile, options);
+            }
+            return jsonValue(tileCheckJson(check, options, tileName).dump());
+        },
+        py::arg("tile"), py::arg("tile_name"), py::arg("tile_file"), py::arg("options"));
+    py::class_<TileCheckOptions>(module, "CheckOptions")
+        .def(py::init<>())
+        .def_readwrite("against", &TileCheckOptions::against)
+        .def_readwrite("samples", &TileCheckOptions::samples)
+        .def_readwrite("seed", &TileCheckOptions::seed)
+        .def_readwrite("max_overestimate", &TileCheckOptions::maxOverestimateTexels)
+        .def_readwrite("max_overestimate_share", &TileCheckOptions::maxOverestimateShare)
+        .def_readwrite("max_rms", &TileCheckOptions::maxRmsTexels)
+        .def_readwrite("max_near_error", &TileCheckOptions::maxNearErrorTexels)
+        .def_readwrite("allow_sign_errors", &TileCheckOptions::allowSignErrors)
+        .def_readwrite("scale", &TileCheckOptions::meshScale)
+        .def_readwrite("offset", &TileCheckOptions::meshOffsetTexels);
+
+    // tbb::global_control limits every TBB arena of the process while it lives.
+    module.def(
+        "set_threads",
+        [](int threads) {
+            static std::unique_ptr<tbb::global_control> limit;
+            if (threads < 0 || threads > 1024)
+                throw InputError::inField("threads", std::to_string(threads) +
+                                                         " is not accepted; give 1 to 1024, or 0 "
+                                                         "for all cores");
+            limit.reset();
+            if (threads > 0)
+                limit = std::make_unique<tbb::global_control>(
+                    tbb::global_control::max_allowed_parallelism, std::size_t(threads));
+        },
+        py::arg("threads"));
+}

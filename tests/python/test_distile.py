@@ -1,0 +1,186 @@
+"""The Python module against known answers and against the `distile` command."""
+
+import gc
+import json
+import re
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import distile
+
+
+def without_write_time(path):
+    """The file's bytes, an EXR's capDate attribute (the time OpenEXR wrote it, to the second)
+    blanked: the only bytes two writes of the same image may differ in."""
+    data = path.read_bytes()
+    return re.sub(rb"capDate\x00string\x00\x13\x00\x00\x00.{19}", b"capDate", data, flags=re.S)
+
+
+@pytest.fixture(scope="module")
+def chainmail():
+    """The default chain mail: the acceptance example."""
+    return distile.bake_chainmail()
+
+
+def test_default_chainmail_is_a_256x256x16_float32_view(chainmail):
+    array = chainmail.array
+    assert array.shape == (16, 256, 256)
+    assert array.dtype == np.float32
+    assert chainmail.size == (256, 256, 16)
+    metadata = chainmail.metadata
+    assert metadata["size"] == "256x256x16"
+    assert metadata["units"] == "texels"
+    assert metadata["source"] == "chainmail"
+    assert metadata["params"]["rings_per_row"] == 8
+    assert metadata["band_texels"] == 16.0  # the default band is the tile depth
+    assert len(metadata["hash"]) == 16
+
+
+def test_array_is_a_read_only_view_that_keeps_the_tile_alive():
+    tile = distile.bake_chainmail(size="32x32x8")
+    first = tile.array
+    second = tile.array
+    assert not first.flags.owndata
+    # Two views of the same memory: no copy was made.
+    assert first.__array_interface__["data"][0] == second.__array_interface__["data"][0]
+    with pytest.raises(ValueError):
+        first[0, 0, 0] = 1.0
+    expected = first.copy()
+    del tile, second
+    gc.collect()
+    np.testing.assert_array_equal(first, expected)
+
+
+def test_grating_texels_take_the_analytic_distance():
+    # 64x64x32, 4 bars of width 8 and height 6 per layer (edge radius 3), gap 1: the upper
+    # layer's bars run along x centred at y = 8 + 16j, the layer spans z in [16.5, 22.5] (the
+    # pair is centred at mid-depth). Texel (10, 7, 31) is centred at y = 7.5, over the flat top
+    # of a bar (|y - 8| is below half the width minus the edge radius, 4 - 3): its distance is
+    # z - 22.5 = 9. Texel (10, 7, 19), at the bar's mid-height z = 19.5, is 3 below its top and
+    # bottom faces. Exact texels: the values at texel centres, not lowered.
+    tile = distile.bake_grating(size="64x64x32", bars=4, exact_texels=True)
+    assert tile.array[31, 7, 10] == pytest.approx(9.0, abs=1e-4)
+    assert tile.array[19, 7, 10] == pytest.approx(-3.0, abs=1e-4)
+
+
+def test_bake_gives_the_commands_tile(tmp_path, distile_command):
+    run = distile_command("bake", "chainmail", "--size", "64x64x8", "--rings-per-row", "4",
+                          "--rows", "6", "-o", tmp_path / "cli.exr")
+    assert run.returncode == 0, run.stderr
+    from_command = distile.load_tile(tmp_path / "cli.exr")
+    from_python = distile.bake_chainmail(size=(64, 64, 8), rings_per_row=4, rows=6)
+    assert from_python.metadata["hash"] == from_command.metadata["hash"]
+    np.testing.assert_array_equal(from_python.array, from_command.array)
+
+
+def test_save_and_load_round_trip(tmp_path):
+    tile = distile.bake_grating(size="32x32x16", bars=2)
+    tile.save(tmp_path / "grating.exr")
+    loaded = distile.load_tile(tmp_path / "grating.exr")
+    np.testing.assert_array_equal(loaded.array, tile.array)
+    assert loaded.metadata == tile.metadata
+    tile.save(tmp_path / "half.exr", half=True)
+    half = distile.load_tile(tmp_path / "half.exr")
+    # Half floats keep 11 significant bits: relative error at most 2^-11.
+    np.testing.assert_allclose(half.array, tile.array, rtol=2.0**-11, atol=0)
+    tile.save_png(tmp_path / "grating.png", bits=8)
+    assert (tmp_path / "grating.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_errors_are_value_errors_with_the_commands_messages(tmp_path, distile_command):
+    with pytest.raises(distile.InputError, match="size") as raised:
+        distile.bake_chainmail(size="1x64x8")
+    assert isinstance(raised.value, ValueError)
+    # The command refuses the same value for the same reason.
+    run = distile_command("bake", "chainmail", "--size", "1x64x8", "-o", tmp_path / "t.exr")
+    assert run.returncode == 2
+    problem = str(raised.value).split("size: ", 1)[1]
+    assert problem in run.stderr
+    with pytest.raises(distile.InputError, match="accepted: chainmail, grating"):
+        distile.bake("rivets")
+    with pytest.raises(distile.InputError, match="missing.exr: no such file"):
+        distile.load_tile(tmp_path / "missing.exr")
+    (tmp_path / "not_a_tile.exr").write_bytes(b"not an image")
+    with pytest.raises(distile.FormatError):
+        distile.load_tile(tmp_path / "not_a_tile.exr")
+    with pytest.raises(distile.InputError, match="unknown field; accepted here"):
+        distile.render({"objects": [{"mesh": "plane", "materal": {}}]})
+    with pytest.raises(distile.InputError, match="march: 'walk' is not accepted"):
+        distile.render({"objects": [{"mesh": "plane"}]}, width=8, height=8, march="walk")
+    with pytest.raises(distile.InputError, match="spp"):
+        distile.render({"objects": [{"mesh": "plane"}]}, width=8, height=8, spp=0)
+
+
+def test_render_is_byte_identical_to_the_commands(tmp_path, source_dir, distile_command):
+    scene = source_dir / "data" / "scenes" / "sheet.json"
+    run = distile_command("render", scene, "-o", tmp_path / "cli.png", "--aovs", "--width", 96,
+                          "--height", 72)
+    assert run.returncode == 0, run.stderr
+    rendered = distile.render(scene, width=96, height=72, aovs=True)
+    assert rendered.image.shape == (72, 96, 3)
+    assert rendered.image.dtype == np.float32
+    assert set(rendered.aovs) == {"depth", "normal", "iterations", "shadow_samples",
+                                  "shadow_map_samples", "curvature", "texel_scale"}
+    assert rendered.stats["rays"] == 96 * 72
+    rendered.save(tmp_path / "py.png")
+    for suffix in [".png", ".depth.exr", ".normal.png", ".iterations.png",
+                   ".shadow_samples.png", ".shadow_map_samples.png", ".curvature.png",
+                   ".texel_scale.exr"]:
+        assert without_write_time(tmp_path / ("py" + suffix)) == \
+            without_write_time(tmp_path / ("cli" + suffix)), suffix
+    # The same scene as a dict (it names no file) renders the same image.
+    from_dict = distile.render(json.loads(scene.read_text()), width=96, height=72)
+    np.testing.assert_array_equal(from_dict.image, rendered.image)
+    # Against itself: no mismatch, identical images (PSNR infinite: null in JSON, None here).
+    for a, b in [(rendered, rendered), (tmp_path / "py.png", tmp_path / "cli.png")]:
+        report = distile.compare(a, b)
+        assert report["coverage_mismatches"] == 0
+        assert report["psnr_db"] is None
+        assert report["interior"]["hit_error_max"] == 0.0
+        assert report["both_hit"] + report["coverage_mismatches"] > 0
+    # The 8-bit PNG against the float image it was written from: quantisation only.
+    assert distile.compare(rendered, tmp_path / "cli.png")["psnr_db"] > 40
+
+
+def test_check_matches_the_commands_report(tmp_path, distile_command):
+    tile = distile.bake_chainmail(size="64x64x8", rings_per_row=4, rows=6)
+    tile.save(tmp_path / "chain.exr")
+    run = distile_command("check", tmp_path / "chain.exr", "--json", "--samples", 20000)
+    from_command = json.loads(run.stdout)
+    # Exit 0 when it passes, 1 when a tolerance is exceeded.
+    assert run.returncode == (0 if from_command["passed"] else 1), run.stderr
+    report = distile.check(tmp_path / "chain.exr", samples=20000)
+    assert report == from_command
+    in_memory = distile.check(tile, samples=20000)
+    assert in_memory["rms"] == from_command["rms"]
+    assert in_memory["failures"] == from_command["failures"]
+    assert in_memory["against"].startswith("analytic chainmail")
+    with pytest.raises(distile.InputError, match="samples"):
+        distile.check(tile, samples=0)
+
+
+def test_renders_release_the_gil():
+    # While one thread renders, this one keeps running Python: with the GIL held for the whole
+    # render it could not run a single iteration between the render's start and end.
+    window = {}
+
+    def render():
+        window["start"] = time.perf_counter()
+        distile.render({"objects": [{"mesh": "sphere", "material": {
+            "tile": {"bake": "grating", "size": "32x32x16", "bars": 2}}}]},
+            width=160, height=120, spp=4)
+        window["end"] = time.perf_counter()
+
+    worker = threading.Thread(target=render)
+    ticks = []
+    worker.start()
+    while worker.is_alive():
+        ticks.append(time.perf_counter())
+        time.sleep(0.001)
+    worker.join()
+    during = [t for t in ticks if window["start"] < t < window["end"]]
+    assert window["end"] - window["start"] > 0.05
+    assert len(during) >= 10
