@@ -207,6 +207,24 @@ TEST_F(Hardening, AVdbChunkSizeBeyondTheFileIsRefusedBeforeOpenVdbAllocatesIt) {
                                 "accepted: " + std::to_string(4 * active) + " bytes"})
                   .status,
               cli::kExitInput);
+    // Found by fuzzing (fuzz/corpus/level_set_vdb/delayed_load_blosc_past_buffer.vdb): the
+    // grid's delayed-load metadata (a leaf count, then its mask as a blosc buffer of a 32-bit
+    // size) whose blosc header claims one byte more than the buffer holds; blosc read past
+    // OpenVDB's copy of it.
+    bytes = readText(path("level.vdb"));
+    const std::size_t delayed = bytes.find("__delayedload");
+    ASSERT_NE(delayed, std::string::npos);
+    const std::size_t maskBuffer = delayed + 13 + 4 + 4;  // type name, value size, leaf count
+    const std::uint64_t stored = field64(bytes, maskBuffer) & 0xffffffffu;
+    ASSERT_GE(stored, 16u);
+    ASSERT_EQ(field64(bytes, maskBuffer + 4 + 12) & 0xffffffffu, stored);  // blosc's cbytes
+    bytes[maskBuffer + 4 + 12] = char(bytes[maskBuffer + 4 + 12] + 1);
+    writeText(path("delayed.vdb"), bytes);
+    EXPECT_EQ(expectInputError({"bake", "vdb", "delayed.vdb", "-o", "t2.exr"}, "t2.exr",
+                               {"delayed.vdb", "delayed-load blosc header",
+                                "from at most " + std::to_string(stored)})
+                  .status,
+              cli::kExitInput);
 }
 
 /// The offset of the 32-bit size of EXR attribute `name` in `bytes` (after its name and type).

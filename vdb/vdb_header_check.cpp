@@ -38,9 +38,8 @@ constexpr std::uint64_t kFloatBytes = 4;
 constexpr std::uint64_t kHalfBytes = 2;
 /// What one node takes in memory once read (values, masks, child pointers), bytes, at least.
 constexpr std::uint64_t kLeafMemoryBytes = (std::uint64_t(1) << 9) * kFloatBytes + 2 * 64;
-constexpr std::uint64_t kInternalMemoryBytes[] = {0, 0, 0, 0,
-                                                   (std::uint64_t(1) << 12) * 8 + 2 * 512,
-                                                   (std::uint64_t(1) << 15) * 8 + 2 * 4096};
+constexpr std::uint64_t kInternalMemoryBytes[] = {
+    0, 0, 0, 0, (std::uint64_t(1) << 12) * 8 + 2 * 512, (std::uint64_t(1) << 15) * 8 + 2 * 4096};
 
 /// A node mask of 2^(3 log2) bits, as 64-bit words.
 using LeafMask = std::array<std::uint64_t, 8>;
@@ -62,14 +61,30 @@ std::uint64_t fixedMetadataBytes(const std::string& type) {
         const char* type;
         std::uint64_t bytes;
     };
-    static constexpr Fixed kFixed[] = {
-        {"bool", 1},   {"int32", 4},  {"int64", 8},  {"float", 4},  {"double", 8},
-        {"vec2i", 8},  {"vec2s", 8},  {"vec2d", 16}, {"vec3i", 12}, {"vec3s", 12},
-        {"vec3d", 24}, {"vec4i", 16}, {"vec4s", 16}, {"vec4d", 32}, {"mat4s", 64},
-        {"mat4d", 128}};
+    static constexpr Fixed kFixed[] = {{"bool", 1},   {"int32", 4},  {"int64", 8},  {"float", 4},
+                                       {"double", 8}, {"vec2i", 8},  {"vec2s", 8},  {"vec2d", 16},
+                                       {"vec3i", 12}, {"vec3s", 12}, {"vec3d", 24}, {"vec4i", 16},
+                                       {"vec4s", 16}, {"vec4d", 32}, {"mat4s", 64}, {"mat4d", 128}};
     for (const Fixed& fixed : kFixed)
         if (type == fixed.type) return fixed.bytes;
     return 0;
+}
+
+/// The two sizes a blosc buffer's 16-byte header declares. Blosc trusts them: it writes
+/// `uncompressedBytes` and reads `compressedBytes` whatever the buffer holds.
+struct BloscSizes {
+    std::uint64_t uncompressedBytes = 0;
+    std::uint64_t compressedBytes = 0;
+};
+
+BloscSizes readBloscHeader(FieldReader& reader, const char* what) {
+    std::uint8_t header[16];
+    reader.readBytes(header, 16, what);
+    const auto field = [&](int at) {
+        return std::uint64_t(header[at]) | std::uint64_t(header[at + 1]) << 8 |
+               std::uint64_t(header[at + 2]) << 16 | std::uint64_t(header[at + 3]) << 24;
+    };
+    return {field(4), field(12)};
 }
 
 /// OpenVDB's delayed-load metadata: a leaf count, then a byte per leaf and (unless the size
@@ -82,16 +97,16 @@ void checkDelayedLoadMetadata(FieldReader& reader, std::uint64_t valueBytes) {
     const std::uint64_t leaves = reader.unsignedField(4, "delayed-load leaf count");
     // Each leaf takes a mask byte and an 8-byte size in memory.
     if (saturatingProduct(leaves, 9) > kInputMemoryBudgetBytes)
-        reader.refuse("delayed-load leaf count", "is " + std::to_string(leaves) +
-                                                     ", more leaves than fit in memory");
+        reader.refuse("delayed-load leaf count",
+                      "is " + std::to_string(leaves) + ", more leaves than fit in memory");
     for (const std::uint64_t bytesEach : {std::uint64_t(1), std::uint64_t(8)}) {
         const std::uint64_t stored = reader.unsignedField(4, "delayed-load buffer size");
         if (bytesEach == 8 && stored == 0xffffffffu) break;  // no compressed sizes stored
         const std::uint64_t expected = leaves * bytesEach;
         if (stored == 0) {
             if (expected > left())
-                reader.refuse("delayed-load buffer size", "is " + std::to_string(expected) +
-                                                              " bytes, past the metadata value");
+                reader.refuse("delayed-load buffer size",
+                              "is " + std::to_string(expected) + " bytes, past the metadata value");
             reader.skip(expected, "delayed-load buffer");
             continue;
         }
@@ -99,19 +114,17 @@ void checkDelayedLoadMetadata(FieldReader& reader, std::uint64_t valueBytes) {
             reader.refuse("delayed-load buffer size", "is " + std::to_string(stored) +
                                                           " bytes, not a blosc buffer within the "
                                                           "metadata value");
-        std::uint8_t header[16];
-        reader.readBytes(header, 16, "delayed-load blosc header");
-        const std::uint64_t uncompressed = std::uint64_t(header[4]) | std::uint64_t(header[5]) << 8 |
-                                           std::uint64_t(header[6]) << 16 |
-                                           std::uint64_t(header[7]) << 24;
+        const BloscSizes sizes = readBloscHeader(reader, "delayed-load blosc header");
         // OpenVDB pads short buffers to 128 bytes before compressing them, and reserves what the
         // header says.
         const std::uint64_t most = std::max<std::uint64_t>(expected, 128);
-        if (uncompressed < expected || uncompressed > most)
+        if (sizes.uncompressedBytes < expected || sizes.uncompressedBytes > most ||
+            sizes.compressedBytes > stored)
             reader.refuse("delayed-load blosc header",
-                          "says " + std::to_string(uncompressed) + " bytes; accepted: " +
+                          "says " + std::to_string(sizes.uncompressedBytes) + " bytes from " +
+                              std::to_string(sizes.compressedBytes) + "; accepted: " +
                               std::to_string(expected) + " to " + std::to_string(most) +
-                              " (the leaf count's)");
+                              " (the leaf count's) from at most " + std::to_string(stored));
         reader.skip(stored - 16, "delayed-load buffer");
     }
     if (reader.offset() > end)
@@ -150,11 +163,13 @@ void checkTransform(FieldReader& reader, int depth = 0) {
         const char* type;
         std::uint64_t bytes;
     };
-    static constexpr MapBytes kMaps[] = {
-        {"AffineMap", 128},         {"UnitaryMap", 128},
-        {"ScaleMap", 5 * 24},       {"UniformScaleMap", 5 * 24},
-        {"TranslationMap", 24},     {"ScaleTranslateMap", 6 * 24},
-        {"UniformScaleTranslateMap", 6 * 24}};
+    static constexpr MapBytes kMaps[] = {{"AffineMap", 128},
+                                         {"UnitaryMap", 128},
+                                         {"ScaleMap", 5 * 24},
+                                         {"UniformScaleMap", 5 * 24},
+                                         {"TranslationMap", 24},
+                                         {"ScaleTranslateMap", 6 * 24},
+                                         {"UniformScaleTranslateMap", 6 * 24}};
     for (const MapBytes& map : kMaps) {
         if (type == map.type) {
             reader.skip(map.bytes, "transform");
@@ -176,9 +191,12 @@ void checkTransform(FieldReader& reader, int depth = 0) {
 class FloatTreeWalk {
   public:
     /// `memoryBytes`: what the file's trees walked so far take, added to as this one is walked.
-    FloatTreeWalk(const std::filesystem::path& file, FieldReader& reader,
-                  std::uint64_t compression, bool half, std::uint64_t& memoryBytes)
-        : file_(file), reader_(reader), compression_(compression), half_(half),
+    FloatTreeWalk(const std::filesystem::path& file, FieldReader& reader, std::uint64_t compression,
+                  bool half, std::uint64_t& memoryBytes)
+        : file_(file),
+          reader_(reader),
+          compression_(compression),
+          half_(half),
           memoryBytes_(memoryBytes) {}
 
     void topology() {
@@ -275,18 +293,16 @@ class FloatTreeWalk {
             return;
         }
         // Blosc decompresses what its own header says, not the chunk size: both must agree.
-        std::uint8_t header[16];
-        if (declared < 16) reader_.refuse("compressed chunk size", "is shorter than a blosc header");
-        reader_.readBytes(header, 16, "blosc header");
-        const auto field = [&](int at) {
-            return std::uint64_t(header[at]) | std::uint64_t(header[at + 1]) << 8 |
-                   std::uint64_t(header[at + 2]) << 16 | std::uint64_t(header[at + 3]) << 24;
-        };
-        if (field(4) != expectedBytes || field(12) > std::uint64_t(declared)) {
-            reader_.refuse("blosc header", "says " + std::to_string(field(4)) + " bytes from " +
-                                               std::to_string(field(12)) + "; accepted: " +
-                                               std::to_string(expectedBytes) + " bytes from at most " +
-                                               std::to_string(declared));
+        if (declared < 16)
+            reader_.refuse("compressed chunk size", "is shorter than a blosc header");
+        const BloscSizes sizes = readBloscHeader(reader_, "blosc header");
+        if (sizes.uncompressedBytes != expectedBytes ||
+            sizes.compressedBytes > std::uint64_t(declared)) {
+            reader_.refuse("blosc header", "says " + std::to_string(sizes.uncompressedBytes) +
+                                               " bytes from " +
+                                               std::to_string(sizes.compressedBytes) +
+                                               "; accepted: " + std::to_string(expectedBytes) +
+                                               " bytes from at most " + std::to_string(declared));
         }
         reader_.skip(std::uint64_t(declared) - 16, "compressed chunk");
     }
@@ -315,10 +331,10 @@ void checkVdbHeader(const std::filesystem::path& file, std::uint64_t fileBytes) 
     }
     const std::uint64_t version = reader.unsignedField(4, "file version");
     if (version < kVersionNodeMaskCompression || version > kVersionNewest) {
-        reader.refuse("file version", "is " + std::to_string(version) + "; accepted: " +
-                                          std::to_string(kVersionNodeMaskCompression) + " to " +
-                                          std::to_string(kVersionNewest) +
-                                          " (files of OpenVDB 2 and later)");
+        reader.refuse("file version",
+                      "is " + std::to_string(version) +
+                          "; accepted: " + std::to_string(kVersionNodeMaskCompression) + " to " +
+                          std::to_string(kVersionNewest) + " (files of OpenVDB 2 and later)");
     }
     reader.skip(8, "library version");
     if (reader.unsignedField(1, "grid offset flag") == 0)
@@ -337,9 +353,8 @@ void checkVdbHeader(const std::filesystem::path& file, std::uint64_t fileBytes) 
         const std::string type = vdbString(reader, "grid type");
         GridOffsets grid{};
         grid.half = type.ends_with(kHalfSuffix);
-        grid.floatTree =
-            type.substr(0, grid.half ? type.size() - std::string(kHalfSuffix).size() : type.size()) ==
-            kFloatTreeType;
+        grid.floatTree = type.substr(0, grid.half ? type.size() - std::string(kHalfSuffix).size()
+                                                  : type.size()) == kFloatTreeType;
         // An instance shares its parent's tree: only its metadata and transform are stored.
         if (version >= kVersionGridInstancing)
             grid.instance = !vdbString(reader, "instance parent name").empty();
