@@ -243,6 +243,9 @@ TEST(ContactSheet, ErrorPlotShowsWhereTheTileErrs) {
     const Pixels plot = readPixels8(file);
     fs::remove(file);
     const ContactSheetLayout layout(tile.size());
+    // The plot has the preview's layout (the pixels below are read by it).
+    ASSERT_EQ(plot.width, layout.width);
+    ASSERT_EQ(plot.height, layout.height);
     expectColor(colorAt(plot, layout.pixelX(1, 20), layout.pixelY(1, 8)), divergingColor(1.0f),
                 "planted error");
     expectColor(colorAt(plot, layout.pixelX(1, 26), layout.pixelY(1, 12)), divergingColor(0.0f),
