@@ -157,102 +157,117 @@ std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
     return edges;
 }
 
-namespace {
-
-}  // namespace
+namespace {}  // namespace
 
 SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     : tile_(tile), bounds_(boundsOf(soupTexels)) {
-    std::vector<Triangle> input(soupTexels.triangles.size());
-    tbb::parallel_for(std::size_t(0), input.size(), [&](std::size_t n) {
+    const std::size_t count = soupTexels.triangles.size();
+    std::vector<Triangle> input(count);
+    std::vector<BuildItem> items(count);
+    tbb::parallel_for(std::size_t(0), count, [&](std::size_t n) {
         const glm::uvec3& t = soupTexels.triangles[n];
         input[n] = {soupTexels.positions[t.x], soupTexels.positions[t.y],
                     soupTexels.positions[t.z]};
+        items[n] = {input[n].a + input[n].b + input[n].c, std::uint32_t(n)};
     });
-    std::vector<std::uint32_t> order(input.size());
-    for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;
-    const std::uint32_t nodeCount = subtreeNodeCounts(std::uint32_t(input.size())).first;
+    const std::uint32_t nodeCount = subtreeNodeCounts(std::uint32_t(count)).first;
     nodes_.resize(nodeCount);
     dipoles_.resize(nodeCount);
     std::vector<Box> boxes(nodeCount);
-    tbb::parallel_invoke(
-        [&] { build(0, order, 0, std::uint32_t(order.size()), input, boxes); },
-        [&] { windingPiecewiseConstant_ = unbalancedEdges(soupTexels).empty(); });
+    std::vector<double> areas(nodeCount);
+    const BuildInput build{input, items, boxes, areas};
+    tbb::parallel_invoke([&] { this->build(0, 0, std::uint32_t(count), build); },
+                         [&] { windingPiecewiseConstant_ = unbalancedEdges(soupTexels).empty(); });
     // Leaves hold consecutive triangles: the build's final order.
-    triangles_.resize(input.size());
-    tbb::parallel_for(std::size_t(0), input.size(),
-                      [&](std::size_t n) { triangles_[n] = input[order[n]]; });
+    triangles_.resize(count);
+    tbb::parallel_for(std::size_t(0), count,
+                      [&](std::size_t n) { triangles_[n] = input[items[n].triangle]; });
     wideNodes_.reserve(nodeCount / 3 + 1);
     collapse(0, boxes);
 }
 
-void SoupDistance::build(std::uint32_t index, std::vector<std::uint32_t>& order,
-                         std::uint32_t begin, std::uint32_t end,
-                         const std::vector<Triangle>& input, std::vector<Box>& boxes) {
+void SoupDistance::build(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
+                         const BuildInput& input) {
     Node node;
     node.firstTriangle = begin;
     node.triangleCount = end - begin;
-    Dipole dipole;
-    Box box{glm::dvec3(HUGE_VAL), glm::dvec3(-HUGE_VAL)};
-    glm::dvec3 centroidMin(HUGE_VAL), centroidMax(-HUGE_VAL), weightedCentre(0.0);
-    double area = 0.0;
-    for (std::uint32_t i = begin; i < end; ++i) {
-        const Triangle& t = input[order[i]];
-        box.min = glm::min(box.min, glm::min(t.a, glm::min(t.b, t.c)));
-        box.max = glm::max(box.max, glm::max(t.a, glm::max(t.b, t.c)));
-        const glm::dvec3 centroid = (t.a + t.b + t.c) / 3.0;
-        centroidMin = glm::min(centroidMin, centroid);
-        centroidMax = glm::max(centroidMax, centroid);
-        const glm::dvec3 vectorArea = 0.5 * glm::cross(t.b - t.a, t.c - t.a);
-        const double triangleArea = glm::length(vectorArea);
-        dipole.vectorArea += vectorArea;
-        weightedCentre += triangleArea * centroid;
-        area += triangleArea;
-    }
-    dipole.centre = area > 0.0 ? weightedCentre / area : 0.5 * (box.min + box.max);
-    double radiusSquared = 0.0;
-    for (std::uint32_t i = begin; i < end; ++i) {
-        const Triangle& t = input[order[i]];
-        for (const glm::dvec3& corner : {t.a, t.b, t.c}) {
-            const glm::dvec3 offset = corner - dipole.centre;
-            radiusSquared = std::max(radiusSquared, glm::dot(offset, offset));
-        }
-    }
-    dipole.radius = std::sqrt(radiusSquared);
-    dipoles_[index] = dipole;
-    boxes[index] = box;
+    Dipole& dipole = dipoles_[index];
+    Box& box = input.boxes[index];
     if (end - begin <= kLeafTriangles) {
         node.first = begin;  // the triangles are stored in the final order
         node.count = end - begin;
         nodes_[index] = node;
+        // The leaf's box and dipole from its triangles; the radius reaches its farthest corner.
+        box = {glm::dvec3(HUGE_VAL), glm::dvec3(-HUGE_VAL)};
+        glm::dvec3 weightedCentre(0.0);
+        double area = 0.0;
+        for (std::uint32_t i = begin; i < end; ++i) {
+            const Triangle& t = input.triangles[input.items[i].triangle];
+            box.min = glm::min(box.min, glm::min(t.a, glm::min(t.b, t.c)));
+            box.max = glm::max(box.max, glm::max(t.a, glm::max(t.b, t.c)));
+            const glm::dvec3 vectorArea = 0.5 * glm::cross(t.b - t.a, t.c - t.a);
+            const double triangleArea = glm::length(vectorArea);
+            dipole.vectorArea += vectorArea;
+            weightedCentre += triangleArea * ((t.a + t.b + t.c) / 3.0);
+            area += triangleArea;
+        }
+        dipole.centre = area > 0.0 ? weightedCentre / area : 0.5 * (box.min + box.max);
+        double radiusSquared = 0.0;
+        for (std::uint32_t i = begin; i < end; ++i) {
+            const Triangle& t = input.triangles[input.items[i].triangle];
+            for (const glm::dvec3& corner : {t.a, t.b, t.c}) {
+                const glm::dvec3 offset = corner - dipole.centre;
+                radiusSquared = std::max(radiusSquared, glm::dot(offset, offset));
+            }
+        }
+        dipole.radius = std::sqrt(radiusSquared);
+        input.areas[index] = area;
         return;
     }
     // Median split of the centroids along the longest axis of their box.
+    glm::dvec3 centroidMin(HUGE_VAL), centroidMax(-HUGE_VAL);
+    for (std::uint32_t i = begin; i < end; ++i) {
+        centroidMin = glm::min(centroidMin, input.items[i].cornerSum);
+        centroidMax = glm::max(centroidMax, input.items[i].cornerSum);
+    }
     const glm::dvec3 spread = centroidMax - centroidMin;
     const int axis =
         spread.x >= spread.y && spread.x >= spread.z ? 0 : (spread.y >= spread.z ? 1 : 2);
     const std::uint32_t middle = begin + (end - begin) / 2;
-    std::nth_element(order.begin() + begin, order.begin() + middle, order.begin() + end,
-                     [&input, axis](std::uint32_t l, std::uint32_t r) {
-                         const Triangle& a = input[l];
-                         const Triangle& b = input[r];
-                         const double ca = a.a[axis] + a.b[axis] + a.c[axis];
-                         const double cb = b.a[axis] + b.b[axis] + b.c[axis];
-                         return ca < cb || (ca == cb && l < r);
+    std::nth_element(input.items.begin() + begin, input.items.begin() + middle,
+                     input.items.begin() + end, [axis](const BuildItem& l, const BuildItem& r) {
+                         return l.cornerSum[axis] < r.cornerSum[axis] ||
+                                (l.cornerSum[axis] == r.cornerSum[axis] && l.triangle < r.triangle);
                      });
     // Depth-first numbering: the second child follows the first child's subtree.
+    const std::uint32_t first = index + 1;
     const std::uint32_t second = index + 1 + subtreeNodeCounts(middle - begin).first;
     node.first = second;
     node.count = 0;
     nodes_[index] = node;
-    const auto buildFirst = [&] { build(index + 1, order, begin, middle, input, boxes); };
-    const auto buildSecond = [&] { build(second, order, middle, end, input, boxes); };
+    const auto buildFirst = [&] { build(first, begin, middle, input); };
+    const auto buildSecond = [&] { build(second, middle, end, input); };
     if (end - begin > kParallelBuildTriangles) {
         tbb::parallel_invoke(buildFirst, buildSecond);
     } else {
         buildFirst();
         buildSecond();
     }
+    // The box and dipole from the children's: the box is theirs joined, the centre their
+    // area-weighted mean, the radius reaches both children's spheres (an upper bound of the
+    // farthest corner, which keeps the far field at least as far as the corners require).
+    box = {glm::min(input.boxes[first].min, input.boxes[second].min),
+           glm::max(input.boxes[first].max, input.boxes[second].max)};
+    const Dipole& one = dipoles_[first];
+    const Dipole& two = dipoles_[second];
+    const double area = input.areas[first] + input.areas[second];
+    dipole.vectorArea = one.vectorArea + two.vectorArea;
+    dipole.centre =
+        area > 0.0 ? (input.areas[first] * one.centre + input.areas[second] * two.centre) / area
+                   : 0.5 * (box.min + box.max);
+    dipole.radius = std::max(glm::length(one.centre - dipole.centre) + one.radius,
+                             glm::length(two.centre - dipole.centre) + two.radius);
+    input.areas[index] = area;
 }
 
 std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex, const std::vector<Box>& boxes) {
@@ -341,9 +356,8 @@ double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
         if (!(entry.boxSquared < threshold)) continue;
         const WideNode& node = wideNodes_[entry.node];
         const auto outside = [&zero](const float* lo, const float* hi, __m128 p) {
-            const __m128 d = _mm_max_ps(_mm_max_ps(_mm_sub_ps(_mm_load_ps(lo), p),
-                                                   _mm_sub_ps(p, _mm_load_ps(hi))),
-                                        zero);
+            const __m128 d = _mm_max_ps(
+                _mm_max_ps(_mm_sub_ps(_mm_load_ps(lo), p), _mm_sub_ps(p, _mm_load_ps(hi))), zero);
             return _mm_mul_ps(d, d);
         };
         alignas(16) float squared[4];
@@ -491,10 +505,16 @@ bool SoupDistance::signedCrossingsOfCopy(const glm::dvec3& from, const glm::dvec
                                          int& crossings) const {
     return everyTriangleNearSegment(from, to, [&](const Triangle& triangle) {
         switch (segmentMeeting(from, to, triangle.a, triangle.b, triangle.c)) {
-            case SegmentMeeting::Misses: return true;
-            case SegmentMeeting::BackToFront: ++crossings; return true;
-            case SegmentMeeting::FrontToBack: --crossings; return true;
-            case SegmentMeeting::Unclear: return false;
+            case SegmentMeeting::Misses:
+                return true;
+            case SegmentMeeting::BackToFront:
+                ++crossings;
+                return true;
+            case SegmentMeeting::FrontToBack:
+                --crossings;
+                return true;
+            case SegmentMeeting::Unclear:
+                return false;
         }
         return false;
     });

@@ -131,14 +131,28 @@ class SoupDistance {
     struct Dipole {
         glm::dvec3 centre{0.0};      ///< area-weighted centroid of the node's triangles
         glm::dvec3 vectorArea{0.0};  ///< sum of (b - a) x (c - a) / 2 over the node's triangles
-        double radius = 0.0;         ///< farthest triangle corner of the node from centre
+        /// At least the distance from centre to the node's farthest triangle corner (exactly that
+        /// at leaves; an inner node's sphere holds its children's).
+        double radius = 0.0;
     };
     struct Triangle {
         glm::dvec3 a, b, c;
     };
 
-    void build(std::uint32_t index, std::vector<std::uint32_t>& order, std::uint32_t begin,
-               std::uint32_t end, const std::vector<Triangle>& input, std::vector<Box>& boxes);
+    /// A triangle as the build sorts it: the sum of its corners (three times its centroid).
+    struct BuildItem {
+        glm::dvec3 cornerSum;
+        std::uint32_t triangle;  ///< index in the input
+    };
+    struct BuildInput {
+        const std::vector<Triangle>& triangles;
+        std::vector<BuildItem>& items;  ///< reordered: leaves hold consecutive items
+        std::vector<Box>& boxes;        ///< per node
+        std::vector<double>& areas;     ///< per node: its triangles' total area
+    };
+    /// Builds node `index` over items [begin, end) and its subtree: splits, boxes, dipoles.
+    void build(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
+               const BuildInput& input);
     std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<Box>& boxes);
     double closestSquared(const glm::dvec3& point, double bestSquared,
                           std::uint32_t& bestTriangle) const;
