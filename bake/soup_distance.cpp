@@ -157,8 +157,6 @@ std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
     return edges;
 }
 
-namespace {}  // namespace
-
 SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     : tile_(tile), bounds_(boundsOf(soupTexels)) {
     const std::size_t count = soupTexels.triangles.size();
