@@ -1,6 +1,7 @@
-"""examples/dask_bake.py on a local Dask cluster of 2 workers: 8 meshes baked into the same
-tiles as a serial loop in this process. Times are printed for the record, not asserted
-(speed is measured, not tested)."""
+"""examples/dask_bake.py on a local Dask cluster of 2 workers (threads of this process, and
+processes): 8 meshes baked into the same tiles as a serial loop in this process. Times are
+printed for the record, not asserted (speed is measured, not tested: the example's
+--compare-serial)."""
 
 import importlib.util
 import math
@@ -43,7 +44,9 @@ def load_example(source_dir):
     return module
 
 
-def test_dask_bakes_eight_meshes_as_a_serial_loop_does(tmp_path, source_dir, monkeypatch):
+@pytest.mark.parametrize("processes", [False, True], ids=["threads", "processes"])
+def test_dask_bakes_eight_meshes_as_a_serial_loop_does(tmp_path, source_dir, monkeypatch,
+                                                       processes):
     from dask.distributed import Client
 
     example = load_example(source_dir)
@@ -55,15 +58,17 @@ def test_dask_bakes_eight_meshes_as_a_serial_loop_does(tmp_path, source_dir, mon
     assert len(meshes) == 8
     size = "64x64x16"
 
-    # Each run bakes into its own empty cache, so neither reads the other's tiles.
+    # Each run bakes into its own empty cache, so neither reads the other's tiles. Workers in
+    # this process set its DISTILE_CACHE and bake_one sets it too, which monkeypatch restores
+    # afterwards.
+    monkeypatch.setenv("DISTILE_CACHE", str(tmp_path / "cache-dask"))
     start = time.perf_counter()
-    with example.local_cluster(2) as cluster, Client(cluster) as client:
+    with example.local_cluster(2, processes) as cluster, Client(cluster) as client:
         baked = example.bake_folder(client, meshes, tmp_path / "dask", size,
                                     cache=str(tmp_path / "cache-dask"))
     dask_seconds = time.perf_counter() - start
 
-    # The serial loop runs here, with all cores (threads 0); bake_one sets DISTILE_CACHE, which
-    # monkeypatch restores afterwards.
+    # The serial loop runs here, with all cores (threads 0).
     monkeypatch.setenv("DISTILE_CACHE", str(tmp_path / "cache-serial"))
     start = time.perf_counter()
     serial = {}
@@ -71,7 +76,8 @@ def test_dask_bakes_eight_meshes_as_a_serial_loop_does(tmp_path, source_dir, mon
         serial[mesh.stem] = example.bake_one(str(mesh), str(tmp_path / f"{mesh.stem}.serial.exr"),
                                              size, str(tmp_path / "cache-serial"), 0)
     serial_seconds = time.perf_counter() - start
-    print(f"8 meshes {size}: Dask (2 workers x 1 thread, cluster start included) "
+    workers = "2 processes x 1 thread" if processes else "2 threads of this process"
+    print(f"8 meshes {size}: Dask ({workers}, cluster start included) "
           f"{dask_seconds:.2f} s, serial loop (all cores) {serial_seconds:.2f} s")
 
     assert len(baked) == 8
