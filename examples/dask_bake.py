@@ -3,7 +3,7 @@
 
 Each mesh (OBJ, PLY, OFF, STL) becomes one tile, OUT/<mesh name>.exr, baked as
 `distile bake mesh MESH --size SIZE` bakes it. The bakes are Dask tasks, largest mesh file
-first: on a local cluster of --workers threads in this process by default (the bakes release
+first: on a local cluster of --workers workers in this process by default (the bakes release
 the GIL and share the cores), or on any running Dask cluster when --scheduler gives its
 address, so the same script spreads a folder over many machines. Every worker bakes through
 distile's bake cache: with --cache on a folder all workers share (a network file system), a
@@ -91,15 +91,15 @@ def bake_folder(client, meshes, out, size="256x256x16", cache=None, threads=None
 
 
 def local_cluster(workers, processes=False):
-    """A cluster on this machine: `workers` threads in this process (the bakes release the GIL
-    and share the cores through one thread pool), or with `processes`, `workers` processes of
-    one thread each that import the same distile as this process (the build tree's, when it
-    came from there)."""
+    """A cluster on this machine: `workers` workers of one thread each in this process (the
+    bakes release the GIL and share the cores through one thread pool), or with `processes`,
+    `workers` processes of one thread each that import the same distile as this process (the
+    build tree's, when it came from there)."""
     import distile
     from dask.distributed import LocalCluster
 
     if not processes:
-        return LocalCluster(n_workers=1, threads_per_worker=workers, processes=False,
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
                             dashboard_address=None)
     package_parent = str(pathlib.Path(distile.__file__).resolve().parent.parent)
     paths = os.environ.get("PYTHONPATH", "").split(os.pathsep)
@@ -121,8 +121,8 @@ def main(argv=None):
     parser.add_argument("--processes", action="store_true",
                         help="make the local cluster's workers processes of one thread each")
     parser.add_argument("--threads", type=int,
-                        help="threads of each bake (0: all cores; default: all cores on the "
-                        "local cluster of threads, else each worker's share, cores / its "
+                        help="threads of each bake (0: all cores; default: all cores on a local "
+                        "cluster in this process, else each worker's share, cores / its "
                         "threads)")
     parser.add_argument("--cache", help="bake cache folder for every worker (default: each "
                         "worker's DISTILE_CACHE or its home folder's cache)")

@@ -1,4 +1,4 @@
-"""examples/dask_bake.py on a local Dask cluster of 2 workers (threads of this process, and
+"""examples/dask_bake.py on a local Dask cluster of 2 workers (workers in this process, and
 processes): 8 meshes baked into the same tiles as a serial loop in this process. Times are
 printed for the record, not asserted (speed is measured, not tested: the example's
 --compare-serial)."""
@@ -76,7 +76,7 @@ def test_dask_bakes_eight_meshes_as_a_serial_loop_does(tmp_path, source_dir, mon
         serial[mesh.stem] = example.bake_one(str(mesh), str(tmp_path / f"{mesh.stem}.serial.exr"),
                                              size, str(tmp_path / "cache-serial"), 0)
     serial_seconds = time.perf_counter() - start
-    workers = "2 processes x 1 thread" if processes else "2 threads of this process"
+    workers = "2 processes x 1 thread" if processes else "2 workers in this process"
     print(f"8 meshes {size}: Dask ({workers}, cluster start included) "
           f"{dask_seconds:.2f} s, serial loop (all cores) {serial_seconds:.2f} s")
 
