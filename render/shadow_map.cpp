@@ -107,11 +107,11 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
         level.texelWorld = longer / float(resolutionTexels) * float(1 << index);
         level.width = std::clamp(int(std::ceil(extent.x / level.texelWorld)), 1, resolution);
         level.height = std::clamp(int(std::ceil(extent.y / level.texelWorld)), 1, resolution);
-        level.depths.assign(std::size_t(level.width) * std::size_t(level.height),
-                            std::numeric_limits<float>::infinity());
         level.tilesX = (level.width + kTileTexels - 1) / kTileTexels;
         level.tilesY = (level.height + kTileTexels - 1) / kTileTexels;
         const std::size_t tiles = std::size_t(level.tilesX) * std::size_t(level.tilesY);
+        level.depths =
+            std::make_unique_for_overwrite<float[]>(tiles * std::size_t(kTileTexels * kTileTexels));
         level.tileOnce = std::make_unique<std::once_flag[]>(tiles);
         level.tileDone = std::make_unique<std::atomic<bool>[]>(tiles);
         for (std::size_t tile = 0; tile < tiles; ++tile) level.tileDone[tile].store(false);
@@ -207,9 +207,7 @@ float ShadowMap::findNearestDepth() const {
                   y0 = (tile / finest.tilesX) * kTileTexels;
         for (int y = y0; y < std::min(y0 + kTileTexels, finest.height); ++y)
             for (int x = x0; x < std::min(x0 + kTileTexels, finest.width); ++x)
-                nearest = std::min(
-                    nearest,
-                    finest.depths[std::size_t(x) + std::size_t(finest.width) * std::size_t(y)]);
+                nearest = std::min(nearest, finest.depths[finest.index(x, y)]);
     }
     return nearest;
 }
@@ -224,7 +222,7 @@ void ShadowMap::traceTile(const Level& level, int tile) const {
     Ray rays[kBatch];
     SurfaceHit hits[kBatch];
     bool found[kBatch];
-    int texels[kBatch];
+    std::size_t texels[kBatch];
     // The tile's texels in batches traced together: their marches interleave (SceneTracer). A
     // ray's hit does not depend on the others in its batch.
     const int tileWidth = x1 - x0;
@@ -237,7 +235,7 @@ void ShadowMap::traceTile(const Level& level, int tile) const {
             const float across = originPlane_.x + (float(x) + 0.5f) * level.texelWorld;
             const float along = originPlane_.y + (float(y) + 0.5f) * level.texelWorld;
             rays[k] = {axisX_ * across + axisY_ * along - toLight_ * startDepth_, -toLight_};
-            texels[k] = x + level.width * y;
+            texels[k] = level.index(x, y);
         }
         // Only where the rays stop matters here: no detail normals.
         tracer_.traceNearestBatch(std::span(rays, std::size_t(batch)), 0.0f,
@@ -245,8 +243,8 @@ void ShadowMap::traceTile(const Level& level, int tile) const {
                                   std::span(found, std::size_t(batch)), counters,
                                   /*withNormals=*/false);
         for (int k = 0; k < batch; ++k) {
-            if (found[k])
-                level.depths[std::size_t(texels[k])] = startDepth_ + hits[k].distanceWorld;
+            level.depths[texels[k]] = found[k] ? startDepth_ + hits[k].distanceWorld
+                                               : std::numeric_limits<float>::infinity();
         }
     }
     tracedTexels_.fetch_add(std::uint64_t(count), std::memory_order_relaxed);
@@ -268,7 +266,7 @@ float ShadowMap::lookup(const Level& level, const glm::vec2& planeWorld) const {
     }
     const int column = int(x), row = int(y);
     traceTileOnce(level, (column / kTileTexels) + level.tilesX * (row / kTileTexels));
-    return level.depths[std::size_t(column) + std::size_t(level.width) * std::size_t(row)];
+    return level.depths[level.index(column, row)];
 }
 
 const ShadowMap::Level& ShadowMap::levelFor(float texelWorld) const {

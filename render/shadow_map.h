@@ -12,9 +12,9 @@
 /// doubling texel size, each traced the same lazy way, and a lookup reads the coarsest level its
 /// receiver needs: texels no larger than the receiver's pixel footprint, or than half the radius
 /// of the disk the samples spread over, whichever is larger (the 64 samples of a disk of radius
-/// r blur the shadow over r: texels much finer than that change little). Lookups filter with 64 jittered samples warped to a disk (an 8 x 8
-/// stratified grid, polar warp); the adaptive filter first takes the 8 samples of the outer ring
-/// and stops when they agree.
+/// r blur the shadow over r: texels much finer than that change little). Lookups filter with 64
+/// jittered samples warped to a disk (an 8 x 8 stratified grid, polar warp); the adaptive filter
+/// first takes the 8 samples of the outer ring and stops when they agree.
 #pragma once
 
 #include <atomic>
@@ -108,7 +108,7 @@ class ShadowMap {
     float depthAt(int x, int y, int level = 0) const {
         const Level& at = levels_[std::size_t(level)];
         traceTileOnce(at, (x / kTileTexels) + at.tilesX * (y / kTileTexels));
-        return at.depths[std::size_t(x) + std::size_t(at.width) * std::size_t(y)];
+        return at.depths[at.index(x, y)];
     }
     /// Texels traced so far (whole tiles, clipped to their level), all levels.
     std::uint64_t tracedTexels() const { return tracedTexels_.load(std::memory_order_relaxed); }
@@ -123,8 +123,18 @@ class ShadowMap {
         int height = 0;
         int tilesX = 0;
         int tilesY = 0;
-        mutable std::vector<float>
-            depths;  ///< row-major; a tile's texels written once, by traceTile
+        /// Tile by tile (row-major over the tiles), each tile's kTileTexels^2 texels row-major
+        /// (edge tiles padded), so a lookup's disk reads a few contiguous tiles. Left
+        /// uninitialised: a tile's texels are written once, by traceTile, so the memory of tiles
+        /// no lookup reaches is never touched.
+        std::unique_ptr<float[]> depths;
+        /// Where texel (x, y) is stored in depths.
+        std::size_t index(int x, int y) const {
+            const auto tile =
+                std::size_t(x / kTileTexels) + std::size_t(tilesX) * std::size_t(y / kTileTexels);
+            return tile * std::size_t(kTileTexels * kTileTexels) +
+                   std::size_t((y % kTileTexels) * kTileTexels + x % kTileTexels);
+        }
         std::unique_ptr<std::once_flag[]> tileOnce;
         std::unique_ptr<std::atomic<bool>[]> tileDone;
     };
