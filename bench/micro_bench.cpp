@@ -172,12 +172,13 @@ void demoShadowFilters(benchmark::State& state) {
         start = processCpuSeconds();
         const SceneTracer tracer(scene, traceOptionsOf(options));
         const ShadowMap map(tracer, scene.lights[0]);
-        for (int y = 0; y < map.height(); y += ShadowMap::kTileTexels)  // every tile
+        for (int y = 0; y < map.height(); y += ShadowMap::kTileTexels)  // every finest tile
             for (int x = 0; x < map.width(); x += ShadowMap::kTileTexels)
                 benchmark::DoNotOptimize(map.depthAt(x, y));
-        // A render traces only the tiles its lookups reach: its share of the whole build.
+        // A render traces only the tiles its lookups reach, of every level: that many texels at
+        // the finest level's cost per texel.
         buildSeconds += (processCpuSeconds() - start) * double(adaptive.stats.shadowMapTexels) /
-                        double(std::max<std::uint64_t>(adaptive.stats.shadowMapTexelsAll, 1));
+                        double(std::max<std::uint64_t>(map.tracedTexels(), 1));
         fullSamples = full.stats.shadowMapSamples;
         adaptiveSamples = adaptive.stats.shadowMapSamples;
         std::size_t close = 0;

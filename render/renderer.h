@@ -34,8 +34,9 @@ struct RenderOptions {
     int shadowIterations = 24;  ///< budget of each shadow ray
     /// Shadows cast between surfaces, from a shadow map per light; None builds no map.
     ShadowFilter shadowFilter = ShadowFilter::Adaptive;
-    /// Texels along each shadow map's longer side; 0 (default): from the image, 1.5 x its longer
-    /// side in [256, 4096], so a small image does not pay for a large map.
+    /// Texels along the longer side of each shadow map's finest level (ShadowMap::kLevels); 0
+    /// (default): from the image, 1.5 x its longer side in [256, 4096], so a small image does not
+    /// pay for a large map.
     int shadowMapResolution = 0;
     bool outputAovs = false;  ///< also produce the AOV images of RenderResult
     RenderSkips skips;        ///< work left out where the scene does not need it (all on)
@@ -59,8 +60,8 @@ struct RenderStats {
     std::uint64_t converged = 0;         ///< camera rays that hit detail or floor within the budget
     std::uint64_t shadowSteps = 0;       ///< steps of self-shadow rays
     std::uint64_t shadowMapSamples = 0;  ///< shadow-map depth comparisons (PCF samples), all lights
-    std::uint64_t shadowMapTexels = 0;   ///< shadow-map texels traced (tiles the lookups reached)
-    std::uint64_t shadowMapTexelsAll = 0;  ///< texels of the shadow maps, traced or not
+    std::uint64_t shadowMapTexels = 0;   ///< shadow-map texels traced (tiles lookups reached)
+    std::uint64_t shadowMapTexelsAll = 0;  ///< texels of the shadow maps' levels, traced or not
     std::uint64_t shellsTested =
         0;  ///< camera rays x binned shells whose pixel coverage was tested
     std::uint64_t shellsTraced =

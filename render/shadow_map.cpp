@@ -99,36 +99,42 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     }
     const glm::vec2 extent = planeHigh - planeLow;
     const float longer = std::max({extent.x, extent.y, 1e-6f});
-    texelWorld_ = longer / float(resolutionTexels);
-    width_ = std::clamp(int(std::ceil(extent.x / texelWorld_)), 1, resolutionTexels);
-    height_ = std::clamp(int(std::ceil(extent.y / texelWorld_)), 1, resolutionTexels);
     originPlane_ = planeLow;
+    levels_.resize(kLevels);
+    for (int index = 0; index < kLevels; ++index) {
+        Level& level = levels_[std::size_t(index)];
+        const int resolution = std::max(resolutionTexels >> index, 1);
+        level.texelWorld = longer / float(resolutionTexels) * float(1 << index);
+        level.width = std::clamp(int(std::ceil(extent.x / level.texelWorld)), 1, resolution);
+        level.height = std::clamp(int(std::ceil(extent.y / level.texelWorld)), 1, resolution);
+        level.tilesX = (level.width + kTileTexels - 1) / kTileTexels;
+        level.tilesY = (level.height + kTileTexels - 1) / kTileTexels;
+        const std::size_t tiles = std::size_t(level.tilesX) * std::size_t(level.tilesY);
+        level.depths =
+            std::make_unique_for_overwrite<float[]>(tiles * std::size_t(kTileTexels * kTileTexels));
+        level.tileOnce = std::make_unique<std::once_flag[]>(tiles);
+        level.tileDone = std::make_unique<std::atomic<bool>[]>(tiles);
+        for (std::size_t tile = 0; tile < tiles; ++tile) level.tileDone[tile].store(false);
+    }
     // Rays start a little in front of everything.
-    startDepth_ = depthLow - std::max(texelWorld_, 1e-3f * longer);
-
-    depths_.assign(std::size_t(width_) * std::size_t(height_),
-                   std::numeric_limits<float>::infinity());
-    tilesX_ = (width_ + kTileTexels - 1) / kTileTexels;
-    tilesY_ = (height_ + kTileTexels - 1) / kTileTexels;
-    const std::size_t tiles = std::size_t(tilesX_) * std::size_t(tilesY_);
-    tileOnce_ = std::make_unique<std::once_flag[]>(tiles);
-    tileDone_ = std::make_unique<std::atomic<bool>[]>(tiles);
-    for (std::size_t tile = 0; tile < tiles; ++tile) tileDone_[tile].store(false);
+    startDepth_ = depthLow - std::max(levels_[0].texelWorld, 1e-3f * longer);
     nearestDepth_ = findNearestDepth();
 }
 
 float ShadowMap::findNearestDepth() const {
+    const Level& finest = levels_[0];
     // A lower bound of the depths of each tile from every shell over it. A shell's points are
     // bilinear in its six corners, so they project into the corners' bounds on the light plane and
     // lie no nearer than the nearest corner. A flat shell (its bottom the top moved by one vector)
     // is bounded more tightly, as a large one must be: its depth over a light-plane point is the
     // top's plane, or the bottom's, whichever is nearer, least at a corner of the tile's square.
     // Rounding of a stored depth (start + distance along the ray) is allowed for.
-    const float rounding = 1e-5f * (std::abs(startDepth_) + texelWorld_ * float(width_ + height_)) +
-                           1e-3f * texelWorld_;
-    std::vector<float> bound(std::size_t(tilesX_) * std::size_t(tilesY_),
+    const float rounding =
+        1e-5f * (std::abs(startDepth_) + finest.texelWorld * float(finest.width + finest.height)) +
+        1e-3f * finest.texelWorld;
+    std::vector<float> bound(std::size_t(finest.tilesX) * std::size_t(finest.tilesY),
                              std::numeric_limits<float>::infinity());
-    const float tileWorld = texelWorld_ * float(kTileTexels);
+    const float tileWorld = finest.texelWorld * float(kTileTexels);
     for (std::uint32_t shell = 0; shell < tracer_.shellCount(); ++shell) {
         glm::vec3 corners[6];
         tracer_.shellCorners(shell, corners, corners + 3);
@@ -162,9 +168,9 @@ float ShadowMap::findNearestDepth() const {
         const int x0 = std::max(int(std::floor((low.x - originPlane_.x) / tileWorld)) - 1, 0);
         const int y0 = std::max(int(std::floor((low.y - originPlane_.y) / tileWorld)) - 1, 0);
         const int x1 =
-            std::min(int(std::floor((high.x - originPlane_.x) / tileWorld)) + 1, tilesX_ - 1);
+            std::min(int(std::floor((high.x - originPlane_.x) / tileWorld)) + 1, finest.tilesX - 1);
         const int y1 =
-            std::min(int(std::floor((high.y - originPlane_.y) / tileWorld)) + 1, tilesY_ - 1);
+            std::min(int(std::floor((high.y - originPlane_.y) / tileWorld)) + 1, finest.tilesY - 1);
         for (int y = y0; y <= y1; ++y)
             for (int x = x0; x <= x1; ++x) {
                 float least = nearestCorner;
@@ -179,7 +185,8 @@ float ShadowMap::findNearestDepth() const {
                         depth[0] + slopeU * (u - plane[0].x) + slopeV * (v - plane[0].y);
                     least = std::max(least, float(top) + bottomShift);
                 }
-                float& tileBound = bound[std::size_t(x) + std::size_t(tilesX_) * std::size_t(y)];
+                float& tileBound =
+                    bound[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
                 tileBound = std::min(tileBound, least - rounding);
             }
     }
@@ -195,27 +202,27 @@ float ShadowMap::findNearestDepth() const {
     float nearest = std::numeric_limits<float>::infinity();
     for (int tile : order) {
         if (bound[std::size_t(tile)] >= nearest) break;
-        traceTileOnce(tile);
-        const int x0 = (tile % tilesX_) * kTileTexels, y0 = (tile / tilesX_) * kTileTexels;
-        for (int y = y0; y < std::min(y0 + kTileTexels, height_); ++y)
-            for (int x = x0; x < std::min(x0 + kTileTexels, width_); ++x)
-                nearest = std::min(nearest,
-                                   depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)]);
+        traceTileOnce(finest, tile);
+        const int x0 = (tile % finest.tilesX) * kTileTexels,
+                  y0 = (tile / finest.tilesX) * kTileTexels;
+        for (int y = y0; y < std::min(y0 + kTileTexels, finest.height); ++y)
+            for (int x = x0; x < std::min(x0 + kTileTexels, finest.width); ++x)
+                nearest = std::min(nearest, finest.depths[finest.index(x, y)]);
     }
     return nearest;
 }
 
-void ShadowMap::traceTile(int tile) const {
-    const int x0 = (tile % tilesX_) * kTileTexels;
-    const int y0 = (tile / tilesX_) * kTileTexels;
-    const int x1 = std::min(x0 + kTileTexels, width_);
-    const int y1 = std::min(y0 + kTileTexels, height_);
+void ShadowMap::traceTile(const Level& level, int tile) const {
+    const int x0 = (tile % level.tilesX) * kTileTexels;
+    const int y0 = (tile / level.tilesX) * kTileTexels;
+    const int x1 = std::min(x0 + kTileTexels, level.width);
+    const int y1 = std::min(y0 + kTileTexels, level.height);
     TraceCounters counters;
     constexpr int kBatch = int(SceneTracer::kMaxBatchRays);
     Ray rays[kBatch];
     SurfaceHit hits[kBatch];
     bool found[kBatch];
-    int texels[kBatch];
+    std::size_t texels[kBatch];
     // The tile's texels in batches traced together: their marches interleave (SceneTracer). A
     // ray's hit does not depend on the others in its batch.
     const int tileWidth = x1 - x0;
@@ -225,10 +232,10 @@ void ShadowMap::traceTile(int tile) const {
         for (int k = 0; k < batch; ++k) {
             const int x = x0 + (first + k) % tileWidth;
             const int y = y0 + (first + k) / tileWidth;
-            const float across = originPlane_.x + (float(x) + 0.5f) * texelWorld_;
-            const float along = originPlane_.y + (float(y) + 0.5f) * texelWorld_;
+            const float across = originPlane_.x + (float(x) + 0.5f) * level.texelWorld;
+            const float along = originPlane_.y + (float(y) + 0.5f) * level.texelWorld;
             rays[k] = {axisX_ * across + axisY_ * along - toLight_ * startDepth_, -toLight_};
-            texels[k] = x + width_ * y;
+            texels[k] = level.index(x, y);
         }
         // Only where the rays stop matters here: no detail normals.
         tracer_.traceNearestBatch(std::span(rays, std::size_t(batch)), 0.0f,
@@ -236,20 +243,36 @@ void ShadowMap::traceTile(int tile) const {
                                   std::span(found, std::size_t(batch)), counters,
                                   /*withNormals=*/false);
         for (int k = 0; k < batch; ++k) {
-            if (found[k]) depths_[std::size_t(texels[k])] = startDepth_ + hits[k].distanceWorld;
+            level.depths[texels[k]] = found[k] ? startDepth_ + hits[k].distanceWorld
+                                               : std::numeric_limits<float>::infinity();
         }
     }
     tracedTexels_.fetch_add(std::uint64_t(count), std::memory_order_relaxed);
-    tileDone_[std::size_t(tile)].store(true, std::memory_order_release);
+    level.tileDone[std::size_t(tile)].store(true, std::memory_order_release);
 }
 
-float ShadowMap::lookup(const glm::vec2& planeWorld) const {
-    const float x = std::floor((planeWorld.x - originPlane_.x) / texelWorld_);
-    const float y = std::floor((planeWorld.y - originPlane_.y) / texelWorld_);
-    if (!(x >= 0.0f && y >= 0.0f && x < float(width_) && y < float(height_))) {
+std::uint64_t ShadowMap::texelCount() const {
+    std::uint64_t texels = 0;
+    for (const Level& level : levels_)
+        texels += std::uint64_t(level.width) * std::uint64_t(level.height);
+    return texels;
+}
+
+float ShadowMap::lookup(const Level& level, const glm::vec2& planeWorld) const {
+    const float x = std::floor((planeWorld.x - originPlane_.x) / level.texelWorld);
+    const float y = std::floor((planeWorld.y - originPlane_.y) / level.texelWorld);
+    if (!(x >= 0.0f && y >= 0.0f && x < float(level.width) && y < float(level.height))) {
         return std::numeric_limits<float>::infinity();
     }
-    return depthAt(int(x), int(y));
+    const int column = int(x), row = int(y);
+    traceTileOnce(level, (column / kTileTexels) + level.tilesX * (row / kTileTexels));
+    return level.depths[level.index(column, row)];
+}
+
+const ShadowMap::Level& ShadowMap::levelFor(float texelWorld) const {
+    std::size_t index = 0;
+    while (index + 1 < levels_.size() && levels_[index + 1].texelWorld <= texelWorld) ++index;
+    return levels_[index];
 }
 
 float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
@@ -265,34 +288,41 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     const glm::vec2 slope =
         glm::vec2(glm::dot(receiver.normal, axisX_), glm::dot(receiver.normal, axisY_)) /
         std::max(facing, kMinFacing);
-    // A nearest-texel lookup lands up to 0.71 texel from the asked point; on the slope that is
-    // 0.71 texel * |slope| of depth. One texel (plus one of slope) covers it with margin.
-    const float quantisationBias = texelWorld_ * (1.0f + glm::length(slope));
-    // Depth of the blocker at `offset` from the receiver, or +infinity if nothing there blocks.
-    auto blocker = [&](const glm::vec2& offset) {
-        const float stored = lookup(centre + offset);
+    // A nearest-texel lookup lands up to 0.71 texel (of the level read) from the asked point; on
+    // the slope that is 0.71 texel * |slope| of depth. One texel (plus one of slope) covers it
+    // with margin.
+    const float slopeLength = glm::length(slope);
+    // Depth of the blocker at `offset` from the receiver in `level`, or +infinity if nothing
+    // there blocks.
+    auto blocker = [&](const Level& level, const glm::vec2& offset) {
+        const float stored = lookup(level, centre + offset);
         const float reference = receiverDepth + glm::dot(slope, offset);
-        const float bias = quantisationBias + kCurvatureSlack * glm::length(offset);
+        const float bias =
+            level.texelWorld * (1.0f + slopeLength) + kCurvatureSlack * glm::length(offset);
         return stored < reference - bias ? stored : std::numeric_limits<float>::infinity();
     };
+    const float finestTexelWorld = levels_[0].texelWorld;
+    const float footprint = receiver.footprintWorld;
 
     // The widest penumbra possible here: from the surface nearest to the light anywhere.
     const float searchRadius =
         std::min(tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f),
-                 kMaxSearchTexels * texelWorld_);
-    if (searchRadius < 0.5f * texelWorld_) {  // a disk inside one texel: a hard shadow, one sample
+                 kMaxSearchTexels * finestTexelWorld);
+    // A disk inside one texel: a hard shadow, one sample.
+    if (searchRadius < 0.5f * finestTexelWorld) {
         ++samples;
-        return std::isinf(blocker(glm::vec2(0.0f))) ? 1.0f : 0.0f;
+        return std::isinf(blocker(levelFor(footprint), glm::vec2(0.0f))) ? 1.0f : 0.0f;
     }
 
     const std::uint32_t pixelSeed = mixBits(seed);
     const float rotation = kTwoPi * unitFloat(mixBits(pixelSeed ^ 0x68bc21ebU));
     // The outer ring: penumbra test and blocker search in one.
+    const Level& ringLevel = levelFor(std::max(footprint, searchRadius / kTexelsPerFilterRadius));
     int blocked = 0;
     float blockerDepthSum = 0.0f;
     for (int angular = 0; angular < kStrata; ++angular) {
-        const float depth =
-            blocker(diskOffset(angular, kStrata - 1, pixelSeed, rotation) * searchRadius);
+        const float depth = blocker(
+            ringLevel, diskOffset(angular, kStrata - 1, pixelSeed, rotation) * searchRadius);
         if (!std::isinf(depth)) {
             ++blocked;
             blockerDepthSum += depth;
@@ -309,13 +339,14 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
             ? searchRadius
             : std::clamp(tanHalfAngle_ * (receiverDepth - blockerDepthSum / float(blocked)), 0.0f,
                          searchRadius);
+    const Level& diskLevel = levelFor(std::max(footprint, filterRadius / kTexelsPerFilterRadius));
     int lit = 0;
     for (int radial = 0; radial < kStrata; ++radial) {
         for (int angular = 0; angular < kStrata; ++angular) {
-            lit +=
-                std::isinf(blocker(diskOffset(angular, radial, pixelSeed, rotation) * filterRadius))
-                    ? 1
-                    : 0;
+            lit += std::isinf(blocker(
+                       diskLevel, diskOffset(angular, radial, pixelSeed, rotation) * filterRadius))
+                       ? 1
+                       : 0;
         }
     }
     samples += kShadowDiskSamples;

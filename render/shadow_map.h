@@ -8,7 +8,11 @@
 /// casts the shadow. A texel stores the depth of the nearest hit along the light direction, in
 /// world units. The map is traced in square tiles of kTileTexels, each the first time a lookup
 /// reaches it: only where a receiver looks (a view sees a fraction of the scene, and its
-/// receivers' filter disks a fraction of the light's view of it). Lookups filter it with 64
+/// receivers' filter disks a fraction of the light's view of it). The map has kLevels levels of
+/// doubling texel size, each traced the same lazy way, and a lookup reads the coarsest level its
+/// receiver needs: texels no larger than the receiver's pixel footprint, or than half the radius
+/// of the disk the samples spread over, whichever is larger (the 64 samples of a disk of radius
+/// r blur the shadow over r: texels much finer than that change little). Lookups filter with 64
 /// jittered samples warped to a disk (an 8 x 8 stratified grid, polar warp); the adaptive filter
 /// first takes the 8 samples of the outer ring and stops when they agree.
 #pragma once
@@ -48,6 +52,9 @@ constexpr int kShadowDiskSamples = 64;
 struct ShadowReceiver {
     glm::vec3 surfaceWorld;  ///< on the base surface above the shaded point (the top of its shell)
     glm::vec3 normal;        ///< base-surface normal there, unit, outward
+    /// The smallest width of the receiver's pixel as the light sees it, world units: texels
+    /// finer than this are not resolved by the image. 0: the finest level is read.
+    float footprintWorld = 0.0f;
 };
 
 class ShadowMap {
@@ -62,12 +69,20 @@ class ShadowMap {
     /// little a receiver does not ask for, large enough for whole batches of light rays.
     static constexpr int kTileTexels = 16;
 
+    /// Levels of the map: level k has texels 2^k times the finest level's.
+    static constexpr int kLevels = 4;
+    /// Samples spread over a disk of radius r read a level whose texels are at most r divided by
+    /// this (unless the receiver's footprint allows larger ones).
+    static constexpr float kTexelsPerFilterRadius = 2.0f;
+
     /// The map of `light` over the scene of `tracer`: bounds of every base mesh grown by the
-    /// deepest detail shell, `resolutionTexels` texels along the longer side, square texels.
-    /// Nothing is traced yet: a tile is traced by the thread whose lookup first reaches it (others
-    /// wait for it), so every texel holds what a full build gives, whatever the thread count and
-    /// order. Preconditions: validateScene passed for tracer.scene(); `tracer` outlives the map.
-    /// Throws InputError unless resolutionTexels is in [16, 16384].
+    /// deepest detail shell, `resolutionTexels` texels along the longer side of the finest level,
+    /// square texels.
+    /// Nothing is traced yet but the finest level's tiles that may hold the nearest depth: a tile
+    /// is traced by the thread whose lookup first reaches it (others wait for it), so every texel
+    /// holds what a full build gives, whatever the thread count and order. Preconditions:
+    /// validateScene passed for tracer.scene(); `tracer` outlives the map. Throws InputError unless
+    /// resolutionTexels is in [16, 16384].
     ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
               int resolutionTexels = kDefaultResolution);
 
@@ -76,35 +91,66 @@ class ShadowMap {
     /// blocker distance (the penumbra of a light of that angular diameter). Blockers are surfaces
     /// nearer to the light than the receiver's base-surface tangent plane, so its own detail never
     /// shadows it here. `seed` fixes the per-pixel rotation and jitter of the samples (the same
-    /// seed gives the same answer). Adds the samples taken to `samples`: none when the receiver
+    /// seed gives the same answer). The level read follows receiver.footprintWorld and the disks'
+    /// radii (kTexelsPerFilterRadius). Adds the samples taken to `samples`: none when the receiver
     /// faces away from the light (it returns 0), 1 for a light of angle 0 (hard shadow), 8 or 72
     /// for Adaptive, 72 for Full. Precondition: filter is not None.
     float visibility(const ShadowReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
                      std::uint64_t& samples) const;
 
-    int width() const { return width_; }
-    int height() const { return height_; }
-    float texelWorld() const { return texelWorld_; }
-    /// Stored depth of texel (x, y) along the light direction, world units; +infinity where the
-    /// light ray hit nothing. Traces the texel's tile if no lookup has. Preconditions:
-    /// 0 <= x < width(), 0 <= y < height(). Thread-safe.
-    float depthAt(int x, int y) const {
-        traceTileOnce((x / kTileTexels) + tilesX_ * (y / kTileTexels));
-        return depths_[std::size_t(x) + std::size_t(width_) * std::size_t(y)];
+    /// The finest level's size, texels, and texel side, world units.
+    int width() const { return levels_[0].width; }
+    int height() const { return levels_[0].height; }
+    float texelWorld() const { return levels_[0].texelWorld; }
+    /// Stored depth of texel (x, y) of level `level` along the light direction, world units;
+    /// +infinity where the light ray hit nothing. Traces the texel's tile if no lookup has.
+    /// Preconditions: 0 <= level < kLevels, (x, y) inside the level. Thread-safe.
+    float depthAt(int x, int y, int level = 0) const {
+        const Level& at = levels_[std::size_t(level)];
+        traceTileOnce(at, (x / kTileTexels) + at.tilesX * (y / kTileTexels));
+        return at.depths[at.index(x, y)];
     }
-    /// Texels traced so far (whole tiles, clipped to the map), at most width() x height().
+    /// Texels traced so far (whole tiles, clipped to their level), all levels.
     std::uint64_t tracedTexels() const { return tracedTexels_.load(std::memory_order_relaxed); }
+    /// Texels of all levels, traced or not.
+    std::uint64_t texelCount() const;
 
   private:
-    /// Depth stored at the texel containing light-plane point `planeWorld`; +infinity outside.
-    float lookup(const glm::vec2& planeWorld) const;
-    /// Traces tile `tile` (row-major over tilesX_ x tilesY_) unless it is done; returns once it is.
-    void traceTileOnce(int tile) const {
-        if (tileDone_[std::size_t(tile)].load(std::memory_order_acquire)) return;
-        std::call_once(tileOnce_[std::size_t(tile)], [&] { traceTile(tile); });
+    /// One level: a grid of light rays over the map's bounds, traced a tile at a time.
+    struct Level {
+        float texelWorld = 1.0f;
+        int width = 0;
+        int height = 0;
+        int tilesX = 0;
+        int tilesY = 0;
+        /// Tile by tile (row-major over the tiles), each tile's kTileTexels^2 texels row-major
+        /// (edge tiles padded), so a lookup's disk reads a few contiguous tiles. Left
+        /// uninitialised: a tile's texels are written once, by traceTile, so the memory of tiles
+        /// no lookup reaches is never touched.
+        std::unique_ptr<float[]> depths;
+        /// Where texel (x, y) is stored in depths.
+        std::size_t index(int x, int y) const {
+            const auto tile =
+                std::size_t(x / kTileTexels) + std::size_t(tilesX) * std::size_t(y / kTileTexels);
+            return tile * std::size_t(kTileTexels * kTileTexels) +
+                   std::size_t((y % kTileTexels) * kTileTexels + x % kTileTexels);
+        }
+        std::unique_ptr<std::once_flag[]> tileOnce;
+        std::unique_ptr<std::atomic<bool>[]> tileDone;
+    };
+    /// Depth stored at the texel of `level` containing light-plane point `planeWorld`;
+    /// +infinity outside.
+    float lookup(const Level& level, const glm::vec2& planeWorld) const;
+    /// The coarsest level whose texels are at most `texelWorld` (the finest if none is).
+    const Level& levelFor(float texelWorld) const;
+    /// Traces tile `tile` (row-major over the level's tiles) unless it is done; returns once it
+    /// is.
+    void traceTileOnce(const Level& level, int tile) const {
+        if (level.tileDone[std::size_t(tile)].load(std::memory_order_acquire)) return;
+        std::call_once(level.tileOnce[std::size_t(tile)], [&] { traceTile(level, tile); });
     }
-    void traceTile(int tile) const;
-    /// The smallest depth of the whole map, from only the tiles that may hold it.
+    void traceTile(const Level& level, int tile) const;
+    /// The smallest depth of the finest level, from only the tiles that may hold it.
     float findNearestDepth() const;
 
     const SceneTracer& tracer_;
@@ -115,15 +161,7 @@ class ShadowMap {
     float tanHalfAngle_ = 0.0f;
     float nearestDepth_ = 0.0f;  ///< smallest stored depth (the blocker nearest the light)
     float startDepth_ = 0.0f;    ///< where the light rays start: in front of everything
-    float texelWorld_ = 1.0f;
-    int width_ = 0;
-    int height_ = 0;
-    int tilesX_ = 0;
-    int tilesY_ = 0;
-    mutable std::vector<float>
-        depths_;  ///< row-major; a tile's texels are written once, by traceTile
-    std::unique_ptr<std::once_flag[]> tileOnce_;
-    std::unique_ptr<std::atomic<bool>[]> tileDone_;
+    std::vector<Level> levels_;  ///< kLevels, the finest first
     mutable std::atomic<std::uint64_t> tracedTexels_{0};
 };
 

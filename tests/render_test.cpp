@@ -416,6 +416,40 @@ TEST(ShadowMap, TracesOnlyWhereLookupsReachAndAgreesWithEveryTileTraced) {
             ASSERT_EQ(lazy.depthAt(x, y), whole.depthAt(x, y));
 }
 
+TEST(ShadowMap, ReceiversWithLargeFootprintsReadCoarserLevels) {
+    const Scene scene = occluderScene();
+    const SceneTracer tracer(scene, TraceOptions{});
+    const ShadowMap fine(tracer, scene.lights[0], 1024);
+    const ShadowMap coarse(tracer, scene.lights[0], 1024);
+    ASSERT_EQ(fine.tracedTexels(), coarse.tracedTexels());  // the nearest depth's tiles
+    const std::uint64_t searched = fine.tracedTexels();
+    const glm::vec3 up(0.0f, 0.0f, 1.0f);
+    // Pixels 8 finest texels wide read the coarsest level, whose texels are that wide.
+    const float footprint = 8.0f * coarse.texelWorld();
+    std::uint64_t samples = 0;
+    for (std::uint32_t seed = 0; seed < 8; ++seed) {
+        // Under the occluder's middle, and a grid beside it: the same answers at any level.
+        EXPECT_EQ(coarse.visibility({{0.05f, -0.03f, 0.0f}, up, footprint}, ShadowFilter::Full,
+                                    seed, samples),
+                  0.0f);
+        for (float y = 0.35f; y < 0.9f; y += 0.05f)
+            for (float x = 0.35f; x < 0.9f; x += 0.05f) {
+                EXPECT_EQ(fine.visibility({{x, y, 0.0f}, up}, ShadowFilter::Full, seed, samples),
+                          1.0f);
+                EXPECT_EQ(coarse.visibility({{x, y, 0.0f}, up, footprint}, ShadowFilter::Full, seed,
+                                            samples),
+                          1.0f);
+            }
+    }
+    // The grid's 0.55 x 0.55 units: tiles of 16 x 16 finer texels for the blocker search's disk
+    // (8.7 mm radius, texels of at most half of it: level 1), of 16 x 16 coarsest texels (8 x 8
+    // times the area) for the large pixels.
+    const std::uint64_t fineTexels = fine.tracedTexels() - searched;
+    const std::uint64_t coarseTexels = coarse.tracedTexels() - searched;
+    EXPECT_GT(coarseTexels, 0u);
+    EXPECT_LT(8 * coarseTexels, fineTexels) << coarseTexels << " " << fineTexels;
+}
+
 TEST(ShadowMap, RejectsBadResolutions) {
     const Scene scene = occluderScene();
     const SceneTracer tracer(scene, TraceOptions{});
