@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
 #include <cstdint>
@@ -72,26 +73,37 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
     // Progress: the distances are most of the work; the sign takes the last step.
     const int steps = slices + (signedByWindingNumber ? 1 : 0);
 
-    // Along a row, the previous voxel's nearest triangle starts the search: the same exact
-    // result (a hint only speeds a query up), much less of the tree visited.
-    for (int slice = 0; slice < slices; ++slice) {
-        tbb::parallel_for(tbb::blocked_range<int>(0, tile.height),
-                          [&](const tbb::blocked_range<int>& rows) {
-                              // A row starts from the nearest triangle of the previous
-                              // row's first voxel.
-                              SoupDistance::NearestHint rowStart;
-                              for (int j = rows.begin(); j != rows.end(); ++j) {
-                                  const std::size_t first =
-                                      std::size_t(slice) * slabSize + std::size_t(j) * rowLength;
-                                  SoupDistance::NearestHint hint = rowStart;
-                                  for (std::size_t i = 0; i < rowLength; ++i) {
-                                      distances[first + i] = soup.unsignedDistance(
-                                          centre(first + i), cutoffTexels, hint);
-                                      if (i == 0) rowStart = hint;
-                                  }
-                              }
-                          });
-        if (progress) progress(double(slice + 1) / steps);
+    // Columns of kColumn x kColumn voxels through all the slices, each row of a column started
+    // from the nearest triangle of the row below it (that of the slice below for a column's first
+    // row) and each voxel from its neighbour's in the row: a hint gives the same exact result
+    // faster, and the triangles near a column stay in the core's cache while it is measured.
+    // Progress after each row of columns.
+    constexpr int kColumn = 8;
+    const int columnsX = (tile.width + kColumn - 1) / kColumn;
+    const int columnsY = (tile.height + kColumn - 1) / kColumn;
+    for (int columnRow = 0; columnRow < columnsY; ++columnRow) {
+        tbb::parallel_for(0, columnsX, [&](int column) {
+            const int i0 = column * kColumn, i1 = std::min(tile.width, i0 + kColumn);
+            const int j0 = columnRow * kColumn, j1 = std::min(tile.height, j0 + kColumn);
+            SoupDistance::NearestHint sliceStart;
+            for (int slice = 0; slice < slices; ++slice) {
+                SoupDistance::NearestHint rowStart = sliceStart;
+                for (int j = j0; j < j1; ++j) {
+                    const std::size_t first =
+                        std::size_t(slice) * slabSize + std::size_t(j) * rowLength;
+                    SoupDistance::NearestHint hint = rowStart;
+                    for (int i = i0; i < i1; ++i) {
+                        distances[first + std::size_t(i)] = soup.unsignedDistance(
+                            centre(first + std::size_t(i)), cutoffTexels, hint);
+                        if (i == i0) {
+                            rowStart = hint;
+                            if (j == j0) sliceStart = hint;
+                        }
+                    }
+                }
+            }
+        });
+        if (progress) progress(double(columnRow + 1) / columnsY * slices / steps);
     }
     if (!signedByWindingNumber) return grid;
 
