@@ -6,6 +6,7 @@
 #include <glm/trigonometric.hpp>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "common/error.h"
 
@@ -100,7 +101,6 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     const glm::vec2 extent = planeHigh - planeLow;
     const float longer = std::max({extent.x, extent.y, 1e-6f});
     originPlane_ = planeLow;
-    levels_.resize(kLevels);
     for (int index = 0; index < kLevels; ++index) {
         Level& level = levels_[std::size_t(index)];
         const int resolution = std::max(resolutionTexels >> index, 1);
@@ -264,9 +264,7 @@ float ShadowMap::lookup(const Level& level, const glm::vec2& planeWorld) const {
     if (!(x >= 0.0f && y >= 0.0f && x < float(level.width) && y < float(level.height))) {
         return std::numeric_limits<float>::infinity();
     }
-    const int column = int(x), row = int(y);
-    traceTileOnce(level, (column / kTileTexels) + level.tilesX * (row / kTileTexels));
-    return level.depths[level.index(column, row)];
+    return depthAt(level, int(x), int(y));
 }
 
 const ShadowMap::Level& ShadowMap::levelFor(float texelWorld) const {

@@ -17,13 +17,13 @@
 /// first takes the 8 samples of the outer ring and stops when they agree.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <memory>
 #include <mutex>
-#include <vector>
 
 #include "render/scene.h"
 #include "render/tracer.h"
@@ -106,9 +106,7 @@ class ShadowMap {
     /// +infinity where the light ray hit nothing. Traces the texel's tile if no lookup has.
     /// Preconditions: 0 <= level < kLevels, (x, y) inside the level. Thread-safe.
     float depthAt(int x, int y, int level = 0) const {
-        const Level& at = levels_[std::size_t(level)];
-        traceTileOnce(at, (x / kTileTexels) + at.tilesX * (y / kTileTexels));
-        return at.depths[at.index(x, y)];
+        return depthAt(levels_[std::size_t(level)], x, y);
     }
     /// Texels traced so far (whole tiles, clipped to their level), all levels.
     std::uint64_t tracedTexels() const { return tracedTexels_.load(std::memory_order_relaxed); }
@@ -138,6 +136,11 @@ class ShadowMap {
         std::unique_ptr<std::once_flag[]> tileOnce;
         std::unique_ptr<std::atomic<bool>[]> tileDone;
     };
+    /// depthAt in `level`.
+    float depthAt(const Level& level, int x, int y) const {
+        traceTileOnce(level, (x / kTileTexels) + level.tilesX * (y / kTileTexels));
+        return level.depths[level.index(x, y)];
+    }
     /// Depth stored at the texel of `level` containing light-plane point `planeWorld`;
     /// +infinity outside.
     float lookup(const Level& level, const glm::vec2& planeWorld) const;
@@ -159,9 +162,9 @@ class ShadowMap {
     glm::vec3 axisY_{0.0f, 1.0f, 0.0f};    ///< unit, across the map
     glm::vec2 originPlane_{0.0f};  ///< light-plane coordinates of the map's corner, world units
     float tanHalfAngle_ = 0.0f;
-    float nearestDepth_ = 0.0f;  ///< smallest stored depth (the blocker nearest the light)
-    float startDepth_ = 0.0f;    ///< where the light rays start: in front of everything
-    std::vector<Level> levels_;  ///< kLevels, the finest first
+    float nearestDepth_ = 0.0f;          ///< smallest stored depth (the blocker nearest the light)
+    float startDepth_ = 0.0f;            ///< where the light rays start: in front of everything
+    std::array<Level, kLevels> levels_;  ///< the finest first
     mutable std::atomic<std::uint64_t> tracedTexels_{0};
 };
 
