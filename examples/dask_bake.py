@@ -109,6 +109,12 @@ def local_cluster(workers, processes=False):
                         dashboard_address=None)
 
 
+def refuse(message):
+    """Exits with distile's status for refused input, 2, and `message` on stderr."""
+    print(f"dask_bake: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("meshes", help="folder of detail meshes (OBJ, PLY, OFF, STL)")
@@ -132,12 +138,14 @@ def main(argv=None):
                         "use an empty cache too, unless --cache gives one")
     arguments = parser.parse_args(argv)
 
-    import distile  # noqa: F401  (loaded before the clock starts, as the serial loop has it)
+    import distile  # loaded before the clock starts, as the serial loop has it
     from dask.distributed import Client
 
+    if not os.path.isdir(arguments.meshes):
+        refuse(f"{arguments.meshes} is not a folder; give the folder of the meshes to bake")
     meshes = meshes_in(os.path.abspath(arguments.meshes))
     if not meshes:
-        sys.exit(f"dask_bake: no mesh files (OBJ, PLY, OFF, STL) in {arguments.meshes}")
+        refuse(f"no mesh files (OBJ, PLY, OFF, STL) in {arguments.meshes}")
     out = os.path.abspath(arguments.out)
     cache = arguments.cache and os.path.abspath(arguments.cache)
     scratch_cache = None
@@ -158,6 +166,8 @@ def main(argv=None):
         started = time.perf_counter()
         baked = bake_folder(client, meshes, out, arguments.size, cache, threads)
         done = time.perf_counter()
+    except (distile.InputError, distile.FormatError) as error:
+        refuse(str(error))  # distile's message names the mesh and what is wrong with it
     finally:
         client.close()
         if cluster is not None:

@@ -90,3 +90,24 @@ def test_dask_bakes_eight_meshes_as_a_serial_loop_does(tmp_path, source_dir, mon
         assert tile.metadata["source"] == "mesh"
     # The tiles differ from one another: each is its own mesh's.
     assert len(set(serial.values())) == 8
+
+
+def test_dask_example_refuses_a_bad_mesh_with_distiles_message(tmp_path, source_dir, monkeypatch,
+                                                               capsys):
+    example = load_example(source_dir)
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    write_torus(folder / "good.obj", 0.2)
+    (folder / "broken.obj").write_text("v 0 0 0\nf 1 2 3\n")
+    monkeypatch.setenv("DISTILE_CACHE", str(tmp_path / "cache"))
+    with pytest.raises(SystemExit) as exit_status:
+        example.main([str(folder), str(tmp_path / "tiles"), "--size", "32x32x8"])
+    assert exit_status.value.code == 2
+    message = capsys.readouterr().err
+    assert "broken.obj: line 2" in message and "refers to vertex 2" in message
+    assert not (tmp_path / "tiles" / "broken.exr").exists()
+
+    with pytest.raises(SystemExit) as exit_status:
+        example.main([str(tmp_path / "no-such-folder"), str(tmp_path / "tiles")])
+    assert exit_status.value.code == 2
+    assert "is not a folder" in capsys.readouterr().err
