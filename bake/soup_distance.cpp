@@ -109,6 +109,18 @@ double solidAngle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
 
 }  // namespace
 
+SoupDistance::Triangle SoupDistance::asSegmentIfSliver(const Triangle& triangle) {
+    const glm::dvec3 ab = triangle.b - triangle.a, ac = triangle.c - triangle.a;
+    const glm::dvec3 normal = glm::cross(ab, ac);
+    // Collinear to within 1e-10 of the sine of the angle at a (a zero-length edge included).
+    if (glm::dot(normal, normal) > 1e-20 * glm::dot(ab, ab) * glm::dot(ac, ac)) return triangle;
+    const double ab2 = glm::dot(ab, ab), ac2 = glm::dot(ac, ac);
+    const glm::dvec3 bc = triangle.c - triangle.b;
+    if (ab2 >= ac2 && ab2 >= glm::dot(bc, bc)) return {triangle.a, triangle.b, triangle.b};
+    if (ac2 >= glm::dot(bc, bc)) return {triangle.a, triangle.c, triangle.c};
+    return {triangle.b, triangle.c, triangle.c};
+}
+
 std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
     // Position ids: equal positions (-0.0 and +0.0 alike) get one id, by sorting.
     std::vector<std::uint32_t> byPosition(soup.positions.size());
@@ -164,9 +176,10 @@ SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     std::vector<BuildItem> items(count);
     tbb::parallel_for(std::size_t(0), count, [&](std::size_t n) {
         const glm::uvec3& t = soupTexels.triangles[n];
-        input[n] = {soupTexels.positions[t.x], soupTexels.positions[t.y],
-                    soupTexels.positions[t.z]};
-        items[n] = {input[n].a + input[n].b + input[n].c, std::uint32_t(n)};
+        const Triangle triangle{soupTexels.positions[t.x], soupTexels.positions[t.y],
+                                soupTexels.positions[t.z]};
+        input[n] = asSegmentIfSliver(triangle);
+        items[n] = {triangle.a + triangle.b + triangle.c, std::uint32_t(n)};
     });
     const std::uint32_t nodeCount = subtreeNodeCounts(std::uint32_t(count)).first;
     nodes_.resize(nodeCount);
@@ -362,30 +375,25 @@ double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
         _mm_store_ps(squared, _mm_add_ps(_mm_add_ps(outside(node.minX, node.maxX, px),
                                                     outside(node.minY, node.maxY, py)),
                                          outside(node.minZ, node.maxZ, pz)));
-        // Leaves at once (nearest first), inner children pushed farther first, so the nearest
-        // is visited next.
-        std::array<int, 4> nearer;
-        int hits = 0;
+        // Leaves at once, inner children pushed with the nearest last, so it is visited next. A
+        // hint makes the threshold tight from the start, so the order of the others barely
+        // matters, and leaving them unsorted saves more than it costs.
+        int nearest = -1;
         for (int c = 0; c < 4; ++c) {
             if (!(squared[c] < threshold)) continue;
-            int slot = hits++;
-            while (slot > 0 && squared[nearer[slot - 1]] > squared[c]) {
-                nearer[slot] = nearer[slot - 1];
-                --slot;
+            if (node.count[c] > 0) {
+                for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t)
+                    testTriangle(t);
+            } else if (nearest < 0 || squared[c] < squared[nearest]) {
+                nearest = c;
             }
-            nearer[slot] = c;
         }
-        for (int h = 0; h < hits; ++h) {
-            const int c = nearer[h];
-            if (node.count[c] == 0 || !(squared[c] < threshold)) continue;
-            for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t)
-                testTriangle(t);
+        assert(size + 4 <= kStackSize);
+        for (int c = 0; c < 4; ++c) {
+            if (node.count[c] == 0 && c != nearest && squared[c] < threshold)
+                stack[size++] = {node.child[c], squared[c]};
         }
-        assert(size + hits <= kStackSize);
-        for (int h = hits - 1; h >= 0; --h) {
-            const int c = nearer[h];
-            if (node.count[c] == 0) stack[size++] = {node.child[c], squared[c]};
-        }
+        if (nearest >= 0) stack[size++] = {node.child[nearest], squared[nearest]};
     }
     return bestSquared;
 }

@@ -138,6 +138,11 @@ class SoupDistance {
     struct Triangle {
         glm::dvec3 a, b, c;
     };
+    /// A triangle whose corners are collinear to within rounding as the segment it is: its
+    /// longest edge, the far corner repeated. The closest-point test's region tests cannot
+    /// classify points against such a sliver (they pick a wrong region, off by up to its length),
+    /// while on (a, b, b) they reduce exactly to the segment ab.
+    static Triangle asSegmentIfSliver(const Triangle& triangle);
 
     /// A triangle as the build sorts it: the sum of its corners (three times its centroid).
     struct BuildItem {
