@@ -123,130 +123,131 @@ SoupDistance::Triangle SoupDistance::asSegmentIfSliver(const Triangle& triangle)
 
 std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
     // Position ids: equal positions (-0.0 and +0.0 alike) get one id, by sorting.
-    std::vector<std::uint32_t> byPosition(soup.positions.size());
-    for (std::uint32_t v = 0; v < byPosition.size(); ++v) byPosition[v] = v;
-    const auto less = [&soup](std::uint32_t l, std::uint32_t r) {
-        const glm::dvec3& a = soup.positions[l];
-        const glm::dvec3& b = soup.positions[r];
+    struct Corner {
+        glm::dvec3 position;
+        std::uint32_t index;
+    };
+    std::vector<Corner> byPosition(soup.positions.size());
+    for (std::uint32_t v = 0; v < byPosition.size(); ++v) byPosition[v] = {soup.positions[v], v};
+    const auto less = [](const glm::dvec3& a, const glm::dvec3& b) {
         return a.x < b.x || (a.x == b.x && (a.y < b.y || (a.y == b.y && a.z < b.z)));
     };
-    tbb::parallel_sort(byPosition.begin(), byPosition.end(), less);
+    tbb::parallel_sort(byPosition.begin(), byPosition.end(),
+                       [&less](const Corner& l, const Corner& r) {
+                           return less(l.position, r.position);
+                       });
     std::vector<std::uint32_t> idOf(soup.positions.size());
     std::vector<glm::dvec3> positionOfId;
     for (std::size_t n = 0; n < byPosition.size(); ++n) {
-        if (n == 0 || less(byPosition[n - 1], byPosition[n]))
-            positionOfId.push_back(soup.positions[byPosition[n]]);
-        idOf[byPosition[n]] = std::uint32_t(positionOfId.size() - 1);
+        if (n == 0 || less(byPosition[n - 1].position, byPosition[n].position))
+            positionOfId.push_back(byPosition[n].position);
+        idOf[byPosition[n].index] = std::uint32_t(positionOfId.size() - 1);
     }
-    std::vector<std::uint64_t> upward, downward;
-    upward.reserve(3 * soup.triangles.size() / 2 + 1);
-    downward.reserve(upward.capacity());
-    for (const glm::uvec3& t : soup.triangles) {
-        for (int c = 0; c < 3; ++c) {
-            const std::uint32_t from = idOf[t[c]], to = idOf[t[(c + 1) % 3]];
-            if (from == to) continue;
-            const std::uint64_t key =
-                (std::uint64_t(std::min(from, to)) << 32) | std::max(from, to);
-            (from < to ? upward : downward).push_back(key);
+    // Each edge under its lower id, with its higher id and +1 where it is used from the lower to
+    // the higher, -1 the other way (a counting sort by the lower id): an edge is unbalanced where
+    // its uses do not sum to 0.
+    const std::size_t ids = positionOfId.size();
+    std::vector<std::uint32_t> bucketStart(ids + 1, 0);
+    const auto forEachEdge = [&](auto&& visit) {
+        for (const glm::uvec3& t : soup.triangles) {
+            for (int c = 0; c < 3; ++c) {
+                const std::uint32_t from = idOf[t[c]], to = idOf[t[(c + 1) % 3]];
+                if (from != to) visit(from, to);
+            }
         }
-    }
-    // The edges used from the lower to the higher position id, sorted, against those used the
-    // other way: an edge is unbalanced where its two counts differ.
-    tbb::parallel_invoke([&] { tbb::parallel_sort(upward.begin(), upward.end()); },
-                         [&] { tbb::parallel_sort(downward.begin(), downward.end()); });
+    };
+    forEachEdge([&](std::uint32_t from, std::uint32_t to) { ++bucketStart[std::min(from, to) + 1]; });
+    for (std::size_t id = 0; id < ids; ++id) bucketStart[id + 1] += bucketStart[id];
+    // The higher id, its top bit set for uses from the higher id to the lower.
+    constexpr std::uint32_t kDownward = 0x80000000u;
+    std::vector<std::uint32_t> higher(bucketStart[ids]);
+    std::vector<std::uint32_t> filled(bucketStart.begin(), bucketStart.end() - 1);
+    forEachEdge([&](std::uint32_t from, std::uint32_t to) {
+        higher[filled[std::min(from, to)]++] = from < to ? to : (from | kDownward);
+    });
+    assert(ids < kDownward);
+    // Blocks of ids in parallel, each block's edges in id order.
+    constexpr std::size_t kBlockIds = 4096;
+    std::vector<std::vector<UnbalancedEdge>> found((ids + kBlockIds - 1) / kBlockIds);
+    tbb::parallel_for(std::size_t(0), found.size(), [&](std::size_t block) {
+        for (std::size_t id = block * kBlockIds; id < std::min(ids, (block + 1) * kBlockIds); ++id) {
+            const auto begin = higher.begin() + bucketStart[id];
+            const auto end = higher.begin() + bucketStart[id + 1];
+            std::sort(begin, end, [](std::uint32_t l, std::uint32_t r) {
+                return (l & ~kDownward) < (r & ~kDownward);
+            });
+            for (auto edge = begin; edge != end;) {
+                const std::uint32_t other = *edge & ~kDownward;
+                int uses = 0;
+                for (; edge != end && (*edge & ~kDownward) == other; ++edge)
+                    uses += (*edge & kDownward) ? -1 : 1;
+                if (uses != 0) found[block].push_back({positionOfId[id], positionOfId[other]});
+            }
+        }
+    });
     std::vector<UnbalancedEdge> edges;
-    std::size_t u = 0, d = 0;
-    while (u < upward.size() || d < downward.size()) {
-        const bool upwardFirst =
-            d == downward.size() || (u < upward.size() && upward[u] < downward[d]);
-        const std::uint64_t key = upwardFirst ? upward[u] : downward[d];
-        std::size_t ups = 0, downs = 0;
-        for (; u < upward.size() && upward[u] == key; ++u) ++ups;
-        for (; d < downward.size() && downward[d] == key; ++d) ++downs;
-        if (ups != downs)
-            edges.push_back({positionOfId[key >> 32], positionOfId[key & 0xffffffffu]});
-    }
+    for (const std::vector<UnbalancedEdge>& ofBlock : found)
+        edges.insert(edges.end(), ofBlock.begin(), ofBlock.end());
     return edges;
 }
 
 SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     : tile_(tile), bounds_(boundsOf(soupTexels)) {
     const std::size_t count = soupTexels.triangles.size();
-    std::vector<Triangle> input(count);
+    const auto corners = [&soupTexels](std::size_t n) {
+        const glm::uvec3& t = soupTexels.triangles[n];
+        return Triangle{soupTexels.positions[t.x], soupTexels.positions[t.y],
+                        soupTexels.positions[t.z]};
+    };
     std::vector<BuildItem> items(count);
     tbb::parallel_for(std::size_t(0), count, [&](std::size_t n) {
-        const glm::uvec3& t = soupTexels.triangles[n];
-        const Triangle triangle{soupTexels.positions[t.x], soupTexels.positions[t.y],
-                                soupTexels.positions[t.z]};
-        input[n] = asSegmentIfSliver(triangle);
-        items[n] = {triangle.a + triangle.b + triangle.c, std::uint32_t(n)};
+        const Triangle triangle = corners(n);
+        items[n] = {glm::vec3(triangle.a + triangle.b + triangle.c), std::uint32_t(n)};
     });
     const std::uint32_t nodeCount = subtreeNodeCounts(std::uint32_t(count)).first;
     nodes_.resize(nodeCount);
-    dipoles_.resize(nodeCount);
-    std::vector<Box> boxes(nodeCount);
-    std::vector<double> areas(nodeCount);
-    const BuildInput build{input, items, boxes, areas};
-    tbb::parallel_invoke([&] { this->build(0, 0, std::uint32_t(count), build); },
+    tbb::parallel_invoke([&] { split(0, 0, std::uint32_t(count), items); },
                          [&] { windingPiecewiseConstant_ = unbalancedEdges(soupTexels).empty(); });
-    // Leaves hold consecutive triangles: the build's final order.
+    // Leaves hold consecutive triangles: the split's final order.
     triangles_.resize(count);
-    tbb::parallel_for(std::size_t(0), count,
-                      [&](std::size_t n) { triangles_[n] = input[items[n].triangle]; });
+    tbb::parallel_for(std::size_t(0), count, [&](std::size_t n) {
+        triangles_[n] = asSegmentIfSliver(corners(items[n].triangle));
+    });
+    // Dipoles for the nodes the winding number may take whole, in node order.
+    std::uint32_t dipoleCount = 0;
+    for (Node& node : nodes_) {
+        if (node.triangleCount > kWindingLeafTriangles) node.dipole = dipoleCount++;
+    }
+    dipoles_.resize(dipoleCount);
+    std::vector<FloatBox> boxes(nodeCount);
+    bound(0, boxes);
     wideNodes_.reserve(nodeCount / 3 + 1);
     collapse(0, boxes);
 }
 
-void SoupDistance::build(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
-                         const BuildInput& input) {
+void SoupDistance::split(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
+                         std::vector<BuildItem>& items) {
     Node node;
     node.firstTriangle = begin;
     node.triangleCount = end - begin;
-    Dipole& dipole = dipoles_[index];
-    Box& box = input.boxes[index];
     if (end - begin <= kLeafTriangles) {
         node.first = begin;  // the triangles are stored in the final order
         node.count = end - begin;
         nodes_[index] = node;
-        // The leaf's box and dipole from its triangles; the radius reaches its farthest corner.
-        box = {glm::dvec3(HUGE_VAL), glm::dvec3(-HUGE_VAL)};
-        glm::dvec3 weightedCentre(0.0);
-        double area = 0.0;
-        for (std::uint32_t i = begin; i < end; ++i) {
-            const Triangle& t = input.triangles[input.items[i].triangle];
-            box.min = glm::min(box.min, glm::min(t.a, glm::min(t.b, t.c)));
-            box.max = glm::max(box.max, glm::max(t.a, glm::max(t.b, t.c)));
-            const glm::dvec3 vectorArea = 0.5 * glm::cross(t.b - t.a, t.c - t.a);
-            const double triangleArea = glm::length(vectorArea);
-            dipole.vectorArea += vectorArea;
-            weightedCentre += triangleArea * ((t.a + t.b + t.c) / 3.0);
-            area += triangleArea;
-        }
-        dipole.centre = area > 0.0 ? weightedCentre / area : 0.5 * (box.min + box.max);
-        double radiusSquared = 0.0;
-        for (std::uint32_t i = begin; i < end; ++i) {
-            const Triangle& t = input.triangles[input.items[i].triangle];
-            for (const glm::dvec3& corner : {t.a, t.b, t.c}) {
-                const glm::dvec3 offset = corner - dipole.centre;
-                radiusSquared = std::max(radiusSquared, glm::dot(offset, offset));
-            }
-        }
-        dipole.radius = std::sqrt(radiusSquared);
-        input.areas[index] = area;
         return;
     }
     // Median split of the centroids along the longest axis of their box.
-    glm::dvec3 centroidMin(HUGE_VAL), centroidMax(-HUGE_VAL);
+    glm::vec3 centroidMin(HUGE_VALF), centroidMax(-HUGE_VALF);
     for (std::uint32_t i = begin; i < end; ++i) {
-        centroidMin = glm::min(centroidMin, input.items[i].cornerSum);
-        centroidMax = glm::max(centroidMax, input.items[i].cornerSum);
+        centroidMin = glm::min(centroidMin, items[i].cornerSum);
+        centroidMax = glm::max(centroidMax, items[i].cornerSum);
     }
-    const glm::dvec3 spread = centroidMax - centroidMin;
+    const glm::vec3 spread = centroidMax - centroidMin;
     const int axis =
         spread.x >= spread.y && spread.x >= spread.z ? 0 : (spread.y >= spread.z ? 1 : 2);
     const std::uint32_t middle = begin + (end - begin) / 2;
-    std::nth_element(input.items.begin() + begin, input.items.begin() + middle,
-                     input.items.begin() + end, [axis](const BuildItem& l, const BuildItem& r) {
+    std::nth_element(items.begin() + begin, items.begin() + middle, items.begin() + end,
+                     [axis](const BuildItem& l, const BuildItem& r) {
                          return l.cornerSum[axis] < r.cornerSum[axis] ||
                                 (l.cornerSum[axis] == r.cornerSum[axis] && l.triangle < r.triangle);
                      });
@@ -256,32 +257,79 @@ void SoupDistance::build(std::uint32_t index, std::uint32_t begin, std::uint32_t
     node.first = second;
     node.count = 0;
     nodes_[index] = node;
-    const auto buildFirst = [&] { build(first, begin, middle, input); };
-    const auto buildSecond = [&] { build(second, middle, end, input); };
+    const auto splitFirst = [&] { split(first, begin, middle, items); };
+    const auto splitSecond = [&] { split(second, middle, end, items); };
     if (end - begin > kParallelBuildTriangles) {
-        tbb::parallel_invoke(buildFirst, buildSecond);
+        tbb::parallel_invoke(splitFirst, splitSecond);
     } else {
-        buildFirst();
-        buildSecond();
+        splitFirst();
+        splitSecond();
     }
-    // The box and dipole from the children's: the box is theirs joined, the centre their
-    // area-weighted mean, the radius reaches both children's spheres (an upper bound of the
-    // farthest corner, which keeps the far field at least as far as the corners require).
-    box = {glm::min(input.boxes[first].min, input.boxes[second].min),
-           glm::max(input.boxes[first].max, input.boxes[second].max)};
-    const Dipole& one = dipoles_[first];
-    const Dipole& two = dipoles_[second];
-    const double area = input.areas[first] + input.areas[second];
-    dipole.vectorArea = one.vectorArea + two.vectorArea;
-    dipole.centre =
-        area > 0.0 ? (input.areas[first] * one.centre + input.areas[second] * two.centre) / area
-                   : 0.5 * (box.min + box.max);
-    dipole.radius = std::max(glm::length(one.centre - dipole.centre) + one.radius,
-                             glm::length(two.centre - dipole.centre) + two.radius);
-    input.areas[index] = area;
 }
 
-std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex, const std::vector<Box>& boxes) {
+SoupDistance::Bound SoupDistance::bound(std::uint32_t index, std::vector<FloatBox>& boxes) {
+    const Node& node = nodes_[index];
+    Bound result;
+    Dipole& dipole = result.dipole;
+    if (node.count > 0) {
+        // The leaf's box and dipole from its triangles; the radius reaches its farthest corner.
+        glm::dvec3 boxMin(HUGE_VAL), boxMax(-HUGE_VAL);
+        glm::dvec3 weightedCentre(0.0);
+        for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
+            const Triangle& t = triangles_[i];
+            boxMin = glm::min(boxMin, glm::min(t.a, glm::min(t.b, t.c)));
+            boxMax = glm::max(boxMax, glm::max(t.a, glm::max(t.b, t.c)));
+            const glm::dvec3 vectorArea = 0.5 * glm::cross(t.b - t.a, t.c - t.a);
+            const double triangleArea = glm::length(vectorArea);
+            dipole.vectorArea += vectorArea;
+            weightedCentre += triangleArea * ((t.a + t.b + t.c) / 3.0);
+            result.area += triangleArea;
+        }
+        boxes[index] = {{roundedDown(boxMin.x), roundedDown(boxMin.y), roundedDown(boxMin.z)},
+                        {roundedUp(boxMax.x), roundedUp(boxMax.y), roundedUp(boxMax.z)}};
+        dipole.centre =
+            result.area > 0.0 ? weightedCentre / result.area : 0.5 * (boxMin + boxMax);
+        double radiusSquared = 0.0;
+        for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
+            const Triangle& t = triangles_[i];
+            for (const glm::dvec3& corner : {t.a, t.b, t.c}) {
+                const glm::dvec3 offset = corner - dipole.centre;
+                radiusSquared = std::max(radiusSquared, glm::dot(offset, offset));
+            }
+        }
+        dipole.radius = std::sqrt(radiusSquared);
+    } else {
+        const std::uint32_t first = index + 1, second = node.first;
+        Bound one, two;
+        const auto boundFirst = [&] { one = bound(first, boxes); };
+        const auto boundSecond = [&] { two = bound(second, boxes); };
+        if (node.triangleCount > kParallelBuildTriangles) {
+            tbb::parallel_invoke(boundFirst, boundSecond);
+        } else {
+            boundFirst();
+            boundSecond();
+        }
+        // The box and dipole from the children's: the box is theirs joined, the centre their
+        // area-weighted mean, the radius reaches both children's spheres (an upper bound of the
+        // farthest corner, which keeps the far field at least as far as the corners require).
+        boxes[index] = {glm::min(boxes[first].min, boxes[second].min),
+                        glm::max(boxes[first].max, boxes[second].max)};
+        result.area = one.area + two.area;
+        dipole.vectorArea = one.dipole.vectorArea + two.dipole.vectorArea;
+        dipole.centre =
+            result.area > 0.0
+                ? (one.area * one.dipole.centre + two.area * two.dipole.centre) / result.area
+                : 0.5 * (glm::dvec3(boxes[index].min) + glm::dvec3(boxes[index].max));
+        dipole.radius =
+            std::max(glm::length(one.dipole.centre - dipole.centre) + one.dipole.radius,
+                     glm::length(two.dipole.centre - dipole.centre) + two.dipole.radius);
+    }
+    if (node.dipole != kNoDipole) dipoles_[node.dipole] = dipole;
+    return result;
+}
+
+std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex,
+                                     const std::vector<FloatBox>& boxes) {
     // Up to four descendants: open the inner one with the largest box surface until there are
     // four or only leaves.
     std::array<std::uint32_t, 4> children{};
@@ -293,7 +341,7 @@ std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex, const std::vecto
         children[childCount++] = nodes_[binaryIndex].first;
     }
     const auto surface = [&](std::uint32_t index) {
-        const glm::dvec3 extent = boxes[index].max - boxes[index].min;
+        const glm::dvec3 extent = glm::dvec3(boxes[index].max) - glm::dvec3(boxes[index].min);
         return extent.x * extent.y + extent.y * extent.z + extent.z * extent.x;
     };
     while (childCount < 4) {
@@ -318,13 +366,13 @@ std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex, const std::vecto
         wide.count[c] = 0;
     }
     for (int c = 0; c < childCount; ++c) {
-        const Box& box = boxes[children[c]];
-        wide.minX[c] = roundedDown(box.min.x);
-        wide.minY[c] = roundedDown(box.min.y);
-        wide.minZ[c] = roundedDown(box.min.z);
-        wide.maxX[c] = roundedUp(box.max.x);
-        wide.maxY[c] = roundedUp(box.max.y);
-        wide.maxZ[c] = roundedUp(box.max.z);
+        const FloatBox& box = boxes[children[c]];
+        wide.minX[c] = box.min.x;
+        wide.minY[c] = box.min.y;
+        wide.minZ[c] = box.min.z;
+        wide.maxX[c] = box.max.x;
+        wide.maxY[c] = box.max.y;
+        wide.maxZ[c] = box.max.z;
         const Node& node = nodes_[children[c]];
         if (node.count > 0) {
             wide.child[c] = node.first;
@@ -574,15 +622,16 @@ double SoupDistance::windingNumberOfCopy(const glm::dvec3& point, double farFiel
     while (size > 0) {
         const std::uint32_t index = stack[--size];
         const Node& node = nodes_[index];
-        const Dipole& dipole = dipoles_[index];
-        const glm::dvec3 toCentre = dipole.centre - point;
-        const double distanceSquared = glm::dot(toCentre, toCentre);
-        if (distanceSquared > farFieldRatio * farFieldRatio * dipole.radius * dipole.radius) {
-            solidAngles += glm::dot(toCentre, dipole.vectorArea) /
-                           (distanceSquared * std::sqrt(distanceSquared));
-            continue;
-        }
-        if (node.triangleCount <= kWindingLeafTriangles) {
+        if (node.dipole != kNoDipole) {
+            const Dipole& dipole = dipoles_[node.dipole];
+            const glm::dvec3 toCentre = dipole.centre - point;
+            const double distanceSquared = glm::dot(toCentre, toCentre);
+            if (distanceSquared > farFieldRatio * farFieldRatio * dipole.radius * dipole.radius) {
+                solidAngles += glm::dot(toCentre, dipole.vectorArea) /
+                               (distanceSquared * std::sqrt(distanceSquared));
+                continue;
+            }
+        } else {
             for (std::uint32_t t = node.firstTriangle; t < node.firstTriangle + node.triangleCount;
                  ++t) {
                 const Triangle& triangle = triangles_[t];

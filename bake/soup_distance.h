@@ -18,10 +18,10 @@
 ///   for holes and soups; a point is inside where w > 1/2. Far clusters of triangles are
 ///   replaced by their dipole (the sum of their vector areas at their area-weighted centroid;
 ///   Barill et al. 2018, "Fast winding numbers for soups and clouds", first order): a node of
-///   the hierarchy is taken whole when the point is farther than kWindingFarFieldRatio times the
-///   node's radius; nearer ones are opened down to clusters of at most 4 triangles, whose exact
-///   per-triangle solid angles are summed. Where the
-///   result is ambiguous (|w - 1/2| < kWindingRecheckMargin) it is evaluated again with
+///   the hierarchy with more than 4 triangles is taken whole when the point is farther than
+///   kWindingFarFieldRatio times the node's radius; nearer ones are opened down to clusters of
+///   at most 4 triangles, whose exact per-triangle solid angles are summed. Where the result is
+///   ambiguous (|w - 1/2| < kWindingRecheckMargin) it is evaluated again with
 ///   kWindingRecheckRatio, which is exact enough to decide the sign for any mesh whose
 ///   exact w stays clear of 1/2. Only the copies whose bounding box contains the point in x and
 ///   y count (the other copies of a closed part contribute 0 there).
@@ -116,7 +116,11 @@ class SoupDistance {
         std::uint32_t count = 0;  ///< leaf: number of triangles; inner: 0 (first child follows)
         /// All the triangles below the node (consecutive in leaf order).
         std::uint32_t firstTriangle = 0, triangleCount = 0;
+        /// Its dipole in dipoles_; kNoDipole for clusters of at most 4 triangles, whose
+        /// solid angles the winding number always sums exactly.
+        std::uint32_t dipole = kNoDipole;
     };
+    static constexpr std::uint32_t kNoDipole = UINT32_MAX;
     /// Four children of the binary hierarchy's collapsed form, which the distance and segment
     /// queries walk: their boxes side by side (float, rounded outward) for one four-wide test.
     /// An empty slot has an empty box (min +inf, max -inf).
@@ -125,8 +129,9 @@ class SoupDistance {
         std::uint32_t child[4];  ///< inner: index of a wide node; leaf: first triangle
         std::uint32_t count[4];  ///< leaf: number of triangles; inner or empty: 0
     };
-    struct Box {
-        glm::dvec3 min, max;
+    /// A box in float, rounded outward from the double corners it holds.
+    struct FloatBox {
+        glm::vec3 min, max;
     };
     struct Dipole {
         glm::dvec3 centre{0.0};      ///< area-weighted centroid of the node's triangles
@@ -146,19 +151,20 @@ class SoupDistance {
 
     /// A triangle as the build sorts it: the sum of its corners (three times its centroid).
     struct BuildItem {
-        glm::dvec3 cornerSum;
+        glm::vec3 cornerSum;
         std::uint32_t triangle;  ///< index in the input
     };
-    struct BuildInput {
-        const std::vector<Triangle>& triangles;
-        std::vector<BuildItem>& items;  ///< reordered: leaves hold consecutive items
-        std::vector<Box>& boxes;        ///< per node
-        std::vector<double>& areas;     ///< per node: its triangles' total area
+    /// Splits node `index` over items [begin, end) (reordered: leaves hold consecutive items)
+    /// at the median of the longest axis of their centroids' box, and its subtree.
+    void split(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
+               std::vector<BuildItem>& items);
+    struct Bound {
+        Dipole dipole;
+        double area = 0.0;  ///< of the node's triangles
     };
-    /// Builds node `index` over items [begin, end) and its subtree: splits, boxes, dipoles.
-    void build(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
-               const BuildInput& input);
-    std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<Box>& boxes);
+    /// Node `index`'s box and dipole, and its subtree's, bottom-up from triangles_ (leaf order).
+    Bound bound(std::uint32_t index, std::vector<FloatBox>& boxes);
+    std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<FloatBox>& boxes);
     double closestSquared(const glm::dvec3& point, double bestSquared,
                           std::uint32_t& bestTriangle) const;
     /// Calls visit(triangle) for every triangle whose box (float, rounded outward, with the
@@ -178,7 +184,7 @@ class SoupDistance {
     std::vector<Triangle> triangles_;  ///< in leaf order
     std::vector<Node> nodes_;          ///< depth-first, root first
     std::vector<WideNode> wideNodes_;  ///< root first
-    std::vector<Dipole> dipoles_;      ///< one per node
+    std::vector<Dipole> dipoles_;      ///< of the nodes that have one (Node::dipole)
 };
 
 }  // namespace distile
