@@ -373,23 +373,31 @@ bool appendBoundingPieces(const SoupDistance& soup, const glm::dvec3& a, const g
 /// eight or more: parts that overlap, nest or touch face to face (a face of one inside another,
 /// or against it) put some front in another part and fail it.
 bool allTrianglesFaceOutside(const TriangleSoup& placedTexels, const SoupDistance& soup) {
+    const std::size_t count = placedTexels.triangles.size();
+    // Each triangle's front point; zero-area triangles have no sides (they change no distance).
+    std::vector<glm::dvec3> fronts(count);
+    std::vector<char> sided(count);
+    tbb::parallel_for(std::size_t(0), count, [&](std::size_t t) {
+        const glm::uvec3& triangle = placedTexels.triangles[t];
+        const glm::dvec3 a = placedTexels.positions[triangle.x];
+        const glm::dvec3 b = placedTexels.positions[triangle.y];
+        const glm::dvec3 c = placedTexels.positions[triangle.z];
+        const glm::dvec3 normal = glm::cross(b - a, c - a);
+        const double area = glm::length(normal);
+        sided[t] = area > 0.0;
+        const double longest =
+            std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
+        fronts[t] = (a + b + c) / 3.0 + (sided[t] ? 1e-5 * longest / area : 0.0) * normal;
+    });
+    // Integral: the count of crossings where it is clear.
+    const std::vector<std::optional<int>> crossings = soup.windingNumbersByCrossings(fronts);
     return tbb::parallel_reduce(
-        tbb::blocked_range<std::size_t>(0, placedTexels.triangles.size()), true,
+        tbb::blocked_range<std::size_t>(0, count), true,
         [&](const tbb::blocked_range<std::size_t>& range, bool outside) {
             for (std::size_t t = range.begin(); outside && t != range.end(); ++t) {
-                const glm::uvec3& triangle = placedTexels.triangles[t];
-                const glm::dvec3 a = placedTexels.positions[triangle.x];
-                const glm::dvec3 b = placedTexels.positions[triangle.y];
-                const glm::dvec3 c = placedTexels.positions[triangle.z];
-                const glm::dvec3 normal = glm::cross(b - a, c - a);
-                const double area = glm::length(normal);
-                if (!(area > 0.0)) continue;  // no sides; changes no distance
-                const double longest =
-                    std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
-                const glm::dvec3 front = (a + b + c) / 3.0 + (1e-5 * longest / area) * normal;
-                // Integral here: the count of crossings where it is clear.
-                const std::optional<int> crossings = soup.windingNumberByCrossings(front);
-                outside = crossings ? *crossings == 0 : std::abs(soup.windingNumber(front)) < 0.5;
+                if (!sided[t]) continue;
+                outside = crossings[t] ? *crossings[t] == 0
+                                       : std::abs(soup.windingNumber(fronts[t])) < 0.5;
             }
             return outside;
         },

@@ -1,6 +1,7 @@
 #include "bake/soup_distance.h"
 
 #include <emmintrin.h>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_sort.h>
@@ -517,6 +518,43 @@ SegmentMeeting segmentMeeting(const glm::dvec3& p, const glm::dvec3& q, const gl
     return SegmentMeeting::Unclear;
 }
 
+/// segmentMeeting for a ray from p straight up (or down) beyond the triangle abc: 2D orientation
+/// tests of p against the triangle's shadow in x and y, then its height there, each with a margin
+/// far above its rounding (1e-12 of the products' magnitudes; the error bound is ~3.3e-16).
+SegmentMeeting verticalRayMeeting(const glm::dvec3& p, bool up, const glm::dvec3& a,
+                                  const glm::dvec3& b, const glm::dvec3& c) {
+    constexpr double kRelativeMargin = 1e-12;
+    // Twice the signed area of (p, u, v) in x and y, and its margin.
+    const auto orientation = [&p](const glm::dvec3& u, const glm::dvec3& v, double& margin) {
+        const double ux = u.x - p.x, uy = u.y - p.y, vx = v.x - p.x, vy = v.y - p.y;
+        margin = kRelativeMargin * (std::abs(ux * vy) + std::abs(uy * vx));
+        return ux * vy - uy * vx;
+    };
+    double marginA, marginB, marginC;
+    const double weightA = orientation(b, c, marginA);  // opposite a
+    const double weightB = orientation(c, a, marginB);
+    const double weightC = orientation(a, b, marginC);
+    const int positive = (weightA > marginA) + (weightB > marginB) + (weightC > marginC);
+    const int negative = (weightA < -marginA) + (weightB < -marginB) + (weightC < -marginC);
+    if (positive > 0 && negative > 0) return SegmentMeeting::Misses;  // outside the shadow
+    if (positive != 3 && negative != 3) return SegmentMeeting::Unclear;  // on its border
+    // Strictly inside the shadow: the plane's height over p, a convex combination of the corners'.
+    const double sum = weightA + weightB + weightC;
+    const double weightMargins = marginA + marginB + marginC;
+    if (!(std::abs(sum) > 2.0 * weightMargins)) return SegmentMeeting::Unclear;
+    const double height = (weightA * a.z + weightB * b.z + weightC * c.z) / sum;
+    const double zRange = std::max({a.z, b.z, c.z}) - std::min({a.z, b.z, c.z});
+    const double heightMargin = weightMargins / (std::abs(sum) - weightMargins) * zRange +
+                                kRelativeMargin * (std::abs(height) + 1.0);
+    const bool beyond = up ? p.z < height - heightMargin : p.z > height + heightMargin;
+    const bool behindStart = up ? p.z > height + heightMargin : p.z < height - heightMargin;
+    if (behindStart) return SegmentMeeting::Misses;
+    if (!beyond) return SegmentMeeting::Unclear;
+    // Counter-clockwise seen from above (all weights positive): the normal points up, so a ray
+    // going up passes from its back to its front.
+    return (positive == 3) == up ? SegmentMeeting::BackToFront : SegmentMeeting::FrontToBack;
+}
+
 }  // namespace
 
 template <class Visit>
@@ -555,42 +593,47 @@ bool SoupDistance::everyTriangleNearSegment(const glm::dvec3& from, const glm::d
     return true;
 }
 
-bool SoupDistance::signedCrossingsOfCopy(const glm::dvec3& from, const glm::dvec3& to,
-                                         int& crossings) const {
-    return everyTriangleNearSegment(from, to, [&](const Triangle& triangle) {
-        switch (segmentMeeting(from, to, triangle.a, triangle.b, triangle.c)) {
-            case SegmentMeeting::Misses:
-                return true;
-            case SegmentMeeting::BackToFront:
-                ++crossings;
-                return true;
-            case SegmentMeeting::FrontToBack:
-                --crossings;
-                return true;
-            case SegmentMeeting::Unclear:
-                return false;
-        }
-        return false;
-    });
-}
-
-std::optional<int> SoupDistance::windingNumberByCrossings(const glm::dvec3& texelPosition) const {
+std::vector<std::optional<int>> SoupDistance::windingNumbersByCrossings(
+    std::span<const glm::dvec3> texelPositions) const {
     assert(windingPiecewiseConstant_);
-    // Out of the bounds by the nearer way, up or down, where the winding number is 0: it drops
-    // by 1 across a triangle passed from back to front and rises by 1 the other way.
-    const bool up = bounds_.max.z - texelPosition.z <= texelPosition.z - bounds_.min.z;
-    const double endZ = up ? bounds_.max.z + 1.0 : bounds_.min.z - 1.0;
-    const PeriodicShifts shifts = periodicShifts(texelPosition, bounds_, tile_, 0.0);
-    int winding = 0;
-    for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
-        for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
-            const glm::dvec3 shift(double(m) * tile_.width, double(n) * tile_.height, 0.0);
-            const glm::dvec3 from = texelPosition - shift;
-            if (!signedCrossingsOfCopy(from, glm::dvec3(from.x, from.y, endZ), winding))
-                return std::nullopt;
+    std::vector<std::optional<int>> windings(texelPositions.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texelPositions.size()),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t n = range.begin(); n != range.end(); ++n) {
+            const glm::dvec3& position = texelPositions[n];
+            // Out of the bounds by the nearer way, up or down, where the winding number is 0: it
+            // drops by 1 across a triangle passed from back to front and rises by 1 the other way.
+            const bool up = bounds_.max.z - position.z <= position.z - bounds_.min.z;
+            const double endZ = up ? bounds_.max.z + 1.0 : bounds_.min.z - 1.0;
+            const PeriodicShifts shifts = periodicShifts(position, bounds_, tile_, 0.0);
+            int winding = 0;
+            bool clear = true;
+            for (int row = shifts.yBegin; clear && row <= shifts.yEnd; ++row) {
+                for (int column = shifts.xBegin; clear && column <= shifts.xEnd; ++column) {
+                    const glm::dvec3 from = position - glm::dvec3(double(column) * tile_.width,
+                                                                  double(row) * tile_.height, 0.0);
+                    clear = everyTriangleNearSegment(
+                        from, glm::dvec3(from.x, from.y, endZ), [&](const Triangle& t) {
+                            switch (verticalRayMeeting(from, up, t.a, t.b, t.c)) {
+                                case SegmentMeeting::Misses:
+                                    return true;
+                                case SegmentMeeting::BackToFront:
+                                    ++winding;
+                                    return true;
+                                case SegmentMeeting::FrontToBack:
+                                    --winding;
+                                    return true;
+                                case SegmentMeeting::Unclear:
+                                    return false;
+                            }
+                            return false;
+                        });
+                }
+            }
+            if (clear) windings[n] = winding;
         }
-    }
-    return winding;
+    });
+    return windings;
 }
 
 bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,

@@ -32,6 +32,7 @@
 #include <cstdint>
 #include <glm/vec3.hpp>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "common/size3.h"
@@ -80,14 +81,16 @@ class SoupDistance {
     double windingNumber(const glm::dvec3& texelPosition) const;
 
     /// For meshes whose winding number changes only across the surface: the winding number at
-    /// the point counted from the crossings of a vertical ray from it out of the mesh's bounds
+    /// each point counted from the crossings of a vertical ray from it out of the mesh's bounds
     /// (+1 for each triangle it leaves through the front, -1 through the back), exact where every
-    /// triangle near the ray is provably crossed through its interior or missed (the margins of
-    /// segmentTouchesNoTriangle); nullopt where one is unclear (the ray grazes an edge, a corner
-    /// or a plane). Much cheaper than windingNumber near a fine mesh: the ray meets a few
-    /// triangles where the far field opens hundreds of nodes.
+    /// triangle under or over the point is provably crossed through its interior or missed (the
+    /// margins of segmentTouchesNoTriangle); nullopt where one is unclear (the ray grazes an
+    /// edge, a corner or a plane). Much cheaper than windingNumber near a fine mesh: a ray meets
+    /// a few triangles where the far field opens hundreds of nodes, and the triangles are listed
+    /// by columns once for all the points.
     /// @pre windingChangesOnlyAcrossTheSurface().
-    std::optional<int> windingNumberByCrossings(const glm::dvec3& texelPosition) const;
+    std::vector<std::optional<int>> windingNumbersByCrossings(
+        std::span<const glm::dvec3> texelPositions) const;
 
     /// False when the segment from `from` to `to` (texels) may touch a triangle of the periodic
     /// union; true only when it provably touches none (near misses, within rounding, count as
@@ -173,9 +176,6 @@ class SoupDistance {
     bool everyTriangleNearSegment(const glm::dvec3& from, const glm::dvec3& to,
                                   Visit&& visit) const;
     bool segmentTouchesNoTriangleOfCopy(const glm::dvec3& from, const glm::dvec3& to) const;
-    /// Adds to `crossings` the triangles the segment crosses from back to front less those it
-    /// crosses from front to back; false when a crossing is unclear.
-    bool signedCrossingsOfCopy(const glm::dvec3& from, const glm::dvec3& to, int& crossings) const;
     double windingNumberOfCopy(const glm::dvec3& point, double farFieldRatio) const;
 
     bool windingPiecewiseConstant_ = false;
