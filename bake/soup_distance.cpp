@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cassert>
 #include <cmath>
 #include <cstdint>
@@ -420,29 +421,38 @@ double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
                 _mm_max_ps(_mm_sub_ps(_mm_load_ps(lo), p), _mm_sub_ps(p, _mm_load_ps(hi))), zero);
             return _mm_mul_ps(d, d);
         };
+        const __m128 boxSquared = _mm_add_ps(
+            _mm_add_ps(outside(node.minX, node.maxX, px), outside(node.minY, node.maxY, py)),
+            outside(node.minZ, node.maxZ, pz));
         alignas(16) float squared[4];
-        _mm_store_ps(squared, _mm_add_ps(_mm_add_ps(outside(node.minX, node.maxX, px),
-                                                    outside(node.minY, node.maxY, py)),
-                                         outside(node.minZ, node.maxZ, pz)));
-        // Leaves at once, inner children pushed with the nearest last, so it is visited next. A
-        // hint makes the threshold tight from the start, so the order of the others barely
-        // matters, and leaving them unsorted saves more than it costs.
-        int nearest = -1;
-        for (int c = 0; c < 4; ++c) {
+        _mm_store_ps(squared, boxSquared);
+        const int near = _mm_movemask_ps(_mm_cmplt_ps(boxSquared, _mm_set1_ps(threshold)));
+        const int leaves = _mm_movemask_ps(_mm_castsi128_ps(
+            _mm_cmpgt_epi32(_mm_load_si128(reinterpret_cast<const __m128i*>(node.count)),
+                            _mm_setzero_si128())));
+        // Leaves at once (each still nearer than the best when its turn comes), inner children
+        // pushed with the nearest last, so it is visited next. A hint makes the threshold tight
+        // from the start, so the order of the others barely matters: bit masks instead of sorting
+        // spare the branch predictor.
+        for (int todo = near & leaves; todo != 0; todo &= todo - 1) {
+            const int c = std::countr_zero(unsigned(todo));
             if (!(squared[c] < threshold)) continue;
-            if (node.count[c] > 0) {
-                for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t)
-                    testTriangle(t);
-            } else if (nearest < 0 || squared[c] < squared[nearest]) {
-                nearest = c;
-            }
+            for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t)
+                testTriangle(t);
+        }
+        int inner = near & ~leaves;
+        if (inner == 0) continue;
+        int nearest = std::countr_zero(unsigned(inner));
+        for (int rest = inner & (inner - 1); rest != 0; rest &= rest - 1) {
+            const int c = std::countr_zero(unsigned(rest));
+            if (squared[c] < squared[nearest]) nearest = c;
         }
         assert(size + 4 <= kStackSize);
-        for (int c = 0; c < 4; ++c) {
-            if (node.count[c] == 0 && c != nearest && squared[c] < threshold)
-                stack[size++] = {node.child[c], squared[c]};
+        for (int todo = inner & ~(1 << nearest); todo != 0; todo &= todo - 1) {
+            const int c = std::countr_zero(unsigned(todo));
+            stack[size++] = {node.child[c], squared[c]};
         }
-        if (nearest >= 0) stack[size++] = {node.child[nearest], squared[nearest]};
+        stack[size++] = {node.child[nearest], squared[nearest]};
     }
     return bestSquared;
 }
