@@ -528,17 +528,22 @@ SegmentMeeting segmentMeeting(const glm::dvec3& p, const glm::dvec3& q, const gl
     return SegmentMeeting::Unclear;
 }
 
-/// segmentMeeting for a ray from p straight up (or down) beyond the triangle abc: 2D orientation
-/// tests of p against the triangle's shadow in x and y, then its height there, each with a margin
-/// far above its rounding (1e-12 of the products' magnitudes; the error bound is ~3.3e-16).
-SegmentMeeting verticalRayMeeting(const glm::dvec3& p, bool up, const glm::dvec3& a,
+/// segmentMeeting for a segment from p parallel to axis `axis` (0, 1, 2) to where that coordinate
+/// is `end`: 2D orientation tests of p against the triangle's shadow along the axis, then the
+/// plane's coordinate there, each with a margin far above its rounding (1e-12 of the products'
+/// magnitudes; the error bound is ~3.3e-16).
+SegmentMeeting axisSegmentMeeting(const glm::dvec3& p, int axis, double end, const glm::dvec3& a,
                                   const glm::dvec3& b, const glm::dvec3& c) {
     constexpr double kRelativeMargin = 1e-12;
-    // Twice the signed area of (p, u, v) in x and y, and its margin.
-    const auto orientation = [&p](const glm::dvec3& u, const glm::dvec3& v, double& margin) {
-        const double ux = u.x - p.x, uy = u.y - p.y, vx = v.x - p.x, vy = v.y - p.y;
-        margin = kRelativeMargin * (std::abs(ux * vy) + std::abs(uy * vx));
-        return ux * vy - uy * vx;
+    // The other two axes in cyclic order, so that a triangle counter-clockwise in them has its
+    // normal along +axis.
+    const int first = (axis + 1) % 3, second = (axis + 2) % 3;
+    // Twice the signed area of (p, u, v) in the shadow, and its margin.
+    const auto orientation = [&](const glm::dvec3& u, const glm::dvec3& v, double& margin) {
+        const double u1 = u[first] - p[first], u2 = u[second] - p[second];
+        const double v1 = v[first] - p[first], v2 = v[second] - p[second];
+        margin = kRelativeMargin * (std::abs(u1 * v2) + std::abs(u2 * v1));
+        return u1 * v2 - u2 * v1;
     };
     double marginA, marginB, marginC;
     const double weightA = orientation(b, c, marginA);  // opposite a
@@ -546,23 +551,25 @@ SegmentMeeting verticalRayMeeting(const glm::dvec3& p, bool up, const glm::dvec3
     const double weightC = orientation(a, b, marginC);
     const int positive = (weightA > marginA) + (weightB > marginB) + (weightC > marginC);
     const int negative = (weightA < -marginA) + (weightB < -marginB) + (weightC < -marginC);
-    if (positive > 0 && negative > 0) return SegmentMeeting::Misses;  // outside the shadow
+    if (positive > 0 && negative > 0) return SegmentMeeting::Misses;     // outside the shadow
     if (positive != 3 && negative != 3) return SegmentMeeting::Unclear;  // on its border
-    // Strictly inside the shadow: the plane's height over p, a convex combination of the corners'.
+    // Strictly inside the shadow: the plane's coordinate over p, a convex combination of the
+    // corners'.
     const double sum = weightA + weightB + weightC;
     const double weightMargins = marginA + marginB + marginC;
     if (!(std::abs(sum) > 2.0 * weightMargins)) return SegmentMeeting::Unclear;
-    const double height = (weightA * a.z + weightB * b.z + weightC * c.z) / sum;
-    const double zRange = std::max({a.z, b.z, c.z}) - std::min({a.z, b.z, c.z});
-    const double heightMargin = weightMargins / (std::abs(sum) - weightMargins) * zRange +
-                                kRelativeMargin * (std::abs(height) + 1.0);
-    const bool beyond = up ? p.z < height - heightMargin : p.z > height + heightMargin;
-    const bool behindStart = up ? p.z > height + heightMargin : p.z < height - heightMargin;
-    if (behindStart) return SegmentMeeting::Misses;
-    if (!beyond) return SegmentMeeting::Unclear;
-    // Counter-clockwise seen from above (all weights positive): the normal points up, so a ray
-    // going up passes from its back to its front.
-    return (positive == 3) == up ? SegmentMeeting::BackToFront : SegmentMeeting::FrontToBack;
+    const double plane = (weightA * a[axis] + weightB * b[axis] + weightC * c[axis]) / sum;
+    const double range = std::max({a[axis], b[axis], c[axis]}) - std::min({a[axis], b[axis], c[axis]});
+    const double planeMargin = weightMargins / (std::abs(sum) - weightMargins) * range +
+                               kRelativeMargin * (std::abs(plane) + 1.0);
+    const double start = p[axis];
+    const bool forward = end >= start;
+    const double low = forward ? start : end, high = forward ? end : start;
+    if (plane < low - planeMargin || plane > high + planeMargin) return SegmentMeeting::Misses;
+    if (!(plane > low + planeMargin && plane < high - planeMargin)) return SegmentMeeting::Unclear;
+    // Counter-clockwise in the shadow: the normal points along +axis, so going that way passes
+    // from its back to its front.
+    return (positive == 3) == forward ? SegmentMeeting::BackToFront : SegmentMeeting::FrontToBack;
 }
 
 }  // namespace
@@ -624,7 +631,7 @@ std::vector<std::optional<int>> SoupDistance::windingNumbersByCrossings(
                                                                   double(row) * tile_.height, 0.0);
                     clear = everyTriangleNearSegment(
                         from, glm::dvec3(from.x, from.y, endZ), [&](const Triangle& t) {
-                            switch (verticalRayMeeting(from, up, t.a, t.b, t.c)) {
+                            switch (axisSegmentMeeting(from, 2, endZ, t.a, t.b, t.c)) {
                                 case SegmentMeeting::Misses:
                                     return true;
                                 case SegmentMeeting::BackToFront:
@@ -648,9 +655,14 @@ std::vector<std::optional<int>> SoupDistance::windingNumbersByCrossings(
 
 bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,
                                                   const glm::dvec3& to) const {
+    // Parallel to an axis (as between neighbouring voxels): the cheaper test along it.
+    const int differing = (from.x != to.x) + (from.y != to.y) + (from.z != to.z);
+    const int axis = from.x != to.x ? 0 : (from.y != to.y ? 1 : 2);
     return everyTriangleNearSegment(from, to, [&](const Triangle& triangle) {
-        return segmentMeeting(from, to, triangle.a, triangle.b, triangle.c) ==
-               SegmentMeeting::Misses;
+        const SegmentMeeting meeting =
+            differing <= 1 ? axisSegmentMeeting(from, axis, to[axis], triangle.a, triangle.b, triangle.c)
+                           : segmentMeeting(from, to, triangle.a, triangle.b, triangle.c);
+        return meeting == SegmentMeeting::Misses;
     });
 }
 
