@@ -127,7 +127,7 @@ class SoupDistance {
     /// Four children of the binary hierarchy's collapsed form, which the distance and segment
     /// queries walk: their boxes side by side (float, rounded outward) for one four-wide test.
     /// An empty slot has an empty box (min +inf, max -inf).
-    struct alignas(16) WideNode {
+    struct alignas(64) WideNode {
         float minX[4], minY[4], minZ[4], maxX[4], maxY[4], maxZ[4];
         std::uint32_t child[4];  ///< inner: index of a wide node; leaf: first triangle
         std::uint32_t count[4];  ///< leaf: number of triangles; inner or empty: 0
