@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <glm/geometric.hpp>
+#include <glm/vec2.hpp>
 #include <numbers>
 #include <utility>
 
@@ -455,6 +456,125 @@ double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
         stack[size++] = {node.child[nearest], squared[nearest]};
     }
     return bestSquared;
+}
+
+void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z,
+                                        std::span<double> bestSquared,
+                                        std::span<std::uint32_t> bestTriangle) const {
+    const int lanes = int(z.size());
+    assert(lanes >= 1 && lanes <= kLineLanes);
+    const int vectors = (lanes + 3) / 4;
+    // Per lane: its z in float, its squared float threshold and the bound on its point's float
+    // rounding; unused lanes have a threshold no box distance is below.
+    alignas(16) float laneZ[kLineLanes], threshold[kLineLanes];
+    std::array<double, kLineLanes> pointError;
+    for (int lane = 0; lane < vectors * 4; ++lane) {
+        laneZ[lane] = lane < lanes ? float(z[lane]) : 0.0f;
+        if (lane >= lanes) {
+            threshold[lane] = -1.0f;
+            continue;
+        }
+        pointError[lane] = floatPointError({xy.x, xy.y, z[lane]});
+        threshold[lane] = skipThreshold(bestSquared[lane], pointError[lane]);
+    }
+    const __m128 px = _mm_set1_ps(float(xy.x)), py = _mm_set1_ps(float(xy.y));
+    const __m128 zero = _mm_setzero_ps();
+    const auto outside = [&zero](__m128 lo, __m128 hi, __m128 p) {
+        const __m128 d = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, p), _mm_sub_ps(p, hi)), zero);
+        return _mm_mul_ps(d, d);
+    };
+    std::array<std::uint32_t, kStackSize> stack;
+    int size = 0;
+    stack[size++] = 0u;
+    while (size > 0) {
+        const WideNode& node = wideNodes_[stack[--size]];
+        // The four children's squared distances in x and y (shared by the lanes), then each
+        // lane's with its z: a mask of the lanes each child is nearer to than their best.
+        alignas(16) float acrossSquared[4];
+        _mm_store_ps(acrossSquared,
+                     _mm_add_ps(outside(_mm_load_ps(node.minX), _mm_load_ps(node.maxX), px),
+                                outside(_mm_load_ps(node.minY), _mm_load_ps(node.maxY), py)));
+        alignas(16) float boxSquared[4][kLineLanes];
+        std::array<int, 4> near{};
+        for (int c = 0; c < 4; ++c) {
+            const __m128 across = _mm_set1_ps(acrossSquared[c]);
+            const __m128 lo = _mm_set1_ps(node.minZ[c]), hi = _mm_set1_ps(node.maxZ[c]);
+            for (int v = 0; v < vectors; ++v) {
+                const __m128 squared =
+                    _mm_add_ps(across, outside(lo, hi, _mm_load_ps(laneZ + 4 * v)));
+                _mm_store_ps(boxSquared[c] + 4 * v, squared);
+                near[c] |= _mm_movemask_ps(_mm_cmplt_ps(squared, _mm_load_ps(threshold + 4 * v)))
+                           << (4 * v);
+            }
+        }
+        // Leaves at once, for each lane they are (still) nearer to; inner children pushed.
+        for (int c = 0; c < 4; ++c) {
+            if (near[c] == 0) continue;
+            if (node.count[c] == 0) {
+                assert(size < kStackSize);
+                stack[size++] = node.child[c];
+                continue;
+            }
+            for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t) {
+                const Triangle& triangle = triangles_[t];
+                for (int todo = near[c]; todo != 0; todo &= todo - 1) {
+                    const int lane = std::countr_zero(unsigned(todo));
+                    if (!(boxSquared[c][lane] < threshold[lane])) continue;
+                    const double squared = triangleDistanceSquared(
+                        {xy.x, xy.y, z[lane]}, triangle.a, triangle.b, triangle.c);
+                    if (squared < bestSquared[lane]) {
+                        bestSquared[lane] = squared;
+                        bestTriangle[lane] = t;
+                        threshold[lane] = skipThreshold(squared, pointError[lane]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+void SoupDistance::unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const double> z,
+                                           double cutoffTexels, std::span<NearestHint> hints,
+                                           std::span<double> distances) const {
+    assert(hints.size() == z.size() && distances.size() == z.size());
+    for (std::size_t first = 0; first < z.size(); first += kLineLanes) {
+        const std::size_t lanes = std::min<std::size_t>(kLineLanes, z.size() - first);
+        std::array<double, kLineLanes> bestSquared;
+        double reach = 0.0;
+        for (std::size_t lane = 0; lane < lanes; ++lane) {
+            // The hint's triangle is one of the candidates the search compares anyway (the same
+            // arithmetic on the same shifted point), so starting from it gives the same minimum.
+            const NearestHint& hint = hints[first + lane];
+            bestSquared[lane] = cutoffTexels * cutoffTexels;
+            if (hint.triangle != UINT32_MAX) {
+                const Triangle& triangle = triangles_[hint.triangle];
+                const glm::dvec3 point(xy.x, xy.y, z[first + lane]);
+                bestSquared[lane] =
+                    std::min(bestSquared[lane], triangleDistanceSquared(point - hint.shift,
+                                                                        triangle.a, triangle.b,
+                                                                        triangle.c));
+            }
+            reach = std::max(reach, std::sqrt(bestSquared[lane]));
+        }
+        // The copies any lane can reach (a lane that cannot reach one finds nothing in it).
+        const PeriodicShifts shifts =
+            periodicShifts({xy.x, xy.y, z[first]}, bounds_, tile_, reach);
+        for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
+            for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
+                const glm::dvec3 shift(double(m) * tile_.width, double(n) * tile_.height, 0.0);
+                std::array<std::uint32_t, kLineLanes> found;
+                found.fill(UINT32_MAX);
+                closestSquaredOnLine(xy - glm::dvec2(shift), z.subspan(first, lanes),
+                                     std::span(bestSquared).first(lanes),
+                                     std::span(found).first(lanes));
+                for (std::size_t lane = 0; lane < lanes; ++lane) {
+                    if (found[lane] != UINT32_MAX) hints[first + lane] = {found[lane], shift};
+                }
+            }
+        }
+        for (std::size_t lane = 0; lane < lanes; ++lane)
+            distances[first + lane] = std::sqrt(bestSquared[lane]);
+    }
 }
 
 double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const {

@@ -30,6 +30,7 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <optional>
 #include <span>
@@ -76,6 +77,13 @@ class SoupDistance {
     /// unsignedDistance starting from `hint`'s triangle, which it then updates.
     double unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
                             NearestHint& hint) const;
+
+    /// unsignedDistance at the points (x, y, z[k]) of one vertical line, each from and updating
+    /// hints[k]: the same distances, for less work (the points share one walk of the hierarchy
+    /// per copy, kLineLanes at a time).
+    void unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const double> z,
+                                 double cutoffTexels, std::span<NearestHint> hints,
+                                 std::span<double> distances) const;
 
     /// Generalized winding number of the periodic union at the point (see the file note).
     double windingNumber(const glm::dvec3& texelPosition) const;
@@ -170,6 +178,12 @@ class SoupDistance {
     std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<FloatBox>& boxes);
     double closestSquared(const glm::dvec3& point, double bestSquared,
                           std::uint32_t& bestTriangle) const;
+    static constexpr int kLineLanes = 16;
+    /// closestSquared for up to kLineLanes points (x, y, z[k]) in one walk: bestSquared[k] and
+    /// bestTriangle[k] are lowered where a triangle is nearer.
+    void closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z,
+                              std::span<double> bestSquared,
+                              std::span<std::uint32_t> bestTriangle) const;
     /// Calls visit(triangle) for every triangle whose box (float, rounded outward, with the
     /// point's rounding) overlaps the segment's, until it returns false; false if it did.
     template <class Visit>

@@ -73,33 +73,32 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
     // Progress: the distances are most of the work; the sign takes the last step.
     const int steps = slices + (signedByWindingNumber ? 1 : 0);
 
-    // Columns of kColumn x kColumn voxels through all the slices, each row of a column started
-    // from the nearest triangle of the row below it (that of the slice below for a column's first
-    // row) and each voxel from its neighbour's in the row: a hint gives the same exact result
-    // faster, and the triangles near a column stay in the core's cache while it is measured.
-    // Progress after each row of columns.
+    // Columns of kColumn x kColumn voxels through all the slices, each line of voxels through
+    // the slices measured at once, started from the nearest triangles of its neighbour in the
+    // row (that of the row below for a row's first): a hint gives the same exact result faster,
+    // and the triangles near a column stay in the core's cache while it is measured. Progress
+    // after each row of columns.
     constexpr int kColumn = 8;
     const int columnsX = (tile.width + kColumn - 1) / kColumn;
     const int columnsY = (tile.height + kColumn - 1) / kColumn;
+    std::vector<double> sliceZ(static_cast<std::size_t>(slices));
+    for (int slice = 0; slice < slices; ++slice) sliceZ[std::size_t(slice)] = zBegin + slice + 0.5;
     for (int columnRow = 0; columnRow < columnsY; ++columnRow) {
         tbb::parallel_for(0, columnsX, [&](int column) {
             const int i0 = column * kColumn, i1 = std::min(tile.width, i0 + kColumn);
             const int j0 = columnRow * kColumn, j1 = std::min(tile.height, j0 + kColumn);
-            SoupDistance::NearestHint sliceStart;
-            for (int slice = 0; slice < slices; ++slice) {
-                SoupDistance::NearestHint rowStart = sliceStart;
-                for (int j = j0; j < j1; ++j) {
-                    const std::size_t first =
-                        std::size_t(slice) * slabSize + std::size_t(j) * rowLength;
-                    SoupDistance::NearestHint hint = rowStart;
-                    for (int i = i0; i < i1; ++i) {
-                        distances[first + std::size_t(i)] = soup.unsignedDistance(
-                            centre(first + std::size_t(i)), cutoffTexels, hint);
-                        if (i == i0) {
-                            rowStart = hint;
-                            if (j == j0) sliceStart = hint;
-                        }
+            std::vector<SoupDistance::NearestHint> rowStart(static_cast<std::size_t>(slices)), hints;
+            std::vector<double> line(static_cast<std::size_t>(slices));
+            for (int j = j0; j < j1; ++j) {
+                hints = rowStart;
+                for (int i = i0; i < i1; ++i) {
+                    soup.unsignedDistancesOnLine({i + 0.5, j + 0.5}, sliceZ, cutoffTexels, hints,
+                                                 line);
+                    for (int slice = 0; slice < slices; ++slice) {
+                        distances[std::size_t(slice) * slabSize + std::size_t(j) * rowLength +
+                                  std::size_t(i)] = line[std::size_t(slice)];
                     }
+                    if (i == i0) rowStart = hints;
                 }
             }
         });
