@@ -169,7 +169,7 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
 
 BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                     const BakeOptions& options, const ProgressCallback& progress,
-                    const InsideTest& insideTest, const ExactDistance& exactDistance) {
+                    const InsideTest& insideTest, const ExactDistancesOnLine& exactDistances) {
     validateBakeOptions(options);
     const TriangleSoup placed = placeMesh(meshFileUnits, placement, options.size);
     const float halfBand =
@@ -183,7 +183,7 @@ BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& plac
            << "],\"triangles\":" << placed.triangles.size() << "}";
     LevelSet levelSet = levelSetFromMesh(placed, options.size, halfBand, "mesh", params.str(),
                                          progress, insideTest);
-    Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistance);
+    Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistances);
     return {std::move(levelSet), std::move(tile)};
 }
 

@@ -119,13 +119,14 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
 /// only meaningful for a closed, manifold mesh: callers check that (truth/mesh_truth.h) and
 /// verify the sign. `insideTest`, when given, is the exact inside test of the *placed* mesh
 /// (placeMesh's result, texels), which fixes the sign of the voxels within 1 texel of the surface
-/// (vdb/mesh_level_set.h). `exactDistance`, when given, is the exact signed distance of the placed
-/// mesh (periodic, texels, e.g. truth/mesh_truth.h MeshDistance::signedDistance): the conservative
+/// (vdb/mesh_level_set.h). `exactDistances`, when given, are the exact signed distances of the
+/// placed mesh (periodic, texels, e.g. truth/mesh_truth.h MeshDistance::signedDistance): the conservative
 /// correction then measures the trilinear overestimate against it instead of estimating it
 /// (bake/conservative.h). Throws InputError as placeMesh and bakeChainmail do.
 BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                     const BakeOptions& options, const ProgressCallback& progress = {},
-                    const InsideTest& insideTest = {}, const ExactDistance& exactDistance = {});
+                    const InsideTest& insideTest = {},
+                    const ExactDistancesOnLine& exactDistances = {});
 
 /// A height map: the image (bake/height_image.h) scaled to heights 0..heightTexels, sampled
 /// periodically and bilinearly at the tile's texel columns, material solid below the

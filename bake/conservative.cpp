@@ -132,7 +132,8 @@ struct MeasuredLowerings {
 /// edge slice - 0.5 x its inner neighbour (the filter's linear extension): their r is returned
 /// per column for raiseEdgeSlicesForFaces. Points none of whose corners is within bandTexels of
 /// the surface are not checked.
-MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistance& exactDistance,
+MeasuredLowerings measuredLowerings(const Tile& exact,
+                                    const ExactDistancesOnLine& exactDistances,
                                     float allowanceTexels, float bandTexels) {
     const Size3 size = exact.size();
     const int pointsX = 2 * size.width, pointsY = 2 * size.height, levels = 2 * size.depth + 1;
@@ -146,39 +147,52 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistance& exac
                std::size_t(pointsX) * (std::size_t(b) + std::size_t(pointsY) * std::size_t(m));
     };
     std::vector<float> pointRemovals(std::size_t(pointsX) * pointsY * levels, 0.0f);
+    // A column of points (a, b) at a time: its points that need the truth, one line for
+    // exactDistances.
     tbb::parallel_for(
-        tbb::blocked_range<int>(0, pointsY * levels), [&](const tbb::blocked_range<int>& rows) {
-            for (int row = rows.begin(); row != rows.end(); ++row) {
-                const int b = row % pointsY, m = row / pointsY;
+        tbb::blocked_range<int>(0, pointsX * pointsY), [&](const tbb::blocked_range<int>& columns) {
+            std::vector<double> z, interpolated, truth;
+            std::vector<int> level;
+            for (int column = columns.begin(); column != columns.end(); ++column) {
+                const int a = column % pointsX, b = column / pointsX;
                 // Corner texels along each axis: one when the point is on a texel plane, two
                 // (weight 1/2 each) midway; on the faces the edge cell's two slices, weights
                 // 1.5 on the edge slice and -0.5 on its inner neighbour.
+                const int x0 = a / 2, x1 = a % 2 == 0 ? x0 : wrapped(x0 + 1, size.width);
                 const int y0 = b / 2, y1 = b % 2 == 0 ? y0 : wrapped(y0 + 1, size.height);
-                int z0 = m % 2 == 1 ? (m - 1) / 2 : m / 2 - 1;
-                int z1 = m % 2 == 1 ? z0 : m / 2;
-                double weight0 = 0.5, weight1 = 0.5;
-                if (m == 0) {
-                    z0 = 0, z1 = 1, weight0 = 1.5, weight1 = -0.5;
-                } else if (m == lastLevel) {
-                    z0 = size.depth - 2, z1 = size.depth - 1, weight0 = -0.5, weight1 = 1.5;
-                }
-                for (int a = 0; a < pointsX; ++a) {
+                z.clear();
+                interpolated.clear();
+                level.clear();
+                for (int m = 0; m < levels; ++m) {
                     if (a % 2 == 0 && b % 2 == 0 && m % 2 == 1) continue;  // a texel centre
-                    const int x0 = a / 2, x1 = a % 2 == 0 ? x0 : wrapped(x0 + 1, size.width);
-                    const auto sliceMean = [&](int z) {
-                        return 0.25 * (double(exact.at(x0, y0, z)) + exact.at(x1, y0, z) +
-                                       exact.at(x0, y1, z) + exact.at(x1, y1, z));
+                    int z0 = m % 2 == 1 ? (m - 1) / 2 : m / 2 - 1;
+                    int z1 = m % 2 == 1 ? z0 : m / 2;
+                    double weight0 = 0.5, weight1 = 0.5;
+                    if (m == 0) {
+                        z0 = 0, z1 = 1, weight0 = 1.5, weight1 = -0.5;
+                    } else if (m == lastLevel) {
+                        z0 = size.depth - 2, z1 = size.depth - 1, weight0 = -0.5, weight1 = 1.5;
+                    }
+                    const auto sliceMean = [&](int zIndex) {
+                        return 0.25 * (double(exact.at(x0, y0, zIndex)) + exact.at(x1, y0, zIndex) +
+                                       exact.at(x0, y1, zIndex) + exact.at(x1, y1, zIndex));
                     };
-                    const double interpolated = weight0 * sliceMean(z0) + weight1 * sliceMean(z1);
                     const float nearest =
                         std::min({std::abs(exact.at(x0, y0, z0)), std::abs(exact.at(x1, y1, z1)),
                                   std::abs(exact.at(x1, y0, z0)), std::abs(exact.at(x0, y1, z1))});
                     if (nearest > bandTexels) continue;  // far from the surface: estimated
-                    const glm::dvec3 p(0.5 + 0.5 * a, 0.5 + 0.5 * b, 0.5 * m);
-                    const double truth =
-                        std::clamp(exactDistance(p), -double(clampTexels), double(clampTexels));
-                    pointRemovals[point(a, b, m)] =
-                        float(std::max(0.0, interpolated - truth - allowanceTexels));
+                    z.push_back(0.5 * m);
+                    interpolated.push_back(weight0 * sliceMean(z0) + weight1 * sliceMean(z1));
+                    level.push_back(m);
+                }
+                if (z.empty()) continue;
+                truth.resize(z.size());
+                exactDistances({0.5 + 0.5 * a, 0.5 + 0.5 * b}, z, truth);
+                for (std::size_t n = 0; n < z.size(); ++n) {
+                    const double clamped =
+                        std::clamp(truth[n], -double(clampTexels), double(clampTexels));
+                    pointRemovals[point(a, b, level[n])] =
+                        float(std::max(0.0, interpolated[n] - clamped - allowanceTexels));
                 }
             }
         });
@@ -250,7 +264,7 @@ void raiseEdgeSlicesForFaces(std::span<float> lowerings, const Size3& size,
 }  // namespace
 
 void makeConservative(Tile& tile, const ConservativeOptions& options,
-                      const ExactDistance& exactDistance) {
+                      const ExactDistancesOnLine& exactDistances) {
     auto requireNonNegative = [](float value, const char* field) {
         if (!(value >= 0.0f && std::isfinite(value))) {
             throw InputError(std::string("conservative resampling: ") + field + " = " +
@@ -272,10 +286,10 @@ void makeConservative(Tile& tile, const ConservativeOptions& options,
     for (float& lowering : lowerings) lowering = std::max(0.0f, lowering - allowance);
     std::array<std::vector<float>, 2> faceRemovals =
         estimatedFaceRemovals(tile, lowerings, allowance);
-    if (exactDistance) {
+    if (exactDistances) {
         // Within the band the measured lowering replaces the estimate.
         const MeasuredLowerings measured = measuredLowerings(
-            tile, exactDistance, options.toleranceTexels, options.measuredBandTexels);
+            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels);
         const std::span<const float> exact = tile.distancesTexels();
         for (std::size_t n = 0; n < lowerings.size(); ++n) {
             if (std::abs(exact[n]) <= options.measuredBandTexels)

@@ -42,15 +42,20 @@
 #pragma once
 
 #include <functional>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <span>
 
 #include "sampler/tile.h"
 
 namespace distile {
 
-/// Exact signed distance of the detail at a texel-space point, texels (negative inside), periodic
-/// in x and y like the tile. Called concurrently from several threads.
-using ExactDistance = std::function<double(const glm::dvec3& texelPosition)>;
+/// Exact signed distances of the detail at the texel-space points (x, y, z[k]) of one vertical
+/// line, texels (negative inside), periodic in x and y like the tile: the measured path asks for
+/// its points a line at a time, so the detail's distance can share work between them. Called
+/// concurrently from several threads.
+using ExactDistancesOnLine = std::function<void(const glm::dvec2& xy, std::span<const double> z,
+                                                std::span<double> distances)>;
 
 struct ConservativeOptions {
     bool enabled = true;            ///< false: keep the exact texel-centre distances
@@ -71,11 +76,11 @@ struct ConservativeOptions {
 };
 
 /// Lowers the texels of `tile` (which must hold the exact distances at texel centres, clamped to
-/// the level set's band) as the file note says: measured against `exactDistance` when it is
+/// the level set's band) as the file note says: measured against `exactDistances` when it is
 /// given, estimated otherwise; nothing when !options.enabled. Multi-threaded; the result does not
 /// depend on the thread count. Throws InputError when a factor or share is negative or not
 /// finite, or the tolerance is negative.
 void makeConservative(Tile& tile, const ConservativeOptions& options,
-                      const ExactDistance& exactDistance = {});
+                      const ExactDistancesOnLine& exactDistances = {});
 
 }  // namespace distile

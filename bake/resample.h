@@ -12,10 +12,10 @@ namespace distile {
 /// (i, j, k) at texel centre (i+0.5, j+0.5, k+0.5)), so each texel takes its voxel's value,
 /// exactly. Texels outside the narrow band hold +/- the half band width. Provenance comes from the
 /// level set. Then, by default, the texels are lowered so trilinear interpolation does not
-/// overestimate (bake/conservative.h: measured against `exactDistance`, the detail's exact
-/// signed distance, when given, estimated otherwise; `conservative.enabled = false` keeps the
+/// overestimate (bake/conservative.h: measured against `exactDistances`, the detail's exact
+/// signed distances, when given, estimated otherwise; `conservative.enabled = false` keeps the
 /// exact voxel values). Throws InputError for bad conservative options.
 Tile tileFromLevelSet(const LevelSet& levelSet, const ConservativeOptions& conservative = {},
-                      const ExactDistance& exactDistance = {});
+                      const ExactDistancesOnLine& exactDistances = {});
 
 }  // namespace distile

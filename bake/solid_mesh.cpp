@@ -102,10 +102,26 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
             }
         });
     }
-    const ExactDistance exactDistance = [&](const glm::dvec3& p) {
-        if (sign.unsignedDistance) return soup.unsignedDistance(p, cutoff) - halfThickness;
-        if (surface) return surface->signedDistance(p, cutoff);
-        return signedDistanceBesideGrid(soup, grid, p, cutoff);
+    // The exact distances the conservative correction measures against, a vertical line at a
+    // time; each point starts from the nearest triangle of its nearest voxel (the grid's, unless
+    // they were measured again to a trimmed or capped surface).
+    const ExactDistancesOnLine exactDistances = [&](const glm::dvec2& xy,
+                                                    std::span<const double> z,
+                                                    std::span<double> distances) {
+        if (surface) {
+            for (std::size_t n = 0; n < z.size(); ++n)
+                distances[n] = surface->signedDistance({xy.x, xy.y, z[n]}, cutoff);
+            return;
+        }
+        std::vector<SoupDistance::NearestHint> hints(z.size());
+        for (std::size_t n = 0; n < z.size(); ++n) hints[n] = grid.hintNear({xy.x, xy.y, z[n]});
+        soup.unsignedDistancesOnLine(xy, z, cutoff, hints, distances);
+        for (std::size_t n = 0; n < z.size(); ++n) {
+            distances[n] = sign.unsignedDistance
+                               ? distances[n] - halfThickness
+                               : signedDistanceBesideGrid(soup, grid, {xy.x, xy.y, z[n]},
+                                                          distances[n]);
+        }
     };
     const auto rowDistance = [&](int j, int k, std::span<double> row) {
         const double* distances = grid.row(j, k);
@@ -126,7 +142,7 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
                 ": the mesh has no inside in the tile (its winding number is nowhere above "
                 "1/2); sheet-like detail must be baked as an unsigned distance");
     }
-    Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistance);
+    Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistances);
     return {{std::move(levelSet), std::move(tile)}, insideTexels};
 }
 

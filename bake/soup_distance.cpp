@@ -70,33 +70,53 @@ float skipThreshold(double bestSquared, double pointError) {
     return float(reach * reach * (1.0 + 0x1p-20));
 }
 
-/// Squared distance from p to the triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
-double triangleDistanceSquared(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
-                               const glm::dvec3& c) {
-    const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-    const auto squared = [&p](const glm::dvec3& q) { return glm::dot(p - q, p - q); };
-    if (d1 <= 0.0 && d2 <= 0.0) return squared(a);
-    const glm::dvec3 bp = p - b;
-    const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-    if (d3 >= 0.0 && d4 <= d3) return squared(b);
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return squared(a + ab * (d1 / (d1 - d3)));
-    const glm::dvec3 cp = p - c;
-    const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-    if (d6 >= 0.0 && d5 <= d6) return squared(c);
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return squared(a + ac * (d2 / (d2 - d6)));
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-        return squared(b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))));
+/// Squared distance from the points (x, y, z) of one vertical line to the triangle abc
+/// (Ericson, Real-Time Collision Detection, 5.1.5): the parts of its dot products that do not
+/// depend on z are computed once per triangle.
+class LineTriangleDistance {
+  public:
+    LineTriangleDistance(const glm::dvec2& xy, const glm::dvec3& a, const glm::dvec3& b,
+                         const glm::dvec3& c)
+        : xy_(xy), a_(a), b_(b), c_(c), ab_(b - a), ac_(c - a) {
+        const glm::dvec2 ap = xy - glm::dvec2(a), bp = xy - glm::dvec2(b), cp = xy - glm::dvec2(c);
+        d1_ = ab_.x * ap.x + ab_.y * ap.y;
+        d2_ = ac_.x * ap.x + ac_.y * ap.y;
+        d3_ = ab_.x * bp.x + ab_.y * bp.y;
+        d4_ = ac_.x * bp.x + ac_.y * bp.y;
+        d5_ = ab_.x * cp.x + ab_.y * cp.y;
+        d6_ = ac_.x * cp.x + ac_.y * cp.y;
     }
-    const double denominator = 1.0 / (va + vb + vc);
-    if (!std::isfinite(denominator)) {  // degenerate (zero-area) triangle: nearest corner
-        return std::min({squared(a), squared(b), squared(c)});
+
+    double operator()(double z) const {
+        const glm::dvec3 p(xy_.x, xy_.y, z);
+        const auto squared = [&p](const glm::dvec3& q) { return glm::dot(p - q, p - q); };
+        const double apz = z - a_.z;
+        const double d1 = d1_ + ab_.z * apz, d2 = d2_ + ac_.z * apz;
+        if (d1 <= 0.0 && d2 <= 0.0) return squared(a_);
+        const double bpz = z - b_.z;
+        const double d3 = d3_ + ab_.z * bpz, d4 = d4_ + ac_.z * bpz;
+        if (d3 >= 0.0 && d4 <= d3) return squared(b_);
+        const double vc = d1 * d4 - d3 * d2;
+        if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return squared(a_ + ab_ * (d1 / (d1 - d3)));
+        const double cpz = z - c_.z;
+        const double d5 = d5_ + ab_.z * cpz, d6 = d6_ + ac_.z * cpz;
+        if (d6 >= 0.0 && d5 <= d6) return squared(c_);
+        const double vb = d5 * d2 - d1 * d6;
+        if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return squared(a_ + ac_ * (d2 / (d2 - d6)));
+        const double va = d3 * d6 - d5 * d4;
+        if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+            return squared(b_ + (c_ - b_) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))));
+        }
+        const double denominator = 1.0 / (va + vb + vc);
+        if (!std::isfinite(denominator)) return std::min({squared(a_), squared(b_), squared(c_)});
+        return squared(a_ + ab_ * (vb * denominator) + ac_ * (vc * denominator));
     }
-    return squared(a + ab * (vb * denominator) + ac * (vc * denominator));
-}
+
+  private:
+    glm::dvec2 xy_;
+    glm::dvec3 a_, b_, c_, ab_, ac_;
+    double d1_, d2_, d3_, d4_, d5_, d6_;  ///< x and y parts of the dot products d1 ... d6
+};
 
 /// Signed solid angle of the triangle abc seen from p (Van Oosterom and Strackee 1983):
 /// positive when p is behind the triangle (on the side its counter-clockwise normal leaves).
@@ -388,76 +408,6 @@ std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex,
     return index;
 }
 
-double SoupDistance::closestSquared(const glm::dvec3& point, double bestSquared,
-                                    std::uint32_t& bestTriangle) const {
-    const double pointError = floatPointError(point);
-    float threshold = skipThreshold(bestSquared, pointError);
-    const __m128 px = _mm_set1_ps(float(point.x));
-    const __m128 py = _mm_set1_ps(float(point.y));
-    const __m128 pz = _mm_set1_ps(float(point.z));
-    const __m128 zero = _mm_setzero_ps();
-    const auto testTriangle = [&](std::uint32_t t) {
-        const Triangle& triangle = triangles_[t];
-        const double squared = triangleDistanceSquared(point, triangle.a, triangle.b, triangle.c);
-        if (squared < bestSquared) {
-            bestSquared = squared;
-            bestTriangle = t;
-            threshold = skipThreshold(bestSquared, pointError);
-        }
-    };
-    // Wide nodes with the squared float distance of their box.
-    struct Entry {
-        std::uint32_t node;
-        float boxSquared;
-    };
-    std::array<Entry, kStackSize> stack;
-    int size = 0;
-    stack[size++] = {0u, 0.0f};
-    while (size > 0) {
-        const Entry entry = stack[--size];
-        if (!(entry.boxSquared < threshold)) continue;
-        const WideNode& node = wideNodes_[entry.node];
-        const auto outside = [&zero](const float* lo, const float* hi, __m128 p) {
-            const __m128 d = _mm_max_ps(
-                _mm_max_ps(_mm_sub_ps(_mm_load_ps(lo), p), _mm_sub_ps(p, _mm_load_ps(hi))), zero);
-            return _mm_mul_ps(d, d);
-        };
-        const __m128 boxSquared = _mm_add_ps(
-            _mm_add_ps(outside(node.minX, node.maxX, px), outside(node.minY, node.maxY, py)),
-            outside(node.minZ, node.maxZ, pz));
-        alignas(16) float squared[4];
-        _mm_store_ps(squared, boxSquared);
-        const int near = _mm_movemask_ps(_mm_cmplt_ps(boxSquared, _mm_set1_ps(threshold)));
-        const int leaves = _mm_movemask_ps(_mm_castsi128_ps(
-            _mm_cmpgt_epi32(_mm_load_si128(reinterpret_cast<const __m128i*>(node.count)),
-                            _mm_setzero_si128())));
-        // Leaves at once (each still nearer than the best when its turn comes), inner children
-        // pushed with the nearest last, so it is visited next. A hint makes the threshold tight
-        // from the start, so the order of the others barely matters: bit masks instead of sorting
-        // spare the branch predictor.
-        for (int todo = near & leaves; todo != 0; todo &= todo - 1) {
-            const int c = std::countr_zero(unsigned(todo));
-            if (!(squared[c] < threshold)) continue;
-            for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t)
-                testTriangle(t);
-        }
-        int inner = near & ~leaves;
-        if (inner == 0) continue;
-        int nearest = std::countr_zero(unsigned(inner));
-        for (int rest = inner & (inner - 1); rest != 0; rest &= rest - 1) {
-            const int c = std::countr_zero(unsigned(rest));
-            if (squared[c] < squared[nearest]) nearest = c;
-        }
-        assert(size + 4 <= kStackSize);
-        for (int todo = inner & ~(1 << nearest); todo != 0; todo &= todo - 1) {
-            const int c = std::countr_zero(unsigned(todo));
-            stack[size++] = {node.child[c], squared[c]};
-        }
-        stack[size++] = {node.child[nearest], squared[nearest]};
-    }
-    return bestSquared;
-}
-
 void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z,
                                         std::span<double> bestSquared,
                                         std::span<std::uint32_t> bestTriangle) const {
@@ -469,7 +419,7 @@ void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const do
     alignas(16) float laneZ[kLineLanes], threshold[kLineLanes];
     std::array<double, kLineLanes> pointError;
     for (int lane = 0; lane < vectors * 4; ++lane) {
-        laneZ[lane] = lane < lanes ? float(z[lane]) : 0.0f;
+        laneZ[lane] = float(z[lane < lanes ? lane : 0]);
         if (lane >= lanes) {
             threshold[lane] = -1.0f;
             continue;
@@ -507,21 +457,24 @@ void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const do
                            << (4 * v);
             }
         }
-        // Leaves at once, for each lane they are (still) nearer to; inner children pushed.
+        // Leaves at once, for each lane they are (still) nearer to; inner children pushed with
+        // the nearest to the first lane last, so it is visited next: without a hint, that finds
+        // a near triangle early. With hints the order barely matters.
+        int nearest = -1;
+        float nearestSquared = HUGE_VALF;
         for (int c = 0; c < 4; ++c) {
             if (near[c] == 0) continue;
             if (node.count[c] == 0) {
-                assert(size < kStackSize);
-                stack[size++] = node.child[c];
+                if (boxSquared[c][0] < nearestSquared) nearest = c, nearestSquared = boxSquared[c][0];
                 continue;
             }
             for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t) {
                 const Triangle& triangle = triangles_[t];
+                const LineTriangleDistance distanceSquared(xy, triangle.a, triangle.b, triangle.c);
                 for (int todo = near[c]; todo != 0; todo &= todo - 1) {
                     const int lane = std::countr_zero(unsigned(todo));
                     if (!(boxSquared[c][lane] < threshold[lane])) continue;
-                    const double squared = triangleDistanceSquared(
-                        {xy.x, xy.y, z[lane]}, triangle.a, triangle.b, triangle.c);
+                    const double squared = distanceSquared(z[lane]);
                     if (squared < bestSquared[lane]) {
                         bestSquared[lane] = squared;
                         bestTriangle[lane] = t;
@@ -530,6 +483,11 @@ void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const do
                 }
             }
         }
+        assert(size + 4 <= kStackSize);
+        for (int c = 0; c < 4; ++c) {
+            if (near[c] != 0 && node.count[c] == 0 && c != nearest) stack[size++] = node.child[c];
+        }
+        if (nearest >= 0) stack[size++] = node.child[nearest];
     }
 }
 
@@ -548,11 +506,12 @@ void SoupDistance::unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const
             bestSquared[lane] = cutoffTexels * cutoffTexels;
             if (hint.triangle != UINT32_MAX) {
                 const Triangle& triangle = triangles_[hint.triangle];
-                const glm::dvec3 point(xy.x, xy.y, z[first + lane]);
-                bestSquared[lane] =
-                    std::min(bestSquared[lane], triangleDistanceSquared(point - hint.shift,
-                                                                        triangle.a, triangle.b,
-                                                                        triangle.c));
+                bestSquared[lane] = std::min(
+                    bestSquared[lane],
+                    LineTriangleDistance(xy - glm::dvec2(double(hint.copyX) * tile_.width,
+                                                         double(hint.copyY) * tile_.height),
+                                         triangle.a, triangle.b,
+                                         triangle.c)(z[first + lane]));
             }
             reach = std::max(reach, std::sqrt(bestSquared[lane]));
         }
@@ -568,7 +527,7 @@ void SoupDistance::unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const
                                      std::span(bestSquared).first(lanes),
                                      std::span(found).first(lanes));
                 for (std::size_t lane = 0; lane < lanes; ++lane) {
-                    if (found[lane] != UINT32_MAX) hints[first + lane] = {found[lane], shift};
+                    if (found[lane] != UINT32_MAX) hints[first + lane] = {found[lane], m, n};
                 }
             }
         }
@@ -584,26 +543,10 @@ double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cu
 
 double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
                                       NearestHint& hint) const {
-    // The hint's triangle is one of the candidates the search compares anyway (the same
-    // arithmetic on the same shifted point), so starting from it gives the same minimum.
-    double bestSquared = cutoffTexels * cutoffTexels;
-    if (hint.triangle != UINT32_MAX) {
-        const Triangle& triangle = triangles_[hint.triangle];
-        bestSquared =
-            std::min(bestSquared, triangleDistanceSquared(texelPosition - hint.shift, triangle.a,
-                                                          triangle.b, triangle.c));
-    }
-    const PeriodicShifts shifts =
-        periodicShifts(texelPosition, bounds_, tile_, std::sqrt(bestSquared));
-    for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
-        for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
-            const glm::dvec3 shift(double(m) * tile_.width, double(n) * tile_.height, 0.0);
-            std::uint32_t found = UINT32_MAX;
-            bestSquared = closestSquared(texelPosition - shift, bestSquared, found);
-            if (found != UINT32_MAX) hint = {found, shift};
-        }
-    }
-    return std::sqrt(bestSquared);
+    double distance = 0.0;
+    unsignedDistancesOnLine(glm::dvec2(texelPosition), std::span(&texelPosition.z, 1),
+                            cutoffTexels, std::span(&hint, 1), std::span(&distance, 1));
+    return distance;
 }
 
 namespace {

@@ -11,7 +11,9 @@
 ///   rounded outward, and compared with a margin that covers the float rounding of the point
 ///   and of the box arithmetic: a box is skipped only when it is provably no nearer than the
 ///   best triangle so far, and every triangle distance is computed in double, so the result is
-///   the exact double-precision minimum.
+///   the exact double-precision minimum. Up to 16 points on one vertical line share a walk
+///   (each box is tested against all of them at once; a grid's column of voxels visits about a
+///   quarter of the nodes its voxels would one by one), each point keeping its own best.
 /// - **Sign**: the generalized winding number w (Jacobson et al. 2013): the sum of the signed
 ///   solid angles of the triangles over 4 pi. It is 1 inside and 0 outside a closed,
 ///   outward-oriented mesh, adds up over overlapping closed parts, and degrades gracefully
@@ -72,7 +74,7 @@ class SoupDistance {
     /// query at a nearby point, whose result it only speeds up (never changes).
     struct NearestHint {
         std::uint32_t triangle = UINT32_MAX;  ///< UINT32_MAX: none
-        glm::dvec3 shift{0.0};                ///< of the copy, (m W, n H, 0)
+        std::int32_t copyX = 0, copyY = 0;    ///< of the copy, shifted by (copyX W, copyY H, 0)
     };
     /// unsignedDistance starting from `hint`'s triangle, which it then updates.
     double unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
@@ -176,11 +178,11 @@ class SoupDistance {
     /// Node `index`'s box and dipole, and its subtree's, bottom-up from triangles_ (leaf order).
     Bound bound(std::uint32_t index, std::vector<FloatBox>& boxes);
     std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<FloatBox>& boxes);
-    double closestSquared(const glm::dvec3& point, double bestSquared,
-                          std::uint32_t& bestTriangle) const;
     static constexpr int kLineLanes = 16;
-    /// closestSquared for up to kLineLanes points (x, y, z[k]) in one walk: bestSquared[k] and
-    /// bestTriangle[k] are lowered where a triangle is nearer.
+    /// The nearest triangles of the soup's own copy to up to kLineLanes points (x, y, z[k]) in
+    /// one walk of the hierarchy: bestSquared[k] and bestTriangle[k] are lowered where a
+    /// triangle is nearer. A box is skipped only when it is provably no nearer than a lane's
+    /// best (see the file note), so the result is the exact minimum.
     void closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z,
                               std::span<double> bestSquared,
                               std::span<std::uint32_t> bestTriangle) const;

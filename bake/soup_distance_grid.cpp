@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cmath>
 #include <cstdint>
@@ -64,6 +65,7 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
     const std::size_t voxels = slabSize * std::size_t(slices);
     assert(voxels < std::size_t(UINT32_MAX));
     grid.distancesTexels.resize(voxels);
+    grid.nearest.resize(voxels);
     std::vector<double>& distances = grid.distancesTexels;
     const auto centre = [&](std::size_t voxel) {
         const std::size_t i = voxel % rowLength, j = (voxel / rowLength) % std::size_t(tile.height);
@@ -95,8 +97,10 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
                     soup.unsignedDistancesOnLine({i + 0.5, j + 0.5}, sliceZ, cutoffTexels, hints,
                                                  line);
                     for (int slice = 0; slice < slices; ++slice) {
-                        distances[std::size_t(slice) * slabSize + std::size_t(j) * rowLength +
-                                  std::size_t(i)] = line[std::size_t(slice)];
+                        const std::size_t voxel = std::size_t(slice) * slabSize +
+                                                  std::size_t(j) * rowLength + std::size_t(i);
+                        distances[voxel] = line[std::size_t(slice)];
+                        grid.nearest[voxel] = hints[std::size_t(slice)];
                     }
                     if (i == i0) rowStart = hints;
                 }
@@ -196,20 +200,55 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
     return grid;
 }
 
-double signedDistanceBesideGrid(const SoupDistance& soup, const SoupDistanceGrid& grid,
-                                const glm::dvec3& texelPosition, double cutoffTexels) {
-    const double distance = soup.unsignedDistance(texelPosition, cutoffTexels);
-    const Size3& tile = soup.tile();
-    const auto wrap = [](int index, int count) { return ((index % count) + count) % count; };
+SoupDistance::NearestHint SoupDistanceGrid::hintNear(const glm::dvec3& texelPosition) const {
     const int i = int(std::floor(texelPosition.x)), j = int(std::floor(texelPosition.y));
-    const int k = int(std::floor(texelPosition.z));
-    if (soup.windingChangesOnlyAcrossTheSurface() && k >= grid.zBegin && k < grid.zEnd) {
-        // The voxel of the copy of the tile the point lies in: the field is periodic.
-        const double voxelDistance = grid.row(wrap(j, tile.height), k)[wrap(i, tile.width)];
-        const glm::dvec3 centre(i + 0.5, j + 0.5, k + 0.5);
-        if (std::abs(voxelDistance) + distance > glm::length(texelPosition - centre) + 1e-9 ||
-            soup.segmentTouchesNoTriangle(centre, texelPosition))
-            return voxelDistance < 0.0 ? -distance : distance;
+    const int k = std::clamp(int(std::floor(texelPosition.z)), zBegin, zEnd - 1);
+    // The copy of the tile the point lies in, and its voxel there.
+    const int copyX = int(std::floor(double(i) / width)), copyY = int(std::floor(double(j) / height));
+    const std::size_t voxel =
+        (std::size_t(k - zBegin) * std::size_t(height) + std::size_t(j - copyY * height)) *
+            std::size_t(width) +
+        std::size_t(i - copyX * width);
+    SoupDistance::NearestHint hint = nearest[voxel];
+    if (hint.triangle != UINT32_MAX) {
+        hint.copyX += copyX;
+        hint.copyY += copyY;
+    }
+    return hint;
+}
+
+double signedDistanceBesideGrid(const SoupDistance& soup, const SoupDistanceGrid& grid,
+                                const glm::dvec3& texelPosition, double distance) {
+    if (soup.windingChangesOnlyAcrossTheSurface()) {
+        // The voxel centres around the point (of the copy of the tile it lies in: the field is
+        // periodic): the sign of one that no surface can separate from it, by their distances
+        // (checked for all first, cheap) or else by a segment test.
+        const Size3& tile = soup.tile();
+        const auto wrap = [](int index, int count) { return ((index % count) + count) % count; };
+        const int i0 = int(std::floor(texelPosition.x - 0.5));
+        const int j0 = int(std::floor(texelPosition.y - 0.5));
+        const int k0 = int(std::floor(texelPosition.z - 0.5));
+        std::array<glm::dvec3, 8> centres;
+        std::array<double, 8> voxelDistances;
+        int count = 0;
+        for (int k = k0; k <= k0 + 1; ++k) {
+            if (k < grid.zBegin || k >= grid.zEnd) continue;
+            for (int j = j0; j <= j0 + 1; ++j) {
+                for (int i = i0; i <= i0 + 1; ++i) {
+                    centres[count] = {i + 0.5, j + 0.5, k + 0.5};
+                    voxelDistances[count++] = grid.row(wrap(j, tile.height), k)[wrap(i, tile.width)];
+                }
+            }
+        }
+        for (int n = 0; n < count; ++n) {
+            if (std::abs(voxelDistances[n]) + distance >
+                glm::length(texelPosition - centres[n]) + 1e-9)
+                return voxelDistances[n] < 0.0 ? -distance : distance;
+        }
+        for (int n = 0; n < count; ++n) {
+            if (soup.segmentTouchesNoTriangle(centres[n], texelPosition))
+                return voxelDistances[n] < 0.0 ? -distance : distance;
+        }
     }
     return soup.windingNumber(texelPosition) > 0.5 ? -distance : distance;
 }

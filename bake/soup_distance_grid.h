@@ -2,8 +2,8 @@
 /// The exact distances of a SoupDistance at every voxel centre of a block of slices of the tile's
 /// texel grid: what a mesh bake fills its level set with (bake/solid_mesh.h).
 ///
-/// Unsigned distances come from one query per voxel, started from the previous voxel's nearest
-/// triangle along the row. Signed by the winding number: for meshes whose winding number changes
+/// Unsigned distances come from one query per vertical line of voxels (all the slices at once),
+/// each voxel started from the nearest triangle of its neighbour in the row. Signed by the winding number: for meshes whose winding number changes
 /// only across the surface (SoupDistance::windingChangesOnlyAcrossTheSurface) the voxels are
 /// joined into regions that no surface separates -- two neighbours join when d1 + d2 exceeds
 /// their spacing (the two empty balls cover the segment between them) or when the segment
@@ -25,6 +25,12 @@ struct SoupDistanceGrid {
     int width = 0, height = 0, zBegin = 0, zEnd = 0;
     /// x fastest, then y, then z; texels, clamped to +-cutoffTexels; negative inside when signed.
     std::vector<double> distancesTexels;
+    /// The nearest triangle of each voxel (same order), to start queries near it from.
+    std::vector<SoupDistance::NearestHint> nearest;
+
+    /// A start for a query at `texelPosition`: the nearest triangle of the voxel nearest to it
+    /// (of the copy of the tile it lies in, the slice clamped into the block).
+    SoupDistance::NearestHint hintNear(const glm::dvec3& texelPosition) const;
 
     const double* row(int j, int k) const {
         return distancesTexels.data() +
@@ -42,10 +48,10 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
                                   const ProgressCallback& progress = {});
 
 /// SoupDistance::signedDistance at any point whose nearest voxel centre lies in `grid` (a signed
-/// grid of `soup`), with the sign taken from that voxel when no surface can lie between them
-/// (as the file note says; for meshes whose winding number changes only across the surface),
-/// else from the winding number at the point. Thread-safe.
+/// grid of `soup`), from its unsigned `distance` there: the sign is taken from that voxel when no
+/// surface can lie between them (as the file note says; for meshes whose winding number changes
+/// only across the surface), else from the winding number at the point. Thread-safe.
 double signedDistanceBesideGrid(const SoupDistance& soup, const SoupDistanceGrid& grid,
-                                const glm::dvec3& texelPosition, double cutoffTexels);
+                                const glm::dvec3& texelPosition, double distance);
 
 }  // namespace distile

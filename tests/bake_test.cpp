@@ -331,13 +331,23 @@ TEST(SoupDistanceGrid, EveryVoxelIsTheExactDistanceSignedByItsWindingNumber) {
     }
     EXPECT_GT(checkedSigns, 64 * 64 * 20);
     EXPECT_GT(inside, 1500);  // the box alone holds ~1100 voxels, the torus ~1800
-    // Points between the voxels (as the conservative pass asks) take the same signed distance
-    // as a query of their own.
-    for (const glm::dvec3& p : randomPoints(glm::dvec3(0.0), glm::dvec3(64, 64, 16), 3000, 8)) {
-        const double winding = distance.windingNumber(p);
-        if (std::abs(winding - 0.5) < 0.25) continue;
-        EXPECT_EQ(signedDistanceBesideGrid(distance, grid, p, cutoff),
-                  distance.signedDistance(p, cutoff));
+    // Points between the voxels (as the conservative pass asks), a vertical line of them started
+    // from the grid's nearest triangles (beyond the tile's edges too), take the same signed
+    // distance as a query of their own.
+    for (const glm::dvec3& q : randomPoints(glm::dvec3(-8.0), glm::dvec3(72, 72, 16), 300, 8)) {
+        const std::vector<double> z{0.0, 0.5, 1.7, q.z, 9.25, 15.5, 16.0};
+        std::vector<SoupDistance::NearestHint> hints;
+        for (double zn : z) hints.push_back(grid.hintNear({q.x, q.y, zn}));
+        std::vector<double> line(z.size());
+        distance.unsignedDistancesOnLine({q.x, q.y}, z, cutoff, hints, line);
+        for (std::size_t n = 0; n < z.size(); ++n) {
+            const glm::dvec3 p(q.x, q.y, z[n]);
+            ASSERT_EQ(line[n], distance.unsignedDistance(p, cutoff));
+            const double winding = distance.windingNumber(p);
+            if (std::abs(winding - 0.5) < 0.25) continue;
+            EXPECT_EQ(signedDistanceBesideGrid(distance, grid, p, line[n]),
+                      distance.signedDistance(p, cutoff));
+        }
     }
 }
 
