@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <glm/geometric.hpp>
@@ -293,6 +294,51 @@ TEST(InspectMesh, ClosedOpenNonManifoldDegenerate) {
     EXPECT_EQ(inspectMesh(degenerate).degenerateFaces, 1u);
 
     EXPECT_THROW(inspectMesh(TriangleSoup{}), InputError);
+}
+
+TEST(InspectMesh, LargeMeshesTakeTheFastPathOnlyWhenTheyAreOrientedManifolds) {
+    // Above kMaxSelfIntersectionFaces a closed, consistently oriented soup whose vertices each
+    // have one fan is found manifold without CGAL; a pinched vertex, a flipped face and a hole
+    // are still found.
+    const TriangleSoup torus = makeTorusSoup(glm::dvec3(0.0), 10.0, 3.0, 400, 260);
+    ASSERT_GT(torus.triangles.size(), kMaxSelfIntersectionFaces);
+    const MeshTopology whole = inspectMesh(torus);
+    EXPECT_TRUE(whole.closed);
+    EXPECT_TRUE(whole.manifold);
+    EXPECT_FALSE(whole.selfIntersectionTested);
+    EXPECT_EQ(whole.degenerateFaces, 0u);
+
+    // A second torus touching the first at one shared vertex.
+    TriangleSoup pinched = torus;
+    const TriangleSoup second = makeTorusSoup(glm::dvec3(26.0, 0.0, 0.0), 10.0, 3.0, 8, 6);
+    const glm::dvec3 touching = torus.positions[0];  // (13, 0, 0): the outer equator
+    const unsigned base = unsigned(pinched.positions.size());
+    pinched.positions.insert(pinched.positions.end(), second.positions.begin(),
+                             second.positions.end());
+    unsigned shared = UINT_MAX;
+    for (unsigned v = 0; v < second.positions.size(); ++v) {
+        if (glm::length(second.positions[v] - touching) < 1e-9) shared = v;
+    }
+    ASSERT_NE(shared, UINT_MAX);
+    for (glm::uvec3 t : second.triangles) {
+        for (int c = 0; c < 3; ++c) t[c] = t[c] == shared ? 0u : t[c] + base;
+        pinched.triangles.push_back(t);
+    }
+    const MeshTopology pinchedTopology = inspectMesh(pinched);
+    EXPECT_TRUE(pinchedTopology.closed);
+    EXPECT_FALSE(pinchedTopology.manifold);
+
+    TriangleSoup flipped = torus;
+    std::swap(flipped.triangles[5].y, flipped.triangles[5].z);
+    const MeshTopology flippedTopology = inspectMesh(flipped);
+    EXPECT_TRUE(flippedTopology.closed);
+    EXPECT_TRUE(flippedTopology.manifold);  // orientable: CGAL orients it
+
+    TriangleSoup open = torus;
+    open.triangles.pop_back();
+    const MeshTopology openTopology = inspectMesh(open);
+    EXPECT_FALSE(openTopology.closed);
+    EXPECT_EQ(openTopology.boundaryEdges, 3u);
 }
 
 /// Acceptance: the baked level set against the exact mesh distance at random voxel centres of

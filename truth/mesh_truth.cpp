@@ -10,12 +10,17 @@
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+#include <tbb/parallel_sort.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <glm/geometric.hpp>
 #include <limits>
-#include <map>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -78,6 +83,56 @@ bool buildSurfaceMesh(Soup soup, SurfaceMesh& mesh) {
     return orientedWithoutSplits;
 }
 
+
+/// Whether every vertex of `soup` is manifold, assuming every edge is used exactly twice, once in
+/// each direction: the faces around a vertex then link its neighbours into disjoint cycles (each
+/// face (v, x, y) links x to y), and the vertex is manifold when they form one cycle.
+bool everyVertexIsOneFan(const TriangleSoup& soup) {
+    // Each face corner as (vertex, x, y), grouped by vertex.
+    struct Corner {
+        unsigned vertex, from, to;
+    };
+    std::vector<Corner> corners;
+    corners.reserve(3 * soup.triangles.size());
+    for (const glm::uvec3& t : soup.triangles) {
+        corners.push_back({t.x, t.y, t.z});
+        corners.push_back({t.y, t.z, t.x});
+        corners.push_back({t.z, t.x, t.y});
+    }
+    tbb::parallel_sort(corners.begin(), corners.end(), [](const Corner& l, const Corner& r) {
+        return l.vertex < r.vertex || (l.vertex == r.vertex && l.from < r.from);
+    });
+    // Within a vertex's corners (sorted by `from`), follow the links from the first one: one
+    // cycle visits them all.
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, corners.size()), true,
+        [&](const tbb::blocked_range<std::size_t>& range, bool manifold) {
+            std::size_t begin = range.begin();
+            while (begin > 0 && begin < corners.size() &&
+                   corners[begin - 1].vertex == corners[begin].vertex)
+                ++begin;  // a vertex starting before the range belongs to the range before
+            for (std::size_t first = begin; manifold && first < range.end();) {
+                std::size_t end = first;
+                while (end < corners.size() && corners[end].vertex == corners[first].vertex) ++end;
+                const auto fan = std::span(corners).subspan(first, end - first);
+                std::size_t visited = 0;
+                unsigned at = fan.front().from;
+                do {
+                    const auto link = std::lower_bound(
+                        fan.begin(), fan.end(), at,
+                        [](const Corner& c, unsigned value) { return c.from < value; });
+                    if (link == fan.end() || link->from != at) return false;
+                    at = link->to;
+                    ++visited;
+                } while (at != fan.front().from && visited <= fan.size());
+                manifold = visited == fan.size();
+                first = end;
+            }
+            return manifold;
+        },
+        [](bool x, bool y) { return x && y; });
+}
+
 }  // namespace
 
 MeshTopology inspectMesh(const TriangleSoup& triangleSoup) {
@@ -85,30 +140,49 @@ MeshTopology inspectMesh(const TriangleSoup& triangleSoup) {
     const Soup soup = toCgalSoup(triangleSoup);
     MeshTopology topology;
 
-    // Edge use counts straight from the soup: a border edge has one face, a closed surface has
-    // two faces on every edge, more than two is a non-manifold edge.
-    std::map<std::pair<std::size_t, std::size_t>, int> edgeFaces;
+    // Edge uses straight from the soup, sorted: a border edge has one face, a closed surface has
+    // two faces on every edge, more than two is a non-manifold edge. An edge used once in each
+    // direction is consistently oriented.
+    std::vector<std::uint64_t> uses;  // lower corner, higher corner, direction in the lowest bit
+    uses.reserve(3 * soup.polygons.size());
     for (const Polygon& polygon : soup.polygons) {
         if (isDegenerate(soup, polygon)) ++topology.degenerateFaces;
         for (int corner = 0; corner < 3; ++corner) {
-            std::size_t a = polygon[corner];
-            std::size_t b = polygon[(corner + 1) % 3];
+            const std::uint64_t a = polygon[corner], b = polygon[(corner + 1) % 3];
             if (a == b) continue;
-            if (a > b) std::swap(a, b);
-            ++edgeFaces[{a, b}];
+            uses.push_back((std::min(a, b) << 33) | (std::max(a, b) << 1) | (a > b ? 1 : 0));
         }
     }
-    bool nonManifoldEdge = false;
-    for (const auto& [edge, faces] : edgeFaces) {
+    tbb::parallel_sort(uses.begin(), uses.end());
+    bool nonManifoldEdge = false, consistentlyOriented = true;
+    for (std::size_t n = 0; n < uses.size();) {
+        std::size_t end = n;
+        while (end < uses.size() && (uses[end] >> 1) == (uses[n] >> 1)) ++end;
+        const std::size_t faces = end - n;
         if (faces == 1) ++topology.boundaryEdges;
         if (faces > 2) nonManifoldEdge = true;
+        if (faces != 2 || (uses[n] & 1) == (uses[n + 1] & 1)) consistentlyOriented = false;
+        n = end;
     }
     topology.closed = topology.boundaryEdges == 0;
 
+    // A closed, consistently oriented soup without repeated corners whose vertices are all
+    // manifold is an oriented manifold as it stands: what orienting it with CGAL would find,
+    // without building the mesh (which takes seconds at a million faces). Otherwise CGAL decides.
+    const bool repeatedCorners = std::any_of(
+        soup.polygons.begin(), soup.polygons.end(), [](const Polygon& polygon) {
+            return polygon[0] == polygon[1] || polygon[1] == polygon[2] || polygon[0] == polygon[2];
+        });
+    const bool testSelfIntersection = soup.polygons.size() <= kMaxSelfIntersectionFaces;
+    if (topology.closed && consistentlyOriented && !repeatedCorners && !soup.polygons.empty() &&
+        everyVertexIsOneFan(triangleSoup) && !testSelfIntersection) {
+        topology.manifold = true;
+        return topology;
+    }
     SurfaceMesh mesh;
     const bool orientable = buildSurfaceMesh(soup, mesh);
     topology.manifold = orientable && !nonManifoldEdge && !mesh.is_empty();
-    if (topology.manifold && soup.polygons.size() <= kMaxSelfIntersectionFaces) {
+    if (topology.manifold && testSelfIntersection) {
         topology.selfIntersecting = PMP::does_self_intersect(mesh);
         topology.selfIntersectionTested = true;
     }
