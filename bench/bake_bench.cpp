@@ -12,7 +12,10 @@
 // always fills the whole level set, the tile and its band margin above and below it (three times
 // the tile's voxels); the mesh bake does so only when the level set is kept (`--vdb`), so it is
 // timed both ways: bakeMeshWindingNumber (the tile only, as `bake mesh` without --vdb and scenes
-// bake) and bakeMeshWindingNumberWithMargins (the same voxels as meshToLevelSet). Counters: the
+// bake) and bakeMeshWindingNumberWithMargins (the same voxels as meshToLevelSet). A third,
+// bakeMeshWindingNumberConservative, is what `bake mesh` and scenes run by default: the tile with
+// its conservative lowering, measured against exact distances at the half-texel points near the
+// surface (bake/conservative.h); its errors are those of the lowered tile. Counters: the
 // error against the exact distance to the same mesh (CGAL, truth/mesh_truth.h) at random voxel
 // centres of the tile within 2 texels of the surface (max, RMS), at all of them (all_max, against
 // the exact distance clamped to the half band) and the sign errors at all sampled voxels.
@@ -171,19 +174,20 @@ MeshPlacement asTessellated() {
     return placement;
 }
 
-void bakeMeshWindingNumberOf(benchmark::State& state, bool fillLevelSetMargins) {
+void bakeMeshWindingNumberOf(benchmark::State& state, const BakeOptions& options) {
     const ChainmailMesh& mesh = chainmailMeshOfSize(int(state.range(0)), int(state.range(1)));
     std::optional<SolidMeshBake> bake;
     for (auto _ : state) {
-        bake.emplace(bakeSolidMesh(mesh.soup, asTessellated(),
-                                   exactTexelOptions(fillLevelSetMargins), "chainmail"));
+        bake.emplace(bakeSolidMesh(mesh.soup, asTessellated(), options, "chainmail"));
         benchmark::DoNotOptimize(bake->result.tile.distancesTexels().data());
     }
     setMeshErrorCounters(state, bake->result.tile, mesh);
 }
 
 /// The tile alone: what `bake mesh` without --vdb and a scene compute.
-void bakeMeshWindingNumber(benchmark::State& state) { bakeMeshWindingNumberOf(state, false); }
+void bakeMeshWindingNumber(benchmark::State& state) {
+    bakeMeshWindingNumberOf(state, exactTexelOptions(false));
+}
 BENCHMARK(bakeMeshWindingNumber)
     ->Apply(meshSizes)
     ->Unit(benchmark::kMillisecond)
@@ -192,9 +196,21 @@ BENCHMARK(bakeMeshWindingNumber)
 
 /// The whole level set, margins included, as meshToLevelSet computes it (`bake mesh --vdb`).
 void bakeMeshWindingNumberWithMargins(benchmark::State& state) {
-    bakeMeshWindingNumberOf(state, true);
+    bakeMeshWindingNumberOf(state, exactTexelOptions(true));
 }
 BENCHMARK(bakeMeshWindingNumberWithMargins)
+    ->Apply(meshSizes)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
+
+/// The tile with its conservative lowering, as `bake mesh` and scenes bake by default.
+void bakeMeshWindingNumberConservative(benchmark::State& state) {
+    BakeOptions options;
+    options.fillLevelSetMargins = false;
+    bakeMeshWindingNumberOf(state, options);
+}
+BENCHMARK(bakeMeshWindingNumberConservative)
     ->Apply(meshSizes)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1)
