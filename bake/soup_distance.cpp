@@ -236,12 +236,7 @@ SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     tbb::parallel_for(std::size_t(0), count, [&](std::size_t n) {
         triangles_[n] = asSegmentIfSliver(corners(items[n].triangle));
     });
-    // Dipoles for the nodes the winding number may take whole, in node order.
-    std::uint32_t dipoleCount = 0;
-    for (Node& node : nodes_) {
-        if (node.triangleCount > kWindingLeafTriangles) node.dipole = dipoleCount++;
-    }
-    dipoles_.resize(dipoleCount);
+    dipoles_.resize(nodeCount);
     std::vector<FloatBox> boxes(nodeCount);
     bound(0, boxes);
     wideNodes_.reserve(nodeCount / 3 + 1);
@@ -347,7 +342,7 @@ SoupDistance::Bound SoupDistance::bound(std::uint32_t index, std::vector<FloatBo
             std::max(glm::length(one.dipole.centre - dipole.centre) + one.dipole.radius,
                      glm::length(two.dipole.centre - dipole.centre) + two.dipole.radius);
     }
-    if (node.dipole != kNoDipole) dipoles_[node.dipole] = dipole;
+    dipoles_[index] = dipole;
     return result;
 }
 
@@ -750,16 +745,15 @@ double SoupDistance::windingNumberOfCopy(const glm::dvec3& point, double farFiel
     while (size > 0) {
         const std::uint32_t index = stack[--size];
         const Node& node = nodes_[index];
-        if (node.dipole != kNoDipole) {
-            const Dipole& dipole = dipoles_[node.dipole];
-            const glm::dvec3 toCentre = dipole.centre - point;
-            const double distanceSquared = glm::dot(toCentre, toCentre);
-            if (distanceSquared > farFieldRatio * farFieldRatio * dipole.radius * dipole.radius) {
-                solidAngles += glm::dot(toCentre, dipole.vectorArea) /
-                               (distanceSquared * std::sqrt(distanceSquared));
-                continue;
-            }
-        } else {
+        const Dipole& dipole = dipoles_[index];
+        const glm::dvec3 toCentre = dipole.centre - point;
+        const double distanceSquared = glm::dot(toCentre, toCentre);
+        if (distanceSquared > farFieldRatio * farFieldRatio * dipole.radius * dipole.radius) {
+            solidAngles += glm::dot(toCentre, dipole.vectorArea) /
+                           (distanceSquared * std::sqrt(distanceSquared));
+            continue;
+        }
+        if (node.triangleCount <= kWindingLeafTriangles) {
             for (std::uint32_t t = node.firstTriangle; t < node.firstTriangle + node.triangleCount;
                  ++t) {
                 const Triangle& triangle = triangles_[t];

@@ -20,10 +20,9 @@
 ///   for holes and soups; a point is inside where w > 1/2. Far clusters of triangles are
 ///   replaced by their dipole (the sum of their vector areas at their area-weighted centroid;
 ///   Barill et al. 2018, "Fast winding numbers for soups and clouds", first order): a node of
-///   the hierarchy with more than 4 triangles is taken whole when the point is farther than
-///   kWindingFarFieldRatio times the node's radius; nearer ones are opened down to clusters of
-///   at most 4 triangles, whose exact per-triangle solid angles are summed. Where the result is
-///   ambiguous (|w - 1/2| < kWindingRecheckMargin) it is evaluated again with
+///   the hierarchy is taken whole when the point is farther than kWindingFarFieldRatio times the
+///   node's radius; nearer ones are opened down to clusters of at most 4 triangles, whose exact
+///   per-triangle solid angles are summed. Where the result is ambiguous (|w - 1/2| < kWindingRecheckMargin) it is evaluated again with
 ///   kWindingRecheckRatio, which is exact enough to decide the sign for any mesh whose
 ///   exact w stays clear of 1/2. Only the copies whose bounding box contains the point in x and
 ///   y count (the other copies of a closed part contribute 0 there).
@@ -129,11 +128,7 @@ class SoupDistance {
         std::uint32_t count = 0;  ///< leaf: number of triangles; inner: 0 (first child follows)
         /// All the triangles below the node (consecutive in leaf order).
         std::uint32_t firstTriangle = 0, triangleCount = 0;
-        /// Its dipole in dipoles_; kNoDipole for clusters of at most 4 triangles, whose
-        /// solid angles the winding number always sums exactly.
-        std::uint32_t dipole = kNoDipole;
     };
-    static constexpr std::uint32_t kNoDipole = UINT32_MAX;
     /// Four children of the binary hierarchy's collapsed form, which the distance and segment
     /// queries walk: their boxes side by side (float, rounded outward) for one four-wide test.
     /// An empty slot has an empty box (min +inf, max -inf).
@@ -200,7 +195,7 @@ class SoupDistance {
     std::vector<Triangle> triangles_;  ///< in leaf order
     std::vector<Node> nodes_;          ///< depth-first, root first
     std::vector<WideNode> wideNodes_;  ///< root first
-    std::vector<Dipole> dipoles_;      ///< of the nodes that have one (Node::dipole)
+    std::vector<Dipole> dipoles_;      ///< one per node
 };
 
 }  // namespace distile
