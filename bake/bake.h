@@ -120,9 +120,9 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
 /// verify the sign. `insideTest`, when given, is the exact inside test of the *placed* mesh
 /// (placeMesh's result, texels), which fixes the sign of the voxels within 1 texel of the surface
 /// (vdb/mesh_level_set.h). `exactDistances`, when given, are the exact signed distances of the
-/// placed mesh (periodic, texels, e.g. truth/mesh_truth.h MeshDistance::signedDistance): the conservative
-/// correction then measures the trilinear overestimate against it instead of estimating it
-/// (bake/conservative.h). Throws InputError as placeMesh and bakeChainmail do.
+/// placed mesh (periodic, texels, e.g. truth/mesh_truth.h MeshDistance::signedDistance): the
+/// conservative correction then measures the trilinear overestimate against it instead of
+/// estimating it (bake/conservative.h). Throws InputError as placeMesh and bakeChainmail do.
 BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                     const BakeOptions& options, const ProgressCallback& progress = {},
                     const InsideTest& insideTest = {},

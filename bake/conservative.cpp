@@ -132,8 +132,7 @@ struct MeasuredLowerings {
 /// edge slice - 0.5 x its inner neighbour (the filter's linear extension): their r is returned
 /// per column for raiseEdgeSlicesForFaces. Points none of whose corners is within bandTexels of
 /// the surface are not checked.
-MeasuredLowerings measuredLowerings(const Tile& exact,
-                                    const ExactDistancesOnLine& exactDistances,
+MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLine& exactDistances,
                                     float allowanceTexels, float bandTexels) {
     const Size3 size = exact.size();
     const int pointsX = 2 * size.width, pointsY = 2 * size.height, levels = 2 * size.depth + 1;

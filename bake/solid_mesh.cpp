@@ -1,12 +1,13 @@
 #include "bake/solid_mesh.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <optional>
 #include <span>
 #include <sstream>
 #include <string>
-#include <tbb/parallel_for.h>
 
 #include "bake/mesh_surface.h"
 #include "bake/resample.h"
@@ -68,8 +69,8 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     std::ostringstream params;
     params.precision(17);
     params << "{\"placement\":\"" << (placement.fit ? "fit" : "explicit")
-           << "\",\"scale\":" << used.scale << ",\"offset_texels\":[" << used.offsetTexels.x
-           << "," << used.offsetTexels.y << "," << used.offsetTexels.z
+           << "\",\"scale\":" << used.scale << ",\"offset_texels\":[" << used.offsetTexels.x << ","
+           << used.offsetTexels.y << "," << used.offsetTexels.z
            << "],\"triangles\":" << placed.triangles.size() << ",\"sign\":\""
            << (sign.unsignedDistance ? "unsigned" : "winding number") << "\"";
     if (sign.unsignedDistance) params << ",\"thickness_texels\":" << sign.thicknessTexels;
@@ -105,8 +106,7 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     // The exact distances the conservative correction measures against, a vertical line at a
     // time; each point starts from the nearest triangle of its nearest voxel (the grid's, unless
     // they were measured again to a trimmed or capped surface).
-    const ExactDistancesOnLine exactDistances = [&](const glm::dvec2& xy,
-                                                    std::span<const double> z,
+    const ExactDistancesOnLine exactDistances = [&](const glm::dvec2& xy, std::span<const double> z,
                                                     std::span<double> distances) {
         if (surface) {
             for (std::size_t n = 0; n < z.size(); ++n)
@@ -117,19 +117,18 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
         for (std::size_t n = 0; n < z.size(); ++n) hints[n] = grid.hintNear({xy.x, xy.y, z[n]});
         soup.unsignedDistancesOnLine(xy, z, cutoff, hints, distances);
         for (std::size_t n = 0; n < z.size(); ++n) {
-            distances[n] = sign.unsignedDistance
-                               ? distances[n] - halfThickness
-                               : signedDistanceBesideGrid(soup, grid, {xy.x, xy.y, z[n]},
-                                                          distances[n]);
+            distances[n] =
+                sign.unsignedDistance
+                    ? distances[n] - halfThickness
+                    : signedDistanceBesideGrid(soup, grid, {xy.x, xy.y, z[n]}, distances[n]);
         }
     };
     const auto rowDistance = [&](int j, int k, std::span<double> row) {
         const double* distances = grid.row(j, k);
         for (std::size_t i = 0; i < row.size(); ++i) row[i] = distances[i] - halfThickness;
     };
-    LevelSet levelSet =
-        LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh", params.str(), {},
-                                   options.fillLevelSetMargins);
+    LevelSet levelSet = LevelSet::fromDistanceRows(rowDistance, options.size, halfBand, "mesh",
+                                                   params.str(), {}, options.fillLevelSetMargins);
 
     std::vector<float> texels(options.size.texelCount());
     levelSet.copyTileVoxels(texels);

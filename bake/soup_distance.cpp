@@ -155,10 +155,9 @@ std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
     const auto less = [](const glm::dvec3& a, const glm::dvec3& b) {
         return a.x < b.x || (a.x == b.x && (a.y < b.y || (a.y == b.y && a.z < b.z)));
     };
-    tbb::parallel_sort(byPosition.begin(), byPosition.end(),
-                       [&less](const Corner& l, const Corner& r) {
-                           return less(l.position, r.position);
-                       });
+    tbb::parallel_sort(
+        byPosition.begin(), byPosition.end(),
+        [&less](const Corner& l, const Corner& r) { return less(l.position, r.position); });
     std::vector<std::uint32_t> idOf(soup.positions.size());
     std::vector<glm::dvec3> positionOfId;
     for (std::size_t n = 0; n < byPosition.size(); ++n) {
@@ -179,7 +178,8 @@ std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
             }
         }
     };
-    forEachEdge([&](std::uint32_t from, std::uint32_t to) { ++bucketStart[std::min(from, to) + 1]; });
+    forEachEdge(
+        [&](std::uint32_t from, std::uint32_t to) { ++bucketStart[std::min(from, to) + 1]; });
     for (std::size_t id = 0; id < ids; ++id) bucketStart[id + 1] += bucketStart[id];
     // The higher id, its top bit set for uses from the higher id to the lower.
     constexpr std::uint32_t kDownward = 0x80000000u;
@@ -193,7 +193,8 @@ std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
     constexpr std::size_t kBlockIds = 4096;
     std::vector<std::vector<UnbalancedEdge>> found((ids + kBlockIds - 1) / kBlockIds);
     tbb::parallel_for(std::size_t(0), found.size(), [&](std::size_t block) {
-        for (std::size_t id = block * kBlockIds; id < std::min(ids, (block + 1) * kBlockIds); ++id) {
+        for (std::size_t id = block * kBlockIds; id < std::min(ids, (block + 1) * kBlockIds);
+             ++id) {
             const auto begin = higher.begin() + bucketStart[id];
             const auto end = higher.begin() + bucketStart[id + 1];
             std::sort(begin, end, [](std::uint32_t l, std::uint32_t r) {
@@ -305,8 +306,7 @@ SoupDistance::Bound SoupDistance::bound(std::uint32_t index, std::vector<FloatBo
         }
         boxes[index] = {{roundedDown(boxMin.x), roundedDown(boxMin.y), roundedDown(boxMin.z)},
                         {roundedUp(boxMax.x), roundedUp(boxMax.y), roundedUp(boxMax.z)}};
-        dipole.centre =
-            result.area > 0.0 ? weightedCentre / result.area : 0.5 * (boxMin + boxMax);
+        dipole.centre = result.area > 0.0 ? weightedCentre / result.area : 0.5 * (boxMin + boxMax);
         double radiusSquared = 0.0;
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
             const Triangle& t = triangles_[i];
@@ -460,7 +460,10 @@ void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const do
         for (int c = 0; c < 4; ++c) {
             if (near[c] == 0) continue;
             if (node.count[c] == 0) {
-                if (boxSquared[c][0] < nearestSquared) nearest = c, nearestSquared = boxSquared[c][0];
+                if (boxSquared[c][0] < nearestSquared) {
+                    nearest = c;
+                    nearestSquared = boxSquared[c][0];
+                }
                 continue;
             }
             for (std::uint32_t t = node.child[c]; t < node.child[c] + node.count[c]; ++t) {
@@ -505,14 +508,12 @@ void SoupDistance::unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const
                     bestSquared[lane],
                     LineTriangleDistance(xy - glm::dvec2(double(hint.copyX) * tile_.width,
                                                          double(hint.copyY) * tile_.height),
-                                         triangle.a, triangle.b,
-                                         triangle.c)(z[first + lane]));
+                                         triangle.a, triangle.b, triangle.c)(z[first + lane]));
             }
             reach = std::max(reach, std::sqrt(bestSquared[lane]));
         }
         // The copies any lane can reach (a lane that cannot reach one finds nothing in it).
-        const PeriodicShifts shifts =
-            periodicShifts({xy.x, xy.y, z[first]}, bounds_, tile_, reach);
+        const PeriodicShifts shifts = periodicShifts({xy.x, xy.y, z[first]}, bounds_, tile_, reach);
         for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
             for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
                 const glm::dvec3 shift(double(m) * tile_.width, double(n) * tile_.height, 0.0);
@@ -539,8 +540,8 @@ double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cu
 double SoupDistance::unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
                                       NearestHint& hint) const {
     double distance = 0.0;
-    unsignedDistancesOnLine(glm::dvec2(texelPosition), std::span(&texelPosition.z, 1),
-                            cutoffTexels, std::span(&hint, 1), std::span(&distance, 1));
+    unsignedDistancesOnLine(glm::dvec2(texelPosition), std::span(&texelPosition.z, 1), cutoffTexels,
+                            std::span(&hint, 1), std::span(&distance, 1));
     return distance;
 }
 
@@ -617,7 +618,8 @@ SegmentMeeting axisSegmentMeeting(const glm::dvec3& p, int axis, double end, con
     const double weightMargins = marginA + marginB + marginC;
     if (!(std::abs(sum) > 2.0 * weightMargins)) return SegmentMeeting::Unclear;
     const double plane = (weightA * a[axis] + weightB * b[axis] + weightC * c[axis]) / sum;
-    const double range = std::max({a[axis], b[axis], c[axis]}) - std::min({a[axis], b[axis], c[axis]});
+    const double range =
+        std::max({a[axis], b[axis], c[axis]}) - std::min({a[axis], b[axis], c[axis]});
     const double planeMargin = weightMargins / (std::abs(sum) - weightMargins) * range +
                                kRelativeMargin * (std::abs(plane) + 1.0);
     const double start = p[axis];
@@ -672,42 +674,45 @@ std::vector<std::optional<int>> SoupDistance::windingNumbersByCrossings(
     std::span<const glm::dvec3> texelPositions) const {
     assert(windingPiecewiseConstant_);
     std::vector<std::optional<int>> windings(texelPositions.size());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, texelPositions.size()),
-                      [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t n = range.begin(); n != range.end(); ++n) {
-            const glm::dvec3& position = texelPositions[n];
-            // Out of the bounds by the nearer way, up or down, where the winding number is 0: it
-            // drops by 1 across a triangle passed from back to front and rises by 1 the other way.
-            const bool up = bounds_.max.z - position.z <= position.z - bounds_.min.z;
-            const double endZ = up ? bounds_.max.z + 1.0 : bounds_.min.z - 1.0;
-            const PeriodicShifts shifts = periodicShifts(position, bounds_, tile_, 0.0);
-            int winding = 0;
-            bool clear = true;
-            for (int row = shifts.yBegin; clear && row <= shifts.yEnd; ++row) {
-                for (int column = shifts.xBegin; clear && column <= shifts.xEnd; ++column) {
-                    const glm::dvec3 from = position - glm::dvec3(double(column) * tile_.width,
-                                                                  double(row) * tile_.height, 0.0);
-                    clear = everyTriangleNearSegment(
-                        from, glm::dvec3(from.x, from.y, endZ), [&](const Triangle& t) {
-                            switch (axisSegmentMeeting(from, 2, endZ, t.a, t.b, t.c)) {
-                                case SegmentMeeting::Misses:
-                                    return true;
-                                case SegmentMeeting::BackToFront:
-                                    ++winding;
-                                    return true;
-                                case SegmentMeeting::FrontToBack:
-                                    --winding;
-                                    return true;
-                                case SegmentMeeting::Unclear:
-                                    return false;
-                            }
-                            return false;
-                        });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, texelPositions.size()),
+        [&](const tbb::blocked_range<std::size_t>& range) {
+            for (std::size_t n = range.begin(); n != range.end(); ++n) {
+                const glm::dvec3& position = texelPositions[n];
+                // Out of the bounds by the nearer way, up or down, where the winding number is 0:
+                // it drops by 1 across a triangle passed from back to front and rises by 1 the
+                // other way.
+                const bool up = bounds_.max.z - position.z <= position.z - bounds_.min.z;
+                const double endZ = up ? bounds_.max.z + 1.0 : bounds_.min.z - 1.0;
+                const PeriodicShifts shifts = periodicShifts(position, bounds_, tile_, 0.0);
+                int winding = 0;
+                bool clear = true;
+                for (int row = shifts.yBegin; clear && row <= shifts.yEnd; ++row) {
+                    for (int column = shifts.xBegin; clear && column <= shifts.xEnd; ++column) {
+                        const glm::dvec3 from =
+                            position - glm::dvec3(double(column) * tile_.width,
+                                                  double(row) * tile_.height, 0.0);
+                        clear = everyTriangleNearSegment(
+                            from, glm::dvec3(from.x, from.y, endZ), [&](const Triangle& t) {
+                                switch (axisSegmentMeeting(from, 2, endZ, t.a, t.b, t.c)) {
+                                    case SegmentMeeting::Misses:
+                                        return true;
+                                    case SegmentMeeting::BackToFront:
+                                        ++winding;
+                                        return true;
+                                    case SegmentMeeting::FrontToBack:
+                                        --winding;
+                                        return true;
+                                    case SegmentMeeting::Unclear:
+                                        return false;
+                                }
+                                return false;
+                            });
+                    }
                 }
+                if (clear) windings[n] = winding;
             }
-            if (clear) windings[n] = winding;
-        }
-    });
+        });
     return windings;
 }
 
@@ -718,8 +723,9 @@ bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,
     const int axis = from.x != to.x ? 0 : (from.y != to.y ? 1 : 2);
     return everyTriangleNearSegment(from, to, [&](const Triangle& triangle) {
         const SegmentMeeting meeting =
-            differing <= 1 ? axisSegmentMeeting(from, axis, to[axis], triangle.a, triangle.b, triangle.c)
-                           : segmentMeeting(from, to, triangle.a, triangle.b, triangle.c);
+            differing <= 1
+                ? axisSegmentMeeting(from, axis, to[axis], triangle.a, triangle.b, triangle.c)
+                : segmentMeeting(from, to, triangle.a, triangle.b, triangle.c);
         return meeting == SegmentMeeting::Misses;
     });
 }

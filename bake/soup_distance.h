@@ -22,10 +22,11 @@
 ///   Barill et al. 2018, "Fast winding numbers for soups and clouds", first order): a node of
 ///   the hierarchy is taken whole when the point is farther than kWindingFarFieldRatio times the
 ///   node's radius; nearer ones are opened down to clusters of at most 4 triangles, whose exact
-///   per-triangle solid angles are summed. Where the result is ambiguous (|w - 1/2| < kWindingRecheckMargin) it is evaluated again with
-///   kWindingRecheckRatio, which is exact enough to decide the sign for any mesh whose
-///   exact w stays clear of 1/2. Only the copies whose bounding box contains the point in x and
-///   y count (the other copies of a closed part contribute 0 there).
+///   per-triangle solid angles are summed. Where the result is ambiguous (|w - 1/2| <
+///   kWindingRecheckMargin) it is evaluated again with kWindingRecheckRatio, which is exact enough
+///   to decide the sign for any mesh whose exact w stays clear of 1/2. Only the copies whose
+///   bounding box contains the point in x and y count (the other copies of a closed part contribute
+///   0 there).
 ///
 /// All queries are const and thread-safe; results do not depend on the thread that asks.
 #pragma once

@@ -89,7 +89,8 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
         tbb::parallel_for(0, columnsX, [&](int column) {
             const int i0 = column * kColumn, i1 = std::min(tile.width, i0 + kColumn);
             const int j0 = columnRow * kColumn, j1 = std::min(tile.height, j0 + kColumn);
-            std::vector<SoupDistance::NearestHint> rowStart(static_cast<std::size_t>(slices)), hints;
+            std::vector<SoupDistance::NearestHint> rowStart(static_cast<std::size_t>(slices)),
+                hints;
             std::vector<double> line(static_cast<std::size_t>(slices));
             for (int j = j0; j < j1; ++j) {
                 hints = rowStart;
@@ -204,7 +205,8 @@ SoupDistance::NearestHint SoupDistanceGrid::hintNear(const glm::dvec3& texelPosi
     const int i = int(std::floor(texelPosition.x)), j = int(std::floor(texelPosition.y));
     const int k = std::clamp(int(std::floor(texelPosition.z)), zBegin, zEnd - 1);
     // The copy of the tile the point lies in, and its voxel there.
-    const int copyX = int(std::floor(double(i) / width)), copyY = int(std::floor(double(j) / height));
+    const int copyX = int(std::floor(double(i) / width)),
+              copyY = int(std::floor(double(j) / height));
     const std::size_t voxel =
         (std::size_t(k - zBegin) * std::size_t(height) + std::size_t(j - copyY * height)) *
             std::size_t(width) +
@@ -236,7 +238,8 @@ double signedDistanceBesideGrid(const SoupDistance& soup, const SoupDistanceGrid
             for (int j = j0; j <= j0 + 1; ++j) {
                 for (int i = i0; i <= i0 + 1; ++i) {
                     centres[count] = {i + 0.5, j + 0.5, k + 0.5};
-                    voxelDistances[count++] = grid.row(wrap(j, tile.height), k)[wrap(i, tile.width)];
+                    voxelDistances[count++] =
+                        grid.row(wrap(j, tile.height), k)[wrap(i, tile.width)];
                 }
             }
         }

@@ -3,12 +3,13 @@
 /// texel grid: what a mesh bake fills its level set with (bake/solid_mesh.h).
 ///
 /// Unsigned distances come from one query per vertical line of voxels (all the slices at once),
-/// each voxel started from the nearest triangle of its neighbour in the row. Signed by the winding number: for meshes whose winding number changes
-/// only across the surface (SoupDistance::windingChangesOnlyAcrossTheSurface) the voxels are
-/// joined into regions that no surface separates -- two neighbours join when d1 + d2 exceeds
-/// their spacing (the two empty balls cover the segment between them) or when the segment
-/// provably touches no triangle -- and the winding number is evaluated once per region, at its
-/// voxel farthest from the surface. Otherwise at every voxel.
+/// each voxel started from the nearest triangle of its neighbour in the row. Signed by the winding
+/// number: for meshes whose winding number changes only across the surface
+/// (SoupDistance::windingChangesOnlyAcrossTheSurface) the voxels are joined into regions that no
+/// surface separates -- two neighbours join when d1 + d2 exceeds their spacing (the two empty balls
+/// cover the segment between them) or when the segment provably touches no triangle -- and the
+/// winding number is evaluated once per region, at its voxel farthest from the surface. Otherwise
+/// at every voxel.
 #pragma once
 
 #include <glm/vec3.hpp>

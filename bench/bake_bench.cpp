@@ -143,7 +143,8 @@ void setMeshErrorCounters(benchmark::State& state, const Tile& tile, const Chain
         const double truth = mesh.truth->signedDistance({x + 0.5, y + 0.5, z + 0.5});
         const double baked = tile.at(x, y, z);
         if (std::abs(truth) > 1e-6 && (truth < 0.0) != (baked < 0.0)) signErrors += 1.0;
-        allMaxError = std::max(allMaxError, std::abs(baked - std::clamp(truth, -halfBand, halfBand)));
+        allMaxError =
+            std::max(allMaxError, std::abs(baked - std::clamp(truth, -halfBand, halfBand)));
         if (std::abs(truth) > 2.0) continue;
         near += 1.0;
         maxError = std::max(maxError, std::abs(baked - truth));

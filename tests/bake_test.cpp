@@ -202,17 +202,16 @@ TEST(SoupDistance, SliverTriangleIsTheSegmentItSpans) {
     const Size3 tile{256, 256, 64};
     const glm::dvec3 from(100.25, 100.5, 20.0), to(110.75, 104.5, 26.0);
     const glm::dvec3 direction = to - from;
-    for (const glm::dvec3 middle : {from + 0.37 * direction, from + 0.61 * direction +
-                                                                glm::dvec3(1e-14, -1e-14, 0.0)}) {
+    for (const glm::dvec3 middle :
+         {from + 0.37 * direction, from + 0.61 * direction + glm::dvec3(1e-14, -1e-14, 0.0)}) {
         TriangleSoup sliver;
         sliver.positions = {from, to, middle};
         sliver.triangles = {{0, 1, 2}};
         const SoupDistance distance(sliver, tile);
         for (const glm::dvec3& p :
              randomPoints(from - glm::dvec3(8.0), to + glm::dvec3(8.0), 20000, 11)) {
-            const double t = std::clamp(glm::dot(p - from, direction) /
-                                            glm::dot(direction, direction),
-                                        0.0, 1.0);
+            const double t = std::clamp(
+                glm::dot(p - from, direction) / glm::dot(direction, direction), 0.0, 1.0);
             ASSERT_NEAR(distance.unsignedDistance(p, 100.0), glm::length(p - from - t * direction),
                         1e-9)
                 << p.x << " " << p.y << " " << p.z;
@@ -263,9 +262,9 @@ TEST(SoupDistance, WindingNumberByCrossingsCountsOverlapsAndCopies) {
     const std::vector<std::optional<int>> windings = distance.windingNumbersByCrossings(points);
     for (std::size_t n = 0; n < points.size(); ++n) {
         const glm::dvec3& p = points[n];
-        const double tube =
-            std::hypot(std::hypot(p.x - torusCentre.x, p.y - torusCentre.y) - 12.0,
-                       p.z - torusCentre.z) - 4.0;
+        const double tube = std::hypot(std::hypot(p.x - torusCentre.x, p.y - torusCentre.y) - 12.0,
+                                       p.z - torusCentre.z) -
+                            4.0;
         const double ball = glm::length(p - sphereCentre) - 6.0;
         if (std::abs(tube) <= tessellation || std::abs(ball) <= tessellation) continue;
         const int expected = (tube < 0.0) + (ball < 0.0) + 2 * insideBox(p, twiceLo, twiceHi) +
@@ -279,8 +278,8 @@ TEST(SoupDistance, WindingNumberByCrossingsCountsOverlapsAndCopies) {
         ASSERT_EQ(*crossings, expected) << p.x << " " << p.y << " " << p.z;
         counted += expected;
     }
-    EXPECT_GT(counted, 1000);   // the test measures the insides
-    EXPECT_LT(unclear, 20);     // a random ray grazes an edge almost never
+    EXPECT_GT(counted, 1000);  // the test measures the insides
+    EXPECT_LT(unclear, 20);    // a random ray grazes an edge almost never
 }
 
 /// A closed soup whose winding number reaches 2 (a box listed twice) and 1 where a torus and a
@@ -324,7 +323,7 @@ TEST(SoupDistanceGrid, EveryVoxelIsTheExactDistanceSignedByItsWindingNumber) {
                 const double winding = distance.windingNumber(p);
                 if (std::abs(winding - 0.5) < 0.25) continue;
                 ++checkedSigns;
-                ASSERT_EQ(baked < 0.0, winding > 0.5) << p.x << " " << p.y << " " << p.z;
+                ASSERT_EQ(baked<0.0, winding> 0.5) << p.x << " " << p.y << " " << p.z;
                 inside += baked < 0.0;
             }
         }

@@ -9,7 +9,6 @@
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
-
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/parallel_sort.h>
@@ -82,7 +81,6 @@ bool buildSurfaceMesh(Soup soup, SurfaceMesh& mesh) {
     }
     return orientedWithoutSplits;
 }
-
 
 /// Whether every vertex of `soup` is manifold, assuming every edge is used exactly twice, once in
 /// each direction: the faces around a vertex then link its neighbours into disjoint cycles (each
@@ -169,8 +167,8 @@ MeshTopology inspectMesh(const TriangleSoup& triangleSoup) {
     // A closed, consistently oriented soup without repeated corners whose vertices are all
     // manifold is an oriented manifold as it stands: what orienting it with CGAL would find,
     // without building the mesh (which takes seconds at a million faces). Otherwise CGAL decides.
-    const bool repeatedCorners = std::any_of(
-        soup.polygons.begin(), soup.polygons.end(), [](const Polygon& polygon) {
+    const bool repeatedCorners =
+        std::any_of(soup.polygons.begin(), soup.polygons.end(), [](const Polygon& polygon) {
             return polygon[0] == polygon[1] || polygon[1] == polygon[2] || polygon[0] == polygon[2];
         });
     const bool testSelfIntersection = soup.polygons.size() <= kMaxSelfIntersectionFaces;
