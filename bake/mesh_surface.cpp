@@ -330,6 +330,22 @@ TriangleSoup capsOf(const TriangleSoup& placedTexels, const SoupDistance& soup, 
     return caps;
 }
 
+/// Whether the winding number exceeds 1/2 at each point: from the count of crossings where it
+/// changes only across the surface and they are clear (exact, and far cheaper near the surface
+/// than the far field, which opens the nodes all around a point), else from windingNumber.
+template <std::size_t N>
+std::array<bool, N> insideAt(const SoupDistance& soup, const std::array<glm::dvec3, N>& points) {
+    std::array<bool, N> inside;
+    if (soup.windingChangesOnlyAcrossTheSurface()) {
+        const std::vector<std::optional<int>> crossings = soup.windingNumbersByCrossings(points);
+        for (std::size_t n = 0; n < N; ++n)
+            inside[n] = crossings[n] ? *crossings[n] >= 1 : soup.windingNumber(points[n]) > 0.5;
+    } else {
+        for (std::size_t n = 0; n < N; ++n) inside[n] = soup.windingNumber(points[n]) > 0.5;
+    }
+    return inside;
+}
+
 /// Appends to `pieces` the parts of the triangle abc that bound the inside {w > 1/2}: where w
 /// differs in sign on its two sides (1e-5 of its longest edge off its plane). Sampled at its
 /// centroid and a tenth of the way from each corner to it: bounding at all four, it is kept;
@@ -345,12 +361,17 @@ bool appendBoundingPieces(const SoupDistance& soup, const glm::dvec3& a, const g
     if (area > 0.0) {
         const glm::dvec3 offset = (1e-5 * longest / area) * normal;
         const glm::dvec3 centroid = (a + b + c) / 3.0;
-        bounding = 0;
+        std::array<glm::dvec3, 8> sides;
+        int n = 0;
         for (const glm::dvec3& sample : {centroid, glm::mix(a, centroid, 0.1),
                                          glm::mix(b, centroid, 0.1), glm::mix(c, centroid, 0.1)}) {
-            bounding += (soup.windingNumber(sample + offset) > 0.5) !=
-                        (soup.windingNumber(sample - offset) > 0.5);
+            sides[n++] = sample + offset;
+            sides[n++] = sample - offset;
         }
+        const std::array<bool, 8> inside = insideAt(soup, sides);
+        bounding = 0;
+        for (int sample = 0; sample < 4; ++sample)
+            bounding += inside[2 * sample] != inside[2 * sample + 1];
     }
     if (bounding == 4 || (bounding > 0 && longest <= kSurfacePieceTexels)) {
         pieces.insert(pieces.end(), {a, b, c});
@@ -464,7 +485,7 @@ double MeshSurface::unsignedDistance(const glm::dvec3& texelPosition, double cut
 double MeshSurface::signedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const {
     SoupDistance::NearestHint none;
     const double distance = unsignedDistance(texelPosition, cutoffTexels, none);
-    return soup_->windingNumber(texelPosition) > 0.5 ? -distance : distance;
+    return insideAt(*soup_, std::array{texelPosition})[0] ? -distance : distance;
 }
 
 }  // namespace distile
