@@ -333,17 +333,16 @@ TriangleSoup capsOf(const TriangleSoup& placedTexels, const SoupDistance& soup, 
 /// Whether the winding number exceeds 1/2 at each point: from the count of crossings where it
 /// changes only across the surface and they are clear (exact, and far cheaper near the surface
 /// than the far field, which opens the nodes all around a point), else from windingNumber.
-template <std::size_t N>
-std::array<bool, N> insideAt(const SoupDistance& soup, const std::array<glm::dvec3, N>& points) {
-    std::array<bool, N> inside;
+void insideAt(const SoupDistance& soup, std::span<const glm::dvec3> points,
+              std::span<bool> inside) {
     if (soup.windingChangesOnlyAcrossTheSurface()) {
         const std::vector<std::optional<int>> crossings = soup.windingNumbersByCrossings(points);
-        for (std::size_t n = 0; n < N; ++n)
+        for (std::size_t n = 0; n < points.size(); ++n)
             inside[n] = crossings[n] ? *crossings[n] >= 1 : soup.windingNumber(points[n]) > 0.5;
     } else {
-        for (std::size_t n = 0; n < N; ++n) inside[n] = soup.windingNumber(points[n]) > 0.5;
+        for (std::size_t n = 0; n < points.size(); ++n)
+            inside[n] = soup.windingNumber(points[n]) > 0.5;
     }
-    return inside;
 }
 
 /// Appends to `pieces` the parts of the triangle abc that bound the inside {w > 1/2}: where w
@@ -368,7 +367,8 @@ bool appendBoundingPieces(const SoupDistance& soup, const glm::dvec3& a, const g
             sides[n++] = sample + offset;
             sides[n++] = sample - offset;
         }
-        const std::array<bool, 8> inside = insideAt(soup, sides);
+        std::array<bool, 8> inside;
+        insideAt(soup, sides, inside);
         bounding = 0;
         for (int sample = 0; sample < 4; ++sample)
             bounding += inside[2 * sample] != inside[2 * sample + 1];
@@ -476,16 +476,45 @@ MeshSurface::~MeshSurface() = default;
 
 double MeshSurface::unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
                                      SoupDistance::NearestHint& hint) const {
+    double distance = 0.0;
+    unsignedDistancesOnLine(glm::dvec2(texelPosition), std::span(&texelPosition.z, 1), cutoffTexels,
+                            std::span(&hint, 1), std::span(&distance, 1));
+    return distance;
+}
+
+void MeshSurface::unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const double> z,
+                                          double cutoffTexels,
+                                          std::span<SoupDistance::NearestHint> hints,
+                                          std::span<double> distances) const {
     const SoupDistance& triangles = bounding_ ? *bounding_ : *soup_;
-    const double distance = triangles.unsignedDistance(texelPosition, cutoffTexels, hint);
-    if (!capDistance_ || distance <= 0.0) return distance;
-    return capDistance_->unsignedDistance(texelPosition, distance);
+    triangles.unsignedDistancesOnLine(xy, z, cutoffTexels, hints, distances);
+    if (!capDistance_) return;
+    for (std::size_t n = 0; n < z.size(); ++n) {
+        if (distances[n] > 0.0)
+            distances[n] = capDistance_->unsignedDistance({xy.x, xy.y, z[n]}, distances[n]);
+    }
+}
+
+void MeshSurface::signedDistancesOnLine(const glm::dvec2& xy, std::span<const double> z,
+                                        double cutoffTexels,
+                                        std::span<SoupDistance::NearestHint> hints,
+                                        std::span<double> distances) const {
+    unsignedDistancesOnLine(xy, z, cutoffTexels, hints, distances);
+    std::vector<glm::dvec3> points(z.size());
+    for (std::size_t n = 0; n < z.size(); ++n) points[n] = {xy.x, xy.y, z[n]};
+    const std::unique_ptr<bool[]> inside(new bool[z.size()]);
+    insideAt(*soup_, points, std::span(inside.get(), z.size()));
+    for (std::size_t n = 0; n < z.size(); ++n) {
+        if (inside[n]) distances[n] = -distances[n];
+    }
 }
 
 double MeshSurface::signedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const {
     SoupDistance::NearestHint none;
-    const double distance = unsignedDistance(texelPosition, cutoffTexels, none);
-    return insideAt(*soup_, std::array{texelPosition})[0] ? -distance : distance;
+    double distance = 0.0;
+    signedDistancesOnLine(glm::dvec2(texelPosition), std::span(&texelPosition.z, 1), cutoffTexels,
+                          std::span(&none, 1), std::span(&distance, 1));
+    return distance;
 }
 
 }  // namespace distile

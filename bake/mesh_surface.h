@@ -39,6 +39,7 @@
 #include <cstddef>
 #include <glm/vec3.hpp>
 #include <memory>
+#include <span>
 
 #include "bake/soup_distance.h"
 #include "common/size3.h"
@@ -70,6 +71,16 @@ class MeshSurface {
     /// @pre cutoffTexels > 0.
     double unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
                             SoupDistance::NearestHint& hint) const;
+    /// unsignedDistance at the points (x, y, z[k]) of one vertical line, each from and updating
+    /// hints[k] (SoupDistance::unsignedDistancesOnLine).
+    void unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const double> z,
+                                 double cutoffTexels, std::span<SoupDistance::NearestHint> hints,
+                                 std::span<double> distances) const;
+    /// unsignedDistancesOnLine, negative where the winding number exceeds 1/2 (counted from
+    /// crossings where it changes only across the surface and they are clear).
+    void signedDistancesOnLine(const glm::dvec2& xy, std::span<const double> z, double cutoffTexels,
+                               std::span<SoupDistance::NearestHint> hints,
+                               std::span<double> distances) const;
     /// unsignedDistance, negative where the winding number exceeds 1/2.
     double signedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const;
 

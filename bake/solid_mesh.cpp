@@ -90,31 +90,41 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
         if (surface->trimmedTriangles() == 0 && surface->caps().triangles.empty()) surface.reset();
     }
     if (surface) {
-        const Size3 rows{options.size.width, options.size.height, grid.zEnd - grid.zBegin};
-        tbb::parallel_for(0, rows.height * rows.depth, [&](int row) {
-            const int j = row % rows.height;
-            const int k = grid.zBegin + row / rows.height;
-            double* distances = grid.distancesTexels.data() + std::size_t(row) * rows.width;
-            SoupDistance::NearestHint hint;
-            for (int i = 0; i < rows.width; ++i) {
-                const double distance =
-                    surface->unsignedDistance({i + 0.5, j + 0.5, k + 0.5}, cutoff, hint);
-                distances[i] = distances[i] < 0.0 ? -distance : distance;
+        // Measured again a vertical line at a time, each from its row neighbour's nearest
+        // triangles of the surface, which replace the grid's as the hints below.
+        const int slices = grid.zEnd - grid.zBegin;
+        const std::size_t slab = std::size_t(options.size.width) * std::size_t(options.size.height);
+        std::vector<double> sliceZ(static_cast<std::size_t>(slices));
+        for (int slice = 0; slice < slices; ++slice)
+            sliceZ[std::size_t(slice)] = grid.zBegin + slice + 0.5;
+        tbb::parallel_for(0, options.size.height, [&](int j) {
+            std::vector<SoupDistance::NearestHint> hints(static_cast<std::size_t>(slices));
+            std::vector<double> line(static_cast<std::size_t>(slices));
+            for (int i = 0; i < options.size.width; ++i) {
+                surface->unsignedDistancesOnLine({i + 0.5, j + 0.5}, sliceZ, cutoff, hints, line);
+                for (int slice = 0; slice < slices; ++slice) {
+                    const std::size_t voxel = std::size_t(slice) * slab +
+                                              std::size_t(j) * std::size_t(options.size.width) +
+                                              std::size_t(i);
+                    double& distance = grid.distancesTexels[voxel];
+                    distance =
+                        distance < 0.0 ? -line[std::size_t(slice)] : line[std::size_t(slice)];
+                    grid.nearest[voxel] = hints[std::size_t(slice)];
+                }
             }
         });
     }
     // The exact distances the conservative correction measures against, a vertical line at a
-    // time; each point starts from the nearest triangle of its nearest voxel (the grid's, unless
-    // they were measured again to a trimmed or capped surface).
+    // time; each point starts from the nearest triangle of its nearest voxel (the grid's, or the
+    // surface's where it was measured again).
     const ExactDistancesOnLine exactDistances = [&](const glm::dvec2& xy, std::span<const double> z,
                                                     std::span<double> distances) {
-        if (surface) {
-            for (std::size_t n = 0; n < z.size(); ++n)
-                distances[n] = surface->signedDistance({xy.x, xy.y, z[n]}, cutoff);
-            return;
-        }
         std::vector<SoupDistance::NearestHint> hints(z.size());
         for (std::size_t n = 0; n < z.size(); ++n) hints[n] = grid.hintNear({xy.x, xy.y, z[n]});
+        if (surface) {
+            surface->signedDistancesOnLine(xy, z, cutoff, hints, distances);
+            return;
+        }
         soup.unsignedDistancesOnLine(xy, z, cutoff, hints, distances);
         for (std::size_t n = 0; n < z.size(); ++n) {
             distances[n] =
