@@ -406,6 +406,7 @@ std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex,
 void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z,
                                         std::span<double> bestSquared,
                                         std::span<std::uint32_t> bestTriangle) const {
+    static_assert(kLineLanes % 4 == 0 && kLineLanes <= 32, "lanes in 4-wide vectors, an int mask");
     const int lanes = int(z.size());
     assert(lanes >= 1 && lanes <= kLineLanes);
     const int vectors = (lanes + 3) / 4;
