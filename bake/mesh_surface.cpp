@@ -330,19 +330,15 @@ TriangleSoup capsOf(const TriangleSoup& placedTexels, const SoupDistance& soup, 
     return caps;
 }
 
-/// Whether the winding number exceeds 1/2 at each point: from the count of crossings where it
+/// Whether the winding number exceeds 1/2 at the point: from the count of crossings where it
 /// changes only across the surface and they are clear (exact, and far cheaper near the surface
 /// than the far field, which opens the nodes all around a point), else from windingNumber.
-void insideAt(const SoupDistance& soup, std::span<const glm::dvec3> points,
-              std::span<bool> inside) {
+bool insideAt(const SoupDistance& soup, const glm::dvec3& point) {
     if (soup.windingChangesOnlyAcrossTheSurface()) {
-        const std::vector<std::optional<int>> crossings = soup.windingNumbersByCrossings(points);
-        for (std::size_t n = 0; n < points.size(); ++n)
-            inside[n] = crossings[n] ? *crossings[n] >= 1 : soup.windingNumber(points[n]) > 0.5;
-    } else {
-        for (std::size_t n = 0; n < points.size(); ++n)
-            inside[n] = soup.windingNumber(points[n]) > 0.5;
+        if (const std::optional<int> crossings = soup.windingNumberByCrossings(point))
+            return *crossings >= 1;
     }
+    return soup.windingNumber(point) > 0.5;
 }
 
 /// Appends to `pieces` the parts of the triangle abc that bound the inside {w > 1/2}: where w
@@ -360,18 +356,11 @@ bool appendBoundingPieces(const SoupDistance& soup, const glm::dvec3& a, const g
     if (area > 0.0) {
         const glm::dvec3 offset = (1e-5 * longest / area) * normal;
         const glm::dvec3 centroid = (a + b + c) / 3.0;
-        std::array<glm::dvec3, 8> sides;
-        int n = 0;
+        bounding = 0;
         for (const glm::dvec3& sample : {centroid, glm::mix(a, centroid, 0.1),
                                          glm::mix(b, centroid, 0.1), glm::mix(c, centroid, 0.1)}) {
-            sides[n++] = sample + offset;
-            sides[n++] = sample - offset;
+            bounding += insideAt(soup, sample + offset) != insideAt(soup, sample - offset);
         }
-        std::array<bool, 8> inside;
-        insideAt(soup, sides, inside);
-        bounding = 0;
-        for (int sample = 0; sample < 4; ++sample)
-            bounding += inside[2 * sample] != inside[2 * sample + 1];
     }
     if (bounding == 4 || (bounding > 0 && longest <= kSurfacePieceTexels)) {
         pieces.insert(pieces.end(), {a, b, c});
@@ -394,31 +383,23 @@ bool appendBoundingPieces(const SoupDistance& soup, const glm::dvec3& a, const g
 /// eight or more: parts that overlap, nest or touch face to face (a face of one inside another,
 /// or against it) put some front in another part and fail it.
 bool allTrianglesFaceOutside(const TriangleSoup& placedTexels, const SoupDistance& soup) {
-    const std::size_t count = placedTexels.triangles.size();
-    // Each triangle's front point; zero-area triangles have no sides (they change no distance).
-    std::vector<glm::dvec3> fronts(count);
-    std::vector<char> sided(count);
-    tbb::parallel_for(std::size_t(0), count, [&](std::size_t t) {
-        const glm::uvec3& triangle = placedTexels.triangles[t];
-        const glm::dvec3 a = placedTexels.positions[triangle.x];
-        const glm::dvec3 b = placedTexels.positions[triangle.y];
-        const glm::dvec3 c = placedTexels.positions[triangle.z];
-        const glm::dvec3 normal = glm::cross(b - a, c - a);
-        const double area = glm::length(normal);
-        sided[t] = area > 0.0;
-        const double longest =
-            std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
-        fronts[t] = (a + b + c) / 3.0 + (sided[t] ? 1e-5 * longest / area : 0.0) * normal;
-    });
-    // Integral: the count of crossings where it is clear.
-    const std::vector<std::optional<int>> crossings = soup.windingNumbersByCrossings(fronts);
     return tbb::parallel_reduce(
-        tbb::blocked_range<std::size_t>(0, count), true,
+        tbb::blocked_range<std::size_t>(0, placedTexels.triangles.size()), true,
         [&](const tbb::blocked_range<std::size_t>& range, bool outside) {
             for (std::size_t t = range.begin(); outside && t != range.end(); ++t) {
-                if (!sided[t]) continue;
-                outside = crossings[t] ? *crossings[t] == 0
-                                       : std::abs(soup.windingNumber(fronts[t])) < 0.5;
+                const glm::uvec3& triangle = placedTexels.triangles[t];
+                const glm::dvec3 a = placedTexels.positions[triangle.x];
+                const glm::dvec3 b = placedTexels.positions[triangle.y];
+                const glm::dvec3 c = placedTexels.positions[triangle.z];
+                const glm::dvec3 normal = glm::cross(b - a, c - a);
+                const double area = glm::length(normal);
+                if (!(area > 0.0)) continue;  // no sides; changes no distance
+                const double longest =
+                    std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
+                const glm::dvec3 front = (a + b + c) / 3.0 + (1e-5 * longest / area) * normal;
+                // Integral here: the count of crossings where it is clear.
+                const std::optional<int> crossings = soup.windingNumberByCrossings(front);
+                outside = crossings ? *crossings == 0 : std::abs(soup.windingNumber(front)) < 0.5;
             }
             return outside;
         },
@@ -500,21 +481,15 @@ void MeshSurface::signedDistancesOnLine(const glm::dvec2& xy, std::span<const do
                                         std::span<SoupDistance::NearestHint> hints,
                                         std::span<double> distances) const {
     unsignedDistancesOnLine(xy, z, cutoffTexels, hints, distances);
-    std::vector<glm::dvec3> points(z.size());
-    for (std::size_t n = 0; n < z.size(); ++n) points[n] = {xy.x, xy.y, z[n]};
-    const std::unique_ptr<bool[]> inside(new bool[z.size()]);
-    insideAt(*soup_, points, std::span(inside.get(), z.size()));
     for (std::size_t n = 0; n < z.size(); ++n) {
-        if (inside[n]) distances[n] = -distances[n];
+        if (insideAt(*soup_, {xy.x, xy.y, z[n]})) distances[n] = -distances[n];
     }
 }
 
 double MeshSurface::signedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const {
     SoupDistance::NearestHint none;
-    double distance = 0.0;
-    signedDistancesOnLine(glm::dvec2(texelPosition), std::span(&texelPosition.z, 1), cutoffTexels,
-                          std::span(&none, 1), std::span(&distance, 1));
-    return distance;
+    const double distance = unsignedDistance(texelPosition, cutoffTexels, none);
+    return insideAt(*soup_, texelPosition) ? -distance : distance;
 }
 
 }  // namespace distile

@@ -671,50 +671,38 @@ bool SoupDistance::everyTriangleNearSegment(const glm::dvec3& from, const glm::d
     return true;
 }
 
-std::vector<std::optional<int>> SoupDistance::windingNumbersByCrossings(
-    std::span<const glm::dvec3> texelPositions) const {
+std::optional<int> SoupDistance::windingNumberByCrossings(const glm::dvec3& texelPosition) const {
     assert(windingPiecewiseConstant_);
-    std::vector<std::optional<int>> windings(texelPositions.size());
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, texelPositions.size()),
-        [&](const tbb::blocked_range<std::size_t>& range) {
-            for (std::size_t n = range.begin(); n != range.end(); ++n) {
-                const glm::dvec3& position = texelPositions[n];
-                // Out of the bounds by the nearer way, up or down, where the winding number is 0:
-                // it drops by 1 across a triangle passed from back to front and rises by 1 the
-                // other way.
-                const bool up = bounds_.max.z - position.z <= position.z - bounds_.min.z;
-                const double endZ = up ? bounds_.max.z + 1.0 : bounds_.min.z - 1.0;
-                const PeriodicShifts shifts = periodicShifts(position, bounds_, tile_, 0.0);
-                int winding = 0;
-                bool clear = true;
-                for (int row = shifts.yBegin; clear && row <= shifts.yEnd; ++row) {
-                    for (int column = shifts.xBegin; clear && column <= shifts.xEnd; ++column) {
-                        const glm::dvec3 from =
-                            position - glm::dvec3(double(column) * tile_.width,
-                                                  double(row) * tile_.height, 0.0);
-                        clear = everyTriangleNearSegment(
-                            from, glm::dvec3(from.x, from.y, endZ), [&](const Triangle& t) {
-                                switch (axisSegmentMeeting(from, 2, endZ, t.a, t.b, t.c)) {
-                                    case SegmentMeeting::Misses:
-                                        return true;
-                                    case SegmentMeeting::BackToFront:
-                                        ++winding;
-                                        return true;
-                                    case SegmentMeeting::FrontToBack:
-                                        --winding;
-                                        return true;
-                                    case SegmentMeeting::Unclear:
-                                        return false;
-                                }
-                                return false;
-                            });
+    // Out of the bounds by the nearer way, up or down, where the winding number is 0: it drops
+    // by 1 across a triangle passed from back to front and rises by 1 the other way.
+    const bool up = bounds_.max.z - texelPosition.z <= texelPosition.z - bounds_.min.z;
+    const double endZ = up ? bounds_.max.z + 1.0 : bounds_.min.z - 1.0;
+    const PeriodicShifts shifts = periodicShifts(texelPosition, bounds_, tile_, 0.0);
+    int winding = 0;
+    for (int row = shifts.yBegin; row <= shifts.yEnd; ++row) {
+        for (int column = shifts.xBegin; column <= shifts.xEnd; ++column) {
+            const glm::dvec3 from = texelPosition - glm::dvec3(double(column) * tile_.width,
+                                                               double(row) * tile_.height, 0.0);
+            const bool clear = everyTriangleNearSegment(
+                from, glm::dvec3(from.x, from.y, endZ), [&](const Triangle& t) {
+                    switch (axisSegmentMeeting(from, 2, endZ, t.a, t.b, t.c)) {
+                        case SegmentMeeting::Misses:
+                            return true;
+                        case SegmentMeeting::BackToFront:
+                            ++winding;
+                            return true;
+                        case SegmentMeeting::FrontToBack:
+                            --winding;
+                            return true;
+                        case SegmentMeeting::Unclear:
+                            return false;
                     }
-                }
-                if (clear) windings[n] = winding;
-            }
-        });
-    return windings;
+                    return false;
+                });
+            if (!clear) return std::nullopt;
+        }
+    }
+    return winding;
 }
 
 bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,

@@ -91,16 +91,14 @@ class SoupDistance {
     double windingNumber(const glm::dvec3& texelPosition) const;
 
     /// For meshes whose winding number changes only across the surface: the winding number at
-    /// each point counted from the crossings of a vertical ray from it out of the mesh's bounds
+    /// the point counted from the crossings of a vertical ray from it out of the mesh's bounds
     /// (+1 for each triangle it leaves through the front, -1 through the back), exact where every
-    /// triangle under or over the point is provably crossed through its interior or missed (the
-    /// margins of segmentTouchesNoTriangle); nullopt where one is unclear (the ray grazes an
-    /// edge, a corner or a plane). Much cheaper than windingNumber near a fine mesh: a ray meets
-    /// a few triangles where the far field opens hundreds of nodes, and the triangles are listed
-    /// by columns once for all the points.
+    /// triangle near the ray is provably crossed through its interior or missed (the margins of
+    /// segmentTouchesNoTriangle); nullopt where one is unclear (the ray grazes an edge, a corner
+    /// or a plane). Much cheaper than windingNumber near a fine mesh: the ray meets a few
+    /// triangles where the far field opens hundreds of nodes.
     /// @pre windingChangesOnlyAcrossTheSurface().
-    std::vector<std::optional<int>> windingNumbersByCrossings(
-        std::span<const glm::dvec3> texelPositions) const;
+    std::optional<int> windingNumberByCrossings(const glm::dvec3& texelPosition) const;
 
     /// False when the segment from `from` to `to` (texels) may touch a triangle of the periodic
     /// union; true only when it provably touches none (near misses, within rounding, count as

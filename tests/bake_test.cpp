@@ -259,9 +259,7 @@ TEST(SoupDistance, WindingNumberByCrossingsCountsOverlapsAndCopies) {
     int counted = 0, unclear = 0;
     const std::vector<glm::dvec3> points =
         randomPoints(glm::dvec3(0.0), glm::dvec3(64.0, 64.0, 24.0), 20000, 11);
-    const std::vector<std::optional<int>> windings = distance.windingNumbersByCrossings(points);
-    for (std::size_t n = 0; n < points.size(); ++n) {
-        const glm::dvec3& p = points[n];
+    for (const glm::dvec3& p : points) {
         const double tube = std::hypot(std::hypot(p.x - torusCentre.x, p.y - torusCentre.y) - 12.0,
                                        p.z - torusCentre.z) -
                             4.0;
@@ -270,7 +268,7 @@ TEST(SoupDistance, WindingNumberByCrossingsCountsOverlapsAndCopies) {
         const int expected = (tube < 0.0) + (ball < 0.0) + 2 * insideBox(p, twiceLo, twiceHi) +
                              insideBox(p, edgeLo, edgeHi) +
                              insideBox(p + glm::dvec3(64.0, 0.0, 0.0), edgeLo, edgeHi);
-        const std::optional<int>& crossings = windings[n];
+        const std::optional<int> crossings = distance.windingNumberByCrossings(p);
         if (!crossings) {
             ++unclear;
             continue;
