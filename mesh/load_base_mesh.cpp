@@ -42,18 +42,26 @@ std::string lowercase(std::string text) {
     return text;
 }
 
-std::vector<std::string_view> splitWhitespace(std::string_view line) {
-    std::vector<std::string_view> tokens;
+/// The whitespace-separated tokens of `line`, into `tokens` (cleared first; reused from line to
+/// line, so a long file is read without an allocation per line).
+void splitWhitespace(std::string_view line, std::vector<std::string_view>& tokens) {
+    // std::isspace's set in the C locale, inline (a library call per character was a tenth of
+    // the check of a 1 M triangle OBJ).
+    const auto space = [](char c) { return c == ' ' || (c >= '\t' && c <= '\r'); };
+    tokens.clear();
     std::size_t start = 0;
     while (start < line.size()) {
-        while (start < line.size() && std::isspace(static_cast<unsigned char>(line[start]))) {
-            ++start;
-        }
+        while (start < line.size() && space(line[start])) ++start;
         std::size_t end = start;
-        while (end < line.size() && !std::isspace(static_cast<unsigned char>(line[end]))) ++end;
+        while (end < line.size() && !space(line[end])) ++end;
         if (end > start) tokens.push_back(line.substr(start, end - start));
         start = end;
     }
+}
+
+std::vector<std::string_view> splitWhitespace(std::string_view line) {
+    std::vector<std::string_view> tokens;
+    splitWhitespace(line, tokens);
     return tokens;
 }
 
@@ -78,31 +86,37 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
     long long uvCount = 0;
     std::string cornerWithoutUv;
     std::string line;
+    std::vector<std::string_view> tokens;
+    std::vector<long long> vertices;
     for (std::size_t lineNumber = 1; std::getline(in, line); ++lineNumber) {
-        const std::vector<std::string_view> tokens = splitWhitespace(line);
+        splitWhitespace(line, tokens);
         if (tokens.empty()) continue;
-        const std::string where = name + ": line " + std::to_string(lineNumber) + ": ";
+        // Built only for a message: most lines of a large file have none.
+        const auto where = [&] { return name + ": line " + std::to_string(lineNumber) + ": "; };
         const std::string_view keyword = tokens[0];
         if (keyword == "v" || keyword == "vt") {
             const bool isPosition = keyword == "v";
             const std::size_t needed = isPosition ? 3 : 2;
-            const std::string what = isPosition
-                                         ? "vertex " + std::to_string(positionCount + 1)
-                                         : "texture coordinate " + std::to_string(uvCount + 1);
+            const auto what = [&] {
+                return isPosition ? "vertex " + std::to_string(positionCount + 1)
+                                  : "texture coordinate " + std::to_string(uvCount + 1);
+            };
             if (tokens.size() < needed + 1) {
-                throw FormatError(where + what + " has " + std::to_string(tokens.size() - 1) +
+                throw FormatError(where() + what() + " has " + std::to_string(tokens.size() - 1) +
                                   " numbers; expected " + std::to_string(needed));
             }
             for (std::size_t k = 1; k <= needed; ++k) {
-                const std::string token(tokens[k]);
+                // strtod reads from inside `line`, which is NUL-terminated and has whitespace or
+                // its end after the token: it stops at the token's end if the token is a number.
+                const std::string_view token = tokens[k];
                 char* end = nullptr;
-                const double value = std::strtod(token.c_str(), &end);
-                if (end != token.c_str() + token.size()) {
-                    throw FormatError(where + what + " has '" + quotedInput(token) +
+                const double value = std::strtod(token.data(), &end);
+                if (end != token.data() + token.size()) {
+                    throw FormatError(where() + what() + " has '" + quotedInput(token) +
                                       "'; expected a number");
                 }
                 if (!std::isfinite(value) || std::abs(value) > std::numeric_limits<float>::max()) {
-                    throw FormatError(where + what + " has the non-finite value '" +
+                    throw FormatError(where() + what() + " has the non-finite value '" +
                                       quotedInput(token) +
                                       "'; coordinates must be finite float numbers");
                 }
@@ -110,10 +124,10 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
             (isPosition ? positionCount : uvCount) += 1;
         } else if (keyword == "f") {
             if (tokens.size() < 4) {
-                throw FormatError(where + "face has " + std::to_string(tokens.size() - 1) +
+                throw FormatError(where() + "face has " + std::to_string(tokens.size() - 1) +
                                   " corners; faces need at least 3");
             }
-            std::vector<long long> vertices;
+            vertices.clear();
             for (std::size_t k = 1; k < tokens.size(); ++k) {
                 const std::string_view corner = tokens[k];
                 // Corner forms: v, v/vt, v//vn, v/vt/vn.
@@ -131,13 +145,13 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
                     const auto [end, error] =
                         std::from_chars(text.data(), text.data() + text.size(), index);
                     if (error != std::errc() || end != text.data() + text.size() || index == 0) {
-                        throw FormatError(where + "face corner '" + quotedInput(corner) +
+                        throw FormatError(where() + "face corner '" + quotedInput(corner) +
                                           "' has a bad " + kind +
                                           " index; expected a nonzero integer");
                     }
                     const long long resolved = index < 0 ? count + index + 1 : index;
                     if (resolved < 1 || resolved > count) {
-                        throw FormatError(where + "face corner '" + quotedInput(corner) +
+                        throw FormatError(where() + "face corner '" + quotedInput(corner) +
                                           "' refers to " + kind + " " + std::to_string(index) +
                                           "; only " + std::to_string(count) +
                                           " are defined above it");
@@ -149,7 +163,7 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
                     if (!requireUvs) continue;
                     // Reported at the end: a file without any vt gets the plainer message.
                     if (cornerWithoutUv.empty()) {
-                        cornerWithoutUv = where + "face corner '" + quotedInput(corner) +
+                        cornerWithoutUv = where() + "face corner '" + quotedInput(corner) +
                                           "' has no texture coordinate; every corner needs v/vt";
                     }
                 } else {
@@ -225,6 +239,92 @@ std::mutex& openMeshReadMutex() {
     static std::mutex mutex;
     return mutex;
 }
+
+/// What OpenMesh's readers (OBJ, PLY, OFF, STL) find in a file, kept as they hand it over: the
+/// points and each face's corners, without the halfedge connectivity a PolyMesh builds (which
+/// a detail mesh, welded and triangulated by loadDetailMesh, does not need: it took 60% of the
+/// read of a 1 M triangle OBJ). Normals, colours and texture coordinates are dropped.
+class SoupImporter final : public OpenMesh::IO::BaseImporter {
+  public:
+    std::vector<OpenMesh::Vec3f> points;
+    std::vector<std::uint32_t> corners;         ///< the faces' vertex indices, face after face
+    std::vector<std::size_t> faceStarts = {0};  ///< face f: corners [faceStarts[f], [f + 1])
+    /// The first vertex index a face gave that is not a vertex of the file (the face is left out).
+    std::optional<int> firstInvalidCorner;
+
+    std::size_t faceCount() const { return faceStarts.size() - 1; }
+
+    OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3f& point) override {
+        points.push_back(point);
+        return OpenMesh::VertexHandle(int(points.size() - 1));
+    }
+    OpenMesh::VertexHandle add_vertex() override { return add_vertex(OpenMesh::Vec3f(0.0f)); }
+    OpenMesh::FaceHandle add_face(const VHandles& vertices) override {
+        for (const OpenMesh::VertexHandle vertex : vertices) {
+            if (!vertex.is_valid() || std::size_t(vertex.idx()) >= points.size()) {
+                if (!firstInvalidCorner) firstInvalidCorner = vertex.idx();
+                return OpenMesh::FaceHandle();
+            }
+        }
+        for (const OpenMesh::VertexHandle vertex : vertices)
+            corners.push_back(std::uint32_t(vertex.idx()));
+        faceStarts.push_back(corners.size());
+        return OpenMesh::FaceHandle(int(faceCount() - 1));
+    }
+    void set_point(OpenMesh::VertexHandle vertex, const OpenMesh::Vec3f& point) override {
+        if (vertex.is_valid() && std::size_t(vertex.idx()) < points.size())
+            points[std::size_t(vertex.idx())] = point;
+    }
+    void reserve(unsigned int vertices, unsigned int, unsigned int faces) override {
+        points.reserve(vertices);
+        faceStarts.reserve(std::size_t(faces) + 1);
+    }
+    std::size_t n_vertices() const override { return points.size(); }
+    std::size_t n_faces() const override { return faceCount(); }
+    std::size_t n_edges() const override { return 0; }
+
+    // What a detail mesh does not keep.
+    OpenMesh::HalfedgeHandle add_edge(OpenMesh::VertexHandle, OpenMesh::VertexHandle) override {
+        return OpenMesh::HalfedgeHandle();
+    }
+    OpenMesh::FaceHandle add_face(OpenMesh::HalfedgeHandle) override {
+        return OpenMesh::FaceHandle();
+    }
+    void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle,
+                            const std::vector<OpenMesh::Vec2f>&) override {}
+    void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle,
+                            const std::vector<OpenMesh::Vec3f>&) override {}
+    void set_face_texindex(OpenMesh::FaceHandle, int) override {}
+    void set_halfedge(OpenMesh::VertexHandle, OpenMesh::HalfedgeHandle) override {}
+    void set_normal(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+    void set_normal(OpenMesh::VertexHandle, const OpenMesh::Vec3d&) override {}
+    void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec3uc&) override {}
+    void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec4uc&) override {}
+    void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+    void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec4f&) override {}
+    void set_texcoord(OpenMesh::VertexHandle, const OpenMesh::Vec2f&) override {}
+    void set_status(OpenMesh::VertexHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+    void set_next(OpenMesh::HalfedgeHandle, OpenMesh::HalfedgeHandle) override {}
+    void set_face(OpenMesh::HalfedgeHandle, OpenMesh::FaceHandle) override {}
+    void request_face_texcoords2D() override {}
+    void set_texcoord(OpenMesh::HalfedgeHandle, const OpenMesh::Vec2f&) override {}
+    void set_texcoord(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
+    void set_texcoord(OpenMesh::HalfedgeHandle, const OpenMesh::Vec3f&) override {}
+    void set_status(OpenMesh::HalfedgeHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+    void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec3uc&) override {}
+    void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec4uc&) override {}
+    void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec3f&) override {}
+    void set_color(OpenMesh::EdgeHandle, const OpenMesh::Vec4f&) override {}
+    void set_status(OpenMesh::EdgeHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+    void set_normal(OpenMesh::FaceHandle, const OpenMesh::Vec3f&) override {}
+    void set_normal(OpenMesh::FaceHandle, const OpenMesh::Vec3d&) override {}
+    void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec3uc&) override {}
+    void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec4uc&) override {}
+    void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec3f&) override {}
+    void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec4f&) override {}
+    void set_status(OpenMesh::FaceHandle, const OpenMesh::Attributes::StatusInfo&) override {}
+    void add_texture_information(int, std::string) override {}
+};
 
 /// The most corners a polygon of a mesh file may have.
 constexpr std::uint64_t kMaxPolygonCorners = 65536;
@@ -799,41 +899,48 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
                           "'; accepted: .obj, .ply, .off, .stl");
     }
 
-    OpenMeshPolygons polygons;
+    SoupImporter read;
     OpenMesh::IO::Options options;
     {
         std::lock_guard<std::mutex> lock(openMeshReadMutex());
         OpenMeshLogCapture log;
-        const bool readOk = OpenMesh::IO::read_mesh(polygons, name, options);
+        const bool readOk = OpenMesh::IO::IOManager().read(name, read, options);
         const std::string failure = log.firstFailure();
+        // A face that names a missing vertex first: OpenMesh's own line for it says less.
+        if (read.firstInvalidCorner) {
+            throw FormatError(name + ": a face refers to vertex " +
+                              std::to_string(*read.firstInvalidCorner) +
+                              " (counting from 0); the file has " +
+                              std::to_string(read.points.size()) + " vertices");
+        }
         if (!readOk || !failure.empty()) {
             throw FormatError(name + ": OpenMesh cannot read it as " + extension.substr(1) +
                               (failure.empty() ? std::string() : " (" + failure + ")"));
         }
     }
-    if (polygons.n_faces() == 0) {
+    if (read.faceCount() == 0) {
         throw FormatError(name +
                           ": has no faces OpenMesh could read; expected a mesh "
                           "(NaN/Inf numbers also end up here)");
     }
-    if (extension == ".obj" && polygons.n_faces() < objFacts.faceCount) {
-        throw FormatError(name + ": OpenMesh read only " + std::to_string(polygons.n_faces()) +
+    if (extension == ".obj" && read.faceCount() < objFacts.faceCount) {
+        throw FormatError(name + ": OpenMesh read only " + std::to_string(read.faceCount()) +
                           " of its " + std::to_string(objFacts.faceCount) + " faces");
     }
     // Corners at identical positions become one vertex, whatever the format: OpenMesh merges
     // them for STL only, and an OBJ/PLY/OFF soup of unwelded corners would otherwise have no
     // shared edges at all.
     TriangleSoup soup;
-    soup.positions.reserve(polygons.n_vertices());
-    std::vector<std::uint32_t> weldedIndex(polygons.n_vertices());
+    soup.positions.reserve(read.points.size());
+    std::vector<std::uint32_t> weldedIndex(read.points.size());
     std::unordered_map<PositionKey, std::uint32_t, PositionKeyHash> firstAtPosition;
-    firstAtPosition.reserve(polygons.n_vertices());
-    for (const auto vertex : polygons.vertices()) {
-        const auto& p = polygons.point(vertex);
+    firstAtPosition.reserve(read.points.size());
+    for (std::size_t vertex = 0; vertex < read.points.size(); ++vertex) {
+        const OpenMesh::Vec3f& p = read.points[vertex];
         for (int axis = 0; axis < 3; ++axis) {
             if (!std::isfinite(p[axis]) || std::abs(double(p[axis])) > kMaxDetailCoordinate) {
                 std::ostringstream message;
-                message << name << ": vertex " << vertex.idx() << " (counting from 0) has the "
+                message << name << ": vertex " << vertex << " (counting from 0) has the "
                         << "coordinate " << p[axis] << "; detail meshes need finite coordinates "
                         << "within +-" << kMaxDetailCoordinate;
                 throw FormatError(message.str());
@@ -842,21 +949,26 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
         const auto [entry, isNew] = firstAtPosition.try_emplace(
             PositionKey{p[0], p[1], p[2]}, std::uint32_t(soup.positions.size()));
         if (isNew) soup.positions.emplace_back(p[0], p[1], p[2]);
-        weldedIndex[vertex.idx()] = entry->second;
+        weldedIndex[vertex] = entry->second;
     }
-    std::vector<std::uint32_t> corners;
-    for (const auto face : polygons.faces()) {
-        corners.clear();
-        for (const auto vertex : polygons.fv_range(face)) {
-            corners.push_back(weldedIndex[vertex.idx()]);
-        }
-        for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
-            // A triangle whose corners merged has no area (OpenMesh drops such STL faces too).
-            const glm::uvec3 triangle(corners[0], corners[k], corners[k + 1]);
+    if (read.corners.size() > 2 * read.faceCount())
+        soup.triangles.reserve(read.corners.size() - 2 * read.faceCount());
+    for (std::size_t face = 0; face < read.faceCount(); ++face) {
+        const std::uint32_t* corners = read.corners.data() + read.faceStarts[face];
+        const std::size_t cornerCount = read.faceStarts[face + 1] - read.faceStarts[face];
+        for (std::size_t k = 1; k + 1 < cornerCount; ++k) {
+            // Fanned from the first corner. A triangle whose corners merged has no area (OpenMesh
+            // drops such STL faces too).
+            const glm::uvec3 triangle(weldedIndex[corners[0]], weldedIndex[corners[k]],
+                                      weldedIndex[corners[k + 1]]);
             if (triangle.x == triangle.y || triangle.y == triangle.z || triangle.z == triangle.x)
                 continue;
             soup.triangles.push_back(triangle);
         }
+    }
+    if (soup.triangles.empty()) {
+        throw FormatError(name + ": none of its " + std::to_string(read.faceCount()) +
+                          " faces has three distinct corners; expected a mesh");
     }
     return soup;
 }

@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 #include <map>
 #include <numbers>
+#include <sstream>
 #include <string>
 
 #include "common/error.h"
@@ -667,6 +668,29 @@ TEST(DetailMesh, WeldsCornersInEveryFormat) {
     }
 }
 
+TEST(DetailMesh, KeepsEveryFaceOfANonManifoldSoup) {
+    // Three triangles on one edge (0-1) and a fourth through a vertex they share: no halfedge
+    // mesh holds them as they are; a detail mesh keeps all four as written, whatever the format.
+    const std::string points = "0 0 0\n1 0 0\n0 1 0\n0 -1 0\n0 0 1\n1 1 1\n";
+    const std::vector<glm::uvec3> faces = {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}, {0, 5, 2}};
+    std::string obj, off = "OFF\n6 4 0\n" + points;
+    std::istringstream lines(points);
+    for (std::string line; std::getline(lines, line);) obj += "v " + line + "\n";
+    for (const glm::uvec3& f : faces) {
+        obj += "f " + std::to_string(f.x + 1) + " " + std::to_string(f.y + 1) + " " +
+               std::to_string(f.z + 1) + "\n";
+        off += "3 " + std::to_string(f.x) + " " + std::to_string(f.y) + " " + std::to_string(f.z) +
+               "\n";
+    }
+    const TempFile objFile("book.obj", obj), offFile("book.off", off);
+    for (const TempFile* file : {&objFile, &offFile}) {
+        const TriangleSoup soup = loadDetailMesh(file->path());
+        EXPECT_EQ(soup.positions.size(), 6u) << file->path();
+        ASSERT_EQ(soup.triangles.size(), faces.size()) << file->path();
+        for (std::size_t t = 0; t < faces.size(); ++t) EXPECT_EQ(soup.triangles[t], faces[t]);
+    }
+}
+
 TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
     const auto expectFormatError = [](const std::string& name, const std::string& contents,
                                       const std::string& expectedPart) {
@@ -682,6 +706,15 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
     expectFormatError("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "refers to vertex 7");
     expectFormatError("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n",
                       "invalid vertex index");
+    expectFormatError("range.ply",
+                      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                      "property float y\nproperty float z\nelement face 1\n"
+                      "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n"
+                      "3 0 1 9\n",
+                      "refers to vertex 9 (counting from 0); the file has 3 vertices");
+    // Corners 1 and 4 are one point: the only face has no area once welded.
+    expectFormatError("degenerate.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 0\nf 1 2 4\n",
+                      "none of its 1 faces has three distinct corners");
     expectFormatError("truncated.stl", tetrahedronBinaryStl(30), "truncated");
     expectFormatError("truncated.ply",
                       "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
