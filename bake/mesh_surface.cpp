@@ -388,18 +388,9 @@ bool allTrianglesFaceOutside(const TriangleSoup& placedTexels, const SoupDistanc
         [&](const tbb::blocked_range<std::size_t>& range, bool outside) {
             for (std::size_t t = range.begin(); outside && t != range.end(); ++t) {
                 const glm::uvec3& triangle = placedTexels.triangles[t];
-                const glm::dvec3 a = placedTexels.positions[triangle.x];
-                const glm::dvec3 b = placedTexels.positions[triangle.y];
-                const glm::dvec3 c = placedTexels.positions[triangle.z];
-                const glm::dvec3 normal = glm::cross(b - a, c - a);
-                const double area = glm::length(normal);
-                if (!(area > 0.0)) continue;  // no sides; changes no distance
-                const double longest =
-                    std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
-                const glm::dvec3 front = (a + b + c) / 3.0 + (1e-5 * longest / area) * normal;
-                // Integral here: the count of crossings where it is clear.
-                const std::optional<int> crossings = soup.windingNumberByCrossings(front);
-                outside = crossings ? *crossings == 0 : std::abs(soup.windingNumber(front)) < 0.5;
+                outside = soup.facesOutsideAtCentroid(placedTexels.positions[triangle.x],
+                                                      placedTexels.positions[triangle.y],
+                                                      placedTexels.positions[triangle.z]);
             }
             return outside;
         },

@@ -82,10 +82,11 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
                                              !sign.unsignedDistance, progress);
     // Signed, the distances measure the boundary of the inside (bake/mesh_surface.h), as `check`
     // and reference renders do: for a closed mesh whose parts neither overlap nor touch, all its
-    // triangles, so nothing more to do. Otherwise (triangles trimmed, caps over holes) the
-    // distances are measured again to that surface, keeping their signs.
+    // triangles, so nothing more to do; the grid tells so when every voxel's nearest point
+    // provably bounds the inside. Otherwise (triangles trimmed, caps over holes) the distances
+    // are measured again to that surface, keeping their signs.
     std::optional<MeshSurface> surface;
-    if (!sign.unsignedDistance) {
+    if (!sign.unsignedDistance && !grid.nearestPointsBound) {
         surface.emplace(placed, soup, options.size);
         if (surface->trimmedTriangles() == 0 && surface->caps().triangles.empty()) surface.reset();
     }

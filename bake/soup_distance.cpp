@@ -72,9 +72,13 @@ float skipThreshold(double bestSquared, double pointError) {
 
 /// Squared distance from the points (x, y, z) of one vertical line to the triangle abc
 /// (Ericson, Real-Time Collision Detection, 5.1.5): the parts of its dot products that do not
-/// depend on z are computed once per triangle.
+/// depend on z are computed once per triangle. Optionally also the nearest point and the part of
+/// the triangle it lies on.
 class LineTriangleDistance {
   public:
+    using Nearest = SoupDistance::NearestPoint;
+    using Feature = SoupDistance::TriangleFeature;
+
     LineTriangleDistance(const glm::dvec2& xy, const glm::dvec3& a, const glm::dvec3& b,
                          const glm::dvec3& c)
         : xy_(xy), a_(a), b_(b), c_(c), ab_(b - a), ac_(c - a) {
@@ -87,29 +91,41 @@ class LineTriangleDistance {
         d6_ = ac_.x * cp.x + ac_.y * cp.y;
     }
 
-    double operator()(double z) const {
+    /// The squared distance to (x, y, z); `nearest`, when given, gets the nearest point.
+    double operator()(double z, Nearest* nearest = nullptr) const {
         const glm::dvec3 p(xy_.x, xy_.y, z);
-        const auto squared = [&p](const glm::dvec3& q) { return glm::dot(p - q, p - q); };
+        const auto at = [&p, nearest](const glm::dvec3& q, Feature feature) {
+            if (nearest) *nearest = {q, feature};
+            return glm::dot(p - q, p - q);
+        };
         const double apz = z - a_.z;
         const double d1 = d1_ + ab_.z * apz, d2 = d2_ + ac_.z * apz;
-        if (d1 <= 0.0 && d2 <= 0.0) return squared(a_);
+        if (d1 <= 0.0 && d2 <= 0.0) return at(a_, Feature::CornerA);
         const double bpz = z - b_.z;
         const double d3 = d3_ + ab_.z * bpz, d4 = d4_ + ac_.z * bpz;
-        if (d3 >= 0.0 && d4 <= d3) return squared(b_);
+        if (d3 >= 0.0 && d4 <= d3) return at(b_, Feature::CornerB);
         const double vc = d1 * d4 - d3 * d2;
-        if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return squared(a_ + ab_ * (d1 / (d1 - d3)));
+        if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0)
+            return at(a_ + ab_ * (d1 / (d1 - d3)), Feature::EdgeAB);
         const double cpz = z - c_.z;
         const double d5 = d5_ + ab_.z * cpz, d6 = d6_ + ac_.z * cpz;
-        if (d6 >= 0.0 && d5 <= d6) return squared(c_);
+        if (d6 >= 0.0 && d5 <= d6) return at(c_, Feature::CornerC);
         const double vb = d5 * d2 - d1 * d6;
-        if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return squared(a_ + ac_ * (d2 / (d2 - d6)));
+        if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0)
+            return at(a_ + ac_ * (d2 / (d2 - d6)), Feature::EdgeCA);
         const double va = d3 * d6 - d5 * d4;
         if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-            return squared(b_ + (c_ - b_) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))));
+            return at(b_ + (c_ - b_) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))), Feature::EdgeBC);
         }
         const double denominator = 1.0 / (va + vb + vc);
-        if (!std::isfinite(denominator)) return std::min({squared(a_), squared(b_), squared(c_)});
-        return squared(a_ + ab_ * (vb * denominator) + ac_ * (vc * denominator));
+        if (!std::isfinite(denominator)) {
+            // No area (corners that coincide): the nearest corner.
+            const double toA = glm::dot(p - a_, p - a_), toB = glm::dot(p - b_, p - b_),
+                         toC = glm::dot(p - c_, p - c_);
+            if (toA <= toB && toA <= toC) return at(a_, Feature::CornerA);
+            return toB <= toC ? at(b_, Feature::CornerB) : at(c_, Feature::CornerC);
+        }
+        return at(a_ + ab_ * (vb * denominator) + ac_ * (vc * denominator), Feature::Face);
     }
 
   private:
@@ -403,9 +419,8 @@ std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex,
     return index;
 }
 
-void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z,
-                                        std::span<double> bestSquared,
-                                        std::span<std::uint32_t> bestTriangle) const {
+void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z, int copyX,
+                                        int copyY, std::span<LineLaneNearest> lanesNearest) const {
     static_assert(kLineLanes % 4 == 0 && kLineLanes <= 32, "lanes in 4-wide vectors, an int mask");
     const int lanes = int(z.size());
     assert(lanes >= 1 && lanes <= kLineLanes);
@@ -421,7 +436,7 @@ void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const do
             continue;
         }
         pointError[lane] = floatPointError({xy.x, xy.y, z[lane]});
-        threshold[lane] = skipThreshold(bestSquared[lane], pointError[lane]);
+        threshold[lane] = skipThreshold(lanesNearest[lane].bestSquared, pointError[lane]);
     }
     const __m128 px = _mm_set1_ps(float(xy.x)), py = _mm_set1_ps(float(xy.y));
     const __m128 zero = _mm_setzero_ps();
@@ -474,10 +489,27 @@ void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const do
                     const int lane = std::countr_zero(unsigned(todo));
                     if (!(boxSquared[c][lane] < threshold[lane])) continue;
                     const double squared = distanceSquared(z[lane]);
-                    if (squared < bestSquared[lane]) {
-                        bestSquared[lane] = squared;
-                        bestTriangle[lane] = t;
+                    LineLaneNearest& found = lanesNearest[lane];
+                    const NearestHint id{t, copyX, copyY};
+                    if (squared < found.bestSquared) {
+                        found.thirdSquared = found.secondSquared;
+                        found.secondSquared = found.bestSquared;
+                        found.second = found.best;
+                        found.bestSquared = squared;
+                        found.best = id;
                         threshold[lane] = skipThreshold(squared, pointError[lane]);
+                    } else if (squared <= found.bestSquared * (1.0 + kTieRelative) &&
+                               squared < found.thirdSquared && id != found.best &&
+                               id != found.second) {
+                        // Only ties are kept: one farther now is farther than the final best.
+                        // A hint's triangle comes again with its own distance: not a second.
+                        if (squared < found.secondSquared) {
+                            found.thirdSquared = found.secondSquared;
+                            found.secondSquared = squared;
+                            found.second = id;
+                        } else {
+                            found.thirdSquared = squared;
+                        }
                     }
                 }
             }
@@ -492,44 +524,57 @@ void SoupDistance::closestSquaredOnLine(const glm::dvec2& xy, std::span<const do
 
 void SoupDistance::unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const double> z,
                                            double cutoffTexels, std::span<NearestHint> hints,
-                                           std::span<double> distances) const {
+                                           std::span<double> distances,
+                                           std::span<NearestHint> ties) const {
     assert(hints.size() == z.size() && distances.size() == z.size());
+    assert(ties.empty() || ties.size() == z.size());
     for (std::size_t first = 0; first < z.size(); first += kLineLanes) {
         const std::size_t lanes = std::min<std::size_t>(kLineLanes, z.size() - first);
-        std::array<double, kLineLanes> bestSquared;
+        std::array<LineLaneNearest, kLineLanes> nearest;
         double reach = 0.0;
         for (std::size_t lane = 0; lane < lanes; ++lane) {
             // The hint's triangle is one of the candidates the search compares anyway (the same
             // arithmetic on the same shifted point), so starting from it gives the same minimum.
             const NearestHint& hint = hints[first + lane];
-            bestSquared[lane] = cutoffTexels * cutoffTexels;
+            LineLaneNearest& found = nearest[lane];
+            found.bestSquared = cutoffTexels * cutoffTexels;
             if (hint.triangle != UINT32_MAX) {
                 const Triangle& triangle = triangles_[hint.triangle];
-                bestSquared[lane] = std::min(
-                    bestSquared[lane],
+                const double squared =
                     LineTriangleDistance(xy - glm::dvec2(double(hint.copyX) * tile_.width,
                                                          double(hint.copyY) * tile_.height),
-                                         triangle.a, triangle.b, triangle.c)(z[first + lane]));
+                                         triangle.a, triangle.b, triangle.c)(z[first + lane]);
+                if (squared < found.bestSquared) {
+                    found.bestSquared = squared;
+                    found.best = hint;
+                }
             }
-            reach = std::max(reach, std::sqrt(bestSquared[lane]));
+            reach = std::max(reach, std::sqrt(found.bestSquared));
         }
         // The copies any lane can reach (a lane that cannot reach one finds nothing in it).
         const PeriodicShifts shifts = periodicShifts({xy.x, xy.y, z[first]}, bounds_, tile_, reach);
         for (int n = shifts.yBegin; n <= shifts.yEnd; ++n) {
             for (int m = shifts.xBegin; m <= shifts.xEnd; ++m) {
-                const glm::dvec3 shift(double(m) * tile_.width, double(n) * tile_.height, 0.0);
-                std::array<std::uint32_t, kLineLanes> found;
-                found.fill(UINT32_MAX);
-                closestSquaredOnLine(xy - glm::dvec2(shift), z.subspan(first, lanes),
-                                     std::span(bestSquared).first(lanes),
-                                     std::span(found).first(lanes));
-                for (std::size_t lane = 0; lane < lanes; ++lane) {
-                    if (found[lane] != UINT32_MAX) hints[first + lane] = {found[lane], m, n};
-                }
+                const glm::dvec2 shift(double(m) * tile_.width, double(n) * tile_.height);
+                closestSquaredOnLine(xy - shift, z.subspan(first, lanes), m, n,
+                                     std::span(nearest).first(lanes));
             }
         }
-        for (std::size_t lane = 0; lane < lanes; ++lane)
-            distances[first + lane] = std::sqrt(bestSquared[lane]);
+        for (std::size_t lane = 0; lane < lanes; ++lane) {
+            const LineLaneNearest& found = nearest[lane];
+            distances[first + lane] = std::sqrt(found.bestSquared);
+            if (found.best.triangle != UINT32_MAX) hints[first + lane] = found.best;
+            if (ties.empty()) continue;
+            // Others within kTieRelative of the nearest: the walk compared every triangle that
+            // near (its boxes are skipped only beyond the best by more than that).
+            const double tieSquared = found.bestSquared * (1.0 + kTieRelative);
+            NearestHint& tie = ties[first + lane];
+            tie = {};
+            if (found.best.triangle == UINT32_MAX || !(found.secondSquared <= tieSquared)) continue;
+            tie = found.second;
+            if (found.thirdSquared <= tieSquared || tie.triangle == UINT32_MAX)
+                tie.triangle = kSeveralTriangles;
+        }
     }
 }
 
@@ -703,6 +748,75 @@ std::optional<int> SoupDistance::windingNumberByCrossings(const glm::dvec3& texe
         }
     }
     return winding;
+}
+
+bool SoupDistance::facesOutsideAtCentroid(const glm::dvec3& a, const glm::dvec3& b,
+                                          const glm::dvec3& c) const {
+    const glm::dvec3 normal = glm::cross(b - a, c - a);
+    const double area = glm::length(normal);
+    if (!(area > 0.0)) return true;  // no sides; changes no distance
+    const double longest = std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
+    const glm::dvec3 front = (a + b + c) / 3.0 + (1e-5 * longest / area) * normal;
+    // Integral here: the count of crossings where it is clear.
+    const std::optional<int> crossings = windingNumberByCrossings(front);
+    return crossings ? *crossings == 0 : std::abs(windingNumber(front)) < 0.5;
+}
+
+int SoupDistance::sideOfNearestPoint(const glm::dvec3& texelPosition, const NearestHint& nearest,
+                                     const NearestHint& tie) const {
+    assert(nearest.triangle < triangles_.size());
+    if (tie.triangle == kSeveralTriangles) return 0;
+    const glm::dvec3 shift(double(nearest.copyX) * tile_.width,
+                           double(nearest.copyY) * tile_.height, 0.0);
+    const Triangle& t = triangles_[nearest.triangle];
+    NearestPoint found;
+    const glm::dvec3 p = texelPosition - shift;
+    LineTriangleDistance(glm::dvec2(p), t.a, t.b, t.c)(p.z, &found);
+    const glm::dvec3 away = p - found.point;
+    // The side of the surface p lies on, along `normal`: clear when within 60 degrees of it.
+    const auto side = [&away](const glm::dvec3& normal) {
+        const double along = glm::dot(away, normal);
+        return along * along > 0.25 * glm::dot(away, away) * glm::dot(normal, normal)
+                   ? (along > 0.0 ? 1 : -1)
+                   : 0;
+    };
+    const glm::dvec3 normal = glm::cross(t.b - t.a, t.c - t.a);
+    if (!(glm::dot(normal, normal) > 0.0)) return 0;  // a sliver, measured as a segment
+    if (found.feature == TriangleFeature::Face) {
+        // Any other triangle through that point would be as near: a tie.
+        if (tie.triangle != UINT32_MAX) return 0;
+        return side(normal);
+    } else {
+        // On an edge: its one neighbour must be the tie, using the edge the other way round;
+        // then the angle-weighted normal there, the sum of theirs, tells the sides apart
+        // (Baerentzen and Aanaes 2005). A corner's fan is not known here.
+        if (tie.triangle >= triangles_.size()) return 0;
+        glm::dvec3 from, to;
+        switch (found.feature) {
+            case TriangleFeature::EdgeAB:
+                from = t.a, to = t.b;
+                break;
+            case TriangleFeature::EdgeBC:
+                from = t.b, to = t.c;
+                break;
+            case TriangleFeature::EdgeCA:
+                from = t.c, to = t.a;
+                break;
+            default:
+                return 0;
+        }
+        const Triangle& u = triangles_[tie.triangle];
+        const glm::dvec3 toTie(double(tie.copyX - nearest.copyX) * tile_.width,
+                               double(tie.copyY - nearest.copyY) * tile_.height, 0.0);
+        const std::array<glm::dvec3, 3> corners = {u.a + toTie, u.b + toTie, u.c + toTie};
+        bool reversed = false;
+        for (int k = 0; k < 3; ++k)
+            reversed = reversed || (corners[k] == to && corners[(k + 1) % 3] == from);
+        if (!reversed) return 0;
+        const glm::dvec3 tieNormal = glm::cross(corners[1] - corners[0], corners[2] - corners[0]);
+        if (!(glm::dot(tieNormal, tieNormal) > 0.0)) return 0;
+        return side(glm::normalize(normal) + glm::normalize(tieNormal));
+    }
 }
 
 bool SoupDistance::segmentTouchesNoTriangleOfCopy(const glm::dvec3& from,

@@ -31,6 +31,8 @@
 /// All queries are const and thread-safe; results do not depend on the thread that asks.
 #pragma once
 
+#include <array>
+#include <cmath>
 #include <cstdint>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -75,17 +77,40 @@ class SoupDistance {
     struct NearestHint {
         std::uint32_t triangle = UINT32_MAX;  ///< UINT32_MAX: none
         std::int32_t copyX = 0, copyY = 0;    ///< of the copy, shifted by (copyX W, copyY H, 0)
+        bool operator==(const NearestHint&) const = default;
     };
+    /// Where on a triangle its point nearest to a point lies.
+    enum class TriangleFeature : std::uint8_t {
+        Face,
+        EdgeAB,
+        EdgeBC,
+        EdgeCA,
+        CornerA,
+        CornerB,
+        CornerC
+    };
+    struct NearestPoint {
+        glm::dvec3 point{0.0};
+        TriangleFeature feature = TriangleFeature::Face;
+    };
+    /// A NearestHint::triangle in a tie: two or more other triangles are as near.
+    static constexpr std::uint32_t kSeveralTriangles = UINT32_MAX - 1;
+    /// Triangles whose squared distance is within this fraction of the nearest's are tied with it
+    /// (far below the hierarchy's skipping margin, 2^-20, and far above rounding).
+    static constexpr double kTieRelative = 1e-9;
     /// unsignedDistance starting from `hint`'s triangle, which it then updates.
     double unsignedDistance(const glm::dvec3& texelPosition, double cutoffTexels,
                             NearestHint& hint) const;
 
     /// unsignedDistance at the points (x, y, z[k]) of one vertical line, each from and updating
     /// hints[k]: the same distances, for less work (the points share one walk of the hierarchy
-    /// per copy, kLineLanes at a time).
+    /// per copy, kLineLanes at a time). When `ties` is given (one per point), ties[k] is the one
+    /// other triangle (and copy) within kTieRelative of the nearest, triangle kSeveralTriangles
+    /// when there are more, UINT32_MAX when there is none (or nothing within the cutoff).
     void unsignedDistancesOnLine(const glm::dvec2& xy, std::span<const double> z,
                                  double cutoffTexels, std::span<NearestHint> hints,
-                                 std::span<double> distances) const;
+                                 std::span<double> distances,
+                                 std::span<NearestHint> ties = {}) const;
 
     /// Generalized winding number of the periodic union at the point (see the file note).
     double windingNumber(const glm::dvec3& texelPosition) const;
@@ -99,6 +124,32 @@ class SoupDistance {
     /// triangles where the far field opens hundreds of nodes.
     /// @pre windingChangesOnlyAcrossTheSurface().
     std::optional<int> windingNumberByCrossings(const glm::dvec3& texelPosition) const;
+
+    /// For meshes whose winding number changes only across the surface: whether the winding
+    /// number is 0 just in front of the centroid of the triangle abc (texels, one of the soup's),
+    /// and so, crossing it backwards, 1 just behind: it bounds the inside there. True for a
+    /// triangle without area (it has no sides).
+    bool facesOutsideAtCentroid(const glm::dvec3& a, const glm::dvec3& b,
+                                const glm::dvec3& c) const;
+
+    /// The side of the surface `texelPosition` lies on at its nearest point, on triangle
+    /// `nearest` (found by unsignedDistancesOnLine, with its `tie`): +1 in front (where the
+    /// triangle's counter-clockwise normal points), -1 behind, 0 where it cannot be told. Told at
+    /// a face's interior (no tie) from its normal, at an edge whose one neighbour is the tie
+    /// (using the edge the other way round) from the sum of their normals (Baerentzen and Aanaes
+    /// 2005), within 60 degrees of them; not at corners (their fan is not known here). Where the
+    /// winding number changes only across the surface, the winding number behind is 1 more than
+    /// in front, and the point's winding number holds up to its nearest point (the ball between
+    /// is empty of surface).
+    int sideOfNearestPoint(const glm::dvec3& texelPosition, const NearestHint& nearest,
+                           const NearestHint& tie) const;
+
+    /// The corners of triangle `triangle` as NearestHint numbers them (the soup's own copy; a
+    /// sliver as the segment it is measured as).
+    std::array<glm::dvec3, 3> corners(std::uint32_t triangle) const {
+        const Triangle& t = triangles_[triangle];
+        return {t.a, t.b, t.c};
+    }
 
     /// False when the segment from `from` to `to` (texels) may touch a triangle of the periodic
     /// union; true only when it provably touches none (near misses, within rounding, count as
@@ -173,13 +224,18 @@ class SoupDistance {
     Bound bound(std::uint32_t index, std::vector<FloatBox>& boxes);
     std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<FloatBox>& boxes);
     static constexpr int kLineLanes = 16;
-    /// The nearest triangles of the soup's own copy to up to kLineLanes points (x, y, z[k]) in
-    /// one walk of the hierarchy: bestSquared[k] and bestTriangle[k] are lowered where a
-    /// triangle is nearer. A box is skipped only when it is provably no nearer than a lane's
-    /// best (see the file note), so the result is the exact minimum.
-    void closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z,
-                              std::span<double> bestSquared,
-                              std::span<std::uint32_t> bestTriangle) const;
+    /// One point's nearest triangles so far: the nearest, the next (another triangle, or
+    /// another copy of it) and the squared distance of the one after.
+    struct LineLaneNearest {
+        double bestSquared = HUGE_VAL, secondSquared = HUGE_VAL, thirdSquared = HUGE_VAL;
+        NearestHint best, second;
+    };
+    /// The nearest triangles of copy (copyX, copyY) to up to kLineLanes points (x, y, z[k]) of
+    /// its frame, in one walk of the hierarchy, merged into lanesNearest[k]. A box is skipped only
+    /// when it is provably no nearer than a lane's best (see the file note), so the best is the
+    /// exact minimum and every triangle within kTieRelative of it is compared.
+    void closestSquaredOnLine(const glm::dvec2& xy, std::span<const double> z, int copyX, int copyY,
+                              std::span<LineLaneNearest> lanesNearest) const;
     /// Calls visit(triangle) for every triangle whose box (float, rounded outward, with the
     /// point's rounding) overlaps the segment's, until it returns false; false if it did.
     template <class Visit>

@@ -2,13 +2,16 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <glm/geometric.hpp>
+#include <optional>
 
 namespace distile {
 
@@ -58,7 +61,11 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
                                   double cutoffTexels, bool signedByWindingNumber,
                                   const ProgressCallback& progress) {
     const Size3& tile = soup.tile();
-    SoupDistanceGrid grid{tile.width, tile.height, zBegin, zEnd, {}};
+    SoupDistanceGrid grid;
+    grid.width = tile.width;
+    grid.height = tile.height;
+    grid.zBegin = zBegin;
+    grid.zEnd = zEnd;
     const int slices = zEnd - zBegin;
     const std::size_t rowLength = std::size_t(tile.width);
     const std::size_t slabSize = rowLength * std::size_t(tile.height);
@@ -66,6 +73,10 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
     assert(voxels < std::size_t(UINT32_MAX));
     grid.distancesTexels.resize(voxels);
     grid.nearest.resize(voxels);
+    // Signed by regions: the side of the surface each voxel lies on at its nearest point (told
+    // while the line's triangles are at hand), to check that the point bounds the inside.
+    const bool byRegions = signedByWindingNumber && soup.windingChangesOnlyAcrossTheSurface();
+    std::vector<std::int8_t> sides(byRegions ? voxels : 0);
     std::vector<double>& distances = grid.distancesTexels;
     const auto centre = [&](std::size_t voxel) {
         const std::size_t i = voxel % rowLength, j = (voxel / rowLength) % std::size_t(tile.height);
@@ -92,16 +103,22 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
             std::vector<SoupDistance::NearestHint> rowStart(static_cast<std::size_t>(slices)),
                 hints;
             std::vector<double> line(static_cast<std::size_t>(slices));
+            std::vector<SoupDistance::NearestHint> lineTies(byRegions ? std::size_t(slices) : 0);
             for (int j = j0; j < j1; ++j) {
                 hints = rowStart;
                 for (int i = i0; i < i1; ++i) {
                     soup.unsignedDistancesOnLine({i + 0.5, j + 0.5}, sliceZ, cutoffTexels, hints,
-                                                 line);
+                                                 line, lineTies);
                     for (int slice = 0; slice < slices; ++slice) {
                         const std::size_t voxel = std::size_t(slice) * slabSize +
                                                   std::size_t(j) * rowLength + std::size_t(i);
                         distances[voxel] = line[std::size_t(slice)];
                         grid.nearest[voxel] = hints[std::size_t(slice)];
+                        if (byRegions && line[std::size_t(slice)] < cutoffTexels) {
+                            sides[voxel] = std::int8_t(
+                                soup.sideOfNearestPoint(centre(voxel), hints[std::size_t(slice)],
+                                                        lineTies[std::size_t(slice)]));
+                        }
                     }
                     if (i == i0) rowStart = hints;
                 }
@@ -185,18 +202,45 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
         std::uint32_t& best = farthest[region[v]];
         if (best == UINT32_MAX || distances[v] > distances[best]) best = std::uint32_t(v);
     }
-    std::vector<std::uint8_t> inside(regionCount);
-    tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, regionCount),
-                      [&](const tbb::blocked_range<std::uint32_t>& range) {
-                          for (std::uint32_t r = range.begin(); r != range.end(); ++r)
-                              inside[r] = soup.windingNumber(centre(farthest[r])) > 0.5;
-                      });
+    // An integer here: counted from crossings where they are clear, else the far field rounded.
+    std::vector<int> winding(regionCount);
+    tbb::parallel_for(
+        tbb::blocked_range<std::uint32_t>(0, regionCount),
+        [&](const tbb::blocked_range<std::uint32_t>& range) {
+            for (std::uint32_t r = range.begin(); r != range.end(); ++r) {
+                const glm::dvec3 point = centre(farthest[r]);
+                const std::optional<int> crossings = soup.windingNumberByCrossings(point);
+                winding[r] = crossings ? *crossings : int(std::lround(soup.windingNumber(point)));
+            }
+        });
+    // Whether every voxel's distance is to the boundary of the inside: its nearest point bounds
+    // it, winding number 0 in front and 1 behind (the voxel's, on its side); where the side is
+    // not known, its nearest triangle must face outside at its centroid (what MeshSurface checks
+    // of every triangle).
+    std::vector<std::atomic<std::uint8_t>> toCheck(soup.triangleCount());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, voxels),
                       [&](const tbb::blocked_range<std::size_t>& range) {
                           for (std::size_t v = range.begin(); v != range.end(); ++v) {
-                              if (inside[region[v]]) distances[v] = -distances[v];
+                              const int w = winding[region[v]];
+                              if (w > 0) distances[v] = -distances[v];
+                              // Beyond the cutoff the distance is the cutoff either way.
+                              if (!(std::abs(distances[v]) < cutoffTexels)) continue;
+                              const std::uint32_t nearest = grid.nearest[v].triangle;
+                              if (sides[v] == 0 || (sides[v] > 0 ? w : w - 1) != 0)
+                                  toCheck[nearest].store(1, std::memory_order_relaxed);
                           }
                       });
+    grid.nearestPointsBound = tbb::parallel_reduce(
+        tbb::blocked_range<std::uint32_t>(0, std::uint32_t(toCheck.size())), true,
+        [&](const tbb::blocked_range<std::uint32_t>& range, bool bound) {
+            for (std::uint32_t t = range.begin(); bound && t != range.end(); ++t) {
+                if (!toCheck[t].load(std::memory_order_relaxed)) continue;
+                const std::array<glm::dvec3, 3> corners = soup.corners(t);
+                bound = soup.facesOutsideAtCentroid(corners[0], corners[1], corners[2]);
+            }
+            return bound;
+        },
+        [](bool x, bool y) { return x && y; });
     if (progress) progress(1.0);
     return grid;
 }

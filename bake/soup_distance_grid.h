@@ -8,8 +8,17 @@
 /// (SoupDistance::windingChangesOnlyAcrossTheSurface) the voxels are joined into regions that no
 /// surface separates -- two neighbours join when d1 + d2 exceeds their spacing (the two empty balls
 /// cover the segment between them) or when the segment provably touches no triangle -- and the
-/// winding number is evaluated once per region, at its voxel farthest from the surface. Otherwise
-/// at every voxel.
+/// winding number is evaluated once per region, at its voxel farthest from the surface (as an
+/// integer: counted from crossings where they are clear). Otherwise at every voxel.
+///
+/// Signed by regions, the grid also tells whether each voxel's distance is to the surface a
+/// signed bake measures (bake/mesh_surface.h), the boundary of the inside: the voxel's nearest
+/// point bounds it when the winding number is 0 on its front and 1 behind. The side of the
+/// surface a voxel lies on there is told from the nearest triangle and the one it is tied with
+/// (SoupDistance::sideOfNearestPoint), and its winding number from its region; where the side
+/// cannot be told (corners, more ties), its nearest triangle is checked as MeshSurface checks
+/// every triangle (winding number 0 in front of its centroid). For a closed mesh whose parts
+/// neither overlap nor touch, this spares checking every triangle.
 #pragma once
 
 #include <glm/vec3.hpp>
@@ -28,6 +37,11 @@ struct SoupDistanceGrid {
     std::vector<double> distancesTexels;
     /// The nearest triangle of each voxel (same order), to start queries near it from.
     std::vector<SoupDistance::NearestHint> nearest;
+    /// Signed grids of meshes whose winding number changes only across the surface: true when
+    /// every voxel's nearest point provably bounds the inside (see soupDistanceGrid), so the
+    /// distances are those to the surface a signed bake measures (bake/mesh_surface.h) and no
+    /// triangle needs trimming for them. False otherwise.
+    bool nearestPointsBound = false;
 
     /// A start for a query at `texelPosition`: the nearest triangle of the voxel nearest to it
     /// (of the copy of the tile it lies in, the slice clamped into the block).

@@ -4,6 +4,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <optional>
@@ -369,6 +370,99 @@ TEST(SoupDistanceGrid, OpenMeshesTakeTheWindingNumberAtEveryVoxel) {
         }
     }
     EXPECT_GT(inside, 100);
+}
+
+/// Signed distance to the axis-aligned box [lo, hi] (negative inside).
+double boxDistance(const glm::dvec3& p, const glm::dvec3& lo, const glm::dvec3& hi) {
+    const glm::dvec3 outside = glm::max(glm::max(lo - p, p - hi), glm::dvec3(0.0));
+    const double inside =
+        std::min({p.x - lo.x, hi.x - p.x, p.y - lo.y, hi.y - p.y, p.z - lo.z, hi.z - p.z});
+    return glm::length(outside) > 0.0 ? glm::length(outside) : -inside;
+}
+
+TEST(SoupDistanceGrid, NearestPointsBoundOnlyWhereEveryNearestTriangleIsSurface) {
+    // A box's voxels find their nearest points on faces and on edges (whose neighbour tells the
+    // side): all bound the inside. Two overlapping spheres: the voxels inside both find inner
+    // walls (winding 1 in front). Two boxes touching face to face: the voxels by the shared face
+    // find it tied with its twin of the other box (winding 1 on both sides).
+    const Size3 tile{32, 32, 16};
+    const auto bound = [&tile](const TriangleSoup& soup) {
+        const SoupDistance distance(soup, tile);
+        EXPECT_TRUE(distance.windingChangesOnlyAcrossTheSurface());
+        return soupDistanceGrid(distance, 0, 16, 8.0, true).nearestPointsBound;
+    };
+    EXPECT_TRUE(bound(makeBoxSoup(glm::dvec3(4.2, 5.3, 3.1), glm::dvec3(13.7, 12.4, 11.6))));
+    EXPECT_TRUE(bound(makeIcosphereSoup(glm::dvec3(16.0, 16.0, 8.0), 6.0, 3)));
+    TriangleSoup spheres = makeIcosphereSoup(glm::dvec3(12.0, 16.0, 8.0), 6.0, 3);
+    append(spheres, makeIcosphereSoup(glm::dvec3(19.0, 16.5, 8.0), 5.0, 3));
+    EXPECT_FALSE(bound(spheres));
+    TriangleSoup boxes = makeBoxSoup(glm::dvec3(4.0, 4.0, 4.0), glm::dvec3(12.0, 12.0, 12.0));
+    append(boxes, makeBoxSoup(glm::dvec3(12.0, 4.0, 4.0), glm::dvec3(20.0, 12.0, 12.0)));
+    EXPECT_FALSE(bound(boxes));
+}
+
+TEST(SoupDistance, SideOfNearestPointTellsTiesAndSides) {
+    // A point inside a box 0.3 from the middle of its +x face is behind it. With a second box on
+    // the other side of that face, the face's twin is tied with it: no side can be told.
+    const Size3 tile{32, 32, 16};
+    const auto query = [&tile](const TriangleSoup& soup, const glm::dvec3& p, double expected) {
+        const SoupDistance distance(soup, tile);
+        std::array<SoupDistance::NearestHint, 1> hint, tie;
+        std::array<double, 1> d;
+        distance.unsignedDistancesOnLine({p.x, p.y}, std::span(&p.z, 1), 8.0, hint, d, tie);
+        EXPECT_NEAR(d[0], expected, 1e-12);
+        EXPECT_NE(tie[0].triangle, SoupDistance::kSeveralTriangles);
+        return std::pair(tie[0], distance.sideOfNearestPoint(p, hint[0], tie[0]));
+    };
+    const glm::dvec3 p(11.7, 9.1, 7.6);  // clear of the faces' diagonals
+    const TriangleSoup box = makeBoxSoup(glm::dvec3(4.0), glm::dvec3(12.0));
+    const auto [none, behind] = query(box, p, 0.3);
+    EXPECT_EQ(none.triangle, UINT32_MAX);
+    EXPECT_EQ(behind, -1);
+    EXPECT_EQ(query(box, glm::dvec3(12.3, 9.1, 7.6), 0.3).second, 1);
+    TriangleSoup boxes = box;
+    append(boxes, makeBoxSoup(glm::dvec3(12.0, 4.0, 4.0), glm::dvec3(20.0, 12.0, 12.0)));
+    const auto [twin, unknown] = query(boxes, p, 0.3);
+    EXPECT_NE(twin.triangle, UINT32_MAX);
+    EXPECT_EQ(unknown, 0);
+    // Nearest to the edge x = 12, y = 12 of the box: its neighbour face is the tie, and the
+    // point, outside both faces, is in front.
+    const auto [neighbour, outsideEdge] = query(box, glm::dvec3(12.4, 12.3, 7.6), 0.5);
+    EXPECT_NE(neighbour.triangle, UINT32_MAX);
+    EXPECT_EQ(outsideEdge, 1);
+}
+
+TEST(MeshBake, BoxesTouchingFaceToFaceBakeAsTheirUnion) {
+    // The shared face is no surface (winding 1 on both sides): every texel is the distance to
+    // the union box (periodic), exactly (float rounding).
+    BakeOptions options;
+    options.size = {32, 32, 16};
+    options.conservative.enabled = false;
+    TriangleSoup boxes = makeBoxSoup(glm::dvec3(4.0, 4.0, 4.0), glm::dvec3(12.0, 12.0, 12.0));
+    append(boxes, makeBoxSoup(glm::dvec3(12.0, 4.0, 4.0), glm::dvec3(20.0, 12.0, 12.0)));
+    MeshPlacement placement;
+    placement.fit = false;
+    const SolidMeshBake bake = bakeSolidMesh(boxes, placement, options, "boxes");
+    const Tile& tile = bake.result.tile;
+    double maxError = 0.0;
+    for (int k = 0; k < 16; ++k) {
+        for (int j = 0; j < 32; ++j) {
+            for (int i = 0; i < 32; ++i) {
+                const glm::dvec3 p(i + 0.5, j + 0.5, k + 0.5);
+                // The union box and its periodic copies (disjoint: the least of theirs).
+                double exact = 16.0;
+                for (int m = -1; m <= 1; ++m) {
+                    for (int n = -1; n <= 1; ++n) {
+                        const glm::dvec3 copy = p - glm::dvec3(32.0 * m, 32.0 * n, 0.0);
+                        exact = std::min(exact, boxDistance(copy, glm::dvec3(4.0, 4.0, 4.0),
+                                                            glm::dvec3(20.0, 12.0, 12.0)));
+                    }
+                }
+                maxError = std::max(maxError, std::abs(tile.at(i, j, k) - exact));
+            }
+        }
+    }
+    EXPECT_LE(maxError, 1e-5);
 }
 
 /// A sphere of radius 6 texels at `centre` in a 32x32x16 tile, baked with exact texels.
