@@ -141,15 +141,13 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
         return grid;
     }
 
-    // Two neighbours 1 texel apart are in one region when no surface can lie between them:
-    // their distances say so, or else the segment between them provably touches no triangle.
-    // Regions are the connected parts of that relation, so a pair already in one region needs no
-    // segment test: the distances join first, the tests follow only where they still can.
-    const auto near = [&](std::size_t a, std::size_t b) {
-        return !(distances[a] + distances[b] > 1.0 + 1e-9);
-    };
-    const auto apart = [&](std::size_t a, std::size_t b) {
-        return !soup.segmentTouchesNoTriangle(centre(a), centre(b));
+    // Two neighbours 1 texel apart are in one region when no surface can lie between them: their
+    // empty balls overlap, d1 + d2 > 1, covering the segment between them. Regions are the
+    // connected parts of that relation. (Testing the segments of the other pairs against the
+    // triangles would join more, but costs more than the winding numbers of the regions it
+    // saves: a crossing count each.)
+    const auto joined = [&](std::size_t a, std::size_t b) {
+        return distances[a] + distances[b] > 1.0 + 1e-9;
     };
     VoxelRegions regions(voxels);
     // Within each slice (its voxels only, so slices are independent), then across slices.
@@ -157,41 +155,15 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
         const std::size_t first = std::size_t(slice) * slabSize;
         const std::size_t end = first + slabSize;
         for (std::size_t v = first; v < end; ++v) regions.reset(v);
-        const auto forEachPair = [&](auto&& visit) {
-            for (std::size_t v = first; v < end; ++v) {
-                if (v % rowLength + 1 < rowLength) visit(v, v + 1);
-                if (v + rowLength < end) visit(v, v + rowLength);
-            }
-        };
-        forEachPair([&](std::size_t a, std::size_t b) {
-            if (!near(a, b)) regions.join(std::uint32_t(a), std::uint32_t(b));
-        });
-        forEachPair([&](std::size_t a, std::size_t b) {
-            if (near(a, b) && regions.root(std::uint32_t(a)) != regions.root(std::uint32_t(b)) &&
-                !apart(a, b))
-                regions.join(std::uint32_t(a), std::uint32_t(b));
-        });
+        for (std::size_t v = first; v < end; ++v) {
+            if (v % rowLength + 1 < rowLength && joined(v, v + 1))
+                regions.join(std::uint32_t(v), std::uint32_t(v + 1));
+            if (v + rowLength < end && joined(v, v + rowLength))
+                regions.join(std::uint32_t(v), std::uint32_t(v + rowLength));
+        }
     });
-    if (slices > 1) {
-        const std::size_t pairs = voxels - slabSize;
-        std::vector<std::uint32_t> tested;
-        for (std::size_t v = 0; v < pairs; ++v) {
-            if (!near(v, v + slabSize)) regions.join(std::uint32_t(v), std::uint32_t(v + slabSize));
-        }
-        for (std::size_t v = 0; v < pairs; ++v) {
-            if (near(v, v + slabSize) &&
-                regions.root(std::uint32_t(v)) != regions.root(std::uint32_t(v + slabSize)))
-                tested.push_back(std::uint32_t(v));
-        }
-        std::vector<std::uint8_t> joinedAbove(tested.size());
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tested.size()),
-                          [&](const tbb::blocked_range<std::size_t>& range) {
-                              for (std::size_t n = range.begin(); n != range.end(); ++n)
-                                  joinedAbove[n] = !apart(tested[n], tested[n] + slabSize);
-                          });
-        for (std::size_t n = 0; n < tested.size(); ++n) {
-            if (joinedAbove[n]) regions.join(tested[n], std::uint32_t(tested[n] + slabSize));
-        }
+    for (std::size_t v = 0; v + slabSize < voxels; ++v) {
+        if (joined(v, v + slabSize)) regions.join(std::uint32_t(v), std::uint32_t(v + slabSize));
     }
     std::uint32_t regionCount = 0;
     const std::vector<std::uint32_t> region = regions.regionOfEachVoxel(regionCount);

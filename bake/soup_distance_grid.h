@@ -7,9 +7,9 @@
 /// number: for meshes whose winding number changes only across the surface
 /// (SoupDistance::windingChangesOnlyAcrossTheSurface) the voxels are joined into regions that no
 /// surface separates -- two neighbours join when d1 + d2 exceeds their spacing (the two empty balls
-/// cover the segment between them) or when the segment provably touches no triangle -- and the
-/// winding number is evaluated once per region, at its voxel farthest from the surface (as an
-/// integer: counted from crossings where they are clear). Otherwise at every voxel.
+/// cover the segment between them) -- and the winding number is evaluated once per region, at its
+/// voxel farthest from the surface (as an integer: counted from crossings where they are clear).
+/// Otherwise at every voxel.
 ///
 /// Signed by regions, the grid also tells whether each voxel's distance is to the surface a
 /// signed bake measures (bake/mesh_surface.h), the boundary of the inside: the voxel's nearest
