@@ -239,7 +239,7 @@ SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
         return Triangle{soupTexels.positions[t.x], soupTexels.positions[t.y],
                         soupTexels.positions[t.z]};
     };
-    std::vector<BuildItem> items(count);
+    UninitializedVector<BuildItem> items(count);
     tbb::parallel_for(std::size_t(0), count, [&](std::size_t n) {
         const Triangle triangle = corners(n);
         items[n] = {glm::vec3(triangle.a + triangle.b + triangle.c), std::uint32_t(n)};
@@ -254,15 +254,15 @@ SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
         triangles_[n] = asSegmentIfSliver(corners(items[n].triangle));
     });
     dipoles_.resize(nodeCount);
-    std::vector<FloatBox> boxes(nodeCount);
+    UninitializedVector<FloatBox> boxes(nodeCount);
     bound(0, boxes);
     wideNodes_.reserve(nodeCount / 3 + 1);
     collapse(0, boxes);
 }
 
 void SoupDistance::split(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
-                         std::vector<BuildItem>& items) {
-    Node node;
+                         UninitializedVector<BuildItem>& items) {
+    Node node{};
     node.firstTriangle = begin;
     node.triangleCount = end - begin;
     if (end - begin <= kLeafTriangles) {
@@ -302,9 +302,9 @@ void SoupDistance::split(std::uint32_t index, std::uint32_t begin, std::uint32_t
     }
 }
 
-SoupDistance::Bound SoupDistance::bound(std::uint32_t index, std::vector<FloatBox>& boxes) {
+SoupDistance::Bound SoupDistance::bound(std::uint32_t index, UninitializedVector<FloatBox>& boxes) {
     const Node& node = nodes_[index];
-    Bound result;
+    Bound result{};  // zeros
     Dipole& dipole = result.dipole;
     if (node.count > 0) {
         // The leaf's box and dipole from its triangles; the radius reaches its farthest corner.
@@ -363,7 +363,7 @@ SoupDistance::Bound SoupDistance::bound(std::uint32_t index, std::vector<FloatBo
 }
 
 std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex,
-                                     const std::vector<FloatBox>& boxes) {
+                                     const UninitializedVector<FloatBox>& boxes) {
     // Up to four descendants: open the inner one with the largest box surface until there are
     // four or only leaves.
     std::array<std::uint32_t, 4> children{};

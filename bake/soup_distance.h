@@ -42,6 +42,7 @@
 
 #include "common/size3.h"
 #include "common/triangle_soup.h"
+#include "common/uninitialized.h"
 
 namespace distile {
 
@@ -172,12 +173,13 @@ class SoupDistance {
     bool windingChangesOnlyAcrossTheSurface() const { return windingPiecewiseConstant_; }
 
   private:
-    /// The binary hierarchy, which the winding number walks.
+    /// The binary hierarchy, which the winding number walks. (Trivial types, like Dipole: their
+    /// arrays are not zeroed before the build writes every element.)
     struct Node {
-        std::uint32_t first = 0;  ///< leaf: first triangle; inner: index of the second child
-        std::uint32_t count = 0;  ///< leaf: number of triangles; inner: 0 (first child follows)
+        std::uint32_t first;  ///< leaf: first triangle; inner: index of the second child
+        std::uint32_t count;  ///< leaf: number of triangles; inner: 0 (first child follows)
         /// All the triangles below the node (consecutive in leaf order).
-        std::uint32_t firstTriangle = 0, triangleCount = 0;
+        std::uint32_t firstTriangle, triangleCount;
     };
     /// Four children of the binary hierarchy's collapsed form, which the distance and segment
     /// queries walk: their boxes side by side (float, rounded outward) for one four-wide test.
@@ -192,11 +194,11 @@ class SoupDistance {
         glm::vec3 min, max;
     };
     struct Dipole {
-        glm::dvec3 centre{0.0};      ///< area-weighted centroid of the node's triangles
-        glm::dvec3 vectorArea{0.0};  ///< sum of (b - a) x (c - a) / 2 over the node's triangles
+        glm::dvec3 centre;      ///< area-weighted centroid of the node's triangles
+        glm::dvec3 vectorArea;  ///< sum of (b - a) x (c - a) / 2 over the node's triangles
         /// At least the distance from centre to the node's farthest triangle corner (exactly that
         /// at leaves; an inner node's sphere holds its children's).
-        double radius = 0.0;
+        double radius;
     };
     struct Triangle {
         glm::dvec3 a, b, c;
@@ -215,14 +217,14 @@ class SoupDistance {
     /// Splits node `index` over items [begin, end) (reordered: leaves hold consecutive items)
     /// at the median of the longest axis of their centroids' box, and its subtree.
     void split(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
-               std::vector<BuildItem>& items);
+               UninitializedVector<BuildItem>& items);
     struct Bound {
         Dipole dipole;
         double area = 0.0;  ///< of the node's triangles
     };
     /// Node `index`'s box and dipole, and its subtree's, bottom-up from triangles_ (leaf order).
-    Bound bound(std::uint32_t index, std::vector<FloatBox>& boxes);
-    std::uint32_t collapse(std::uint32_t binaryIndex, const std::vector<FloatBox>& boxes);
+    Bound bound(std::uint32_t index, UninitializedVector<FloatBox>& boxes);
+    std::uint32_t collapse(std::uint32_t binaryIndex, const UninitializedVector<FloatBox>& boxes);
     static constexpr int kLineLanes = 16;
     /// One point's nearest triangles so far: the nearest, the next (another triangle, or
     /// another copy of it) and the squared distance of the one after.
@@ -247,10 +249,11 @@ class SoupDistance {
     bool windingPiecewiseConstant_ = false;
     Size3 tile_;
     Bounds3 bounds_;
-    std::vector<Triangle> triangles_;  ///< in leaf order
-    std::vector<Node> nodes_;          ///< depth-first, root first
-    std::vector<WideNode> wideNodes_;  ///< root first
-    std::vector<Dipole> dipoles_;      ///< one per node
+    // Filled in parallel right after they are sized: not zeroed first.
+    UninitializedVector<Triangle> triangles_;  ///< in leaf order
+    UninitializedVector<Node> nodes_;          ///< depth-first, root first
+    std::vector<WideNode> wideNodes_;          ///< root first
+    UninitializedVector<Dipole> dipoles_;      ///< one per node
 };
 
 }  // namespace distile
