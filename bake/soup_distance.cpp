@@ -130,7 +130,8 @@ class LineTriangleDistance {
 
   private:
     glm::dvec2 xy_;
-    glm::dvec3 a_, b_, c_, ab_, ac_;
+    const glm::dvec3 &a_, &b_, &c_;  ///< the corners, not copied (they outlive this)
+    glm::dvec3 ab_, ac_;
     double d1_, d2_, d3_, d4_, d5_, d6_;  ///< x and y parts of the dot products d1 ... d6
 };
 
