@@ -161,36 +161,22 @@ SoupDistance::Triangle SoupDistance::asSegmentIfSliver(const Triangle& triangle)
     return {triangle.b, triangle.c, triangle.c};
 }
 
-std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
-    // Position ids: equal positions (-0.0 and +0.0 alike) get one id, by sorting.
-    struct Corner {
-        glm::dvec3 position;
-        std::uint32_t index;
-    };
-    std::vector<Corner> byPosition(soup.positions.size());
-    for (std::uint32_t v = 0; v < byPosition.size(); ++v) byPosition[v] = {soup.positions[v], v};
-    const auto less = [](const glm::dvec3& a, const glm::dvec3& b) {
-        return a.x < b.x || (a.x == b.x && (a.y < b.y || (a.y == b.y && a.z < b.z)));
-    };
-    tbb::parallel_sort(
-        byPosition.begin(), byPosition.end(),
-        [&less](const Corner& l, const Corner& r) { return less(l.position, r.position); });
-    std::vector<std::uint32_t> idOf(soup.positions.size());
-    std::vector<glm::dvec3> positionOfId;
-    for (std::size_t n = 0; n < byPosition.size(); ++n) {
-        if (n == 0 || less(byPosition[n - 1].position, byPosition[n].position))
-            positionOfId.push_back(byPosition[n].position);
-        idOf[byPosition[n].index] = std::uint32_t(positionOfId.size() - 1);
-    }
+namespace {
+
+/// The unbalanced edges of `soup` with its corners numbered by `idOf(vertex)` (ids below `ids`,
+/// corners with equal ids at `positionOfId(id)`), in the order of their ids.
+template <class IdOf, class PositionOfId>
+std::vector<UnbalancedEdge> unbalancedEdgesById(const TriangleSoup& soup, std::size_t ids,
+                                                const IdOf& idOf,
+                                                const PositionOfId& positionOfId) {
     // Each edge under its lower id, with its higher id and +1 where it is used from the lower to
     // the higher, -1 the other way (a counting sort by the lower id): an edge is unbalanced where
     // its uses do not sum to 0.
-    const std::size_t ids = positionOfId.size();
     std::vector<std::uint32_t> bucketStart(ids + 1, 0);
     const auto forEachEdge = [&](auto&& visit) {
         for (const glm::uvec3& t : soup.triangles) {
             for (int c = 0; c < 3; ++c) {
-                const std::uint32_t from = idOf[t[c]], to = idOf[t[(c + 1) % 3]];
+                const std::uint32_t from = idOf(t[c]), to = idOf(t[(c + 1) % 3]);
                 if (from != to) visit(from, to);
             }
         }
@@ -222,7 +208,8 @@ std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
                 int uses = 0;
                 for (; edge != end && (*edge & ~kDownward) == other; ++edge)
                     uses += (*edge & kDownward) ? -1 : 1;
-                if (uses != 0) found[block].push_back({positionOfId[id], positionOfId[other]});
+                if (uses != 0)
+                    found[block].push_back({positionOfId(std::uint32_t(id)), positionOfId(other)});
             }
         }
     });
@@ -230,6 +217,42 @@ std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
     for (const std::vector<UnbalancedEdge>& ofBlock : found)
         edges.insert(edges.end(), ofBlock.begin(), ofBlock.end());
     return edges;
+}
+
+}  // namespace
+
+std::vector<UnbalancedEdge> unbalancedEdges(const TriangleSoup& soup) {
+    // Balanced by vertex index is balanced by position: merging corners at equal positions adds
+    // their edges' uses together, and drops zero-length edges with their reverses. So a welded
+    // closed mesh needs no position ids.
+    if (unbalancedEdgesById(
+            soup, soup.positions.size(), [](std::uint32_t vertex) { return vertex; },
+            [&soup](std::uint32_t vertex) { return soup.positions[vertex]; })
+            .empty())
+        return {};
+    // Position ids: equal positions (-0.0 and +0.0 alike) get one id, by sorting.
+    struct Corner {
+        glm::dvec3 position;
+        std::uint32_t index;
+    };
+    std::vector<Corner> byPosition(soup.positions.size());
+    for (std::uint32_t v = 0; v < byPosition.size(); ++v) byPosition[v] = {soup.positions[v], v};
+    const auto less = [](const glm::dvec3& a, const glm::dvec3& b) {
+        return a.x < b.x || (a.x == b.x && (a.y < b.y || (a.y == b.y && a.z < b.z)));
+    };
+    tbb::parallel_sort(
+        byPosition.begin(), byPosition.end(),
+        [&less](const Corner& l, const Corner& r) { return less(l.position, r.position); });
+    std::vector<std::uint32_t> idOf(soup.positions.size());
+    std::vector<glm::dvec3> positionOfId;
+    for (std::size_t n = 0; n < byPosition.size(); ++n) {
+        if (n == 0 || less(byPosition[n - 1].position, byPosition[n].position))
+            positionOfId.push_back(byPosition[n].position);
+        idOf[byPosition[n].index] = std::uint32_t(positionOfId.size() - 1);
+    }
+    return unbalancedEdgesById(
+        soup, positionOfId.size(), [&idOf](std::uint32_t vertex) { return idOf[vertex]; },
+        [&positionOfId](std::uint32_t id) { return positionOfId[id]; });
 }
 
 SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)

@@ -401,6 +401,42 @@ TEST(SoupDistanceGrid, NearestPointsBoundOnlyWhereEveryNearestTriangleIsSurface)
     EXPECT_FALSE(bound(boxes));
 }
 
+TEST(UnbalancedEdges, MatchCornersByPositionWeldedOrNot) {
+    // A closed box is balanced whether its triangles share corners or each has its own; without
+    // one triangle, the hole's three edges are unbalanced; a flipped triangle's three edges are
+    // used twice one way.
+    const TriangleSoup box = makeBoxSoup(glm::dvec3(1.0), glm::dvec3(2.0, 3.0, 4.0));
+    const auto unwelded = [](const TriangleSoup& soup) {
+        TriangleSoup corners;
+        for (const glm::uvec3& t : soup.triangles) {
+            const unsigned first = unsigned(corners.positions.size());
+            for (int c = 0; c < 3; ++c) corners.positions.push_back(soup.positions[t[c]]);
+            corners.triangles.emplace_back(first, first + 1, first + 2);
+        }
+        return corners;
+    };
+    EXPECT_TRUE(unbalancedEdges(box).empty());
+    EXPECT_TRUE(unbalancedEdges(unwelded(box)).empty());
+    TriangleSoup open = box;
+    const glm::uvec3 removed = open.triangles.back();
+    open.triangles.pop_back();
+    for (const TriangleSoup& soup : {open, unwelded(open)}) {
+        const std::vector<UnbalancedEdge> edges = unbalancedEdges(soup);
+        ASSERT_EQ(edges.size(), 3u);
+        for (const UnbalancedEdge& edge : edges) {
+            int corners = 0;
+            for (int c = 0; c < 3; ++c)
+                corners +=
+                    (edge.a == box.positions[removed[c]]) + (edge.b == box.positions[removed[c]]);
+            EXPECT_EQ(corners, 2);
+        }
+    }
+    TriangleSoup flipped = box;
+    std::swap(flipped.triangles[0].y, flipped.triangles[0].z);
+    EXPECT_EQ(unbalancedEdges(flipped).size(), 3u);
+    EXPECT_EQ(unbalancedEdges(unwelded(flipped)).size(), 3u);
+}
+
 TEST(SoupDistance, SideOfNearestPointTellsTiesAndSides) {
     // A point inside a box 0.3 from the middle of its +x face is behind it. With a second box on
     // the other side of that face, the face's twin is tied with it: no side can be told.
