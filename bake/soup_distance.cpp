@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_sort.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
@@ -14,6 +15,7 @@
 #include <cstdint>
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
+#include <mutex>
 #include <numbers>
 #include <utility>
 
@@ -277,11 +279,46 @@ SoupDistance::SoupDistance(const TriangleSoup& soupTexels, const Size3& tile)
     tbb::parallel_for(std::size_t(0), count, [&](std::size_t n) {
         triangles_[n] = asSegmentIfSliver(corners(items[n].triangle));
     });
-    dipoles_.resize(nodeCount);
-    UninitializedVector<FloatBox> boxes(nodeCount);
-    bound(0, boxes);
+    boxes_.resize(nodeCount);
+    boxOf(0);
     wideNodes_.reserve(nodeCount / 3 + 1);
-    collapse(0, boxes);
+    collapse(0);
+}
+
+void SoupDistance::boxOf(std::uint32_t index) {
+    const Node& node = nodes_[index];
+    if (node.count > 0) {
+        glm::dvec3 boxMin(HUGE_VAL), boxMax(-HUGE_VAL);
+        for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
+            const Triangle& t = triangles_[i];
+            boxMin = glm::min(boxMin, glm::min(t.a, glm::min(t.b, t.c)));
+            boxMax = glm::max(boxMax, glm::max(t.a, glm::max(t.b, t.c)));
+        }
+        boxes_[index] = {{roundedDown(boxMin.x), roundedDown(boxMin.y), roundedDown(boxMin.z)},
+                         {roundedUp(boxMax.x), roundedUp(boxMax.y), roundedUp(boxMax.z)}};
+        return;
+    }
+    const std::uint32_t first = index + 1, second = node.first;
+    if (node.triangleCount > kParallelBuildTriangles) {
+        tbb::parallel_invoke([&] { boxOf(first); }, [&] { boxOf(second); });
+    } else {
+        boxOf(first);
+        boxOf(second);
+    }
+    boxes_[index] = {glm::min(boxes_[first].min, boxes_[second].min),
+                     glm::max(boxes_[first].max, boxes_[second].max)};
+}
+
+const SoupDistance::Dipole& SoupDistance::dipole(std::uint32_t index) const {
+    // Built on the first winding number asked for: meshes signed by crossing counts alone
+    // never need them.
+    std::call_once(*dipolesBuilt_, [this] {
+        dipoles_.resize(nodes_.size());
+        // Isolated: while waiting for its own tasks this thread must not take up another query
+        // that would wait for this same build.
+        tbb::this_task_arena::isolate([this] { dipoleOf(0); });
+    });
+    return dipoles_[index];
 }
 
 void SoupDistance::split(std::uint32_t index, std::uint32_t begin, std::uint32_t end,
@@ -326,12 +363,12 @@ void SoupDistance::split(std::uint32_t index, std::uint32_t begin, std::uint32_t
     }
 }
 
-SoupDistance::Bound SoupDistance::bound(std::uint32_t index, UninitializedVector<FloatBox>& boxes) {
+SoupDistance::Bound SoupDistance::dipoleOf(std::uint32_t index) const {
     const Node& node = nodes_[index];
     Bound result{};  // zeros
     Dipole& dipole = result.dipole;
     if (node.count > 0) {
-        // The leaf's box and dipole from its triangles; the radius reaches its farthest corner.
+        // The leaf's dipole from its triangles; the radius reaches its farthest corner.
         glm::dvec3 boxMin(HUGE_VAL), boxMax(-HUGE_VAL);
         glm::dvec3 weightedCentre(0.0);
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
@@ -344,8 +381,6 @@ SoupDistance::Bound SoupDistance::bound(std::uint32_t index, UninitializedVector
             weightedCentre += triangleArea * ((t.a + t.b + t.c) / 3.0);
             result.area += triangleArea;
         }
-        boxes[index] = {{roundedDown(boxMin.x), roundedDown(boxMin.y), roundedDown(boxMin.z)},
-                        {roundedUp(boxMax.x), roundedUp(boxMax.y), roundedUp(boxMax.z)}};
         dipole.centre = result.area > 0.0 ? weightedCentre / result.area : 0.5 * (boxMin + boxMax);
         double radiusSquared = 0.0;
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
@@ -359,25 +394,23 @@ SoupDistance::Bound SoupDistance::bound(std::uint32_t index, UninitializedVector
     } else {
         const std::uint32_t first = index + 1, second = node.first;
         Bound one, two;
-        const auto boundFirst = [&] { one = bound(first, boxes); };
-        const auto boundSecond = [&] { two = bound(second, boxes); };
+        const auto boundFirst = [&] { one = dipoleOf(first); };
+        const auto boundSecond = [&] { two = dipoleOf(second); };
         if (node.triangleCount > kParallelBuildTriangles) {
             tbb::parallel_invoke(boundFirst, boundSecond);
         } else {
             boundFirst();
             boundSecond();
         }
-        // The box and dipole from the children's: the box is theirs joined, the centre their
-        // area-weighted mean, the radius reaches both children's spheres (an upper bound of the
-        // farthest corner, which keeps the far field at least as far as the corners require).
-        boxes[index] = {glm::min(boxes[first].min, boxes[second].min),
-                        glm::max(boxes[first].max, boxes[second].max)};
+        // The centre is the children's area-weighted mean, the radius reaches both children's
+        // spheres (an upper bound of the farthest corner, which keeps the far field at least as
+        // far as the corners require).
         result.area = one.area + two.area;
         dipole.vectorArea = one.dipole.vectorArea + two.dipole.vectorArea;
         dipole.centre =
             result.area > 0.0
                 ? (one.area * one.dipole.centre + two.area * two.dipole.centre) / result.area
-                : 0.5 * (glm::dvec3(boxes[index].min) + glm::dvec3(boxes[index].max));
+                : 0.5 * (glm::dvec3(boxes_[index].min) + glm::dvec3(boxes_[index].max));
         dipole.radius =
             std::max(glm::length(one.dipole.centre - dipole.centre) + one.dipole.radius,
                      glm::length(two.dipole.centre - dipole.centre) + two.dipole.radius);
@@ -386,8 +419,8 @@ SoupDistance::Bound SoupDistance::bound(std::uint32_t index, UninitializedVector
     return result;
 }
 
-std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex,
-                                     const UninitializedVector<FloatBox>& boxes) {
+std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex) {
+    const UninitializedVector<FloatBox>& boxes = boxes_;
     // Up to four descendants: open the inner one with the largest box surface until there are
     // four or only leaves.
     std::array<std::uint32_t, 4> children{};
@@ -436,7 +469,7 @@ std::uint32_t SoupDistance::collapse(std::uint32_t binaryIndex,
             wide.child[c] = node.first;
             wide.count[c] = node.count;
         } else {
-            wide.child[c] = collapse(children[c], boxes);
+            wide.child[c] = collapse(children[c]);
         }
     }
     wideNodes_[index] = wide;
@@ -878,7 +911,7 @@ double SoupDistance::windingNumberOfCopy(const glm::dvec3& point, double farFiel
     while (size > 0) {
         const std::uint32_t index = stack[--size];
         const Node& node = nodes_[index];
-        const Dipole& dipole = dipoles_[index];
+        const Dipole& dipole = this->dipole(index);
         const glm::dvec3 toCentre = dipole.centre - point;
         const double distanceSquared = glm::dot(toCentre, toCentre);
         if (distanceSquared > farFieldRatio * farFieldRatio * dipole.radius * dipole.radius) {

@@ -36,6 +36,8 @@
 #include <cstdint>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <vector>
@@ -222,9 +224,13 @@ class SoupDistance {
         Dipole dipole;
         double area = 0.0;  ///< of the node's triangles
     };
-    /// Node `index`'s box and dipole, and its subtree's, bottom-up from triangles_ (leaf order).
-    Bound bound(std::uint32_t index, UninitializedVector<FloatBox>& boxes);
-    std::uint32_t collapse(std::uint32_t binaryIndex, const UninitializedVector<FloatBox>& boxes);
+    /// Node `index`'s box, and its subtree's, bottom-up from triangles_ (leaf order).
+    void boxOf(std::uint32_t index);
+    /// Node `index`'s dipole, and its subtree's, into dipoles_.
+    Bound dipoleOf(std::uint32_t index) const;
+    /// Node `index`'s dipole; the first call builds them all (thread-safe).
+    const Dipole& dipole(std::uint32_t index) const;
+    std::uint32_t collapse(std::uint32_t binaryIndex);
     static constexpr int kLineLanes = 16;
     /// One point's nearest triangles so far: the nearest, the next (another triangle, or
     /// another copy of it) and the squared distance of the one after.
@@ -253,7 +259,10 @@ class SoupDistance {
     UninitializedVector<Triangle> triangles_;  ///< in leaf order
     UninitializedVector<Node> nodes_;          ///< depth-first, root first
     std::vector<WideNode> wideNodes_;          ///< root first
-    UninitializedVector<Dipole> dipoles_;      ///< one per node
+    UninitializedVector<FloatBox> boxes_;      ///< one per node
+    /// One per node, built on the first winding number asked for (dipole()).
+    mutable UninitializedVector<Dipole> dipoles_;
+    std::unique_ptr<std::once_flag> dipolesBuilt_ = std::make_unique<std::once_flag>();
 };
 
 }  // namespace distile
