@@ -330,17 +330,6 @@ TriangleSoup capsOf(const TriangleSoup& placedTexels, const SoupDistance& soup, 
     return caps;
 }
 
-/// Whether the winding number exceeds 1/2 at the point: from the count of crossings where it
-/// changes only across the surface and they are clear (exact, and far cheaper near the surface
-/// than the far field, which opens the nodes all around a point), else from windingNumber.
-bool insideAt(const SoupDistance& soup, const glm::dvec3& point) {
-    if (soup.windingChangesOnlyAcrossTheSurface()) {
-        if (const std::optional<int> crossings = soup.windingNumberByCrossings(point))
-            return *crossings >= 1;
-    }
-    return soup.windingNumber(point) > 0.5;
-}
-
 /// Appends to `pieces` the parts of the triangle abc that bound the inside {w > 1/2}: where w
 /// differs in sign on its two sides (1e-5 of its longest edge off its plane). Sampled at its
 /// centroid and a tenth of the way from each corner to it: bounding at all four, it is kept;
@@ -359,7 +348,8 @@ bool appendBoundingPieces(const SoupDistance& soup, const glm::dvec3& a, const g
         bounding = 0;
         for (const glm::dvec3& sample : {centroid, glm::mix(a, centroid, 0.1),
                                          glm::mix(b, centroid, 0.1), glm::mix(c, centroid, 0.1)}) {
-            bounding += insideAt(soup, sample + offset) != insideAt(soup, sample - offset);
+            bounding += (soup.countedWindingNumber(sample + offset) > 0.5) !=
+                        (soup.countedWindingNumber(sample - offset) > 0.5);
         }
     }
     if (bounding == 4 || (bounding > 0 && longest <= kSurfacePieceTexels)) {
@@ -473,14 +463,14 @@ void MeshSurface::signedDistancesOnLine(const glm::dvec2& xy, std::span<const do
                                         std::span<double> distances) const {
     unsignedDistancesOnLine(xy, z, cutoffTexels, hints, distances);
     for (std::size_t n = 0; n < z.size(); ++n) {
-        if (insideAt(*soup_, {xy.x, xy.y, z[n]})) distances[n] = -distances[n];
+        if (soup_->countedWindingNumber({xy.x, xy.y, z[n]}) > 0.5) distances[n] = -distances[n];
     }
 }
 
 double MeshSurface::signedDistance(const glm::dvec3& texelPosition, double cutoffTexels) const {
     SoupDistance::NearestHint none;
     const double distance = unsignedDistance(texelPosition, cutoffTexels, none);
-    return insideAt(*soup_, texelPosition) ? -distance : distance;
+    return soup_->countedWindingNumber(texelPosition) > 0.5 ? -distance : distance;
 }
 
 }  // namespace distile

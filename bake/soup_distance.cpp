@@ -72,14 +72,29 @@ float skipThreshold(double bestSquared, double pointError) {
     return float(reach * reach * (1.0 + 0x1p-20));
 }
 
+/// Where on a triangle its point nearest to a point lies.
+enum class TriangleFeature : std::uint8_t {
+    Face,
+    EdgeAB,
+    EdgeBC,
+    EdgeCA,
+    CornerA,
+    CornerB,
+    CornerC
+};
+struct NearestPoint {
+    glm::dvec3 point{0.0};
+    TriangleFeature feature = TriangleFeature::Face;
+};
+
 /// Squared distance from the points (x, y, z) of one vertical line to the triangle abc
 /// (Ericson, Real-Time Collision Detection, 5.1.5): the parts of its dot products that do not
 /// depend on z are computed once per triangle. Optionally also the nearest point and the part of
 /// the triangle it lies on.
 class LineTriangleDistance {
   public:
-    using Nearest = SoupDistance::NearestPoint;
-    using Feature = SoupDistance::TriangleFeature;
+    using Nearest = NearestPoint;
+    using Feature = TriangleFeature;
 
     LineTriangleDistance(const glm::dvec2& xy, const glm::dvec3& a, const glm::dvec3& b,
                          const glm::dvec3& c)
@@ -814,9 +829,20 @@ bool SoupDistance::facesOutsideAtCentroid(const glm::dvec3& a, const glm::dvec3&
     if (!(area > 0.0)) return true;  // no sides; changes no distance
     const double longest = std::max({glm::length(b - a), glm::length(c - b), glm::length(a - c)});
     const glm::dvec3 front = (a + b + c) / 3.0 + (1e-5 * longest / area) * normal;
-    // Integral here: the count of crossings where it is clear.
-    const std::optional<int> crossings = windingNumberByCrossings(front);
-    return crossings ? *crossings == 0 : std::abs(windingNumber(front)) < 0.5;
+    return std::abs(countedWindingNumber(front)) < 0.5;
+}
+
+bool SoupDistance::facesOutsideAtCentroid(std::uint32_t triangle) const {
+    const Triangle& t = triangles_[triangle];
+    return facesOutsideAtCentroid(t.a, t.b, t.c);
+}
+
+double SoupDistance::countedWindingNumber(const glm::dvec3& texelPosition) const {
+    if (windingPiecewiseConstant_) {
+        if (const std::optional<int> crossings = windingNumberByCrossings(texelPosition))
+            return double(*crossings);
+    }
+    return windingNumber(texelPosition);
 }
 
 int SoupDistance::sideOfNearestPoint(const glm::dvec3& texelPosition, const NearestHint& nearest,

@@ -82,20 +82,6 @@ class SoupDistance {
         std::int32_t copyX = 0, copyY = 0;    ///< of the copy, shifted by (copyX W, copyY H, 0)
         bool operator==(const NearestHint&) const = default;
     };
-    /// Where on a triangle its point nearest to a point lies.
-    enum class TriangleFeature : std::uint8_t {
-        Face,
-        EdgeAB,
-        EdgeBC,
-        EdgeCA,
-        CornerA,
-        CornerB,
-        CornerC
-    };
-    struct NearestPoint {
-        glm::dvec3 point{0.0};
-        TriangleFeature feature = TriangleFeature::Face;
-    };
     /// A NearestHint::triangle in a tie: two or more other triangles are as near.
     static constexpr std::uint32_t kSeveralTriangles = UINT32_MAX - 1;
     /// Triangles whose squared distance is within this fraction of the nearest's are tied with it
@@ -134,6 +120,14 @@ class SoupDistance {
     /// triangle without area (it has no sides).
     bool facesOutsideAtCentroid(const glm::dvec3& a, const glm::dvec3& b,
                                 const glm::dvec3& c) const;
+    /// facesOutsideAtCentroid of triangle `triangle` as NearestHint numbers them (a sliver as
+    /// the segment it is measured as: no sides).
+    bool facesOutsideAtCentroid(std::uint32_t triangle) const;
+
+    /// The winding number counted from crossings (windingNumberByCrossings) where the winding
+    /// number changes only across the surface and they are clear, else windingNumber: an exact
+    /// integer for closed parts, and far cheaper near a fine mesh than the far field.
+    double countedWindingNumber(const glm::dvec3& texelPosition) const;
 
     /// The side of the surface `texelPosition` lies on at its nearest point, on triangle
     /// `nearest` (found by unsignedDistancesOnLine, with its `tie`): +1 in front (where the
@@ -146,13 +140,6 @@ class SoupDistance {
     /// is empty of surface).
     int sideOfNearestPoint(const glm::dvec3& texelPosition, const NearestHint& nearest,
                            const NearestHint& tie) const;
-
-    /// The corners of triangle `triangle` as NearestHint numbers them (the soup's own copy; a
-    /// sliver as the segment it is measured as).
-    std::array<glm::dvec3, 3> corners(std::uint32_t triangle) const {
-        const Triangle& t = triangles_[triangle];
-        return {t.a, t.b, t.c};
-    }
 
     /// False when the segment from `from` to `to` (texels) may touch a triangle of the periodic
     /// union; true only when it provably touches none (near misses, within rounding, count as

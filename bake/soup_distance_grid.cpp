@@ -11,7 +11,6 @@
 #include <cmath>
 #include <cstdint>
 #include <glm/geometric.hpp>
-#include <optional>
 
 namespace distile {
 
@@ -174,17 +173,15 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
         std::uint32_t& best = farthest[region[v]];
         if (best == UINT32_MAX || distances[v] > distances[best]) best = std::uint32_t(v);
     }
-    // An integer here: counted from crossings where they are clear, else the far field rounded.
+    // An integer: counted from crossings where they are clear, else the far field rounded.
     std::vector<int> winding(regionCount);
-    tbb::parallel_for(
-        tbb::blocked_range<std::uint32_t>(0, regionCount),
-        [&](const tbb::blocked_range<std::uint32_t>& range) {
-            for (std::uint32_t r = range.begin(); r != range.end(); ++r) {
-                const glm::dvec3 point = centre(farthest[r]);
-                const std::optional<int> crossings = soup.windingNumberByCrossings(point);
-                winding[r] = crossings ? *crossings : int(std::lround(soup.windingNumber(point)));
-            }
-        });
+    tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, regionCount),
+                      [&](const tbb::blocked_range<std::uint32_t>& range) {
+                          for (std::uint32_t r = range.begin(); r != range.end(); ++r) {
+                              winding[r] =
+                                  int(std::lround(soup.countedWindingNumber(centre(farthest[r]))));
+                          }
+                      });
     // Whether every voxel's distance is to the boundary of the inside: its nearest point bounds
     // it, winding number 0 in front and 1 behind (the voxel's, on its side); where the side is
     // not known, its nearest triangle must face outside at its centroid (what MeshSurface checks
@@ -207,8 +204,7 @@ SoupDistanceGrid soupDistanceGrid(const SoupDistance& soup, int zBegin, int zEnd
         [&](const tbb::blocked_range<std::uint32_t>& range, bool bound) {
             for (std::uint32_t t = range.begin(); bound && t != range.end(); ++t) {
                 if (!toCheck[t].load(std::memory_order_relaxed)) continue;
-                const std::array<glm::dvec3, 3> corners = soup.corners(t);
-                bound = soup.facesOutsideAtCentroid(corners[0], corners[1], corners[2]);
+                bound = soup.facesOutsideAtCentroid(t);
             }
             return bound;
         },
