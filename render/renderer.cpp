@@ -377,7 +377,7 @@ class Renderer {
             float visibility = 1.0f;
             if (shadowMaps_[index]) {
                 const ShadowReceiver receiver{hit.position, hit.entry.normal,
-                                              footprintWorld(hit, toLight)};
+                                              footprintWorld(hit, toLight), hit.object};
                 visibility = castShadow(index, receiver, seed, shadowMapSamples);
                 if (visibility <= 0.0f) continue;
             }
@@ -491,7 +491,8 @@ class Renderer {
                 const float belowSurfaceWorld =
                     (depthTexels - texelPosition.z) / depthTexels * material.depthWorld;
                 const ShadowReceiver receiver{hit.position + toLight * (belowSurfaceWorld / facing),
-                                              hit.entry.normal, footprintWorld(hit, toLight)};
+                                              hit.entry.normal, footprintWorld(hit, toLight),
+                                              hit.object};
                 visibility *= castShadow(index, receiver, seed, sample.shadowMapSamples);
                 if (visibility <= 0.0f) continue;
             }

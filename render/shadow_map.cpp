@@ -118,10 +118,10 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     }
     // Rays start a little in front of everything.
     startDepth_ = depthLow - std::max(levels_[0].texelWorld, 1e-3f * longer);
-    nearestDepth_ = findNearestDepth();
+    nearestDepth_ = boundDepths();
 }
 
-float ShadowMap::findNearestDepth() const {
+float ShadowMap::boundDepths() {
     const Level& finest = levels_[0];
     // A lower bound of the depths of each tile from every shell over it. A shell's points are
     // bilinear in its six corners, so they project into the corners' bounds on the light plane and
@@ -132,10 +132,14 @@ float ShadowMap::findNearestDepth() const {
     const float rounding =
         1e-5f * (std::abs(startDepth_) + finest.texelWorld * float(finest.width + finest.height)) +
         1e-3f * finest.texelWorld;
-    std::vector<float> bound(std::size_t(finest.tilesX) * std::size_t(finest.tilesY),
-                             std::numeric_limits<float>::infinity());
+    casterBounds_.assign(std::size_t(finest.tilesX) * std::size_t(finest.tilesY), {});
+    const Scene& scene = tracer_.scene();
+    std::vector<bool> flatSlab(scene.objects.size());
+    for (std::size_t object = 0; object < scene.objects.size(); ++object)
+        flatSlab[object] = isFlatSlab(scene.objects[object]);
     const float tileWorld = finest.texelWorld * float(kTileTexels);
     for (std::uint32_t shell = 0; shell < tracer_.shellCount(); ++shell) {
+        const std::uint32_t object = tracer_.shellObject(shell);
         glm::vec3 corners[6];
         tracer_.shellCorners(shell, corners, corners + 3);
         glm::vec2 plane[6];
@@ -185,11 +189,23 @@ float ShadowMap::findNearestDepth() const {
                         depth[0] + slopeU * (u - plane[0].x) + slopeV * (v - plane[0].y);
                     least = std::max(least, float(top) + bottomShift);
                 }
-                float& tileBound =
-                    bound[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
-                tileBound = std::min(tileBound, least - rounding);
+                CasterBounds& tile =
+                    casterBounds_[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
+                if (!flatSlab[object]) {
+                    tile.others = std::min(tile.others, least - rounding);
+                    continue;
+                }
+                tile.flat = std::min(tile.flat, least - rounding);
+                if (tile.flatObject != object) {
+                    tile.flatObject = tile.flatObject == ShadowReceiver::kNoObject
+                                          ? object
+                                          : CasterBounds::kSeveral;
+                }
             }
     }
+    std::vector<float> bound(casterBounds_.size());
+    for (std::size_t tile = 0; tile < bound.size(); ++tile)
+        bound[tile] = std::min(casterBounds_[tile].others, casterBounds_[tile].flat);
     // Tiles by increasing bound, traced until the nearest depth found is below every bound left:
     // the least depth of the whole map, from the few tiles near the surface nearest the light.
     std::vector<int> order;
@@ -267,6 +283,30 @@ float ShadowMap::lookup(const Level& level, const glm::vec2& planeWorld) const {
     return depthAt(level, int(x), int(y));
 }
 
+bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, float depth,
+                                  std::uint32_t receiverObject) const {
+    const Level& finest = levels_[0];
+    const float tileWorld = finest.texelWorld * float(kTileTexels);
+    const glm::vec2 low = (centre - reachWorld - originPlane_) / tileWorld;
+    const glm::vec2 high = (centre + reachWorld - originPlane_) / tileWorld;
+    // Outside the map every lookup reads +infinity, no blocker.
+    const int x0 = std::max(int(std::floor(low.x)), 0);
+    const int y0 = std::max(int(std::floor(low.y)), 0);
+    const int x1 = std::min(int(std::floor(high.x)), finest.tilesX - 1);
+    const int y1 = std::min(int(std::floor(high.y)), finest.tilesY - 1);
+    for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) {
+            const CasterBounds& tile =
+                casterBounds_[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
+            // The receiver's own flat slab lies behind its plane: only other slabs count.
+            const bool othersOnly = tile.flatObject == ShadowReceiver::kNoObject ||
+                                    tile.flatObject == receiverObject;
+            if (!(std::min(tile.others, othersOnly ? tile.others : tile.flat) >= depth))
+                return false;
+        }
+    return true;
+}
+
 const ShadowMap::Level& ShadowMap::levelFor(float texelWorld) const {
     std::size_t index = 0;
     while (index + 1 < levels_.size() && levels_[index + 1].texelWorld <= texelWorld) ++index;
@@ -306,6 +346,15 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     const float searchRadius =
         std::min(tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f),
                  kMaxSearchTexels * finestTexelWorld);
+    // A sample blocks where the stored depth is below the receiver's plane there (less a bias):
+    // nowhere if no surface over the texels the samples may read (their centres are within one
+    // texel of the level read of the disk) can be nearer than the plane's nearest point on it.
+    const float readTexelWorld =
+        levelFor(std::max(footprint, searchRadius / kTexelsPerFilterRadius)).texelWorld;
+    if (nothingNearerThan(centre, searchRadius + readTexelWorld,
+                          receiverDepth + slopeLength * searchRadius, receiver.object)) {
+        return 1.0f;
+    }
     // A disk inside one texel: a hard shadow, one sample.
     if (searchRadius < 0.5f * finestTexelWorld) {
         ++samples;
@@ -369,9 +418,12 @@ bool lightReachesVisibleSurface(const Scene& scene, const DirectionalLight& ligh
 }
 
 bool sceneCastsShadowsBetweenSurfaces(const Scene& scene) {
-    if (scene.objects.size() != 1) return true;
-    const BaseMesh& mesh = scene.objects[0].mesh;
-    if (mesh.positions.empty() || mesh.normals.size() != mesh.positions.size()) return true;
+    return scene.objects.size() != 1 || !isFlatSlab(scene.objects[0]);
+}
+
+bool isFlatSlab(const SceneObject& object) {
+    const BaseMesh& mesh = object.mesh;
+    if (mesh.positions.empty() || mesh.normals.size() != mesh.positions.size()) return false;
     const glm::vec3 normal = mesh.normals[0];
     glm::vec3 lower = mesh.positions[0], upper = mesh.positions[0];
     for (const glm::vec3& position : mesh.positions) {
@@ -380,11 +432,11 @@ bool sceneCastsShadowsBetweenSurfaces(const Scene& scene) {
     }
     const float tolerance = 1e-5f * glm::length(upper - lower);
     for (std::size_t vertex = 0; vertex < mesh.positions.size(); ++vertex) {
-        if (glm::dot(mesh.normals[vertex], normal) < 1.0f - 1e-6f) return true;
+        if (glm::dot(mesh.normals[vertex], normal) < 1.0f - 1e-6f) return false;
         if (std::abs(glm::dot(mesh.positions[vertex] - mesh.positions[0], normal)) > tolerance)
-            return true;
+            return false;
     }
-    return false;
+    return true;
 }
 
 }  // namespace distile

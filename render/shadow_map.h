@@ -22,8 +22,10 @@
 #include <cstdint>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <limits>
 #include <memory>
 #include <mutex>
+#include <vector>
 
 #include "render/scene.h"
 #include "render/tracer.h"
@@ -55,6 +57,11 @@ struct ShadowReceiver {
     /// The smallest width of the receiver's pixel as the light sees it, world units: texels
     /// finer than this are not resolved by the image. 0: the finest level is read.
     float footprintWorld = 0.0f;
+    /// The scene object the receiver lies on, or kNoObject. A receiver on a flat slab
+    /// (isFlatSlab) cannot be shadowed by that slab, so a lookup over nothing else takes no
+    /// samples.
+    std::uint32_t object = kNoObject;
+    static constexpr std::uint32_t kNoObject = 0xffffffffU;
 };
 
 class ShadowMap {
@@ -153,8 +160,14 @@ class ShadowMap {
         std::call_once(level.tileOnce[std::size_t(tile)], [&] { traceTile(level, tile); });
     }
     void traceTile(const Level& level, int tile) const;
-    /// The smallest depth of the finest level, from only the tiles that may hold it.
-    float findNearestDepth() const;
+    /// Fills casterBounds_ and returns the smallest depth of the finest level, from only the
+    /// tiles that may hold it.
+    float boundDepths();
+    /// Whether no sample of a lookup can find a blocker: every texel it may read, those with
+    /// centres within `reachWorld` of light-plane point `centre`, lies where the depth bounds of
+    /// the shells other than the receiver's own flat slab are at least `depth`.
+    bool nothingNearerThan(const glm::vec2& centre, float reachWorld, float depth,
+                           std::uint32_t receiverObject) const;
 
     const SceneTracer& tracer_;
     glm::vec3 toLight_{0.0f, 0.0f, 1.0f};  ///< unit, from surfaces toward the light
@@ -165,6 +178,17 @@ class ShadowMap {
     float nearestDepth_ = 0.0f;          ///< smallest stored depth (the blocker nearest the light)
     float startDepth_ = 0.0f;            ///< where the light rays start: in front of everything
     std::array<Level, kLevels> levels_;  ///< the finest first
+    /// Per tile of the finest level: lower bounds of the depth of any surface there, from the
+    /// shells over the tile's square.
+    struct CasterBounds {
+        float others = std::numeric_limits<float>::infinity();  ///< shells of curved objects
+        float flat = std::numeric_limits<float>::infinity();    ///< shells of flat slabs
+        /// The flat slab whose shells are over the tile: ShadowReceiver::kNoObject for none,
+        /// kSeveral for more than one.
+        std::uint32_t flatObject = ShadowReceiver::kNoObject;
+        static constexpr std::uint32_t kSeveral = ShadowReceiver::kNoObject - 1;
+    };
+    std::vector<CasterBounds> casterBounds_;
     mutable std::atomic<std::uint64_t> tracedTexels_{0};
 };
 
@@ -172,6 +196,11 @@ class ShadowMap {
 /// facing the eye with a vertex normal facing the light. When none does, no receiver will ask
 /// for the light's shadow map and it need not be built.
 bool lightReachesVisibleSurface(const Scene& scene, const DirectionalLight& light);
+
+/// Whether `object`'s base mesh is planar with every vertex normal perpendicular to its plane: its
+/// shell is a flat slab, whose detail lies behind the top plane as the light sees it, so it never
+/// shadows a receiver on that plane.
+bool isFlatSlab(const SceneObject& object);
 
 /// False when no surface of the scene can shadow another one: a single object on a planar base
 /// mesh with parallel vertex normals (its shell is a flat slab, whose detail shadows itself only

@@ -229,6 +229,8 @@ class SceneTracer {
     /// by -N * depthWorld along the vertex normals (equal to the top without a tile).
     /// Precondition: shell < shellCount().
     void shellCorners(std::uint32_t shell, glm::vec3 top[3], glm::vec3 bottom[3]) const;
+    /// The scene object whose base triangle shell `shell` is. Precondition: shell < shellCount().
+    std::uint32_t shellObject(std::uint32_t shell) const { return triangles_[shell].object; }
 
     /// A ray against one shell only, in three parts so that several rays' marches can be taken
     /// together (render/coverage.h): enterShell, marchShells, finishShell do for that shell what

@@ -377,6 +377,41 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     EXPECT_EQ(samples, std::uint64_t(72 * lookups));
 }
 
+TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
+    const Scene scene = occluderScene();
+    ASSERT_TRUE(isFlatSlab(scene.objects[0]));
+    SceneObject bent = scene.objects[0];
+    bent.mesh.positions[0].z += 0.1f;  // one corner raised: no longer planar
+    EXPECT_FALSE(isFlatSlab(bent));
+    const SceneTracer tracer(scene, TraceOptions{});
+    const ShadowMap map(tracer, scene.lights[0], 1024);
+    const glm::vec3 up(0.0f, 0.0f, 1.0f);
+    for (ShadowFilter filter : {ShadowFilter::Full, ShadowFilter::Adaptive}) {
+        const std::uint64_t traced = map.tracedTexels();
+        // On the ground (object 0) far beside the occluder: only the ground's own slab is over
+        // the disk, and it lies behind the receiver's plane. Lit, nothing sampled or traced.
+        std::uint64_t samples = 0;
+        EXPECT_EQ(map.visibility({{0.8f, 0.7f, 0.0f}, up, 0.0f, 0}, filter, 3, samples), 1.0f);
+        EXPECT_EQ(samples, 0u);
+        EXPECT_EQ(map.tracedTexels(), traced);
+        // Under the occluder the other slab is over the disk: sampled, in shadow.
+        EXPECT_EQ(map.visibility({{0.05f, -0.03f, 0.0f}, up, 0.0f, 0}, filter, 3, samples), 0.0f);
+        EXPECT_EQ(samples, filter == ShadowFilter::Full ? 72u : 8u);
+    }
+    // Across the occluder's edges and beyond, a receiver known to lie on the ground gets what one
+    // of unknown object (whose disk is always sampled) gets, bit for bit, with fewer samples.
+    std::uint64_t onGround = 0, unknown = 0;
+    for (float y = -0.6f; y < 0.6f; y += 0.0173f)
+        for (float x = -0.6f; x < 0.6f; x += 0.0173f) {
+            const auto seed = std::uint32_t(std::lround(1000.0f * (x + 2.0f * y)));
+            ASSERT_EQ(map.visibility({{x, y, 0.0f}, up, 0.0f, 0}, ShadowFilter::Adaptive, seed,
+                                     onGround),
+                      map.visibility({{x, y, 0.0f}, up}, ShadowFilter::Adaptive, seed, unknown))
+                << x << " " << y;
+        }
+    EXPECT_LT(onGround, unknown / 2);
+}
+
 TEST(ShadowMap, TracesOnlyWhereLookupsReachAndAgreesWithEveryTileTraced) {
     const Scene scene = occluderScene();
     const SceneTracer tracer(scene, TraceOptions{});
@@ -490,10 +525,12 @@ TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
     options.shadowFilter = ShadowFilter::None;
     const RenderResult none = renderScene(scene, options);
 
-    // Full takes 72 samples per lookup; adaptive 8, or 72 in a penumbra.
+    // Full takes 72 samples per lookup; adaptive 8, or 72 in a penumbra. Lookups on the plane
+    // whose disk holds nothing but the plane take none (the sampled ones are counted here).
     const std::uint64_t lookups = full.stats.shadowMapSamples / 72;
     ASSERT_EQ(full.stats.shadowMapSamples % 72, 0u);
-    ASSERT_GT(lookups, std::uint64_t(options.width * options.height / 2));
+    ASSERT_GT(lookups, 1000u);
+    EXPECT_LT(lookups, std::uint64_t(options.width * options.height / 2));
     const std::uint64_t penumbraLookups = (adaptive.stats.shadowMapSamples - 8 * lookups) / 64;
     EXPECT_GT(penumbraLookups, 100u);  // the scene does have penumbrae
     EXPECT_LE(double(adaptive.stats.shadowMapSamples), 0.5 * double(full.stats.shadowMapSamples));
@@ -518,6 +555,7 @@ TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
         100.0 * double(close) / double(full.image.rgbLinear.size()), shadowed);
     EXPECT_GE(double(close), 0.995 * double(full.image.rgbLinear.size()));
     EXPECT_GT(shadowed, 500u);  // the sphere casts a visible shadow on the plane
+    EXPECT_GE(lookups, shadowed);  // every pixel the shadow darkens was sampled
 }
 
 TEST(Renderer, ShadowMapsTraceWhatTheViewNeedsAndDoNotDependOnTheThreadCount) {
