@@ -40,12 +40,15 @@ TriangleBvh::TriangleBvh(std::vector<glm::vec3> corners) : corners_(std::move(co
     order_.resize(count);
     for (std::uint32_t i = 0; i < count; ++i) order_[i] = i;
     if (count > 0) {
+        std::vector<glm::vec3> centroids(count);
+        for (std::uint32_t i = 0; i < count; ++i) centroids[i] = centroid(corners_, i);
         nodes_.reserve(2 * count);
-        build(0, count, 0);
+        build(centroids, 0, count, 0);
     }
 }
 
-std::uint32_t TriangleBvh::build(std::uint32_t first, std::uint32_t count, int depth) {
+std::uint32_t TriangleBvh::build(const std::vector<glm::vec3>& centroids, std::uint32_t first,
+                                 std::uint32_t count, int depth) {
     const auto nodeIndex = std::uint32_t(nodes_.size());
     nodes_.push_back({});
     glm::vec3 boundsMin(std::numeric_limits<float>::max());
@@ -57,7 +60,7 @@ std::uint32_t TriangleBvh::build(std::uint32_t first, std::uint32_t count, int d
             boundsMin = glm::min(boundsMin, corners_[3 * order_[i] + corner]);
             boundsMax = glm::max(boundsMax, corners_[3 * order_[i] + corner]);
         }
-        const glm::vec3 c = centroid(corners_, order_[i]);
+        const glm::vec3 c = centroids[order_[i]];
         centroidMin = glm::min(centroidMin, c);
         centroidMax = glm::max(centroidMax, c);
     }
@@ -76,10 +79,10 @@ std::uint32_t TriangleBvh::build(std::uint32_t first, std::uint32_t count, int d
     const std::uint32_t half = count / 2;
     std::nth_element(order_.begin() + first, order_.begin() + first + half,
                      order_.begin() + first + count, [&](std::uint32_t a, std::uint32_t b) {
-                         return centroid(corners_, a)[axis] < centroid(corners_, b)[axis];
+                         return centroids[a][axis] < centroids[b][axis];
                      });
-    build(first, half, depth + 1);
-    const std::uint32_t right = build(first + half, count - half, depth + 1);
+    build(centroids, first, half, depth + 1);
+    const std::uint32_t right = build(centroids, first + half, count - half, depth + 1);
     nodes_[nodeIndex].first = right;
     nodes_[nodeIndex].count = 0;
     return nodeIndex;

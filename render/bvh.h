@@ -81,7 +81,10 @@ class TriangleBvh {
         std::uint32_t first = 0;  ///< leaf: first entry in order_; inner: right child index
         std::uint32_t count = 0;  ///< leaf: triangle count; inner: 0 (left child is next node)
     };
-    std::uint32_t build(std::uint32_t first, std::uint32_t count, int depth);
+    /// The node over order_[first, first + count), split at the median of `centroids` (per
+    /// triangle) along their longest extent.
+    std::uint32_t build(const std::vector<glm::vec3>& centroids, std::uint32_t first,
+                        std::uint32_t count, int depth);
 
     std::vector<glm::vec3> corners_;
     std::vector<std::uint32_t> order_;

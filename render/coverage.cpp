@@ -1,5 +1,7 @@
 #include "render/coverage.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #if defined(__SSE2__)
@@ -267,8 +269,8 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     const glm::dvec2 slopePerPixel = projection.slopePerPixel();
     const glm::dvec2 slopeAtOrigin = projection.slopeAtOrigin();
     const glm::dvec3 eye(projection.eye());
-    std::vector<std::uint32_t> visible;
-    for (std::uint32_t shell = 0; shell < shellCount; ++shell) {
+    // Each shell's projection on its own, in parallel.
+    tbb::parallel_for(std::uint32_t(0), shellCount, [&](std::uint32_t shell) {
         glm::vec3 top[3], bottom[3];
         tracer.shellCorners(shell, top, bottom);
         // Front-facing tops are where camera rays enter shells, back-facing ones stop them (the
@@ -276,7 +278,7 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
         // are binned, and the tracer tells them apart.
         ShellBounds& bounds = bounds_[shell];
         bounds.top = projectTriangle(projection, top);
-        if (bounds.top.empty()) continue;
+        if (bounds.top.empty()) return;
         double zMin = std::numeric_limits<double>::max();
         double zMax = 0.0;
         glm::dvec3 view[3];
@@ -300,8 +302,10 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
                            normal.x * slopeAtOrigin.x + normal.y * slopeAtOrigin.y + normal.z) /
                 offset;
         }
-        visible.push_back(shell);
-    }
+    });
+    std::vector<std::uint32_t> visible;
+    for (std::uint32_t shell = 0; shell < shellCount; ++shell)
+        if (!bounds_[shell].top.empty()) visible.push_back(shell);
     // Nearest first: filling the bins in this order sorts every bin.
     std::stable_sort(visible.begin(), visible.end(), [&](std::uint32_t a, std::uint32_t b) {
         return bounds_[a].zMinWorld < bounds_[b].zMinWorld;

@@ -1,7 +1,10 @@
 #include "render/shell_march.h"
 
-#include <map>
+#include <algorithm>
+#include <numeric>
+#include <tuple>
 #include <utility>
+#include <vector>
 
 namespace distile::detail {
 
@@ -55,15 +58,29 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
         count, {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour});
     shell.neighbourCorners.assign(count, {0, 0, 0});
     // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
-    std::map<std::array<float, 3>, std::uint32_t> weld;
+    // Sorted by position (x, then y, then z), equal positions numbered alike in order.
+    const auto positionLess = [&](std::uint32_t a, std::uint32_t b) {
+        const glm::vec3 &p = mesh.positions[a], &q = mesh.positions[b];
+        return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
+    };
+    std::vector<std::uint32_t> byPosition(mesh.positions.size());
+    std::iota(byPosition.begin(), byPosition.end(), 0u);
+    std::sort(byPosition.begin(), byPosition.end(), positionLess);
     std::vector<std::uint32_t> surfaceVertex(mesh.positions.size());
-    for (std::size_t vertex = 0; vertex < mesh.positions.size(); ++vertex) {
-        const glm::vec3& p = mesh.positions[vertex];
-        surfaceVertex[vertex] =
-            weld.try_emplace({p.x, p.y, p.z}, std::uint32_t(weld.size())).first->second;
+    std::uint32_t surfaceVertices = 0;
+    for (std::size_t i = 0; i < byPosition.size(); ++i) {
+        if (i > 0 && positionLess(byPosition[i - 1], byPosition[i])) ++surfaceVertices;
+        surfaceVertex[byPosition[i]] = surfaceVertices;
     }
     // Directed edges (from, to): the side opposite corner c of triangle t is 3 t + c.
-    std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<std::uint32_t>> edges;
+    struct DirectedEdge {
+        std::uint32_t from, to, side;
+        bool operator<(const DirectedEdge& other) const {
+            return std::tie(from, to, side) < std::tie(other.from, other.to, other.side);
+        }
+    };
+    std::vector<DirectedEdge> edges;
+    edges.reserve(3 * count);
     for (std::uint32_t t = 0; t < count; ++t) {
         const glm::uvec3 corners = mesh.triangles[t];
         glm::vec3 positions[3], normals[3];
@@ -76,16 +93,25 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
         shell.prisms.push_back(ShellPrism::make(positions, normals, uvs, uvScale, tileSize.width,
                                                 tileSize.height, tileSize.depth, depthWorld));
         for (int corner = 0; corner < 3; ++corner) {
-            const std::uint32_t from = surfaceVertex[corners[(corner + 1) % 3]];
-            const std::uint32_t to = surfaceVertex[corners[(corner + 2) % 3]];
-            edges[{from, to}].push_back(t * 3 + std::uint32_t(corner));
+            edges.push_back({surfaceVertex[corners[(corner + 1) % 3]],
+                             surfaceVertex[corners[(corner + 2) % 3]], t * 3 + std::uint32_t(corner)});
         }
     }
-    for (const auto& [edge, sides] : edges) {
-        if (sides.size() != 1) continue;
-        const auto reversed = edges.find({edge.second, edge.first});
-        if (reversed == edges.end() || reversed->second.size() != 1) continue;
-        const std::uint32_t side = sides[0], other = reversed->second[0];
+    // An edge used once each way joins its two triangles; other edges join nothing.
+    std::sort(edges.begin(), edges.end());
+    const auto usedOnce = [&](std::size_t i) {
+        return (i == 0 || edges[i - 1].from != edges[i].from || edges[i - 1].to != edges[i].to) &&
+               (i + 1 == edges.size() || edges[i + 1].from != edges[i].from ||
+                edges[i + 1].to != edges[i].to);
+    };
+    for (std::size_t i = 0; i < edges.size(); ++i) {
+        if (!usedOnce(i)) continue;
+        const auto reversed =
+            std::lower_bound(edges.begin(), edges.end(), DirectedEdge{edges[i].to, edges[i].from, 0});
+        if (reversed == edges.end() || reversed->from != edges[i].to ||
+            reversed->to != edges[i].from || !usedOnce(std::size_t(reversed - edges.begin())))
+            continue;
+        const std::uint32_t side = edges[i].side, other = reversed->side;
         shell.neighbours[side / 3][side % 3] = other / 3;
         shell.neighbourCorners[side / 3][side % 3] = std::uint8_t(other % 3);
     }

@@ -1,5 +1,7 @@
 #include "render/tracer.h"
 
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -166,8 +168,8 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
             triangles_.push_back(shell);
         }
     }
-    bvh_ = TriangleBvh(std::move(corners));
-    buildShellMap();
+    // Independent: the base triangles' BVH and the curved shells' prisms.
+    tbb::parallel_invoke([&] { bvh_ = TriangleBvh(std::move(corners)); }, [&] { buildShellMap(); });
     shellPrisms_ = {prisms_, neighbours_, neighbourCorners_};
 
     // Per tile (objects sharing one share these): its columns, and its empty space where the
