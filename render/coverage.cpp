@@ -315,14 +315,13 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     std::vector<bool> coversOfEntry;
     for (const std::uint32_t shell : visible) {
         const ScreenTriangle& top = bounds_[shell].top;
-        const int tileX0 =
-            std::clamp(int(std::floor(top.boundsMin.x / kTilePixels)), 0, tilesX_ - 1);
-        const int tileY0 =
-            std::clamp(int(std::floor(top.boundsMin.y / kTilePixels)), 0, tilesY_ - 1);
-        const int tileX1 =
-            std::clamp(int(std::floor(top.boundsMax.x / kTilePixels)), 0, tilesX_ - 1);
-        const int tileY1 =
-            std::clamp(int(std::floor(top.boundsMax.y / kTilePixels)), 0, tilesY_ - 1);
+        // Every tile holding a pixel whose square, grown by the margin, meets the bounds.
+        const glm::dvec2 low = (top.boundsMin - top.marginPixels) / double(kTilePixels);
+        const glm::dvec2 high = (top.boundsMax + top.marginPixels) / double(kTilePixels);
+        const int tileX0 = std::clamp(int(std::floor(low.x)), 0, tilesX_ - 1);
+        const int tileY0 = std::clamp(int(std::floor(low.y)), 0, tilesY_ - 1);
+        const int tileX1 = std::clamp(int(std::floor(high.x)), 0, tilesX_ - 1);
+        const int tileY1 = std::clamp(int(std::floor(high.y)), 0, tilesY_ - 1);
         for (int tileY = tileY0; tileY <= tileY1; ++tileY) {
             for (int tileX = tileX0; tileX <= tileX1; ++tileX) {
                 const double x0 = tileX * kTilePixels;
