@@ -275,8 +275,10 @@ std::uint64_t ShadowMap::texelCount() const {
 }
 
 float ShadowMap::lookup(const Level& level, const glm::vec2& planeWorld) const {
-    const float x = std::floor((planeWorld.x - originPlane_.x) / level.texelWorld);
-    const float y = std::floor((planeWorld.y - originPlane_.y) / level.texelWorld);
+    // In texels; inside the level the texel is the integer part (no floor needed: x >= 0, and
+    // floor(x) < width exactly when x < width).
+    const float x = (planeWorld.x - originPlane_.x) / level.texelWorld;
+    const float y = (planeWorld.y - originPlane_.y) / level.texelWorld;
     if (!(x >= 0.0f && y >= 0.0f && x < float(level.width) && y < float(level.height))) {
         return std::numeric_limits<float>::infinity();
     }

@@ -135,17 +135,18 @@ class ShadowMap {
         std::unique_ptr<float[]> depths;
         /// Where texel (x, y) is stored in depths.
         std::size_t index(int x, int y) const {
-            const auto tile =
-                std::size_t(x / kTileTexels) + std::size_t(tilesX) * std::size_t(y / kTileTexels);
+            const auto column = unsigned(x), row = unsigned(y);  // >= 0: unsigned / and % shift
+            const std::size_t tile = column / kTileTexels + std::size_t(tilesX) * (row / kTileTexels);
             return tile * std::size_t(kTileTexels * kTileTexels) +
-                   std::size_t((y % kTileTexels) * kTileTexels + x % kTileTexels);
+                   (row % kTileTexels) * kTileTexels + column % kTileTexels;
         }
         std::unique_ptr<std::once_flag[]> tileOnce;
         std::unique_ptr<std::atomic<bool>[]> tileDone;
     };
     /// depthAt in `level`.
     float depthAt(const Level& level, int x, int y) const {
-        traceTileOnce(level, (x / kTileTexels) + level.tilesX * (y / kTileTexels));
+        traceTileOnce(level, int(unsigned(x) / kTileTexels) +
+                                 level.tilesX * int(unsigned(y) / kTileTexels));
         return level.depths[level.index(x, y)];
     }
     /// Depth stored at the texel of `level` containing light-plane point `planeWorld`;
