@@ -73,14 +73,77 @@ std::uint32_t TriangleBvh::build(const std::vector<glm::vec3>& centroids, std::u
         nodes_[nodeIndex].count = count;
         return nodeIndex;
     }
-    // Median split along the longest centroid axis: balanced, simple, fine for base meshes.
-    const int axis =
-        extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
-    const std::uint32_t half = count / 2;
-    std::nth_element(order_.begin() + first, order_.begin() + first + half,
-                     order_.begin() + first + count, [&](std::uint32_t a, std::uint32_t b) {
-                         return centroids[a][axis] < centroids[b][axis];
-                     });
+    // The split of least cost by the surface area heuristic over kBins bins of the centroids
+    // along each axis (Wald 2007): the two sides' box areas times their triangle counts. A few
+    // triangles much larger than the rest (a floor under a finely meshed object) are split off
+    // near the root; a median split would put them in leaves among small ones, and every box
+    // above those leaves would span the floor.
+    constexpr int kBins = 16;
+    struct Bin {
+        std::uint32_t count = 0;
+        glm::vec3 boundsMin{std::numeric_limits<float>::max()};
+        glm::vec3 boundsMax{-std::numeric_limits<float>::max()};
+    };
+    const auto halfArea = [](const glm::vec3& low, const glm::vec3& high) {
+        const glm::vec3 size = glm::max(high - low, glm::vec3(0.0f));
+        return double(size.x) * size.y + double(size.y) * size.z + double(size.z) * size.x;
+    };
+    const auto binOf = [&](std::uint32_t triangle, int axis) {
+        const float position = (centroids[triangle][axis] - centroidMin[axis]) / extent[axis];
+        return std::clamp(int(position * float(kBins)), 0, kBins - 1);
+    };
+    double bestCost = std::numeric_limits<double>::infinity();
+    int bestAxis = -1, bestBin = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+        if (!(extent[axis] > 0.0f)) continue;
+        Bin bins[kBins];
+        for (std::uint32_t i = first; i < first + count; ++i) {
+            Bin& bin = bins[binOf(order_[i], axis)];
+            ++bin.count;
+            for (int corner = 0; corner < 3; ++corner) {
+                bin.boundsMin = glm::min(bin.boundsMin, corners_[3 * order_[i] + corner]);
+                bin.boundsMax = glm::max(bin.boundsMax, corners_[3 * order_[i] + corner]);
+            }
+        }
+        // Costs of splitting after bin k: the left side's from a sweep up, the right's down.
+        double leftCost[kBins];
+        Bin left;
+        for (int k = 0; k < kBins - 1; ++k) {
+            left.count += bins[k].count;
+            left.boundsMin = glm::min(left.boundsMin, bins[k].boundsMin);
+            left.boundsMax = glm::max(left.boundsMax, bins[k].boundsMax);
+            leftCost[k] = left.count == 0 ? 0.0 : halfArea(left.boundsMin, left.boundsMax) * left.count;
+        }
+        Bin right;
+        for (int k = kBins - 1; k > 0; --k) {
+            right.count += bins[k].count;
+            right.boundsMin = glm::min(right.boundsMin, bins[k].boundsMin);
+            right.boundsMax = glm::max(right.boundsMax, bins[k].boundsMax);
+            if (right.count == 0 || right.count == count) continue;
+            const double cost =
+                leftCost[k - 1] + halfArea(right.boundsMin, right.boundsMax) * right.count;
+            if (cost < bestCost) {
+                bestCost = cost;
+                bestAxis = axis;
+                bestBin = k - 1;
+            }
+        }
+    }
+    std::uint32_t half = count / 2;
+    if (bestAxis >= 0) {
+        const auto middle = std::partition(
+            order_.begin() + first, order_.begin() + first + count,
+            [&](std::uint32_t triangle) { return binOf(triangle, bestAxis) <= bestBin; });
+        half = std::uint32_t(middle - (order_.begin() + first));
+    } else {
+        // Every centroid in one bin along every axis: the median along the longest.
+        const int axis =
+            extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
+        std::nth_element(order_.begin() + first, order_.begin() + first + half,
+                         order_.begin() + first + count, [&](std::uint32_t a, std::uint32_t b) {
+                             return centroids[a][axis] < centroids[b][axis];
+                         });
+    }
     build(centroids, first, half, depth + 1);
     const std::uint32_t right = build(centroids, first + half, count - half, depth + 1);
     nodes_[nodeIndex].first = right;
@@ -94,9 +157,9 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
     const glm::vec3 inverseDirection = 1.0f / ray.direction;
     bool found = false;
     double nearest = maxDistance;
-    // Among hits at exactly the same distance (a ray through an edge two triangles share) the one
-    // first in order_ wins, whatever order the nodes are visited in.
-    std::uint32_t nearestOrder = 0;
+    // Among hits at exactly the same distance (a ray through an edge two triangles share) the
+    // triangle of the lowest index wins, whatever the tree and the order its nodes are visited in.
+    std::uint32_t nearestTriangle = 0;
     float enter = 0.0f;
     if (!hitsBox(nodes_[0].boundsMin, nodes_[0].boundsMax, ray.origin, inverseDirection,
                  minDistance, maxDistance, enter)) {
@@ -137,7 +200,7 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
             const std::uint32_t triangle = order_[i];
             const double limit =
-                found && i < nearestOrder
+                found && triangle < nearestTriangle
                     ? std::nextafter(nearest, std::numeric_limits<double>::infinity())
                     : nearest;
             double distance = 0.0, b1 = 0.0, b2 = 0.0;
@@ -147,7 +210,7 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
                 continue;
             }
             nearest = distance;
-            nearestOrder = i;
+            nearestTriangle = triangle;
             hit = {triangle, float(distance), float(b1), float(b2)};
             found = true;
         }
