@@ -231,6 +231,32 @@ TEST(TriangleBvh, FindsTheSameNearestHitAsBruteForce) {
     EXPECT_GT(hits, 500);  // the test exercised hits, not only misses
 }
 
+TEST(TriangleBvh, EquallyNearTrianglesGoToTheLowestIndexWhateverTheTree) {
+    // 300 random triangles, a floor much larger than all of them (split off at the root by the
+    // surface area heuristic), then every triangle again in reverse order: each copy lies in
+    // another part of the tree, is hit at exactly the distance of its original, and must lose.
+    std::mt19937 random(11);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::vector<glm::vec3> corners;
+    for (int i = 0; i < 3 * 300; ++i)
+        corners.emplace_back(unit(random), unit(random), 0.5f * unit(random));
+    corners.insert(corners.end(), {{-9, -9, -1}, {9, -9, -1}, {0, 9, -1}});
+    const std::size_t originals = corners.size() / 3;
+    for (std::size_t t = originals; t-- > 0;)
+        corners.insert(corners.end(), {corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]});
+    const TriangleBvh bvh(corners);
+    int hits = 0;
+    for (int i = 0; i < 2000; ++i) {
+        const Ray ray{glm::vec3(unit(random), unit(random), 3.0f),
+                      glm::normalize(glm::vec3(0.3f * unit(random), 0.3f * unit(random), -1.0f))};
+        TriangleHit hit;
+        ASSERT_TRUE(bvh.intersect(ray, 0.0f, std::numeric_limits<float>::max(), hit));
+        ASSERT_LT(hit.triangle, originals) << i;
+        hits += hit.triangle + 1 < originals ? 1 : 0;  // not the floor
+    }
+    EXPECT_GT(hits, 500);
+}
+
 TEST(TriangleBvh, RaysThroughASharedEdgeDoNotSlipBetweenTriangles) {
     // Two triangles of a unit quad share the diagonal x = y; rays aimed at points on it must hit.
     const TriangleBvh quad({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 0}, {1, 1, 0}, {0, 1, 0}});
