@@ -155,6 +155,7 @@ constexpr std::array kWorkCounters{
     WorkCounter{"march iterations", &RenderStats::marchIterations},
     WorkCounter{"self-shadow steps", &RenderStats::shadowSteps},
     WorkCounter{"shadow-map samples", &RenderStats::shadowMapSamples},
+    WorkCounter{"shadow-map texels traced", &RenderStats::shadowMapTexels},
     WorkCounter{"shells traced", &RenderStats::shellsTraced},
 };
 
