@@ -135,8 +135,8 @@ MainJobReport measureMainJob(const fs::path& outputDir, const Scene& demo, int w
     std::vector<double> secondsByThreads;
     report.markdown +=
         "\n## G. Scaling: the demo's render against the thread count\n\n"
-        "`renderScene` of the demo (" + size + ", shadows on), median of " +
-        std::to_string(renderRuns) +
+        "`renderScene` of the demo (" +
+        size + ", shadows on), median of " + std::to_string(renderRuns) +
         " runs per thread count after one untimed render; an Amdahl fit "
         "T(n) = serial + parallel / n by least squares.\n\n"
         "| threads | s | speed-up |\n|---|---|---|\n";

@@ -112,7 +112,8 @@ std::uint32_t TriangleBvh::build(const std::vector<glm::vec3>& centroids, std::u
             left.count += bins[k].count;
             left.boundsMin = glm::min(left.boundsMin, bins[k].boundsMin);
             left.boundsMax = glm::max(left.boundsMax, bins[k].boundsMax);
-            leftCost[k] = left.count == 0 ? 0.0 : halfArea(left.boundsMin, left.boundsMax) * left.count;
+            leftCost[k] =
+                left.count == 0 ? 0.0 : halfArea(left.boundsMin, left.boundsMax) * left.count;
         }
         Bin right;
         for (int k = kBins - 1; k > 0; --k) {

@@ -55,16 +55,16 @@ template <typename Code>
 std::vector<Code> encodeSrgb(const Image& image, float maxCode) {
     // In parallel: a power per channel made this most of the time of writing a PNG.
     std::vector<Code> codes(image.rgbLinear.size() * 3);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, image.rgbLinear.size(), 4096),
-                      [&](const tbb::blocked_range<std::size_t>& pixels) {
-                          for (std::size_t i = pixels.begin(); i != pixels.end(); ++i) {
-                              for (int channel = 0; channel < 3; ++channel) {
-                                  codes[3 * i + std::size_t(channel)] = static_cast<Code>(
-                                      std::lround(srgbFromLinear(image.rgbLinear[i][channel]) *
-                                                  maxCode));
-                              }
-                          }
-                      });
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, image.rgbLinear.size(), 4096),
+        [&](const tbb::blocked_range<std::size_t>& pixels) {
+            for (std::size_t i = pixels.begin(); i != pixels.end(); ++i) {
+                for (int channel = 0; channel < 3; ++channel) {
+                    codes[3 * i + std::size_t(channel)] = static_cast<Code>(
+                        std::lround(srgbFromLinear(image.rgbLinear[i][channel]) * maxCode));
+                }
+            }
+        });
     return codes;
 }
 
@@ -175,8 +175,7 @@ Image readImage(const fs::path& file) {
     std::string openError;
     auto input = detail::openImageByExtension(file, openError);
     if (!input) {
-        throw FormatError(file.string() + ": not a readable image (" + firstLine(openError) +
-                          ")");
+        throw FormatError(file.string() + ": not a readable image (" + firstLine(openError) + ")");
     }
     const OIIO::ImageSpec& spec = input->spec();
     if (spec.nchannels < 1 || spec.depth != 1 || spec.deep) {

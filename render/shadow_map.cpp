@@ -301,8 +301,8 @@ bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, flo
             const CasterBounds& tile =
                 casterBounds_[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
             // The receiver's own flat slab lies behind its plane: only other slabs count.
-            const bool othersOnly = tile.flatObject == ShadowReceiver::kNoObject ||
-                                    tile.flatObject == receiverObject;
+            const bool othersOnly =
+                tile.flatObject == ShadowReceiver::kNoObject || tile.flatObject == receiverObject;
             if (!(std::min(tile.others, othersOnly ? tile.others : tile.flat) >= depth))
                 return false;
         }

@@ -136,7 +136,8 @@ class ShadowMap {
         /// Where texel (x, y) is stored in depths.
         std::size_t index(int x, int y) const {
             const auto column = unsigned(x), row = unsigned(y);  // >= 0: unsigned / and % shift
-            const std::size_t tile = column / kTileTexels + std::size_t(tilesX) * (row / kTileTexels);
+            const std::size_t tile =
+                column / kTileTexels + std::size_t(tilesX) * (row / kTileTexels);
             return tile * std::size_t(kTileTexels * kTileTexels) +
                    (row % kTileTexels) * kTileTexels + column % kTileTexels;
         }
@@ -145,8 +146,8 @@ class ShadowMap {
     };
     /// depthAt in `level`.
     float depthAt(const Level& level, int x, int y) const {
-        traceTileOnce(level, int(unsigned(x) / kTileTexels) +
-                                 level.tilesX * int(unsigned(y) / kTileTexels));
+        traceTileOnce(
+            level, int(unsigned(x) / kTileTexels) + level.tilesX * int(unsigned(y) / kTileTexels));
         return level.depths[level.index(x, y)];
     }
     /// Depth stored at the texel of `level` containing light-plane point `planeWorld`;

@@ -94,7 +94,8 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
                                                 tileSize.height, tileSize.depth, depthWorld));
         for (int corner = 0; corner < 3; ++corner) {
             edges.push_back({surfaceVertex[corners[(corner + 1) % 3]],
-                             surfaceVertex[corners[(corner + 2) % 3]], t * 3 + std::uint32_t(corner)});
+                             surfaceVertex[corners[(corner + 2) % 3]],
+                             t * 3 + std::uint32_t(corner)});
         }
     }
     // An edge used once each way joins its two triangles; other edges join nothing.
@@ -106,8 +107,8 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
     };
     for (std::size_t i = 0; i < edges.size(); ++i) {
         if (!usedOnce(i)) continue;
-        const auto reversed =
-            std::lower_bound(edges.begin(), edges.end(), DirectedEdge{edges[i].to, edges[i].from, 0});
+        const auto reversed = std::lower_bound(edges.begin(), edges.end(),
+                                               DirectedEdge{edges[i].to, edges[i].from, 0});
         if (reversed == edges.end() || reversed->from != edges[i].to ||
             reversed->to != edges[i].from || !usedOnce(std::size_t(reversed - edges.begin())))
             continue;

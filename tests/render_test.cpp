@@ -430,9 +430,9 @@ TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
     for (float y = -0.6f; y < 0.6f; y += 0.0173f)
         for (float x = -0.6f; x < 0.6f; x += 0.0173f) {
             const auto seed = std::uint32_t(std::lround(1000.0f * (x + 2.0f * y)));
-            ASSERT_EQ(map.visibility({{x, y, 0.0f}, up, 0.0f, 0}, ShadowFilter::Adaptive, seed,
-                                     onGround),
-                      map.visibility({{x, y, 0.0f}, up}, ShadowFilter::Adaptive, seed, unknown))
+            ASSERT_EQ(
+                map.visibility({{x, y, 0.0f}, up, 0.0f, 0}, ShadowFilter::Adaptive, seed, onGround),
+                map.visibility({{x, y, 0.0f}, up}, ShadowFilter::Adaptive, seed, unknown))
                 << x << " " << y;
         }
     EXPECT_LT(onGround, unknown / 2);
@@ -580,7 +580,7 @@ TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
         (unsigned long long)adaptive.stats.shadowMapSamples, (unsigned long long)penumbraLookups,
         100.0 * double(close) / double(full.image.rgbLinear.size()), shadowed);
     EXPECT_GE(double(close), 0.995 * double(full.image.rgbLinear.size()));
-    EXPECT_GT(shadowed, 500u);  // the sphere casts a visible shadow on the plane
+    EXPECT_GT(shadowed, 500u);     // the sphere casts a visible shadow on the plane
     EXPECT_GE(lookups, shadowed);  // every pixel the shadow darkens was sampled
 }
 
@@ -1074,8 +1074,8 @@ TEST(ShellCulling, EveryShellPassingAPixelTestIsInThePixelsBin) {
                 if (x > top.boundsMax.x || x + 1 < top.boundsMin.x || y > top.boundsMax.y ||
                     y + 1 < top.boundsMin.y)
                     ++besideBounds;
-                const auto bin = shells.tileShells(x / ScreenShells::kTilePixels,
-                                                   y / ScreenShells::kTilePixels);
+                const auto bin =
+                    shells.tileShells(x / ScreenShells::kTilePixels, y / ScreenShells::kTilePixels);
                 ASSERT_NE(std::find(bin.begin(), bin.end(), shell), bin.end())
                     << "pixel " << x << "," << y << " shell " << shell;
             }
