@@ -489,15 +489,48 @@ void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const
     }
 }
 
+/// marchInterleaved for rays with a wide visibility kernel (render/march_wide.h): a Marcher
+/// whose visibilityLane() is its state as a VisibilityLane, or null where the kernel does not
+/// apply. Those rays' samples are taken in SIMD lanes; the samples the wide filter does not take
+/// and the other rays, by marchInterleavedScalar. Precondition: kSimdLevel >= SimdLevel::Avx2.
+template <class Filter, class Marcher>
+void marchVisibilitiesWide(const Filter& filter, std::span<Marcher* const> rays) {
+    constexpr std::size_t kChunk = 64;
+    const WideColumns columns = filter.texels().wide();
+    for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
+        const std::size_t end = std::min(begin + kChunk, rays.size());
+        VisibilityLane* lanes[kChunk];
+        Marcher* laned[kChunk];
+        Marcher* scalar[kChunk];  // rays marchInterleavedScalar takes on
+        std::size_t laneCount = 0, scalarCount = 0;
+        for (std::size_t index = begin; index < end; ++index) {
+            if (VisibilityLane* lane = rays[index]->visibilityLane()) {
+                lanes[laneCount] = lane;
+                laned[laneCount++] = rays[index];
+            } else {
+                scalar[scalarCount++] = rays[index];
+            }
+        }
+        visibilitySteps(columns, lanes, int(laneCount));
+        for (std::size_t index = 0; index < laneCount; ++index)
+            if (laned[index]->needsSample()) scalar[scalarCount++] = laned[index];
+        marchInterleavedScalar(filter, std::span<Marcher* const>(scalar, scalarCount));
+    }
+}
+
 }  // namespace detail
 
 template <class Filter, class Marcher = detail::SphereTraceRay>
 void marchInterleaved(const Filter& filter, std::span<Marcher* const> rays) {
-    if constexpr (std::is_same_v<Filter, BasicTrilinearFilter<ColumnTexels>> &&
-                  std::is_same_v<Marcher, detail::SphereTraceRay>) {
+    if constexpr (std::is_same_v<Filter, BasicTrilinearFilter<ColumnTexels>>) {
         if (kSimdLevel >= SimdLevel::Avx2 && rays.size() > 1) {
-            detail::marchSphereTracesWide(filter, rays);
-            return;
+            if constexpr (std::is_same_v<Marcher, detail::SphereTraceRay>) {
+                detail::marchSphereTracesWide(filter, rays);
+                return;
+            } else if constexpr (requires(Marcher & ray) { ray.visibilityLane(); }) {
+                detail::marchVisibilitiesWide(filter, rays);
+                return;
+            }
         }
     }
     detail::marchInterleavedScalar(filter, rays);

@@ -19,12 +19,21 @@ void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUnifor
         sphereTraceOngoingStepsInLanes<Lanes8>(columns, uniforms, lanes, count);
 }
 
+void visibilitySteps(const WideColumns& columns, VisibilityLane* const* lanes, int count) {
+    if (kSimdLevel == SimdLevel::Avx512)
+        visibilitySteps16(columns, lanes, count);
+    else
+        visibilityStepsInLanes<Lanes8>(columns, lanes, count);
+}
+
 #else
 
 void sphereTraceOngoingSteps(const WideColumns&, const SphereTraceUniforms&,
                              SphereTraceLane* const* lanes, int count) {
     for (int i = 0; i < count; ++i) lanes[i]->distanceKnown = false;  // never called: no AVX2
 }
+
+void visibilitySteps(const WideColumns&, VisibilityLane* const*, int) {}  // never called
 
 #endif
 

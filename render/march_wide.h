@@ -75,4 +75,33 @@ void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUnifor
 void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                                SphereTraceLane* const* lanes, int count);
 
+/// A self-shadow ray toward a light through a flat shell (the renderer's straight visibility
+/// ray): samples from `start` along `direction`, a step of the distance sampled (at least 0.05
+/// texel) at a time, until one is nearer to the detail than blockingTexels (blocked), the budget
+/// is spent or the next point is at the tile's top, keeping the least distance / (travel x
+/// tanHalfAngle) seen. The state the ray keeps, in this form so the kernel reads and writes it in
+/// place.
+struct VisibilityLane {
+    float start[3];
+    float direction[3];    ///< unit, texel space, toward the light
+    float depthTexels;     ///< z of the tile's top
+    float tanHalfAngle;    ///< of the light's angular radius
+    float blockingTexels;  ///< a sample nearer to the detail than this blocks the light
+    float visibility;      ///< the least distance / (travel x tanHalfAngle) so far
+    float travel;          ///< of the point to sample next
+    int samplesLeft;
+    int samples;  ///< taken
+    bool blocked;
+    bool needsSample;
+};
+
+/// Takes the samples of each of `count` lanes (each needing one) eight or sixteen at a time, with
+/// the scalar operations in their order (no FMA), as the ray takes them one by one, until its
+/// march ends or its next point is one the wide filter does not take (that sample is left to the
+/// ray, whose needsSample stays set). Precondition: kSimdLevel >= SimdLevel::Avx2.
+void visibilitySteps(const WideColumns& columns, VisibilityLane* const* lanes, int count);
+
+/// visibilitySteps sixteen lanes at a time (AVX-512), which it calls where kSimdLevel is Avx512.
+void visibilitySteps16(const WideColumns& columns, VisibilityLane* const* lanes, int count);
+
 }  // namespace distile::detail

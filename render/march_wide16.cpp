@@ -15,7 +15,13 @@ void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUnif
     sphereTraceOngoingStepsInLanes<Lanes16>(columns, uniforms, lanes, count);
 }
 
+void visibilitySteps16(const WideColumns& columns, VisibilityLane* const* lanes, int count) {
+    visibilityStepsInLanes<Lanes16>(columns, lanes, count);
+}
+
 #else
+
+void visibilitySteps16(const WideColumns&, VisibilityLane* const*, int) {}  // never called
 
 void sphereTraceOngoingSteps16(const WideColumns&, const SphereTraceUniforms&,
                                SphereTraceLane* const* lanes, int count) {

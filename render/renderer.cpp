@@ -35,18 +35,15 @@ class LightVisibilityRay {
     /// a sample closer than half `epsilonTexels` to the detail blocks the light.
     void start(const glm::vec3& start, const glm::vec3& toLight, float depthTexels,
                float tanHalfAngle, int maxSamples, float epsilonTexels) {
-        start_ = start;
-        toLight_ = toLight;
-        depthTexels_ = depthTexels;
-        tanHalfAngle_ = tanHalfAngle;
-        samplesLeft_ = maxSamples;
-        blockingTexels_ = 0.5f * epsilonTexels;
-        visibility_ = 1.0f;
-        travel_ = 0.1f;
-        samples_ = 0;
-        blocked_ = toLight.z <= 0.0f;  // the light is below the base surface
+        begin(tanHalfAngle, maxSamples, epsilonTexels);
+        for (int axis = 0; axis < 3; ++axis) {
+            lane_.start[axis] = start[axis];
+            lane_.direction[axis] = toLight[axis];
+        }
+        lane_.depthTexels = depthTexels;
+        lane_.blocked = toLight.z <= 0.0f;  // the light is below the base surface
         curved_ = false;
-        needsSample_ = !blocked_ && nextSampleInside();
+        lane_.needsSample = !lane_.blocked && nextSampleInside();
     }
     /// start() for a hit in a curved shell: from world point `startWorld` (prism `prism`, near
     /// its point `guess`) toward the light along the world ray, its samples where that ray is in
@@ -54,59 +51,68 @@ class LightVisibilityRay {
     void startCurved(const ShellPrisms& shell, std::uint32_t prism, const PrismPoint& guess,
                      const glm::dvec3& startWorld, const glm::dvec3& toLightWorld,
                      float tanHalfAngle, int maxSamples, float epsilonTexels) {
-        tanHalfAngle_ = tanHalfAngle;
-        samplesLeft_ = maxSamples;
-        blockingTexels_ = 0.5f * epsilonTexels;
-        visibility_ = 1.0f;
-        travel_ = 0.1f;
-        samples_ = 0;
+        begin(tanHalfAngle, maxSamples, epsilonTexels);
         curved_ = true;
-        blocked_ = false;
-        needsSample_ = false;
+        lane_.blocked = false;
+        lane_.needsSample = false;
         if (!path_.start(shell, startWorld, toLightWorld, prism, guess)) return;  // above it
-        blocked_ = !(path_.directionTexels().z > 0.0);  // the light is below the base surface
-        needsSample_ = !blocked_ && samplesLeft_ > 0 && path_.advance(travel_);
+        lane_.blocked = !(path_.directionTexels().z > 0.0);  // the light is below the base surface
+        lane_.needsSample = !lane_.blocked && lane_.samplesLeft > 0 && path_.advance(lane_.travel);
     }
-    bool needsSample() const { return needsSample_; }
+    bool needsSample() const { return lane_.needsSample; }
     glm::vec3 samplePosition() const {
-        return curved_ ? path_.texelPosition() : start_ + toLight_ * travel_;
+        return curved_ ? path_.texelPosition()
+                       : straightStart() + straightDirection() * lane_.travel;
     }
     /// Takes the distance sampled at samplePosition(); false when no more samples are needed.
+    /// (The wide kernel, detail::visibilitySteps, takes the same steps lane by lane.)
     bool advance(float distance) {
-        ++samples_;
-        if (distance < blockingTexels_) {
-            blocked_ = true;
-            return needsSample_ = false;
+        ++lane_.samples;
+        if (distance < lane_.blockingTexels) {
+            lane_.blocked = true;
+            return lane_.needsSample = false;
         }
-        visibility_ = std::min(visibility_, distance / (travel_ * tanHalfAngle_));
+        lane_.visibility =
+            std::min(lane_.visibility, distance / (lane_.travel * lane_.tanHalfAngle));
         const float step = std::max(distance, 0.05f);
-        travel_ += step;
-        --samplesLeft_;
-        if (curved_) return needsSample_ = samplesLeft_ > 0 && path_.advance(step);
-        return needsSample_ = nextSampleInside();
+        lane_.travel += step;
+        --lane_.samplesLeft;
+        if (curved_) return lane_.needsSample = lane_.samplesLeft > 0 && path_.advance(step);
+        return lane_.needsSample = nextSampleInside();
     }
     /// Smoothstepped visibility, once needsSample() is false.
     float visibility() const {
-        if (blocked_) return 0.0f;
-        const float clamped = std::clamp(visibility_, 0.0f, 1.0f);
+        if (lane_.blocked) return 0.0f;
+        const float clamped = std::clamp(lane_.visibility, 0.0f, 1.0f);
         return clamped * clamped * (3.0f - 2.0f * clamped);
     }
-    std::uint64_t samples() const { return samples_; }
+    std::uint64_t samples() const { return std::uint64_t(lane_.samples); }
+    /// The ray's state for the wide kernel (marchInterleaved), or null for a curved ray, whose
+    /// samples follow the shell map.
+    detail::VisibilityLane* visibilityLane() { return curved_ ? nullptr : &lane_; }
 
   private:
+    /// What start() and startCurved() set alike.
+    void begin(float tanHalfAngle, int maxSamples, float epsilonTexels) {
+        lane_.tanHalfAngle = tanHalfAngle;
+        lane_.samplesLeft = maxSamples;
+        lane_.blockingTexels = 0.5f * epsilonTexels;
+        lane_.visibility = 1.0f;
+        lane_.travel = 0.1f;
+        lane_.samples = 0;
+    }
+    glm::vec3 straightStart() const { return {lane_.start[0], lane_.start[1], lane_.start[2]}; }
+    glm::vec3 straightDirection() const {
+        return {lane_.direction[0], lane_.direction[1], lane_.direction[2]};
+    }
     /// The next sample is within the budget and below the top of the tile (NaN: sampled, as a
     /// plain loop would).
     bool nextSampleInside() const {
-        return samplesLeft_ > 0 && !(samplePosition().z >= depthTexels_);
+        return lane_.samplesLeft > 0 && !(samplePosition().z >= lane_.depthTexels);
     }
 
-    glm::vec3 start_{0.0f}, toLight_{0.0f, 0.0f, 1.0f};
-    float depthTexels_ = 0.0f, tanHalfAngle_ = 1.0f, blockingTexels_ = 0.0f;
-    float visibility_ = 1.0f, travel_ = 0.1f;
-    int samplesLeft_ = 0;
-    std::uint64_t samples_ = 0;
-    bool blocked_ = false, needsSample_ = false;
-    bool curved_ = false;  ///< startCurved: the samples follow path_
+    detail::VisibilityLane lane_{};  ///< the state; start and direction for straight rays only
+    bool curved_ = false;            ///< startCurved: the samples follow path_
     ShellRayPath path_;
 };
 

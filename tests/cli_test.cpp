@@ -171,9 +171,10 @@ TEST_F(Cli, RenderIsTheSameOnEverySimdPath) {
     // DISTILE_SIMD=sse2 keeps to the SSE2 paths; where the processor has AVX2 the default takes
     // the wide entry, march and filter kernels (render/detail/entry_wide.h, render/march_wide.h),
     // and where it has AVX-512 the march's sixteen lanes, which DISTILE_SIMD=avx2 keeps to eight.
-    // Same operations per ray: the same floats. With shadows (self-shadow rays interleave too) and
-    // the AOVs' depth. Two scenes: the chain mail seen from above; and a low grating (empty space
-    // above it: the entry's jump to the highest top) seen at a grazing angle, with tiles repeated
+    // Same operations per ray: the same floats. With shadows (the self-shadow rays of flat shells
+    // are taken in lanes too, render/march_wide.h), the AOVs' depth and the self-shadow steps per
+    // pixel. Two scenes: the chain mail seen from above; and a low grating (empty space above it:
+    // the entry's jump to the highest top) seen at a grazing angle, with tiles repeated
     // thousands of times (the entry's uv wrapped in double precision), under a colour texture
     // (the entry's float uv: bilinear albedo there).
     writeText(path("above.json"),
@@ -203,7 +204,7 @@ TEST_F(Cli, RenderIsTheSameOnEverySimdPath) {
             ASSERT_EQ(result.status, 0) << result.err;
         }
         std::size_t hits = 0;
-        for (const std::string layer : {".exr", ".depth.exr"}) {
+        for (const std::string layer : {".exr", ".depth.exr", ".shadow_samples.png"}) {
             const Image widest = readImage(path(scene + "_default" + layer));
             for (const std::string simd : {"avx2", "sse2"}) {
                 const Image other = readImage(path(scene + "_" + simd + layer));

@@ -279,5 +279,132 @@ void sphereTraceOngoingStepsInLanes(const WideColumns& columns, const SphereTrac
         sphereTraceOngoingStepsOf<V, false>(columns, uniforms, lanes, count);
 }
 
+/// V::kWidth visibility rays (VisibilityLane) in flight, one per SIMD lane.
+template <class V>
+struct VisibilityGroup {
+    static constexpr int kWidth = V::kWidth;
+    alignas(64) float startX[kWidth]{}, startY[kWidth]{}, startZ[kWidth]{};
+    alignas(64) float directionX[kWidth]{}, directionY[kWidth]{}, directionZ[kWidth]{};
+    alignas(64) float depthTexels[kWidth]{}, tanHalfAngle[kWidth]{}, blockingTexels[kWidth]{};
+    alignas(64) float visibility[kWidth]{}, travel[kWidth]{};
+    alignas(64) int samplesLeft[kWidth]{}, samples[kWidth]{};
+    alignas(64) int idle[kWidth]{};  ///< -1: no ray in the lane
+    int laneOf[kWidth]{};            ///< which of the call's lanes each SIMD lane holds
+    int busy = 0;
+};
+
+/// The call's visibility rays, handed to the groups' lanes in order and back when they end.
+struct VisibilitySource {
+    VisibilityLane* const* lanes;
+    int count;
+    int next = 0;
+
+    /// The next ray into lane `slot` of `group`, or the lane idle when none is left.
+    template <class V>
+    void take(VisibilityGroup<V>& group, int slot) {
+        if (next == count) {
+            group.idle[slot] = -1;
+            return;
+        }
+        const VisibilityLane& lane = *lanes[next];
+        group.startX[slot] = lane.start[0];
+        group.startY[slot] = lane.start[1];
+        group.startZ[slot] = lane.start[2];
+        group.directionX[slot] = lane.direction[0];
+        group.directionY[slot] = lane.direction[1];
+        group.directionZ[slot] = lane.direction[2];
+        group.depthTexels[slot] = lane.depthTexels;
+        group.tanHalfAngle[slot] = lane.tanHalfAngle;
+        group.blockingTexels[slot] = lane.blockingTexels;
+        group.visibility[slot] = lane.visibility;
+        group.travel[slot] = lane.travel;
+        group.samplesLeft[slot] = lane.samplesLeft;
+        group.samples[slot] = lane.samples;
+        group.idle[slot] = 0;
+        group.laneOf[slot] = next++;
+        ++group.busy;
+    }
+
+    /// Lane `slot` of `group` back into its ray, which goes on (needsSample) only where its
+    /// sample was left to it.
+    template <class V>
+    void giveBack(VisibilityGroup<V>& group, int slot, bool blocked, bool sampleLeft) const {
+        VisibilityLane& lane = *lanes[group.laneOf[slot]];
+        lane.visibility = group.visibility[slot];
+        lane.travel = group.travel[slot];
+        lane.samplesLeft = group.samplesLeft[slot];
+        lane.samples = group.samples[slot];
+        lane.blocked = blocked;
+        lane.needsSample = sampleLeft;
+        --group.busy;
+    }
+};
+
+/// One sample of every busy lane of `group`, as the renderer's LightVisibilityRay::advance takes
+/// it; the lanes whose march ends (or whose point the wide filter does not take) are given back
+/// and refilled.
+template <class V>
+[[gnu::always_inline]] inline void visibilityRound(const WideColumns& columns,
+                                                   VisibilityGroup<V>& group,
+                                                   VisibilitySource& source) {
+    using F = typename V::F;
+    using I = typename V::I;
+    using M = typename V::M;
+    // samplePosition: start + direction x travel.
+    const F t = V::load(group.travel);
+    const F startZ = V::load(group.startZ), directionZ = V::load(group.directionZ);
+    const F x = V::add(V::load(group.startX), V::mul(V::load(group.directionX), t));
+    const F y = V::add(V::load(group.startY), V::mul(V::load(group.directionY), t));
+    const F z = V::add(startZ, V::mul(directionZ, t));
+    const M idleLanes = V::loadMask(group.idle);
+    M unknown = idleLanes;  // idle lanes read texel 0
+    const F d = trilinearColumnsLanes<V>(columns, x, y, z, unknown);
+    const M known = V::butNot(unknown, V::allLanes());
+    const M blocks = V::both(V::less(d, V::load(group.blockingTexels)), known);
+    const M advances = V::butNot(blocks, known);
+    // visibility = min(visibility, d / (travel x tanHalfAngle)); travel += max(d, 0.05).
+    const F visibility = V::load(group.visibility);
+    const F ratio = V::div(d, V::mul(t, V::load(group.tanHalfAngle)));
+    const F least = V::blend(visibility, ratio, V::less(ratio, visibility));
+    const F minStep = V::set1(0.05f);
+    const F travel = V::add(t, V::blend(d, minStep, V::less(d, minStep)));
+    const I samplesLeft = V::loadInt(group.samplesLeft);
+    const I left = V::sub(samplesLeft, V::set1(1));
+    // On while samples are left and the next point is below the top (NaN: on, as the scalar).
+    const M below = V::butNot(
+        V::greaterEqual(V::add(startZ, V::mul(directionZ, travel)), V::load(group.depthTexels)),
+        V::greater(left, V::set1(0)));
+    V::store(group.travel, V::blend(t, travel, advances));
+    V::store(group.visibility, V::blend(visibility, least, advances));
+    V::storeInt(group.samplesLeft, V::blend(samplesLeft, left, advances));
+    const I samples = V::loadInt(group.samples);
+    V::storeInt(group.samples, V::blend(samples, V::add(samples, V::set1(1)), known));
+    const M goesOn = V::both(advances, below);
+    const unsigned leaving = V::bits(V::butNot(V::either(goesOn, idleLanes), V::allLanes()));
+    if (leaving == 0) return;
+    const unsigned blocked = V::bits(blocks);
+    const unsigned sampleLeftToRay = V::bits(V::butNot(idleLanes, unknown));
+    for (unsigned rest = leaving; rest != 0; rest &= rest - 1) {
+        const int slot = __builtin_ctz(rest);
+        source.giveBack(group, slot, (blocked >> slot) & 1u, (sampleLeftToRay >> slot) & 1u);
+        source.take(group, slot);
+    }
+}
+
+/// visibilitySteps (render/march_wide.h) in lanes V: two groups sampled in turn, so that one's
+/// gathers wait on memory while the other's arithmetic runs.
+template <class V>
+void visibilityStepsInLanes(const WideColumns& columns, VisibilityLane* const* lanes, int count) {
+    VisibilitySource source{lanes, count};
+    VisibilityGroup<V> groups[2];
+    for (VisibilityGroup<V>& group : groups)
+        for (int slot = 0; slot < V::kWidth; ++slot) source.take(group, slot);
+    while (groups[0].busy + groups[1].busy > 0) {
+        if (groups[0].busy > 0) visibilityRound<V>(columns, groups[0], source);
+        if (groups[1].busy > 0) visibilityRound<V>(columns, groups[1], source);
+    }
+    V::leave();
+}
+
 }  // namespace
 }  // namespace distile::detail
