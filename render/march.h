@@ -452,6 +452,37 @@ void marchInterleavedScalar(const Filter& filter, std::span<Marcher* const> rays
     }
 }
 
+/// The wide marches' frame: `rays` in chunks of 64, each split into the rays laneOf(ray) gives a
+/// lane (a pointer to its state in a wide kernel's form; null: not for the kernel) and the rest;
+/// kernel(lanes, count) takes the lanes' samples; then continues(ray, lane) finishes what the
+/// kernel left to a laned ray and says whether it needs more samples, which
+/// marchInterleavedScalar takes, with the rest.
+template <class Filter, class Marcher, class LaneOf, class Kernel, class Continues>
+void marchInLanes(const Filter& filter, std::span<Marcher* const> rays, LaneOf&& laneOf,
+                  Kernel&& kernel, Continues&& continues) {
+    constexpr std::size_t kChunk = 64;
+    using Lane = std::remove_pointer_t<decltype(laneOf(rays[0]))>;
+    for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
+        const std::size_t end = std::min(begin + kChunk, rays.size());
+        Lane* lanes[kChunk];
+        Marcher* laned[kChunk];
+        Marcher* scalar[kChunk];  // rays marchInterleavedScalar takes on
+        std::size_t laneCount = 0, scalarCount = 0;
+        for (std::size_t index = begin; index < end; ++index) {
+            if (Lane* lane = laneOf(rays[index])) {
+                lanes[laneCount] = lane;
+                laned[laneCount++] = rays[index];
+            } else {
+                scalar[scalarCount++] = rays[index];
+            }
+        }
+        kernel(lanes, int(laneCount));
+        for (std::size_t index = 0; index < laneCount; ++index)
+            if (continues(laned[index], lanes[index])) scalar[scalarCount++] = laned[index];
+        marchInterleavedScalar(filter, std::span<Marcher* const>(scalar, scalarCount));
+    }
+}
+
 /// marchInterleaved for sphere traces over TileColumns' trilinear filter with the wide kernel
 /// (render/march_wide.h): the rays' steps that go on in SIMD lanes, the step that ends each march
 /// by the ray itself; the few rays that go on after it (a relaxed step taken back, a point the
@@ -459,34 +490,18 @@ void marchInterleavedScalar(const Filter& filter, std::span<Marcher* const> rays
 /// kSimdLevel >= SimdLevel::Avx2.
 template <class Filter>
 void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const> rays) {
-    constexpr std::size_t kChunk = 64;
     const SphereTraceUniforms uniforms = rays[0]->uniforms();
     const WideColumns columns = filter.texels().wide();
-    for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
-        const std::size_t end = std::min(begin + kChunk, rays.size());
-        SphereTraceLane* lanes[kChunk];
-        SphereTraceRay* laned[kChunk];
-        SphereTraceRay* scalar[kChunk];  // rays marchInterleavedScalar takes on
-        std::size_t laneCount = 0, scalarCount = 0;
-        for (std::size_t index = begin; index < end; ++index) {
-            SphereTraceRay* ray = rays[index];
-            if (ray->fitsLanes(uniforms)) {
-                lanes[laneCount] = &ray->lane();
-                laned[laneCount++] = ray;
-            } else {
-                scalar[scalarCount++] = ray;
-            }
-        }
-        sphereTraceOngoingSteps(columns, uniforms, lanes, int(laneCount));
-        for (std::size_t index = 0; index < laneCount; ++index) {
-            SphereTraceRay* ray = laned[index];
-            const float distance = lanes[index]->distanceKnown
-                                       ? lanes[index]->pendingDistance
-                                       : filter.distanceTexels(ray->samplePosition());
-            if (ray->advance(distance)) scalar[scalarCount++] = ray;
-        }
-        marchInterleavedScalar(filter, std::span<SphereTraceRay* const>(scalar, scalarCount));
-    }
+    marchInLanes(
+        filter, rays,
+        [&](SphereTraceRay* ray) { return ray->fitsLanes(uniforms) ? &ray->lane() : nullptr; },
+        [&](SphereTraceLane* const* lanes, int count) {
+            sphereTraceOngoingSteps(columns, uniforms, lanes, count);
+        },
+        [&](SphereTraceRay* ray, const SphereTraceLane* lane) {
+            return ray->advance(lane->distanceKnown ? lane->pendingDistance
+                                                    : filter.distanceTexels(ray->samplePosition()));
+        });
 }
 
 /// marchInterleaved for rays with a wide visibility kernel (render/march_wide.h): a Marcher
@@ -495,27 +510,11 @@ void marchSphereTracesWide(const Filter& filter, std::span<SphereTraceRay* const
 /// and the other rays, by marchInterleavedScalar. Precondition: kSimdLevel >= SimdLevel::Avx2.
 template <class Filter, class Marcher>
 void marchVisibilitiesWide(const Filter& filter, std::span<Marcher* const> rays) {
-    constexpr std::size_t kChunk = 64;
     const WideColumns columns = filter.texels().wide();
-    for (std::size_t begin = 0; begin < rays.size(); begin += kChunk) {
-        const std::size_t end = std::min(begin + kChunk, rays.size());
-        VisibilityLane* lanes[kChunk];
-        Marcher* laned[kChunk];
-        Marcher* scalar[kChunk];  // rays marchInterleavedScalar takes on
-        std::size_t laneCount = 0, scalarCount = 0;
-        for (std::size_t index = begin; index < end; ++index) {
-            if (VisibilityLane* lane = rays[index]->visibilityLane()) {
-                lanes[laneCount] = lane;
-                laned[laneCount++] = rays[index];
-            } else {
-                scalar[scalarCount++] = rays[index];
-            }
-        }
-        visibilitySteps(columns, lanes, int(laneCount));
-        for (std::size_t index = 0; index < laneCount; ++index)
-            if (laned[index]->needsSample()) scalar[scalarCount++] = laned[index];
-        marchInterleavedScalar(filter, std::span<Marcher* const>(scalar, scalarCount));
-    }
+    marchInLanes(
+        filter, rays, [](Marcher* ray) { return ray->visibilityLane(); },
+        [&](VisibilityLane* const* lanes, int count) { visibilitySteps(columns, lanes, count); },
+        [](Marcher* ray, const VisibilityLane*) { return ray->needsSample(); });
 }
 
 }  // namespace detail
