@@ -10,6 +10,19 @@
 namespace distile::detail {
 namespace {
 
+/// A ray's line (start and direction, three floats each) into lane `slot` of `group` (any group
+/// with startX ... directionZ arrays).
+template <class Group>
+[[gnu::always_inline]] inline void loadLine(Group& group, int slot, const float start[3],
+                                            const float direction[3]) {
+    group.startX[slot] = start[0];
+    group.startY[slot] = start[1];
+    group.startZ[slot] = start[2];
+    group.directionX[slot] = direction[0];
+    group.directionY[slot] = direction[1];
+    group.directionZ[slot] = direction[2];
+}
+
 /// V::kWidth rays in flight, one per SIMD lane, in memory between rounds. Zeroed, so idle lanes
 /// compute on plain numbers (no NaN or denormal garbage).
 template <class V>
@@ -57,12 +70,7 @@ struct LaneSource {
     template <class V>
     void load(LaneGroup<V>& group, int slot, int index) const {
         const SphereTraceLane& lane = *lanes[index];
-        group.startX[slot] = lane.start[0];
-        group.startY[slot] = lane.start[1];
-        group.startZ[slot] = lane.start[2];
-        group.directionX[slot] = lane.direction[0];
-        group.directionY[slot] = lane.direction[1];
-        group.directionZ[slot] = lane.direction[2];
+        loadLine(group, slot, lane.start, lane.direction);
         group.toFloorAtStart[slot] = lane.toFloorAtStart;
         group.travel[slot] = lane.travel;
         group.safeRadius[slot] = lane.safeRadius;
@@ -307,12 +315,7 @@ struct VisibilitySource {
             return;
         }
         const VisibilityLane& lane = *lanes[next];
-        group.startX[slot] = lane.start[0];
-        group.startY[slot] = lane.start[1];
-        group.startZ[slot] = lane.start[2];
-        group.directionX[slot] = lane.direction[0];
-        group.directionY[slot] = lane.direction[1];
-        group.directionZ[slot] = lane.direction[2];
+        loadLine(group, slot, lane.start, lane.direction);
         group.depthTexels[slot] = lane.depthTexels;
         group.tanHalfAngle[slot] = lane.tanHalfAngle;
         group.blockingTexels[slot] = lane.blockingTexels;
