@@ -351,10 +351,14 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     // A sample blocks where the stored depth is below the receiver's plane there (less a bias):
     // nowhere if no surface over the texels the samples may read (their centres are within one
     // texel of the level read of the disk) can be nearer than the plane's nearest point on it.
+    // The receiver's own flat slab lies behind the plane only where the plane is its surface's:
+    // not where the light grazes it (the slope is limited there, kMinFacing).
     const float readTexelWorld =
         levelFor(std::max(footprint, searchRadius / kTexelsPerFilterRadius)).texelWorld;
+    const std::uint32_t slabBehind =
+        facing >= kMinFacing ? receiver.object : ShadowReceiver::kNoObject;
     if (nothingNearerThan(centre, searchRadius + readTexelWorld,
-                          receiverDepth + slopeLength * searchRadius, receiver.object)) {
+                          receiverDepth + slopeLength * searchRadius, slabBehind)) {
         return 1.0f;
     }
     // A disk inside one texel: a hard shadow, one sample.
