@@ -4,6 +4,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
+#include <glm/vec4.hpp>
 #include <limits>
 #include <string>
 #include <vector>
@@ -169,14 +170,9 @@ float ShadowMap::boundDepths() {
         }
         const float bottomShift = std::min(depth[3] - depth[0], 0.0f);
         // Tiles whose square touches the bounds, one tile of margin for rounding.
-        const int x0 = std::max(int(std::floor((low.x - originPlane_.x) / tileWorld)) - 1, 0);
-        const int y0 = std::max(int(std::floor((low.y - originPlane_.y) / tileWorld)) - 1, 0);
-        const int x1 =
-            std::min(int(std::floor((high.x - originPlane_.x) / tileWorld)) + 1, finest.tilesX - 1);
-        const int y1 =
-            std::min(int(std::floor((high.y - originPlane_.y) / tileWorld)) + 1, finest.tilesY - 1);
-        for (int y = y0; y <= y1; ++y)
-            for (int x = x0; x <= x1; ++x) {
+        const glm::ivec4 tiles = finestTiles(low, high, 1);
+        for (int y = tiles.y; y <= tiles.w; ++y)
+            for (int x = tiles.x; x <= tiles.z; ++x) {
                 float least = nearestCorner;
                 if (planar) {
                     // The plane's least value over the square: at the corner its slopes point away
@@ -285,26 +281,31 @@ float ShadowMap::lookup(const Level& level, const glm::vec2& planeWorld) const {
     return depthAt(level, int(x), int(y));
 }
 
-bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, float depth,
-                                  std::uint32_t receiverObject) const {
+glm::ivec4 ShadowMap::finestTiles(const glm::vec2& low, const glm::vec2& high,
+                                  int marginTiles) const {
     const Level& finest = levels_[0];
     const float tileWorld = finest.texelWorld * float(kTileTexels);
-    const glm::vec2 low = (centre - reachWorld - originPlane_) / tileWorld;
-    const glm::vec2 high = (centre + reachWorld - originPlane_) / tileWorld;
-    // Outside the map every lookup reads +infinity, no blocker.
-    const int x0 = std::max(int(std::floor(low.x)), 0);
-    const int y0 = std::max(int(std::floor(low.y)), 0);
-    const int x1 = std::min(int(std::floor(high.x)), finest.tilesX - 1);
-    const int y1 = std::min(int(std::floor(high.y)), finest.tilesY - 1);
-    for (int y = y0; y <= y1; ++y)
-        for (int x = x0; x <= x1; ++x) {
+    const glm::vec2 first = (low - originPlane_) / tileWorld;
+    const glm::vec2 last = (high - originPlane_) / tileWorld;
+    return {std::max(int(std::floor(first.x)) - marginTiles, 0),
+            std::max(int(std::floor(first.y)) - marginTiles, 0),
+            std::min(int(std::floor(last.x)) + marginTiles, finest.tilesX - 1),
+            std::min(int(std::floor(last.y)) + marginTiles, finest.tilesY - 1)};
+}
+
+bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, float depth,
+                                  std::uint32_t receiverObject) const {
+    // Outside the map every lookup reads +infinity, no blocker: only the tiles inside count.
+    const glm::ivec4 tiles = finestTiles(centre - reachWorld, centre + reachWorld, 0);
+    for (int y = tiles.y; y <= tiles.w; ++y)
+        for (int x = tiles.x; x <= tiles.z; ++x) {
             const CasterBounds& tile =
-                casterBounds_[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
-            // The receiver's own flat slab lies behind its plane: only other slabs count.
-            const bool othersOnly =
-                tile.flatObject == ShadowReceiver::kNoObject || tile.flatObject == receiverObject;
-            if (!(std::min(tile.others, othersOnly ? tile.others : tile.flat) >= depth))
-                return false;
+                casterBounds_[std::size_t(x) + std::size_t(levels_[0].tilesX) * std::size_t(y)];
+            // The receiver's own flat slab lies behind its plane: only other slabs count (the
+            // flat bound is +infinity where no slab is).
+            const float bound =
+                tile.flatObject == receiverObject ? tile.others : std::min(tile.others, tile.flat);
+            if (!(bound >= depth)) return false;
         }
     return true;
 }
@@ -353,11 +354,11 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     // texel of the level read of the disk) can be nearer than the plane's nearest point on it.
     // The receiver's own flat slab lies behind the plane only where the plane is its surface's:
     // not where the light grazes it (the slope is limited there, kMinFacing).
-    const float readTexelWorld =
-        levelFor(std::max(footprint, searchRadius / kTexelsPerFilterRadius)).texelWorld;
+    // The ring's level is the coarsest any sample reads (the disk's radius is at most the ring's).
+    const Level& ringLevel = levelFor(std::max(footprint, searchRadius / kTexelsPerFilterRadius));
     const std::uint32_t slabBehind =
         facing >= kMinFacing ? receiver.object : ShadowReceiver::kNoObject;
-    if (nothingNearerThan(centre, searchRadius + readTexelWorld,
+    if (nothingNearerThan(centre, searchRadius + ringLevel.texelWorld,
                           receiverDepth + slopeLength * searchRadius, slabBehind)) {
         return 1.0f;
     }
@@ -370,7 +371,6 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     const std::uint32_t pixelSeed = mixBits(seed);
     const float rotation = kTwoPi * unitFloat(mixBits(pixelSeed ^ 0x68bc21ebU));
     // The outer ring: penumbra test and blocker search in one.
-    const Level& ringLevel = levelFor(std::max(footprint, searchRadius / kTexelsPerFilterRadius));
     int blocked = 0;
     float blockerDepthSum = 0.0f;
     for (int angular = 0; angular < kStrata; ++angular) {

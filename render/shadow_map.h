@@ -22,6 +22,7 @@
 #include <cstdint>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -165,6 +166,9 @@ class ShadowMap {
     /// Fills casterBounds_ and returns the smallest depth of the finest level, from only the
     /// tiles that may hold it.
     float boundDepths();
+    /// The finest level's tiles (first x, first y, last x, last y) whose squares touch the
+    /// light-plane box [low, high], grown by `marginTiles`, clipped to the level.
+    glm::ivec4 finestTiles(const glm::vec2& low, const glm::vec2& high, int marginTiles) const;
     /// Whether no sample of a lookup can find a blocker: every texel it may read, those with
     /// centres within `reachWorld` of light-plane point `centre`, lies where the depth bounds of
     /// the shells other than the receiver's own flat slab are at least `depth`.

@@ -444,7 +444,9 @@ TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
                     litMap.visibility({{x, y, 0.0f}, up}, ShadowFilter::Adaptive, seed, unknown))
                     << direction.x << ": " << x << " " << y;
             }
-        if (direction.z == -1.0f) EXPECT_LT(onGround, unknown / 2);
+        if (direction.z == -1.0f) {
+            EXPECT_LT(onGround, unknown / 2);
+        }
     }
 }
 
