@@ -1,10 +1,13 @@
 // The `distile` command. Thin: parses the command line, fills the libraries' option structs,
 // calls them, reports. Errors become one line on stderr and a non-zero exit status.
+#include <cstdio>
+#include <cstdlib>
+
 #include "cli/app.h"
 #include "cli/commands.h"
 
 int main(int argc, char** argv) {
-    return distile::cli::runCommandLine(argc, argv, [argv](CLI::App& app) {
+    const int status = distile::cli::runCommandLine(argc, argv, [argv](CLI::App& app) {
         distile::cli::addBakeCommand(app);
         distile::cli::addRenderCommand(app);
         distile::cli::addCheckCommand(app);
@@ -12,4 +15,13 @@ int main(int argc, char** argv) {
         distile::cli::addViewCommands(app);
         distile::cli::addBenchLauncher(app, argv);
     });
+#ifdef DISTILE_SANITIZE
+    return status;  // the leak check runs at a normal exit
+#else
+    // Every command has written, closed and renamed its files and freed what it held by now; what
+    // a normal exit would still do is join idle worker threads and run the static destructors of
+    // OpenImageIO's ~260 libraries: 15-30 ms after `distile render` wrote its image, for nothing.
+    std::fflush(nullptr);
+    std::_Exit(status);
+#endif
 }

@@ -40,14 +40,23 @@ TriangleBvh::TriangleBvh(std::vector<glm::vec3> corners) : corners_(std::move(co
     order_.resize(count);
     for (std::uint32_t i = 0; i < count; ++i) order_[i] = i;
     if (count > 0) {
-        std::vector<glm::vec3> centroids(count);
-        for (std::uint32_t i = 0; i < count; ++i) centroids[i] = centroid(corners_, i);
+        std::vector<TriangleBox> boxes(count);
+        for (std::uint32_t i = 0; i < count; ++i) {
+            TriangleBox& box = boxes[i];
+            box.low = glm::vec3(std::numeric_limits<float>::max());
+            box.high = glm::vec3(-std::numeric_limits<float>::max());
+            for (int corner = 0; corner < 3; ++corner) {
+                box.low = glm::min(box.low, corners_[3 * i + corner]);
+                box.high = glm::max(box.high, corners_[3 * i + corner]);
+            }
+            box.centroid = centroid(corners_, i);
+        }
         nodes_.reserve(2 * count);
-        build(centroids, 0, count, 0);
+        build(boxes, 0, count, 0);
     }
 }
 
-std::uint32_t TriangleBvh::build(const std::vector<glm::vec3>& centroids, std::uint32_t first,
+std::uint32_t TriangleBvh::build(const std::vector<TriangleBox>& boxes, std::uint32_t first,
                                  std::uint32_t count, int depth) {
     const auto nodeIndex = std::uint32_t(nodes_.size());
     nodes_.push_back({});
@@ -56,13 +65,11 @@ std::uint32_t TriangleBvh::build(const std::vector<glm::vec3>& centroids, std::u
     glm::vec3 centroidMin = boundsMin;
     glm::vec3 centroidMax = boundsMax;
     for (std::uint32_t i = first; i < first + count; ++i) {
-        for (int corner = 0; corner < 3; ++corner) {
-            boundsMin = glm::min(boundsMin, corners_[3 * order_[i] + corner]);
-            boundsMax = glm::max(boundsMax, corners_[3 * order_[i] + corner]);
-        }
-        const glm::vec3 c = centroids[order_[i]];
-        centroidMin = glm::min(centroidMin, c);
-        centroidMax = glm::max(centroidMax, c);
+        const TriangleBox& box = boxes[order_[i]];
+        boundsMin = glm::min(boundsMin, box.low);
+        boundsMax = glm::max(boundsMax, box.high);
+        centroidMin = glm::min(centroidMin, box.centroid);
+        centroidMax = glm::max(centroidMax, box.centroid);
     }
     nodes_[nodeIndex].boundsMin = boundsMin;
     nodes_[nodeIndex].boundsMax = boundsMax;
@@ -89,7 +96,7 @@ std::uint32_t TriangleBvh::build(const std::vector<glm::vec3>& centroids, std::u
         return double(size.x) * size.y + double(size.y) * size.z + double(size.z) * size.x;
     };
     const auto binOf = [&](std::uint32_t triangle, int axis) {
-        const float position = (centroids[triangle][axis] - centroidMin[axis]) / extent[axis];
+        const float position = (boxes[triangle].centroid[axis] - centroidMin[axis]) / extent[axis];
         return std::clamp(int(position * float(kBins)), 0, kBins - 1);
     };
     double bestCost = std::numeric_limits<double>::infinity();
@@ -100,10 +107,8 @@ std::uint32_t TriangleBvh::build(const std::vector<glm::vec3>& centroids, std::u
         for (std::uint32_t i = first; i < first + count; ++i) {
             Bin& bin = bins[binOf(order_[i], axis)];
             ++bin.count;
-            for (int corner = 0; corner < 3; ++corner) {
-                bin.boundsMin = glm::min(bin.boundsMin, corners_[3 * order_[i] + corner]);
-                bin.boundsMax = glm::max(bin.boundsMax, corners_[3 * order_[i] + corner]);
-            }
+            bin.boundsMin = glm::min(bin.boundsMin, boxes[order_[i]].low);
+            bin.boundsMax = glm::max(bin.boundsMax, boxes[order_[i]].high);
         }
         // Costs of splitting after bin k: the left side's from a sweep up, the right's down.
         double leftCost[kBins];
@@ -142,11 +147,11 @@ std::uint32_t TriangleBvh::build(const std::vector<glm::vec3>& centroids, std::u
             extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
         std::nth_element(order_.begin() + first, order_.begin() + first + half,
                          order_.begin() + first + count, [&](std::uint32_t a, std::uint32_t b) {
-                             return centroids[a][axis] < centroids[b][axis];
+                             return boxes[a].centroid[axis] < boxes[b].centroid[axis];
                          });
     }
-    build(centroids, first, half, depth + 1);
-    const std::uint32_t right = build(centroids, first + half, count - half, depth + 1);
+    build(boxes, first, half, depth + 1);
+    const std::uint32_t right = build(boxes, first + half, count - half, depth + 1);
     nodes_[nodeIndex].first = right;
     nodes_[nodeIndex].count = 0;
     return nodeIndex;

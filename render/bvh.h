@@ -81,9 +81,13 @@ class TriangleBvh {
         std::uint32_t first = 0;  ///< leaf: first entry in order_; inner: right child index
         std::uint32_t count = 0;  ///< leaf: triangle count; inner: 0 (left child is next node)
     };
-    /// The node over order_[first, first + count), split at the median of `centroids` (per
-    /// triangle) along their longest extent.
-    std::uint32_t build(const std::vector<glm::vec3>& centroids, std::uint32_t first,
+    /// A triangle's bounds (the min and max of its corners, in corner order) and centroid.
+    struct TriangleBox {
+        glm::vec3 low, high, centroid;
+    };
+    /// The node over order_[first, first + count) and its subtree (`boxes` per triangle), split
+    /// by the surface area heuristic.
+    std::uint32_t build(const std::vector<TriangleBox>& boxes, std::uint32_t first,
                         std::uint32_t count, int depth);
 
     std::vector<glm::vec3> corners_;

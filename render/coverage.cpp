@@ -310,42 +310,53 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     std::stable_sort(visible.begin(), visible.end(), [&](std::uint32_t a, std::uint32_t b) {
         return bounds_[a].zMinWorld < bounds_[b].zMinWorld;
     });
-    std::vector<std::uint32_t> tileOfEntry;
-    std::vector<std::uint32_t> shellOfEntry;
-    std::vector<bool> coversOfEntry;
-    for (const std::uint32_t shell : visible) {
-        const ScreenTriangle& top = bounds_[shell].top;
-        // Every tile holding a pixel whose square, grown by the margin, meets the bounds.
-        const glm::dvec2 low = (top.boundsMin - top.marginPixels) / double(kTilePixels);
-        const glm::dvec2 high = (top.boundsMax + top.marginPixels) / double(kTilePixels);
-        const int tileX0 = std::clamp(int(std::floor(low.x)), 0, tilesX_ - 1);
-        const int tileY0 = std::clamp(int(std::floor(low.y)), 0, tilesY_ - 1);
-        const int tileX1 = std::clamp(int(std::floor(high.x)), 0, tilesX_ - 1);
-        const int tileY1 = std::clamp(int(std::floor(high.y)), 0, tilesY_ - 1);
-        for (int tileY = tileY0; tileY <= tileY1; ++tileY) {
-            for (int tileX = tileX0; tileX <= tileX1; ++tileX) {
-                const double x0 = tileX * kTilePixels;
-                const double y0 = tileY * kTilePixels;
-                const double x1 = std::min(x0 + kTilePixels, double(projection.width()));
-                const double y1 = std::min(y0 + kTilePixels, double(projection.height()));
-                if (!triangleRectOverlapConservative(top, x0, y0, x1, y1)) continue;
-                tileOfEntry.push_back(std::uint32_t(tileY * tilesX_ + tileX));
-                shellOfEntry.push_back(shell);
-                coversOfEntry.push_back(triangleCoversRect(top, x0, y0, x1, y1));
+    // The (tile, shell) entries of consecutive runs of `visible` in parallel, each run's in
+    // order; then the runs in order.
+    struct Entry {
+        std::uint32_t tile, shell;
+        bool covers;
+    };
+    constexpr std::size_t kRunShells = 1024;
+    std::vector<std::vector<Entry>> runs((visible.size() + kRunShells - 1) / kRunShells);
+    tbb::parallel_for(std::size_t(0), runs.size(), [&](std::size_t run) {
+        const std::size_t end = std::min(visible.size(), (run + 1) * kRunShells);
+        for (std::size_t index = run * kRunShells; index < end; ++index) {
+            const std::uint32_t shell = visible[index];
+            const ScreenTriangle& top = bounds_[shell].top;
+            // Every tile holding a pixel whose square, grown by the margin, meets the bounds.
+            const glm::dvec2 low = (top.boundsMin - top.marginPixels) / double(kTilePixels);
+            const glm::dvec2 high = (top.boundsMax + top.marginPixels) / double(kTilePixels);
+            const int tileX0 = std::clamp(int(std::floor(low.x)), 0, tilesX_ - 1);
+            const int tileY0 = std::clamp(int(std::floor(low.y)), 0, tilesY_ - 1);
+            const int tileX1 = std::clamp(int(std::floor(high.x)), 0, tilesX_ - 1);
+            const int tileY1 = std::clamp(int(std::floor(high.y)), 0, tilesY_ - 1);
+            for (int tileY = tileY0; tileY <= tileY1; ++tileY) {
+                for (int tileX = tileX0; tileX <= tileX1; ++tileX) {
+                    const double x0 = tileX * kTilePixels;
+                    const double y0 = tileY * kTilePixels;
+                    const double x1 = std::min(x0 + kTilePixels, double(projection.width()));
+                    const double y1 = std::min(y0 + kTilePixels, double(projection.height()));
+                    if (!triangleRectOverlapConservative(top, x0, y0, x1, y1)) continue;
+                    runs[run].push_back({std::uint32_t(tileY * tilesX_ + tileX), shell,
+                                         triangleCoversRect(top, x0, y0, x1, y1)});
+                }
             }
         }
-    }
+    });
     // Counting sort by tile, stable: each bin keeps the nearest-first order.
     tileStart_.assign(std::size_t(tilesX_) * tilesY_ + 1, 0);
-    for (const std::uint32_t tile : tileOfEntry) ++tileStart_[tile + 1];
+    for (const std::vector<Entry>& run : runs)
+        for (const Entry& entry : run) ++tileStart_[entry.tile + 1];
     std::partial_sum(tileStart_.begin(), tileStart_.end(), tileStart_.begin());
-    shellsByTile_.resize(shellOfEntry.size());
-    coversTile_.resize(shellOfEntry.size());
+    shellsByTile_.resize(tileStart_.back());
+    coversTile_.resize(tileStart_.back());
     std::vector<std::uint32_t> fill(tileStart_.begin(), tileStart_.end() - 1);
-    for (std::size_t i = 0; i < shellOfEntry.size(); ++i) {
-        const std::uint32_t entry = fill[tileOfEntry[i]]++;
-        shellsByTile_[entry] = shellOfEntry[i];
-        coversTile_[entry] = coversOfEntry[i];
+    for (const std::vector<Entry>& run : runs) {
+        for (const Entry& entry : run) {
+            const std::uint32_t at = fill[entry.tile]++;
+            shellsByTile_[at] = entry.shell;
+            coversTile_[at] = entry.covers;
+        }
     }
 }
 

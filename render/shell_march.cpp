@@ -1,5 +1,8 @@
 #include "render/shell_march.h"
 
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
 #include <algorithm>
 #include <numeric>
 #include <tuple>
@@ -53,7 +56,18 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
                          double depthWorld) {
     ShellMesh shell;
     const std::size_t count = mesh.triangles.size();
-    shell.prisms.reserve(count);
+    shell.prisms.resize(count);
+    tbb::parallel_for(std::size_t(0), count, [&](std::size_t t) {
+        glm::vec3 positions[3], normals[3];
+        glm::vec2 uvs[3];
+        for (int corner = 0; corner < 3; ++corner) {
+            positions[corner] = mesh.positions[mesh.triangles[t][corner]];
+            normals[corner] = mesh.normals[mesh.triangles[t][corner]];
+            uvs[corner] = mesh.uvs[mesh.triangles[t][corner]];
+        }
+        shell.prisms[t] = ShellPrism::make(positions, normals, uvs, uvScale, tileSize.width,
+                                           tileSize.height, tileSize.depth, depthWorld);
+    });
     shell.neighbours.assign(
         count, {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour});
     shell.neighbourCorners.assign(count, {0, 0, 0});
@@ -65,56 +79,49 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
     };
     std::vector<std::uint32_t> byPosition(mesh.positions.size());
     std::iota(byPosition.begin(), byPosition.end(), 0u);
-    std::sort(byPosition.begin(), byPosition.end(), positionLess);
+    // Unstable, but equal positions get the same number whatever their order.
+    tbb::parallel_sort(byPosition.begin(), byPosition.end(), positionLess);
     std::vector<std::uint32_t> surfaceVertex(mesh.positions.size());
     std::uint32_t surfaceVertices = 0;
     for (std::size_t i = 0; i < byPosition.size(); ++i) {
         if (i > 0 && positionLess(byPosition[i - 1], byPosition[i])) ++surfaceVertices;
         surfaceVertex[byPosition[i]] = surfaceVertices;
     }
-    // Directed edges (from, to): the side opposite corner c of triangle t is 3 t + c.
+    // Directed edges (from, to), grouped by their undirected edge {lo, hi}, the edges from lo
+    // first: the side opposite corner c of triangle t is 3 t + c.
     struct DirectedEdge {
-        std::uint32_t from, to, side;
+        std::uint32_t lo, hi, from, side;
         bool operator<(const DirectedEdge& other) const {
-            return std::tie(from, to, side) < std::tie(other.from, other.to, other.side);
+            return std::tie(lo, hi, from, side) <
+                   std::tie(other.lo, other.hi, other.from, other.side);
         }
     };
-    std::vector<DirectedEdge> edges;
-    edges.reserve(3 * count);
+    std::vector<DirectedEdge> edges(3 * count);
     for (std::uint32_t t = 0; t < count; ++t) {
         const glm::uvec3 corners = mesh.triangles[t];
-        glm::vec3 positions[3], normals[3];
-        glm::vec2 uvs[3];
-        for (int corner = 0; corner < 3; ++corner) {
-            positions[corner] = mesh.positions[corners[corner]];
-            normals[corner] = mesh.normals[corners[corner]];
-            uvs[corner] = mesh.uvs[corners[corner]];
-        }
-        shell.prisms.push_back(ShellPrism::make(positions, normals, uvs, uvScale, tileSize.width,
-                                                tileSize.height, tileSize.depth, depthWorld));
-        for (int corner = 0; corner < 3; ++corner) {
-            edges.push_back({surfaceVertex[corners[(corner + 1) % 3]],
-                             surfaceVertex[corners[(corner + 2) % 3]],
-                             t * 3 + std::uint32_t(corner)});
+        for (std::uint32_t corner = 0; corner < 3; ++corner) {
+            const std::uint32_t from = surfaceVertex[corners[(corner + 1) % 3]];
+            const std::uint32_t to = surfaceVertex[corners[(corner + 2) % 3]];
+            edges[3 * t + corner] = {std::min(from, to), std::max(from, to), from, 3 * t + corner};
         }
     }
-    // An edge used once each way joins its two triangles; other edges join nothing.
-    std::sort(edges.begin(), edges.end());
-    const auto usedOnce = [&](std::size_t i) {
-        return (i == 0 || edges[i - 1].from != edges[i].from || edges[i - 1].to != edges[i].to) &&
-               (i + 1 == edges.size() || edges[i + 1].from != edges[i].from ||
-                edges[i + 1].to != edges[i].to);
+    // Sides are unique, so the parallel sort's order is the one sorted order.
+    tbb::parallel_sort(edges.begin(), edges.end());
+    // An edge used once each way (a group of two, one from each end) joins its two triangles;
+    // other edges join nothing, nor does a side whose ends are one vertex.
+    const auto join = [&](const DirectedEdge& edge, const DirectedEdge& across) {
+        shell.neighbours[edge.side / 3][edge.side % 3] = across.side / 3;
+        shell.neighbourCorners[edge.side / 3][edge.side % 3] = std::uint8_t(across.side % 3);
     };
-    for (std::size_t i = 0; i < edges.size(); ++i) {
-        if (!usedOnce(i)) continue;
-        const auto reversed = std::lower_bound(edges.begin(), edges.end(),
-                                               DirectedEdge{edges[i].to, edges[i].from, 0});
-        if (reversed == edges.end() || reversed->from != edges[i].to ||
-            reversed->to != edges[i].from || !usedOnce(std::size_t(reversed - edges.begin())))
-            continue;
-        const std::uint32_t side = edges[i].side, other = reversed->side;
-        shell.neighbours[side / 3][side % 3] = other / 3;
-        shell.neighbourCorners[side / 3][side % 3] = std::uint8_t(other % 3);
+    for (std::size_t first = 0, next = 0; first < edges.size(); first = next) {
+        for (next = first + 1; next < edges.size() && edges[next].lo == edges[first].lo &&
+                               edges[next].hi == edges[first].hi;
+             ++next) {
+        }
+        if (next - first == 2 && edges[first].from != edges[first + 1].from) {
+            join(edges[first], edges[first + 1]);
+            join(edges[first + 1], edges[first]);
+        }
     }
     return shell;
 }

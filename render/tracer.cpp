@@ -1,6 +1,8 @@
 #include "render/tracer.h"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_invoke.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
@@ -125,7 +127,11 @@ glm::vec3 ShellEntry::gradientToWorld(const glm::vec3& gradient) const {
 
 SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     : scene_(scene), options_(options) {
+    std::size_t triangleCount = 0;
+    for (const SceneObject& object : scene.objects) triangleCount += object.mesh.triangles.size();
+    triangles_.reserve(triangleCount);
     std::vector<glm::vec3> corners;
+    corners.reserve(3 * triangleCount);
     for (std::uint32_t objectIndex = 0; objectIndex < scene.objects.size(); ++objectIndex) {
         const SceneObject& object = scene.objects[objectIndex];
         const BaseMesh& mesh = object.mesh;
@@ -667,23 +673,36 @@ void SceneTracer::buildShellMap() {
         }
         const ShellMesh shell =
             buildShellMesh(mesh, object.material.uvScale, tile->size(), object.material.depthWorld);
-        double foldWorld = std::numeric_limits<double>::infinity();
-        std::size_t foldedTriangles = 0;
-        for (std::uint32_t t = 0; t < shellCount; ++t) {
-            const ShellPrism& prism = shell.prisms[t];
-            prisms_[firstShell + t] = prism;
-            for (int side = 0; side < 3; ++side) {
-                const std::uint32_t neighbour = shell.neighbours[t][side];
-                if (neighbour == ShellPrisms::kNoNeighbour) continue;
-                neighbours_[firstShell + t][side] = firstShell + neighbour;
-                neighbourCorners_[firstShell + t][side] = shell.neighbourCorners[t][side];
-            }
-            if (!prism.straight()) {
-                const double fold = prism.foldDepthWorld();
-                foldWorld = std::min(foldWorld, fold);
-                if (fold <= object.material.depthWorld) ++foldedTriangles;
-            }
-        }
+        // Per triangle in parallel: the least fold depth and the count of folded triangles are
+        // exact whatever the order they are combined in.
+        struct Folds {
+            double leastWorld = std::numeric_limits<double>::infinity();
+            std::size_t triangles = 0;
+        };
+        const Folds folds = tbb::parallel_reduce(
+            tbb::blocked_range<std::uint32_t>(0, shellCount), Folds{},
+            [&](const tbb::blocked_range<std::uint32_t>& range, Folds found) {
+                for (std::uint32_t t = range.begin(); t != range.end(); ++t) {
+                    const ShellPrism& prism = shell.prisms[t];
+                    prisms_[firstShell + t] = prism;
+                    for (int side = 0; side < 3; ++side) {
+                        const std::uint32_t neighbour = shell.neighbours[t][side];
+                        if (neighbour == ShellPrisms::kNoNeighbour) continue;
+                        neighbours_[firstShell + t][side] = firstShell + neighbour;
+                        neighbourCorners_[firstShell + t][side] = shell.neighbourCorners[t][side];
+                    }
+                    if (prism.straight()) continue;
+                    const double fold = prism.foldDepthWorld();
+                    found.leastWorld = std::min(found.leastWorld, fold);
+                    if (fold <= object.material.depthWorld) ++found.triangles;
+                }
+                return found;
+            },
+            [](const Folds& a, const Folds& b) {
+                return Folds{std::min(a.leastWorld, b.leastWorld), a.triangles + b.triangles};
+            });
+        const double foldWorld = folds.leastWorld;
+        const std::size_t foldedTriangles = folds.triangles;
         if (foldedTriangles > 0) {
             char text[320];
             std::snprintf(text, sizeof text,

@@ -148,6 +148,34 @@ TEST(ShellMap, JacobianIsTheMapsDerivative) {
     EXPECT_NEAR(glm::dot(y, jacobian.column[2]), v.z, 1e-12);
 }
 
+TEST(ShellMesh, JoinsTrianglesAcrossEdgesUsedOnceEachWayOnly) {
+    // The square 0 1 2 3 as triangles 0 1 2 and 0 2 4, vertex 4 a uv seam's copy of 3; a sliver
+    // 1 5 2 with 5 a copy of 1 (its side 1-5 has both ends at one position, and edge 1-2 is then
+    // used three times); a triangle 6 0 1 that runs along edge 0-1 the same way as triangle 0.
+    BaseMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0},    {0, 1, 0},
+                      {0, 1, 0}, {1, 0, 0}, {0.5f, -1, 0}};
+    mesh.uvs = {{0, 0}, {1, 0}, {1, 1}, {0, 1}, {0.5f, 1}, {0.5f, 0}, {0.5f, 0.5f}};
+    mesh.triangles = {{0, 1, 2}, {0, 2, 4}, {1, 5, 2}, {6, 0, 1}};
+    computeTangentFrames(mesh);
+    const ShellMesh shell = buildShellMesh(mesh, {1.0f, 1.0f}, {32, 32, 16}, 0.05);
+    const std::uint32_t none = ShellPrisms::kNoNeighbour;
+    // Edge 0-2, used once each way: triangle 0's side opposite its corner 1 is triangle 1's
+    // opposite its corner 2, through the seam.
+    EXPECT_EQ(shell.neighbours[0][1], 1u);
+    EXPECT_EQ(shell.neighbourCorners[0][1], 2);
+    EXPECT_EQ(shell.neighbours[1][2], 0u);
+    EXPECT_EQ(shell.neighbourCorners[1][2], 1);
+    EXPECT_EQ(shell.neighbours[0][0], none);  // edge 1-2: three sides
+    EXPECT_EQ(shell.neighbours[2][0], none);
+    EXPECT_EQ(shell.neighbours[2][1], none);
+    EXPECT_EQ(shell.neighbours[0][2], none);  // edge 0-1: twice the same way
+    EXPECT_EQ(shell.neighbours[3][0], none);
+    EXPECT_EQ(shell.neighbours[2][2], none);  // the sliver's side of no length
+    EXPECT_EQ(shell.neighbours[1][0], none);  // open borders
+    EXPECT_EQ(shell.neighbours[1][1], none);
+}
+
 TEST(ShellMap, FoldsAtTheSphereCentreAndNeverWhenFlat) {
     // Corners on a sphere of radius 2 with radial normals: every P_i - h N_i reaches the centre
     // at h = 2, where the prism collapses to a point.
