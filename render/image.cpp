@@ -4,6 +4,7 @@
 #include <OpenImageIO/strutil.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cctype>
@@ -126,14 +127,25 @@ void writeImage(const Image& image, const fs::path& file) {
                          std::to_string(image.rgbLinear.size()) +
                          " pixels; a non-empty image holds exactly width * height pixels");
     }
-    for (std::size_t i = 0; i < image.rgbLinear.size(); ++i) {
-        const glm::vec3& rgb = image.rgbLinear[i];
-        if (!std::isfinite(rgb.r) || !std::isfinite(rgb.g) || !std::isfinite(rgb.b)) {
-            throw InternalError(
-                file.string() + ": pixel (" + std::to_string(i % std::size_t(image.width)) + ", " +
-                std::to_string(i / std::size_t(image.width)) + ") is " + pixelText(rgb) +
-                "; rendered pixels must be finite (this is a renderer bug)");
-        }
+    // The first pixel that is not finite, if any (in parallel: on one thread this check was a
+    // tenth of the time of writing a PNG).
+    const std::size_t firstNotFinite = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, image.rgbLinear.size(), 16384), image.rgbLinear.size(),
+        [&](const tbb::blocked_range<std::size_t>& pixels, std::size_t found) {
+            for (std::size_t i = pixels.begin(); i != pixels.end() && i < found; ++i) {
+                const glm::vec3& rgb = image.rgbLinear[i];
+                if (!std::isfinite(rgb.r) || !std::isfinite(rgb.g) || !std::isfinite(rgb.b))
+                    return i;
+            }
+            return found;
+        },
+        [](std::size_t a, std::size_t b) { return std::min(a, b); });
+    if (firstNotFinite < image.rgbLinear.size()) {
+        const std::size_t i = firstNotFinite;
+        throw InternalError(
+            file.string() + ": pixel (" + std::to_string(i % std::size_t(image.width)) + ", " +
+            std::to_string(i / std::size_t(image.width)) + ") is " + pixelText(image.rgbLinear[i]) +
+            "; rendered pixels must be finite (this is a renderer bug)");
     }
 
     OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);

@@ -7,12 +7,16 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <glm/geometric.hpp>
+#include <limits>
 #include <random>
+#include <string>
 
 #include "common/error.h"
 #include "render/bvh.h"
 #include "render/coverage.h"
+#include "render/image.h"
 #include "render/march.h"
 #include "render/renderer.h"
 #include "render/shadow_map.h"
@@ -648,6 +652,24 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
         EXPECT_NE(std::string(error.what()).find("too far from camera.eye"), std::string::npos)
             << error.what();
     }
+}
+
+TEST(Image, WritingRefusesTheFirstPixelThatIsNotFiniteAndWritesNothing) {
+    // Bad pixels far apart (the check runs over ranges in parallel): the first one is named.
+    Image image(300, 200, glm::vec3(0.5f));
+    image.rgbLinear[std::size_t(150 * 300 + 7)].g = std::numeric_limits<float>::infinity();
+    image.rgbLinear[std::size_t(60 * 300 + 250)].b = std::nanf("");
+    image.rgbLinear[std::size_t(199 * 300 + 299)].r = -std::numeric_limits<float>::infinity();
+    const std::string file = ::testing::TempDir() + "distile_not_finite.png";
+    std::remove(file.c_str());
+    try {
+        writeImage(image, file);
+        ADD_FAILURE() << "an image with a NaN was written";
+    } catch (const InternalError& error) {
+        EXPECT_NE(std::string(error.what()).find("pixel (250, 60)"), std::string::npos)
+            << error.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(file));
 }
 
 TEST(Renderer, RejectsTexelSpacesTooDenseForFloatAndRendersTheDensestAccepted) {
