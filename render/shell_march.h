@@ -43,7 +43,8 @@ struct ShellPrisms {
 /// The shell map of one base mesh carrying a tile: a prism per triangle (common/shell_map.h) and,
 /// across each side face, the neighbouring triangle: the one triangle with the same edge
 /// reversed, vertices welded by position (so uv seams and mirrored charts connect); none at an
-/// open border, a non-manifold edge or one whose triangles disagree in orientation.
+/// open border, a non-manifold edge, one whose triangles disagree in orientation or a side whose
+/// two ends weld into one vertex.
 struct ShellMesh {
     std::vector<ShellPrism> prisms;                        ///< by triangle
     std::vector<std::array<std::uint32_t, 3>> neighbours;  ///< across the face opposite a corner
