@@ -7,11 +7,15 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "common/atomic_file.h"
 #include "common/error.h"
@@ -51,23 +55,68 @@ std::string pixelText(const glm::vec3& rgb) {
            std::to_string(rgb.b) + ")";
 }
 
-/// sRGB-encodes every channel and quantises it to [0, maxCode].
-template <typename Code>
-std::vector<Code> encodeSrgb(const Image& image, float maxCode) {
-    // In parallel: a power per channel made this most of the time of writing a PNG.
+/// Every channel of `image` as code(value), in parallel.
+template <typename Code, class ToCode>
+std::vector<Code> encodeChannels(const Image& image, const ToCode& code) {
     std::vector<Code> codes(image.rgbLinear.size() * 3);
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, image.rgbLinear.size(), 4096),
-        [&](const tbb::blocked_range<std::size_t>& pixels) {
-            for (std::size_t i = pixels.begin(); i != pixels.end(); ++i) {
-                for (int channel = 0; channel < 3; ++channel) {
-                    codes[3 * i + std::size_t(channel)] = static_cast<Code>(
-                        std::lround(srgbFromLinear(image.rgbLinear[i][channel]) * maxCode));
-                }
-            }
-        });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, image.rgbLinear.size(), 4096),
+                      [&](const tbb::blocked_range<std::size_t>& pixels) {
+                          for (std::size_t i = pixels.begin(); i != pixels.end(); ++i) {
+                              for (int channel = 0; channel < 3; ++channel) {
+                                  codes[3 * i + std::size_t(channel)] =
+                                      code(image.rgbLinear[i][channel]);
+                              }
+                          }
+                      });
     return codes;
 }
+
+/// The 8-bit sRGB code of a value, exactly: what srgbCode8's table reproduces.
+std::uint8_t exactSrgbCode8(float linear) {
+    return std::uint8_t(std::lround(srgbFromLinear(linear) * 255.0f));
+}
+
+/// srgbCode8's table. exactSrgbCode8 is non-decreasing, and the non-negative floats are ordered
+/// as their bit patterns, so code k (1 to 255) starts at the least float that reaches it,
+/// found by bisection over the floats in [0, 1]; a value's code is the number of those
+/// thresholds at or below it. The code at the start of each bucket of floats with the same top
+/// 16 bits is kept, from which the thresholds step a value on by the few codes a bucket spans.
+struct SrgbCodes8 {
+    static constexpr std::uint32_t kOne = 0x3f800000u;  // the bits of 1.0f
+    std::array<float, 257> firstOfCode{};               ///< [0] = 0, [256] = infinity: sentinels
+    std::vector<std::uint8_t> bucketStart;  ///< code at the first float of bucket bits >> 16
+
+    SrgbCodes8() : bucketStart(kOne >> 16) {
+        for (int code = 1; code <= 255; ++code) {
+            std::uint32_t low = 0, high = kOne;  // exactSrgbCode8(1.0f) is 255
+            while (low < high) {
+                const std::uint32_t middle = low + (high - low) / 2;
+                if (exactSrgbCode8(std::bit_cast<float>(middle)) >= code)
+                    high = middle;
+                else
+                    low = middle + 1;
+            }
+            firstOfCode[std::size_t(code)] = std::bit_cast<float>(low);
+        }
+        firstOfCode[256] = std::numeric_limits<float>::infinity();
+        for (std::uint32_t bucket = 0; bucket < bucketStart.size(); ++bucket)
+            bucketStart[bucket] = exactSrgbCode8(std::bit_cast<float>(bucket << 16));
+    }
+};
+
+}  // namespace
+
+std::uint8_t srgbCode8(float linear) {
+    static const SrgbCodes8 table;
+    if (!(linear > 0.0f)) return exactSrgbCode8(0.0f);
+    if (linear >= 1.0f) return exactSrgbCode8(1.0f);
+    const std::uint32_t bits = std::bit_cast<std::uint32_t>(linear);
+    unsigned code = table.bucketStart[bits >> 16];
+    while (linear >= table.firstOfCode[code + 1]) ++code;
+    return std::uint8_t(code);
+}
+
+namespace {
 
 void writePixels(const fs::path& temporary, const fs::path& target, const OIIO::ImageSpec& spec,
                  OIIO::TypeDesc pixelType, const void* pixels) {
@@ -158,7 +207,7 @@ void writeImage(const Image& image, const fs::path& file) {
         // and the file came out 15% larger with them (detail is noise to a row predictor).
         spec.attribute("png:compressionLevel", 1);
         spec.attribute("png:filter", 8);  // PNG_FILTER_NONE
-        const std::vector<std::uint8_t> codes = encodeSrgb<std::uint8_t>(image, 255.0f);
+        const std::vector<std::uint8_t> codes = encodeChannels<std::uint8_t>(image, srgbCode8);
         writeAtomically(file, [&](const fs::path& temporary) {
             writePixels(temporary, file, spec, OIIO::TypeDesc::UINT8, codes.data());
         });
@@ -166,7 +215,10 @@ void writeImage(const Image& image, const fs::path& file) {
         spec.set_format(OIIO::TypeDesc::UINT16);
         spec.attribute("oiio:ColorSpace", "sRGB");
         spec.attribute("compression", "zip");
-        const std::vector<std::uint16_t> codes = encodeSrgb<std::uint16_t>(image, 65535.0f);
+        const std::vector<std::uint16_t> codes =
+            encodeChannels<std::uint16_t>(image, [](float linear) {
+                return std::uint16_t(std::lround(srgbFromLinear(linear) * 65535.0f));
+            });
         writeAtomically(file, [&](const fs::path& temporary) {
             writePixels(temporary, file, spec, OIIO::TypeDesc::UINT16, codes.data());
         });

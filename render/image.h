@@ -3,6 +3,7 @@
 /// TIFF hold sRGB-encoded integers, EXR linear floats. Files are written through writeAtomically().
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <glm/vec3.hpp>
 #include <memory>
@@ -58,6 +59,9 @@ struct Image {
 /// Inputs outside [0, 1] are clamped.
 float srgbFromLinear(float linear);
 float linearFromSrgb(float encoded);
+/// The 8-bit code of a finite linear value, lround(srgbFromLinear(linear) * 255), by table
+/// (what PNG files are written with): the same codes, without a power per channel.
+std::uint8_t srgbCode8(float linear);
 
 /// Writes `image`, choosing the format by extension (case-insensitive):
 ///   .png         8-bit RGB, sRGB-encoded, each channel clamped to [0, 1];

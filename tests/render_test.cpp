@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -651,6 +652,37 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
     } catch (const InputError& error) {
         EXPECT_NE(std::string(error.what()).find("too far from camera.eye"), std::string::npos)
             << error.what();
+    }
+}
+
+TEST(Image, EightBitSrgbCodesByTableAreTheCodesOfTheTransferFunction) {
+    const auto exact = [](float linear) {
+        return int(std::lround(srgbFromLinear(linear) * 255.0f));
+    };
+    const auto floatOf = [](std::uint32_t pattern) { return std::bit_cast<float>(pattern); };
+    // Every 509th float of [0, 1] (non-negative floats are ordered as their bit patterns), and
+    // wherever the code changed since the last one, every float within 4096 of there: a power
+    // that was not monotonic would show there, and so would a threshold off by one float.
+    const std::uint32_t one = std::bit_cast<std::uint32_t>(1.0f);
+    constexpr std::uint32_t kStride = 509, kNear = 4096;
+    std::size_t changes = 0;
+    int previousCode = exact(0.0f);
+    for (std::uint32_t pattern = 0; pattern <= one; pattern += kStride) {
+        const float value = floatOf(pattern);
+        const int code = exact(value);
+        ASSERT_EQ(int(srgbCode8(value)), code) << value;
+        if (code != previousCode) {
+            ++changes;
+            const std::uint32_t from = pattern > kStride + kNear ? pattern - kStride - kNear : 0;
+            for (std::uint32_t near = from; near <= std::min(pattern + kNear, one); ++near)
+                ASSERT_EQ(int(srgbCode8(floatOf(near))), exact(floatOf(near))) << floatOf(near);
+        }
+        previousCode = code;
+    }
+    EXPECT_EQ(changes, std::size_t(255));
+    for (const float value : {0.0f, -0.0f, -1.0f, 1.0f, 1.5f, 1e30f, 0.0031308f,
+                              std::numeric_limits<float>::denorm_min()}) {
+        EXPECT_EQ(int(srgbCode8(value)), exact(value)) << value;
     }
 }
 
