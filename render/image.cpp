@@ -85,6 +85,7 @@ struct SrgbCodes8 {
     static constexpr std::uint32_t kOne = 0x3f800000u;  // the bits of 1.0f
     std::array<float, 257> firstOfCode{};               ///< [0] = 0, [256] = infinity: sentinels
     std::vector<std::uint8_t> bucketStart;  ///< code at the first float of bucket bits >> 16
+    std::uint8_t atMostZero = exactSrgbCode8(0.0f), atLeastOne = exactSrgbCode8(1.0f);  ///< clamped
 
     SrgbCodes8() : bucketStart(kOne >> 16) {
         for (int code = 1; code <= 255; ++code) {
@@ -108,8 +109,8 @@ struct SrgbCodes8 {
 
 std::uint8_t srgbCode8(float linear) {
     static const SrgbCodes8 table;
-    if (!(linear > 0.0f)) return exactSrgbCode8(0.0f);
-    if (linear >= 1.0f) return exactSrgbCode8(1.0f);
+    if (!(linear > 0.0f)) return table.atMostZero;
+    if (linear >= 1.0f) return table.atLeastOne;
     const std::uint32_t bits = std::bit_cast<std::uint32_t>(linear);
     unsigned code = table.bucketStart[bits >> 16];
     while (linear >= table.firstOfCode[code + 1]) ++code;

@@ -50,21 +50,22 @@ struct LaneGroup {
 template <class V>
 constexpr int kParkedBeforeRefill = V::kWidth / 8;
 
-/// The call's rays, handed to the groups' lanes in order.
+/// The next of a call's rays into lane `slot` of `group` (source.load), or the lane idle when
+/// none is left: for either lane group and its source (LaneSource, VisibilitySource).
+template <class Source, class Group>
+void takeNext(Source& source, Group& group, int slot) {
+    if (source.next == source.count) {
+        group.idle[slot] = -1;
+        return;
+    }
+    source.load(group, slot, source.next++);
+}
+
+/// The call's rays, handed to the groups' lanes in order (takeNext).
 struct LaneSource {
     SphereTraceLane* const* lanes;
     int count;
     int next = 0;
-
-    /// The next ray into lane `slot` of `group`, or the lane idle when none is left.
-    template <class V>
-    void take(LaneGroup<V>& group, int slot) {
-        if (next == count) {
-            group.idle[slot] = -1;
-            return;
-        }
-        load(group, slot, next++);
-    }
 
     /// Ray `index` of the call into lane `slot` of `group`, as the ray holds its state.
     template <class V>
@@ -229,7 +230,7 @@ inline void handBack(LaneGroup<V>& group, LaneSource& source, bool now = false) 
         SphereTraceLane& lane = *source.lanes[group.laneOf[slot]];
         lane.pendingDistance = group.distance[slot];
         lane.distanceKnown = group.unknown[slot] == 0;
-        source.take(group, slot);
+        takeNext(source, group, slot);
     }
     group.parked = 0;
 }
@@ -257,7 +258,7 @@ void sphereTraceOngoingStepsOf(const WideColumns& columns, const SphereTraceUnif
     LaneSource source{lanes, count};
     LaneGroup<V> groups[2];
     for (LaneGroup<V>& group : groups)
-        for (int slot = 0; slot < V::kWidth; ++slot) source.take(group, slot);
+        for (int slot = 0; slot < V::kWidth; ++slot) takeNext(source, group, slot);
     while (source.next < source.count || groups[0].busy + groups[1].busy > V::kWidth) {
         round<V, kRelaxed>(columns, uniforms, groups[0]);  // without rays: idle lanes only
         round<V, kRelaxed>(columns, uniforms, groups[1]);
@@ -301,20 +302,17 @@ struct VisibilityGroup {
     int busy = 0;
 };
 
-/// The call's visibility rays, handed to the groups' lanes in order and back when they end.
+/// The call's visibility rays, handed to the groups' lanes in order (takeNext) and back when
+/// they end.
 struct VisibilitySource {
     VisibilityLane* const* lanes;
     int count;
     int next = 0;
 
-    /// The next ray into lane `slot` of `group`, or the lane idle when none is left.
+    /// Ray `index` of the call into lane `slot` of `group`.
     template <class V>
-    void take(VisibilityGroup<V>& group, int slot) {
-        if (next == count) {
-            group.idle[slot] = -1;
-            return;
-        }
-        const VisibilityLane& lane = *lanes[next];
+    void load(VisibilityGroup<V>& group, int slot, int index) const {
+        const VisibilityLane& lane = *lanes[index];
         loadLine(group, slot, lane.start, lane.direction);
         group.depthTexels[slot] = lane.depthTexels;
         group.tanHalfAngle[slot] = lane.tanHalfAngle;
@@ -324,7 +322,7 @@ struct VisibilitySource {
         group.samplesLeft[slot] = lane.samplesLeft;
         group.samples[slot] = lane.samples;
         group.idle[slot] = 0;
-        group.laneOf[slot] = next++;
+        group.laneOf[slot] = index;
         ++group.busy;
     }
 
@@ -390,7 +388,7 @@ template <class V>
     for (unsigned rest = leaving; rest != 0; rest &= rest - 1) {
         const int slot = __builtin_ctz(rest);
         source.giveBack(group, slot, (blocked >> slot) & 1u, (sampleLeftToRay >> slot) & 1u);
-        source.take(group, slot);
+        takeNext(source, group, slot);
     }
 }
 
@@ -401,7 +399,7 @@ void visibilityStepsInLanes(const WideColumns& columns, VisibilityLane* const* l
     VisibilitySource source{lanes, count};
     VisibilityGroup<V> groups[2];
     for (VisibilityGroup<V>& group : groups)
-        for (int slot = 0; slot < V::kWidth; ++slot) source.take(group, slot);
+        for (int slot = 0; slot < V::kWidth; ++slot) takeNext(source, group, slot);
     while (groups[0].busy + groups[1].busy > 0) {
         if (groups[0].busy > 0) visibilityRound<V>(columns, groups[0], source);
         if (groups[1].busy > 0) visibilityRound<V>(columns, groups[1], source);
