@@ -218,7 +218,12 @@ class Renderer {
     /// colour of its samples, with the first sample's AOV values. The camera rays are traced in
     /// batches, their marches interleaved (ScreenShells::traceNearestBatch); each sample is what
     /// it would be alone.
-    void renderRun(int y0, int y1, int x0, int x1, Sample* pixels, RenderStats& stats) const {
+    ///
+    /// The camera hits on front and back faces are added to `facingHits` (per object: front,
+    /// back), which addFacingHits takes once per block: per run, the threads' atomic adds on one
+    /// cache line cost more than the counting.
+    void renderRun(int y0, int y1, int x0, int x1, Sample* pixels, RenderStats& stats,
+                   std::span<std::uint64_t> facingHits) const {
         constexpr std::size_t kBatch = kRunRays;
         static_assert(kBatch <= ScreenShells::kMaxBatchRays);
         // Self-shadow rays are marched together for scenes of a few lights (tile filters only).
@@ -233,11 +238,9 @@ class Renderer {
             SurfaceHit hits[kBatch];
             bool found[kBatch];
             TraceCounters counters[kBatch];
-            std::vector<std::uint32_t> facingHits;  ///< per object: front, back camera hits
         };
         thread_local Arrays arrays;
-        auto& [selfShadows, rays, sampleIndices, hits, found, counters, facingHits] = arrays;
-        facingHits.assign(2 * scene_.objects.size(), 0);
+        auto& [selfShadows, rays, sampleIndices, hits, found, counters] = arrays;
         const int samplesPerPixel = options_.samplesPerPixel;
         const int runWidth = x1 - x0;
         const int total = runWidth * (y1 - y0) * samplesPerPixel;
@@ -279,10 +282,7 @@ class Renderer {
             stats.shellsTested += shellCounters.tested;
             stats.shellsTraced += shellCounters.traced;
             if (batchSelfShadows) marchSelfShadows(count, hits, found, selfShadows);
-            for (std::size_t k = 0; k < count; ++k) {
-                if (found[k])
-                    ++facingHits[2 * hits[k].object + (hits[k].entry.frontFacing ? 0 : 1)];
-            }
+            countFacingHits(std::span(hits, count), std::span(found, count), facingHits);
             for (std::size_t k = 0; k < count; ++k) {
                 const int x = rays[k].x;
                 const int y = rays[k].y;
@@ -298,6 +298,12 @@ class Renderer {
                 if (index == samplesPerPixel - 1) pixel.color = sum / float(samplesPerPixel);
             }
         }
+    }
+
+    /// Slots of renderRun's `facingHits`: two per object.
+    std::size_t facingSlots() const { return 2 * scene_.objects.size(); }
+    /// Adds a block's camera hits per object and facing (renderRun) to the render's.
+    void addFacingHits(std::span<const std::uint64_t> facingHits) const {
         for (std::size_t slot = 0; slot < facingHits.size(); ++slot) {
             if (facingHits[slot] != 0) facingHits_[slot].fetch_add(facingHits[slot]);
         }
@@ -314,6 +320,30 @@ class Renderer {
     }
 
   private:
+    /// Counts the hits among `hits` (where `found`) into `facingHits` (per object: front, back).
+    /// In registers while consecutive hits share an object: one memory increment per hit would
+    /// make a chain of store-to-load waits on one counter.
+    static void countFacingHits(std::span<const SurfaceHit> hits, std::span<const bool> found,
+                                std::span<std::uint64_t> facingHits) {
+        std::size_t object = 0;
+        std::uint64_t front = 0, back = 0;
+        const auto add = [&] {
+            if (front + back == 0) return;  // nothing counted (perhaps no object at all)
+            facingHits[2 * object] += front;
+            facingHits[2 * object + 1] += back;
+        };
+        for (std::size_t k = 0; k < hits.size(); ++k) {
+            if (!found[k]) continue;
+            if (hits[k].object != object) {
+                add();
+                object = hits[k].object;
+                front = back = 0;
+            }
+            (hits[k].entry.frontFacing ? front : back) += 1;
+        }
+        add();
+    }
+
     /// One camera ray through the square of pixel (x, y), traced: its colour and AOV values into
     /// `sample`.
     void shadeSample(const Ray& ray, bool found, const SurfaceHit& hit,
@@ -656,13 +686,15 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
             tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
             [&](const tbb::blocked_range2d<int>& block) {
                 RenderStats local;
+                thread_local std::vector<std::uint64_t> facingHits;
+                facingHits.assign(renderer.facingSlots(), 0);
                 constexpr int kRows = Renderer::kRunRows;
                 Sample run[kRows * kBlock];
                 for (int y0 = block.rows().begin(); y0 < block.rows().end(); y0 += kRows) {
                     const int y1 = std::min(y0 + kRows, block.rows().end());
                     for (int x0 = block.cols().begin(); x0 < block.cols().end(); x0 += kBlock) {
                         const int x1 = std::min(x0 + kBlock, block.cols().end());
-                        renderer.renderRun(y0, y1, x0, x1, run, local);
+                        renderer.renderRun(y0, y1, x0, x1, run, local, facingHits);
                         for (int y = y0; y != y1; ++y)
                             for (int x = x0; x != x1; ++x) {
                                 const Sample& pixel = run[(y - y0) * (x1 - x0) + (x - x0)];
@@ -687,6 +719,7 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
                             }
                     }
                 }
+                renderer.addFacingHits(facingHits);
                 rays += local.rays;
                 baseHits += local.baseHits;
                 iterations += local.marchIterations;

@@ -468,6 +468,30 @@ TEST(CurvedShell, AMeshWoundClockwiseIsReported) {
     EXPECT_NE(flipped.warnings[0].find("clockwise"), std::string::npos);
 }
 
+TEST(CurvedShell, TheMeshWoundClockwiseIsNamedAmongOthers) {
+    // Two spheres side by side, the right one flipped: about half the camera rays that reach
+    // a sphere reach each, so the counts of the two objects alternate along every row. Only the
+    // flipped one is named, with all its rays on back faces.
+    RenderOptions options;
+    options.width = 64;
+    options.height = 32;
+    Scene scene = layerScene(makeUvSphere(0.5f, 32, 16));
+    scene.objects.push_back(scene.objects[0]);
+    for (int object = 0; object < 2; ++object) {
+        BaseMesh& mesh = scene.objects[std::size_t(object)].mesh;
+        for (glm::vec3& position : mesh.positions) position.x += object == 0 ? -0.6f : 0.6f;
+        if (object == 1) {
+            for (glm::uvec3& triangle : mesh.triangles) std::swap(triangle[1], triangle[2]);
+        }
+        computeTangentFrames(mesh);
+    }
+    scene.camera = {{0.0f, -3.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f};
+    const RenderResult render = renderScene(scene, options);
+    ASSERT_EQ(render.warnings.size(), 1u);
+    EXPECT_NE(render.warnings[0].find("objects[1]: 100% of the camera rays"), std::string::npos)
+        << render.warnings[0];
+}
+
 TEST(CurvedShell, RenderIsTheSameForOneAndTwoThreadsAndBatched) {
     Scene scene = layerScene(makeTorus(0.5f, 0.2f, 48, 24));
     scene.camera = {{0.0f, -1.5f, 1.1f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f};
