@@ -75,15 +75,25 @@ void PinholeProjection::directions(const float* xPixels, const float* yPixels, s
     const auto product = [](__m128 a, __m128 b) { return _mm_mul_ps(a, b); };
     for (std::size_t first = 0; first < count; first += 4) {
         const std::size_t lanes = std::min<std::size_t>(4, count - first);
-        alignas(16) float xs[4], ys[4];
-        for (std::size_t lane = 0; lane < 4; ++lane) {
-            xs[lane] = xPixels[first + (lane < lanes ? lane : 0)];
-            ys[lane] = yPixels[first + (lane < lanes ? lane : 0)];
+        // Four positions loaded at once (copied lane by lane, the four stores would stall the
+        // load that reads them back).
+        __m128 xs, ys;
+        if (lanes == 4) {
+            xs = _mm_loadu_ps(xPixels + first);
+            ys = _mm_loadu_ps(yPixels + first);
+        } else {
+            alignas(16) float xPadded[4], yPadded[4];
+            for (std::size_t lane = 0; lane < 4; ++lane) {
+                xPadded[lane] = xPixels[first + (lane < lanes ? lane : 0)];
+                yPadded[lane] = yPixels[first + (lane < lanes ? lane : 0)];
+            }
+            xs = _mm_load_ps(xPadded);
+            ys = _mm_load_ps(yPadded);
         }
         const __m128 slopeX =
-            sum(product(_mm_load_ps(xs), at(slopePerPixelFloat_.x)), at(slopeAtOriginFloat_.x));
+            sum(product(xs, at(slopePerPixelFloat_.x)), at(slopeAtOriginFloat_.x));
         const __m128 slopeY =
-            sum(product(_mm_load_ps(ys), at(slopePerPixelFloat_.y)), at(slopeAtOriginFloat_.y));
+            sum(product(ys, at(slopePerPixelFloat_.y)), at(slopeAtOriginFloat_.y));
         __m128 v[3];
         for (int axis = 0; axis < 3; ++axis) {
             v[axis] = sum(sum(at(forward_[axis]), product(slopeX, at(right_[axis]))),
@@ -92,13 +102,17 @@ void PinholeProjection::directions(const float* xPixels, const float* yPixels, s
         const __m128 inverseLength = _mm_div_ps(
             at(1.0f),
             _mm_sqrt_ps(sum(sum(product(v[0], v[0]), product(v[1], v[1])), product(v[2], v[2]))));
-        alignas(16) float out[3][4];
-        for (int axis = 0; axis < 3; ++axis)
-            _mm_store_ps(out[axis], product(v[axis], inverseLength));
-        for (std::size_t lane = 0; lane < lanes; ++lane) {
-            x[first + lane] = out[0][lane];
-            y[first + lane] = out[1][lane];
-            z[first + lane] = out[2][lane];
+        float* const outputs[3] = {x, y, z};
+        for (int axis = 0; axis < 3; ++axis) {
+            const __m128 direction = product(v[axis], inverseLength);
+            if (lanes == 4) {
+                _mm_storeu_ps(outputs[axis] + first, direction);
+                continue;
+            }
+            alignas(16) float out[4];
+            _mm_store_ps(out, direction);
+            for (std::size_t lane = 0; lane < lanes; ++lane)
+                outputs[axis][first + lane] = out[lane];
         }
     }
 #else
