@@ -75,7 +75,10 @@ struct Row {
     std::string filter = "trilinear";
     std::string method = "budgeted";
     int budget = 16;
-    double seconds = 0.0;  ///< render (distile, no shadows) or trace (peers) wall time
+    /// Wall time of a frame: distile's render of its prepared scene (no shadows), a peer's trace
+    /// of its built scene.
+    double seconds = 0.0;
+    /// What comes before the frames: distile's scene preparation (PreparedScene), a peer's build.
     double setupSeconds = 0.0;
     double memoryMiB = 0.0;  ///< tile, or the peer's scene
     double convergedShare = 0.0;
@@ -374,9 +377,11 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
        << " threads. Every row is timed in this run and compared with the analytic reference "
           "render (double precision, 512 sphere-tracing steps, epsilon 0.001 texel; "
        << referenceSeconds
-       << " s). distile rows are renders without shadows (primary rays, march, normals, "
-          "shading), timed without AOVs (the median of 3; the error from one more render with "
-          "them); peer rows are their primary-ray trace times. Hit error: distance along the "
+       << " s). distile rows are frames without shadows (primary rays, march, normals, "
+          "shading) of a prepared scene, timed without AOVs (the median of 3; the error from one "
+          "more render with them); peer rows are their primary-ray trace times of a built scene. "
+          "Both set-ups (distile's scene preparation: BVH, tile layout and empty space, shell "
+          "map; a peer's build) are in the setup column. Hit error: distance along the "
           "ray to the reference hit, in texels. The two torus-on-sheet series are another scene "
           "against another truth (see Curved shells below).\n\n";
     if (plotted) md << "![time against error](pareto.png)\n\n";
@@ -605,7 +610,8 @@ void runBench(const BenchArguments& arguments) {
     auto record = [&](Row row, const TimedRender& timed, const Scene& scene,
                       const RenderOptions& options, Storage storage,
                       const RenderLayersView& truthOf, bool inTruthTexels) {
-        row.seconds = timed.seconds;
+        row.seconds = timed.frameSeconds;
+        row.setupSeconds = timed.setupSeconds;
         row.convergedShare = convergedShare(timed.result.stats);
         const RenderLayersView measured = layers(timed.result);
         row.error = compareRenders(inTruthTexels ? RenderLayersView{measured.image, measured.depth,
@@ -637,7 +643,9 @@ void runBench(const BenchArguments& arguments) {
         row.scene = std::make_shared<const Scene>(scene);
         row.options = timed;
         TimedRender render = timedRender(scene, options);
-        render.seconds = medianRender(scene, timed, kRunsPerRow).seconds;
+        const TimedRender median = medianRender(scene, timed, kRunsPerRow);
+        render.frameSeconds = median.frameSeconds;
+        render.setupSeconds = median.setupSeconds;
         record(std::move(row), render, scene, options, storage, truth, true);
     };
     const RenderOptions defaults = benchRenderOptions(width, height);
@@ -824,7 +832,7 @@ void runBench(const BenchArguments& arguments) {
             options.beforeEachTrace = [&] {
                 for (std::size_t p = 0; p < paired.size(); ++p)
                     pairedRuns[p].push_back(
-                        timedRender(*rows[paired[p]].scene, *rows[paired[p]].options).seconds);
+                        timedRender(*rows[paired[p]].scene, *rows[paired[p]].options).frameSeconds);
             };
             const PeerRender peer = renderSheetWithEmbree(sheet, width, height, threads, options);
             std::vector<std::pair<std::size_t, double>> pairedSeconds;

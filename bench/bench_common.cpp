@@ -86,21 +86,36 @@ RenderOptions benchRenderOptions(int width, int height) {
 }
 
 TimedRender timedRender(const Scene& scene, const RenderOptions& options) {
+    const auto secondsSince = [](std::chrono::steady_clock::time_point start) {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
     const auto start = std::chrono::steady_clock::now();
-    TimedRender timed{renderScene(scene, options), 0.0};
-    timed.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const PreparedScene prepared(scene, options);
+    const double setupSeconds = secondsSince(start);
+    const auto frameStart = std::chrono::steady_clock::now();
+    TimedRender timed{prepared.render()};
+    timed.frameSeconds = secondsSince(frameStart);
+    timed.setupSeconds = setupSeconds;
+    timed.seconds = setupSeconds + timed.frameSeconds;
     return timed;
 }
 
 TimedRender medianRender(const Scene& scene, const RenderOptions& options, int runs) {
-    std::vector<double> seconds;
+    std::vector<double> seconds, setupSeconds, frameSeconds;
     TimedRender timed;
     for (int run = 0; run < std::max(runs, 1); ++run) {
         timed = timedRender(scene, options);
         seconds.push_back(timed.seconds);
+        setupSeconds.push_back(timed.setupSeconds);
+        frameSeconds.push_back(timed.frameSeconds);
     }
-    std::sort(seconds.begin(), seconds.end());
-    timed.seconds = seconds[seconds.size() / 2];
+    const auto median = [](std::vector<double>& values) {
+        std::sort(values.begin(), values.end());
+        return values[values.size() / 2];
+    };
+    timed.seconds = median(seconds);
+    timed.setupSeconds = median(setupSeconds);
+    timed.frameSeconds = median(frameSeconds);
     return timed;
 }
 

@@ -71,13 +71,19 @@ RenderOptions benchRenderOptions(int width, int height);
 
 struct TimedRender {
     RenderResult result;
-    double seconds = 0.0;  ///< wall time of renderScene
+    double seconds = 0.0;  ///< wall time of renderScene: setupSeconds + frameSeconds
+    /// Of the set-up that does not depend on the camera (PreparedScene: BVH, tile layout and
+    /// empty space, shell map), which a program rendering the scene again does not repeat.
+    double setupSeconds = 0.0;
+    /// Of the frame alone (PreparedScene::render): what a peer's trace of its built scene is
+    /// compared with.
+    double frameSeconds = 0.0;
 };
 
 TimedRender timedRender(const Scene& scene, const RenderOptions& options);
 
 /// `runs` renders (at least one) of one configuration: the last one's result, with the median of
-/// their times (renders are deterministic, so every run's image is the same).
+/// each of their times (renders are deterministic, so every run's image is the same).
 TimedRender medianRender(const Scene& scene, const RenderOptions& options, int runs);
 
 /// The fastest of `runs` renders of each of two configurations, run alternately (A, B, A, B, ...)

@@ -155,11 +155,11 @@ class Renderer {
     /// Scenes with at most this many lights march their self-shadow rays together.
     static constexpr std::size_t kInterleavedLights = 4;
 
-    Renderer(const Scene& scene, const RenderOptions& options)
+    /// Preconditions: `tracer` traces `scene` with `options` (PreparedScene).
+    Renderer(const Scene& scene, const RenderOptions& options, const SceneTracer& tracer)
         : scene_(scene),
           options_(options),
-          tracer_(scene, TraceOptions{options.march, options.filter, options.normalFilter,
-                                      options.reference, options.skips, options.shellMapping}),
+          tracer_(tracer),
           projection_(scene.camera, options.width, options.height),
           shells_(tracer_, projection_) {
         for (int index = 0; index < options.samplesPerPixel; ++index)
@@ -539,7 +539,7 @@ class Renderer {
 
     const Scene& scene_;
     const RenderOptions& options_;
-    SceneTracer tracer_;
+    const SceneTracer& tracer_;
     std::vector<std::unique_ptr<ShadowMap>>
         shadowMaps_;  ///< per light; null: no map needed or wanted
     PinholeProjection projection_;
@@ -643,15 +643,8 @@ void validateReference(const Scene& scene) {
     }
 }
 
-}  // namespace
-
-RenderAovs RenderAovs::blank(int width, int height) {
-    const auto black = [&] { return Image(width, height); };  // filled in parallel, not copied
-    return {black(), black(), black(), black(), black(), black(), black()};
-}
-
-RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
-                         const ProgressCallback& progress) {
+/// The options a render runs with: `requested`, checked, with a reference render's march.
+RenderOptions checkedOptions(const Scene& scene, const RenderOptions& requested) {
     validateOptions(requested);
     validateScene(scene);
     RenderOptions options = requested;
@@ -662,7 +655,41 @@ RenderResult renderScene(const Scene& scene, const RenderOptions& requested,
         options.march.epsilonTexels = RenderOptions::kReferenceEpsilonTexels;
         options.skips.adaptiveBudget = false;  // the truth gets the whole budget on every ray
     }
-    const Renderer renderer(scene, options);
+    return options;
+}
+
+}  // namespace
+
+RenderAovs RenderAovs::blank(int width, int height) {
+    const auto black = [&] { return Image(width, height); };  // filled in parallel, not copied
+    return {black(), black(), black(), black(), black(), black(), black()};
+}
+
+struct PreparedScene::Parts {
+    const Scene& scene;
+    const RenderOptions options;
+    const SceneTracer tracer;
+};
+
+PreparedScene::PreparedScene(const Scene& scene, const RenderOptions& requested) {
+    const RenderOptions options = checkedOptions(scene, requested);
+    parts_.reset(new Parts{
+        scene, options,
+        SceneTracer(scene, TraceOptions{options.march, options.filter, options.normalFilter,
+                                        options.reference, options.skips, options.shellMapping})});
+}
+
+PreparedScene::~PreparedScene() = default;
+
+RenderResult renderScene(const Scene& scene, const RenderOptions& options,
+                         const ProgressCallback& progress) {
+    return PreparedScene(scene, options).render(progress);
+}
+
+RenderResult PreparedScene::render(const ProgressCallback& progress) const {
+    const Scene& scene = parts_->scene;
+    const RenderOptions& options = parts_->options;
+    const Renderer renderer(scene, options, parts_->tracer);
     RenderResult result;
     result.image = Image(options.width, options.height);
     if (options.outputAovs) {

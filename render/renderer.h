@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -116,6 +117,27 @@ inline constexpr std::int64_t kAovImages = 8;
 /// calling thread; it is not called while the shadow maps are built, before the first row.
 RenderResult renderScene(const Scene& scene, const RenderOptions& options,
                          const ProgressCallback& progress = {});
+
+/// A scene made ready to render with `options`: the set-up that does not depend on the camera
+/// (the base triangles' bounding-volume hierarchy, each tile in the renderer's layout with its
+/// empty space, the curved shells' prisms), built once for any number of renders, each the same
+/// as renderScene(scene, options) gives. renderScene prepares the scene on every call; a
+/// program that renders one scene several times (or times the frames alone, as `distile bench`
+/// does) prepares it once. The scene must outlive it and not change. Throws as renderScene.
+class PreparedScene {
+  public:
+    PreparedScene(const Scene& scene, const RenderOptions& options);
+    ~PreparedScene();
+    PreparedScene(const PreparedScene&) = delete;
+    PreparedScene& operator=(const PreparedScene&) = delete;
+
+    /// One render of the scene with the options it was prepared with.
+    RenderResult render(const ProgressCallback& progress = {}) const;
+
+  private:
+    struct Parts;
+    std::unique_ptr<Parts> parts_;
+};
 
 /// A heat-map colour (blue, cyan, green, yellow, red) for a value in [0, 1].
 glm::vec3 heatColor(float value);

@@ -1389,6 +1389,36 @@ Scene sheetScene() {
     return scene;
 }
 
+TEST(Renderer, APreparedSceneRendersAsRenderSceneEveryTime) {
+    // The chain-mail sheet and a sphere above it casting a shadow: tiles, self-shadows and a
+    // shadow map, whose tiles each render traces anew.
+    Scene scene = sheetScene();
+    SceneObject sphere;
+    sphere.mesh = makeUvSphere(0.3f, 48, 24);
+    applyTransform(sphere.mesh, {{0.0f, 0.0f, 0.5f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+    scene.objects.push_back(std::move(sphere));
+    RenderOptions options;
+    options.width = 160;
+    options.height = 128;
+    options.outputAovs = true;
+    const RenderResult once = renderScene(scene, options);
+    const PreparedScene prepared(scene, options);
+    for (int render = 0; render < 2; ++render) {
+        const RenderResult again = prepared.render();
+        EXPECT_EQ(again.image.rgbLinear, once.image.rgbLinear) << "render " << render;
+        EXPECT_EQ(again.aovs->depth.rgbLinear, once.aovs->depth.rgbLinear);
+        EXPECT_EQ(again.stats.marchIterations, once.stats.marchIterations);
+        EXPECT_EQ(again.stats.shadowSteps, once.stats.shadowSteps);
+        EXPECT_EQ(again.stats.shadowMapSamples, once.stats.shadowMapSamples);
+        EXPECT_EQ(again.stats.shadowMapTexels, once.stats.shadowMapTexels);
+    }
+    EXPECT_GT(once.stats.shadowMapTexels, 0u);
+    EXPECT_GT(once.stats.shadowSteps, 0u);
+    // Options are checked where the scene is prepared.
+    options.march.maxIterations = 0;
+    EXPECT_THROW(PreparedScene(scene, options), InputError);
+}
+
 /// The sheet rendered at 320 x 256 with `iterations` (other options default, no shadows: shading
 /// does not enter the figures checked) against its reference render.
 RenderComparison sheetAgainstReference(int iterations) {
