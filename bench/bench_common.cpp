@@ -85,10 +85,11 @@ RenderOptions benchRenderOptions(int width, int height) {
     return options;
 }
 
+double secondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 TimedRender timedRender(const Scene& scene, const RenderOptions& options) {
-    const auto secondsSince = [](std::chrono::steady_clock::time_point start) {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    };
     const auto start = std::chrono::steady_clock::now();
     const PreparedScene prepared(scene, options);
     const double setupSeconds = secondsSince(start);
@@ -138,7 +139,7 @@ TimedWorldReference timedWorldReference(const Scene& scene, int width, int heigh
     options.outputAovs = true;
     const auto start = std::chrono::steady_clock::now();
     TimedWorldReference timed{renderWorldReference(scene, options), 0.0};
-    timed.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    timed.seconds = secondsSince(start);
     return timed;
 }
 

@@ -5,6 +5,7 @@
 /// Internal to the command; the libraries never see it.
 #pragma once
 
+#include <chrono>
 #include <filesystem>
 #include <string>
 
@@ -68,6 +69,9 @@ HeightImage smoothHeightImage(int side);
 /// The bench's render options: `width` x `height`, AOVs on, no self-shadows and no shadow maps
 /// (primary visibility and shading only: the peers neither shade nor shadow).
 RenderOptions benchRenderOptions(int width, int height);
+
+/// Wall time since `start`, seconds.
+double secondsSince(std::chrono::steady_clock::time_point start);
 
 struct TimedRender {
     RenderResult result;

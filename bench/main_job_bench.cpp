@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_common.h"
 #include "bench/peers/peers.h"
 #include "render/renderer.h"
 
@@ -36,7 +37,7 @@ double processSeconds(const fs::path& program, const std::vector<std::string>& a
                       const fs::path& workDir, const std::string& logName) {
     const auto start = std::chrono::steady_clock::now();
     runProgram(program, arguments, workDir, logName);
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return secondsSince(start);
 }
 
 /// The least-squares fit of T(n) = serial + parallel / n to render times on n = 1 ... N threads
@@ -148,8 +149,7 @@ MainJobReport measureMainJob(const fs::path& outputDir, const Scene& demo, int w
         for (int run = 0; run < renderRuns; ++run) {
             const auto begin = std::chrono::steady_clock::now();
             renderScene(demo, options);
-            runs.push_back(
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count());
+            runs.push_back(secondsSince(begin));
         }
         secondsByThreads.push_back(median(runs));
         report.markdown += "| " + std::to_string(count) + " | " +

@@ -215,10 +215,6 @@ TimedRender fastestFrame(const Scene& scene, const RenderOptions& options, int r
     return fastest;
 }
 
-double secondsSince(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 /// Sets an environment variable for the lifetime of the object, then restores it.
 class ScopedEnvironment {
   public:
