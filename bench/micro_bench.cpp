@@ -11,6 +11,7 @@
 #include "bake/bake.h"
 #include "render/coverage.h"
 #include "render/demo_scene.h"
+#include "render/image.h"
 #include "render/march.h"
 #include "render/renderer.h"
 #include "sampler/filters.h"
@@ -155,7 +156,6 @@ void demoShadowFilters(benchmark::State& state) {
     double fullSeconds = 0.0, adaptiveSeconds = 0.0, noMapSeconds = 0.0, buildSeconds = 0.0,
            closeShare = 0.0;
     std::uint64_t fullSamples = 0, adaptiveSamples = 0;
-    auto srgb8 = [](float linear) { return int(std::lround(255.0f * srgbFromLinear(linear))); };
     for (auto _ : state) {
         options.shadowFilter = ShadowFilter::Full;
         double start = processCpuSeconds();
@@ -185,8 +185,9 @@ void demoShadowFilters(benchmark::State& state) {
         for (std::size_t i = 0; i < full.image.rgbLinear.size(); ++i) {
             int difference = 0;
             for (int c = 0; c < 3; ++c) {
-                difference = std::max(difference, std::abs(srgb8(full.image.rgbLinear[i][c]) -
-                                                           srgb8(adaptive.image.rgbLinear[i][c])));
+                difference =
+                    std::max(difference, std::abs(int(srgbCode8(full.image.rgbLinear[i][c])) -
+                                                  int(srgbCode8(adaptive.image.rgbLinear[i][c]))));
             }
             close += difference <= 2 ? 1 : 0;
         }

@@ -24,6 +24,7 @@
 #include "bench/main_job_bench.h"
 #include "bench/peers/peers.h"
 #include "common/error.h"
+#include "render/image.h"
 #include "sampler/tile_io.h"
 #include "scene/scene_file.h"
 
@@ -171,17 +172,13 @@ std::pair<std::string, double> largestWorkSaving(const RenderStats& on, const Re
     return largest;
 }
 
-/// The 8-bit difference of two images of one size: sRGB-encoded values (render/image.h
-/// srgbFromLinear, clamped) rounded to 255 codes, as a PNG would hold them.
+/// The 8-bit difference of two images of one size: their sRGB codes as a PNG holds them
+/// (render/image.h srgbCode8).
 struct CodeDifference {
     double differingShare = 0.0;  ///< pixels where any channel differs by more than 1 code
     int maxCodes = 0;
     bool bitIdentical = true;  ///< every linear float equal
 };
-
-int srgbCode(float linear) {
-    return int(std::lround(std::clamp(srgbFromLinear(linear), 0.0f, 1.0f) * 255.0f));
-}
 
 CodeDifference codeDifference(const Image& a, const Image& b) {
     if (a.width != b.width || a.height != b.height)
@@ -194,7 +191,8 @@ CodeDifference codeDifference(const Image& a, const Image& b) {
             const float valueA = a.rgbLinear[i][channel];
             const float valueB = b.rgbLinear[i][channel];
             difference.bitIdentical = difference.bitIdentical && valueA == valueB;
-            pixelMax = std::max(pixelMax, std::abs(srgbCode(valueA) - srgbCode(valueB)));
+            pixelMax =
+                std::max(pixelMax, std::abs(int(srgbCode8(valueA)) - int(srgbCode8(valueB))));
         }
         differing += pixelMax > 1 ? 1 : 0;
         difference.maxCodes = std::max(difference.maxCodes, pixelMax);

@@ -71,28 +71,31 @@ std::vector<Code> encodeChannels(const Image& image, const ToCode& code) {
     return codes;
 }
 
-/// The 8-bit sRGB code of a value, exactly: what srgbCode8's table reproduces.
-std::uint8_t exactSrgbCode8(float linear) {
-    return std::uint8_t(std::lround(srgbFromLinear(linear) * 255.0f));
+/// A value's sRGB code as `Code` holds it (0 to its maximum), by the transfer function: what
+/// 16-bit files hold, and what srgbCode8's table reproduces for 8-bit ones.
+template <typename Code>
+Code exactSrgbCode(float linear) {
+    return Code(std::lround(srgbFromLinear(linear) * float(std::numeric_limits<Code>::max())));
 }
 
-/// srgbCode8's table. exactSrgbCode8 is non-decreasing, and the non-negative floats are ordered
-/// as their bit patterns, so code k (1 to 255) starts at the least float that reaches it,
-/// found by bisection over the floats in [0, 1]; a value's code is the number of those
+/// srgbCode8's table. exactSrgbCode<std::uint8_t> is non-decreasing, and the non-negative floats
+/// are ordered as their bit patterns, so code k (1 to 255) starts at the least float that reaches
+/// it, found by bisection over the floats in [0, 1]; a value's code is the number of those
 /// thresholds at or below it. The code at the start of each bucket of floats with the same top
 /// 16 bits is kept, from which the thresholds step a value on by the few codes a bucket spans.
 struct SrgbCodes8 {
     static constexpr std::uint32_t kOne = 0x3f800000u;  // the bits of 1.0f
     std::array<float, 257> firstOfCode{};               ///< [0] = 0, [256] = infinity: sentinels
     std::vector<std::uint8_t> bucketStart;  ///< code at the first float of bucket bits >> 16
-    std::uint8_t atMostZero = exactSrgbCode8(0.0f), atLeastOne = exactSrgbCode8(1.0f);  ///< clamped
+    std::uint8_t atMostZero = exactSrgbCode<std::uint8_t>(0.0f),
+                 atLeastOne = exactSrgbCode<std::uint8_t>(1.0f);  ///< clamped
 
     SrgbCodes8() : bucketStart(kOne >> 16) {
         for (int code = 1; code <= 255; ++code) {
-            std::uint32_t low = 0, high = kOne;  // exactSrgbCode8(1.0f) is 255
+            std::uint32_t low = 0, high = kOne;  // exactSrgbCode<std::uint8_t>(1.0f) is 255
             while (low < high) {
                 const std::uint32_t middle = low + (high - low) / 2;
-                if (exactSrgbCode8(std::bit_cast<float>(middle)) >= code)
+                if (exactSrgbCode<std::uint8_t>(std::bit_cast<float>(middle)) >= code)
                     high = middle;
                 else
                     low = middle + 1;
@@ -101,7 +104,7 @@ struct SrgbCodes8 {
         }
         firstOfCode[256] = std::numeric_limits<float>::infinity();
         for (std::uint32_t bucket = 0; bucket < bucketStart.size(); ++bucket)
-            bucketStart[bucket] = exactSrgbCode8(std::bit_cast<float>(bucket << 16));
+            bucketStart[bucket] = exactSrgbCode<std::uint8_t>(std::bit_cast<float>(bucket << 16));
     }
 };
 
@@ -217,9 +220,7 @@ void writeImage(const Image& image, const fs::path& file) {
         spec.attribute("oiio:ColorSpace", "sRGB");
         spec.attribute("compression", "zip");
         const std::vector<std::uint16_t> codes =
-            encodeChannels<std::uint16_t>(image, [](float linear) {
-                return std::uint16_t(std::lround(srgbFromLinear(linear) * 65535.0f));
-            });
+            encodeChannels<std::uint16_t>(image, exactSrgbCode<std::uint16_t>);
         writeAtomically(file, [&](const fs::path& temporary) {
             writePixels(temporary, file, spec, OIIO::TypeDesc::UINT16, codes.data());
         });
