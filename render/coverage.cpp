@@ -455,12 +455,39 @@ bool ScreenShells::traceNearest(int x, int y, const Ray& ray, bool shellCulling,
     return found[0];
 }
 
+std::uint32_t ScreenShells::soleCoveringShell(std::span<const PixelRay> rays) const {
+    std::uint32_t shell = kNoShell;
+    for (const PixelRay& pixel : rays) {
+        const std::size_t tile =
+            std::size_t(pixel.y / kTilePixels) * tilesX_ + std::size_t(pixel.x / kTilePixels);
+        const std::uint32_t entry = tileStart_[tile];
+        if (tileStart_[tile + 1] != entry + 1 || !coversTile_[entry] ||
+            (shell != kNoShell && shellsByTile_[entry] != shell))
+            return kNoShell;
+        shell = shellsByTile_[entry];
+    }
+    return shell;
+}
+
 void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellCulling,
                                      std::span<SurfaceHit> hits, std::span<bool> found,
                                      std::span<TraceCounters> counters,
                                      ShellCounters& shellCounters) const {
     constexpr float kFar = std::numeric_limits<float>::max();
     const std::size_t count = rays.size();
+    // Rays whose screen tiles hold one shell, covering them all: each ray's one candidate. For a
+    // flat shell whose front they all meet, the tracer takes the batch at once (traceFlatShell:
+    // what the rounds below give, without them).
+    if (const std::uint32_t shell = soleCoveringShell(rays); shell != kNoShell) {
+        const Ray* flatRays[kMaxBatchRays];
+        for (std::size_t r = 0; r < count; ++r) flatRays[r] = &rays[r].ray;
+        if (tracer_.traceFlatShell(shell, std::span<const Ray* const>(flatRays, count), hits, found,
+                                   counters)) {
+            shellCounters.tested += count;
+            shellCounters.traced += count;
+            return;
+        }
+    }
     // Per ray: its candidates (the tile's shells that pass the pixel test), the next one to trace
     // and the nearest hit so far.
     // Working memory, once per thread: constructing these arrays (tens of kB) for every batch

@@ -519,6 +519,47 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
     }
 }
 
+bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const> rays,
+                                 std::span<SurfaceHit> hits, std::span<bool> found,
+                                 std::span<TraceCounters> counters) const {
+    const ShellTriangle& triangle = triangles_[shell];
+    if (triangle.curved || !triangle.hasDetail() || options_.reference ||
+        !isSphereTracing(options_.march.method) ||
+        options_.normalFilter != FilterKind::TricubicBSpline)
+        return false;
+    thread_local ShellMarch marches[kMaxBatchRays];
+    marches[0].baseHit.triangle = shell;
+    marches[0].object = triangle.object;
+    if (!entersFlatShell(marches[0])) return false;
+    for (const Ray* ray : rays)
+        if (!triangle.frontFacing(ray->direction)) return false;
+    // enterShell's test of the top (nothing nearer yet: no upper bound), then the entry.
+    ShellMarch* entered[kMaxBatchRays];
+    std::size_t rayOf[kMaxBatchRays];
+    std::size_t count = 0;
+    for (std::size_t r = 0; r < rays.size(); ++r) {
+        found[r] = false;
+        double distance = 0.0, b1 = 0.0, b2 = 0.0;
+        if (!intersectTriangle(*rays[r], triangle.top, 0.0f, std::numeric_limits<float>::max(),
+                               distance, b1, b2))
+            continue;
+        enterAt(*rays[r], {shell, float(distance), float(b1), float(b2)}, hits[r], marches[count]);
+        rayOf[count] = r;
+        entered[count] = &marches[count];
+        ++count;
+    }
+    for (std::size_t first = 0; first < count; first += 8)
+        takeFlatEntries(
+            std::span<ShellMarch* const>(entered + first, std::min<std::size_t>(8, count - first)));
+    takeMarches(std::span<ShellMarch* const>(entered, count));
+    takeGradients(std::span<ShellMarch* const>(entered, count));
+    for (std::size_t index = 0; index < count; ++index) {
+        const std::size_t r = rayOf[index];
+        found[r] = finishShell(*rays[r], marches[index], hits[r], counters[r]);
+    }
+    return true;
+}
+
 void SceneTracer::marchShells(std::span<ShellMarch* const> marches) const {
     takeEntries(marches);
     takeMarches(marches);

@@ -255,6 +255,15 @@ class SceneTracer {
     bool finishShell(const Ray& ray, const ShellMarch& march, SurfaceHit& hit,
                      TraceCounters& counters, bool withNormal = true) const;
 
+    /// For rays whose only candidate is `shell` (render/coverage.h: the one shell over their
+    /// pixels): enterShell, marchShells and finishShell for each, taken together, the same
+    /// results bit for bit. True with `hits`, `found` and `counters` filled when `shell` is a flat
+    /// shell with detail whose front every ray meets, marched by sphere tracing on the tiles with
+    /// the B-spline's normals; false, with nothing written, otherwise. At most kMaxBatchRays rays.
+    bool traceFlatShell(std::uint32_t shell, std::span<const Ray* const> rays,
+                        std::span<SurfaceHit> hits, std::span<bool> found,
+                        std::span<TraceCounters> counters) const;
+
     /// Object `object`'s tile in the layout the renderer samples (sampler/tile_columns.h); null
     /// for an object without a tile. Objects sharing a tile share its columns.
     const TileColumns* columns(std::uint32_t object) const { return columns_[object].get(); }

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/simd.h"
 #include "render/bvh.h"
 #include "render/coverage.h"
 #include "render/image.h"
@@ -1387,6 +1388,88 @@ Scene sheetScene() {
         proceduralDistance(chainmail, tile->size()).signedDistanceTexels;
     scene.objects.push_back(std::move(sheet));
     return scene;
+}
+
+TEST(SceneTracer, AFlatShellBatchGivesEachRayWhatItsRoundsGiveIt) {
+    // The sheet's camera rays in runs of 16 x 4 pixels: traceFlatShell (the screen path's batch
+    // over the one flat shell of their pixels) must give every ray that meets the plane's first
+    // triangle what traceNearest (the rounds of the BVH path) gives it alone, bit for bit, and
+    // leave the others unfound.
+    const Scene scene = sheetScene();
+    const SceneTracer tracer(scene, TraceOptions{});
+    constexpr int kWidth = 320, kHeight = 256;
+    const PinholeProjection projection(scene.camera, kWidth, kHeight);
+    const BaseMesh& mesh = scene.objects[0].mesh;
+    const glm::uvec3 first = mesh.triangles[0];
+    int entered = 0, missed = 0;
+    for (int y0 = 0; y0 < kHeight; y0 += 4) {
+        for (int x0 = 0; x0 < kWidth; x0 += 16) {
+            std::vector<Ray> rays;
+            for (int y = y0; y < y0 + 4; ++y)
+                for (int x = x0; x < x0 + 16; ++x)
+                    rays.push_back(projection.ray(x + 0.5f, y + 0.5f));
+            std::vector<const Ray*> pointers;
+            for (const Ray& ray : rays) pointers.push_back(&ray);
+            std::vector<SurfaceHit> hits(rays.size());
+            bool found[SceneTracer::kMaxBatchRays] = {};
+            std::vector<TraceCounters> counters(rays.size());
+            if (kSimdLevel < SimdLevel::Avx2) {  // the flat entries need AVX2: the rounds take it
+                EXPECT_FALSE(tracer.traceFlatShell(0, pointers, hits, found, counters));
+                return;
+            }
+            ASSERT_TRUE(tracer.traceFlatShell(0, pointers, hits, found, counters));
+            for (std::size_t k = 0; k < rays.size(); ++k) {
+                double distance = 0.0, b1 = 0.0, b2 = 0.0;
+                const bool meetsFirst =
+                    intersectTriangle(rays[k], mesh.positions[first[0]], mesh.positions[first[1]],
+                                      mesh.positions[first[2]], 0.0, 1e30, distance, b1, b2);
+                ASSERT_EQ(found[k], meetsFirst) << x0 << "," << y0 << " ray " << k;
+                if (!meetsFirst) {
+                    ++missed;
+                    continue;
+                }
+                ++entered;
+                SurfaceHit alone;
+                TraceCounters aloneCounters;
+                ASSERT_TRUE(tracer.traceNearest(rays[k], 0.0f, alone, aloneCounters));
+                const SurfaceHit& hit = hits[k];
+                const std::string where =
+                    std::to_string(x0) + "," + std::to_string(y0) + " ray " + std::to_string(k);
+                EXPECT_EQ(hit.object, alone.object) << where;
+                EXPECT_EQ(hit.distanceWorld, alone.distanceWorld) << where;
+                EXPECT_EQ(hit.position, alone.position) << where;
+                EXPECT_EQ(hit.normal, alone.normal) << where;
+                EXPECT_EQ(hit.entry.position, alone.entry.position) << where;
+                EXPECT_EQ(hit.entry.uv, alone.entry.uv) << where;
+                EXPECT_EQ(hit.onDetail, alone.onDetail) << where;
+                EXPECT_EQ(hit.march.texelPosition, alone.march.texelPosition) << where;
+                EXPECT_EQ(hit.march.iterations, alone.march.iterations) << where;
+                EXPECT_EQ(hit.march.converged, alone.march.converged) << where;
+                EXPECT_EQ(hit.texelsPerWorldAlongRay, alone.texelsPerWorldAlongRay) << where;
+                EXPECT_EQ(counters[k].marchIterations, aloneCounters.marchIterations) << where;
+                EXPECT_EQ(counters[k].shellEntries, aloneCounters.shellEntries) << where;
+            }
+        }
+    }
+    EXPECT_GT(entered, kWidth * kHeight / 4);
+    EXPECT_GT(missed, 1000);  // the rays over the other triangle and the sky
+
+    // Rays that meet the plane from below, and a curved shell: the rounds take them.
+    const Ray below{{0.0f, 0.0f, -1.0f}, {0.0f, 0.0f, 1.0f}};
+    const Ray* belowRays[1] = {&below};
+    SurfaceHit hit;
+    bool belowFound[1] = {false};
+    TraceCounters belowCounters;
+    EXPECT_FALSE(tracer.traceFlatShell(0, belowRays, std::span(&hit, 1), belowFound,
+                                       std::span(&belowCounters, 1)));
+    Scene torusScene = sheetScene();
+    torusScene.objects[0].mesh = makeTorus(1.0f, 0.4f, 32, 16);
+    const SceneTracer torusTracer(torusScene, TraceOptions{});
+    const Ray down{{1.4f, 0.0f, 2.0f}, {0.0f, 0.0f, -1.0f}};
+    const Ray* downRays[1] = {&down};
+    for (std::uint32_t shell = 0; shell < torusTracer.shellCount(); ++shell)
+        EXPECT_FALSE(torusTracer.traceFlatShell(shell, downRays, std::span(&hit, 1), belowFound,
+                                                std::span(&belowCounters, 1)));
 }
 
 TEST(Renderer, APreparedSceneRendersAsRenderSceneEveryTime) {
