@@ -457,9 +457,12 @@ bool ScreenShells::traceNearest(int x, int y, const Ray& ray, bool shellCulling,
 
 std::uint32_t ScreenShells::soleCoveringShell(std::span<const PixelRay> rays) const {
     std::uint32_t shell = kNoShell;
-    for (const PixelRay& pixel : rays) {
-        const std::size_t tile =
-            std::size_t(pixel.y / kTilePixels) * tilesX_ + std::size_t(pixel.x / kTilePixels);
+    std::size_t checkedTile = ~std::size_t(0);
+    for (const PixelRay& pixel : rays) {  // runs of pixels: a few tiles, each looked up once
+        const std::size_t tile = std::size_t(unsigned(pixel.y) / kTilePixels) * tilesX_ +
+                                 unsigned(pixel.x) / kTilePixels;
+        if (tile == checkedTile) continue;
+        checkedTile = tile;
         const std::uint32_t entry = tileStart_[tile];
         if (tileStart_[tile + 1] != entry + 1 || !coversTile_[entry] ||
             (shell != kNoShell && shellsByTile_[entry] != shell))

@@ -551,8 +551,26 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
     for (std::size_t first = 0; first < count; first += 8)
         takeFlatEntries(
             std::span<ShellMarch* const>(entered + first, std::min<std::size_t>(8, count - first)));
-    takeMarches(std::span<ShellMarch* const>(entered, count));
-    takeGradients(std::span<ShellMarch* const>(entered, count));
+    // takeMarches and takeGradients on the one tile: the marches interleaved, then the normals'
+    // gradients of those that end on detail.
+    const TileColumns& tile = *columns(triangle.object);
+    detail::SphereTraceRay* traces[kMaxBatchRays];
+    std::size_t traced = 0;
+    for (std::size_t index = 0; index < count; ++index)
+        if (!marches[index].marched) traces[traced++] = &marches[index].trace;
+    withFilter(options_.filter, tile, [&](const auto& filter) {
+        marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(traces, traced));
+    });
+    std::size_t onDetail = 0;
+    for (std::size_t index = 0; index < count; ++index) {
+        ShellMarch& march = marches[index];
+        if (!march.marched) {
+            march.result = march.trace.result();
+            march.marched = true;
+        }
+        if (!march.result.exitedFloor && !march.result.onFloor) entered[onDetail++] = &march;
+    }
+    takeGradientsOnTile(tile, std::span<ShellMarch* const>(entered, onDetail));
     for (std::size_t index = 0; index < count; ++index) {
         const std::size_t r = rayOf[index];
         found[r] = finishShell(*rays[r], marches[index], hits[r], counters[r]);
@@ -579,24 +597,25 @@ void SceneTracer::takeGradients(std::span<ShellMarch* const> marches) const {
         onDetail[count++] = march;
     }
     forEachTile(std::span<ShellMarch* const>(onDetail, count),
-                std::span<const TileColumns* const>(tiles, count),
-                [](const TileColumns& tile, std::span<ShellMarch* const> sameTile) {
-                    using Filter = BasicTricubicBSplineFilter<ColumnTexels>;
-                    constexpr std::size_t kGroup = Filter::kGroupedGradients;
-                    const Filter filter(tile);
-                    for (std::size_t first = 0; first < sameTile.size(); first += kGroup) {
-                        const std::size_t lanes = std::min(kGroup, sameTile.size() - first);
-                        glm::vec3 positions[kGroup], gradients[kGroup];
-                        for (std::size_t lane = 0; lane < kGroup; ++lane)  // padded with the first
-                            positions[lane] =
-                                sameTile[first + (lane < lanes ? lane : 0)]->result.texelPosition;
-                        filter.gradients(positions, int(lanes), gradients);
-                        for (std::size_t lane = 0; lane < lanes; ++lane) {
-                            sameTile[first + lane]->gradientTexels = gradients[lane];
-                            sameTile[first + lane]->gradientKnown = true;
-                        }
-                    }
-                });
+                std::span<const TileColumns* const>(tiles, count), takeGradientsOnTile);
+}
+
+void SceneTracer::takeGradientsOnTile(const TileColumns& tile,
+                                      std::span<ShellMarch* const> marches) {
+    using Filter = BasicTricubicBSplineFilter<ColumnTexels>;
+    constexpr std::size_t kGroup = Filter::kGroupedGradients;
+    const Filter filter(tile);
+    for (std::size_t first = 0; first < marches.size(); first += kGroup) {
+        const std::size_t lanes = std::min(kGroup, marches.size() - first);
+        glm::vec3 positions[kGroup], gradients[kGroup];
+        for (std::size_t lane = 0; lane < kGroup; ++lane)  // padded with the first
+            positions[lane] = marches[first + (lane < lanes ? lane : 0)]->result.texelPosition;
+        filter.gradients(positions, int(lanes), gradients);
+        for (std::size_t lane = 0; lane < lanes; ++lane) {
+            marches[first + lane]->gradientTexels = gradients[lane];
+            marches[first + lane]->gradientKnown = true;
+        }
+    }
 }
 
 void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {

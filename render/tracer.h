@@ -306,6 +306,8 @@ class SceneTracer {
     void takeEntries(std::span<ShellMarch* const> marches) const;
     void takeMarches(std::span<ShellMarch* const> marches) const;
     void takeGradients(std::span<ShellMarch* const> marches) const;
+    /// takeGradients for marches on one tile, sixteen at a time.
+    static void takeGradientsOnTile(const TileColumns& tile, std::span<ShellMarch* const> marches);
     /// The shell the ray enters at `baseHit`: false when the ray stops on the base surface (`hit`
     /// filled), true with `march` holding the ray, its hit and `baseHit` for takeEntries.
     bool enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
