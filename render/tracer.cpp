@@ -446,13 +446,10 @@ void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
             takeEntry(*march);
         }
     }
-    forEachGroup(std::span<ShellMarch* const>(flat, flatCount),
-                 std::span<const std::uint32_t>(shells, flatCount),
-                 [&](std::uint32_t, std::span<ShellMarch* const> sameShell) {
-                     for (std::size_t first = 0; first < sameShell.size(); first += 8)
-                         takeFlatEntries(sameShell.subspan(
-                             first, std::min<std::size_t>(8, sameShell.size() - first)));
-                 });
+    forEachGroup(
+        std::span<ShellMarch* const>(flat, flatCount),
+        std::span<const std::uint32_t>(shells, flatCount),
+        [&](std::uint32_t, std::span<ShellMarch* const> sameShell) { takeFlatEntries(sameShell); });
 }
 
 void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const {
@@ -461,8 +458,8 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
     const SceneObject& object = scene_.objects[shell.object];
     const Material& material = object.material;
     const Size3& size = material.tile->size();
-    // The entry every ray of this shell shares (shellEntry's flat frame), and the kernel's
-    // constants from it.
+    // The entry every ray of this shell shares (shellEntry's flat frame: every ray that enters
+    // meets its front), and the kernel's constants from it.
     ShellEntry shared;
     shellEntry(firstHit, *sameShell[0]->ray, shared);
     detail::FlatShellConstants constants;
@@ -488,34 +485,38 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
     constants.budget = options_.march.maxIterations;
     constants.adaptiveBudget = options_.skips.adaptiveBudget;
 
-    detail::EntryLanes lanes;
-    for (std::size_t lane = 0; lane < 8; ++lane) {
-        const ShellMarch& march = *sameShell[lane < sameShell.size() ? lane : 0];  // padded
-        for (int axis = 0; axis < 3; ++axis) {
-            lanes.origin[axis][lane] = march.ray->origin[axis];
-            lanes.direction[axis][lane] = march.ray->direction[axis];
+    for (std::size_t first = 0; first < sameShell.size(); first += 8) {
+        const std::span<ShellMarch* const> eight =
+            sameShell.subspan(first, std::min<std::size_t>(8, sameShell.size() - first));
+        detail::EntryLanes lanes;
+        for (std::size_t lane = 0; lane < 8; ++lane) {
+            const ShellMarch& march = *eight[lane < eight.size() ? lane : 0];  // padded
+            for (int axis = 0; axis < 3; ++axis) {
+                lanes.origin[axis][lane] = march.ray->origin[axis];
+                lanes.direction[axis][lane] = march.ray->direction[axis];
+            }
+            lanes.distanceWorld[lane] = march.baseHit.distanceWorld;
+            lanes.b1[lane] = march.baseHit.b1;
+            lanes.b2[lane] = march.baseHit.b2;
         }
-        lanes.distanceWorld[lane] = march.baseHit.distanceWorld;
-        lanes.b1[lane] = march.baseHit.b1;
-        lanes.b2[lane] = march.baseHit.b2;
-    }
-    detail::enterFlatShell8(constants, lanes);
-    for (std::size_t lane = 0; lane < sameShell.size(); ++lane) {
-        ShellMarch& march = *sameShell[lane];
-        SurfaceHit& hit = *march.hit;
-        const glm::vec3 position(lanes.position[0][lane], lanes.position[1][lane],
-                                 lanes.position[2][lane]);
-        hit.entry = shared;
-        hit.entry.position = position;
-        hit.entry.uv = {lanes.uv[0][lane], lanes.uv[1][lane]};
-        atEntry(march.baseHit, position, shared.normal, hit);
-        hit.texelsPerWorldAlongRay = lanes.texelsPerWorldAlongRay[lane];
-        march.directionTexels = {lanes.directionTexels[0][lane], lanes.directionTexels[1][lane],
-                                 lanes.directionTexels[2][lane]};
-        march.skippedTexels = lanes.skippedTexels[lane];
-        march.startTexels = {lanes.startTexels[0][lane], lanes.startTexels[1][lane],
-                             lanes.startTexels[2][lane]};
-        beginMarch(march, lanes.maxIterations[lane]);
+        detail::enterFlatShell8(constants, lanes);
+        for (std::size_t lane = 0; lane < eight.size(); ++lane) {
+            ShellMarch& march = *eight[lane];
+            SurfaceHit& hit = *march.hit;
+            const glm::vec3 position(lanes.position[0][lane], lanes.position[1][lane],
+                                     lanes.position[2][lane]);
+            hit.entry = shared;
+            hit.entry.position = position;
+            hit.entry.uv = {lanes.uv[0][lane], lanes.uv[1][lane]};
+            atEntry(march.baseHit, position, shared.normal, hit);
+            hit.texelsPerWorldAlongRay = lanes.texelsPerWorldAlongRay[lane];
+            march.directionTexels = {lanes.directionTexels[0][lane], lanes.directionTexels[1][lane],
+                                     lanes.directionTexels[2][lane]};
+            march.skippedTexels = lanes.skippedTexels[lane];
+            march.startTexels = {lanes.startTexels[0][lane], lanes.startTexels[1][lane],
+                                 lanes.startTexels[2][lane]};
+            beginMarch(march, lanes.maxIterations[lane]);
+        }
     }
 }
 
@@ -548,9 +549,8 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
         entered[count] = &marches[count];
         ++count;
     }
-    for (std::size_t first = 0; first < count; first += 8)
-        takeFlatEntries(
-            std::span<ShellMarch* const>(entered + first, std::min<std::size_t>(8, count - first)));
+    if (count == 0) return true;
+    takeFlatEntries(std::span<ShellMarch* const>(entered, count));
     // takeMarches and takeGradients on the one tile: the marches interleaved, then the normals'
     // gradients of those that end on detail.
     const TileColumns& tile = *columns(triangle.object);

@@ -320,7 +320,8 @@ class SceneTracer {
                  SurfaceHit& hit) const;
     /// The entry of one ray (takeEntries): its hit's entry and its march set up.
     void takeEntry(ShellMarch& march) const;
-    /// The entries of up to eight rays into the same flat shell at once (enterFlatShell8).
+    /// The entries of rays (at least one) into the same flat shell, eight at a time
+    /// (enterFlatShell8).
     void takeFlatEntries(std::span<ShellMarch* const> sameShell) const;
     /// Sets up `march` from its start (settings with `maxIterations`): a refused march's result,
     /// or the sphere trace's start.
