@@ -176,15 +176,15 @@ class ScreenShells {
                            std::span<TraceCounters> counters, ShellCounters& shellCounters) const;
 
   private:
-    const SceneTracer& tracer_;
-    const PinholeProjection& projection_;
-    int tilesX_ = 0, tilesY_ = 0;
-    std::vector<ShellBounds> bounds_;
     static constexpr std::uint32_t kNoShell = 0xffffffffU;
     /// The shell that is the only one binned to the screen tile of each of `rays` and covers it,
     /// or kNoShell.
     std::uint32_t soleCoveringShell(std::span<const PixelRay> rays) const;
 
+    const SceneTracer& tracer_;
+    const PinholeProjection& projection_;
+    int tilesX_ = 0, tilesY_ = 0;
+    std::vector<ShellBounds> bounds_;
     std::vector<std::uint32_t> tileStart_;     ///< per tile (row-major), then one past the end
     std::vector<std::uint32_t> shellsByTile_;  ///< shell indices, grouped by tile
     /// Per entry of shellsByTile_: its shell's top covers every pixel of the tile (the per-pixel

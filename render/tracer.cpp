@@ -554,21 +554,11 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
     // takeMarches and takeGradients on the one tile: the marches interleaved, then the normals'
     // gradients of those that end on detail.
     const TileColumns& tile = *columns(triangle.object);
-    detail::SphereTraceRay* traces[kMaxBatchRays];
-    std::size_t traced = 0;
-    for (std::size_t index = 0; index < count; ++index)
-        if (!marches[index].marched) traces[traced++] = &marches[index].trace;
-    withFilter(options_.filter, tile, [&](const auto& filter) {
-        marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(traces, traced));
-    });
+    takeMarchesOnTile(tile, std::span<ShellMarch* const>(entered, count));
     std::size_t onDetail = 0;
     for (std::size_t index = 0; index < count; ++index) {
-        ShellMarch& march = marches[index];
-        if (!march.marched) {
-            march.result = march.trace.result();
-            march.marched = true;
-        }
-        if (!march.result.exitedFloor && !march.result.onFloor) entered[onDetail++] = &march;
+        if (!marches[index].result.exitedFloor && !marches[index].result.onFloor)
+            entered[onDetail++] = &marches[index];
     }
     takeGradientsOnTile(tile, std::span<ShellMarch* const>(entered, onDetail));
     for (std::size_t index = 0; index < count; ++index) {
@@ -635,21 +625,34 @@ void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {
         }
         return;
     }
-    detail::SphereTraceRay* traces[kMaxBatchRays];
+    ShellMarch* pending[kMaxBatchRays];
     const TileColumns* tiles[kMaxBatchRays];
-    ShellMarch* owners[kMaxBatchRays];
     std::size_t count = 0;
     for (ShellMarch* march : marches) {
         if (march->marched) continue;
-        owners[count] = march;
-        traces[count] = &march->trace;
+        pending[count] = march;
         tiles[count++] = columns(march->object);
     }
-    marchInterleavedByTile(options_.filter, std::span<detail::SphereTraceRay* const>(traces, count),
-                           std::span<const TileColumns* const>(tiles, count));
-    for (std::size_t index = 0; index < count; ++index) {
-        owners[index]->result = owners[index]->trace.result();
-        owners[index]->marched = true;
+    forEachTile(std::span<ShellMarch* const>(pending, count),
+                std::span<const TileColumns* const>(tiles, count),
+                [&](const TileColumns& tile, std::span<ShellMarch* const> sameTile) {
+                    takeMarchesOnTile(tile, sameTile);
+                });
+}
+
+void SceneTracer::takeMarchesOnTile(const TileColumns& tile,
+                                    std::span<ShellMarch* const> marches) const {
+    detail::SphereTraceRay* traces[kMaxBatchRays];
+    std::size_t count = 0;
+    for (ShellMarch* march : marches)
+        if (!march->marched) traces[count++] = &march->trace;
+    withFilter(options_.filter, tile, [&](const auto& filter) {
+        marchInterleaved(filter, std::span<detail::SphereTraceRay* const>(traces, count));
+    });
+    for (ShellMarch* march : marches) {
+        if (march->marched) continue;
+        march->result = march->trace.result();
+        march->marched = true;
     }
 }
 

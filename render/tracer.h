@@ -305,6 +305,8 @@ class SceneTracer {
     /// marchShells' three parts: the entries, the marches, then the normal gradients.
     void takeEntries(std::span<ShellMarch* const> marches) const;
     void takeMarches(std::span<ShellMarch* const> marches) const;
+    /// takeMarches' interleaved sphere traces for marches on one tile (those not marched yet).
+    void takeMarchesOnTile(const TileColumns& tile, std::span<ShellMarch* const> marches) const;
     void takeGradients(std::span<ShellMarch* const> marches) const;
     /// takeGradients for marches on one tile, sixteen at a time.
     static void takeGradientsOnTile(const TileColumns& tile, std::span<ShellMarch* const> marches);
