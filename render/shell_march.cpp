@@ -23,10 +23,14 @@ Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dv
                           cursor.jacobian, 12))
             return Located::Lost;
         const double weights[3] = {cursor.point.b0(), cursor.point.b1, cursor.point.b2};
+        const bool aboveTop = cursor.point.depthWorld < 0.0;
+        // Inside the triangle (most samples): no need to know which weight is least, whose
+        // comparisons the processor cannot predict.
+        if (weights[0] >= -kOnFace && weights[1] >= -kOnFace && weights[2] >= -kOnFace)
+            return aboveTop ? Located::AboveTop : Located::Inside;
         int outside = 0;
         for (int corner = 1; corner < 3; ++corner)
             if (weights[corner] < weights[outside]) outside = corner;
-        const bool aboveTop = cursor.point.depthWorld < 0.0;
         if (weights[outside] >= -kOnFace) return aboveTop ? Located::AboveTop : Located::Inside;
         const std::uint32_t neighbour = shell.neighbours[cursor.prism][std::size_t(outside)];
         if (neighbour == ShellPrisms::kNoNeighbour)
