@@ -421,11 +421,10 @@ void SceneTracer::beginMarch(ShellMarch& march, int maxIterations) const {
     }
 }
 
-bool SceneTracer::entersFlatShell(const ShellMarch& march) const {
+bool SceneTracer::entersFlatShell(std::uint32_t shell) const {
     // takeEntry's jump over the empty layers without the block walk (trilinear), or no occupancy.
-    return kSimdLevel >= SimdLevel::Avx2 && triangles_[march.baseHit.triangle].flatFrame &&
-           !options_.reference &&
-           (options_.filter == FilterKind::Trilinear || !occupancies_[march.object]);
+    return kSimdLevel >= SimdLevel::Avx2 && triangles_[shell].flatFrame && !options_.reference &&
+           (options_.filter == FilterKind::Trilinear || !occupancies_[triangles_[shell].object]);
 }
 
 void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
@@ -439,7 +438,7 @@ void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
     for (ShellMarch* march : marches) {
         if (triangles_[march->baseHit.triangle].curved) {
             takeCurvedEntry(*march, curvedTraces[curvedCount++]);
-        } else if (entersFlatShell(*march)) {
+        } else if (entersFlatShell(march->baseHit.triangle)) {
             shells[flatCount] = march->baseHit.triangle;
             flat[flatCount++] = march;
         } else {
@@ -524,17 +523,14 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
                                  std::span<SurfaceHit> hits, std::span<bool> found,
                                  std::span<TraceCounters> counters) const {
     const ShellTriangle& triangle = triangles_[shell];
-    if (triangle.curved || !triangle.hasDetail() || options_.reference ||
+    if (triangle.curved || !triangle.hasDetail() || !entersFlatShell(shell) ||
         !isSphereTracing(options_.march.method) ||
         options_.normalFilter != FilterKind::TricubicBSpline)
         return false;
-    thread_local ShellMarch marches[kMaxBatchRays];
-    marches[0].baseHit.triangle = shell;
-    marches[0].object = triangle.object;
-    if (!entersFlatShell(marches[0])) return false;
     for (const Ray* ray : rays)
         if (!triangle.frontFacing(ray->direction)) return false;
     // enterShell's test of the top (nothing nearer yet: no upper bound), then the entry.
+    thread_local ShellMarch marches[kMaxBatchRays];
     ShellMarch* entered[kMaxBatchRays];
     std::size_t rayOf[kMaxBatchRays];
     std::size_t count = 0;
@@ -555,12 +551,7 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
     // gradients of those that end on detail.
     const TileColumns& tile = *columns(triangle.object);
     takeMarchesOnTile(tile, std::span<ShellMarch* const>(entered, count));
-    std::size_t onDetail = 0;
-    for (std::size_t index = 0; index < count; ++index) {
-        if (!marches[index].result.exitedFloor && !marches[index].result.onFloor)
-            entered[onDetail++] = &marches[index];
-    }
-    takeGradientsOnTile(tile, std::span<ShellMarch* const>(entered, onDetail));
+    takeGradientsOnTile(tile, std::span<ShellMarch* const>(entered, count));
     for (std::size_t index = 0; index < count; ++index) {
         const std::size_t r = rayOf[index];
         found[r] = finishShell(*rays[r], marches[index], hits[r], counters[r]);
@@ -576,34 +567,34 @@ void SceneTracer::marchShells(std::span<ShellMarch* const> marches) const {
 
 void SceneTracer::takeGradients(std::span<ShellMarch* const> marches) const {
     if (options_.reference || options_.normalFilter != FilterKind::TricubicBSpline) return;
-    // The marches that end on detail (finishShell takes a gradient there), eight of a tile at a
-    // time.
-    ShellMarch* onDetail[kMaxBatchRays];
     const TileColumns* tiles[kMaxBatchRays];
-    std::size_t count = 0;
-    for (ShellMarch* march : marches) {
-        if (march->gradientKnown || march->result.exitedFloor || march->result.onFloor) continue;
-        tiles[count] = columns(march->object);
-        onDetail[count++] = march;
-    }
-    forEachTile(std::span<ShellMarch* const>(onDetail, count),
-                std::span<const TileColumns* const>(tiles, count), takeGradientsOnTile);
+    for (std::size_t index = 0; index < marches.size(); ++index)
+        tiles[index] = columns(marches[index]->object);
+    forEachTile(marches, std::span<const TileColumns* const>(tiles, marches.size()),
+                takeGradientsOnTile);
 }
 
 void SceneTracer::takeGradientsOnTile(const TileColumns& tile,
                                       std::span<ShellMarch* const> marches) {
+    // The marches that end on detail (finishShell takes a gradient there), sixteen at a time.
+    ShellMarch* onDetail[kMaxBatchRays];
+    std::size_t count = 0;
+    for (ShellMarch* march : marches) {
+        if (march->gradientKnown || march->result.exitedFloor || march->result.onFloor) continue;
+        onDetail[count++] = march;
+    }
     using Filter = BasicTricubicBSplineFilter<ColumnTexels>;
     constexpr std::size_t kGroup = Filter::kGroupedGradients;
     const Filter filter(tile);
-    for (std::size_t first = 0; first < marches.size(); first += kGroup) {
-        const std::size_t lanes = std::min(kGroup, marches.size() - first);
+    for (std::size_t first = 0; first < count; first += kGroup) {
+        const std::size_t lanes = std::min(kGroup, count - first);
         glm::vec3 positions[kGroup], gradients[kGroup];
         for (std::size_t lane = 0; lane < kGroup; ++lane)  // padded with the first
-            positions[lane] = marches[first + (lane < lanes ? lane : 0)]->result.texelPosition;
+            positions[lane] = onDetail[first + (lane < lanes ? lane : 0)]->result.texelPosition;
         filter.gradients(positions, int(lanes), gradients);
         for (std::size_t lane = 0; lane < lanes; ++lane) {
-            marches[first + lane]->gradientTexels = gradients[lane];
-            marches[first + lane]->gradientKnown = true;
+            onDetail[first + lane]->gradientTexels = gradients[lane];
+            onDetail[first + lane]->gradientKnown = true;
         }
     }
 }

@@ -308,7 +308,8 @@ class SceneTracer {
     /// takeMarches' interleaved sphere traces for marches on one tile (those not marched yet).
     void takeMarchesOnTile(const TileColumns& tile, std::span<ShellMarch* const> marches) const;
     void takeGradients(std::span<ShellMarch* const> marches) const;
-    /// takeGradients for marches on one tile, sixteen at a time.
+    /// takeGradients for marches on one tile: those that end on detail without a gradient yet,
+    /// sixteen at a time.
     static void takeGradientsOnTile(const TileColumns& tile, std::span<ShellMarch* const> marches);
     /// The shell the ray enters at `baseHit`: false when the ray stops on the base surface (`hit`
     /// filled), true with `march` holding the ray, its hit and `baseHit` for takeEntries.
@@ -328,8 +329,8 @@ class SceneTracer {
     /// Sets up `march` from its start (settings with `maxIterations`): a refused march's result,
     /// or the sphere trace's start.
     void beginMarch(ShellMarch& march, int maxIterations) const;
-    /// Whether takeFlatEntries takes the entry of `march`.
-    bool entersFlatShell(const ShellMarch& march) const;
+    /// Whether takeFlatEntries takes the entries of rays into shell `shell`.
+    bool entersFlatShell(std::uint32_t shell) const;
     /// The entry of a ray into a curved shell: its march started (render/shell_march.h) in
     /// `trace`, working memory that must outlive the march.
     void takeCurvedEntry(ShellMarch& march, CurvedMarchRay& trace) const;
