@@ -1,7 +1,5 @@
 #include "bake/height_image.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -9,19 +7,14 @@
 
 #include "common/error.h"
 #include "common/exr_header.h"
+#include "common/image_files.h"
 #include "common/input_file.h"
-#include "sampler/detail/image_input.h"
 
 namespace distile {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string firstLineOf(const std::string& message, const std::string& fallback) {
-    const std::string line = message.substr(0, message.find('\n'));
-    return line.empty() ? fallback : line;
-}
 
 int wrap(int index, int count) {
     const int r = index % count;
@@ -35,31 +28,30 @@ HeightImage readHeightImage(const fs::path& file) {
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
     checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
     std::string openError;
-    auto input = detail::openImageByExtension(file, openError);
+    auto input = image_files::open(file, openError);
     if (!input) {
         throw FormatError(file.string() + ": not a readable image (" +
-                          firstLineOf(openError, "unknown OpenImageIO error") +
+                          image_files::firstLine(openError) +
                           "); a height map must be an 8/16-bit PNG or an EXR");
     }
-    const OIIO::ImageSpec& spec = input->spec();
+    const image_files::Spec& spec = input->spec();
     const long long pixels = (long long)spec.width * (long long)spec.height;
-    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1 ||
+    if (spec.width <= 0 || spec.height <= 0 || spec.channels <= 0 || spec.depth > 1 ||
         pixels > kMaxHeightImagePixels) {
         std::ostringstream message;
         message << file.string() << ": image of " << spec.width << "x" << spec.height
-                << " pixels and " << spec.nchannels
+                << " pixels and " << spec.channels
                 << " channel(s) is not accepted; a height map has 1 to " << kMaxHeightImagePixels
                 << " pixels in one 2D image";
         throw FormatError(message.str());
     }
-    const int channels = spec.nchannels;
+    const int channels = spec.channels;
     requireWithinMemoryBudget(
         file, "a height map of " + std::to_string(pixels) + " pixels",
         saturatingProduct(std::uint64_t(pixels), (std::uint64_t(channels) + 1) * sizeof(float)));
     std::vector<float> all(std::size_t(pixels) * std::size_t(channels));
-    if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, all.data())) {
-        throw FormatError(file.string() + ": cannot read the pixels (" +
-                          firstLineOf(input->geterror(), "unknown OpenImageIO error") +
+    if (const std::string problem = input->readFloats(channels, all); !problem.empty()) {
+        throw FormatError(file.string() + ": cannot read the pixels (" + problem +
                           "); the file is truncated or corrupted");
     }
     HeightImage image;

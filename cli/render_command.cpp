@@ -14,6 +14,7 @@
 #include "cli/progress_bar.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/image_files.h"
 #include "render/render_files.h"
 #include "render/renderer.h"
 #include "render/world_reference.h"
@@ -168,6 +169,9 @@ InputError underRenderNames(const InputError& error) {
 
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
+    // The image is written at the end; OpenImageIO loads meanwhile, while the scene is read and
+    // rendered, instead of before the first pixel.
+    image_files::loadInBackground();
     TileCache tiles;
     const auto warn = [](const std::string& warning) {
         std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());

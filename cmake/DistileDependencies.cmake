@@ -14,8 +14,15 @@ find_package(OpenMesh CONFIG REQUIRED)
 # CGAL (header-only) serves the ground truth in truth/ only.
 find_package(CGAL CONFIG REQUIRED)
 
-# OpenImageIO 2.4's exported target lists /usr/include/opencv4 as an include folder even though
-# nothing in its public headers needs OpenCV; CMake refuses to generate when the folder is missing.
+# Tiles are OpenEXR files, read and written with OpenEXR itself (sampler/tile_io.cpp); Imath's
+# half gives the 16-bit floats of half tiles and of the tile page.
+find_package(Imath CONFIG REQUIRED)
+find_package(OpenEXR CONFIG REQUIRED)
+
+# OpenImageIO reads and writes every image, from a module loaded on first use
+# (common/image_files.h). Its 2.4 exported target lists /usr/include/opencv4 as an include folder
+# even though nothing in its public headers needs OpenCV; CMake refuses to generate when the
+# folder is missing.
 # Drop the folder from the imported target instead of installing OpenCV's headers.
 find_package(OpenImageIO CONFIG REQUIRED)
 foreach(oiio_target OpenImageIO::OpenImageIO OpenImageIO::OpenImageIO_Util)

@@ -1,7 +1,5 @@
 #include "render/image.h"
 
-#include <OpenImageIO/imageio.h>
-#include <OpenImageIO/strutil.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
@@ -20,8 +18,8 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/exr_header.h"
+#include "common/image_files.h"
 #include "common/input_file.h"
-#include "sampler/detail/image_input.h"
 
 namespace distile {
 
@@ -43,11 +41,6 @@ ImageFormat formatFromExtension(const fs::path& file) {
     if (extension == ".exr") return ImageFormat::Exr;
     throw InputError(file.string() + ": image extension '" + file.extension().string() +
                      "' is not accepted; use .png, .exr, .tif or .tiff");
-}
-
-std::string firstLine(const std::string& message) {
-    const std::string line = message.substr(0, message.find('\n'));
-    return line.empty() ? "unknown OpenImageIO error" : line;
 }
 
 std::string pixelText(const glm::vec3& rgb) {
@@ -122,18 +115,17 @@ std::uint8_t srgbCode8(float linear) {
 
 namespace {
 
-void writePixels(const fs::path& temporary, const fs::path& target, const OIIO::ImageSpec& spec,
-                 OIIO::TypeDesc pixelType, const void* pixels) {
-    auto output = OIIO::ImageOutput::create(temporary.string());
-    if (!output) {
-        throw std::runtime_error(target.string() + ": OpenImageIO has no writer for it (" +
-                                 firstLine(OIIO::geterror()) + ")");
-    }
-    if (!output->open(temporary.string(), spec) || !output->write_image(pixelType, pixels) ||
-        !output->close()) {
-        throw std::runtime_error(target.string() + ": writing failed (" +
-                                 firstLine(output->geterror()) + ")");
-    }
+void writePixels(const fs::path& temporary, const fs::path& target, const image_files::Spec& spec,
+                 image_files::PixelType given, const void* pixels) {
+    if (const std::string problem = image_files::write(temporary, spec, given, pixels);
+        !problem.empty())
+        throw std::runtime_error(target.string() + ": " + problem);
+}
+
+bool equalIgnoringCase(std::string_view a, std::string_view b) {
+    return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](unsigned char x, unsigned char y) {
+        return std::tolower(x) == std::tolower(y);
+    });
 }
 
 /// How integer pixels of a file are turned into linear values.
@@ -201,35 +193,40 @@ void writeImage(const Image& image, const fs::path& file) {
             "; rendered pixels must be finite (this is a renderer bug)");
     }
 
-    OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
+    using image_files::PixelType;
+    image_files::Spec spec;
+    spec.width = image.width;
+    spec.height = image.height;
+    spec.channels = 3;
     if (format == ImageFormat::Png) {
-        spec.attribute("oiio:ColorSpace", "sRGB");
         // zlib's fastest level: the same pixels; a render's file is hardly larger (detail leaves
         // little for the slower levels to find), and level 6's deflate was a tenth of the CPU of
         // a whole `distile render` of 1280 x 1024 without shadows. No row filter: libpng's
         // default tries all five on every row, a third of the time of writing the demo's image,
         // and the file came out 15% larger with them (detail is noise to a row predictor).
-        spec.attribute("png:compressionLevel", 1);
-        spec.attribute("png:filter", 8);  // PNG_FILTER_NONE
+        spec.pixelType = PixelType::UInt8;
+        spec.attributes = {{"oiio:ColorSpace", std::string("sRGB")},
+                           {"png:compressionLevel", 1},
+                           {"png:filter", 8}};  // PNG_FILTER_NONE
         const std::vector<std::uint8_t> codes = encodeChannels<std::uint8_t>(image, srgbCode8);
         writeAtomically(file, [&](const fs::path& temporary) {
-            writePixels(temporary, file, spec, OIIO::TypeDesc::UINT8, codes.data());
+            writePixels(temporary, file, spec, PixelType::UInt8, codes.data());
         });
     } else if (format == ImageFormat::Tiff) {
-        spec.set_format(OIIO::TypeDesc::UINT16);
-        spec.attribute("oiio:ColorSpace", "sRGB");
-        spec.attribute("compression", "zip");
+        spec.pixelType = PixelType::UInt16;
+        spec.attributes = {{"oiio:ColorSpace", std::string("sRGB")},
+                           {"compression", std::string("zip")}};
         const std::vector<std::uint16_t> codes =
             encodeChannels<std::uint16_t>(image, exactSrgbCode<std::uint16_t>);
         writeAtomically(file, [&](const fs::path& temporary) {
-            writePixels(temporary, file, spec, OIIO::TypeDesc::UINT16, codes.data());
+            writePixels(temporary, file, spec, PixelType::UInt16, codes.data());
         });
     } else {
-        spec.set_format(OIIO::TypeDesc::FLOAT);
-        spec.attribute("oiio:ColorSpace", "Linear");
-        spec.attribute("compression", "zip");
+        spec.pixelType = PixelType::Float;
+        spec.attributes = {{"oiio:ColorSpace", std::string("Linear")},
+                           {"compression", std::string("zip")}};
         writeAtomically(file, [&](const fs::path& temporary) {
-            writePixels(temporary, file, spec, OIIO::TypeDesc::FLOAT, image.rgbLinear.data());
+            writePixels(temporary, file, spec, PixelType::Float, image.rgbLinear.data());
         });
     }
 }
@@ -239,13 +236,14 @@ Image readImage(const fs::path& file) {
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
     checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
     std::string openError;
-    auto input = detail::openImageByExtension(file, openError);
+    auto input = image_files::open(file, openError);
     if (!input) {
-        throw FormatError(file.string() + ": not a readable image (" + firstLine(openError) + ")");
+        throw FormatError(file.string() + ": not a readable image (" +
+                          image_files::firstLine(openError) + ")");
     }
-    const OIIO::ImageSpec& spec = input->spec();
-    if (spec.nchannels < 1 || spec.depth != 1 || spec.deep) {
-        throw FormatError(file.string() + ": has " + std::to_string(spec.nchannels) +
+    const image_files::Spec& spec = input->spec();
+    if (spec.channels < 1 || spec.depth != 1 || spec.deep) {
+        throw FormatError(file.string() + ": has " + std::to_string(spec.channels) +
                           " channel(s), depth " + std::to_string(spec.depth) +
                           (spec.deep ? ", deep" : "") +
                           "; a flat 2D image with at least one channel is accepted");
@@ -263,20 +261,24 @@ Image readImage(const fs::path& file) {
         throw FormatError(file.string() + ": " + error.what());
     }
 
-    const int channels = std::min(spec.nchannels, 3);
+    const int channels = std::min(spec.channels, 3);
     std::vector<float> values(image.rgbLinear.size() * std::size_t(channels));
-    if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, values.data())) {
-        throw FormatError(file.string() + ": cannot read the pixels (" +
-                          firstLine(input->geterror()) + "); the file is truncated or corrupted");
+    if (const std::string problem = input->readFloats(channels, values); !problem.empty()) {
+        throw FormatError(file.string() + ": cannot read the pixels (" + problem +
+                          "); the file is truncated or corrupted");
     }
 
-    const std::string colorSpace = spec.get_string_attribute("oiio:ColorSpace");
-    const float gamma = spec.get_float_attribute("oiio:Gamma", 1.0f);
+    const std::string colorSpace = spec.text("oiio:ColorSpace");
+    const image_files::Attribute* gammaEntry = spec.find("oiio:Gamma");
+    const float* gammaValue = gammaEntry ? std::get_if<float>(&gammaEntry->value) : nullptr;
+    const float gamma = gammaValue ? *gammaValue : 1.0f;
     Transfer transfer = Transfer::Linear;
-    if (!spec.format.is_floating_point()) {
-        if (OIIO::Strutil::iequals(colorSpace, "GammaCorrected") && gamma > 0.0f) {
+    const bool floatingPoint = spec.pixelType == image_files::PixelType::Half ||
+                               spec.pixelType == image_files::PixelType::Float;
+    if (!floatingPoint) {
+        if (equalIgnoringCase(colorSpace, "GammaCorrected") && gamma > 0.0f) {
             transfer = Transfer::Gamma;
-        } else if (!OIIO::Strutil::iequals(colorSpace, "Linear")) {
+        } else if (!equalIgnoringCase(colorSpace, "Linear")) {
             transfer = Transfer::Srgb;
         }
     }

@@ -1,13 +1,25 @@
 #include "sampler/tile_io.h"
 
-#include <OpenImageIO/imageio.h>
+#include <Imath/half.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfCompression.h>
+#include <OpenEXR/ImfFloatAttribute.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/ImfStringAttribute.h>
 
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <memory>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -16,8 +28,8 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/exr_header.h"
+#include "common/image_files.h"
 #include "common/input_file.h"
-#include "sampler/detail/image_input.h"
 
 namespace distile {
 
@@ -42,11 +54,8 @@ constexpr std::array<const char*, 7> kTileAttributes = {
     "distile:size",   "distile:layout",  "distile:units", "distile:source",
     "distile:params", "distile:version", "distile:hash"};
 
-/// First line of an OpenImageIO error message, or `fallback` when it is empty.
-std::string firstLine(const std::string& message, const std::string& fallback) {
-    const std::string line = message.substr(0, message.find('\n'));
-    return line.empty() ? fallback : line;
-}
+using image_files::firstLine;
+using image_files::PixelType;
 
 std::uint64_t fnv1a(std::uint64_t hash, std::uint32_t value) {
     constexpr std::uint64_t kPrime = 0x100000001b3ull;
@@ -143,23 +152,33 @@ std::string recordedSourceFile(const fs::path& source, const fs::path& file) {
     return relative.empty() ? absoluteSource.generic_string() : relative.generic_string();
 }
 
-void setTileAttributes(OIIO::ImageSpec& spec, const Size3& size, const TileProvenance& provenance,
-                       std::uint64_t hash, const fs::path& file) {
-    spec.attribute("distile:size", toString(size));
-    spec.attribute("distile:layout", layoutText(atlasGrid(size.depth)));
-    spec.attribute("distile:units", "texels");
-    // OpenImageIO's EXR writer drops empty string attributes, so empty provenance is spelled out.
-    spec.attribute("distile:source",
-                   provenance.source.empty() ? kUnknownSource : provenance.source);
-    spec.attribute("distile:params", provenance.params.empty() ? kNoParams : provenance.params);
-    spec.attribute("distile:version", kFormatVersion);
-    spec.attribute("distile:hash", hexDigits(hash));
+/// The spec of an atlas of `size` in one channel named "distance", stored as `stored`, with the
+/// attributes of a tile.
+image_files::Spec tileSpec(const Size3& size, PixelType stored, const TileProvenance& provenance,
+                           std::uint64_t hash, const fs::path& file) {
+    const AtlasPixels atlas = atlasPixels(size);
+    image_files::Spec spec;
+    spec.width = atlas.width;
+    spec.height = atlas.height;
+    spec.channels = 1;
+    spec.pixelType = stored;
+    spec.channelNames = {kChannelName};
+    spec.set("distile:size", toString(size));
+    spec.set("distile:layout", layoutText(atlasGrid(size.depth)));
+    spec.set("distile:units", std::string("texels"));
+    // Empty provenance is spelled out: files once written through OpenImageIO, whose EXR writer
+    // drops empty string attributes, read back the same way.
+    spec.set("distile:source", provenance.source.empty() ? kUnknownSource : provenance.source);
+    spec.set("distile:params", provenance.params.empty() ? kNoParams : provenance.params);
+    spec.set("distile:version", std::string(kFormatVersion));
+    spec.set("distile:hash", hexDigits(hash));
     if (provenance.halfBandTexels > 0.0)
-        spec.attribute("distile:band_texels", float(provenance.halfBandTexels));
+        spec.set("distile:band_texels", float(provenance.halfBandTexels));
     if (!provenance.sourceFile.empty()) {
-        spec.attribute("distile:source_file", recordedSourceFile(provenance.sourceFile, file));
-        spec.attribute("distile:source_hash", provenance.sourceHash);
+        spec.set("distile:source_file", recordedSourceFile(provenance.sourceFile, file));
+        spec.set("distile:source_hash", provenance.sourceHash);
     }
+    return spec;
 }
 
 /// The distances a tile may hold, texels, and why.
@@ -176,7 +195,8 @@ DistanceInterval acceptedDistances(const Size3& size, double halfBandTexels) {
     if (halfBandTexels > 0.0) {
         return {-halfBandTexels - double(size.depth), halfBandTexels,
                 "outside the band the tile declares (distile:band_texels " +
-                    std::to_string(halfBandTexels) + ": at most the band, at least minus the band "
+                    std::to_string(halfBandTexels) +
+                    ": at most the band, at least minus the band "
                     "minus the tile depth)"};
     }
     const double limit = 2.0 * double(maxHalfBandTexels(size));
@@ -205,21 +225,82 @@ std::string bandValueProblem(const Size3& size, double halfBandTexels) {
            " is not a positive number of at most " + std::to_string(int(most)) + " texels";
 }
 
-/// Opens `temporary` with OpenImageIO and writes `pixels` (one channel, row-major) into it.
+/// Writes `pixels` (one channel, row-major) into `temporary` as `spec` says.
 template <typename Value>
-void writeAtlas(const fs::path& temporary, const OIIO::ImageSpec& spec,
-                const std::vector<Value>& pixels, OIIO::TypeDesc pixelType,
-                const fs::path& target) {
-    auto output = OIIO::ImageOutput::create(temporary.string());
-    if (!output) {
-        throw std::runtime_error(target.string() + ": OpenImageIO cannot write this file type (" +
-                                 firstLine(OIIO::geterror(), "no writer") + ")");
-    }
-    if (!output->open(temporary.string(), spec) || !output->write_image(pixelType, pixels.data()) ||
-        !output->close()) {
+void writeAtlas(const fs::path& temporary, const image_files::Spec& spec,
+                const std::vector<Value>& pixels, PixelType given, const fs::path& target) {
+    if (const std::string problem = image_files::write(temporary, spec, given, pixels.data());
+        !problem.empty())
+        throw std::runtime_error(target.string() + ": " + problem);
+}
+
+/// Writes `pixels` (one float per atlas pixel, row-major) into `temporary` as the zip-compressed
+/// OpenEXR atlas `spec` describes, with OpenEXR itself: reading and writing tiles needs none of
+/// OpenImageIO's plugins, so a render's tiles are read while OpenImageIO is still loading.
+void writeExrAtlas(const fs::path& temporary, const image_files::Spec& spec,
+                   const std::vector<float>& pixels, const fs::path& target) {
+    try {
+        Imf::Header header(spec.width, spec.height);
+        header.compression() = Imf::ZIP_COMPRESSION;
+        header.channels().insert(
+            kChannelName, Imf::Channel(spec.pixelType == PixelType::Half ? Imf::HALF : Imf::FLOAT));
+        for (const image_files::Attribute& attribute : spec.attributes) {
+            if (const auto* text = std::get_if<std::string>(&attribute.value))
+                header.insert(attribute.name, Imf::StringAttribute(*text));
+            else if (const auto* number = std::get_if<float>(&attribute.value))
+                header.insert(attribute.name, Imf::FloatAttribute(*number));
+            else
+                header.insert(attribute.name, Imf::IntAttribute(std::get<int>(attribute.value)));
+        }
+        // OpenEXR converts pixel types when reading only: half files are written from halves.
+        std::vector<Imath::half> halves;
+        Imf::FrameBuffer frame;
+        if (spec.pixelType == PixelType::Half) {
+            halves.assign(pixels.begin(), pixels.end());
+            frame.insert(kChannelName, Imf::Slice(Imf::HALF, reinterpret_cast<char*>(halves.data()),
+                                                  sizeof(Imath::half),
+                                                  sizeof(Imath::half) * std::size_t(spec.width)));
+        } else {
+            char* base = const_cast<char*>(reinterpret_cast<const char*>(pixels.data()));
+            frame.insert(kChannelName, Imf::Slice(Imf::FLOAT, base, sizeof(float),
+                                                  sizeof(float) * std::size_t(spec.width)));
+        }
+        Imf::OutputFile output(temporary.c_str(), header);
+        output.setFrameBuffer(frame);
+        output.writePixels(spec.height);
+    } catch (const std::exception& error) {
         throw std::runtime_error(target.string() + ": writing failed (" +
-                                 firstLine(output->geterror(), "unknown OpenImageIO error") + ")");
+                                 firstLine(error.what(), "unknown OpenEXR error") + ")");
     }
+}
+
+/// The header of an OpenEXR file as an image_files::Spec: its data window's extent, channels and
+/// the string, float and integer attributes.
+image_files::Spec specOfExr(const Imf::Header& header) {
+    image_files::Spec spec;
+    const Imath::Box2i window = header.dataWindow();
+    spec.width =
+        int(std::min<std::int64_t>(std::int64_t(window.max.x) - window.min.x + 1, INT32_MAX));
+    spec.height =
+        int(std::min<std::int64_t>(std::int64_t(window.max.y) - window.min.y + 1, INT32_MAX));
+    spec.deep = header.hasType() && Imf::isDeepData(header.type());
+    for (auto channel = header.channels().begin(); channel != header.channels().end(); ++channel) {
+        spec.channelNames.push_back(channel.name());
+        ++spec.channels;
+        if (spec.channels == 1)
+            spec.pixelType =
+                channel.channel().type == Imf::HALF ? PixelType::Half : PixelType::Float;
+    }
+    for (auto entry = header.begin(); entry != header.end(); ++entry) {
+        const Imf::Attribute& value = entry.attribute();
+        if (const auto* text = dynamic_cast<const Imf::StringAttribute*>(&value))
+            spec.attributes.push_back({entry.name(), text->value()});
+        else if (const auto* number = dynamic_cast<const Imf::FloatAttribute*>(&value))
+            spec.attributes.push_back({entry.name(), number->value()});
+        else if (const auto* integer = dynamic_cast<const Imf::IntAttribute*>(&value))
+            spec.attributes.push_back({entry.name(), integer->value()});
+    }
+    return spec;
 }
 
 void requireWritableDistances(const Tile& tile, const fs::path& file) {
@@ -236,7 +317,8 @@ void requireWritableDistances(const Tile& tile, const fs::path& file) {
     std::string problem = bandValueProblem(tile.size(), band);
     if (problem.empty() && band > 0.0)
         problem = distanceProblem(tile, acceptedDistances(tile.size(), band));
-    if (!problem.empty()) throw InputError(file.string() + ": " + problem + "; it cannot be written");
+    if (!problem.empty())
+        throw InputError(file.string() + ": " + problem + "; it cannot be written");
 }
 
 Size3 parseSize(const std::string& text, const fs::path& file) {
@@ -281,15 +363,13 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
     const Size3& size = tile.size();
     std::span<const float> stored = tile.distancesTexels();
     std::vector<float> roundedToHalf;
-    OIIO::TypeDesc fileType = OIIO::TypeDesc::FLOAT;
+    PixelType fileType = PixelType::Float;
     if (storage == TileStorage::Half16) {
-        // Round once here so the hash covers exactly the values a reader will get back.
-        std::vector<std::uint16_t> halves(stored.size());
+        // Round once here (to nearest even, as OpenEXR does) so the hash covers exactly the
+        // values a reader will get back.
         roundedToHalf.resize(stored.size());
-        OIIO::convert_pixel_values(OIIO::TypeDesc::FLOAT, stored.data(), OIIO::TypeDesc::HALF,
-                                   halves.data(), int(stored.size()));
-        OIIO::convert_pixel_values(OIIO::TypeDesc::HALF, halves.data(), OIIO::TypeDesc::FLOAT,
-                                   roundedToHalf.data(), int(stored.size()));
+        std::transform(stored.begin(), stored.end(), roundedToHalf.begin(),
+                       [](float value) { return float(Imath::half(value)); });
         for (std::size_t i = 0; i < stored.size(); ++i) {
             if (!std::isfinite(roundedToHalf[i])) {
                 throw InputError(file.string() + ": distance " + std::to_string(stored[i]) +
@@ -299,58 +379,53 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
             }
         }
         stored = roundedToHalf;
-        fileType = OIIO::TypeDesc::HALF;
+        fileType = PixelType::Half;
     }
 
     const float maxDistance = *std::max_element(stored.begin(), stored.end());
     const std::vector<float> pixels = toAtlas(size, stored, maxDistance);
-    const AtlasPixels atlas = atlasPixels(size);
-    OIIO::ImageSpec spec(atlas.width, atlas.height, 1, fileType);
-    spec.channelnames = {kChannelName};
-    spec.attribute("compression", "zip");
-    setTileAttributes(spec, size, tile.provenance, hashDistances(size, stored), file);
-
-    writeAtomically(file, [&](const fs::path& temporary) {
-        writeAtlas(temporary, spec, pixels, OIIO::TypeDesc::FLOAT, file);
-    });
+    const image_files::Spec spec =
+        tileSpec(size, fileType, tile.provenance, hashDistances(size, stored), file);
+    writeAtomically(
+        file, [&](const fs::path& temporary) { writeExrAtlas(temporary, spec, pixels, file); });
 }
 
 Tile readTileExr(const fs::path& file) {
     requireRegularFile(file, "a tile .exr file");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
     checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
-    std::string openError;
-    auto input = detail::openImageByExtension(file, openError);
-    if (!input) {
-        throw FormatError(file.string() + ": not a readable image (" +
-                          firstLine(openError, "unknown OpenImageIO error") +
-                          "); the file is truncated, corrupted or not an image");
+    std::unique_ptr<Imf::InputFile> input;
+    image_files::Spec spec;
+    try {
+        input = std::make_unique<Imf::InputFile>(file.c_str());
+        spec = specOfExr(input->header());
+    } catch (const std::exception& error) {
+        throw FormatError(file.string() + ": not a readable OpenEXR file (" +
+                          firstLine(error.what(), "unknown OpenEXR error") +
+                          "); a distile tile is OpenEXR, and this file is truncated, corrupted "
+                          "or another format");
     }
-    if (std::string(input->format_name()) != "openexr") {
-        throw FormatError(file.string() + ": is a " + input->format_name() +
-                          " image; a distile tile must be OpenEXR");
-    }
-    const OIIO::ImageSpec& spec = input->spec();
     for (const char* name : kTileAttributes) {
-        if (!spec.find_attribute(name, OIIO::TypeDesc::STRING)) {
+        const image_files::Attribute* attribute = spec.find(name);
+        if (!attribute || !std::holds_alternative<std::string>(attribute->value)) {
             throw FormatError(file.string() + ": not a distile tile (no " + name +
                               " attribute); write tiles with `distile bake`");
         }
     }
-    const Size3 size = parseSize(spec.get_string_attribute("distile:size"), file);
-    const std::string units = spec.get_string_attribute("distile:units");
+    const Size3 size = parseSize(spec.text("distile:size"), file);
+    const std::string units = spec.text("distile:units");
     if (units != "texels") {
         throw FormatError(file.string() + ": distile:units '" + units +
                           "' is not accepted; only 'texels'");
     }
-    if (spec.nchannels != 1 || spec.channelnames.empty() || spec.channelnames[0] != kChannelName) {
-        const std::string first = spec.channelnames.empty() ? "" : spec.channelnames[0];
-        throw FormatError(file.string() + ": has " + std::to_string(spec.nchannels) +
+    if (spec.channels != 1 || spec.channelNames.empty() || spec.channelNames[0] != kChannelName) {
+        const std::string first = spec.channelNames.empty() ? "" : spec.channelNames[0];
+        throw FormatError(file.string() + ": has " + std::to_string(spec.channels) +
                           " channel(s) starting with '" + first +
                           "'; a tile has exactly one channel named 'distance'");
     }
     const AtlasPixels atlas = atlasPixels(size);
-    if (spec.width != atlas.width || spec.height != atlas.height || spec.depth != 1 || spec.deep) {
+    if (spec.width != atlas.width || spec.height != atlas.height || spec.deep) {
         throw FormatError(file.string() + ": image is " + std::to_string(spec.width) + "x" +
                           std::to_string(spec.height) + " pixels but distile:size " +
                           toString(size) + " needs a " + std::to_string(atlas.grid.cols) + "x" +
@@ -362,9 +437,24 @@ Tile readTileExr(const fs::path& file) {
     requireWithinMemoryBudget(file, "a " + toString(size) + " tile",
                               saturatingProduct(atlasPixelCount + size.texelCount(), 4));
     std::vector<float> pixels(atlasPixelCount);
-    if (!input->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, pixels.data())) {
+    try {
+        // The slice's origin is the data window's corner, as OpenEXR addresses pixels; computed
+        // as an address so that a window far from (0, 0) is not pointer arithmetic out of range.
+        const Imath::Box2i window = input->header().dataWindow();
+        const std::uintptr_t origin =
+            reinterpret_cast<std::uintptr_t>(pixels.data()) -
+            (std::uintptr_t(std::intptr_t(window.min.x)) +
+             std::uintptr_t(std::intptr_t(window.min.y)) * std::uintptr_t(atlas.width)) *
+                sizeof(float);
+        Imf::FrameBuffer frame;
+        frame.insert(kChannelName,
+                     Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(origin), sizeof(float),
+                                sizeof(float) * std::size_t(atlas.width)));
+        input->setFrameBuffer(frame);
+        input->readPixels(window.min.y, window.max.y);
+    } catch (const std::exception& error) {
         throw FormatError(file.string() + ": cannot read the pixels (" +
-                          firstLine(input->geterror(), "unknown OpenImageIO error") +
+                          firstLine(error.what(), "unknown OpenEXR error") +
                           "); the file is truncated or corrupted");
     }
 
@@ -378,32 +468,33 @@ Tile readTileExr(const fs::path& file) {
                           texelName(size, std::size_t(bad - distances.begin())) + " is " +
                           std::to_string(*bad) + "; a tile holds only finite distances");
     }
-    if (const OIIO::ParamValue* band = spec.find_attribute("distile:band_texels")) {
-        tile.provenance.halfBandTexels =
-            band->type() == OIIO::TypeDesc::FLOAT ? band->get_float() : -1.0;
+    if (const image_files::Attribute* band = spec.find("distile:band_texels")) {
+        const float* value = std::get_if<float>(&band->value);
+        tile.provenance.halfBandTexels = value ? *value : -1.0;
         if (const std::string problem = bandValueProblem(size, tile.provenance.halfBandTexels);
             !problem.empty())
-            throw FormatError(file.string() + ": " + problem + "; the file was modified or corrupted");
+            throw FormatError(file.string() + ": " + problem +
+                              "; the file was modified or corrupted");
     }
     if (const std::string problem =
             distanceProblem(tile, acceptedDistances(size, tile.provenance.halfBandTexels));
         !problem.empty())
         throw FormatError(file.string() + ": " + problem);
-    const std::string storedHash = spec.get_string_attribute("distile:hash");
+    const std::string storedHash = spec.text("distile:hash");
     const std::string actualHash = hexDigits(tileHash(tile));
     if (storedHash != actualHash) {
         throw FormatError(file.string() + ": distile:hash is " + storedHash +
                           " but the distances hash to " + actualHash +
                           "; the file was modified or corrupted");
     }
-    tile.provenance.source = spec.get_string_attribute("distile:source");
-    tile.provenance.params = spec.get_string_attribute("distile:params");
+    tile.provenance.source = spec.text("distile:source");
+    tile.provenance.params = spec.text("distile:params");
     // Optional: tiles baked from a file name it, relative to the tile's folder.
-    const std::string sourceFile = spec.get_string_attribute("distile:source_file");
+    const std::string sourceFile = spec.text("distile:source_file");
     if (!sourceFile.empty()) {
         tile.provenance.sourceFile =
             (fs::absolute(file).parent_path() / fs::path(sourceFile)).lexically_normal();
-        tile.provenance.sourceHash = spec.get_string_attribute("distile:source_hash");
+        tile.provenance.sourceHash = spec.text("distile:source_hash");
     }
     return tile;
 }
@@ -451,22 +542,20 @@ void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
     const std::vector<std::uint16_t> pixels =
         toAtlas(size, std::span<const std::uint16_t>(codes), fill);
 
-    const AtlasPixels atlas = atlasPixels(size);
-    OIIO::ImageSpec spec(atlas.width, atlas.height, 1,
-                         bitsPerChannel == 8 ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::UINT16);
-    spec.channelnames = {kChannelName};
-    spec.attribute("oiio:ColorSpace", "Linear");  // data, not colour: no sRGB decoding
-    setTileAttributes(spec, size, tile.provenance, tileHash(tile), file);
-    spec.attribute("distile:units", "distance / " + std::to_string(size.depth) +
-                                        " texels (tile depth), clamped to [0, 1]");
+    image_files::Spec spec =
+        tileSpec(size, bitsPerChannel == 8 ? PixelType::UInt8 : PixelType::UInt16, tile.provenance,
+                 tileHash(tile), file);
+    spec.set("oiio:ColorSpace", std::string("Linear"));  // data, not colour: no sRGB decoding
+    spec.set("distile:units", "distance / " + std::to_string(size.depth) +
+                                  " texels (tile depth), clamped to [0, 1]");
     if (bitsPerChannel == 8) {
         std::vector<std::uint8_t> bytes(pixels.begin(), pixels.end());
         writeAtomically(file, [&](const fs::path& temporary) {
-            writeAtlas(temporary, spec, bytes, OIIO::TypeDesc::UINT8, file);
+            writeAtlas(temporary, spec, bytes, PixelType::UInt8, file);
         });
     } else {
         writeAtomically(file, [&](const fs::path& temporary) {
-            writeAtlas(temporary, spec, pixels, OIIO::TypeDesc::UINT16, file);
+            writeAtlas(temporary, spec, pixels, PixelType::UInt16, file);
         });
     }
 }
@@ -491,19 +580,17 @@ void writeSignedTilePng(const Tile& tile, const fs::path& file) {
     const std::uint16_t fill = *std::max_element(codes.begin(), codes.end());
     const std::vector<std::uint16_t> pixels =
         toAtlas(size, std::span<const std::uint16_t>(codes), fill);
-    const AtlasPixels atlas = atlasPixels(size);
-    OIIO::ImageSpec spec(atlas.width, atlas.height, 1, OIIO::TypeDesc::UINT16);
-    spec.channelnames = {kChannelName};
-    spec.attribute("oiio:ColorSpace", "Linear");  // data, not colour: no sRGB decoding
-    setTileAttributes(spec, size, tile.provenance, tileHash(tile), file);
+    image_files::Spec spec =
+        tileSpec(size, PixelType::UInt16, tile.provenance, tileHash(tile), file);
+    spec.set("oiio:ColorSpace", std::string("Linear"));  // data, not colour: no sRGB decoding
     char rangeText[32];
     std::snprintf(rangeText, sizeof rangeText, "%.9g", double(range));
-    spec.attribute("distile:units", std::string("0.5 + distance / (2 x ") + rangeText +
-                                        " texels), signed: distance = value x " +
-                                        "2 R - R with R = distile:png_range_texels");
-    spec.attribute("distile:png_range_texels", std::string(rangeText));
+    spec.set("distile:units", std::string("0.5 + distance / (2 x ") + rangeText +
+                                  " texels), signed: distance = value x " +
+                                  "2 R - R with R = distile:png_range_texels");
+    spec.set("distile:png_range_texels", std::string(rangeText));
     writeAtomically(file, [&](const fs::path& temporary) {
-        writeAtlas(temporary, spec, pixels, OIIO::TypeDesc::UINT16, file);
+        writeAtlas(temporary, spec, pixels, PixelType::UInt16, file);
     });
 }
 

@@ -45,15 +45,14 @@ std::uint64_t tileHash(const Tile& tile);
 /// to half first and distile:hash is the hash of the rounded values, so the file verifies when
 /// read back. Throws InputError if `file` does not end in .exr, if a distance is NaN or
 /// infinite, if a distance does not fit in a half (Half16), or if the target's folder does not
-/// exist; std::runtime_error if OpenImageIO
-/// fails to write. Never leaves a partial file at `file`.
+/// exist; std::runtime_error if OpenEXR fails to write. Never leaves a partial file at `file`.
 void writeTileExr(const Tile& tile, const std::filesystem::path& file,
                   TileStorage storage = TileStorage::Float32);
 
 /// Reads a tile written by writeTileExr(), half or float, into float distances in texel units,
 /// with its provenance (a recorded relative source file resolved from the tile file's folder).
 /// Throws InputError if `file` does not exist or is not a regular file (a folder, a device);
-/// FormatError if it is not an OpenEXR file OpenImageIO can read, has no distile: attributes ("not
+/// FormatError if it is not an OpenEXR file OpenEXR can read, has no distile: attributes ("not
 /// a distile tile"), does not have exactly one channel named "distance", has atlas dimensions that
 /// disagree with distile:size, needs more than kInputMemoryBudgetBytes to read, holds NaN or
 /// infinite distances, declares a band (distile:band_texels) that is not positive or beyond

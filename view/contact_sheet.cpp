@@ -1,8 +1,5 @@
 #include "view/contact_sheet.h"
 
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -12,6 +9,7 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/image_files.h"
 #include "sampler/tile_io.h"
 
 namespace distile {
@@ -104,12 +102,10 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
                          " is not accepted; it must be finite and > 0");
     }
     const ContactSheetLayout layout(size);
-    OIIO::ImageBuf picture(OIIO::ImageSpec(layout.width, layout.height, 3, OIIO::TypeDesc::FLOAT));
-    const float background[3] = {kBackground.r, kBackground.g, kBackground.b};
-    OIIO::ImageBufAlgo::fill(picture, background);
+    std::vector<glm::vec3> picture(std::size_t(layout.width) * std::size_t(layout.height),
+                                   kBackground);
     auto put = [&](int x, int y, const glm::vec3& color) {
-        const float rgb[3] = {color.r, color.g, color.b};
-        picture.setpixel(x, y, rgb, 3);
+        picture[std::size_t(x) + std::size_t(layout.width) * std::size_t(y)] = color;
     };
     auto at = [&](std::span<const float> field, int x, int y, int z) {
         x = (x % size.width + size.width) % size.width;  // periodic neighbours
@@ -146,8 +142,10 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
     bool labelled = true;
     auto text = [&](int x, int baseline, const std::string& words) {
         const float color[3] = {kTextColor.r, kTextColor.g, kTextColor.b};
-        labelled = labelled && OIIO::ImageBufAlgo::render_text(picture, x, baseline, words,
-                                                               kFontPixels, kFont, color);
+        labelled =
+            labelled &&
+            image_files::drawText(std::span<float>(&picture[0].x, picture.size() * 3), layout.width,
+                                  layout.height, x, baseline, words, kFontPixels, kFont, color);
     };
     for (int z = 0; z < size.depth && labelled; ++z)
         text(layout.cellLeft(z), layout.cellTop(z) - 4, "z = " + texelLabel(float(z) + 0.5f));
@@ -158,13 +156,17 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
         text(tickX, (layout.barTop() + layout.barBottom()) / 2 + kFontPixels / 2, "0");
         text(tickX, layout.barBottom(), "-" + texelLabel(options.rangeTexels));
     }
+    image_files::Spec spec;
+    spec.width = layout.width;
+    spec.height = layout.height;
+    spec.channels = 3;
+    spec.pixelType = image_files::PixelType::UInt8;
+    spec.set("oiio:ColorSpace", std::string("sRGB"));
     writeAtomically(file, [&](const fs::path& temporary) {
-        OIIO::ImageBuf encoded = picture;
-        encoded.specmod().attribute("oiio:ColorSpace", "sRGB");
-        if (!encoded.write(temporary.string(), OIIO::TypeDesc::UINT8)) {
-            throw std::runtime_error(file.string() +
-                                     ": cannot write the picture: " + encoded.geterror());
-        }
+        const std::string problem =
+            image_files::write(temporary, spec, image_files::PixelType::Float, picture.data());
+        if (!problem.empty())
+            throw std::runtime_error(file.string() + ": cannot write the picture: " + problem);
     });
     return labelled;
 }

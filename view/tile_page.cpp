@@ -1,6 +1,6 @@
 #include "view/tile_page.h"
 
-#include <OpenImageIO/imageio.h>
+#include <Imath/half.h>
 
 #include <array>
 #include <cmath>
@@ -133,13 +133,11 @@ std::string tilePageHtml(const Tile& tile, const std::string& title, const TileP
                              "texels");
         }
     }
-    std::vector<std::uint16_t> halves(distances.size());
-    OIIO::convert_pixel_values(OIIO::TypeDesc::FLOAT, distances.data(), OIIO::TypeDesc::HALF,
-                               halves.data(), int(distances.size()));
-    std::vector<std::uint8_t> bytes(halves.size() * 2);
-    for (std::size_t i = 0; i < halves.size(); ++i) {  // little endian, as Uint16Array reads it
-        bytes[2 * i] = std::uint8_t(halves[i] & 0xff);
-        bytes[2 * i + 1] = std::uint8_t(halves[i] >> 8);
+    std::vector<std::uint8_t> bytes(distances.size() * 2);
+    for (std::size_t i = 0; i < distances.size(); ++i) {  // little endian, as Uint16Array reads it
+        const std::uint16_t half = Imath::half(distances[i]).bits();
+        bytes[2 * i] = std::uint8_t(half & 0xff);
+        bytes[2 * i + 1] = std::uint8_t(half >> 8);
     }
     const Size3& size = tile.size();
     // The march starts at the highest top of the detail, as the renderer's trilinear march does.

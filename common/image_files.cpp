@@ -1,0 +1,114 @@
+#include "common/image_files.h"
+
+#include <dlfcn.h>
+
+#include <future>
+#include <mutex>
+#include <stdexcept>
+
+#include "common/detail/image_files_module.h"
+
+namespace distile::image_files {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// Where the module may be: beside the library holding this code (../lib from a program in
+/// bin/, as the build lays them out), then where the build put it.
+std::vector<fs::path> moduleCandidates() {
+    std::vector<fs::path> candidates;
+    Dl_info self{};
+    if (dladdr(reinterpret_cast<const void*>(&moduleCandidates), &self) && self.dli_fname) {
+        const fs::path binary = fs::path(self.dli_fname).parent_path();
+        candidates.push_back(binary / ".." / "lib" / DISTILE_IMAGE_FILES_MODULE_NAME);
+    }
+    candidates.push_back(fs::path(DISTILE_IMAGE_FILES_MODULE_DIR) /
+                         DISTILE_IMAGE_FILES_MODULE_NAME);
+    return candidates;
+}
+
+const detail::ModuleFunctions* loadModule() {
+    std::string errors;
+    for (const fs::path& candidate : moduleCandidates()) {
+        std::error_code error;
+        if (!fs::is_regular_file(candidate, error)) continue;
+        // Never closed: its libraries stay until the process ends.
+        void* handle = dlopen(candidate.c_str(), RTLD_NOW | RTLD_LOCAL);
+        if (!handle) {
+            const char* message = dlerror();
+            errors += std::string("; ") + (message ? message : candidate.string());
+            continue;
+        }
+        using Entry = const detail::ModuleFunctions* (*)();
+        if (auto entry = reinterpret_cast<Entry>(dlsym(handle, detail::kModuleEntry)))
+            return entry();
+        errors += "; " + candidate.string() + " has no " + detail::kModuleEntry;
+    }
+    throw std::runtime_error(
+        std::string("cannot load distile's OpenImageIO module ") + DISTILE_IMAGE_FILES_MODULE_NAME +
+        " (looked beside the program and in " + DISTILE_IMAGE_FILES_MODULE_DIR + errors + ")");
+}
+
+std::shared_future<const detail::ModuleFunctions*>& loading() {
+    static std::shared_future<const detail::ModuleFunctions*> future;
+    return future;
+}
+
+std::once_flag& loadStarted() {
+    static std::once_flag started;
+    return started;
+}
+
+void startLoading(std::launch policy) {
+    std::call_once(loadStarted(), [policy] { loading() = std::async(policy, loadModule).share(); });
+}
+
+const detail::ModuleFunctions& module() {
+    startLoading(std::launch::deferred);
+    return *loading().get();
+}
+
+}  // namespace
+
+void Spec::set(const std::string& name, std::variant<std::string, int, float> value) {
+    for (Attribute& attribute : attributes) {
+        if (attribute.name == name) {
+            attribute.value = std::move(value);
+            return;
+        }
+    }
+    attributes.push_back({name, std::move(value)});
+}
+
+const Attribute* Spec::find(std::string_view name) const {
+    for (const Attribute& attribute : attributes)
+        if (attribute.name == name) return &attribute;
+    return nullptr;
+}
+
+std::string Spec::text(std::string_view name) const {
+    const Attribute* attribute = find(name);
+    const auto* value = attribute ? std::get_if<std::string>(&attribute->value) : nullptr;
+    return value ? *value : std::string();
+}
+
+std::unique_ptr<Input> open(const fs::path& file, std::string& error) {
+    return module().open(file, error);
+}
+
+std::string write(const fs::path& file, const Spec& spec, PixelType given, const void* pixels) {
+    return module().write(file, spec, given, pixels);
+}
+
+bool drawText(std::span<float> rgb, int width, int height, int x, int baseline,
+              const std::string& text, int fontPixels, const std::string& font,
+              const float (&color)[3]) {
+    return module().drawText(rgb, width, height, x, baseline, text, fontPixels, font, color);
+}
+
+void loadInBackground() {
+    startLoading(std::launch::async);
+}
+
+}  // namespace distile::image_files
