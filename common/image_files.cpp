@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "common/detail/image_files_module.h"
+#include "common/error.h"
 
 namespace distile::image_files {
 
@@ -14,40 +15,45 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// Where the module may be: beside the library holding this code (../lib from a program in
-/// bin/, as the build lays them out), then where the build put it.
-std::vector<fs::path> moduleCandidates() {
+/// The module's file: beside the library holding this code (../lib from a program in bin/, as
+/// the build lays them out), else where the build put it. Throws InternalError if neither exists.
+fs::path moduleFile() {
     std::vector<fs::path> candidates;
     Dl_info self{};
-    if (dladdr(reinterpret_cast<const void*>(&moduleCandidates), &self) && self.dli_fname) {
+    if (dladdr(reinterpret_cast<const void*>(&moduleFile), &self) && self.dli_fname) {
         const fs::path binary = fs::path(self.dli_fname).parent_path();
-        candidates.push_back(binary / ".." / "lib" / DISTILE_IMAGE_FILES_MODULE_NAME);
+        candidates.push_back(
+            (binary / ".." / "lib" / DISTILE_IMAGE_FILES_MODULE_NAME).lexically_normal());
     }
     candidates.push_back(fs::path(DISTILE_IMAGE_FILES_MODULE_DIR) /
                          DISTILE_IMAGE_FILES_MODULE_NAME);
-    return candidates;
+    for (const fs::path& candidate : candidates) {
+        std::error_code error;
+        if (fs::is_regular_file(candidate, error)) return candidate;
+    }
+    throw InternalError(std::string("distile's OpenImageIO module ") +
+                        DISTILE_IMAGE_FILES_MODULE_NAME + " is neither beside the program (" +
+                        candidates.front().parent_path().string() + ") nor in " +
+                        DISTILE_IMAGE_FILES_MODULE_DIR +
+                        "; the build is incomplete (its target is distile_image_files_oiio)");
 }
 
 const detail::ModuleFunctions* loadModule() {
-    std::string errors;
-    for (const fs::path& candidate : moduleCandidates()) {
-        std::error_code error;
-        if (!fs::is_regular_file(candidate, error)) continue;
-        // Never closed: its libraries stay until the process ends.
-        void* handle = dlopen(candidate.c_str(), RTLD_NOW | RTLD_LOCAL);
-        if (!handle) {
-            const char* message = dlerror();
-            errors += std::string("; ") + (message ? message : candidate.string());
-            continue;
-        }
-        using Entry = const detail::ModuleFunctions* (*)();
-        if (auto entry = reinterpret_cast<Entry>(dlsym(handle, detail::kModuleEntry)))
-            return entry();
-        errors += "; " + candidate.string() + " has no " + detail::kModuleEntry;
+    const fs::path file = moduleFile();
+    // Never closed: its libraries stay until the process ends.
+    void* handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+        const char* message = dlerror();
+        throw InternalError("cannot load " + file.string() + ": " +
+                            (message ? message : "unknown dlopen error"));
     }
-    throw std::runtime_error(
-        std::string("cannot load distile's OpenImageIO module ") + DISTILE_IMAGE_FILES_MODULE_NAME +
-        " (looked beside the program and in " + DISTILE_IMAGE_FILES_MODULE_DIR + errors + ")");
+    using Entry = const detail::ModuleFunctions* (*)();
+    auto entry = reinterpret_cast<Entry>(dlsym(handle, detail::kModuleEntry));
+    if (!entry) {
+        throw InternalError(file.string() + " has no " + detail::kModuleEntry +
+                            "; it is not distile's OpenImageIO module of this build");
+    }
+    return entry();
 }
 
 std::shared_future<const detail::ModuleFunctions*>& loading() {
@@ -108,6 +114,7 @@ bool drawText(std::span<float> rgb, int width, int height, int x, int baseline,
 }
 
 void loadInBackground() {
+    moduleFile();  // a missing module is reported now, not after the work that needs it
     startLoading(std::launch::async);
 }
 

@@ -4,7 +4,8 @@
 /// and linking them dynamically cost every process that linked them 0.2-0.45 s before main:
 /// most of `distile --help`, a third of the demo's whole `distile render`. Here only a process
 /// that touches an image pays it, and one that knows it will (a render writes its image at the
-/// end) loads the module on a second thread while it works.
+/// end) loads the module on a second thread while it works. Every function that needs the module
+/// throws InternalError if it cannot be loaded (the build is incomplete).
 #pragma once
 
 #include <filesystem>
@@ -58,13 +59,12 @@ class Input {
 /// cannot read is not offered to every other format in turn (OpenImageIO's fallback), where a
 /// damaged .exr would be tried as DICOM, FITS... each with its own costs (the DICOM reader alone
 /// took 2 GB on a fuzzed tile). Null, with `error` set to OpenImageIO's message, if it cannot.
-/// Throws std::runtime_error if the module cannot be loaded.
 std::unique_ptr<Input> open(const std::filesystem::path& file, std::string& error);
 
 /// Writes `pixels` (spec.width * spec.height pixels of spec.channels values of type `given`, row
 /// by row) to `file` in the format its extension names, stored as spec.pixelType with spec's
 /// channel names and attributes. Returns "" or what went wrong; the caller chooses the path
-/// (writeAtomically). Throws std::runtime_error if the module cannot be loaded.
+/// (writeAtomically).
 std::string write(const std::filesystem::path& file, const Spec& spec, PixelType given,
                   const void* pixels);
 
@@ -75,7 +75,8 @@ bool drawText(std::span<float> rgb, int width, int height, int x, int baseline,
               const float (&color)[3]);
 
 /// Starts loading the module on a second thread and returns at once: for a process that will
-/// read or write an image later. Any use waits for the load to finish.
+/// read or write an image later. Any use waits for the load to finish. Throws InternalError at
+/// once if the module's file is missing.
 void loadInBackground();
 
 /// The first line of an OpenImageIO message, or `fallback` when it is empty.
