@@ -56,23 +56,26 @@ const detail::ModuleFunctions* loadModule() {
     return entry();
 }
 
-std::shared_future<const detail::ModuleFunctions*>& loading() {
-    static std::shared_future<const detail::ModuleFunctions*> future;
-    return future;
-}
+/// The module's load: started once, by loadInBackground or by the first use.
+struct Loading {
+    std::once_flag started;
+    std::shared_future<const detail::ModuleFunctions*> functions;
+};
 
-std::once_flag& loadStarted() {
-    static std::once_flag started;
-    return started;
+Loading& loading() {
+    static Loading state;
+    return state;
 }
 
 void startLoading(std::launch policy) {
-    std::call_once(loadStarted(), [policy] { loading() = std::async(policy, loadModule).share(); });
+    Loading& state = loading();
+    std::call_once(state.started,
+                   [&] { state.functions = std::async(policy, loadModule).share(); });
 }
 
 const detail::ModuleFunctions& module() {
     startLoading(std::launch::deferred);
-    return *loading().get();
+    return *loading().functions.get();
 }
 
 }  // namespace
@@ -103,8 +106,10 @@ std::unique_ptr<Input> open(const fs::path& file, std::string& error) {
     return module().open(file, error);
 }
 
-std::string write(const fs::path& file, const Spec& spec, PixelType given, const void* pixels) {
-    return module().write(file, spec, given, pixels);
+void write(const fs::path& file, const fs::path& target, const Spec& spec, PixelType given,
+           const void* pixels) {
+    if (const std::string problem = module().write(file, spec, given, pixels); !problem.empty())
+        throw std::runtime_error(target.string() + ": " + problem);
 }
 
 bool drawText(std::span<float> rgb, int width, int height, int x, int baseline,

@@ -48,8 +48,6 @@ class Input {
   public:
     virtual ~Input() = default;
     virtual const Spec& spec() const = 0;
-    /// OpenImageIO's name of the file's format: "openexr", "png", "tiff"...
-    virtual std::string formatName() const = 0;
     /// Reads the first `channels` channels of every pixel as floats, row by row, into `pixels`
     /// (width * height * channels values). Returns "" or what went wrong.
     virtual std::string readFloats(int channels, std::span<float> pixels) = 0;
@@ -63,10 +61,10 @@ std::unique_ptr<Input> open(const std::filesystem::path& file, std::string& erro
 
 /// Writes `pixels` (spec.width * spec.height pixels of spec.channels values of type `given`, row
 /// by row) to `file` in the format its extension names, stored as spec.pixelType with spec's
-/// channel names and attributes. Returns "" or what went wrong; the caller chooses the path
-/// (writeAtomically).
-std::string write(const std::filesystem::path& file, const Spec& spec, PixelType given,
-                  const void* pixels);
+/// channel names and attributes. `file` is usually writeAtomically's temporary for `target`;
+/// throws std::runtime_error naming `target` if OpenImageIO fails.
+void write(const std::filesystem::path& file, const std::filesystem::path& target, const Spec& spec,
+           PixelType given, const void* pixels);
 
 /// Draws `text` into `rgb` (width * height pixels of three floats, row by row) in `color`, from
 /// (`x`, `baseline`), in the font `font` at `fontPixels` pixels. False if there is no such font.

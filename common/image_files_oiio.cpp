@@ -59,7 +59,6 @@ class OiioInput final : public Input {
     explicit OiioInput(std::unique_ptr<OIIO::ImageInput> input)
         : input_(std::move(input)), spec_(specOf(input_->spec())) {}
     const Spec& spec() const override { return spec_; }
-    std::string formatName() const override { return input_->format_name(); }
     std::string readFloats(int channels, std::span<float> pixels) override {
         if (pixels.size() <
             std::size_t(spec_.width) * std::size_t(spec_.height) * std::size_t(channels))

@@ -115,13 +115,6 @@ std::uint8_t srgbCode8(float linear) {
 
 namespace {
 
-void writePixels(const fs::path& temporary, const fs::path& target, const image_files::Spec& spec,
-                 image_files::PixelType given, const void* pixels) {
-    if (const std::string problem = image_files::write(temporary, spec, given, pixels);
-        !problem.empty())
-        throw std::runtime_error(target.string() + ": " + problem);
-}
-
 bool equalIgnoringCase(std::string_view a, std::string_view b) {
     return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](unsigned char x, unsigned char y) {
         return std::tolower(x) == std::tolower(y);
@@ -210,7 +203,7 @@ void writeImage(const Image& image, const fs::path& file) {
                            {"png:filter", 8}};  // PNG_FILTER_NONE
         const std::vector<std::uint8_t> codes = encodeChannels<std::uint8_t>(image, srgbCode8);
         writeAtomically(file, [&](const fs::path& temporary) {
-            writePixels(temporary, file, spec, PixelType::UInt8, codes.data());
+            image_files::write(temporary, file, spec, PixelType::UInt8, codes.data());
         });
     } else if (format == ImageFormat::Tiff) {
         spec.pixelType = PixelType::UInt16;
@@ -219,14 +212,14 @@ void writeImage(const Image& image, const fs::path& file) {
         const std::vector<std::uint16_t> codes =
             encodeChannels<std::uint16_t>(image, exactSrgbCode<std::uint16_t>);
         writeAtomically(file, [&](const fs::path& temporary) {
-            writePixels(temporary, file, spec, PixelType::UInt16, codes.data());
+            image_files::write(temporary, file, spec, PixelType::UInt16, codes.data());
         });
     } else {
         spec.pixelType = PixelType::Float;
         spec.attributes = {{"oiio:ColorSpace", std::string("Linear")},
                            {"compression", std::string("zip")}};
         writeAtomically(file, [&](const fs::path& temporary) {
-            writePixels(temporary, file, spec, PixelType::Float, image.rgbLinear.data());
+            image_files::write(temporary, file, spec, PixelType::Float, image.rgbLinear.data());
         });
     }
 }

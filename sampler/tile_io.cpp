@@ -225,15 +225,6 @@ std::string bandValueProblem(const Size3& size, double halfBandTexels) {
            " is not a positive number of at most " + std::to_string(int(most)) + " texels";
 }
 
-/// Writes `pixels` (one channel, row-major) into `temporary` as `spec` says.
-template <typename Value>
-void writeAtlas(const fs::path& temporary, const image_files::Spec& spec,
-                const std::vector<Value>& pixels, PixelType given, const fs::path& target) {
-    if (const std::string problem = image_files::write(temporary, spec, given, pixels.data());
-        !problem.empty())
-        throw std::runtime_error(target.string() + ": " + problem);
-}
-
 /// Writes `pixels` (one float per atlas pixel, row-major) into `temporary` as the zip-compressed
 /// OpenEXR atlas `spec` describes, with OpenEXR itself: reading and writing tiles needs none of
 /// OpenImageIO's plugins, so a render's tiles are read while OpenImageIO is still loading.
@@ -274,8 +265,8 @@ void writeExrAtlas(const fs::path& temporary, const image_files::Spec& spec,
     }
 }
 
-/// The header of an OpenEXR file as an image_files::Spec: its data window's extent, channels and
-/// the string, float and integer attributes.
+/// The header of an OpenEXR file as an image_files::Spec: its data window's extent, channel names
+/// and the string, float and integer attributes (readers take every channel as float).
 image_files::Spec specOfExr(const Imf::Header& header) {
     image_files::Spec spec;
     const Imath::Box2i window = header.dataWindow();
@@ -284,13 +275,9 @@ image_files::Spec specOfExr(const Imf::Header& header) {
     spec.height =
         int(std::min<std::int64_t>(std::int64_t(window.max.y) - window.min.y + 1, INT32_MAX));
     spec.deep = header.hasType() && Imf::isDeepData(header.type());
-    for (auto channel = header.channels().begin(); channel != header.channels().end(); ++channel) {
+    for (auto channel = header.channels().begin(); channel != header.channels().end(); ++channel)
         spec.channelNames.push_back(channel.name());
-        ++spec.channels;
-        if (spec.channels == 1)
-            spec.pixelType =
-                channel.channel().type == Imf::HALF ? PixelType::Half : PixelType::Float;
-    }
+    spec.channels = int(spec.channelNames.size());
     for (auto entry = header.begin(); entry != header.end(); ++entry) {
         const Imf::Attribute& value = entry.attribute();
         if (const auto* text = dynamic_cast<const Imf::StringAttribute*>(&value))
@@ -551,11 +538,11 @@ void writeTilePng(const Tile& tile, const fs::path& file, int bitsPerChannel) {
     if (bitsPerChannel == 8) {
         std::vector<std::uint8_t> bytes(pixels.begin(), pixels.end());
         writeAtomically(file, [&](const fs::path& temporary) {
-            writeAtlas(temporary, spec, bytes, PixelType::UInt8, file);
+            image_files::write(temporary, file, spec, PixelType::UInt8, bytes.data());
         });
     } else {
         writeAtomically(file, [&](const fs::path& temporary) {
-            writeAtlas(temporary, spec, pixels, PixelType::UInt16, file);
+            image_files::write(temporary, file, spec, PixelType::UInt16, pixels.data());
         });
     }
 }
@@ -590,7 +577,7 @@ void writeSignedTilePng(const Tile& tile, const fs::path& file) {
                                   "2 R - R with R = distile:png_range_texels");
     spec.set("distile:png_range_texels", std::string(rangeText));
     writeAtomically(file, [&](const fs::path& temporary) {
-        writeAtlas(temporary, spec, pixels, PixelType::UInt16, file);
+        image_files::write(temporary, file, spec, PixelType::UInt16, pixels.data());
     });
 }
 

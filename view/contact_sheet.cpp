@@ -163,10 +163,7 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
     spec.pixelType = image_files::PixelType::UInt8;
     spec.set("oiio:ColorSpace", std::string("sRGB"));
     writeAtomically(file, [&](const fs::path& temporary) {
-        const std::string problem =
-            image_files::write(temporary, spec, image_files::PixelType::Float, picture.data());
-        if (!problem.empty())
-            throw std::runtime_error(file.string() + ": cannot write the picture: " + problem);
+        image_files::write(temporary, file, spec, image_files::PixelType::Float, picture.data());
     });
     return labelled;
 }
