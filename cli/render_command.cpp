@@ -169,9 +169,11 @@ InputError underRenderNames(const InputError& error) {
 
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
-    // The image is written at the end; OpenImageIO loads meanwhile, while the scene is read and
-    // rendered, instead of before the first pixel.
-    image_files::loadInBackground();
+    // The image is written at the end. A PNG is written with libpng; any other file (an EXR, a
+    // TIFF, the AOVs' depth EXR) needs OpenImageIO, which loads meanwhile, while the scene is
+    // read and rendered, instead of after the last pixel.
+    if (!image_files::writesWithoutModule(arguments.output) || arguments.options.outputAovs)
+        image_files::loadInBackground();
     TileCache tiles;
     const auto warn = [](const std::string& warning) {
         std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());

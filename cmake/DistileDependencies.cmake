@@ -18,8 +18,10 @@ find_package(CGAL CONFIG REQUIRED)
 # half gives the 16-bit floats of half tiles and of the tile page.
 find_package(Imath CONFIG REQUIRED)
 find_package(OpenEXR CONFIG REQUIRED)
+# PNG files are written with libpng itself (common/detail/png_file.h).
+find_package(PNG REQUIRED)
 
-# OpenImageIO reads and writes every image, from a module loaded on first use
+# OpenImageIO reads every image and writes all but PNGs, from a module loaded on first use
 # (common/image_files.h). Its 2.4 exported target lists /usr/include/opencv4 as an include folder
 # even though nothing in its public headers needs OpenCV; CMake refuses to generate when the
 # folder is missing.

@@ -2,11 +2,13 @@
 
 #include <dlfcn.h>
 
+#include <cctype>
 #include <future>
 #include <mutex>
 #include <stdexcept>
 
 #include "common/detail/image_files_module.h"
+#include "common/detail/png_file.h"
 #include "common/error.h"
 
 namespace distile::image_files {
@@ -106,10 +108,18 @@ std::unique_ptr<Input> open(const fs::path& file, std::string& error) {
     return module().open(file, error);
 }
 
+bool writesWithoutModule(const fs::path& file) {
+    std::string extension = file.extension().string();
+    for (char& c : extension) c = char(std::tolower((unsigned char)c));
+    return extension == ".png";
+}
+
 void write(const fs::path& file, const fs::path& target, const Spec& spec, PixelType given,
            const void* pixels) {
-    if (const std::string problem = module().write(file, spec, given, pixels); !problem.empty())
-        throw std::runtime_error(target.string() + ": " + problem);
+    const std::string problem = writesWithoutModule(file)
+                                    ? detail::writePng(file, spec, given, pixels)
+                                    : module().write(file, spec, given, pixels);
+    if (!problem.empty()) throw std::runtime_error(target.string() + ": " + problem);
 }
 
 bool drawText(std::span<float> rgb, int width, int height, int x, int baseline,

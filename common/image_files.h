@@ -1,5 +1,6 @@
 /// @file
-/// Image files, read and written through OpenImageIO, which lives in a module loaded on first use.
+/// Image files, read and written through OpenImageIO, which lives in a module loaded on first use,
+/// except PNG files, which are written with libpng itself: a render's image needs no module.
 /// OpenImageIO's plugins bring about 260 shared libraries (OpenCV, FFmpeg, DCMTK, libheif...),
 /// and linking them dynamically cost every process that linked them 0.2-0.45 s before main:
 /// most of `distile --help`, a third of the demo's whole `distile render`. Here only a process
@@ -59,10 +60,14 @@ class Input {
 /// took 2 GB on a fuzzed tile). Null, with `error` set to OpenImageIO's message, if it cannot.
 std::unique_ptr<Input> open(const std::filesystem::path& file, std::string& error);
 
+/// True when writing `file` does not load the module: a PNG (by its extension).
+bool writesWithoutModule(const std::filesystem::path& file);
+
 /// Writes `pixels` (spec.width * spec.height pixels of spec.channels values of type `given`, row
 /// by row) to `file` in the format its extension names, stored as spec.pixelType with spec's
-/// channel names and attributes. `file` is usually writeAtomically's temporary for `target`;
-/// throws std::runtime_error naming `target` if OpenImageIO fails.
+/// channel names and attributes (a PNG as common/detail/png_file.h says). `file` is usually
+/// writeAtomically's temporary for `target`; throws std::runtime_error naming `target` if the
+/// writing fails.
 void write(const std::filesystem::path& file, const std::filesystem::path& target, const Spec& spec,
            PixelType given, const void* pixels);
 

@@ -15,7 +15,9 @@
 #include <string>
 #include <vector>
 
+#include "common/detail/png_file.h"
 #include "common/error.h"
+#include "common/image_files.h"
 #include "render/image.h"
 #include "sampler/tile_io.h"
 #include "tests/temp_folder.h"
@@ -555,6 +557,78 @@ TEST_F(SamplerIo, ReadImageErrors) {
     std::ofstream(path("garbage.png")) << "not a png";
     EXPECT_THROW(readImage(path("garbage.png")), FormatError);
     EXPECT_THROW(Image(0, 5), InputError);
+}
+
+image_files::Spec imageSpec(int width, int height, int channels, image_files::PixelType stored) {
+    image_files::Spec spec;
+    spec.width = width;
+    spec.height = height;
+    spec.channels = channels;
+    spec.pixelType = stored;
+    return spec;
+}
+
+TEST_F(SamplerIo, PngsAreWrittenWithLibpngAndReadBackByOpenImageIo) {
+    // 8-bit RGB from floats: clamped and rounded to the nearest code, NaN to 0; the sRGB colour
+    // space and string attributes come back, the writer's integer controls are not stored.
+    image_files::Spec rgb = imageSpec(3, 2, 3, image_files::PixelType::UInt8);
+    rgb.set("oiio:ColorSpace", std::string("sRGB"));
+    rgb.set("distile:note", std::string("a note"));
+    rgb.set("png:compressionLevel", 1);
+    const std::vector<float> floats = {0.0f, 1.0f,  0.5f,  -1.0f, 2.0f,   std::nanf(""),
+                                       0.1f, 0.25f, 0.75f, 0.998f, 0.002f, 1.0f / 255.0f,
+                                       0.3f, 0.6f,  0.9f,  0.4f,   0.7f,   0.2f};
+    const fs::path rgbFile = path("rgb.png");
+    image_files::write(rgbFile, rgbFile, rgb, image_files::PixelType::Float, floats.data());
+    const RawImage rgbRead = readRaw(rgbFile);
+    ASSERT_EQ(rgbRead.spec.format, OIIO::TypeDesc::UINT8);
+    ASSERT_EQ(rgbRead.spec.nchannels, 3);
+    EXPECT_EQ(rgbRead.spec.get_string_attribute("oiio:ColorSpace"), "sRGB");
+    EXPECT_EQ(rgbRead.spec.get_string_attribute("distile:note"), "a note");
+    EXPECT_EQ(rgbRead.spec.find_attribute("png:compressionLevel"), nullptr);
+    const int expected[18] = {0, 255, 128, 0, 255, 0, 26, 64, 191, 254, 1, 1, 77, 153, 230, 102, 179, 51};
+    for (int i = 0; i < 18; ++i)
+        EXPECT_EQ(std::lround(rgbRead.pixels[std::size_t(i)] * 255.0f), expected[i]) << i;
+
+    // 16-bit grey codes as given (most significant byte first in the file), Linear.
+    image_files::Spec grey = imageSpec(4, 1, 1, image_files::PixelType::UInt16);
+    grey.set("oiio:ColorSpace", std::string("Linear"));
+    const std::vector<std::uint16_t> codes = {0, 1, 0x1234, 65535};
+    const fs::path greyFile = path("grey.png");
+    image_files::write(greyFile, greyFile, grey, image_files::PixelType::UInt16, codes.data());
+    const RawImage greyRead = readRaw(greyFile);
+    ASSERT_EQ(greyRead.spec.format, OIIO::TypeDesc::UINT16);
+    EXPECT_EQ(greyRead.spec.get_string_attribute("oiio:ColorSpace"), "Linear");
+    for (int i = 0; i < 4; ++i)
+        EXPECT_EQ(std::lround(greyRead.pixels[std::size_t(i)] * 65535.0f), codes[std::size_t(i)]);
+    EXPECT_TRUE(image_files::writesWithoutModule("a/B.PNG"));
+    EXPECT_FALSE(image_files::writesWithoutModule("a/b.exr"));
+}
+
+TEST_F(SamplerIo, PngWriteFailuresAreReportedNotCrashes) {
+    image_files::Spec spec = imageSpec(256, 256, 3, image_files::PixelType::UInt8);
+    spec.set("png:compressionLevel", 0);  // stored: 196 KB, more than stdio buffers
+    const std::vector<std::uint8_t> pixels(256 * 256 * 3, 7);
+    // A full disk: libpng's error jumps back out of its write, and the message says so.
+    if (fs::exists("/dev/full")) {
+        EXPECT_EQ(image_files::detail::writePng("/dev/full", spec, image_files::PixelType::UInt8,
+                                                pixels.data()),
+                  "writing failed (libpng: Write Error)");
+    }
+    EXPECT_EQ(image_files::detail::writePng(path("missing/x.png"), spec,
+                                            image_files::PixelType::UInt8, pixels.data()),
+              "cannot create it (No such file or directory)");
+    spec.channels = 5;
+    EXPECT_EQ(image_files::detail::writePng(path("five.png"), spec, image_files::PixelType::UInt8,
+                                            pixels.data()),
+              "a PNG holds 1 to 4 channels, not 5");
+    spec.channels = 3;
+    spec.pixelType = image_files::PixelType::Half;
+    EXPECT_EQ(image_files::detail::writePng(path("half.png"), spec, image_files::PixelType::Half,
+                                            pixels.data()),
+              "a PNG stores 8- or 16-bit codes, not half or float values");
+    EXPECT_FALSE(fs::exists(path("five.png")));
+    EXPECT_FALSE(fs::exists(path("half.png")));
 }
 
 }  // namespace
