@@ -18,8 +18,9 @@ find_package(CGAL CONFIG REQUIRED)
 # half gives the 16-bit floats of half tiles and of the tile page.
 find_package(Imath CONFIG REQUIRED)
 find_package(OpenEXR CONFIG REQUIRED)
-# PNG files are written with libpng itself (common/detail/png_file.h).
+# PNG files are written with libpng itself, deflated with zlib (common/detail/png_file.h).
 find_package(PNG REQUIRED)
+find_package(ZLIB REQUIRED)
 
 # OpenImageIO reads every image and writes all but PNGs, from a module loaded on first use
 # (common/image_files.h). Its 2.4 exported target lists /usr/include/opencv4 as an include folder

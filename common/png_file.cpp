@@ -1,7 +1,10 @@
 #include "common/detail/png_file.h"
 
 #include <png.h>
+#include <tbb/parallel_for.h>
+#include <zlib.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <csetjmp>
 #include <cstdint>
@@ -36,35 +39,95 @@ unsigned codeOf(float value, unsigned maxCode) {
     return unsigned(value * float(maxCode) + 0.5f);
 }
 
-/// The pixels as the file stores them: 8-bit codes, or 16-bit codes most significant byte first.
-std::vector<unsigned char> storedBytes(const Spec& spec, PixelType given, const void* pixels) {
-    const std::size_t values =
-        std::size_t(spec.width) * std::size_t(spec.height) * std::size_t(spec.channels);
-    if (spec.pixelType == PixelType::UInt8) {
-        if (given == PixelType::UInt8) {
-            const auto* codes = static_cast<const unsigned char*>(pixels);
-            return std::vector<unsigned char>(codes, codes + values);
+/// The pixels as a PNG's rows hold them without a row filter: per row, the filter type byte (0,
+/// none) then the row's codes, 8-bit or 16-bit most significant byte first.
+std::vector<unsigned char> storedRows(const Spec& spec, PixelType given, const void* pixels) {
+    const std::size_t rowValues = std::size_t(spec.width) * std::size_t(spec.channels);
+    const std::size_t bytesPerValue = spec.pixelType == PixelType::UInt8 ? 1 : 2;
+    const std::size_t rowBytes = 1 + rowValues * bytesPerValue;
+    std::vector<unsigned char> rows(rowBytes * std::size_t(spec.height));
+    for (std::size_t y = 0; y < std::size_t(spec.height); ++y) {
+        unsigned char* row = rows.data() + y * rowBytes;
+        *row++ = 0;
+        const std::size_t first = y * rowValues;
+        for (std::size_t i = first; i < first + rowValues; ++i) {
+            if (spec.pixelType == PixelType::UInt8) {
+                *row++ = given == PixelType::UInt8
+                             ? static_cast<const unsigned char*>(pixels)[i]
+                             : (unsigned char)codeOf(static_cast<const float*>(pixels)[i], 255);
+                continue;
+            }
+            const unsigned code = given == PixelType::UInt16
+                                      ? static_cast<const std::uint16_t*>(pixels)[i]
+                                      : codeOf(static_cast<const float*>(pixels)[i], 65535);
+            *row++ = (unsigned char)(code >> 8);
+            *row++ = (unsigned char)(code & 0xff);
         }
-        std::vector<unsigned char> bytes(values);
-        const auto* floats = static_cast<const float*>(pixels);
-        for (std::size_t i = 0; i < values; ++i) bytes[i] = (unsigned char)codeOf(floats[i], 255);
-        return bytes;
     }
-    std::vector<unsigned char> bytes(2 * values);
-    for (std::size_t i = 0; i < values; ++i) {
-        const unsigned code = given == PixelType::UInt16
-                                  ? static_cast<const std::uint16_t*>(pixels)[i]
-                                  : codeOf(static_cast<const float*>(pixels)[i], 65535);
-        bytes[2 * i] = (unsigned char)(code >> 8);
-        bytes[2 * i + 1] = (unsigned char)(code & 0xff);
+    return rows;
+}
+
+/// Rows per band of a deflate in parallel (deflateInBands).
+constexpr std::size_t kBandRows = 32;
+
+/// `data` (the rows of storedRows, `rowBytes` each with their filter byte) as one zlib stream,
+/// deflated at `level` in bands of kBandRows rows in parallel: each band a raw deflate primed
+/// with the 32 KB before it (the window one stream would have had) and ended by a sync flush,
+/// the last by the end of the stream. The bands do not depend on the thread count, nor do the
+/// bytes. Empty if zlib fails.
+std::vector<unsigned char> deflateInBands(const std::vector<unsigned char>& data,
+                                          std::size_t rowBytes, int level) {
+    const std::size_t bandBytes = kBandRows * rowBytes;
+    const std::size_t bands = (data.size() + bandBytes - 1) / bandBytes;
+    std::vector<std::vector<unsigned char>> deflated(bands);
+    std::vector<uLong> checksums(bands);
+    tbb::parallel_for(std::size_t(0), bands, [&](std::size_t band) {
+        const std::size_t begin = band * bandBytes;
+        const std::size_t length = std::min(bandBytes, data.size() - begin);
+        const bool last = band + 1 == bands;
+        checksums[band] = adler32_z(adler32_z(0, nullptr, 0), data.data() + begin, length);
+        z_stream stream{};
+        if (deflateInit2(&stream, level, Z_DEFLATED, -15, 8, Z_DEFAULT_STRATEGY) != Z_OK) return;
+        const std::size_t window = std::min<std::size_t>(begin, 32768);
+        bool fine = window == 0 || deflateSetDictionary(&stream, data.data() + begin - window,
+                                                        uInt(window)) == Z_OK;
+        std::vector<unsigned char>& out = deflated[band];
+        out.resize(deflateBound(&stream, uLong(length)) + 64);  // + the sync flush's block
+        stream.next_in = const_cast<Bytef*>(data.data() + begin);
+        stream.avail_in = uInt(length);
+        stream.next_out = out.data();
+        stream.avail_out = uInt(out.size());
+        const int result = fine ? deflate(&stream, last ? Z_FINISH : Z_SYNC_FLUSH) : Z_STREAM_ERROR;
+        fine = stream.avail_in == 0 && (last ? result == Z_STREAM_END : result == Z_OK);
+        out.resize(fine ? stream.total_out : 0);
+        if (!fine) out.shrink_to_fit();
+        deflateEnd(&stream);
+    });
+    // zlib's header (deflate, 32 KB window, its level flags), the bands, the Adler-32 of all.
+    const int levelFlags = level < 2 ? 0 : level < 6 ? 1 : level == 6 ? 2 : 3;
+    unsigned header = (0x78u << 8) | unsigned(levelFlags << 6);
+    header += 31 - header % 31;
+    std::vector<unsigned char> stream = {(unsigned char)(header >> 8),
+                                         (unsigned char)(header & 0xff)};
+    uLong checksum = adler32_z(0, nullptr, 0);
+    for (std::size_t band = 0; band < bands; ++band) {
+        if (deflated[band].empty()) return {};
+        stream.insert(stream.end(), deflated[band].begin(), deflated[band].end());
+        const std::size_t length = std::min(bandBytes, data.size() - band * bandBytes);
+        checksum = adler32_combine(checksum, checksums[band], z_off_t(length));
     }
-    return bytes;
+    for (int shift = 24; shift >= 0; shift -= 8)
+        stream.push_back((unsigned char)((checksum >> shift) & 0xff));
+    return stream;
 }
 
 /// What libpng is to write, all of it prepared before its calls begin.
 struct PngPlan {
-    std::vector<unsigned char> bytes;
-    std::vector<png_bytep> rows;
+    std::vector<unsigned char> rowBytes;  ///< storedRows
+    std::vector<png_bytep> rows;          ///< each row's codes in rowBytes (past its filter byte)
+    /// Without row filters: the image data (all IDAT chunks) deflated in parallel, else empty
+    /// (libpng filters and deflates the rows).
+    std::vector<unsigned char> imageData;
     png_uint_32 width = 0, height = 0;
     int bitDepth = 8, colorType = PNG_COLOR_TYPE_RGB;
     int compressionLevel = 6, filters = PNG_ALL_FILTERS;
@@ -90,8 +153,19 @@ void writeGuarded(png_structp png, png_infop info, std::FILE* out, const PngPlan
     png_set_compression_level(png, plan.compressionLevel);
     png_set_filter(png, PNG_FILTER_TYPE_BASE, plan.filters);
     png_write_info(png, info);
-    png_write_image(png, const_cast<png_bytepp>(plan.rows.data()));
-    png_write_end(png, nullptr);
+    if (plan.imageData.empty()) {
+        png_write_image(png, const_cast<png_bytepp>(plan.rows.data()));
+        png_write_end(png, nullptr);
+        return;
+    }
+    static constexpr png_byte kIdat[5] = {'I', 'D', 'A', 'T', '\0'};
+    static constexpr png_byte kIend[5] = {'I', 'E', 'N', 'D', '\0'};
+    constexpr std::size_t kChunkBytes = std::size_t(1) << 20;
+    for (std::size_t at = 0; at < plan.imageData.size(); at += kChunkBytes) {
+        png_write_chunk(png, kIdat, plan.imageData.data() + at,
+                        std::min(kChunkBytes, plan.imageData.size() - at));
+    }
+    png_write_chunk(png, kIend, nullptr, 0);
 }
 
 /// The integer attribute `name` of `spec`, or `fallback`.
@@ -116,20 +190,24 @@ std::string writePng(const std::filesystem::path& file, const Spec& spec, PixelT
                " pixels has none";
 
     PngPlan plan;
-    plan.bytes = storedBytes(spec, given, pixels);
+    plan.rowBytes = storedRows(spec, given, pixels);
     plan.width = png_uint_32(spec.width);
     plan.height = png_uint_32(spec.height);
     plan.bitDepth = spec.pixelType == PixelType::UInt8 ? 8 : 16;
-    const std::size_t rowBytes =
-        std::size_t(spec.width) * std::size_t(spec.channels) * std::size_t(plan.bitDepth / 8);
+    const std::size_t rowBytes = plan.rowBytes.size() / std::size_t(spec.height);
     plan.rows.resize(std::size_t(spec.height));
     for (std::size_t y = 0; y < plan.rows.size(); ++y)
-        plan.rows[y] = const_cast<png_bytep>(plan.bytes.data() + y * rowBytes);
+        plan.rows[y] = const_cast<png_bytep>(plan.rowBytes.data() + y * rowBytes + 1);
     constexpr int kColorTypes[4] = {PNG_COLOR_TYPE_GRAY, PNG_COLOR_TYPE_GRAY_ALPHA,
                                     PNG_COLOR_TYPE_RGB, PNG_COLOR_TYPE_RGB_ALPHA};
     plan.colorType = kColorTypes[spec.channels - 1];
-    plan.compressionLevel = integerAttribute(spec, "png:compressionLevel", 6);
+    plan.compressionLevel = std::clamp(integerAttribute(spec, "png:compressionLevel", 6), 0, 9);
     plan.filters = integerAttribute(spec, "png:filter", PNG_ALL_FILTERS);
+    // Rows without a filter do not depend on each other: deflated in parallel.
+    if (plan.filters == PNG_FILTER_NONE || plan.filters == PNG_NO_FILTERS) {
+        plan.imageData = deflateInBands(plan.rowBytes, rowBytes, plan.compressionLevel);
+        if (plan.imageData.empty()) return "writing failed (zlib could not deflate the pixels)";
+    }
     for (const Attribute& attribute : spec.attributes) {
         if (const auto* text = std::get_if<std::string>(&attribute.value)) {
             png_text chunk{};

@@ -3,6 +3,7 @@
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -603,6 +604,36 @@ TEST_F(SamplerIo, PngsAreWrittenWithLibpngAndReadBackByOpenImageIo) {
         EXPECT_EQ(std::lround(greyRead.pixels[std::size_t(i)] * 65535.0f), codes[std::size_t(i)]);
     EXPECT_TRUE(image_files::writesWithoutModule("a/B.PNG"));
     EXPECT_FALSE(image_files::writesWithoutModule("a/b.exr"));
+}
+
+TEST_F(SamplerIo, PngsWithoutRowFiltersAreDeflatedInBandsTheSameOnAnyThreadCount) {
+    // 16-bit RGB, 301 x 97 (four bands of 32 rows, the last short), codes from a hash: every
+    // value comes back, and the file's bytes do not depend on the thread count.
+    image_files::Spec spec = imageSpec(301, 97, 3, image_files::PixelType::UInt16);
+    spec.set("png:filter", 8);  // PNG_FILTER_NONE
+    spec.set("png:compressionLevel", 1);
+    std::vector<std::uint16_t> codes(std::size_t(301 * 97 * 3));
+    std::uint32_t state = 12345;
+    for (std::size_t i = 0; i < codes.size(); ++i) {
+        state = state * 1664525u + 1013904223u;
+        codes[i] = i % 7 == 0 ? std::uint16_t(i / 1000) : std::uint16_t(state >> 16);
+    }
+    const auto write = [&](const fs::path& file, int threads) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+        image_files::write(file, file, spec, image_files::PixelType::UInt16, codes.data());
+    };
+    write(path("two.png"), 2);
+    write(path("one.png"), 1);
+    const RawImage read = readRaw(path("two.png"));
+    ASSERT_EQ(read.spec.width, 301);
+    ASSERT_EQ(read.spec.height, 97);
+    ASSERT_EQ(read.spec.nchannels, 3);
+    for (std::size_t i = 0; i < codes.size(); ++i)
+        ASSERT_EQ(std::lround(read.pixels[i] * 65535.0f), codes[i]) << i;
+    std::ifstream one(path("one.png"), std::ios::binary), two(path("two.png"), std::ios::binary);
+    const std::string oneBytes((std::istreambuf_iterator<char>(one)), {});
+    const std::string twoBytes((std::istreambuf_iterator<char>(two)), {});
+    EXPECT_EQ(oneBytes, twoBytes);
 }
 
 TEST_F(SamplerIo, PngWriteFailuresAreReportedNotCrashes) {

@@ -17,7 +17,9 @@ namespace distile::image_files::detail {
 /// (with its gAMA and cHRM), Linear a gAMA of 1; every string attribute is a tEXt chunk of its
 /// name; "png:compressionLevel" (zlib's 0-9, default 6) and "png:filter" (libpng's PNG_FILTER_*
 /// flags, default all five) set the compression; other integer and float attributes are not
-/// stored. Returns "" or what went wrong.
+/// stored. Without row filters (png:filter PNG_FILTER_NONE) the rows are deflated by zlib in
+/// bands of 32 rows in parallel, each primed with the 32 KB before it: the same bytes on any
+/// number of threads. Returns "" or what went wrong.
 std::string writePng(const std::filesystem::path& file, const Spec& spec, PixelType given,
                      const void* pixels);
 
