@@ -8,6 +8,9 @@ set(distile_libraries distile_common distile_vdb distile_sampler distile_mesh di
 install(TARGETS ${distile_libraries} distile_warnings distile_sanitizers EXPORT distileTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(TARGETS distile RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# The modules loaded on first use (common/detail/module_loader.h), where the programs look for
+# them: lib/ beside bin/.
+install(TARGETS distile_image_files_oiio distile_vdb_openvdb LIBRARY DESTINATION lib)
 if(TARGET distile-bench)  # next to distile, which runs it for `distile bench`
     install(TARGETS distile-bench RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()

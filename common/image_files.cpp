@@ -1,13 +1,12 @@
 #include "common/image_files.h"
 
-#include <dlfcn.h>
-
 #include <cctype>
 #include <future>
 #include <mutex>
 #include <stdexcept>
 
 #include "common/detail/image_files_module.h"
+#include "common/detail/module_loader.h"
 #include "common/detail/png_file.h"
 #include "common/error.h"
 
@@ -17,45 +16,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// The module's file: beside the library holding this code (../lib from a program in bin/, as
-/// the build lays them out), else where the build put it. Throws InternalError if neither exists.
-fs::path moduleFile() {
-    std::vector<fs::path> candidates;
-    Dl_info self{};
-    if (dladdr(reinterpret_cast<const void*>(&moduleFile), &self) && self.dli_fname) {
-        const fs::path binary = fs::path(self.dli_fname).parent_path();
-        candidates.push_back(
-            (binary / ".." / "lib" / DISTILE_IMAGE_FILES_MODULE_NAME).lexically_normal());
-    }
-    candidates.push_back(fs::path(DISTILE_IMAGE_FILES_MODULE_DIR) /
-                         DISTILE_IMAGE_FILES_MODULE_NAME);
-    for (const fs::path& candidate : candidates) {
-        std::error_code error;
-        if (fs::is_regular_file(candidate, error)) return candidate;
-    }
-    throw InternalError(std::string("distile's OpenImageIO module ") +
-                        DISTILE_IMAGE_FILES_MODULE_NAME + " is neither beside the program (" +
-                        candidates.front().parent_path().string() + ") nor in " +
-                        DISTILE_IMAGE_FILES_MODULE_DIR +
-                        "; the build is incomplete (its target is distile_image_files_oiio)");
-}
+constexpr distile::detail::ModuleName kModule{DISTILE_IMAGE_FILES_MODULE_NAME, DISTILE_IMAGE_FILES_MODULE_DIR,
+                                     detail::kModuleEntry, "distile_image_files_oiio"};
 
-const detail::ModuleFunctions* loadModule() {
-    const fs::path file = moduleFile();
-    // Never closed: its libraries stay until the process ends.
-    void* handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (!handle) {
-        const char* message = dlerror();
-        throw InternalError("cannot load " + file.string() + ": " +
-                            (message ? message : "unknown dlopen error"));
-    }
-    using Entry = const detail::ModuleFunctions* (*)();
-    auto entry = reinterpret_cast<Entry>(dlsym(handle, detail::kModuleEntry));
-    if (!entry) {
-        throw InternalError(file.string() + " has no " + detail::kModuleEntry +
-                            "; it is not distile's OpenImageIO module of this build");
-    }
-    return entry();
+const detail::ModuleFunctions* loadFunctions() {
+    return static_cast<const detail::ModuleFunctions*>(distile::detail::loadModule(kModule));
 }
 
 /// The module's load: started once, by loadInBackground or by the first use.
@@ -72,7 +37,7 @@ Loading& loading() {
 void startLoading(std::launch policy) {
     Loading& state = loading();
     std::call_once(state.started,
-                   [&] { state.functions = std::async(policy, loadModule).share(); });
+                   [&] { state.functions = std::async(policy, loadFunctions).share(); });
 }
 
 const detail::ModuleFunctions& module() {
@@ -129,7 +94,7 @@ bool drawText(std::span<float> rgb, int width, int height, int x, int baseline,
 }
 
 void loadInBackground() {
-    moduleFile();  // a missing module is reported now, not after the work that needs it
+    distile::detail::moduleFile(kModule);  // a missing module is reported now, not after the work needing it
     startLoading(std::launch::async);
 }
 

@@ -116,8 +116,6 @@ constexpr detail::ModuleFunctions kFunctions{openFile, writeFile, drawTextInto};
 
 }  // namespace distile::image_files
 
-extern "C" __attribute__((visibility("default")))
-const distile::image_files::detail::ModuleFunctions*
-distile_image_files_module() {
+extern "C" __attribute__((visibility("default"))) const void* distile_image_files_module() {
     return &distile::image_files::kFunctions;
 }

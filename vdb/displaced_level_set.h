@@ -33,6 +33,10 @@
 
 namespace distile {
 
+namespace detail {
+struct BuiltDisplacedLevelSet;
+}
+
 /// The base mesh and material of one object, as plain arrays (world units). The uv chart may
 /// overlap itself (mirrored UVs): detail is mapped per triangle.
 struct DisplacementShell {
@@ -157,9 +161,8 @@ class DisplacedLevelSet {
     const DisplacedLevelSetStats& stats() const;
 
   private:
-    struct Impl;
-    explicit DisplacedLevelSet(std::unique_ptr<Impl> impl);
-    std::unique_ptr<Impl> impl_;
+    explicit DisplacedLevelSet(detail::BuiltDisplacedLevelSet built);
+    std::unique_ptr<detail::BuiltDisplacedLevelSet> built_;  ///< its grid (the OpenVDB module's)
 };
 
 }  // namespace distile

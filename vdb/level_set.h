@@ -1,6 +1,7 @@
 /// @file
 /// Narrow-band signed distance level sets (OpenVDB FloatGrid) in texel units, and their .vdb
-/// files. This is the only module that sees OpenVDB; the rest of distile uses this class.
+/// files, built with OpenVDB (loaded on first use, vdb/detail/openvdb_module.h); the rest of
+/// distile uses this class.
 ///
 /// Index and world space of the grid are texel space of the tile: voxel size 1 texel, voxel
 /// (i, j, k) centred at (i + 0.5, j + 0.5, k + 0.5). The grid is a level set (grid class
@@ -19,6 +20,10 @@
 #include "common/size3.h"
 
 namespace distile {
+
+namespace detail {
+struct LevelSetParts;
+}
 
 class LevelSet {
   public:
@@ -82,10 +87,12 @@ class LevelSet {
     /// W*H*D, x fastest: the Tile layout). Precondition: texels.size() == tileSize().texelCount().
     void copyTileVoxels(std::span<float> texels) const;
 
+    /// Internal: a level set from its parts, as the OpenVDB module (vdb/detail/openvdb_module.h)
+    /// makes them.
+    explicit LevelSet(detail::LevelSetParts parts);
+
   private:
-    struct Impl;
-    explicit LevelSet(std::unique_ptr<Impl> impl);
-    std::unique_ptr<Impl> impl_;
+    std::unique_ptr<detail::LevelSetParts> parts_;
 };
 
 }  // namespace distile

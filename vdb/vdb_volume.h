@@ -28,6 +28,11 @@
 
 namespace distile {
 
+namespace detail {
+struct ReadVolume;
+class VolumeSampler;
+}  // namespace detail
+
 /// One grid of a .vdb file, as the file's metadata describes it.
 struct VdbGridInfo {
     std::string name;
@@ -89,9 +94,8 @@ class VdbVolume {
 
   private:
     friend class VdbSourceSampler;
-    struct Impl;
-    explicit VdbVolume(std::unique_ptr<Impl> impl);
-    std::unique_ptr<Impl> impl_;
+    explicit VdbVolume(detail::ReadVolume volume);
+    std::unique_ptr<detail::ReadVolume> volume_;  ///< with its grid (the OpenVDB module's)
 };
 
 /// The grids of a .vdb file (metadata only). Throws as VdbVolume::read for a missing or
@@ -127,8 +131,8 @@ class VdbSourceSampler {
     bool isLevelSet() const;
 
   private:
-    struct Impl;
-    std::unique_ptr<Impl> impl_;
+    std::unique_ptr<detail::VolumeSampler> sampler_;  ///< the OpenVDB module's
+    bool levelSet_ = true;
 };
 
 /// Test and example volumes: a sphere of `radiusWorld` around `centreWorld`, as a level set

@@ -1,6 +1,6 @@
 /// @file
-/// What the OpenImageIO module exports to the loader (common/image_files.cpp): one table of
-/// functions, found by its C name. Both sides are built together, so C++ types cross freely.
+/// What the OpenImageIO module exports to the loader (common/image_files.cpp,
+/// common/detail/module_loader.h): one table of functions, found by its C name.
 #pragma once
 
 #include "common/image_files.h"
@@ -16,7 +16,7 @@ struct ModuleFunctions {
                      const float (&color)[3]);
 };
 
-/// The name the module exports its table under: `const ModuleFunctions* NAME()`.
+/// The name the module exports its table under: `const void* NAME()`, a ModuleFunctions.
 inline constexpr const char* kModuleEntry = "distile_image_files_module";
 
 }  // namespace distile::image_files::detail

@@ -1,4 +1,4 @@
-#include "vdb/detail/vdb_header_check.h"
+#include "vdb/openvdb/vdb_header_check.h"
 
 #include <algorithm>
 #include <array>
