@@ -16,8 +16,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr distile::detail::ModuleName kModule{DISTILE_IMAGE_FILES_MODULE_NAME, DISTILE_IMAGE_FILES_MODULE_DIR,
-                                     detail::kModuleEntry, "distile_image_files_oiio"};
+constexpr distile::detail::ModuleName kModule{
+    DISTILE_IMAGE_FILES_MODULE_NAME, DISTILE_IMAGE_FILES_MODULE_DIR, DISTILE_MODULE_INSTALL_DIR,
+    detail::kModuleEntry, "distile_image_files_oiio"};
 
 const detail::ModuleFunctions* loadFunctions() {
     return static_cast<const detail::ModuleFunctions*>(distile::detail::loadModule(kModule));

@@ -15,18 +15,21 @@ fs::path moduleFile(const ModuleName& module) {
     std::vector<fs::path> candidates;
     Dl_info self{};
     if (dladdr(reinterpret_cast<const void*>(&moduleFile), &self) && self.dli_fname) {
-        const fs::path binary = fs::path(self.dli_fname).parent_path();
+        std::error_code ignored;
+        const fs::path binary = fs::absolute(fs::path(self.dli_fname), ignored).parent_path();
         candidates.push_back((binary / ".." / "lib" / module.fileName).lexically_normal());
     }
     candidates.push_back(fs::path(module.buildDir) / module.fileName);
+    candidates.push_back(fs::path(module.installDir) / module.fileName);
+    std::string tried;
     for (const fs::path& candidate : candidates) {
         std::error_code error;
         if (fs::is_regular_file(candidate, error)) return candidate;
+        const std::string folder = candidate.parent_path().string();
+        if (tried.find(folder) == std::string::npos) tried += (tried.empty() ? "" : ", ") + folder;
     }
-    throw InternalError(std::string("distile's module ") + module.fileName +
-                        " is neither beside the program (" +
-                        candidates.front().parent_path().string() + ") nor in " +
-                        module.buildDir + "; the build is incomplete (its target is " +
+    throw InternalError(std::string("distile's module ") + module.fileName + " is in none of " +
+                        tried + "; the build or installation is incomplete (its target is " +
                         module.target + ")");
 }
 
