@@ -50,11 +50,13 @@ std::vector<unsigned char> storedRows(const Spec& spec, PixelType given, const v
         unsigned char* row = rows.data() + y * rowBytes;
         *row++ = 0;
         const std::size_t first = y * rowValues;
+        if (given == PixelType::UInt8) {  // stored as given (a render's image): the row as it is
+            std::memcpy(row, static_cast<const unsigned char*>(pixels) + first, rowValues);
+            continue;
+        }
         for (std::size_t i = first; i < first + rowValues; ++i) {
             if (spec.pixelType == PixelType::UInt8) {
-                *row++ = given == PixelType::UInt8
-                             ? static_cast<const unsigned char*>(pixels)[i]
-                             : (unsigned char)codeOf(static_cast<const float*>(pixels)[i], 255);
+                *row++ = (unsigned char)codeOf(static_cast<const float*>(pixels)[i], 255);
                 continue;
             }
             const unsigned code = given == PixelType::UInt16
@@ -123,8 +125,8 @@ std::vector<unsigned char> deflateInBands(const std::vector<unsigned char>& data
 
 /// What libpng is to write, all of it prepared before its calls begin.
 struct PngPlan {
-    std::vector<unsigned char> rowBytes;  ///< storedRows
-    std::vector<png_bytep> rows;          ///< each row's codes in rowBytes (past its filter byte)
+    std::vector<unsigned char> storedRows;  ///< storedRows(): each row's filter byte and codes
+    std::vector<png_bytep> rows;            ///< each row's codes in storedRows (past its filter byte)
     /// Without row filters: the image data (all IDAT chunks) deflated in parallel, else empty
     /// (libpng filters and deflates the rows).
     std::vector<unsigned char> imageData;
@@ -190,14 +192,14 @@ std::string writePng(const std::filesystem::path& file, const Spec& spec, PixelT
                " pixels has none";
 
     PngPlan plan;
-    plan.rowBytes = storedRows(spec, given, pixels);
+    plan.storedRows = storedRows(spec, given, pixels);
     plan.width = png_uint_32(spec.width);
     plan.height = png_uint_32(spec.height);
     plan.bitDepth = spec.pixelType == PixelType::UInt8 ? 8 : 16;
-    const std::size_t rowBytes = plan.rowBytes.size() / std::size_t(spec.height);
+    const std::size_t rowBytes = plan.storedRows.size() / std::size_t(spec.height);
     plan.rows.resize(std::size_t(spec.height));
     for (std::size_t y = 0; y < plan.rows.size(); ++y)
-        plan.rows[y] = const_cast<png_bytep>(plan.rowBytes.data() + y * rowBytes + 1);
+        plan.rows[y] = const_cast<png_bytep>(plan.storedRows.data() + y * rowBytes + 1);
     constexpr int kColorTypes[4] = {PNG_COLOR_TYPE_GRAY, PNG_COLOR_TYPE_GRAY_ALPHA,
                                     PNG_COLOR_TYPE_RGB, PNG_COLOR_TYPE_RGB_ALPHA};
     plan.colorType = kColorTypes[spec.channels - 1];
@@ -205,7 +207,7 @@ std::string writePng(const std::filesystem::path& file, const Spec& spec, PixelT
     plan.filters = integerAttribute(spec, "png:filter", PNG_ALL_FILTERS);
     // Rows without a filter do not depend on each other: deflated in parallel.
     if (plan.filters == PNG_FILTER_NONE || plan.filters == PNG_NO_FILTERS) {
-        plan.imageData = deflateInBands(plan.rowBytes, rowBytes, plan.compressionLevel);
+        plan.imageData = deflateInBands(plan.storedRows, rowBytes, plan.compressionLevel);
         if (plan.imageData.empty()) return "writing failed (zlib could not deflate the pixels)";
     }
     for (const Attribute& attribute : spec.attributes) {
