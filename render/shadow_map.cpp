@@ -10,13 +10,17 @@
 #include <vector>
 
 #include "common/error.h"
+#include "render/detail/disk_pattern.h"
 
 namespace distile {
 
 namespace {
 
 constexpr float kTwoPi = 6.28318530717959f;
-constexpr int kStrata = 8;  ///< the disk's 8 x 8 grid: 8 angular by 8 radial strata
+using detail::DiskPattern;
+using detail::mixBits;
+using detail::unitFloat;
+constexpr int kStrata = DiskPattern::kStrata;
 
 /// Largest blocker-search radius, in map texels: bounds the work and the blur of one lookup.
 constexpr float kMaxSearchTexels = 32.0f;
@@ -27,35 +31,6 @@ constexpr float kMinFacing = 0.1f;
 /// allowing 0.1 r keeps receivers of radius R >= 5 r clear of their own shadow. Real blockers sit
 /// at the receiver-blocker distance d = r / tan(angle / 2) >> 0.1 r, far beyond this slack.
 constexpr float kCurvatureSlack = 0.1f;
-
-/// A 32-bit integer hash with good avalanche (the "lowbias32" constants of C. Wellons).
-std::uint32_t mixBits(std::uint32_t x) {
-    x ^= x >> 16;
-    x *= 0x7feb352dU;
-    x ^= x >> 15;
-    x *= 0x846ca68bU;
-    x ^= x >> 16;
-    return x;
-}
-
-/// The top 24 bits of `bits` as a float in [0, 1).
-float unitFloat(std::uint32_t bits) {
-    return float(bits >> 8) * (1.0f / 16777216.0f);
-}
-
-/// Offset in the unit disk of the sample in angular stratum `angular` and radial stratum
-/// `radial` (0 at the centre, 7 the outer ring): jittered inside its cell of the 8 x 8 grid by
-/// `seed`, then warped to the disk with angle 2 pi u and radius sqrt(v), which keeps the cells'
-/// areas equal; `rotation` (radians) turns the whole pattern.
-glm::vec2 diskOffset(int angular, int radial, std::uint32_t seed, float rotation) {
-    const std::uint32_t bits =
-        mixBits(seed ^ mixBits(std::uint32_t(radial * kStrata + angular) + 0x9e3779b9U));
-    const float u = (float(angular) + unitFloat(bits)) / float(kStrata);
-    const float v = (float(radial) + unitFloat(mixBits(bits))) / float(kStrata);
-    const float angle = kTwoPi * u + rotation;
-    const float radius = std::sqrt(v);
-    return {radius * std::cos(angle), radius * std::sin(angle)};
-}
 
 }  // namespace
 
@@ -369,13 +344,12 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     }
 
     const std::uint32_t pixelSeed = mixBits(seed);
-    const float rotation = kTwoPi * unitFloat(mixBits(pixelSeed ^ 0x68bc21ebU));
+    const DiskPattern disk(pixelSeed, kTwoPi * unitFloat(mixBits(pixelSeed ^ 0x68bc21ebU)));
     // The outer ring: penumbra test and blocker search in one.
     int blocked = 0;
     float blockerDepthSum = 0.0f;
     for (int angular = 0; angular < kStrata; ++angular) {
-        const float depth = blocker(
-            ringLevel, diskOffset(angular, kStrata - 1, pixelSeed, rotation) * searchRadius);
+        const float depth = blocker(ringLevel, disk.offset(angular, kStrata - 1) * searchRadius);
         if (!std::isinf(depth)) {
             ++blocked;
             blockerDepthSum += depth;
@@ -396,10 +370,8 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     int lit = 0;
     for (int radial = 0; radial < kStrata; ++radial) {
         for (int angular = 0; angular < kStrata; ++angular) {
-            lit += std::isinf(blocker(
-                       diskLevel, diskOffset(angular, radial, pixelSeed, rotation) * filterRadius))
-                       ? 1
-                       : 0;
+            lit +=
+                std::isinf(blocker(diskLevel, disk.offset(angular, radial) * filterRadius)) ? 1 : 0;
         }
     }
     samples += kShadowDiskSamples;

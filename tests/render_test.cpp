@@ -18,6 +18,7 @@
 #include "common/simd.h"
 #include "render/bvh.h"
 #include "render/coverage.h"
+#include "render/detail/disk_pattern.h"
 #include "render/image.h"
 #include "render/march.h"
 #include "render/renderer.h"
@@ -537,6 +538,45 @@ TEST(ShadowMap, RejectsBadResolutions) {
     RenderOptions options;
     options.shadowMapResolution = 8;  // 0 is automatic; below 16 is refused
     EXPECT_THROW(renderScene(scene, options), InputError);
+}
+
+TEST(ShadowMap, DiskPatternPutsOneSampleInEachCellAtItsTrigonometricPlace) {
+    using detail::DiskPattern;
+    constexpr int kStrata = DiskPattern::kStrata;
+    const double twoPi = 2.0 * 3.14159265358979323846;
+    for (std::uint32_t seed : {0u, 1u, 77u, 0xdeadbeefu}) {
+        for (float rotation : {0.0f, 1.0f, 5.5f}) {
+            const DiskPattern disk(seed, rotation);
+            std::array<int, kStrata * kStrata> perCell{};
+            for (int radial = 0; radial < kStrata; ++radial) {
+                for (int angular = 0; angular < kStrata; ++angular) {
+                    const glm::vec2 offset = disk.offset(angular, radial);
+                    // Its cell, from the offset alone: the radial stratum by its area share
+                    // (r^2), the angular one by its angle from the rotation.
+                    const double areaShare = double(glm::dot(offset, offset));
+                    double angle = std::atan2(double(offset.y), double(offset.x)) - rotation;
+                    angle -= twoPi * std::floor(angle / twoPi);
+                    const int cellRadial = int(areaShare * kStrata);
+                    const int cellAngular = int(angle / twoPi * kStrata) % kStrata;
+                    ASSERT_LT(areaShare, 1.0);
+                    ++perCell[std::size_t(cellRadial * kStrata + cellAngular)];
+                    // The same sample by the direct formula: angle 2 pi u + rotation, radius
+                    // sqrt(v), u and v the cell's corner plus the jitter hashed from the seed.
+                    const std::uint32_t bits = detail::mixBits(
+                        seed ^ detail::mixBits(std::uint32_t(radial * kStrata + angular) +
+                                               0x9e3779b9U));
+                    const double u = (angular + double(detail::unitFloat(bits))) / kStrata;
+                    const double v =
+                        (radial + double(detail::unitFloat(detail::mixBits(bits)))) / kStrata;
+                    const double direct = twoPi * u + rotation;
+                    // Float rounding of a unit vector turned twice: a few 1e-7.
+                    EXPECT_NEAR(offset.x, std::sqrt(v) * std::cos(direct), 1e-6);
+                    EXPECT_NEAR(offset.y, std::sqrt(v) * std::sin(direct), 1e-6);
+                }
+            }
+            for (int count : perCell) EXPECT_EQ(count, 1);
+        }
+    }
 }
 
 /// A sphere of radius 0.3 floating 0.3 above a 3 x 3 plane, under a light of 6 degrees:
