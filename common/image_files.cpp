@@ -16,9 +16,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr distile::detail::ModuleName kModule{
-    DISTILE_IMAGE_FILES_MODULE_NAME, DISTILE_IMAGE_FILES_MODULE_DIR, DISTILE_MODULE_INSTALL_DIR,
-    detail::kModuleEntry, "distile_image_files_oiio"};
+constexpr distile::detail::ModuleName kModule{DISTILE_IMAGE_FILES_MODULE_NAME,
+                                              DISTILE_IMAGE_FILES_MODULE_DIR, detail::kModuleEntry,
+                                              "distile_image_files_oiio"};
 
 const detail::ModuleFunctions* loadFunctions() {
     return static_cast<const detail::ModuleFunctions*>(distile::detail::loadModule(kModule));
@@ -95,7 +95,8 @@ bool drawText(std::span<float> rgb, int width, int height, int x, int baseline,
 }
 
 void loadInBackground() {
-    distile::detail::moduleFile(kModule);  // a missing module is reported now, not after the work needing it
+    // A missing module is reported now, not after the work needing it.
+    distile::detail::moduleFile(kModule);
     startLoading(std::launch::async);
 }
 

@@ -2,6 +2,7 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -20,14 +21,17 @@ fs::path moduleFile(const ModuleName& module) {
         candidates.push_back((binary / ".." / "lib" / module.fileName).lexically_normal());
     }
     candidates.push_back(fs::path(module.buildDir) / module.fileName);
-    candidates.push_back(fs::path(module.installDir) / module.fileName);
-    std::string tried;
+    // Where cmake/DistileInstall.cmake installs every module.
+    candidates.push_back(fs::path(DISTILE_MODULE_INSTALL_DIR) / module.fileName);
+    std::vector<fs::path> folders;  // tried, each once
     for (const fs::path& candidate : candidates) {
         std::error_code error;
         if (fs::is_regular_file(candidate, error)) return candidate;
-        const std::string folder = candidate.parent_path().string();
-        if (tried.find(folder) == std::string::npos) tried += (tried.empty() ? "" : ", ") + folder;
+        if (std::find(folders.begin(), folders.end(), candidate.parent_path()) == folders.end())
+            folders.push_back(candidate.parent_path());
     }
+    std::string tried;
+    for (const fs::path& folder : folders) tried += (tried.empty() ? "" : ", ") + folder.string();
     throw InternalError(std::string("distile's module ") + module.fileName + " is in none of " +
                         tried + "; the build or installation is incomplete (its target is " +
                         module.target + ")");

@@ -2,8 +2,8 @@
 
 #include <cmath>
 
-#include "common/error.h"
 #include "common/detail/module_loader.h"
+#include "common/error.h"
 #include "vdb/detail/openvdb_module.h"
 
 namespace distile {
@@ -86,8 +86,8 @@ namespace detail {
 
 const OpenVdbFunctions& openVdb() {
     static const OpenVdbFunctions& functions = *static_cast<const OpenVdbFunctions*>(
-        loadModule({DISTILE_OPENVDB_MODULE_NAME, DISTILE_OPENVDB_MODULE_DIR,
-                    DISTILE_MODULE_INSTALL_DIR, kOpenVdbModuleEntry, "distile_vdb_openvdb"}));
+        loadModule({DISTILE_OPENVDB_MODULE_NAME, DISTILE_OPENVDB_MODULE_DIR, kOpenVdbModuleEntry,
+                    "distile_vdb_openvdb"}));
     return functions;
 }
 

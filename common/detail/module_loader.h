@@ -14,15 +14,14 @@ namespace distile::detail {
 struct ModuleName {
     const char* fileName;  ///< e.g. libdistile_vdb_openvdb.so
     const char* buildDir;  ///< the build's folder holding it (where it is looked for second)
-    const char* installDir;  ///< where `cmake --install` puts it (looked for last)
     const char* entry;     ///< the exported C function returning its table
     const char* target;    ///< its CMake target, named in errors (the build is incomplete)
 };
 
 /// The module's file: beside the library holding this code (../lib from a program in bin/, as
-/// the build and an installation lay them out), else in `module.buildDir`, else in
-/// `module.installDir` (a program elsewhere linking the installed libraries). Throws
-/// InternalError if none holds it.
+/// the build and an installation lay them out), else in `module.buildDir`, else in the
+/// installation's lib/, where `cmake --install` puts every module (a program elsewhere linking
+/// the installed libraries). Throws InternalError if none holds it.
 std::filesystem::path moduleFile(const ModuleName& module);
 
 /// Loads the module (never unloaded) and returns what its entry function returns. Throws
