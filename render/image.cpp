@@ -109,6 +109,10 @@ std::uint8_t srgbCode8(float linear) {
     if (linear >= 1.0f) return table.atLeastOne;
     const std::uint32_t bits = std::bit_cast<std::uint32_t>(linear);
     unsigned code = table.bucketStart[bits >> 16];
+    // The buckets of 8-bit codes span at most one code each: one step without a branch (as a
+    // branch its outcome is a coin flip, and its mispredictions took half of the time), then
+    // the loop, which only guards that.
+    code += unsigned(linear >= table.firstOfCode[code + 1]);
     while (linear >= table.firstOfCode[code + 1]) ++code;
     return std::uint8_t(code);
 }
