@@ -167,13 +167,13 @@ double pairedSeconds(const Row& embree, std::size_t index) {
     return std::nan("");
 }
 
-/// distile's default configuration on the sheet (tile 256x256x16, float, trilinear, budgeted 16),
-/// the row rendered on the sheet's own scene.
+/// distile's default configuration on the sheet (tile 256x256x16, float, trilinear, budgeted with
+/// the default budget), the row rendered on the sheet's own scene.
 const Row* distileDefault(const std::vector<Row>& rows) {
     for (const Row& r : rows)
         if (isDistileSheet(r) && r.options && r.tile == "256x256x16" && r.storage == "float" &&
             r.filter == "trilinear" && r.method == marchMethodName(MarchMethod::Budgeted) &&
-            r.budget == 16)
+            r.budget == MarchSettings{}.maxIterations)
             return &r;
     return nullptr;
 }

@@ -4,7 +4,7 @@
 //
 // It does what `distile render` does by default for one ray in one tile: the budgeted sphere trace
 // (steps of at least the path left to the floor over the samples left, regula falsi once a step
-// lands inside), epsilon 0.02 texel, a budget of 16 samples cut to one sample per texel of the
+// lands inside), epsilon 0.02 texel, a budget of 32 samples cut to one sample per texel of the
 // path (at least a quarter of the budget), trilinear distances for the march and the gradient of
 // the tricubic B-spline for the shading normal.
 //
@@ -22,7 +22,7 @@ uniform highp sampler3D distileTile;
 uniform vec2 distileDecode;
 
 // The march's settings, as the command line's defaults.
-const int kDistileBudget = 16;           // distance samples per ray at most
+const int kDistileBudget = 32;           // distance samples per ray at most
 const float kDistileEpsilonTexels = 0.02; // closer than this to the surface is a hit
 const float kDistileTexelsPerSample = 1.0; // adaptive budget: one sample per texel of path
 

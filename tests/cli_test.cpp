@@ -951,8 +951,8 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
 TEST_F(Cli, ReferenceRenderAndCompareReportTheFigures) {
     ASSERT_EQ(run({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x8"}).status, 0);
     writeText(path("scene.json"), planeScene(chainmailMaterial(R"("tile.exr")")));
-    // 64 iterations: with the default 16 a fifth of the rays stop short (see render_test's
-    // ReferenceRender tests), which is measured there, not here.
+    // 64 iterations: the default's error on this small tile is measured in render_test's
+    // ReferenceRender tests, not here.
     const RunResult tested =
         run({"render", "scene.json", "-o", "tile.png", "--width", "64", "--height", "48", "--aovs",
              "--iterations", "64", "--no-shadows"});

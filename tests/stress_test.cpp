@@ -77,7 +77,9 @@ TEST(Stress, GrazingRaysStayAboveAFlatDetailPlaneWithABoundedError) {
 TEST(Stress, BudgetedMarchReachesAFlatDetailPlaneOnGrazingRaysWithinTheDefaultBudget) {
     // Float rounding of a secant over a path of up to 2300 texels (0.1 degree): 1e-3 past epsilon.
     ASSERT_NO_FATAL_FAILURE(
-        expectCases("grazing rays", "budgeted march 16 samples", 6, kEpsilonTexels + 1e-3));
+        expectCases("grazing rays",
+                    "budgeted march " + std::to_string(MarchSettings{}.maxIterations) + " samples",
+                    6, kEpsilonTexels + 1e-3));
 }
 
 TEST(Stress, UvsFarFromTheOriginRenderLikeSmallOnes) {
