@@ -32,7 +32,7 @@ struct RenderSkips {
     /// Empty-space skipping: a ray starts its march where it first reaches the top of the
     /// occupied layers of the tile columns it crosses (sampler/occupancy.h), not at the top face.
     bool emptySpace = true;
-    /// Adaptive budget: a ray gets a march sample per texel of its path to the floor, within
+    /// Adaptive budget: a ray gets two march samples per texel of its path to the floor, within
     /// [budget / 4, budget] (render/march.h adaptiveBudget).
     bool adaptiveBudget = true;
     /// Camera rays skip detail shells whose conservative depth is not nearer than their best hit

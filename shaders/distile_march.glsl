@@ -4,7 +4,7 @@
 //
 // It does what `distile render` does by default for one ray in one tile: the budgeted sphere trace
 // (steps of at least the path left to the floor over the samples left, regula falsi once a step
-// lands inside), epsilon 0.02 texel, a budget of 32 samples cut to one sample per texel of the
+// lands inside), epsilon 0.02 texel, a budget of 32 samples cut to two samples per texel of the
 // path (at least a quarter of the budget), trilinear distances for the march and the gradient of
 // the tricubic B-spline for the shading normal.
 //
@@ -24,7 +24,7 @@ uniform vec2 distileDecode;
 // The march's settings, as the command line's defaults.
 const int kDistileBudget = 32;           // distance samples per ray at most
 const float kDistileEpsilonTexels = 0.02; // closer than this to the surface is a hit
-const float kDistileTexelsPerSample = 1.0; // adaptive budget: one sample per texel of path
+const float kDistileTexelsPerSample = 0.5; // adaptive budget: two samples per texel of path
 
 float distileTexel(ivec3 texel) {
     return texelFetch(distileTile, texel, 0).r * distileDecode.x + distileDecode.y;
@@ -120,7 +120,7 @@ vec3 distileGradient(vec3 position) {
     return gradient;
 }
 
-// The samples a ray whose path to the floor is `pathTexels` long gets: one per texel of it,
+// The samples a ray whose path to the floor is `pathTexels` long gets: two per texel of it,
 // within [budget / 4, budget].
 int distileAdaptiveBudget(int budget, float pathTexels) {
     float samples = ceil(pathTexels / kDistileTexelsPerSample);
