@@ -24,6 +24,7 @@
 #include "bench/main_job_bench.h"
 #include "bench/peers/peers.h"
 #include "common/error.h"
+#include "render/compare.h"
 #include "render/image.h"
 #include "sampler/tile_io.h"
 #include "scene/scene_file.h"
@@ -170,36 +171,6 @@ std::pair<std::string, double> largestWorkSaving(const RenderStats& on, const Re
             largest = {counter.name, 1.0 - with / without};
     }
     return largest;
-}
-
-/// The 8-bit difference of two images of one size: their sRGB codes as a PNG holds them
-/// (render/image.h srgbCode8).
-struct CodeDifference {
-    double differingShare = 0.0;  ///< pixels where any channel differs by more than 1 code
-    int maxCodes = 0;
-    bool bitIdentical = true;  ///< every linear float equal
-};
-
-CodeDifference codeDifference(const Image& a, const Image& b) {
-    if (a.width != b.width || a.height != b.height)
-        throw std::logic_error("codeDifference: images of different sizes");
-    CodeDifference difference;
-    std::size_t differing = 0;
-    for (std::size_t i = 0; i < a.rgbLinear.size(); ++i) {
-        int pixelMax = 0;
-        for (int channel = 0; channel < 3; ++channel) {
-            const float valueA = a.rgbLinear[i][channel];
-            const float valueB = b.rgbLinear[i][channel];
-            difference.bitIdentical = difference.bitIdentical && valueA == valueB;
-            pixelMax =
-                std::max(pixelMax, std::abs(int(srgbCode8(valueA)) - int(srgbCode8(valueB))));
-        }
-        differing += pixelMax > 1 ? 1 : 0;
-        difference.maxCodes = std::max(difference.maxCodes, pixelMax);
-    }
-    difference.differingShare =
-        a.rgbLinear.empty() ? 0.0 : double(differing) / double(a.rgbLinear.size());
-    return difference;
 }
 
 /// The fastest frame of `runs` renders (the machine is shared: the minimum is the least

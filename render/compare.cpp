@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -309,5 +310,28 @@ RenderComparison compareRenders(const RenderLayersView& a, const RenderLayersVie
                                            : std::numeric_limits<double>::infinity();
     return result;
 }
+
+CodeDifference codeDifference(const Image& a, const Image& b) {
+    if (a.width != b.width || a.height != b.height)
+        throw std::logic_error("codeDifference: images of different sizes");
+    CodeDifference difference;
+    std::size_t differing = 0;
+    for (std::size_t i = 0; i < a.rgbLinear.size(); ++i) {
+        int pixelMax = 0;
+        for (int channel = 0; channel < 3; ++channel) {
+            const float valueA = a.rgbLinear[i][channel];
+            const float valueB = b.rgbLinear[i][channel];
+            difference.bitIdentical = difference.bitIdentical && valueA == valueB;
+            pixelMax =
+                std::max(pixelMax, std::abs(int(srgbCode8(valueA)) - int(srgbCode8(valueB))));
+        }
+        differing += pixelMax > 1 ? 1 : 0;
+        difference.maxCodes = std::max(difference.maxCodes, pixelMax);
+    }
+    difference.differingShare =
+        a.rgbLinear.empty() ? 0.0 : double(differing) / double(a.rgbLinear.size());
+    return difference;
+}
+
 
 }  // namespace distile

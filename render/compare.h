@@ -108,4 +108,15 @@ glm::vec3 hitErrorColor(double errorTexels);
 RenderComparison compareRenders(const RenderLayersView& a, const RenderLayersView& b,
                                 Image* difference = nullptr, Image* hitErrorMap = nullptr);
 
+/// The 8-bit difference of two images of one size: their sRGB codes as a PNG holds them
+/// (render/image.h srgbCode8).
+struct CodeDifference {
+    double differingShare = 0.0;  ///< pixels where any channel differs by more than 1 code
+    int maxCodes = 0;
+    bool bitIdentical = true;  ///< every linear float equal
+};
+
+/// The 8-bit difference of `a` and `b`. Throws std::logic_error when their sizes differ.
+CodeDifference codeDifference(const Image& a, const Image& b);
+
 }  // namespace distile
