@@ -622,21 +622,32 @@ void runSpeedBench(const BenchArguments& arguments) {
     };
     for (const CurvedShellScene& s : curvedScenes) {
         const auto [curvedWidth, curvedHeight] = curvedSize(s.image);
-        RenderOptions curved = benchRenderOptions(curvedWidth, curvedHeight);
-        curved.shellMapping = ShellMapping::Curved;
-        RenderOptions planar = curved;
-        planar.shellMapping = ShellMapping::Planar;
-        timedRender(s.scene, curved);  // untimed warm-up: fresh pages for this scene and size
-        const FastestPair pair = fastestPair(s.scene, curved, s.scene, planar, runs);
-        // The render a user gets (shadow maps and self-shadows on, no AOVs): where the curved
-        // march's share of the work is what it is in practice.
-        RenderOptions curvedShaded;
-        curvedShaded.width = curvedWidth;
-        curvedShaded.height = curvedHeight;
-        RenderOptions planarShaded = curvedShaded;
-        planarShaded.shellMapping = ShellMapping::Planar;
-        const FastestPair shadedPair =
-            fastestPair(s.scene, curvedShaded, s.scene, planarShaded, runs);
+        // The errors from a render as the peers' in A (no shadows), with the AOVs they compare.
+        RenderOptions curvedAovs = benchRenderOptions(curvedWidth, curvedHeight);
+        curvedAovs.shellMapping = ShellMapping::Curved;
+        RenderOptions planarAovs = curvedAovs;
+        planarAovs.shellMapping = ShellMapping::Planar;
+        timedRender(s.scene, curvedAovs);  // untimed warm-up: fresh pages for this scene and size
+        const TimedRender curvedErrors = timedRender(s.scene, curvedAovs);
+        const TimedRender planarErrors = timedRender(s.scene, planarAovs);
+        // The times without the AOVs, whose writing costs both shell maps alike and would hide
+        // the march's own cost; then the render a user gets (shadow maps and self-shadows on),
+        // and each of its two kinds of shadow work alone: where a curved shell costs more.
+        const auto timedPair = [&](bool shadowMaps, bool selfShadows) {
+            RenderOptions curvedTimed;
+            curvedTimed.width = curvedWidth;
+            curvedTimed.height = curvedHeight;
+            curvedTimed.shellMapping = ShellMapping::Curved;
+            if (!shadowMaps) curvedTimed.shadowFilter = ShadowFilter::None;
+            curvedTimed.selfShadows = selfShadows;
+            RenderOptions planarTimed = curvedTimed;
+            planarTimed.shellMapping = ShellMapping::Planar;
+            return fastestPair(s.scene, curvedTimed, s.scene, planarTimed, runs);
+        };
+        const FastestPair pair = timedPair(false, false);
+        const FastestPair shadedPair = timedPair(true, true);
+        const FastestPair mapsPair = timedPair(true, false);
+        const FastestPair selfPair = timedPair(false, true);
         say("  " + s.id + " world reference, " + std::to_string(curvedWidth) + "x" +
             std::to_string(curvedHeight));
         const TimedWorldReference reference =
@@ -651,14 +662,23 @@ void runSpeedBench(const BenchArguments& arguments) {
         SpeedRow timeRow = curvedRow("curved against planar");
         timeRow.seconds = pair.a.seconds;
         timeRow.comparedSeconds = pair.b.seconds;
+        timeRow.note = "no shadows, no AOVs";
         rows.push_back(timeRow);
-        SpeedRow shadedRow = curvedRow("curved against planar, default render");
-        shadedRow.seconds = shadedPair.a.seconds;
-        shadedRow.comparedSeconds = shadedPair.b.seconds;
-        shadedRow.note = "shadows on, no AOVs";
-        rows.push_back(shadedRow);
-        for (const auto& [what, render] :
-             {std::pair{"curved", &pair.a.result}, std::pair{"planar", &pair.b.result}}) {
+        for (const auto& [what, timed, note] :
+             {std::tuple{"curved against planar, default render", &shadedPair,
+                         "shadows on, no AOVs"},
+              std::tuple{"curved against planar, shadow maps only", &mapsPair,
+                         "shadow maps, no self-shadows, no AOVs"},
+              std::tuple{"curved against planar, self-shadows only", &selfPair,
+                         "self-shadows, no shadow maps, no AOVs"}}) {
+            SpeedRow row = curvedRow(what);
+            row.seconds = timed->a.seconds;
+            row.comparedSeconds = timed->b.seconds;
+            row.note = note;
+            rows.push_back(row);
+        }
+        for (const auto& [what, render] : {std::pair{"curved", &curvedErrors.result},
+                                           std::pair{"planar", &planarErrors.result}}) {
             SpeedRow errorRow = curvedRow(std::string(what) + " against the world reference");
             setError(errorRow, compareRenders(layers(*render), truth));
             rows.push_back(errorRow);
@@ -677,10 +697,13 @@ void runSpeedBench(const BenchArguments& arguments) {
         rows.push_back(referenceRow);
         std::snprintf(line, sizeof line,
                       "  %s no shadows: curved %8.4f s, planar %8.4f s (%.3f); default render: "
-                      "curved %8.4f s, planar %8.4f s (%.3f); world reference %.2f s",
+                      "curved %8.4f s, planar %8.4f s (%.3f); shadow maps only %.3f, "
+                      "self-shadows only %.3f; world reference %.2f s",
                       s.id.c_str(), pair.a.seconds, pair.b.seconds, pair.a.seconds / pair.b.seconds,
                       shadedPair.a.seconds, shadedPair.b.seconds,
-                      shadedPair.a.seconds / shadedPair.b.seconds, reference.seconds);
+                      shadedPair.a.seconds / shadedPair.b.seconds,
+                      mapsPair.a.seconds / mapsPair.b.seconds,
+                      selfPair.a.seconds / selfPair.b.seconds, reference.seconds);
         say(line);
     }
 
@@ -812,9 +835,10 @@ void runSpeedBench(const BenchArguments& arguments) {
 
     md << "\n## E. Curved shells (the curved march against the planar one, each against the world "
           "reference)\n\n"
-          "Errors and the first times from renders as the peers' in A (no shadows), AOVs on; the "
-          "verdict's times from the default render (shadows on, no AOVs), the cost a user sees. "
-          "Each time the fastest of "
+          "Errors from renders as the peers' in A (no shadows), AOVs on. Times without AOVs "
+          "(their writing costs both shell maps alike): without shadows (the march's own cost), "
+          "the default render (shadows on: the verdict's, the cost a user sees), and each kind of "
+          "its shadow work alone (shadow maps, self-shadow rays). Each time the fastest of "
        << runs
        << " runs, curved and planar alternated after one untimed warm-up render. Errors against "
           "the "
@@ -855,12 +879,19 @@ void runSpeedBench(const BenchArguments& arguments) {
                << fixed(r->interiorMeanNormalErrorDeg, 2) << " | "
                << fixed(r->meanNormalErrorDeg, 2) << " |\n";
         }
-        md << "| " << s.id << " " << s.name << " | " << image
-           << " | curved, default render (shadows) | " << fixed(shaded->seconds, 4) << " | "
-           << fixed(ratio, 3) << " | | | | | | | |\n";
-        md << "| " << s.id << " " << s.name << " | " << image
-           << " | planar, default render (shadows) | " << fixed(shaded->comparedSeconds, 4)
-           << " | | | | | | | | |\n";
+        const SpeedRow* maps =
+            findRow(rows, kCurvedSection, s.id, "curved against planar, shadow maps only");
+        const SpeedRow* self =
+            findRow(rows, kCurvedSection, s.id, "curved against planar, self-shadows only");
+        for (const auto& [render, r] : {std::pair{"default render (shadows)", shaded},
+                                        std::pair{"shadow maps only", maps},
+                                        std::pair{"self-shadows only", self}}) {
+            md << "| " << s.id << " " << s.name << " | " << image << " | curved, " << render
+               << " | " << fixed(r->seconds, 4) << " | " << fixed(r->seconds / r->comparedSeconds, 3)
+               << " | | | | | | | |\n";
+            md << "| " << s.id << " " << s.name << " | " << image << " | planar, " << render
+               << " | " << fixed(r->comparedSeconds, 4) << " | | | | | | | | |\n";
+        }
         md << "| " << s.id << " " << s.name << " | " << image << " | world reference | "
            << fixed(reference->seconds, 2) << " | | | | | | | | |\n";
         const SpeedRow* curved =
@@ -869,7 +900,10 @@ void runSpeedBench(const BenchArguments& arguments) {
                                  " curved / planar = " + fixed(ratio, 3) +
                                  " for the default render (<= " + fixed(kMaxCurvedOverPlanar, 1) +
                                  "); without shadows " + fixed(unshadedRatio, 3) +
-                                 " (the march's own cost)");
+                                 " (the march's own cost), shadow maps alone " +
+                                 fixed(maps->seconds / maps->comparedSeconds, 3) +
+                                 ", self-shadows alone " +
+                                 fixed(self->seconds / self->comparedSeconds, 3));
         const bool accurate = curved->interiorMeanHitErrorTexels <= kMaxCurvedInteriorMeanTexels &&
                               curved->interiorP99HitErrorTexels <= kMaxCurvedInteriorP99Texels &&
                               curved->coverageMismatchShare <= kMaxCurvedCoverageMismatch &&
