@@ -1413,6 +1413,8 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
         EXPECT_TRUE(sections.count(section)) << section;
     for (const char* scene : {"S3", "S7"})
         for (const char* what : {"curved against planar", "curved against planar, default render",
+                                 "curved against planar, shadow maps only",
+                                 "curved against planar, self-shadows only",
                                  "curved against the world reference",
                                  "planar against the world reference", "world reference"})
             EXPECT_TRUE(curvedRows.count(std::string(scene) + " " + what)) << scene << " " << what;
@@ -1420,6 +1422,7 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     EXPECT_NE(report.find("## Verdicts"), std::string::npos);
     EXPECT_NE(report.find("## E. Curved shells"), std::string::npos);
     EXPECT_NE(report.find("S7 curved / planar = "), std::string::npos);
+    EXPECT_NE(report.find("shadow maps alone"), std::string::npos);
     EXPECT_NE(report.find("threads: 1 thread and"), std::string::npos);
     EXPECT_TRUE(fs::exists(path("speed/scenes/sheet_x16.json")));
     EXPECT_TRUE(fs::exists(path("speed/scenes/low_height_field.exr")));
