@@ -630,7 +630,7 @@ void runSpeedBench(const BenchArguments& arguments) {
         timedRender(s.scene, curvedAovs);  // untimed warm-up: fresh pages for this scene and size
         const TimedRender curvedErrors = timedRender(s.scene, curvedAovs);
         const TimedRender planarErrors = timedRender(s.scene, planarAovs);
-        // The times without the AOVs, whose writing costs both shell maps alike and would hide
+        // The times without the AOVs, whose filling costs both shell maps alike and would hide
         // the march's own cost; then the render a user gets (shadow maps and self-shadows on),
         // and each of its two kinds of shadow work alone: where a curved shell costs more.
         const auto timedPair = [&](bool shadowMaps, bool selfShadows) {
@@ -836,7 +836,7 @@ void runSpeedBench(const BenchArguments& arguments) {
     md << "\n## E. Curved shells (the curved march against the planar one, each against the world "
           "reference)\n\n"
           "Errors from renders as the peers' in A (no shadows), AOVs on. Times without AOVs "
-          "(their writing costs both shell maps alike): without shadows (the march's own cost), "
+          "(filling them costs both shell maps alike): without shadows (the march's own cost), "
           "the default render (shadows on: the verdict's, the cost a user sees), and each kind of "
           "its shadow work alone (shadow maps, self-shadow rays). Each time the fastest of "
        << runs

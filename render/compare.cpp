@@ -333,5 +333,4 @@ CodeDifference codeDifference(const Image& a, const Image& b) {
     return difference;
 }
 
-
 }  // namespace distile
