@@ -105,13 +105,13 @@ struct SrgbCodes8 {
         if (!(linear > 0.0f)) return atMostZero;
         if (linear >= 1.0f) return atLeastOne;
         const std::uint32_t bits = std::bit_cast<std::uint32_t>(linear);
-        unsigned code = bucketStart[bits >> 16];
+        unsigned found = bucketStart[bits >> 16];
         // The buckets of 8-bit codes span at most one code each: one step without a branch (as
         // a branch its outcome is a coin flip, and its mispredictions took half of the time),
         // then the loop, which only guards that.
-        code += unsigned(linear >= firstOfCode[code + 1]);
-        while (linear >= firstOfCode[code + 1]) ++code;
-        return std::uint8_t(code);
+        found += unsigned(linear >= firstOfCode[found + 1]);
+        while (linear >= firstOfCode[found + 1]) ++found;
+        return std::uint8_t(found);
     }
 };
 
