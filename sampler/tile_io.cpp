@@ -228,6 +228,19 @@ std::string bandValueProblem(const Size3& size, double halfBandTexels) {
            " is not a positive number of at most " + std::to_string(int(most)) + " texels";
 }
 
+/// OpenEXR compresses and inflates a file's chunks on its own pool of threads, none unless told:
+/// as many as TBB may use at the first tile read or write (the --threads limit). Two threads read
+/// the default tile in 31 ms instead of 46 and write it in 41 ms instead of 63. The bytes and
+/// pixels do not depend on it.
+void useExrThreads() {
+    static std::once_flag once;
+    std::call_once(once, [] {
+        const int threads = int(
+            tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+        if (threads > 1) Imf::setGlobalThreadCount(threads);
+    });
+}
+
 /// Writes `pixels` (one float per atlas pixel, row-major) into `temporary` as the zip-compressed
 /// OpenEXR atlas `spec` describes, with OpenEXR itself: reading and writing tiles needs none of
 /// OpenImageIO's plugins, so a render's tiles are read while OpenImageIO is still loading.
@@ -259,6 +272,7 @@ void writeExrAtlas(const fs::path& temporary, const image_files::Spec& spec,
             frame.insert(kChannelName, Imf::Slice(Imf::FLOAT, base, sizeof(float),
                                                   sizeof(float) * std::size_t(spec.width)));
         }
+        useExrThreads();
         Imf::OutputFile output(temporary.c_str(), header);
         output.setFrameBuffer(frame);
         output.writePixels(spec.height);
@@ -384,15 +398,7 @@ Tile readTileExr(const fs::path& file) {
     requireRegularFile(file, "a tile .exr file");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
     checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
-    // OpenEXR inflates an atlas's chunks on its own pool of threads, none unless told: as many
-    // as TBB may use at the first read (the --threads limit). Two threads take the default tile
-    // in 31 ms instead of 46. The pixels do not depend on it.
-    static std::once_flag exrThreads;
-    std::call_once(exrThreads, [] {
-        const int threads = int(
-            tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
-        if (threads > 1) Imf::setGlobalThreadCount(threads);
-    });
+    useExrThreads();
     std::unique_ptr<Imf::InputFile> input;
     image_files::Spec spec;
     try {
