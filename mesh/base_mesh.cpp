@@ -10,6 +10,7 @@
 #include <numbers>
 #include <numeric>
 #include <string>
+#include <tbb/parallel_sort.h>
 
 #include "common/error.h"
 
@@ -58,27 +59,37 @@ void validateForFrames(const BaseMesh& mesh) {
     }
 }
 
-/// Group id per vertex: vertices with exactly equal positions (+0 == -0) share a group.
+/// Group id per vertex: vertices with exactly equal positions (+0 == -0) share a group, whose id
+/// is the lowest index among them. Ids so follow the vertex order, and sums taken per group stay
+/// near the vertices' own in memory (ids in sorted-position order scattered them over a large
+/// mesh's whole array).
 std::vector<std::uint32_t> samePositionGroups(const std::vector<glm::vec3>& positions) {
-    std::vector<std::uint32_t> order(positions.size());
-    std::iota(order.begin(), order.end(), 0u);
-    auto lessPosition = [&](std::uint32_t a, std::uint32_t b) {
-        const glm::vec3& pa = positions[a];
-        const glm::vec3& pb = positions[b];
-        if (pa.x != pb.x) return pa.x < pb.x;
-        if (pa.y != pb.y) return pa.y < pb.y;
-        return pa.z < pb.z;
+    struct IndexedPosition {
+        glm::vec3 position;
+        std::uint32_t index;
     };
-    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-        if (lessPosition(a, b)) return true;
-        if (lessPosition(b, a)) return false;
-        return a < b;
-    });
+    auto lessPosition = [](const glm::vec3& a, const glm::vec3& b) {
+        if (a.x != b.x) return a.x < b.x;
+        if (a.y != b.y) return a.y < b.y;
+        return a.z < b.z;
+    };
+    std::vector<IndexedPosition> sorted(positions.size());
+    for (std::size_t v = 0; v < positions.size(); ++v)
+        sorted[v] = {positions[v], static_cast<std::uint32_t>(v)};
+    // Sorted by value rather than through an index array, so each comparison reads its own data.
+    // The order is total (ties broken by index), so the parallel sort's result is unique.
+    tbb::parallel_sort(sorted.begin(), sorted.end(),
+                       [&](const IndexedPosition& a, const IndexedPosition& b) {
+                           if (lessPosition(a.position, b.position)) return true;
+                           if (lessPosition(b.position, a.position)) return false;
+                           return a.index < b.index;
+                       });
     std::vector<std::uint32_t> groupOf(positions.size());
     std::uint32_t group = 0;
-    for (std::size_t k = 0; k < order.size(); ++k) {
-        if (k > 0 && lessPosition(order[k - 1], order[k])) ++group;
-        groupOf[order[k]] = group;
+    for (std::size_t k = 0; k < sorted.size(); ++k) {
+        if (k == 0 || lessPosition(sorted[k - 1].position, sorted[k].position))
+            group = sorted[k].index;  // the lowest index of its position comes first
+        groupOf[sorted[k].index] = group;
     }
     return groupOf;
 }
