@@ -7,6 +7,8 @@
 #include <glm/vec4.hpp>
 #include <limits>
 #include <string>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 #include <vector>
 
 #include "common/error.h"
@@ -108,13 +110,14 @@ float ShadowMap::boundDepths() {
     const float rounding =
         1e-5f * (std::abs(startDepth_) + finest.texelWorld * float(finest.width + finest.height)) +
         1e-3f * finest.texelWorld;
-    casterBounds_.assign(std::size_t(finest.tilesX) * std::size_t(finest.tilesY), {});
+    const std::size_t tileCount = std::size_t(finest.tilesX) * std::size_t(finest.tilesY);
     const Scene& scene = tracer_.scene();
     std::vector<bool> flatSlab(scene.objects.size());
     for (std::size_t object = 0; object < scene.objects.size(); ++object)
         flatSlab[object] = isFlatSlab(scene.objects[object]);
     const float tileWorld = finest.texelWorld * float(kTileTexels);
-    for (std::uint32_t shell = 0; shell < tracer_.shellCount(); ++shell) {
+    // Lowers `bounds` over the tiles under shell `shell`.
+    auto boundShell = [&](std::uint32_t shell, std::vector<CasterBounds>& bounds) {
         const std::uint32_t object = tracer_.shellObject(shell);
         glm::vec3 corners[6];
         tracer_.shellCorners(shell, corners, corners + 3);
@@ -161,19 +164,37 @@ float ShadowMap::boundDepths() {
                     least = std::max(least, float(top) + bottomShift);
                 }
                 CasterBounds& tile =
-                    casterBounds_[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
+                    bounds[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
                 if (!flatSlab[object]) {
                     tile.others = std::min(tile.others, least - rounding);
                     continue;
                 }
                 tile.flat = std::min(tile.flat, least - rounding);
-                if (tile.flatObject != object) {
-                    tile.flatObject = tile.flatObject == ShadowReceiver::kNoObject
-                                          ? object
-                                          : CasterBounds::kSeveral;
-                }
+                tile.flatObject = CasterBounds::mergedFlatObject(tile.flatObject, object);
             }
-    }
+    };
+    // The shells in parallel, each part into bounds of its own, merged by least values and the
+    // union of flat slabs: the same bounds in any order, on any number of threads.
+    casterBounds_ = tbb::parallel_reduce(
+        tbb::blocked_range<std::uint32_t>(0, tracer_.shellCount(), 256),
+        std::vector<CasterBounds>(),
+        [&](const tbb::blocked_range<std::uint32_t>& shells, std::vector<CasterBounds> bounds) {
+            if (bounds.empty()) bounds.assign(tileCount, {});
+            for (std::uint32_t shell = shells.begin(); shell != shells.end(); ++shell)
+                boundShell(shell, bounds);
+            return bounds;
+        },
+        [](std::vector<CasterBounds> bounds, const std::vector<CasterBounds>& more) {
+            if (bounds.empty()) return std::vector<CasterBounds>(more);
+            for (std::size_t tile = 0; tile < more.size(); ++tile) {
+                bounds[tile].others = std::min(bounds[tile].others, more[tile].others);
+                bounds[tile].flat = std::min(bounds[tile].flat, more[tile].flat);
+                bounds[tile].flatObject =
+                    CasterBounds::mergedFlatObject(bounds[tile].flatObject, more[tile].flatObject);
+            }
+            return bounds;
+        });
+    if (casterBounds_.empty()) casterBounds_.assign(tileCount, {});
     std::vector<float> bound(casterBounds_.size());
     for (std::size_t tile = 0; tile < bound.size(); ++tile)
         bound[tile] = std::min(casterBounds_[tile].others, casterBounds_[tile].flat);

@@ -193,6 +193,11 @@ class ShadowMap {
         /// kSeveral for more than one.
         std::uint32_t flatObject = ShadowReceiver::kNoObject;
         static constexpr std::uint32_t kSeveral = ShadowReceiver::kNoObject - 1;
+        /// The flat slab over a tile that `a` or `b` (flatObject values) has over it.
+        static std::uint32_t mergedFlatObject(std::uint32_t a, std::uint32_t b) {
+            if (a == ShadowReceiver::kNoObject || a == b) return b;
+            return b == ShadowReceiver::kNoObject ? a : kSeveral;
+        }
     };
     std::vector<CasterBounds> casterBounds_;
     mutable std::atomic<std::uint64_t> tracedTexels_{0};
