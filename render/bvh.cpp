@@ -5,6 +5,7 @@
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <tbb/parallel_invoke.h>
 
 namespace distile {
 
@@ -12,6 +13,11 @@ namespace {
 
 constexpr std::uint32_t kLeafSize = 4;
 constexpr int kMaxDepth = 48;
+/// Nodes over at least this many triangles, and no deeper than kParallelBuildDepth, build their
+/// two sides in parallel (deeper, 2^depth tasks keep any machine busy, and each level copies the
+/// right sides' nodes once more).
+constexpr std::uint32_t kParallelBuildTriangles = 4096;
+constexpr int kParallelBuildDepth = 6;
 
 glm::vec3 centroid(const std::vector<glm::vec3>& corners, std::uint32_t triangle) {
     return (corners[3 * triangle] + corners[3 * triangle + 1] + corners[3 * triangle + 2]) / 3.0f;
@@ -52,14 +58,14 @@ TriangleBvh::TriangleBvh(std::vector<glm::vec3> corners) : corners_(std::move(co
             box.centroid = centroid(corners_, i);
         }
         nodes_.reserve(2 * count);
-        build(boxes, 0, count, 0);
+        build(boxes, 0, count, 0, nodes_);
     }
 }
 
 std::uint32_t TriangleBvh::build(const std::vector<TriangleBox>& boxes, std::uint32_t first,
-                                 std::uint32_t count, int depth) {
-    const auto nodeIndex = std::uint32_t(nodes_.size());
-    nodes_.push_back({});
+                                 std::uint32_t count, int depth, std::vector<Node>& nodes) {
+    const auto nodeIndex = std::uint32_t(nodes.size());
+    nodes.push_back({});
     glm::vec3 boundsMin(std::numeric_limits<float>::max());
     glm::vec3 boundsMax(-std::numeric_limits<float>::max());
     glm::vec3 centroidMin = boundsMin;
@@ -71,13 +77,13 @@ std::uint32_t TriangleBvh::build(const std::vector<TriangleBox>& boxes, std::uin
         centroidMin = glm::min(centroidMin, box.centroid);
         centroidMax = glm::max(centroidMax, box.centroid);
     }
-    nodes_[nodeIndex].boundsMin = boundsMin;
-    nodes_[nodeIndex].boundsMax = boundsMax;
+    nodes[nodeIndex].boundsMin = boundsMin;
+    nodes[nodeIndex].boundsMax = boundsMax;
     const glm::vec3 extent = centroidMax - centroidMin;
     if (count <= kLeafSize || depth >= kMaxDepth ||
         glm::max(extent.x, glm::max(extent.y, extent.z)) <= 0.0f) {
-        nodes_[nodeIndex].first = first;
-        nodes_[nodeIndex].count = count;
+        nodes[nodeIndex].first = first;
+        nodes[nodeIndex].count = count;
         return nodeIndex;
     }
     // The split of least cost by the surface area heuristic over kBins bins of the centroids
@@ -150,10 +156,29 @@ std::uint32_t TriangleBvh::build(const std::vector<TriangleBox>& boxes, std::uin
                              return boxes[a].centroid[axis] < boxes[b].centroid[axis];
                          });
     }
-    build(boxes, first, half, depth + 1);
-    const std::uint32_t right = build(boxes, first + half, count - half, depth + 1);
-    nodes_[nodeIndex].first = right;
-    nodes_[nodeIndex].count = 0;
+    std::uint32_t right = 0;
+    if (count < kParallelBuildTriangles || depth >= kParallelBuildDepth) {
+        build(boxes, first, half, depth + 1, nodes);
+        right = build(boxes, first + half, count - half, depth + 1, nodes);
+    } else {
+        // The two sides at once (their triangles are disjoint ranges of order_): the left one
+        // into `nodes` after this node, the right one into nodes of its own, appended after the
+        // left's with their child indices moved. The nodes come out in the same order as one
+        // after the other, so the tree is the same on any number of threads.
+        std::vector<Node> rightNodes;
+        tbb::parallel_invoke([&] { build(boxes, first, half, depth + 1, nodes); },
+                             [&] {
+                                 rightNodes.reserve(2 * std::size_t(count - half));
+                                 build(boxes, first + half, count - half, depth + 1, rightNodes);
+                             });
+        right = std::uint32_t(nodes.size());
+        for (Node node : rightNodes) {
+            if (node.count == 0) node.first += right;  // an inner node's right child
+            nodes.push_back(node);
+        }
+    }
+    nodes[nodeIndex].first = right;
+    nodes[nodeIndex].count = 0;
     return nodeIndex;
 }
 

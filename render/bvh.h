@@ -86,9 +86,10 @@ class TriangleBvh {
         glm::vec3 low, high, centroid;
     };
     /// The node over order_[first, first + count) and its subtree (`boxes` per triangle), split
-    /// by the surface area heuristic.
+    /// by the surface area heuristic, appended to `nodes` (its index there returned; child
+    /// indices are into `nodes`).
     std::uint32_t build(const std::vector<TriangleBox>& boxes, std::uint32_t first,
-                        std::uint32_t count, int depth);
+                        std::uint32_t count, int depth, std::vector<Node>& nodes);
 
     std::vector<glm::vec3> corners_;
     std::vector<std::uint32_t> order_;

@@ -238,6 +238,55 @@ TEST(TriangleBvh, FindsTheSameNearestHitAsBruteForce) {
     EXPECT_GT(hits, 500);  // the test exercised hits, not only misses
 }
 
+TEST(TriangleBvh, ALargeTreeBuiltInParallelHasTheBruteForceHitsOnAnyThreadCount) {
+    // 20000 triangles: the upper levels of the tree build their two sides in parallel (from
+    // 4096 triangles). Each ray's nearest hit must be brute force's, and the same with the tree
+    // built on one thread.
+    std::mt19937 random(23);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    constexpr int kTriangles = 20000;
+    std::vector<glm::vec3> corners;
+    for (int t = 0; t < kTriangles; ++t) {
+        const glm::vec3 centre(unit(random), unit(random), unit(random));
+        for (int corner = 0; corner < 3; ++corner)
+            corners.push_back(centre + 0.05f * glm::vec3(unit(random), unit(random), unit(random)));
+    }
+    const TriangleBvh bvh(corners);
+    const TriangleBvh serialBvh = [&] {
+        const tbb::global_control oneThread(tbb::global_control::max_allowed_parallelism, 1);
+        return TriangleBvh(corners);
+    }();
+    int hits = 0;
+    for (int i = 0; i < 400; ++i) {
+        const Ray ray{glm::vec3(unit(random), unit(random), 3.0f),
+                      glm::normalize(glm::vec3(0.3f * unit(random), 0.3f * unit(random), -1.0f))};
+        double nearest = std::numeric_limits<double>::max();
+        int nearestTriangle = -1;
+        for (int t = 0; t < kTriangles; ++t) {
+            double distance = 0.0, b1 = 0.0, b2 = 0.0;
+            if (intersectTriangle(ray, corners[3 * t], corners[3 * t + 1], corners[3 * t + 2], 0.0,
+                                  nearest, distance, b1, b2)) {
+                nearest = distance;
+                nearestTriangle = t;
+            }
+        }
+        TriangleHit hit, serialHit;
+        const bool found = bvh.intersect(ray, 0.0f, std::numeric_limits<float>::max(), hit);
+        ASSERT_EQ(found, nearestTriangle >= 0) << i;
+        ASSERT_EQ(serialBvh.intersect(ray, 0.0f, std::numeric_limits<float>::max(), serialHit),
+                  found);
+        if (!found) continue;
+        ++hits;
+        EXPECT_EQ(int(hit.triangle), nearestTriangle) << i;
+        EXPECT_FLOAT_EQ(hit.distanceWorld, float(nearest)) << i;
+        EXPECT_EQ(serialHit.triangle, hit.triangle) << i;
+        EXPECT_EQ(serialHit.distanceWorld, hit.distanceWorld) << i;
+        EXPECT_EQ(serialHit.b1, hit.b1) << i;
+        EXPECT_EQ(serialHit.b2, hit.b2) << i;
+    }
+    EXPECT_GT(hits, 200);  // most rays hit: the test is about hits, not misses
+}
+
 TEST(TriangleBvh, EquallyNearTrianglesGoToTheLowestIndexWhateverTheTree) {
     // 300 random triangles, a floor much larger than all of them (split off at the root by the
     // surface area heuristic), then every triangle again in reverse order: each copy lies in
