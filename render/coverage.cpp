@@ -1,6 +1,7 @@
 #include "render/coverage.h"
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +11,7 @@
 #include <glm/geometric.hpp>
 #include <limits>
 #include <numeric>
+#include <utility>
 
 namespace distile {
 
@@ -317,13 +319,15 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
                 offset;
         }
     });
-    std::vector<std::uint32_t> visible;
+    // Nearest first (equal depths in shell order): filling the bins in this order sorts every
+    // bin. Sorted as (depth, shell) pairs, an order with no ties, so in parallel.
+    std::vector<std::pair<float, std::uint32_t>> byDepth;
     for (std::uint32_t shell = 0; shell < shellCount; ++shell)
-        if (!bounds_[shell].top.empty()) visible.push_back(shell);
-    // Nearest first: filling the bins in this order sorts every bin.
-    std::stable_sort(visible.begin(), visible.end(), [&](std::uint32_t a, std::uint32_t b) {
-        return bounds_[a].zMinWorld < bounds_[b].zMinWorld;
-    });
+        if (!bounds_[shell].top.empty()) byDepth.emplace_back(bounds_[shell].zMinWorld, shell);
+    tbb::parallel_sort(byDepth.begin(), byDepth.end());
+    std::vector<std::uint32_t> visible(byDepth.size());
+    for (std::size_t index = 0; index < byDepth.size(); ++index)
+        visible[index] = byDepth[index].second;
     // The (tile, shell) entries of consecutive runs of `visible` in parallel, each run's in
     // order; then the runs in order.
     struct Entry {

@@ -1,6 +1,7 @@
 #include "render/tracer.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 
@@ -129,9 +130,9 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     : scene_(scene), options_(options) {
     std::size_t triangleCount = 0;
     for (const SceneObject& object : scene.objects) triangleCount += object.mesh.triangles.size();
-    triangles_.reserve(triangleCount);
-    std::vector<glm::vec3> corners;
-    corners.reserve(3 * triangleCount);
+    triangles_.resize(triangleCount);
+    std::vector<glm::vec3> corners(3 * triangleCount);
+    std::size_t firstTriangle = 0;  // of the object, in triangles_
     for (std::uint32_t objectIndex = 0; objectIndex < scene.objects.size(); ++objectIndex) {
         const SceneObject& object = scene.objects[objectIndex];
         const BaseMesh& mesh = object.mesh;
@@ -140,39 +141,49 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
             requireTexelDensity(objectIndex, float(tile->size().depth) / object.material.depthWorld,
                                 "depth", "a larger depth");
         }
-        for (std::uint32_t t = 0; t < mesh.triangles.size(); ++t) {
-            const glm::uvec3 triangle = mesh.triangles[t];
-            for (int corner = 0; corner < 3; ++corner)
-                corners.push_back(mesh.positions[triangle[corner]]);
-            glm::vec2 texelsPerWorld(0.0f);
-            if (tile) {
-                texelsPerWorld =
-                    texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size());
-                const char* remedy = "a smaller uv_scale or a larger mesh";
+        const auto count = std::uint32_t(mesh.triangles.size());
+        tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, count, 1024),
+                          [&](const tbb::blocked_range<std::uint32_t>& range) {
+            for (std::uint32_t t = range.begin(); t != range.end(); ++t) {
+                const glm::uvec3 triangle = mesh.triangles[t];
+                for (int corner = 0; corner < 3; ++corner)
+                    corners[3 * (firstTriangle + t) + corner] = mesh.positions[triangle[corner]];
+                const glm::vec2 texelsPerWorld =
+                    tile ? texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size())
+                         : glm::vec2(0.0f);
+                const glm::vec3& p0 = mesh.positions[triangle[0]];
+                const glm::vec3& p1 = mesh.positions[triangle[1]];
+                const glm::vec3& p2 = mesh.positions[triangle[2]];
+                ShellTriangle shell{objectIndex, t, texelsPerWorld, glm::cross(p1 - p0, p2 - p0),
+                                    DoubleTriangle(p0, p1, p2)};
+                const bool sameCorners = mesh.normals[triangle[0]] == mesh.normals[triangle[1]] &&
+                                         mesh.normals[triangle[0]] == mesh.normals[triangle[2]] &&
+                                         mesh.tangents[triangle[0]] == mesh.tangents[triangle[1]] &&
+                                         mesh.tangents[triangle[0]] == mesh.tangents[triangle[2]];
+                if (sameCorners) {
+                    shell.flatFrame = true;
+                    ShellEntry frame;
+                    setFrame(frame, mesh.normals[triangle[0]], mesh.tangents[triangle[0]]);
+                    shell.frameNormal = frame.normal;
+                    shell.frameTangent = frame.tangent;
+                    shell.frameBitangent = frame.bitangent;
+                }
+                shell.curved = shell.hasDetail() && !shell.flatFrame &&
+                               options.shellMapping == ShellMapping::Curved;
+                triangles_[firstTriangle + t] = shell;
+            }
+        });
+        // Checked in triangle order, so an error names the first triangle's density whatever
+        // the threads did.
+        if (tile) {
+            const char* remedy = "a smaller uv_scale or a larger mesh";
+            for (std::uint32_t t = 0; t < count; ++t) {
+                const glm::vec2 texelsPerWorld = triangles_[firstTriangle + t].texelsPerWorldUv;
                 requireTexelDensity(objectIndex, texelsPerWorld.x, "u", remedy);
                 requireTexelDensity(objectIndex, texelsPerWorld.y, "v", remedy);
             }
-            const glm::vec3& p0 = mesh.positions[triangle[0]];
-            const glm::vec3& p1 = mesh.positions[triangle[1]];
-            const glm::vec3& p2 = mesh.positions[triangle[2]];
-            ShellTriangle shell{objectIndex, t, texelsPerWorld, glm::cross(p1 - p0, p2 - p0),
-                                DoubleTriangle(p0, p1, p2)};
-            const bool sameCorners = mesh.normals[triangle[0]] == mesh.normals[triangle[1]] &&
-                                     mesh.normals[triangle[0]] == mesh.normals[triangle[2]] &&
-                                     mesh.tangents[triangle[0]] == mesh.tangents[triangle[1]] &&
-                                     mesh.tangents[triangle[0]] == mesh.tangents[triangle[2]];
-            if (sameCorners) {
-                shell.flatFrame = true;
-                ShellEntry frame;
-                setFrame(frame, mesh.normals[triangle[0]], mesh.tangents[triangle[0]]);
-                shell.frameNormal = frame.normal;
-                shell.frameTangent = frame.tangent;
-                shell.frameBitangent = frame.bitangent;
-            }
-            shell.curved = shell.hasDetail() && !shell.flatFrame &&
-                           options.shellMapping == ShellMapping::Curved;
-            triangles_.push_back(shell);
         }
+        firstTriangle += count;
     }
     // Independent: the base triangles' BVH and the curved shells' prisms.
     tbb::parallel_invoke([&] { bvh_ = TriangleBvh(std::move(corners)); }, [&] { buildShellMap(); });
