@@ -276,6 +276,25 @@ bool triangleCoversRect(const ScreenTriangle& triangle, double x0, double y0, do
     return true;
 }
 
+std::uint64_t ScreenShells::passingPixels(const ScreenTriangle& top, int tileX, int tileY,
+                                           const PinholeProjection& projection) {
+    // Only pixels whose squares, grown by the margin, reach the triangle's bounds can pass (the
+    // test's first check): x + 1 + margin >= boundsMin.x and x - margin <= boundsMax.x, and the
+    // same in y. The range below holds them all, by a pixel more at its low end for rounding.
+    const double left = tileX * kTilePixels, upper = tileY * kTilePixels;
+    const int x0 = int(std::max(left, std::floor(top.boundsMin.x - top.marginPixels) - 1.0));
+    const int y0 = int(std::max(upper, std::floor(top.boundsMin.y - top.marginPixels) - 1.0));
+    const int x1 = int(std::min({left + (kTilePixels - 1), double(projection.width() - 1),
+                                 std::ceil(top.boundsMax.x + top.marginPixels)}));
+    const int y1 = int(std::min({upper + (kTilePixels - 1), double(projection.height() - 1),
+                                 std::ceil(top.boundsMax.y + top.marginPixels)}));
+    std::uint64_t pixels = 0;
+    for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x)
+            if (trianglePixelOverlapConservative(top, x, y)) pixels |= std::uint64_t(1) << pixelBit(x, y);
+    return pixels;
+}
+
 ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& projection)
     : tracer_(tracer), projection_(projection) {
     tilesX_ = (projection.width() + kTilePixels - 1) / kTilePixels;
@@ -333,6 +352,7 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     struct Entry {
         std::uint32_t tile, shell;
         bool covers;
+        std::uint64_t pixels;  ///< ScreenShells::pixelMasks_
     };
     constexpr std::size_t kRunShells = 1024;
     std::vector<std::vector<Entry>> runs((visible.size() + kRunShells - 1) / kRunShells);
@@ -355,8 +375,10 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
                     const double x1 = std::min(x0 + kTilePixels, double(projection.width()));
                     const double y1 = std::min(y0 + kTilePixels, double(projection.height()));
                     if (!triangleRectOverlapConservative(top, x0, y0, x1, y1)) continue;
-                    runs[run].push_back({std::uint32_t(tileY * tilesX_ + tileX), shell,
-                                         triangleCoversRect(top, x0, y0, x1, y1)});
+                    const bool covers = triangleCoversRect(top, x0, y0, x1, y1);
+                    runs[run].push_back({std::uint32_t(tileY * tilesX_ + tileX), shell, covers,
+                                         covers ? ~std::uint64_t(0)
+                                                : passingPixels(top, tileX, tileY, projection)});
                 }
             }
         }
@@ -368,12 +390,14 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     std::partial_sum(tileStart_.begin(), tileStart_.end(), tileStart_.begin());
     shellsByTile_.resize(tileStart_.back());
     coversTile_.resize(tileStart_.back());
+    pixelMasks_.resize(tileStart_.back());
     std::vector<std::uint32_t> fill(tileStart_.begin(), tileStart_.end() - 1);
     for (const std::vector<Entry>& run : runs) {
         for (const Entry& entry : run) {
             const std::uint32_t at = fill[entry.tile]++;
             shellsByTile_[at] = entry.shell;
             coversTile_[at] = entry.covers;
+            pixelMasks_[at] = entry.pixels;
         }
     }
 }
@@ -524,14 +548,11 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
         candidates[r].clear();
         const std::size_t tile =
             std::size_t(pixel.y / kTilePixels) * tilesX_ + std::size_t(pixel.x / kTilePixels);
+        const int bit = pixelBit(pixel.x, pixel.y);
+        shellCounters.tested += tileStart_[tile + 1] - tileStart_[tile];
         for (std::uint32_t entry = tileStart_[tile]; entry < tileStart_[tile + 1]; ++entry) {
-            const std::uint32_t shell = shellsByTile_[entry];
-            ++shellCounters.tested;
-            if (!coversTile_[entry] &&
-                !trianglePixelOverlapConservative(bounds_[shell].top, pixel.x, pixel.y)) {
-                continue;
-            }
-            candidates[r].push({-std::numeric_limits<float>::infinity(), shell});
+            if ((pixelMasks_[entry] >> bit & 1) == 0) continue;
+            candidates[r].push({-std::numeric_limits<float>::infinity(), shellsByTile_[entry]});
         }
         // Depth bounds order several candidates and cull the later ones; a lone candidate is
         // traced whatever its bound.

@@ -190,6 +190,17 @@ class ScreenShells {
     /// Per entry of shellsByTile_: its shell's top covers every pixel of the tile (the per-pixel
     /// test would pass everywhere there, so it is skipped).
     std::vector<bool> coversTile_;
+    /// Per entry of shellsByTile_: the pixels of the tile whose per-pixel test
+    /// (trianglePixelOverlapConservative) passes, bit pixelBit(x, y); all bits where the shell
+    /// covers the tile. Taken once per entry over the pixels near the shell's bounds, rather than
+    /// by every ray of the tile against every shell binned there.
+    std::vector<std::uint64_t> pixelMasks_;
+    static_assert(kTilePixels * kTilePixels == 64, "a tile's pixels are the bits of a mask");
+    /// Pixel (x, y)'s bit in its tile's masks.
+    static int pixelBit(int x, int y) { return (y % kTilePixels) * kTilePixels + x % kTilePixels; }
+    /// The mask of pixelMasks_ for `top` over tile (tileX, tileY) of `projection`'s image.
+    static std::uint64_t passingPixels(const ScreenTriangle& top, int tileX, int tileY,
+                                       const PinholeProjection& projection);
 };
 
 }  // namespace distile
