@@ -1,6 +1,8 @@
 // Tangent frames and the built-in base meshes (plane, UV sphere, torus).
 #include "mesh/base_mesh.h"
 
+#include <tbb/parallel_sort.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -10,7 +12,6 @@
 #include <numbers>
 #include <numeric>
 #include <string>
-#include <tbb/parallel_sort.h>
 
 #include "common/error.h"
 

@@ -1,11 +1,12 @@
 #include "render/bvh.h"
 
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
 #include <cmath>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <limits>
-#include <tbb/parallel_invoke.h>
 
 namespace distile {
 

@@ -277,7 +277,7 @@ bool triangleCoversRect(const ScreenTriangle& triangle, double x0, double y0, do
 }
 
 std::uint64_t ScreenShells::passingPixels(const ScreenTriangle& top, int tileX, int tileY,
-                                           const PinholeProjection& projection) {
+                                          const PinholeProjection& projection) {
     // Only pixels whose squares, grown by the margin, reach the triangle's bounds can pass (the
     // test's first check): x + 1 + margin >= boundsMin.x and x - margin <= boundsMax.x, and the
     // same in y. The range below holds them all, by a pixel more at its low end for rounding.
@@ -291,7 +291,8 @@ std::uint64_t ScreenShells::passingPixels(const ScreenTriangle& top, int tileX, 
     std::uint64_t pixels = 0;
     for (int y = y0; y <= y1; ++y)
         for (int x = x0; x <= x1; ++x)
-            if (trianglePixelOverlapConservative(top, x, y)) pixels |= std::uint64_t(1) << pixelBit(x, y);
+            if (trianglePixelOverlapConservative(top, x, y))
+                pixels |= std::uint64_t(1) << pixelBit(x, y);
     return pixels;
 }
 

@@ -6,7 +6,20 @@
 
 namespace distile {
 
-Scene demoScene(std::shared_ptr<const Tile> chainmail) {
+namespace {
+constexpr float kTorusMinorRadius = 0.32f;
+}  // namespace
+
+DemoMeshes demoMeshes() {
+    DemoMeshes meshes;
+    meshes.floor = makePlane(4.0f, 1);
+    meshes.torus = makeTorus(0.75f, kTorusMinorRadius, 192, 64);
+    applyTransform(meshes.torus,
+                   {{0.0f, 0.2f, kTorusMinorRadius + 0.02f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+    return meshes;
+}
+
+Scene demoScene(std::shared_ptr<const Tile> chainmail, DemoMeshes meshes) {
     if (!chainmail)
         throw InputError("demo scene: no chain-mail tile was given; a baked tile is required");
     // Texels are cubes when depth = (world size of one tile) * D / W.
@@ -19,7 +32,7 @@ Scene demoScene(std::shared_ptr<const Tile> chainmail) {
     scene.lights = {DirectionalLight{{-0.45f, 0.35f, -1.0f}, {1.0f, 0.97f, 0.92f}, 3.0f}};
 
     SceneObject floor;
-    floor.mesh = makePlane(4.0f, 1);
+    floor.mesh = std::move(meshes.floor);
     floor.material.tile = chainmail;
     floor.material.uvScale = {4.0f, 4.0f};
     floor.material.depthWorld = cubicDepth(1.0f);
@@ -27,15 +40,12 @@ Scene demoScene(std::shared_ptr<const Tile> chainmail) {
     scene.objects.push_back(std::move(floor));
 
     SceneObject torus;
-    const float majorRadius = 0.75f;
-    const float minorRadius = 0.32f;
-    torus.mesh = makeTorus(majorRadius, minorRadius, 192, 64);
-    applyTransform(torus.mesh, {{0.0f, 0.2f, minorRadius + 0.02f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+    torus.mesh = std::move(meshes.torus);
     // 10 tiles around, 4 around the tube: tiles of about 0.5 world units on the tube's crown.
     const glm::vec2 uvScale(10.0f, 4.0f);
     torus.material.tile = chainmail;
     torus.material.uvScale = uvScale;
-    torus.material.depthWorld = cubicDepth(2.0f * 3.14159265f * minorRadius / uvScale.y);
+    torus.material.depthWorld = cubicDepth(2.0f * 3.14159265f * kTorusMinorRadius / uvScale.y);
     torus.material.color = {0.85f, 0.72f, 0.45f};
     scene.objects.push_back(std::move(torus));
     return scene;

@@ -1,5 +1,8 @@
 #include "render/shadow_map.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -7,8 +10,6 @@
 #include <glm/vec4.hpp>
 #include <limits>
 #include <string>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
 #include <vector>
 
 #include "common/error.h"

@@ -1,5 +1,7 @@
 #include "scene/scene_file.h"
 
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -788,20 +790,25 @@ InputError underSceneJsonPath(const InputError& error) {
 
 SceneFile demoScene(TileCache& tiles) {
     auto key = std::string("bake:demo-chainmail");
-    if (!tiles.count(key)) {
-        tiles[key] = cachedBake(chainmailRecipe({}, {}), [] { return bakeChainmail({}, {}).tile; });
-    }
+    // The meshes are built while the tile is read (or baked): neither needs the other.
+    DemoMeshes meshes;
+    tbb::parallel_invoke([&] { meshes = demoMeshes(); },
+                         [&] {
+                             if (tiles.count(key)) return;
+                             tiles[key] = cachedBake(chainmailRecipe({}, {}),
+                                                     [] { return bakeChainmail({}, {}).tile; });
+                         });
     SceneFile demo;
-    demo.scene = distile::demoScene(tiles[key]);
+    demo.scene = distile::demoScene(tiles[key], std::move(meshes));
     return demo;
 }
 
 namespace {
 
 /// The mesh truth of a `"bake": "mesh"` tile as the material's exact hit and analytic distance;
-/// for a mesh that is not closed or whose parts overlap or nest, the analytic distance the bake measured
-/// (its triangles and the caps over its holes, signed by its winding number: bake/mesh_surface.h),
-/// sphere traced.
+/// for a mesh that is not closed or whose parts overlap or nest, the analytic distance the bake
+/// measured (its triangles and the caps over its holes, signed by its winding number:
+/// bake/mesh_surface.h), sphere traced.
 void attachMeshTruth(Material& material, const TriangleSoup& placedMesh) {
     auto truth = std::make_shared<const MeshDistance>(
         placedMesh, MeshDistance::Periodic{material.tile->size()});
