@@ -1,7 +1,8 @@
 #include "render/shadow_map.h"
 
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -174,28 +175,26 @@ float ShadowMap::boundDepths() {
                 tile.flatObject = CasterBounds::mergedFlatObject(tile.flatObject, object);
             }
     };
-    // The shells in parallel, each part into bounds of its own, merged by least values and the
-    // union of flat slabs: the same bounds in any order, on any number of threads.
-    casterBounds_ = tbb::parallel_reduce(
-        tbb::blocked_range<std::uint32_t>(0, tracer_.shellCount(), 256),
-        std::vector<CasterBounds>(),
-        [&](const tbb::blocked_range<std::uint32_t>& shells, std::vector<CasterBounds> bounds) {
-            if (bounds.empty()) bounds.assign(tileCount, {});
-            for (std::uint32_t shell = shells.begin(); shell != shells.end(); ++shell)
-                boundShell(shell, bounds);
-            return bounds;
-        },
-        [](std::vector<CasterBounds> bounds, const std::vector<CasterBounds>& more) {
-            if (bounds.empty()) return std::vector<CasterBounds>(more);
-            for (std::size_t tile = 0; tile < more.size(); ++tile) {
-                bounds[tile].others = std::min(bounds[tile].others, more[tile].others);
-                bounds[tile].flat = std::min(bounds[tile].flat, more[tile].flat);
-                bounds[tile].flatObject =
-                    CasterBounds::mergedFlatObject(bounds[tile].flatObject, more[tile].flatObject);
-            }
-            return bounds;
-        });
-    if (casterBounds_.empty()) casterBounds_.assign(tileCount, {});
+    // The shells in parallel, each thread's into bounds of its own, then merged by least values
+    // and the union of flat slabs: the same bounds in any order, on any number of threads.
+    tbb::enumerable_thread_specific<std::vector<CasterBounds>> threadBounds(
+        [&] { return std::vector<CasterBounds>(tileCount); });
+    tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, tracer_.shellCount(), 256),
+                      [&](const tbb::blocked_range<std::uint32_t>& shells) {
+                          std::vector<CasterBounds>& bounds = threadBounds.local();
+                          for (std::uint32_t shell = shells.begin(); shell != shells.end(); ++shell)
+                              boundShell(shell, bounds);
+                      });
+    casterBounds_.assign(tileCount, {});
+    threadBounds.combine_each([&](const std::vector<CasterBounds>& bounds) {
+        for (std::size_t tile = 0; tile < tileCount; ++tile) {
+            CasterBounds& merged = casterBounds_[tile];
+            merged.others = std::min(merged.others, bounds[tile].others);
+            merged.flat = std::min(merged.flat, bounds[tile].flat);
+            merged.flatObject =
+                CasterBounds::mergedFlatObject(merged.flatObject, bounds[tile].flatObject);
+        }
+    });
     std::vector<float> bound(casterBounds_.size());
     for (std::size_t tile = 0; tile < bound.size(); ++tile)
         bound[tile] = std::min(casterBounds_[tile].others, casterBounds_[tile].flat);
