@@ -61,8 +61,8 @@ void validateForFrames(const BaseMesh& mesh) {
 }
 
 /// Group id per vertex: vertices with exactly equal positions (+0 == -0) share a group, whose id
-/// is the lowest index among them. Ids so follow the vertex order, and sums taken per group stay
-/// near the vertices' own in memory (ids in sorted-position order scattered them over a large
+/// is the lowest index among them. So the ids follow the vertex order, and sums taken per group
+/// lie near the vertices' own in memory (ids in sorted-position order scattered them over a large
 /// mesh's whole array).
 std::vector<std::uint32_t> samePositionGroups(const std::vector<glm::vec3>& positions) {
     struct IndexedPosition {

@@ -141,42 +141,43 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
             requireTexelDensity(objectIndex, float(tile->size().depth) / object.material.depthWorld,
                                 "depth", "a larger depth");
         }
+        // The shell of the object's triangle t.
+        auto shellTriangle = [&](std::uint32_t t) {
+            const glm::uvec3 triangle = mesh.triangles[t];
+            const glm::vec2 texelsPerWorld =
+                tile ? texelsPerWorldUv(mesh, triangle, object.material.uvScale, tile->size())
+                     : glm::vec2(0.0f);
+            const glm::vec3& p0 = mesh.positions[triangle[0]];
+            const glm::vec3& p1 = mesh.positions[triangle[1]];
+            const glm::vec3& p2 = mesh.positions[triangle[2]];
+            ShellTriangle shell{objectIndex, t, texelsPerWorld, glm::cross(p1 - p0, p2 - p0),
+                                DoubleTriangle(p0, p1, p2)};
+            const bool sameCorners = mesh.normals[triangle[0]] == mesh.normals[triangle[1]] &&
+                                     mesh.normals[triangle[0]] == mesh.normals[triangle[2]] &&
+                                     mesh.tangents[triangle[0]] == mesh.tangents[triangle[1]] &&
+                                     mesh.tangents[triangle[0]] == mesh.tangents[triangle[2]];
+            if (sameCorners) {
+                shell.flatFrame = true;
+                ShellEntry frame;
+                setFrame(frame, mesh.normals[triangle[0]], mesh.tangents[triangle[0]]);
+                shell.frameNormal = frame.normal;
+                shell.frameTangent = frame.tangent;
+                shell.frameBitangent = frame.bitangent;
+            }
+            shell.curved = shell.hasDetail() && !shell.flatFrame &&
+                           options.shellMapping == ShellMapping::Curved;
+            return shell;
+        };
         const auto count = std::uint32_t(mesh.triangles.size());
-        tbb::parallel_for(
-            tbb::blocked_range<std::uint32_t>(0, count, 1024),
-            [&](const tbb::blocked_range<std::uint32_t>& range) {
-                for (std::uint32_t t = range.begin(); t != range.end(); ++t) {
-                    const glm::uvec3 triangle = mesh.triangles[t];
-                    for (int corner = 0; corner < 3; ++corner)
-                        corners[3 * (firstTriangle + t) + corner] =
-                            mesh.positions[triangle[corner]];
-                    const glm::vec2 texelsPerWorld =
-                        tile ? texelsPerWorldUv(mesh, triangle, object.material.uvScale,
-                                                tile->size())
-                             : glm::vec2(0.0f);
-                    const glm::vec3& p0 = mesh.positions[triangle[0]];
-                    const glm::vec3& p1 = mesh.positions[triangle[1]];
-                    const glm::vec3& p2 = mesh.positions[triangle[2]];
-                    ShellTriangle shell{objectIndex, t, texelsPerWorld,
-                                        glm::cross(p1 - p0, p2 - p0), DoubleTriangle(p0, p1, p2)};
-                    const bool sameCorners =
-                        mesh.normals[triangle[0]] == mesh.normals[triangle[1]] &&
-                        mesh.normals[triangle[0]] == mesh.normals[triangle[2]] &&
-                        mesh.tangents[triangle[0]] == mesh.tangents[triangle[1]] &&
-                        mesh.tangents[triangle[0]] == mesh.tangents[triangle[2]];
-                    if (sameCorners) {
-                        shell.flatFrame = true;
-                        ShellEntry frame;
-                        setFrame(frame, mesh.normals[triangle[0]], mesh.tangents[triangle[0]]);
-                        shell.frameNormal = frame.normal;
-                        shell.frameTangent = frame.tangent;
-                        shell.frameBitangent = frame.bitangent;
-                    }
-                    shell.curved = shell.hasDetail() && !shell.flatFrame &&
-                                   options.shellMapping == ShellMapping::Curved;
-                    triangles_[firstTriangle + t] = shell;
-                }
-            });
+        tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, count, 1024),
+                          [&](const tbb::blocked_range<std::uint32_t>& range) {
+                              for (std::uint32_t t = range.begin(); t != range.end(); ++t) {
+                                  for (int corner = 0; corner < 3; ++corner)
+                                      corners[3 * (firstTriangle + t) + corner] =
+                                          mesh.positions[mesh.triangles[t][corner]];
+                                  triangles_[firstTriangle + t] = shellTriangle(t);
+                              }
+                          });
         // Checked in triangle order, so an error names the first triangle's density whatever
         // the threads did.
         if (tile) {
