@@ -280,7 +280,8 @@ std::uint64_t ScreenShells::passingPixels(const ScreenTriangle& top, int tileX, 
                                           const PinholeProjection& projection) {
     // Only pixels whose squares, grown by the margin, reach the triangle's bounds can pass (the
     // test's first check): x + 1 + margin >= boundsMin.x and x - margin <= boundsMax.x, and the
-    // same in y. The range below holds them all, by a pixel more at its low end for rounding.
+    // same in y. The range below holds them all (its low end is the pixel whose grown square
+    // ends exactly on boundsMin.x when that is a whole number of pixels).
     const double left = tileX * kTilePixels, upper = tileY * kTilePixels;
     const int x0 = int(std::max(left, std::floor(top.boundsMin.x - top.marginPixels) - 1.0));
     const int y0 = int(std::max(upper, std::floor(top.boundsMin.y - top.marginPixels) - 1.0));
@@ -406,6 +407,13 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
 std::span<const std::uint32_t> ScreenShells::tileShells(int tileX, int tileY) const {
     const std::size_t tile = std::size_t(tileY) * tilesX_ + tileX;
     return {shellsByTile_.data() + tileStart_[tile], shellsByTile_.data() + tileStart_[tile + 1]};
+}
+
+bool ScreenShells::pixelTakes(std::uint32_t shell, int x, int y) const {
+    const std::size_t tile = std::size_t(y / kTilePixels) * tilesX_ + std::size_t(x / kTilePixels);
+    for (std::uint32_t entry = tileStart_[tile]; entry < tileStart_[tile + 1]; ++entry)
+        if (shellsByTile_[entry] == shell) return (pixelMasks_[entry] >> pixelBit(x, y) & 1) != 0;
+    return false;
 }
 
 float ScreenShells::pixelDepthBound(std::uint32_t shell, int x, int y) const {

@@ -144,6 +144,9 @@ class ScreenShells {
     const ShellBounds& bounds(std::uint32_t shell) const { return bounds_[shell]; }
     /// (shell, tile) pairs in all bins.
     std::size_t binnedCount() const { return shellsByTile_.size(); }
+    /// Whether a camera ray through pixel (x, y) takes `shell` as a candidate: the shell is in
+    /// the bin of the pixel's tile, and its top passes the pixel's test.
+    bool pixelTakes(std::uint32_t shell, int x, int y) const;
 
     /// A lower bound (world units) of the distance at which any camera ray through the square of
     /// pixel (x, y) meets the top of `shell`: the larger of zMinWorld and the plane's nearest

@@ -1204,7 +1204,9 @@ TEST(ShellCulling, EveryShellPassingAPixelTestIsInThePixelsBin) {
     // The bins decide nothing: a shell whose top passes a pixel's test (its square grown by the
     // margin) is in the bin of that pixel's tile, also where the top's bounds end within the
     // margin of a tile's side. A fine torus (49 k small triangles) seen by the demo's camera at
-    // full size has such tops; binning by the bare bounds left them out of the next tile.
+    // full size has such tops; binning by the bare bounds left them out of the next tile. And the
+    // ray of each pixel near a shell's bounds takes the shell exactly where the pixel's test
+    // passes (the bin's pixel masks, taken once per bin entry).
     Scene scene;
     scene.camera = {{0.0f, -3.4f, 2.3f}, {0.0f, 0.1f, 0.25f}, {0.0f, 0.0f, 1.0f}, 38.0f};
     SceneObject torus;
@@ -1224,7 +1226,10 @@ TEST(ShellCulling, EveryShellPassingAPixelTestIsInThePixelsBin) {
         const int y1 = std::min(int(std::floor(top.boundsMax.y)) + 1, kHeight - 1);
         for (int y = y0; y <= y1; ++y)
             for (int x = x0; x <= x1; ++x) {
-                if (!trianglePixelOverlapConservative(top, x, y)) continue;
+                const bool pass = trianglePixelOverlapConservative(top, x, y);
+                ASSERT_EQ(shells.pixelTakes(shell, x, y), pass)
+                    << "pixel " << x << "," << y << " shell " << shell;
+                if (!pass) continue;
                 ++passes;
                 // The pixel's square itself is beyond the bounds: only the margin reaches them.
                 if (x > top.boundsMax.x || x + 1 < top.boundsMin.x || y > top.boundsMax.y ||
