@@ -60,41 +60,6 @@ void validateForFrames(const BaseMesh& mesh) {
     }
 }
 
-/// Group id per vertex: vertices with exactly equal positions (+0 == -0) share a group, whose id
-/// is the lowest index among them. So the ids follow the vertex order, and sums taken per group
-/// lie near the vertices' own in memory (ids in sorted-position order scattered them over a large
-/// mesh's whole array).
-std::vector<std::uint32_t> samePositionGroups(const std::vector<glm::vec3>& positions) {
-    struct IndexedPosition {
-        glm::vec3 position;
-        std::uint32_t index;
-    };
-    auto lessPosition = [](const glm::vec3& a, const glm::vec3& b) {
-        if (a.x != b.x) return a.x < b.x;
-        if (a.y != b.y) return a.y < b.y;
-        return a.z < b.z;
-    };
-    std::vector<IndexedPosition> sorted(positions.size());
-    for (std::size_t v = 0; v < positions.size(); ++v)
-        sorted[v] = {positions[v], static_cast<std::uint32_t>(v)};
-    // Sorted by value rather than through an index array, so each comparison reads its own data.
-    // The order is total (ties broken by index), so the parallel sort's result is unique.
-    tbb::parallel_sort(sorted.begin(), sorted.end(),
-                       [&](const IndexedPosition& a, const IndexedPosition& b) {
-                           if (lessPosition(a.position, b.position)) return true;
-                           if (lessPosition(b.position, a.position)) return false;
-                           return a.index < b.index;
-                       });
-    std::vector<std::uint32_t> groupOf(positions.size());
-    std::uint32_t group = 0;
-    for (std::size_t k = 0; k < sorted.size(); ++k) {
-        if (k == 0 || lessPosition(sorted[k - 1].position, sorted[k].position))
-            group = sorted[k].index;  // the lowest index of its position comes first
-        groupOf[sorted[k].index] = group;
-    }
-    return groupOf;
-}
-
 /// For each vertex, the vertex whose tangent sums it shares: the first vertex (in index order)
 /// with exactly the same position and a uv that differs by a whole-number vector (within
 /// kWholeUvTolerance), e.g. the u = 0 and u = 1 copies on a sphere's seam. Across such a seam
@@ -352,6 +317,39 @@ void computeTangentFrames(BaseMesh& mesh) {
         mesh.normals[v] = glm::vec3(n);
         mesh.tangents[v] = glm::vec4(glm::vec3(tangent), static_cast<float>(handedness));
     }
+}
+
+// Ids follow the vertex order, so sums taken per group lie near the vertices' own in memory (ids
+// in sorted-position order scattered them over a large mesh's whole array).
+std::vector<std::uint32_t> samePositionGroups(const std::vector<glm::vec3>& positions) {
+    struct IndexedPosition {
+        glm::vec3 position;
+        std::uint32_t index;
+    };
+    auto lessPosition = [](const glm::vec3& a, const glm::vec3& b) {
+        if (a.x != b.x) return a.x < b.x;
+        if (a.y != b.y) return a.y < b.y;
+        return a.z < b.z;
+    };
+    std::vector<IndexedPosition> sorted(positions.size());
+    for (std::size_t v = 0; v < positions.size(); ++v)
+        sorted[v] = {positions[v], static_cast<std::uint32_t>(v)};
+    // Sorted by value rather than through an index array, so each comparison reads its own data.
+    // The order is total (ties broken by index), so the parallel sort's result is unique.
+    tbb::parallel_sort(sorted.begin(), sorted.end(),
+                       [&](const IndexedPosition& a, const IndexedPosition& b) {
+                           if (lessPosition(a.position, b.position)) return true;
+                           if (lessPosition(b.position, a.position)) return false;
+                           return a.index < b.index;
+                       });
+    std::vector<std::uint32_t> groupOf(positions.size());
+    std::uint32_t group = 0;
+    for (std::size_t k = 0; k < sorted.size(); ++k) {
+        if (k == 0 || lessPosition(sorted[k - 1].position, sorted[k].position))
+            group = sorted[k].index;  // the lowest index of its position comes first
+        groupOf[sorted[k].index] = group;
+    }
+    return groupOf;
 }
 
 BaseMesh makePlane(float sizeWorld, int segments) {

@@ -10,6 +10,7 @@
 /// layout (u to the right, v up, seen from outside) w = +1; mirrored UVs give w = -1.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -65,6 +66,11 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file);
 /// @throws InputError uvs.size() != positions.size(), a triangle index is out of range, or a
 ///                    position or uv is NaN/Inf.
 void computeTangentFrames(BaseMesh& mesh);
+
+/// Per vertex, the lowest index of the vertices at exactly its position (+0 == -0): vertices
+/// welded by position (the copies along a uv seam are one point of the surface), their ids near
+/// their own indices. Preconditions: finite positions.
+std::vector<std::uint32_t> samePositionGroups(const std::vector<glm::vec3>& positions);
 
 /// Largest segment count the built-in meshes accept (keeps them far from exhausting memory:
 /// 4096 x 4096 quads are 16.8 M vertices).

@@ -4,7 +4,6 @@
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
-#include <numeric>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -76,21 +75,7 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
         count, {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour});
     shell.neighbourCorners.assign(count, {0, 0, 0});
     // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
-    // Sorted by position (x, then y, then z), equal positions numbered alike in order.
-    const auto positionLess = [&](std::uint32_t a, std::uint32_t b) {
-        const glm::vec3 &p = mesh.positions[a], &q = mesh.positions[b];
-        return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
-    };
-    std::vector<std::uint32_t> byPosition(mesh.positions.size());
-    std::iota(byPosition.begin(), byPosition.end(), 0u);
-    // Unstable, but equal positions get the same number whatever their order.
-    tbb::parallel_sort(byPosition.begin(), byPosition.end(), positionLess);
-    std::vector<std::uint32_t> surfaceVertex(mesh.positions.size());
-    std::uint32_t surfaceVertices = 0;
-    for (std::size_t i = 0; i < byPosition.size(); ++i) {
-        if (i > 0 && positionLess(byPosition[i - 1], byPosition[i])) ++surfaceVertices;
-        surfaceVertex[byPosition[i]] = surfaceVertices;
-    }
+    const std::vector<std::uint32_t> surfaceVertex = samePositionGroups(mesh.positions);
     // Directed edges (from, to), grouped by their undirected edge {lo, hi}, the edges from lo
     // first: the side opposite corner c of triangle t is 3 t + c.
     struct DirectedEdge {
