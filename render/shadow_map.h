@@ -193,7 +193,8 @@ class ShadowMap {
         /// kSeveral for more than one.
         std::uint32_t flatObject = ShadowReceiver::kNoObject;
         static constexpr std::uint32_t kSeveral = ShadowReceiver::kNoObject - 1;
-        /// The flat slab over a tile that `a` or `b` (flatObject values) has over it.
+        /// flatObject of a tile under the shells of two tiles whose flatObject values are `a`
+        /// and `b`: their one flat slab, none, or kSeveral.
         static std::uint32_t mergedFlatObject(std::uint32_t a, std::uint32_t b) {
             if (a == ShadowReceiver::kNoObject || a == b) return b;
             return b == ShadowReceiver::kNoObject ? a : kSeveral;
