@@ -110,6 +110,10 @@ double tileMiB(const Tile& tile, Storage storage) {
     return double(tile.distancesTexels().size()) * bytes / (1024.0 * 1024.0);
 }
 
+/// Timed runs of every distile row and every Embree configuration: the row's time is their median
+/// (with 3, the default's time beside two Embree rows of one run differed by a fifth).
+constexpr int kRunsPerRow = 5;
+
 /// Coverage mismatch a distile row may have beyond the row it is compared with (0.5% of the
 /// pixels): a row that misses more pixels does not match the other's error.
 constexpr double kCoverageMismatchSlack = 0.005;
@@ -239,7 +243,9 @@ std::string embreeSection(const std::vector<Row>& rows) {
        << "Each Embree configuration against distile's fastest configuration at the same or a "
           "lower mean hit error (and no more than 0.5% more coverage mismatch) among distile's "
           "Pareto front, the rows near it (at most 25% slower in the sweep) and its default. "
-          "Before each of Embree's traces (3 of one built scene) "
+          "Before each of Embree's traces ("
+       << kRunsPerRow
+       << " of one built scene) "
           "every one of those distile configurations renders once, so both are timed in the same "
           "spell of the machine; the times here are the medians of those runs (the other tables "
           "hold the sweep's own medians).\n\n"
@@ -399,7 +405,9 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
           "render (double precision, 512 sphere-tracing steps, epsilon 0.001 texel; "
        << referenceSeconds
        << " s). distile rows are frames without shadows (primary rays, march, normals, "
-          "shading) of a prepared scene, timed without AOVs (the median of 3; the error from one "
+          "shading) of a prepared scene, timed without AOVs (the median of "
+       << kRunsPerRow
+       << "; the error from one "
           "more render with them); peer rows are their primary-ray trace times of a built scene. "
           "Both set-ups (distile's scene preparation: BVH, tile layout and empty space, shell "
           "map; a peer's build) are in the setup column. Hit error: distance along the "
@@ -553,9 +561,6 @@ RenderSkips chapter8Skips() {
     skips.adaptiveBudget = false;
     return skips;
 }
-
-/// Timed runs of every distile row and every Embree configuration: the row's time is their median.
-constexpr int kRunsPerRow = 3;
 
 /// The Embree configurations of the sweep: the plain one (one ray per call, triangles, the
 /// default BVH, 0.02 texel), and Embree as its documentation recommends for camera rays (native
