@@ -138,9 +138,9 @@ void markParetoFront(std::vector<Row>& rows) {
 }
 
 /// How much slower than the front a distile row may be in the sweep and still be rendered again
-/// beside the peers: the sweep's times are medians of three renders in one spell of the machine,
-/// and rows a few percent apart swap places from run to run, so a row the sweep's noise pushed
-/// off the front still gets its paired time.
+/// beside the peers: the sweep's times are medians of kRunsPerRow renders in one spell of the
+/// machine, and rows a few percent apart swap places from run to run, so a row the sweep's noise
+/// pushed off the front still gets its paired time.
 constexpr double kNearFrontSlack = 1.25;
 
 /// True for a distile sheet row that no other is faster than by more than kNearFrontSlack at the
