@@ -46,12 +46,10 @@ double ShellPrism::foldDepthWorld() const {
     const double limit = 1e6 * depthWorld;
     double fold = std::numeric_limits<double>::infinity();
     for (const auto& sample : kSamples) {
-        auto determinantAt = [&](double depth) {
-            return jacobianAt({sample[0], sample[1], depth}).determinant;
-        };
-        const double top = determinantAt(0.0);
-        const double up = determinantAt(-depthWorld);
-        const double down = determinantAt(depthWorld);
+        auto atDepth = [&](double depth) { return determinantAt({sample[0], sample[1], depth}); };
+        const double top = atDepth(0.0);
+        const double up = atDepth(-depthWorld);
+        const double down = atDepth(depthWorld);
         const double a =
             0.5 * (up + down) / (depthWorld * depthWorld) - top / (depthWorld * depthWorld);
         const double b = 0.5 * (down - up) / depthWorld;

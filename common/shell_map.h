@@ -99,17 +99,28 @@ struct ShellPrism {
             return (v.x * cofactor[0] + v.y * cofactor[1] + v.z * cofactor[2]) * inverseDeterminant;
         }
     };
+    /// The columns of the map's Jacobian at `point`.
+    void jacobianColumnsAt(const PrismPoint& point, glm::dvec3 column[3]) const {
+        column[0] = edge1 - point.depthWorld * normalDelta1;
+        column[1] = edge2 - point.depthWorld * normalDelta2;
+        column[2] = -normalAt(point.b1, point.b2);
+    }
     Jacobian jacobianAt(const PrismPoint& point) const {
         Jacobian jacobian;
-        jacobian.column[0] = edge1 - point.depthWorld * normalDelta1;
-        jacobian.column[1] = edge2 - point.depthWorld * normalDelta2;
-        jacobian.column[2] = -normalAt(point.b1, point.b2);
+        jacobianColumnsAt(point, jacobian.column);
         jacobian.cofactor[0] = glm::cross(jacobian.column[1], jacobian.column[2]);
         jacobian.cofactor[1] = glm::cross(jacobian.column[2], jacobian.column[0]);
         jacobian.cofactor[2] = glm::cross(jacobian.column[0], jacobian.column[1]);
         jacobian.determinant = glm::dot(jacobian.column[0], jacobian.cofactor[0]);
         jacobian.inverseDeterminant = 1.0 / jacobian.determinant;
         return jacobian;
+    }
+
+    /// jacobianAt(point).determinant, without the rest of the Jacobian.
+    double determinantAt(const PrismPoint& point) const {
+        glm::dvec3 column[3];
+        jacobianColumnsAt(point, column);
+        return glm::dot(column[0], glm::cross(column[1], column[2]));
     }
 
     /// d texel / d(b1, b2, h) applied to a vector of (b1, b2, h) changes.

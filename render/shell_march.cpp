@@ -60,6 +60,18 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
     ShellMesh shell;
     const std::size_t count = mesh.triangles.size();
     shell.prisms.resize(count);
+    shell.neighbours.resize(count);
+    shell.neighbourCorners.resize(count);
+    buildShellMeshInto(mesh, uvScale, tileSize, depthWorld, 0, shell.prisms, shell.neighbours,
+                       shell.neighbourCorners);
+    return shell;
+}
+
+void buildShellMeshInto(const BaseMesh& mesh, const glm::vec2& uvScale, const Size3& tileSize,
+                        double depthWorld, std::uint32_t firstIndex, std::span<ShellPrism> prisms,
+                        std::span<std::array<std::uint32_t, 3>> neighbours,
+                        std::span<std::array<std::uint8_t, 3>> neighbourCorners) {
+    const std::size_t count = mesh.triangles.size();
     tbb::parallel_for(std::size_t(0), count, [&](std::size_t t) {
         glm::vec3 positions[3], normals[3];
         glm::vec2 uvs[3];
@@ -68,12 +80,12 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
             normals[corner] = mesh.normals[mesh.triangles[t][corner]];
             uvs[corner] = mesh.uvs[mesh.triangles[t][corner]];
         }
-        shell.prisms[t] = ShellPrism::make(positions, normals, uvs, uvScale, tileSize.width,
-                                           tileSize.height, tileSize.depth, depthWorld);
+        prisms[t] = ShellPrism::make(positions, normals, uvs, uvScale, tileSize.width,
+                                     tileSize.height, tileSize.depth, depthWorld);
+        neighbours[t] = {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour,
+                         ShellPrisms::kNoNeighbour};
+        neighbourCorners[t] = {0, 0, 0};
     });
-    shell.neighbours.assign(
-        count, {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour});
-    shell.neighbourCorners.assign(count, {0, 0, 0});
     // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
     const std::vector<std::uint32_t> surfaceVertex = samePositionGroups(mesh.positions);
     // Directed edges (from, to), grouped by their undirected edge {lo, hi}, the edges from lo
@@ -99,8 +111,8 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
     // An edge used once each way (a group of two, one from each end) joins its two triangles;
     // other edges join nothing, nor does a side whose ends are one vertex.
     const auto join = [&](const DirectedEdge& edge, const DirectedEdge& across) {
-        shell.neighbours[edge.side / 3][edge.side % 3] = across.side / 3;
-        shell.neighbourCorners[edge.side / 3][edge.side % 3] = std::uint8_t(across.side % 3);
+        neighbours[edge.side / 3][edge.side % 3] = firstIndex + across.side / 3;
+        neighbourCorners[edge.side / 3][edge.side % 3] = std::uint8_t(across.side % 3);
     };
     for (std::size_t first = 0, next = 0; first < edges.size(); first = next) {
         for (next = first + 1; next < edges.size() && edges[next].lo == edges[first].lo &&
@@ -112,7 +124,6 @@ ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const S
             join(edges[first + 1], edges[first]);
         }
     }
-    return shell;
 }
 
 void CurvedMarchRay::start(const ShellPrisms& shell, const Ray& ray, std::uint32_t entryPrism,

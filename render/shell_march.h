@@ -57,6 +57,13 @@ struct ShellMesh {
 ShellMesh buildShellMesh(const BaseMesh& mesh, const glm::vec2& uvScale, const Size3& tileSize,
                          double depthWorld);
 
+/// buildShellMesh written into arrays of one element per triangle of `mesh`, its neighbours
+/// numbered from `firstIndex`: one object's shell in the arrays of a scene's shells.
+void buildShellMeshInto(const BaseMesh& mesh, const glm::vec2& uvScale, const Size3& tileSize,
+                        double depthWorld, std::uint32_t firstIndex, std::span<ShellPrism> prisms,
+                        std::span<std::array<std::uint32_t, 3>> neighbours,
+                        std::span<std::array<std::uint8_t, 3>> neighbourCorners);
+
 /// How a curved march ended.
 struct CurvedMarchEnd {
     MarchResult march;           ///< texel position in the end prism's texel space, iterations, ...

@@ -741,8 +741,10 @@ void SceneTracer::buildShellMap() {
             firstShell += shellCount;
             continue;
         }
-        const ShellMesh shell =
-            buildShellMesh(mesh, object.material.uvScale, tile->size(), object.material.depthWorld);
+        buildShellMeshInto(mesh, object.material.uvScale, tile->size(), object.material.depthWorld,
+                           firstShell, std::span(prisms_).subspan(firstShell, shellCount),
+                           std::span(neighbours_).subspan(firstShell, shellCount),
+                           std::span(neighbourCorners_).subspan(firstShell, shellCount));
         // Per triangle in parallel: the least fold depth and the count of folded triangles are
         // exact whatever the order they are combined in.
         struct Folds {
@@ -753,14 +755,7 @@ void SceneTracer::buildShellMap() {
             tbb::blocked_range<std::uint32_t>(0, shellCount), Folds{},
             [&](const tbb::blocked_range<std::uint32_t>& range, Folds found) {
                 for (std::uint32_t t = range.begin(); t != range.end(); ++t) {
-                    const ShellPrism& prism = shell.prisms[t];
-                    prisms_[firstShell + t] = prism;
-                    for (int side = 0; side < 3; ++side) {
-                        const std::uint32_t neighbour = shell.neighbours[t][side];
-                        if (neighbour == ShellPrisms::kNoNeighbour) continue;
-                        neighbours_[firstShell + t][side] = firstShell + neighbour;
-                        neighbourCorners_[firstShell + t][side] = shell.neighbourCorners[t][side];
-                    }
+                    const ShellPrism& prism = prisms_[firstShell + t];
                     if (prism.straight()) continue;
                     const double fold = prism.foldDepthWorld();
                     found.leastWorld = std::min(found.leastWorld, fold);

@@ -148,6 +148,18 @@ TEST(ShellMap, JacobianIsTheMapsDerivative) {
     EXPECT_NEAR(glm::dot(y, jacobian.column[2]), v.z, 1e-12);
 }
 
+TEST(ShellMap, DeterminantIsTheJacobiansToTheBit) {
+    // foldDepthWorld reads determinantAt: the same number as the whole Jacobian's, so the folds
+    // it reports are the ones the march's Jacobians have.
+    const ShellPrism prism = curvedPrism();
+    for (double depth : {-0.3, 0.0, 0.1, 2.0, 5.0})
+        for (const auto& [b1, b2] : {std::pair{0.0, 0.0}, {0.3, 0.25}, {1.0, 0.0}, {-0.5, 1.5}}) {
+            const PrismPoint point{b1, b2, depth};
+            EXPECT_EQ(prism.determinantAt(point), prism.jacobianAt(point).determinant)
+                << b1 << " " << b2 << " " << depth;
+        }
+}
+
 TEST(ShellMesh, JoinsTrianglesAcrossEdgesUsedOnceEachWayOnly) {
     // The square 0 1 2 3 as triangles 0 1 2 and 0 2 4, vertex 4 a uv seam's copy of 3; a sliver
     // 1 5 2 with 5 a copy of 1 (its side 1-5 has both ends at one position, and edge 1-2 is then
@@ -174,6 +186,28 @@ TEST(ShellMesh, JoinsTrianglesAcrossEdgesUsedOnceEachWayOnly) {
     EXPECT_EQ(shell.neighbours[2][2], none);  // the sliver's side of no length
     EXPECT_EQ(shell.neighbours[1][0], none);  // open borders
     EXPECT_EQ(shell.neighbours[1][1], none);
+
+    // Written into a scene's arrays after 3 other shells: the same prisms, the neighbours
+    // numbered from 3, the open sides still open.
+    constexpr std::uint32_t kFirst = 3;
+    std::vector<ShellPrism> prisms(kFirst + 4);
+    std::vector<std::array<std::uint32_t, 3>> neighbours(kFirst + 4);
+    std::vector<std::array<std::uint8_t, 3>> corners(kFirst + 4);
+    buildShellMeshInto(mesh, {1.0f, 1.0f}, {32, 32, 16}, 0.05, kFirst,
+                       std::span(prisms).subspan(kFirst), std::span(neighbours).subspan(kFirst),
+                       std::span(corners).subspan(kFirst));
+    for (std::size_t t = 0; t < 4; ++t) {
+        EXPECT_EQ(prisms[kFirst + t].corner0, shell.prisms[t].corner0);
+        EXPECT_EQ(prisms[kFirst + t].normalDelta2, shell.prisms[t].normalDelta2);
+        for (int side = 0; side < 3; ++side) {
+            const std::uint32_t expected =
+                shell.neighbours[t][side] == none ? none : kFirst + shell.neighbours[t][side];
+            EXPECT_EQ(neighbours[kFirst + t][side], expected) << t << " " << side;
+            if (expected != none) {
+                EXPECT_EQ(corners[kFirst + t][side], shell.neighbourCorners[t][side]);
+            }
+        }
+    }
 }
 
 TEST(ShellMap, FoldsAtTheSphereCentreAndNeverWhenFlat) {
