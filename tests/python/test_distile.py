@@ -164,14 +164,16 @@ def test_check_matches_the_commands_report(tmp_path, distile_command):
 
 def test_renders_release_the_gil():
     # While one thread renders, this one keeps running Python: with the GIL held for the whole
-    # render it could not run a single iteration between the render's start and end.
+    # render it could not run a single iteration between the render's start and end. The render
+    # is large enough to last well over 0.05 s (about 0.3 s on two 2.4 GHz cores; at 160 x 120
+    # with 4 samples it once took 0.046 s).
     window = {}
 
     def render():
         window["start"] = time.perf_counter()
         distile.render({"objects": [{"mesh": "sphere", "material": {
             "tile": {"bake": "grating", "size": "32x32x16", "bars": 2}}}]},
-            width=160, height=120, spp=4)
+            width=320, height=240, spp=8)
         window["end"] = time.perf_counter()
 
     worker = threading.Thread(target=render)
