@@ -118,21 +118,30 @@ constexpr int kRunsPerRow = 5;
 /// pixels): a row that misses more pixels does not match the other's error.
 constexpr double kCoverageMismatchSlack = 0.005;
 
+/// True for a distile row of the sheet (neither a peer nor the torus).
+bool isDistileSheet(const Row& row) {
+    return !row.peer && !row.torus;
+}
+
+/// True when `other`, another distile sheet row, is at least as accurate as `row`: no larger mean
+/// hit error and no more coverage mismatch (within kCoverageMismatchSlack).
+bool asAccurate(const Row& other, const Row& row) {
+    return isDistileSheet(other) && &other != &row &&
+           other.error.meanHitErrorTexels <= row.error.meanHitErrorTexels &&
+           other.error.coverageMismatchShare <=
+               row.error.coverageMismatchShare + kCoverageMismatchSlack;
+}
+
 /// distile's sheet rows not dominated in (seconds, mean hit error) by another of them (with no
 /// more coverage mismatch, within 0.5%) get paretoFront; peers and the torus rows are shown beside
 /// the front.
 void markParetoFront(std::vector<Row>& rows) {
     for (Row& row : rows) {
-        if (row.peer || row.torus) continue;
+        if (!isDistileSheet(row)) continue;
         row.paretoFront = std::none_of(rows.begin(), rows.end(), [&](const Row& other) {
-            if (other.peer || other.torus) return false;
-            const bool noWorse = other.seconds <= row.seconds &&
-                                 other.error.meanHitErrorTexels <= row.error.meanHitErrorTexels;
-            const bool better = other.seconds < row.seconds ||
-                                other.error.meanHitErrorTexels < row.error.meanHitErrorTexels;
-            return &other != &row && noWorse && better &&
-                   other.error.coverageMismatchShare <=
-                       row.error.coverageMismatchShare + kCoverageMismatchSlack;
+            return asAccurate(other, row) && other.seconds <= row.seconds &&
+                   (other.seconds < row.seconds ||
+                    other.error.meanHitErrorTexels < row.error.meanHitErrorTexels);
         });
     }
 }
@@ -147,24 +156,14 @@ constexpr double kNearFrontSlack = 1.25;
 /// same or a lower mean hit error (with no more coverage mismatch, within 0.5%): the Pareto front
 /// and the rows near it.
 bool nearParetoFront(const std::vector<Row>& rows, const Row& row) {
-    if (row.peer || row.torus) return false;
-    return std::none_of(rows.begin(), rows.end(), [&](const Row& other) {
-        return !other.peer && !other.torus && &other != &row &&
-               other.seconds * kNearFrontSlack < row.seconds &&
-               other.error.meanHitErrorTexels <= row.error.meanHitErrorTexels &&
-               other.error.coverageMismatchShare <=
-                   row.error.coverageMismatchShare + kCoverageMismatchSlack;
-    });
+    return isDistileSheet(row) && std::none_of(rows.begin(), rows.end(), [&](const Row& other) {
+               return asAccurate(other, row) && other.seconds * kNearFrontSlack < row.seconds;
+           });
 }
 
 /// True for a row of the Embree peer (any configuration).
 bool isEmbree(const Row& row) {
     return row.peer && row.label.rfind("embree", 0) == 0;
-}
-
-/// True for a distile row of the sheet (neither a peer nor the torus).
-bool isDistileSheet(const Row& row) {
-    return !row.peer && !row.torus;
 }
 
 /// Of the distile rows paired with Embree row `embree` (timed alongside its traces), the fastest
