@@ -73,7 +73,9 @@ struct ObjFacts {
 /// OpenMesh's OBJ reader accepts some broken files without a word: an out-of-range `vt` index
 /// or a face corner without `vt` leaves that corner's UV uninitialised; a `v nan ...` line
 /// makes its stream parsing fail and then indexes past the vertex array; an out-of-range
-/// vertex index drops the face with only a log line. So every line that matters is checked
+/// vertex index drops the face with only a log line; a `v` line that its stream cannot read
+/// whole (a hexadecimal number), or that starts with a form feed, is left out, so that the faces
+/// after it index past the vertex array. So every line that matters is checked
 /// here first, with OBJ's rules (1-based indices, negative = relative to the end so far).
 /// `requireUvs` false (detail meshes): corners without `vt` and files without any are fine;
 /// `vt` indices that are given must still be in range.
@@ -94,6 +96,16 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
         // Built only for a message: most lines of a large file have none.
         const auto where = [&] { return name + ": line " + std::to_string(lineNumber) + ": "; };
         const std::string_view keyword = tokens[0];
+        if (keyword == "v" || keyword == "vt" || keyword == "f") {
+            // OpenMesh skips a line whose first character after spaces and tabs is another
+            // white-space one (a form feed, a vertical tab) as if it were a comment.
+            const char first = line[line.find_first_not_of(" \t\r\n")];
+            if (first == '\f' || first == '\v') {
+                throw FormatError(where() + "the '" + std::string(keyword) +
+                                  "' line starts with a form feed or vertical tab; OBJ lines "
+                                  "start with their keyword");
+            }
+        }
         if (keyword == "v" || keyword == "vt") {
             const bool isPosition = keyword == "v";
             const std::size_t needed = isPosition ? 3 : 2;
@@ -111,9 +123,12 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
                 const std::string_view token = tokens[k];
                 char* end = nullptr;
                 const double value = std::strtod(token.data(), &end);
-                if (end != token.data() + token.size()) {
+                // strtod also reads hexadecimal ("0x1p3"); OpenMesh's stream reads its "0" and
+                // then drops the whole line.
+                if (end != token.data() + token.size() ||
+                    token.find_first_of("xX") != std::string_view::npos) {
                     throw FormatError(where() + what() + " has '" + quotedInput(token) +
-                                      "'; expected a number");
+                                      "'; expected a decimal number");
                 }
                 if (!std::isfinite(value) || std::abs(value) > std::numeric_limits<float>::max()) {
                     throw FormatError(where() + what() + " has the non-finite value '" +
@@ -615,10 +630,46 @@ void checkPlyFile(const std::filesystem::path& file) {
     }
 }
 
-/// OFF (ASCII; OpenMesh also reads "OFF BINARY"): the header's vertex and face counts against
-/// the file's size and the memory budget before OpenMesh allocates for them, then every line:
-/// vertices of finite numbers within a float's range (OpenMesh's reader leaves uninitialised
-/// memory behind one that is not), faces of a corner count and that many vertex indices.
+/// `token` as OpenMesh's stream reads an unsigned int, or nothing when it would read another
+/// value or fail: decimal digits only, at most UINT32_MAX.
+std::optional<std::uint32_t> unsignedIn(std::string_view token) {
+    std::uint32_t value = 0;
+    const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+    if (token.empty() || error != std::errc() || end != token.data() + token.size())
+        return std::nullopt;
+    return value;
+}
+
+/// `token` as OpenMesh's stream reads a float, or nothing when it would read another value or
+/// fail: a finite decimal number within a float's range (strtod also reads hexadecimal, of which
+/// the stream reads the leading "0").
+std::optional<double> floatIn(std::string_view token) {
+    const std::optional<double> number = numberIn(token);
+    if (!number || !std::isfinite(*number) ||
+        std::abs(*number) > double(std::numeric_limits<float>::max()) ||
+        token.find_first_of("xX") != std::string_view::npos)
+        return std::nullopt;
+    return number;
+}
+
+/// OFF, ASCII or "OFF BINARY", checked as OpenMesh's reader will read it, so that what it reads
+/// is what was checked. First the counts, against the file's size and the memory budget, before
+/// OpenMesh allocates for them. OpenMesh then reads an ASCII body as a stream of numbers, not
+/// line by line: a vertex's 3 coordinates (and 3 normal components in an NOFF), the rest of its
+/// line (colours, texture coordinates), then each face's corner count and that many indices (and
+/// the rest of its line only for the colours of a COFF). A line with a number too many or too
+/// few, or a comment, would shift every number after it (a corner count of 4 billion read from a
+/// coordinate: gigabytes of indices); so here each must stand where OpenMesh looks for it:
+/// - the counts: exactly the vertex, face and edge counts, the line ending after them;
+/// - no comments in the body;
+/// - a vertex: a line of at least 3 numbers (and 3 more in an NOFF, 2 more in an STOFF: its
+///   texture coordinates, else left unset), all finite decimal numbers within a float's range
+///   (OpenMesh's stream reads neither hexadecimal nor a float's overflow);
+/// - a face: a line of a corner count and that many vertex indices, unsigned decimal integers,
+///   and nothing more unless the file has colours (COFF).
+/// A binary body is walked as OpenMesh reads it: 3 floats a vertex (and 3 for normals, 2 for
+/// texture coordinates), a corner count and its indices a face; binary colours are refused
+/// (OpenMesh reads them as floats or bytes by an option of the caller's, not of the file's).
 void checkOffFile(const std::filesystem::path& file) {
     const std::string name = file.string();
     const std::uint64_t fileBytes = std::filesystem::file_size(file);
@@ -631,6 +682,10 @@ void checkOffFile(const std::filesystem::path& file) {
         throw FormatError(name + ": starts with '" + quotedInput(keyword) +
                           "'; expected an OFF header (OFF, COFF, NOFF, STOFF, ...)");
     }
+    const std::string_view prefix = std::string_view(keyword).substr(0, keyword.size() - 3);
+    const bool texcoords = prefix.starts_with("ST");
+    const bool colours = prefix.find('C') != std::string_view::npos;
+    const bool normals = prefix.find('N') != std::string_view::npos;
     // OpenMesh reads the counts from the line after the keyword's, whatever follows the keyword:
     // counts on the keyword's line would be checked here and ignored there.
     std::string rest;
@@ -642,24 +697,29 @@ void checkOffFile(const std::filesystem::path& file) {
                           "' has more than the keyword (and BINARY); the counts go on the next "
                           "line");
     }
-    std::string_view token = binary ? std::string_view() : tokens.next();
-    std::uint64_t counts[2] = {0, 0};
-    for (int k = 0; k < 2; ++k) {
+    if (binary && colours) {
+        throw FormatError(name + ": binary " + keyword +
+                          " files (with colours) are not read; write it as ASCII OFF, or as PLY");
+    }
+    static constexpr const char* kCountNames[3] = {"vertex", "face", "edge"};
+    std::uint32_t counts[3] = {0, 0, 0};
+    for (int k = 0; k < 3; ++k) {
         if (binary) {
             unsigned char bytes[4] = {};
             in.read(reinterpret_cast<char*>(bytes), 4);
             if (in.gcount() != 4) throw FormatError(name + ": OFF header ends before its counts");
-            counts[k] = std::uint64_t(bytes[0]) | std::uint64_t(bytes[1]) << 8 |
-                        std::uint64_t(bytes[2]) << 16 | std::uint64_t(bytes[3]) << 24;
+            counts[k] = std::uint32_t(bytes[0]) | std::uint32_t(bytes[1]) << 8 |
+                        std::uint32_t(bytes[2]) << 16 | std::uint32_t(bytes[3]) << 24;
             continue;
         }
-        if (k > 0) token = tokens.next();
-        const auto [end, error] =
-            std::from_chars(token.data(), token.data() + token.size(), counts[k]);
-        if (error != std::errc() || end != token.data() + token.size()) {
-            throw FormatError(name + ": OFF " + (k == 0 ? "vertex" : "face") + " count '" +
-                              quotedInput(token) + "' is not a number");
+        const std::string_view token = tokens.next();
+        const std::optional<std::uint32_t> count = unsignedIn(token);
+        if (!count) {
+            throw FormatError(name + ": OFF " + kCountNames[k] + " count '" + quotedInput(token) +
+                              "' is not a number of at most 10 digits (vertex, face and edge "
+                              "counts follow the keyword's line)");
         }
+        counts[k] = *count;
     }
     // The least a vertex and a face take: "0 0 0" and "3 0 1 2" with a separator, or 3 floats
     // and a count with 3 indices in a binary file.
@@ -667,47 +727,99 @@ void checkOffFile(const std::filesystem::path& file) {
                          kBytesPerMeshElement);
     requireDeclaredCount(file, "OFF face count", counts[1], binary ? 16 : 8, fileBytes,
                          kBytesPerMeshElement);
-    requireDeclaredCount(file, "OFF vertex and face counts", counts[0] + counts[1], 6, fileBytes,
-                         kBytesPerMeshElement);
-    if (binary) return;
+    requireDeclaredCount(file, "OFF vertex and face counts", std::uint64_t(counts[0]) + counts[1],
+                         6, fileBytes, kBytesPerMeshElement);
+    const auto badIndex = [&](const std::string& what, const std::string& index) {
+        return FormatError(name + ": " + what + " has an invalid vertex index '" + index +
+                           "'; the file has " + std::to_string(counts[0]) + " vertices (from 0)");
+    };
+    const auto badCornerCount = [&](const std::string& what, const std::string& count) {
+        return FormatError(name + ": " + what + " has the corner count '" + count +
+                           "'; expected 1 to " + std::to_string(kMaxPolygonCorners));
+    };
+    if (binary) {
+        const std::uint64_t floatsPerVertex = 3 + (normals ? 3 : 0) + (texcoords ? 2 : 0);
+        const auto truncated = [&] {
+            return FormatError(name + ": binary OFF ends before its " + std::to_string(counts[0]) +
+                               " vertices and " + std::to_string(counts[1]) +
+                               " faces; the file is truncated");
+        };
+        const auto readWord = [&] {
+            unsigned char bytes[4] = {};
+            in.read(reinterpret_cast<char*>(bytes), 4);
+            if (in.gcount() != 4) throw truncated();
+            return std::uint32_t(bytes[0]) | std::uint32_t(bytes[1]) << 8 |
+                   std::uint32_t(bytes[2]) << 16 | std::uint32_t(bytes[3]) << 24;
+        };
+        // The vertices' floats: their values are checked with the mesh (finite, in range).
+        in.seekg(std::streamoff(4 * floatsPerVertex * counts[0]), std::ios::cur);
+        if (!in || std::uint64_t(in.tellg()) > fileBytes) throw truncated();
+        for (std::uint32_t face = 0; face < counts[1]; ++face) {
+            const std::string what = "OFF face " + std::to_string(face);
+            const std::uint32_t corners = readWord();
+            if (corners < 1 || corners > kMaxPolygonCorners)
+                throw badCornerCount(what, std::to_string(corners));
+            for (std::uint32_t k = 0; k < corners; ++k) {
+                const std::uint32_t index = readWord();
+                if (index >= counts[0]) throw badIndex(what, std::to_string(index));
+            }
+        }
+        return;
+    }
+    if (!tokens.endedLine()) {
+        std::string countsRest;
+        std::getline(in, countsRest);
+        if (!splitWhitespace(countsRest).empty()) {
+            throw FormatError(name + ": OFF counts line has '" + quotedInput(countsRest) +
+                              "' after the vertex, face and edge counts (read as " +
+                              std::to_string(counts[0]) + " " + std::to_string(counts[1]) + " " +
+                              std::to_string(counts[2]) +
+                              "); the three stand alone on one line before the vertices");
+        }
+    }
+    const std::size_t numbersPerVertex = 3 + (normals ? 3 : 0) + (texcoords ? 2 : 0);
+    const std::string vertexNumbers = std::string("3 coordinates") +
+                                      (normals ? ", 3 normal components" : "") +
+                                      (texcoords ? ", 2 texture coordinates" : "");
     std::string line;
-    if (!tokens.endedLine()) std::getline(in, line);  // the rest of the counts line (edges)
     std::uint64_t vertices = 0, faces = 0;
-    for (std::size_t lineNumber = 0;
-         vertices + faces < counts[0] + counts[1] && std::getline(in, line);) {
-        ++lineNumber;
+    while (vertices + faces < std::uint64_t(counts[0]) + counts[1] && std::getline(in, line)) {
         const std::vector<std::string_view> values = splitWhitespace(line);
-        if (values.empty() || values[0][0] == '#') continue;
+        if (values.empty()) continue;
         const bool isVertex = vertices < counts[0];
         const std::string what = isVertex ? "OFF vertex " + std::to_string(vertices)
                                           : "OFF face " + std::to_string(faces);
+        if (values[0][0] == '#') {
+            throw FormatError(name + ": comment '" + quotedInput(line) + "' in place of " + what +
+                              "; OFF files have no comments after the keyword's line");
+        }
         for (const std::string_view value : values) {
-            const std::optional<double> number = numberIn(value);
-            if (!number || !std::isfinite(*number) ||
-                std::abs(*number) > double(std::numeric_limits<float>::max())) {
+            if (!floatIn(value)) {
                 throw FormatError(name + ": " + what + " has '" + quotedInput(value) +
-                                  "'; expected finite numbers within a float's range");
+                                  "'; expected finite decimal numbers within a float's range");
             }
         }
         if (isVertex) {
-            if (values.size() < 3)
-                throw FormatError(name + ": " + what + " has fewer than 3 numbers");
+            if (values.size() < numbersPerVertex) {
+                throw FormatError(name + ": " + what + " has " + std::to_string(values.size()) +
+                                  " numbers; each vertex's line holds at least its " +
+                                  vertexNumbers);
+            }
             ++vertices;
             continue;
         }
-        const double corners = *numberIn(values[0]);
-        if (!(corners >= 1.0 && corners <= double(kMaxPolygonCorners) &&
-              corners == std::floor(corners) && double(values.size()) >= corners + 1.0)) {
+        const std::optional<std::uint32_t> corners = unsignedIn(values[0]);
+        if (!corners || *corners < 1 || *corners > kMaxPolygonCorners)
+            throw badCornerCount(what, quotedInput(values[0]));
+        if (values.size() < std::size_t(*corners) + 1 ||
+            (!colours && values.size() > std::size_t(*corners) + 1)) {
             throw FormatError(name + ": " + what + " '" + quotedInput(line) +
-                              "' is not a corner count followed by that many vertex indices");
+                              "' is not a corner count followed by that many vertex indices" +
+                              (colours ? "" : " and nothing more (colours need a COFF)"));
         }
-        for (std::size_t k = 1; k <= std::size_t(corners); ++k) {
-            const double index = *numberIn(values[k]);
-            if (index != std::floor(index) || index < 0.0 || index >= double(counts[0])) {
-                throw FormatError(name + ": " + what + " has an invalid vertex index '" +
-                                  quotedInput(values[k]) + "'; the file has " +
-                                  std::to_string(counts[0]) + " vertices (from 0)");
-            }
+        for (std::size_t k = 1; k <= std::size_t(*corners); ++k) {
+            const std::optional<std::uint32_t> index = unsignedIn(values[k]);
+            if (!index || *index >= counts[0]) throw badIndex(what, quotedInput(values[k]));
         }
         ++faces;
     }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <bit>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -525,6 +526,27 @@ TEST(LoadBaseMesh, ObjWithOutOfRangeIndicesIsFormatError) {
     EXPECT_EQ(loadBaseMesh(relative.path()).triangles.size(), 1u);
 }
 
+// OpenMesh leaves out a v line it cannot read whole or that starts with a form feed; the faces
+// after it would then index past its vertex arrays (the reader wrote past them, found by fuzzing).
+TEST(LoadBaseMesh, ObjLinesOpenMeshWouldLeaveOutAreFormatErrors) {
+    const std::string rest = "v 1 1 1\nv 0 1 0\nvt 1 1\nvt 0 1\nf 1/1 3/2 2/2\n";
+    const TempFile formFeed("formfeed.obj", "\fv 0 0 0\n" + rest);
+    std::string message = messageOf<FormatError>([&] { loadBaseMesh(formFeed.path()); });
+    EXPECT_NE(message.find("line 1: the 'v' line starts with a form feed"), std::string::npos)
+        << message;
+    const TempFile hex("hex.obj", "v 0x1 0 0\n" + rest);
+    message = messageOf<FormatError>([&] { loadBaseMesh(hex.path()); });
+    EXPECT_NE(message.find("line 1: vertex 1 has '0x1'; expected a decimal number"),
+              std::string::npos)
+        << message;
+    const TempFile hexUv("hexuv.obj", "v 0 0 0\n" + rest + "vt 0X1p1 0\n");
+    message = messageOf<FormatError>([&] { loadDetailMesh(hexUv.path()); });
+    EXPECT_NE(message.find("texture coordinate 3 has '0X1p1'"), std::string::npos) << message;
+    // Form feeds elsewhere are white space between the numbers, as OpenMesh reads them too.
+    const TempFile inside("inside.obj", "v 0\f0 0\n" + rest);
+    EXPECT_EQ(loadBaseMesh(inside.path()).triangles.size(), 1u);
+}
+
 TEST(LoadBaseMesh, EmptyOrUnknownFilesAreFormatErrors) {
     const TempFile empty("empty.obj", "");
     EXPECT_THROW(loadBaseMesh(empty.path()), FormatError);
@@ -755,8 +777,54 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
     // for these, found by fuzzing).
     expectFormatError("counts_on_keyword_line.off", "OFF 0 0\n1  0877777777 0\n",
                       "the counts go on the next line");
+    // OpenMesh reads an OFF body as a stream of numbers: a number too many or too few on a line
+    // shifts all after it (a corner count of 4 billion read from a vertex: gigabytes of
+    // indices, found by fuzzing).
+    const std::string vertices = "0 0 0\n1 0 0\n0 1 0\n";
+    expectFormatError("two_counts.off", "OFF\n3 1\n" + vertices + "3 0 1 2\n",
+                      "OFF counts line has '0 0' after the vertex, face and edge counts (read as "
+                      "3 1 0)");
+    expectFormatError("extra_index.off", "OFF\n3 1 0\n" + vertices + "3 0 1 2 1\n",
+                      "and nothing more (colours need a COFF)");
+    EXPECT_EQ(loadDetailMesh(TempFile("colour.off",
+                                      "COFF\n3 1 0\n0 0 0 255 0 0\n1 0 0 0 255 "
+                                      "0\n0 1 0 0 0 255\n3 0 1 2 9 9 9\n")
+                                 .path())
+                  .triangles.size(),
+              1u);
+    expectFormatError("comment.off", "OFF\n3 1 0\n0 0 0\n# the second\n1 0 0\n0 1 0\n3 0 1 2\n",
+                      "comment '# the second' in place of OFF vertex 1");
+    expectFormatError("float_corners.off", "OFF\n3 1 0\n" + vertices + "3.0 0 1 2\n",
+                      "OFF face 0 has the corner count '3.0'; expected 1 to 65536");
+    expectFormatError("normals.off", "NOFF\n3 1 0\n" + vertices + "3 0 1 2\n",
+                      "OFF vertex 0 has 3 numbers; each vertex's line holds at least its 3 "
+                      "coordinates, 3 normal components");
+    expectFormatError("uvs.off", "STOFF\n3 1 0\n0 0 0 0 0\n1 0 0 1\n0 1 0 0 1\n3 0 1 2\n",
+                      "OFF vertex 1 has 4 numbers; each vertex's line holds at least its 3 "
+                      "coordinates, 2 texture coordinates");
+    expectFormatError("hex.off", "OFF\n3 1 0\n0x1 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+                      "OFF vertex 0 has '0x1'; expected finite decimal numbers");
+    const auto binaryOff = [](std::uint32_t corners, int indices) {
+        std::string bytes = "OFF BINARY\n";
+        const auto word = [&](std::uint32_t value) {
+            bytes.append(reinterpret_cast<const char*>(&value), 4);  // little-endian here
+        };
+        word(3), word(1), word(0);
+        for (float value : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f})
+            word(std::bit_cast<std::uint32_t>(value));
+        word(corners);
+        for (int k = 0; k < indices; ++k) word(std::uint32_t(k));
+        return bytes;
+    };
+    EXPECT_EQ(loadDetailMesh(TempFile("binary.off", binaryOff(3, 3)).path()).triangles.size(), 1u);
+    expectFormatError("binary_corners.off", binaryOff(0xfffffff0u, 3),
+                      "OFF face 0 has the corner count '4294967280'; expected 1 to 65536");
+    expectFormatError("binary_truncated.off", binaryOff(3, 2), "binary OFF ends before its");
+    expectFormatError("binary_index.off", binaryOff(4, 4),
+                      "OFF face 0 has an invalid vertex index '3'; the file has 3 vertices");
     expectFormatError("unprintable_header.ply",
-                      "ply\nformat ascii 1.0\nelement ver\xf7" "ex 3\nproperty float x\nend_header\n",
+                      "ply\nformat ascii 1.0\nelement ver\xf7"
+                      "ex 3\nproperty float x\nend_header\n",
                       "not one PLY defines");
     expectFormatError("huge.obj", "v -1e30 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n", "within +-1e+09");
     expectFormatError("mesh.xyz", "", "unsupported mesh format");
