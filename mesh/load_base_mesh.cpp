@@ -377,12 +377,15 @@ class TextTokens {
     bool endedLine_ = false;
 };
 
-/// `token` as a number, or nothing when it is not one (the whole token must be a number).
+/// `token` as a decimal number, or nothing when it is not one (the whole token must be a number).
+/// strtod also reads hexadecimal, of which OpenMesh's streams read only the leading "0".
 std::optional<double> numberIn(std::string_view token) {
     const std::string text(token);
     char* end = nullptr;
     const double value = std::strtod(text.c_str(), &end);
-    if (text.empty() || end != text.c_str() + text.size()) return std::nullopt;
+    if (text.empty() || end != text.c_str() + text.size() ||
+        text.find_first_of("xX") != std::string::npos)
+        return std::nullopt;
     return value;
 }
 
@@ -445,6 +448,12 @@ class PlyValues {
                               " number");
         }
         if (!type.isFloat) {
+            // OpenMesh's stream reads "3.0" or "1e2" as an integer up to its '.' or 'e', and the
+            // rest as the next value.
+            if (token.find_first_of(".eE") != std::string_view::npos) {
+                throw FormatError(name_ + ": PLY " + where(element, item) + " has '" +
+                                  quotedInput(token) + "'; expected a decimal integer");
+            }
             const double bits = double(type.bytes * 8);
             const double lowest = type.isSigned ? -std::exp2(bits - 1) : 0.0;
             const double highest = type.isSigned ? std::exp2(bits - 1) - 1 : std::exp2(bits) - 1;
@@ -641,13 +650,11 @@ std::optional<std::uint32_t> unsignedIn(std::string_view token) {
 }
 
 /// `token` as OpenMesh's stream reads a float, or nothing when it would read another value or
-/// fail: a finite decimal number within a float's range (strtod also reads hexadecimal, of which
-/// the stream reads the leading "0").
+/// fail: a finite decimal number within a float's range.
 std::optional<double> floatIn(std::string_view token) {
     const std::optional<double> number = numberIn(token);
     if (!number || !std::isfinite(*number) ||
-        std::abs(*number) > double(std::numeric_limits<float>::max()) ||
-        token.find_first_of("xX") != std::string_view::npos)
+        std::abs(*number) > double(std::numeric_limits<float>::max()))
         return std::nullopt;
     return number;
 }

@@ -822,6 +822,13 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
     expectFormatError("binary_truncated.off", binaryOff(3, 2), "binary OFF ends before its");
     expectFormatError("binary_index.off", binaryOff(4, 4),
                       "OFF face 0 has an invalid vertex index '3'; the file has 3 vertices");
+    const std::string plyHeader =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    expectFormatError("float_count.ply", plyHeader + vertices + "3.0 0 1 2\n",
+                      "PLY face 0 has '3.0'; expected a decimal integer");
+    expectFormatError("hex.ply", plyHeader + "0 0 0\n0x1 0 0\n0 1 0\n3 0 1 2\n",
+                      "PLY vertex 1 has '0x1'; expected a finite float number");
     expectFormatError("unprintable_header.ply",
                       "ply\nformat ascii 1.0\nelement ver\xf7"
                       "ex 3\nproperty float x\nend_header\n",
