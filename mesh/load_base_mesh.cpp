@@ -65,6 +65,12 @@ std::vector<std::string_view> splitWhitespace(std::string_view line) {
     return tokens;
 }
 
+/// Whether strtod reads the number `token` as hexadecimal ("0x1p3"), of which OpenMesh's streams
+/// read only the leading "0" (and then the rest as the next value, or fail).
+bool isHexadecimal(std::string_view token) {
+    return token.find_first_of("xX") != std::string_view::npos;
+}
+
 /// What the OBJ check learned that the OpenMesh result is compared against afterwards.
 struct ObjFacts {
     std::size_t faceCount = 0;  ///< faces whose corners are distinct vertices (OpenMesh keeps)
@@ -123,10 +129,8 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
                 const std::string_view token = tokens[k];
                 char* end = nullptr;
                 const double value = std::strtod(token.data(), &end);
-                // strtod also reads hexadecimal ("0x1p3"); OpenMesh's stream reads its "0" and
-                // then drops the whole line.
-                if (end != token.data() + token.size() ||
-                    token.find_first_of("xX") != std::string_view::npos) {
+                // OpenMesh's stream drops a v line with a hexadecimal number.
+                if (end != token.data() + token.size() || isHexadecimal(token)) {
                     throw FormatError(where() + what() + " has '" + quotedInput(token) +
                                       "'; expected a decimal number");
                 }
@@ -378,13 +382,11 @@ class TextTokens {
 };
 
 /// `token` as a decimal number, or nothing when it is not one (the whole token must be a number).
-/// strtod also reads hexadecimal, of which OpenMesh's streams read only the leading "0".
 std::optional<double> numberIn(std::string_view token) {
     const std::string text(token);
     char* end = nullptr;
     const double value = std::strtod(text.c_str(), &end);
-    if (text.empty() || end != text.c_str() + text.size() ||
-        text.find_first_of("xX") != std::string::npos)
+    if (text.empty() || end != text.c_str() + text.size() || isHexadecimal(text))
         return std::nullopt;
     return value;
 }
