@@ -937,8 +937,11 @@ namespace {
 
 /// Binary STL: 80-byte header, uint32 triangle count, 50 bytes per triangle. ASCII STL starts
 /// with "solid" and is a text file; a binary file whose header happens to start with "solid" is
-/// recognised by its exact size. Checks the size of binary files and the numbers of ASCII
-/// `vertex` lines.
+/// recognised by its exact size. Checks the size of binary files and, in ASCII files, what
+/// OpenMesh's reader reads as corners: the 3 lines after each line that holds "outer" (or
+/// "OUTER") anywhere, each read as a word and 3 floats (a number its stream cannot read leaves
+/// the corner where the last one was, or unset). Those lines must be `vertex` and 3 finite
+/// decimal numbers within a float's range, as must every other `vertex` line.
 void checkStlFile(const std::filesystem::path& file) {
     const std::string name = file.string();
     std::ifstream in(file, std::ios::binary);
@@ -964,22 +967,39 @@ void checkStlFile(const std::filesystem::path& file) {
     in.clear();
     in.seekg(0);
     std::string line;
+    int cornersDue = 0;  // lines OpenMesh reads as corners after an "outer" line
+    std::size_t outerLine = 0;
     for (std::size_t lineNumber = 1; std::getline(in, line); ++lineNumber) {
         const std::vector<std::string_view> tokens = splitWhitespace(line);
-        if (tokens.empty() || tokens[0] != "vertex") continue;
-        if (tokens.size() != 4) {
-            throw FormatError(name + ": line " + std::to_string(lineNumber) +
-                              ": vertex needs 3 numbers");
+        const std::string where = name + ": line " + std::to_string(lineNumber) + ": ";
+        const bool corner = cornersDue > 0;
+        if (corner) {
+            --cornersDue;
+        } else if (line.find("outer") != std::string::npos ||
+                   line.find("OUTER") != std::string::npos) {
+            cornersDue = 3;
+            outerLine = lineNumber;
+            continue;
+        }
+        if (!corner && (tokens.empty() || tokens[0] != "vertex")) continue;
+        if (tokens.size() != 4 || tokens[0] != "vertex") {
+            throw FormatError(where + "'" + quotedInput(line) + "' where a 'vertex x y z' line " +
+                              (corner ? "of the facet whose 'outer loop' is line " +
+                                            std::to_string(outerLine) + " "
+                                      : "") +
+                              "must be (OpenMesh reads the 3 lines after any line holding "
+                              "'outer' as a facet's corners)");
         }
         for (std::size_t k = 1; k < 4; ++k) {
-            const std::string token(tokens[k]);
-            char* end = nullptr;
-            const double value = std::strtod(token.c_str(), &end);
-            if (end != token.c_str() + token.size() || !std::isfinite(value)) {
-                throw FormatError(name + ": line " + std::to_string(lineNumber) + ": '" +
-                                  quotedInput(token) + "' is not a finite number");
+            if (!floatIn(tokens[k])) {
+                throw FormatError(where + "'" + quotedInput(tokens[k]) +
+                                  "' is not a finite decimal number within a float's range");
             }
         }
+    }
+    if (cornersDue > 0) {
+        throw FormatError(name + ": ends inside the facet whose 'outer loop' is line " +
+                          std::to_string(outerLine) + "; the file is truncated");
     }
 }
 

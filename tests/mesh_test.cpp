@@ -738,6 +738,24 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
     expectFormatError("degenerate.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 0\nf 1 2 4\n",
                       "none of its 1 faces has three distinct corners");
     expectFormatError("truncated.stl", tetrahedronBinaryStl(30), "truncated");
+    // OpenMesh reads the 3 lines after any line holding "outer" as corners.
+    const std::string facet =
+        "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+        "vertex 0 1 0\nendloop\nendfacet\n";
+    EXPECT_EQ(
+        loadDetailMesh(TempFile("ascii.stl", "solid a\n" + facet + facet + "endsolid a\n").path())
+            .triangles.size(),
+        2u);
+    expectFormatError("outer_name.stl", "solid outer\n" + facet + "endsolid\n",
+                      "line 2: 'facet normal 0 0 1' where a 'vertex x y z' line of the facet "
+                      "whose 'outer loop' is line 1 must be");
+    expectFormatError("short_facet.stl", "solid a\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n",
+                      "ends inside the facet whose 'outer loop' is line 2");
+    expectFormatError("float_range.stl",
+                      "solid a\nouter loop\nvertex 0 0 0\nvertex 1e39 0 0\nvertex 0 1 0\n",
+                      "line 4: '1e39' is not a finite decimal number within a float's range");
+    expectFormatError("hex.stl", "solid a\nouter loop\nvertex 0 0 0\nvertex 0x1 0 0\n",
+                      "'0x1' is not a finite decimal number");
     expectFormatError("truncated.ply",
                       "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
                       "property float y\nproperty float z\nelement face 4\n"
