@@ -971,7 +971,8 @@ void checkStlFile(const std::filesystem::path& file) {
     std::size_t outerLine = 0;
     for (std::size_t lineNumber = 1; std::getline(in, line); ++lineNumber) {
         const std::vector<std::string_view> tokens = splitWhitespace(line);
-        const std::string where = name + ": line " + std::to_string(lineNumber) + ": ";
+        // Built only for a message: most lines of a large file have none.
+        const auto where = [&] { return name + ": line " + std::to_string(lineNumber) + ": "; };
         const bool corner = cornersDue > 0;
         if (corner) {
             --cornersDue;
@@ -983,7 +984,7 @@ void checkStlFile(const std::filesystem::path& file) {
         }
         if (!corner && (tokens.empty() || tokens[0] != "vertex")) continue;
         if (tokens.size() != 4 || tokens[0] != "vertex") {
-            throw FormatError(where + "'" + quotedInput(line) + "' where a 'vertex x y z' line " +
+            throw FormatError(where() + "'" + quotedInput(line) + "' where a 'vertex x y z' line " +
                               (corner ? "of the facet whose 'outer loop' is line " +
                                             std::to_string(outerLine) + " "
                                       : "") +
@@ -992,7 +993,7 @@ void checkStlFile(const std::filesystem::path& file) {
         }
         for (std::size_t k = 1; k < 4; ++k) {
             if (!floatIn(tokens[k])) {
-                throw FormatError(where + "'" + quotedInput(tokens[k]) +
+                throw FormatError(where() + "'" + quotedInput(tokens[k]) +
                                   "' is not a finite decimal number within a float's range");
             }
         }
