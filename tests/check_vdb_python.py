@@ -8,8 +8,8 @@ python3-openvdb), on a rotated lattice of non-uniform voxels with OpenVDB's 3-vo
   conservative lowering, read back from its --vdb level set), where the band is rebuilt far
   beyond the file's: the rebuilt distances must not overestimate;
 - files that must be refused in one line, exit status 2, no output: a transform holding NaN or
-  infinity, a truncated file, no float level set, an empty grid, an unknown --grid, a --window
-  outside the grid.
+  infinity, a voxel or a background that is NaN or infinite, a truncated file, no float level
+  set, an empty grid, an unknown --grid, a --window outside the grid.
 
 Usage: check_vdb_python.py --distile PATH/TO/distile. Exits 77 (skipped) without pyopenvdb.
 """
@@ -173,6 +173,23 @@ def main():
         with open(name, "wb") as out:
             out.write(good.replace(translation, struct.pack("<d", bad)))
         expect_refused(distile, [name], "refused.exr", [name, "transform", "not finite"])
+    # OpenVDB's VolumeToMesh throws on these from a worker thread; distile refuses them first.
+    for name, background, bad_voxel in (("nan_voxel.vdb", 0.3, float("nan")),
+                                        ("inf_background.vdb", float("inf"), 0.0)):
+        grid = vdb.FloatGrid(background)
+        grid.gridClass = vdb.GridClass.LEVEL_SET
+        grid.name = "surface"
+        accessor = grid.getAccessor()
+        for i in range(-2, 3):
+            for j in range(-2, 3):
+                for k in range(-2, 3):
+                    accessor.setValueOn((i, j, k), 0.1 * k - 0.05)
+        accessor.setValueOn((1, 1, 1), bad_voxel)
+        vdb.write(name, grids=[grid])
+    expect_refused(distile, ["nan_voxel.vdb"], "refused.exr",
+                   ["nan_voxel.vdb", "value nan at voxel [1, 1, 1]", "must be finite"])
+    expect_refused(distile, ["inf_background.vdb"], "refused.exr",
+                   ["inf_background.vdb", "background value inf", "must be finite"])
     with open("truncated.vdb", "wb") as out:
         out.write(good[: len(good) // 2])
     expect_refused(distile, ["truncated.vdb"], "refused.exr", ["truncated.vdb"])

@@ -302,6 +302,23 @@ ReadVolume readVolume(const std::filesystem::path& file, const std::string& grid
         throw FormatError(name + ": grid '" + grid->getName() + "' is empty (no active voxels)");
     }
 
+    // VolumeToMesh throws on a NaN or an infinity anywhere it samples, from a worker thread (and
+    // a value of a level set that is not finite is a corrupt file): refused first, with where.
+    if (!std::isfinite(grid->background())) {
+        std::ostringstream message;
+        message << name << ": grid '" << grid->getName() << "' has the background value "
+                << grid->background() << "; values must be finite";
+        throw FormatError(message.str());
+    }
+    for (auto value = grid->cbeginValueAll(); value; ++value) {
+        if (std::isfinite(*value)) continue;
+        std::ostringstream message;
+        message << name << ": grid '" << grid->getName() << "' has the value " << *value
+                << " at voxel " << value.getCoord() << (value.isVoxelValue() ? "" : " (a tile)")
+                << "; values must be finite";
+        throw FormatError(message.str());
+    }
+
     ReadVolume volume;
     volume.levelSet = levelSet;
     volume.iso = iso.value_or(0.0);
