@@ -641,6 +641,20 @@ void checkPlyFile(const std::filesystem::path& file) {
     }
 }
 
+/// The unsigned 32-bit little-endian integer at `bytes`.
+std::uint32_t littleEndianWord(const unsigned char* bytes) {
+    return std::uint32_t(bytes[0]) | std::uint32_t(bytes[1]) << 8 | std::uint32_t(bytes[2]) << 16 |
+           std::uint32_t(bytes[3]) << 24;
+}
+
+/// The next 4 bytes of `in` as a littleEndianWord, or nothing when the file ends before them.
+std::optional<std::uint32_t> readLittleEndianWord(std::istream& in) {
+    unsigned char bytes[4] = {};
+    in.read(reinterpret_cast<char*>(bytes), 4);
+    if (in.gcount() != 4) return std::nullopt;
+    return littleEndianWord(bytes);
+}
+
 /// `token` as OpenMesh's stream reads an unsigned int, or nothing when it would read another
 /// value or fail: decimal digits only, at most UINT32_MAX.
 std::optional<std::uint32_t> unsignedIn(std::string_view token) {
@@ -714,11 +728,9 @@ void checkOffFile(const std::filesystem::path& file) {
     std::uint32_t counts[3] = {0, 0, 0};
     for (int k = 0; k < 3; ++k) {
         if (binary) {
-            unsigned char bytes[4] = {};
-            in.read(reinterpret_cast<char*>(bytes), 4);
-            if (in.gcount() != 4) throw FormatError(name + ": OFF header ends before its counts");
-            counts[k] = std::uint32_t(bytes[0]) | std::uint32_t(bytes[1]) << 8 |
-                        std::uint32_t(bytes[2]) << 16 | std::uint32_t(bytes[3]) << 24;
+            const std::optional<std::uint32_t> count = readLittleEndianWord(in);
+            if (!count) throw FormatError(name + ": OFF header ends before its counts");
+            counts[k] = *count;
             continue;
         }
         const std::string_view token = tokens.next();
@@ -754,11 +766,9 @@ void checkOffFile(const std::filesystem::path& file) {
                                " faces; the file is truncated");
         };
         const auto readWord = [&] {
-            unsigned char bytes[4] = {};
-            in.read(reinterpret_cast<char*>(bytes), 4);
-            if (in.gcount() != 4) throw truncated();
-            return std::uint32_t(bytes[0]) | std::uint32_t(bytes[1]) << 8 |
-                   std::uint32_t(bytes[2]) << 16 | std::uint32_t(bytes[3]) << 24;
+            const std::optional<std::uint32_t> word = readLittleEndianWord(in);
+            if (!word) throw truncated();
+            return *word;
         };
         // The vertices' floats: their values are checked with the mesh (finite, in range).
         in.seekg(std::streamoff(4 * floatsPerVertex * counts[0]), std::ios::cur);
@@ -952,9 +962,7 @@ void checkStlFile(const std::filesystem::path& file) {
     const bool startsWithSolid = in.gcount() >= 5 && std::string_view(header, 5) == "solid";
     std::uint32_t count = 0;
     if (in.gcount() == 84) {
-        const auto* bytes = reinterpret_cast<const unsigned char*>(header + 80);
-        count = std::uint32_t(bytes[0]) | std::uint32_t(bytes[1]) << 8 |
-                std::uint32_t(bytes[2]) << 16 | std::uint32_t(bytes[3]) << 24;
+        count = littleEndianWord(reinterpret_cast<const unsigned char*>(header + 80));
     }
     const std::uintmax_t binarySize = 84 + 50 * std::uintmax_t(count);
     if (in.gcount() == 84 && size == binarySize) return;  // a complete binary STL
