@@ -10,7 +10,9 @@
 #include <string>
 #include <system_error>
 
+#include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/input_file.h"
 
 namespace distile::cli {
 
@@ -89,6 +91,8 @@ namespace {
 
 int runCommandLine(int argc, char** argv, const std::function<void(CLI::App&)>& addCommands) {
     std::set_terminate(terminateInOneLine);
+    recordInputFiles();           // no output may replace one of the command's inputs
+    removeTemporariesOnSignal();  // Ctrl-C leaves no partial file
     const auto fail = [](int status, const std::string& message) {
         std::fprintf(stderr, "distile: error: %s\n", oneLine(message).c_str());
         return status;

@@ -7,9 +7,11 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <mutex>
 #include <system_error>
 
 #include "common/error.h"
+#include "common/input_file.h"
 
 namespace distile {
 
@@ -59,33 +61,49 @@ void removeStaleTemporaries(const fs::path& target) {
     }
 }
 
-}  // namespace
+/// The temporary files a signal removes (removeTemporariesOnSignal): fixed slots, so the handler
+/// reads them without allocating or locking. A slot is free (0), being filled (1) or holds the
+/// absolute path of a temporary (2).
+struct TemporarySlot {
+    std::atomic<int> state{0};
+    char path[4096];
+};
+constexpr int kTemporarySlots = 64;
+TemporarySlot temporarySlots[kTemporarySlots];
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler reads the slots");
 
-void writeAtomically(const fs::path& target, const std::function<void(const fs::path&)>& write) {
-    const fs::path folder = folderOf(target);
-    if (!fs::is_directory(folder)) {
-        throw InputError(target.string() + ": folder '" + folder.string() + "' does not exist");
+/// Takes a slot for `temporary`; -1 when none is free or the path does not fit (the file is then
+/// left as a killed run's would be).
+int registerTemporary(const fs::path& temporary) {
+    std::error_code error;
+    const std::string path = fs::absolute(temporary, error).string();
+    if (error || path.size() >= sizeof(TemporarySlot::path)) return -1;
+    for (int slot = 0; slot < kTemporarySlots; ++slot) {
+        int free = 0;
+        if (!temporarySlots[slot].state.compare_exchange_strong(free, 1)) continue;
+        std::memcpy(temporarySlots[slot].path, path.c_str(), path.size() + 1);
+        temporarySlots[slot].state.store(2, std::memory_order_release);
+        return slot;
     }
-    removeStaleTemporaries(target);
-    const fs::path temporary = temporaryBeside(target);
-    try {
-        write(temporary);
-        fs::rename(temporary, target);
-    } catch (...) {
-        std::error_code ignored;
-        fs::remove(temporary, ignored);
-        throw;
-    }
+    return -1;
 }
 
-OutputFiles::~OutputFiles() {
-    for (const auto& [temporary, target] : files_) {
-        std::error_code ignored;
-        fs::remove(temporary, ignored);
-    }
+/// Frees `slot` (after its temporary was renamed or removed).
+void releaseTemporary(int slot) {
+    if (slot >= 0) temporarySlots[slot].state.store(0, std::memory_order_release);
 }
 
-fs::path OutputFiles::add(const fs::path& target, const std::string& shownAs) {
+extern "C" void removeTemporariesThenDie(int signal) {
+    for (TemporarySlot& slot : temporarySlots) {
+        if (slot.state.load(std::memory_order_acquire) == 2) ::unlink(slot.path);
+    }
+    // The handler was installed with SA_RESETHAND: the signal, raised again, ends the process as
+    // it would have without the handler once the handler returns.
+    ::raise(signal);
+}
+
+/// InputError unless `target` may be written: not a folder, its folder exists, not an input.
+void requireWritableTarget(const fs::path& target, const std::string& shownAs) {
     const std::string name = shownAs + ": '" + target.string() + "'";
     std::error_code status;
     if (fs::is_directory(target, status)) {
@@ -96,26 +114,88 @@ fs::path OutputFiles::add(const fs::path& target, const std::string& shownAs) {
         throw InputError(name + " cannot be written: folder '" + folder.string() +
                          "' does not exist");
     }
-    for (const auto& [temporary, added] : files_) {
-        if (fs::absolute(added).lexically_normal() == fs::absolute(target).lexically_normal())
+    if (const std::string kind = recordedInputKind(target); !kind.empty()) {
+        throw InputError(name + " is also an input of this command (read as " + kind +
+                         "); give the output another name");
+    }
+}
+
+}  // namespace
+
+void removeTemporariesOnSignal() {
+    static std::once_flag installed;
+    std::call_once(installed, [] {
+        for (const int signal : {SIGINT, SIGTERM, SIGHUP}) {
+            struct sigaction previous {};
+            if (::sigaction(signal, nullptr, &previous) != 0 || previous.sa_handler == SIG_IGN)
+                continue;  // e.g. nohup: stay immune
+            struct sigaction action {};
+            action.sa_handler = removeTemporariesThenDie;
+            sigemptyset(&action.sa_mask);
+            action.sa_flags = SA_RESETHAND;
+            ::sigaction(signal, &action, nullptr);
+        }
+    });
+}
+
+void writeAtomically(const fs::path& target, const std::function<void(const fs::path&)>& write) {
+    const fs::path folder = folderOf(target);
+    if (!fs::is_directory(folder)) {
+        throw InputError(target.string() + ": folder '" + folder.string() + "' does not exist");
+    }
+    removeStaleTemporaries(target);
+    const fs::path temporary = temporaryBeside(target);
+    const int slot = registerTemporary(temporary);
+    try {
+        write(temporary);
+        fs::rename(temporary, target);
+    } catch (...) {
+        std::error_code ignored;
+        fs::remove(temporary, ignored);
+        releaseTemporary(slot);
+        throw;
+    }
+    releaseTemporary(slot);
+}
+
+OutputFiles::~OutputFiles() {
+    for (const File& file : files_) {
+        std::error_code ignored;
+        fs::remove(file.temporary, ignored);
+        releaseTemporary(file.signalSlot);
+    }
+}
+
+fs::path OutputFiles::add(const fs::path& target, const std::string& shownAs) {
+    requireWritableTarget(target, shownAs);
+    const std::string name = shownAs + ": '" + target.string() + "'";
+    for (const File& added : files_) {
+        if (fs::absolute(added.target).lexically_normal() ==
+            fs::absolute(target).lexically_normal())
             throw InputError(name + " is also another output of this command; give each its own");
     }
     removeStaleTemporaries(target);
     const fs::path temporary = temporaryBeside(target);
+    const int slot = registerTemporary(temporary);
     const int descriptor = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0666);
     if (descriptor < 0) {
-        throw InputError(name + " cannot be written: folder '" + folder.string() +
-                         "' refuses a new file (" + std::strerror(errno) + ")");
+        const int openError = errno;
+        releaseTemporary(slot);
+        throw InputError(name + " cannot be written: folder '" + folderOf(target).string() +
+                         "' refuses a new file (" + std::strerror(openError) + ")");
     }
     ::close(descriptor);
-    files_.emplace_back(temporary, target);
+    files_.push_back({temporary, target, shownAs, slot});
     return temporary;
 }
 
 void OutputFiles::commit() {
+    // All or none: every target is checked before the first rename.
+    for (const File& file : files_) requireWritableTarget(file.target, file.shownAs);
     while (!files_.empty()) {
-        const auto& [temporary, target] = files_.front();
-        fs::rename(temporary, target);
+        const File& file = files_.front();
+        fs::rename(file.temporary, file.target);
+        releaseTemporary(file.signalSlot);
         files_.erase(files_.begin());
     }
 }

@@ -2,17 +2,22 @@
 /// The one way distile writes output files: into a temporary file beside the target, renamed
 /// over the target only once the write succeeded. A failed run never leaves a half-written file
 /// where a good one was, and a command with several outputs writes all of them or none. A run
-/// killed before it could remove its temporaries (".NAME.partial-PID-N.EXT") leaves them; the
-/// next write of the same target removes those of processes that no longer exist.
+/// interrupted by a signal removes its temporaries (".NAME.partial-PID-N.EXT") if the program
+/// asked for it (removeTemporariesOnSignal); one killed outright leaves them, and the next write
+/// of the same target removes those of processes that no longer exist.
 #pragma once
 
 #include <filesystem>
 #include <functional>
 #include <string>
-#include <utility>
 #include <vector>
 
 namespace distile {
+
+/// From now on, SIGINT, SIGTERM and SIGHUP (unless ignored) remove the temporary files being
+/// written before the process ends as the signal would have ended it. For programs (the command
+/// line); a library leaves a host's signals alone.
+void removeTemporariesOnSignal();
 
 /// Calls `write` with a temporary path in the target's folder that keeps the target's extension
 /// (so writers that choose the format by extension, like OpenImageIO, still work), then renames
@@ -35,17 +40,25 @@ class OutputFiles {
 
     /// Reserves `target` and returns the temporary path to write it to (same folder, same
     /// extension). Throws InputError naming `shownAs` (the flag or field that named it) if
-    /// `target` is a folder, was added already, or its folder does not exist or refuses a new
-    /// file.
+    /// `target` is a folder, was added already, is one of the command's inputs (recordInputFiles
+    /// in common/input_file.h), or its folder does not exist or refuses a new file.
     std::filesystem::path add(const std::filesystem::path& target, const std::string& shownAs);
 
-    /// Renames every temporary file over its target, in the order they were added. Throws
-    /// std::filesystem::filesystem_error if a rename fails (the others are then removed).
+    /// Renames every temporary file over its target, in the order they were added, once every
+    /// target has been checked again as add() checks it (an input read since, a folder made
+    /// since: InputError, nothing renamed). Throws std::filesystem::filesystem_error if a rename
+    /// still fails (the temporaries not yet renamed are then removed).
     void commit();
 
   private:
-    /// (temporary, target) pairs not yet renamed.
-    std::vector<std::pair<std::filesystem::path, std::filesystem::path>> files_;
+    struct File {
+        std::filesystem::path temporary;
+        std::filesystem::path target;
+        std::string shownAs;
+        int signalSlot;  ///< its entry among the temporaries a signal removes (-1: none)
+    };
+    /// Files not yet renamed.
+    std::vector<File> files_;
 };
 
 }  // namespace distile

@@ -1,9 +1,13 @@
 #include "common/input_file.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <fstream>
 #include <limits>
+#include <mutex>
 #include <vector>
 
 #include "common/error.h"
@@ -21,7 +25,42 @@ std::string mebibytes(std::uint64_t bytes) {
                                : std::to_string(bytes >> 20) + " MiB";
 }
 
+/// The files requireRegularFile accepted since recordInputFiles().
+struct RecordedInputs {
+    struct File {
+        dev_t device;
+        ino_t inode;
+        std::string kind;
+    };
+    std::atomic<bool> recording{false};
+    std::mutex mutex;
+    std::vector<File> files;
+};
+
+RecordedInputs& recordedInputs() {
+    static RecordedInputs inputs;
+    return inputs;
+}
+
 }  // namespace
+
+void recordInputFiles() {
+    RecordedInputs& inputs = recordedInputs();
+    const std::lock_guard<std::mutex> lock(inputs.mutex);
+    inputs.files.clear();
+    inputs.recording = true;
+}
+
+std::string recordedInputKind(const fs::path& file) {
+    RecordedInputs& inputs = recordedInputs();
+    struct stat identity {};
+    if (!inputs.recording || ::stat(file.c_str(), &identity) != 0) return {};
+    const std::lock_guard<std::mutex> lock(inputs.mutex);
+    for (const RecordedInputs::File& input : inputs.files) {
+        if (input.device == identity.st_dev && input.inode == identity.st_ino) return input.kind;
+    }
+    return {};
+}
 
 std::uint64_t requireRegularFile(const fs::path& file, std::string_view expected) {
     std::error_code error;
@@ -37,6 +76,13 @@ std::uint64_t requireRegularFile(const fs::path& file, std::string_view expected
     }
     const std::uintmax_t size = fs::file_size(file, error);
     if (error) throw InputError(file.string() + ": cannot read its size (" + error.message() + ")");
+    if (RecordedInputs& inputs = recordedInputs(); inputs.recording) {
+        struct stat identity {};
+        if (::stat(file.c_str(), &identity) == 0) {
+            const std::lock_guard<std::mutex> lock(inputs.mutex);
+            inputs.files.push_back({identity.st_dev, identity.st_ino, std::string(expected)});
+        }
+    }
     return std::uint64_t(size);
 }
 

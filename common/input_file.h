@@ -21,6 +21,16 @@ inline constexpr std::uint64_t kInputMemoryBudgetBytes = std::uint64_t(1) << 30;
 /// file"). Returns the file's size in bytes.
 std::uint64_t requireRegularFile(const std::filesystem::path& file, std::string_view expected);
 
+/// From now on, keeps which files requireRegularFile accepts (by device and inode), forgetting
+/// those kept before, so that a command's outputs can refuse to replace one of its own inputs
+/// (common/atomic_file.h). Off until called: the command line calls it as each command starts; a
+/// program using the library may mean to rewrite a file it read.
+void recordInputFiles();
+
+/// What requireRegularFile was told to expect of `file` (e.g. "a tile .exr file") if `file` is a
+/// file it accepted since recordInputFiles(), under any name (links included); empty otherwise.
+std::string recordedInputKind(const std::filesystem::path& file);
+
 /// a * b, or UINT64_MAX when the product does not fit in 64 bits.
 std::uint64_t saturatingProduct(std::uint64_t a, std::uint64_t b);
 

@@ -12,18 +12,37 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
 
 #include "common/error.h"
 
 namespace distile::fuzz {
 
+/// A file of this process in the temporary folder, removed when the process exits normally (a
+/// campaign's workers and CI's replays would otherwise leave one behind each).
+class ProcessTempFile {
+  public:
+    explicit ProcessTempFile(const std::string& name)
+        : path_(std::filesystem::temp_directory_path() /
+                ("distile_fuzz_" + std::to_string(::getpid()) + "_" + name)) {}
+    ~ProcessTempFile() {
+        std::error_code ignored;
+        std::filesystem::remove(path_, ignored);
+    }
+    ProcessTempFile(const ProcessTempFile&) = delete;
+    ProcessTempFile& operator=(const ProcessTempFile&) = delete;
+    const std::filesystem::path& path() const { return path_; }
+
+  private:
+    std::filesystem::path path_;
+};
+
 /// Writes `data` to one file per process named `name` (extension included) in the temporary
 /// folder, then calls `read(path)`.
 template <class Read>
 int readAsFile(const std::uint8_t* data, std::size_t size, const std::string& name, Read read) {
-    static const std::filesystem::path file =
-        std::filesystem::temp_directory_path() /
-        ("distile_fuzz_" + std::to_string(::getpid()) + "_" + name);
+    static const ProcessTempFile temp(name);
+    const std::filesystem::path& file = temp.path();
     {
         std::ofstream out(file, std::ios::binary | std::ios::trunc);
         out.write(reinterpret_cast<const char*>(data), std::streamsize(size));

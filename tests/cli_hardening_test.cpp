@@ -20,7 +20,9 @@
 
 #include "cli/app.h"
 #include "cli_fixture.h"
+#include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/input_file.h"
 #include "sampler/tile_io.h"
 
 namespace distile {
@@ -271,9 +273,9 @@ TEST_F(Hardening, ATileExrHeaderIsWalkedBeforeOpenExrAllocates) {
               cli::kExitInput);
     // The file cut short: the offset table points past its end.
     writeText(path("cut.exr"), tile.substr(0, tile.size() - 100));
-    EXPECT_EQ(expectInputError({"check", "cut.exr"}, "none", {"cut.exr", "chunk", "truncated"})
-                  .status,
-              cli::kExitInput);
+    EXPECT_EQ(
+        expectInputError({"check", "cut.exr"}, "none", {"cut.exr", "chunk", "truncated"}).status,
+        cli::kExitInput);
 }
 
 TEST_F(Hardening, ImagesLargerThanTheMemoryBudgetAreRefused) {
@@ -408,6 +410,93 @@ TEST_F(Hardening, AKilledRunsReservedOutputsAreRemovedByTheNextRun) {
     EXPECT_TRUE(fs::exists(path(alive)));
     EXPECT_TRUE(fs::exists(path(other)));
     EXPECT_TRUE(fs::exists(path("o.exr")));
+}
+
+TEST_F(Hardening, NoOutputReplacesOneOfTheCommandsInputs) {
+    // Each command reads a file and is asked to write over it, under its own name or a link's.
+    writeText(path("bare.json"), kBareScene);
+    const std::vector<std::string> small = {"--width", "16", "--height", "12", "--aovs"};
+    auto render = [&](const std::string& output, std::vector<std::string> more) {
+        std::vector<std::string> arguments = {"render", "bare.json", "-o", output};
+        arguments.insert(arguments.end(), small.begin(), small.end());
+        arguments.insert(arguments.end(), more.begin(), more.end());
+        return run(arguments);
+    };
+    ASSERT_EQ(render("a.png", {}).status, 0);
+    ASSERT_EQ(render("b.png", {"--reference"}).status, 0);
+    bakeChainmail();
+    writeText(
+        path("tiled.json"),
+        R"({"objects": [{"mesh": "plane", "material": {"tile": "tile.exr", "depth": 0.1}}]})");
+    fs::create_symlink("a.png", path("link.png"));
+
+    struct Case {
+        std::vector<std::string> arguments;
+        std::string input;    ///< the file that must stay as it was
+        std::string shownAs;  ///< the flag the message names
+    };
+    const std::vector<Case> cases = {
+        {{"compare", "a.png", "b.png", "-o", "a.png"}, "a.png", "-o"},
+        {{"compare", "a.png", "b.png", "-o", "d.png", "--heatmap", "b.depth.exr"},
+         "b.depth.exr",
+         "--heatmap"},
+        {{"compare", "a.png", "b.png", "-o", "link.png"}, "a.png", "-o"},
+        {{"render", "tiled.json", "-o", "tile.exr", "--width", "8", "--height", "8"},
+         "tile.exr",
+         "-o"},
+        {{"bake", "heightmap", "a.normal.png", "-o", "h.exr", "--png8", "a.normal.png", "--size",
+          "16x16x8"},
+         "a.normal.png",
+         "--png8"},
+    };
+    for (const Case& bad : cases) {
+        const std::string before = readText(path(bad.input));
+        EXPECT_EQ(expectInputError(bad.arguments, "none",
+                                   {bad.shownAs, "is also an input of this command"})
+                      .status,
+                  cli::kExitInput);
+        EXPECT_EQ(readText(path(bad.input)), before) << bad.input << " was replaced";
+    }
+}
+
+TEST_F(Hardening, OutputsAreCheckedAgainBeforeTheFirstIsRenamed) {
+    // All or none: a target that became a folder, or a file read since it was added, stops the
+    // commit before anything is renamed, and the temporaries go with the OutputFiles.
+    for (const bool folder : {true, false}) {
+        SCOPED_TRACE(folder ? "a folder made since" : "an input read since");
+        const fs::path first = path("first.txt"), second = path("second.txt");
+        fs::remove_all(second);
+        recordInputFiles();
+        {
+            OutputFiles outputs;
+            writeText(outputs.add(first, "--first"), "1");
+            writeText(outputs.add(second, "--second"), "2");
+            if (folder) {
+                fs::create_directory(second);
+            } else {
+                writeText(second, "read");
+                requireRegularFile(second, "a text file");
+            }
+            EXPECT_THROW(outputs.commit(), InputError);
+        }
+        EXPECT_FALSE(fs::exists(first));
+        EXPECT_EQ(workEntries(), std::set<std::string>{"second.txt"});
+    }
+}
+
+TEST_F(Hardening, ATerminatedRunLeavesNoPartialFile) {
+    // SIGTERM once the render has reserved its outputs (the temporaries exist): the run ends as
+    // the signal ends it (status 128 + 15), and its temporaries are gone with it. (SIGTERM, not
+    // SIGINT: a shell's background job ignores SIGINT.)
+    const std::string command =
+        "cd " + shellQuote(work().string()) + " && { " + shellQuote(DISTILE_BINARY) +
+        " render -o x.png --width 2048 --height 2048 --aovs >/dev/null 2>&1 & pid=$!; "
+        "for i in $(seq 200); do ls -a | grep -q partial && break; sleep 0.05; done; "
+        "kill -TERM $pid; wait $pid; } 2>/dev/null";
+    const int wait = std::system(command.c_str());
+    ASSERT_TRUE(WIFEXITED(wait));
+    EXPECT_EQ(WEXITSTATUS(wait), 128 + 15);
+    EXPECT_TRUE(workEntries().empty()) << *workEntries().begin();
 }
 
 // ---------------------------------------------------------------------------------------------
