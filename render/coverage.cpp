@@ -53,6 +53,9 @@ PinholeProjection::PinholeProjection(const Camera& camera, int widthPixels, int 
     : eye_(camera.eye), width_(widthPixels), height_(heightPixels) {
     forward_ = glm::normalize(camera.target - camera.eye);
     right_ = glm::normalize(glm::cross(forward_, camera.up));
+    // An up too long or too short for single precision's squares: its direction.
+    if (!(glm::dot(right_, right_) > 0.5f))  // not unit: zero (overflow) or NaN (underflow)
+        right_ = glm::normalize(glm::cross(forward_, unitDirection(camera.up)));
     up_ = glm::cross(right_, forward_);
     tanHalfFov_ = std::tan(0.5f * camera.fovDeg * kPi / 180.0f);
     const double tanX = double(tanHalfFov_) * (double(width_) / double(height_));

@@ -165,7 +165,7 @@ class Renderer {
         for (int index = 0; index < options.samplesPerPixel; ++index)
             sampleOffsets_.push_back(sampleOffset(index, options.samplesPerPixel));
         for (const DirectionalLight& light : scene.lights) {
-            toLights_.push_back(-glm::normalize(light.direction));
+            toLights_.push_back(-unitDirection(light.direction));
             tanHalfAngles_.push_back(
                 std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f));
         }

@@ -66,6 +66,14 @@ glm::vec3 textureAlbedoAt(const Image& colorTexture, const glm::vec2& uv) {
     return glm::mix(top, bottom, fy);
 }
 
+glm::vec3 unitDirection(const glm::vec3& direction) {
+    const float lengthSquared = glm::dot(direction, direction);
+    if (lengthSquared >= 1e-30f && lengthSquared <= 1e30f) return glm::normalize(direction);
+    const glm::dvec3 exact(direction);
+    const double length = glm::length(exact);
+    return length > 0.0 ? glm::vec3(exact / length) : glm::vec3(0.0f);
+}
+
 void validateScene(const Scene& scene) {
     const Camera& camera = scene.camera;
     requireFinite(camera.eye, "camera.eye");
@@ -80,7 +88,7 @@ void validateScene(const Scene& scene) {
                                   "too far from camera.eye for single precision; they must be "
                                   "within 1e18 world units of each other");
     }
-    if (glm::length(glm::cross(glm::normalize(forward), camera.up)) < 1e-6f) {
+    if (glm::length(glm::cross(glm::normalize(forward), unitDirection(camera.up))) < 1e-6f) {
         throw InputError::inField(
             "camera.up", "parallel to the view direction (or zero); it must point sideways of it");
     }
@@ -92,7 +100,7 @@ void validateScene(const Scene& scene) {
         const std::string field = "lights[" + std::to_string(i) + "]";
         requireFinite(scene.lights[i].direction, field + ".direction");
         requireFinite(scene.lights[i].color, field + ".color");
-        if (glm::length(scene.lights[i].direction) <= 0.0f)
+        if (unitDirection(scene.lights[i].direction) == glm::vec3(0.0f))
             throw InputError::inField(field + ".direction", "must not be zero");
         if (!(scene.lights[i].angleDeg >= 0.0f && scene.lights[i].angleDeg < 90.0f)) {
             throw InputError::inField(field + ".angleDeg", "must be in [0, 90)");

@@ -97,6 +97,12 @@ struct Transform {
 /// Throws InputError::inField ("transform.scale", ...) for a non-finite transform or a scale <= 0.
 void applyTransform(BaseMesh& mesh, const Transform& transform);
 
+/// `direction` at unit length (a light's direction, the camera's up: only their direction
+/// counts): glm::normalize where single precision can square it, in double precision beyond
+/// (lengths from about 1e15 or below 1e-15), so that any finite length keeps its direction.
+/// Zero stays zero.
+glm::vec3 unitDirection(const glm::vec3& direction);
+
 /// Throws InputError::inField, naming the Scene member ("camera.up",
 /// "objects[1].material.depthWorld", ...), when the
 /// scene cannot be rendered: non-finite vectors, eye == target, up parallel to the view, field of

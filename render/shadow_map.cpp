@@ -46,7 +46,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
                                                           "16384] texels");
     }
     const Scene& scene = tracer.scene();
-    toLight_ = -glm::normalize(light.direction);
+    toLight_ = -unitDirection(light.direction);
     const glm::vec3 helper = std::abs(toLight_.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
     axisX_ = glm::normalize(glm::cross(helper, toLight_));
     axisY_ = glm::cross(toLight_, axisX_);
@@ -400,7 +400,7 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
 }
 
 bool lightReachesVisibleSurface(const Scene& scene, const DirectionalLight& light) {
-    const glm::vec3 toLight = -glm::normalize(light.direction);
+    const glm::vec3 toLight = -unitDirection(light.direction);
     for (const SceneObject& object : scene.objects) {
         const BaseMesh& mesh = object.mesh;
         for (const glm::uvec3& triangle : mesh.triangles) {

@@ -553,7 +553,7 @@ class WorldShader {
                 shells_[index] = std::make_unique<const ObjectShell>(scene.objects[index]);
         }
         for (const DirectionalLight& light : scene.lights) {
-            const glm::vec3 toLight = -glm::normalize(light.direction);
+            const glm::vec3 toLight = -unitDirection(light.direction);
             toLights_.push_back(toLight);
             // As the renderer: the light's angular radius, at least 1e-3 radians.
             tanHalfAngles_.push_back(

@@ -612,8 +612,8 @@ TEST(ShadowMap, DiskPatternPutsOneSampleInEachCellAtItsTrigonometricPlace) {
                     // The same sample by the direct formula: angle 2 pi u + rotation, radius
                     // sqrt(v), u and v the cell's corner plus the jitter hashed from the seed.
                     const std::uint32_t bits = detail::mixBits(
-                        seed ^ detail::mixBits(std::uint32_t(radial * kStrata + angular) +
-                                               0x9e3779b9U));
+                        seed ^
+                        detail::mixBits(std::uint32_t(radial * kStrata + angular) + 0x9e3779b9U));
                     const double u = (angular + double(detail::unitFloat(bits))) / kStrata;
                     const double v =
                         (radial + double(detail::unitFloat(detail::mixBits(bits)))) / kStrata;
@@ -743,6 +743,44 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
         EXPECT_NE(std::string(error.what()).find("too far from camera.eye"), std::string::npos)
             << error.what();
     }
+}
+
+TEST(Renderer, OnlyTheDirectionOfALightAndOfTheCameraUpCounts) {
+    // Lengths whose squares single precision cannot hold (1e19 and more, 1e-19 and less) render
+    // as the unit vectors do, to rounding (they are normalised in double precision); they used to
+    // drop the light (the image lost its direct light) and tilt the camera (most rays missed).
+    Tile tile({16, 16, 8});
+    for (int z = 0; z < 8; ++z)
+        for (int y = 0; y < 16; ++y)
+            for (int x = 0; x < 16; ++x)
+                tile.at(x, y, z) = (z + 0.5f) - (3.0f + 2.0f * std::sin(2 * kPi * (x + 0.5f) / 16));
+    Scene scene = planeScene(std::make_shared<const Tile>(std::move(tile)));
+    scene.lights = {DirectionalLight{}};
+    scene.lights[0].direction = {0.3f, 0.2f, -1.0f};
+    RenderOptions options;
+    options.width = 48;
+    options.height = 32;
+    const Image unit = renderScene(scene, options).image;
+    const auto largestDifference = [&](const Scene& other) {
+        const Image image = renderScene(other, options).image;
+        float largest = 0.0f;
+        for (std::size_t i = 0; i < unit.rgbLinear.size(); ++i) {
+            const glm::vec3 difference = glm::abs(image.rgbLinear[i] - unit.rgbLinear[i]);
+            largest = std::max({largest, difference.x, difference.y, difference.z});
+        }
+        return largest;
+    };
+    for (const float length : {1e-30f, 1e-20f, 2e19f, 1e30f}) {
+        SCOPED_TRACE(length);
+        Scene longer = scene;
+        longer.lights[0].direction *= length;
+        EXPECT_LT(largestDifference(longer), 1e-4f);
+        longer = scene;
+        longer.camera.up *= length;
+        EXPECT_LT(largestDifference(longer), 1e-4f);
+    }
+    EXPECT_EQ(unitDirection(glm::vec3(0.0f)), glm::vec3(0.0f));
+    EXPECT_EQ(unitDirection({0.0f, -1e30f, 0.0f}), glm::vec3(0.0f, -1.0f, 0.0f));
 }
 
 TEST(Image, EightBitSrgbCodesByTableAreTheCodesOfTheTransferFunction) {
