@@ -22,17 +22,20 @@ bool isFinite(const glm::dvec3& v) {
 void validateBakeOptions(const BakeOptions& options) {
     validateTileSize(options.size, "size");
     const float widest = maxHalfBandTexels(options.size);
-    if (!(options.halfBandTexels >= 0.0f && options.halfBandTexels <= widest)) {
+    if (!(options.halfBandTexels == 0.0f ||
+          (options.halfBandTexels >= 1.0f && options.halfBandTexels <= widest))) {
         std::ostringstream message;
         message << options.halfBandTexels << " texels is not accepted; it must be in [1, " << widest
-                << "] (twice the tile depth, at most 1024), or 0 for the tile depth";
+                << "] (twice the tile depth, at most 1024), or 0 for the tile depth (at most 1024)";
         throw InputError::inField("halfBandTexels", message.str());
     }
 }
 
 float validatedHalfBandTexels(const BakeOptions& options) {
     validateBakeOptions(options);
-    return options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    return options.halfBandTexels > 0.0f
+               ? options.halfBandTexels
+               : std::min(float(options.size.depth), maxHalfBandTexels(options.size));
 }
 
 BakeResult bakeChainmail(const ChainmailOptions& chainmailOptions, const BakeOptions& options,
@@ -45,10 +48,8 @@ BakeResult bakeChainmail(const ChainmailOptions& chainmailOptions, const BakeOpt
 
 BakeResult bakeProcedural(const ProceduralOptions& proceduralOptions, const BakeOptions& options,
                           const ProgressCallback& progress) {
-    validateBakeOptions(options);
+    const float halfBand = validatedHalfBandTexels(options);
     const ProceduralDistance procedural = proceduralDistance(proceduralOptions, options.size);
-    const float halfBand =
-        options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
     LevelSet levelSet =
         LevelSet::fromDistance(procedural.signedDistanceTexels, options.size, halfBand,
                                procedural.source, procedural.paramsJson, progress);
@@ -170,10 +171,8 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
 BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                     const BakeOptions& options, const ProgressCallback& progress,
                     const InsideTest& insideTest, const ExactDistancesOnLine& exactDistances) {
-    validateBakeOptions(options);
+    const float halfBand = validatedHalfBandTexels(options);
     const TriangleSoup placed = placeMesh(meshFileUnits, placement, options.size);
-    const float halfBand =
-        options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
     const MeshPlacement used = explicitPlacement(meshFileUnits, placement, options.size);
     std::ostringstream params;
     params.precision(17);
@@ -189,12 +188,10 @@ BakeResult bakeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& plac
 
 BakeResult bakeHeightMap(const HeightImage& image, const HeightMapOptions& heightMap,
                          const BakeOptions& options, const ProgressCallback& progress) {
-    validateBakeOptions(options);
+    const float halfBand = validatedHalfBandTexels(options);
     const double heightTexels =
         heightMap.heightTexels != 0.0 ? heightMap.heightTexels : double(options.size.depth - 1);
     const HeightField field = heightFieldFromImage(image, options.size, heightTexels);
-    const float halfBand =
-        options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
     std::ostringstream params;
     params.precision(17);
     params << "{\"image\":\"" << image.width << "x" << image.height

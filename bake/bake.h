@@ -22,8 +22,9 @@ namespace distile {
 
 struct BakeOptions {
     Size3 size{256, 256, 16};
-    /// Half width of the level set's narrow band, texels; 0 means the tile depth, so the band
-    /// covers every texel of the tile.
+    /// Half width of the level set's narrow band, texels: 0 or in [1, maxHalfBandTexels(size)].
+    /// 0 means the tile depth (at most 1024), so the band covers every texel of the tile (of any
+    /// tile up to 1024 texels deep).
     float halfBandTexels = 0.0f;
     /// Resampling into the tile lowers texels so trilinear interpolation does not overestimate
     /// (bake/conservative.h); on by default.
@@ -36,7 +37,7 @@ struct BakeOptions {
 };
 
 /// Checks `options` (InputError naming "size" or "halfBandTexels") and returns the level set's
-/// half band, texels: halfBandTexels, or the tile depth when it is 0.
+/// half band, texels: halfBandTexels, or when it is 0 the tile depth (at most 1024).
 float validatedHalfBandTexels(const BakeOptions& options);
 
 struct BakeResult {
@@ -45,8 +46,7 @@ struct BakeResult {
 };
 
 /// Throws InputError::inField naming "size" or "halfBandTexels" when the tile size is invalid
-/// (validateTileSize) or the half band is negative, not a number or wider than
-/// maxHalfBandTexels(size).
+/// (validateTileSize) or the half band is neither 0 nor in [1, maxHalfBandTexels(size)].
 void validateBakeOptions(const BakeOptions& options);
 
 /// Chain mail (vdb/chainmail.h) baked into a level set and its tile. Throws InputError for bad

@@ -57,8 +57,7 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
                                       " texels is not accepted; it must be in [0, " +
                                       std::to_string(options.size.depth) + "] (the tile depth)");
     }
-    const float halfBand =
-        options.halfBandTexels > 0.0f ? options.halfBandTexels : float(options.size.depth);
+    const float halfBand = validatedHalfBandTexels(options);
     const SoupDistance soup(placed, options.size);
     const double halfThickness = sign.unsignedDistance ? 0.5 * sign.thicknessTexels : 0.0;
     // Nothing beyond the band is needed: the level set clamps there.

@@ -357,8 +357,8 @@ void addBakeCommand(CLI::App& app) {
     command->add_flag("--half", arguments->half, "Store half floats instead of 32-bit floats");
     command->add_option(
         "--band", arguments->halfBandTexels,
-        "Half width of the level set's narrow band in texels, at most twice the tile depth "
-        "(and 1024): the time grows steeply with it (default: the tile depth)");
+        "Half width of the level set's narrow band in texels, from 1 to twice the tile depth "
+        "(and 1024): the time grows steeply with it (default: the tile depth, at most 1024)");
     auto* chainmail = command->add_option_group(
         "chainmail", "European 4-in-1 chain mail (defaults fill 256x256x16)");
     chainmail

@@ -1,5 +1,7 @@
 // The mesh bake (bake/solid_mesh.h) and its exact distance and winding-number sign
 // (bake/soup_distance.h), against closed-form distances.
+#include "bake/bake.h"
+
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -790,6 +792,32 @@ TEST(MeshSurface, OpenBoxBakesAsTheClosedBoxForAnyThreadCount) {
     for (std::size_t n = 0; n < expected.size(); ++n)
         maxDifference = std::max(maxDifference, double(std::abs(dual[n] - expected[n])));
     EXPECT_LE(maxDifference, 1e-5);
+}
+
+}  // namespace
+}  // namespace distile
+
+namespace distile {
+namespace {
+
+TEST(BakeOptions, TheBandIsZeroForTheDepthOrOneTexelAndMore) {
+    BakeOptions options;
+    options.size = {8, 8, 16};
+    EXPECT_EQ(validatedHalfBandTexels(options), 16.0f);  // 0: the tile depth
+    options.halfBandTexels = 1.0f;
+    EXPECT_EQ(validatedHalfBandTexels(options), 1.0f);
+    options.halfBandTexels = 32.0f;
+    EXPECT_EQ(validatedHalfBandTexels(options), 32.0f);  // twice the depth
+    // Under a texel the band holds no texel but the surface's own: refused as the flag is, not by
+    // the level set after the work started.
+    for (const float band : {0.5f, 1e-30f, -1.0f, 32.5f, std::nanf("")}) {
+        options.halfBandTexels = band;
+        EXPECT_THROW(validatedHalfBandTexels(options), InputError) << band;
+    }
+    // Tiles deeper than the widest band (1024) take it by default; it used to be refused.
+    options.size = {8, 8, 1100};
+    options.halfBandTexels = 0.0f;
+    EXPECT_EQ(validatedHalfBandTexels(options), 1024.0f);
 }
 
 }  // namespace
