@@ -53,9 +53,17 @@ BakeResult bakeProcedural(const ProceduralOptions& proceduralOptions, const Bake
     LevelSet levelSet =
         LevelSet::fromDistance(procedural.signedDistanceTexels, options.size, halfBand,
                                procedural.source, procedural.paramsJson, progress);
-    // The estimated correction (bake/conservative.h): it meets the procedural targets, where
-    // the measured one lowers too much across the wires' centreline kinks.
-    Tile tile = tileFromLevelSet(levelSet, options.conservative);
+    // The estimated correction, lowered further where the analytic distance shows a point
+    // outside the detail still overestimates (bake/conservative.h: the measured correction
+    // alone lowers too much across the wires' centreline kinks).
+    ConservativeOptions conservative = options.conservative;
+    conservative.measuredOnTopOfEstimate = true;
+    Tile tile = tileFromLevelSet(
+        levelSet, conservative,
+        [&](const glm::dvec2& xy, std::span<const double> z, std::span<double> distances) {
+            for (std::size_t k = 0; k < z.size(); ++k)
+                distances[k] = procedural.signedDistanceTexels({xy.x, xy.y, z[k]});
+        });
     return {std::move(levelSet), std::move(tile)};
 }
 

@@ -133,7 +133,7 @@ struct MeasuredLowerings {
 /// per column for raiseEdgeSlicesForFaces. Points none of whose corners is within bandTexels of
 /// the surface are not checked.
 MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLine& exactDistances,
-                                    float allowanceTexels, float bandTexels) {
+                                    float allowanceTexels, float bandTexels, bool outsideOnly) {
     const Size3 size = exact.size();
     const int pointsX = 2 * size.width, pointsY = 2 * size.height, levels = 2 * size.depth + 1;
     const int lastLevel = levels - 1;
@@ -190,8 +190,9 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
                 for (std::size_t n = 0; n < z.size(); ++n) {
                     const double clamped =
                         std::clamp(truth[n], -double(clampTexels), double(clampTexels));
+                    const double target = outsideOnly ? std::max(clamped, 0.0) : clamped;
                     pointRemovals[point(a, b, level[n])] =
-                        float(std::max(0.0, interpolated[n] - clamped - allowanceTexels));
+                        float(std::max(0.0, interpolated[n] - target - allowanceTexels));
                 }
             }
         });
@@ -285,10 +286,21 @@ void makeConservative(Tile& tile, const ConservativeOptions& options,
     for (float& lowering : lowerings) lowering = std::max(0.0f, lowering - allowance);
     std::array<std::vector<float>, 2> faceRemovals =
         estimatedFaceRemovals(tile, lowerings, allowance);
-    if (exactDistances) {
+    if (exactDistances && options.measuredOnTopOfEstimate) {
+        const MeasuredLowerings measured = measuredLowerings(
+            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels, true);
+        for (std::size_t n = 0; n < lowerings.size(); ++n)
+            lowerings[n] = std::max(lowerings[n], measured.lowerings[n]);
+        for (int face = 0; face < 2; ++face) {
+            for (std::size_t n = 0; n < faceRemovals[face].size(); ++n) {
+                faceRemovals[face][n] =
+                    std::max(faceRemovals[face][n], measured.faceRemovals[face][n]);
+            }
+        }
+    } else if (exactDistances) {
         // Within the band the measured lowering replaces the estimate.
         const MeasuredLowerings measured = measuredLowerings(
-            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels);
+            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels, false);
         const std::span<const float> exact = tile.distancesTexels();
         for (std::size_t n = 0; n < lowerings.size(); ++n) {
             if (std::abs(exact[n]) <= options.measuredBandTexels)

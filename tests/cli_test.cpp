@@ -457,10 +457,8 @@ TEST_F(Cli, CheckFailsTilesThatDoNotRepresentTheirSource) {
             {"shifted", [](const Tile& t, int x, int y, int z) { return t.at(x, y, z) + 0.5f; }},
             {"scaled", [](const Tile& t, int x, int y, int z) { return 0.8f * t.at(x, y, z); }},
             {"flipped", [](const Tile& t, int x, int y, int z) { return -t.at(x, y, z); }},
-            {"moved",
-             [](const Tile& t, int x, int y, int z) {
-                 return t.at((x + 2) % t.size().width, y, z);
-             }},
+            {"moved", [](const Tile& t, int x, int y,
+                         int z) { return t.at((x + 2) % t.size().width, y, z); }},
         };
     for (const auto& [name, value] : forgeries) {
         Tile forged = original;
@@ -483,8 +481,8 @@ TEST_F(Cli, CheckFailsTilesThatDoNotRepresentTheirSource) {
 // NaN or infinite tolerances would switch a check off (every comparison with NaN is false).
 TEST_F(Cli, CheckRefusesToleranceThatIsNotAFiniteNumber) {
     ASSERT_EQ(run(kBakeGrating).status, 0);
-    for (const char* option : {"--max-rms", "--max-overestimate-share", "--max-overestimate",
-                               "--max-near-error"}) {
+    for (const char* option :
+         {"--max-rms", "--max-overestimate-share", "--max-overestimate", "--max-near-error"}) {
         for (const char* value : {"nan", "inf", "-nan"}) {
             const RunResult result = run({"check", "grating.exr", option, value});
             EXPECT_EQ(result.status, 2) << option << " " << value << result.out << result.err;
@@ -843,7 +841,9 @@ TEST_F(Cli, OpenMeshesAndSoupsPassCheckAgainstTheSurfaceTheyBound) {
 // `bake vdb` of the level set `bake chainmail --vdb` wrote, placed back where it came from (its
 // world space is texel space: scale 1, offset 0): every texel centre lands on a voxel centre, so
 // the level set is the same voxel for voxel and the tile, lowered by the same conservative
-// correction (estimated from the texels alone), is the same.
+// correction estimated from the texels, is the same but for the few texels where the chain mail's
+// bake lowered further, as its analytic distance showed (bake/conservative.h; 0.013 texel at
+// most when measured).
 TEST_F(Cli, BakesALevelSetFileBackIntoTheSameTile) {
     ASSERT_EQ(run({"bake", "chainmail", "-o", "a.exr", "--vdb", "a.vdb"}).status, 0);
     const RunResult result =
@@ -857,11 +857,11 @@ TEST_F(Cli, BakesALevelSetFileBackIntoTheSameTile) {
     ASSERT_EQ(baked.size(), original.size());
     double maxDifference = 0.0;
     for (std::size_t i = 0; i < original.distancesTexels().size(); ++i) {
-        maxDifference =
-            std::max(maxDifference,
-                     double(std::abs(baked.distancesTexels()[i] - original.distancesTexels()[i])));
+        const double lowered = baked.distancesTexels()[i] - original.distancesTexels()[i];
+        ASSERT_GE(lowered, -1e-5) << "texel " << i;
+        maxDifference = std::max(maxDifference, lowered);
     }
-    EXPECT_LE(maxDifference, 0.01);
+    EXPECT_LE(maxDifference, 0.02);
     EXPECT_EQ(baked.provenance.source, "vdb");
     const nlohmann::json params = nlohmann::json::parse(baked.provenance.params);
     EXPECT_EQ(params.at("file"), "a.vdb");
@@ -939,10 +939,9 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
     EXPECT_EQ(figures(recorded.out), figures(check.out));
     // Edited since the bake: refused, saying what to do.
     std::ofstream(path("fog.vdb"), std::ios::app) << "edited";
-    expectInputError(
-        {"check", "fog.exr"}, "no-output",
-        {"--against: fog.exr", "its source vdb", "fog.vdb", "has changed since the bake",
-         "give the truth's file"});
+    expectInputError({"check", "fog.exr"}, "no-output",
+                     {"--against: fog.exr", "its source vdb", "fog.vdb",
+                      "has changed since the bake", "give the truth's file"});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1412,11 +1411,11 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
          {"error", "repetition", "memory", "skip", "cache", "threads", "curved shells"})
         EXPECT_TRUE(sections.count(section)) << section;
     for (const char* scene : {"S3", "S7"})
-        for (const char* what : {"curved against planar", "curved against planar, default render",
-                                 "curved against planar, shadow maps only",
-                                 "curved against planar, self-shadows only",
-                                 "curved against the world reference",
-                                 "planar against the world reference", "world reference"})
+        for (const char* what :
+             {"curved against planar", "curved against planar, default render",
+              "curved against planar, shadow maps only", "curved against planar, self-shadows only",
+              "curved against the world reference", "planar against the world reference",
+              "world reference"})
             EXPECT_TRUE(curvedRows.count(std::string(scene) + " " + what)) << scene << " " << what;
     const std::string report = readText(path("speed/speed.md"));
     EXPECT_NE(report.find("## Verdicts"), std::string::npos);
