@@ -545,6 +545,21 @@ void checkPlyFile(const std::filesystem::path& file) {
                               "' is not one PLY defines (format, element, property, comment, "
                               "obj_info, end_header); the file is corrupted");
         }
+        // OpenMesh reads the header as words, not lines: the words of an obj_info line are
+        // keywords to it ("comment" ends the line, as the line ends here). An "element" there
+        // took the next line's first word for its count and looped without end.
+        if (tokens[0] == "obj_info") {
+            for (std::size_t word = 1; word < tokens.size(); ++word) {
+                if (tokens[word] == "element" || tokens[word] == "property" ||
+                    tokens[word] == "end_header") {
+                    throw FormatError(name + ": PLY header line '" + quotedInput(line) +
+                                      "': OpenMesh reads the words of an obj_info line as header "
+                                      "keywords, and '" +
+                                      std::string(tokens[word]) + "' may not be one of them");
+                }
+                if (tokens[word] == "comment") break;
+            }
+        }
         if (tokens[0] == "end_header") {
             headerEnded = true;
             break;

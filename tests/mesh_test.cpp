@@ -734,6 +734,23 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
                       "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n"
                       "3 0 1 9\n",
                       "refers to vertex 9 (counting from 0); the file has 3 vertices");
+    // OpenMesh reads an obj_info line's words as keywords: "element" took "end_header" for a
+    // count, and its header parser looped, gigabytes in seconds (a fuzz campaign's input). A
+    // "comment" ends the line for OpenMesh too.
+    const std::string objInfoHeader =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\n";
+    const std::string triangleBody = "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    expectFormatError("obj_info.ply",
+                      objInfoHeader + "obj_info made with element x\n" + triangleBody,
+                      "OpenMesh reads the words of an obj_info line as header keywords, and "
+                      "'element' may not be one of them");
+    EXPECT_EQ(
+        loadDetailMesh(TempFile("obj_info_comment.ply",
+                                objInfoHeader + "obj_info scan comment element\n" + triangleBody)
+                           .path())
+            .triangles.size(),
+        1u);
     // Corners 1 and 4 are one point: the only face has no area once welded.
     expectFormatError("degenerate.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 0\nf 1 2 4\n",
                       "none of its 1 faces has three distinct corners");
