@@ -76,7 +76,8 @@ class RenderOutputs {
 
 /// distile render --reference world | world-levelset: the scene against world-space meshes of
 /// its detail (a BVH, or level sets of the same meshes).
-void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
+void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile,
+                       RenderOutputs& outputs) {
     WorldReferenceOptions options;
     options.width = arguments.width.value_or(sceneFile.image.width);
     options.height = arguments.height.value_or(sceneFile.image.height);
@@ -85,7 +86,6 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile) {
                                                                  : WorldReferenceMethod::Bvh;
     options.levelSet.voxelsPerTexel = arguments.referenceVoxelsPerTexel;
     attachTruth(sceneFile);  // analytic detail where there is one, else the tile
-    RenderOutputs outputs(arguments.output, options.outputAovs, {"depth", "normal", "texel_scale"});
     const auto start = std::chrono::steady_clock::now();
     WorldReferenceResult result;
     {
@@ -174,14 +174,23 @@ void runRender(RenderArguments arguments) {
     // read and rendered, instead of after the last pixel.
     if (!image_files::writesWithoutModule(arguments.output) || arguments.options.outputAovs)
         image_files::loadInBackground();
+    // The outputs are checked (and reserved) before the scene is read and its tiles baked.
+    const bool worldReference =
+        arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset";
+    RenderOutputs outputs = worldReference
+                                ? RenderOutputs(arguments.output, arguments.options.outputAovs,
+                                                {"depth", "normal", "texel_scale"})
+                                : RenderOutputs(arguments.output, arguments.options.outputAovs,
+                                                {"depth", "normal", "iterations", "shadow_samples",
+                                                 "shadow_map_samples", "curvature", "texel_scale"});
     TileCache tiles;
     const auto warn = [](const std::string& warning) {
         std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());
     };
     SceneFile sceneFile =
         arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles, warn);
-    if (arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset") {
-        runWorldReference(arguments, std::move(sceneFile));
+    if (worldReference) {
+        runWorldReference(arguments, std::move(sceneFile), outputs);
         return;
     }
     RenderOptions& options = arguments.options;
@@ -200,9 +209,6 @@ void runRender(RenderArguments arguments) {
     }
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachTruth(sceneFile);
-    RenderOutputs outputs(arguments.output, options.outputAovs,
-                          {"depth", "normal", "iterations", "shadow_samples", "shadow_map_samples",
-                           "curvature", "texel_scale"});
 
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;

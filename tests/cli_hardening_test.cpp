@@ -394,6 +394,20 @@ TEST_F(Hardening, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
                   "r.png", {"-o", "/proc/r.png"})
                   .status,
               cli::kExitInput);
+    // Before the scene is read (its tiles baked, for minutes maybe): the output is what the
+    // message names, not the scene's missing tile.
+    writeText(path("missing_tile.json"),
+              R"({"objects": [{"mesh": "plane", "material": {"tile": "missing.exr"}}]})");
+    EXPECT_EQ(expectInputError({"render", "missing_tile.json", "-o", "/proc/r.png"}, "r.png",
+                               {"-o", "/proc/r.png"})
+                  .status,
+              cli::kExitInput);
+    fs::create_directories(path("image_folder.png"));
+    EXPECT_EQ(expectInputError(
+                  {"render", "missing_tile.json", "-o", "image_folder.png", "--reference", "world"},
+                  "r.png", {"-o", "image_folder.png", "is a folder"})
+                  .status,
+              cli::kExitInput);
 }
 
 TEST_F(Hardening, AKilledRunsReservedOutputsAreRemovedByTheNextRun) {
