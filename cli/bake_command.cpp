@@ -165,7 +165,8 @@ InputError underBakeFlag(const InputError& error) {
 
                              {"grid", "--grid"},
                              {"iso", "--iso"},
-                             {"placement.windowWorld", "--window"}});
+                             {"placement.windowWorld", "--window"},
+                             {"repeatX, repeatY", "--repeat"}});
 }
 
 /// "NxM" -> (N, M) for --repeat; the level set checks the range.
@@ -256,6 +257,12 @@ void runBake(const BakeArguments& arguments) {
         if (arguments.vdbOutput.empty())
             throw InputError("--repeat: needs --vdb FILE (it tiles the level set written there)");
         repeat = parseRepeat(arguments.repeat);
+        try {  // before the bake: the band is known from the options
+            LevelSet::checkRepeat(options.size, validatedHalfBandTexels(options), repeat.first,
+                                  repeat.second);
+        } catch (const InputError& error) {
+            throw underBakeFlag(error);
+        }
     }
     // Checked before the work, written together after it (common/atomic_file.h).
     BakeOutputs outputs;
@@ -298,7 +305,7 @@ void runBake(const BakeArguments& arguments) {
         try {
             repeatedLevelSet.emplace(result->levelSet.repeated(repeat.first, repeat.second));
         } catch (const InputError& error) {
-            throw underFlag(error, {{"repeatX, repeatY", "--repeat"}});
+            throw underBakeFlag(error);
         }
     }
     // Every output is written to its temporary file first and renamed only once all are.

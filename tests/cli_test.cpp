@@ -506,6 +506,11 @@ TEST_F(Cli, BakeRepeatWritesTheTiledLevelSet) {
     expectInputError({"bake", "grating", "--size", "128x128x16", "--bars", "4", "-o", "r.exr",
                       "--repeat", "2x2"},
                      "r.exr", {"--repeat", "--vdb"});
+    // Over 2^28 voxels, refused before the bake: the message is the repeat's, not the missing
+    // mesh's that the bake would have read first.
+    expectInputError({"bake", "mesh", "missing.obj", "--size", "512x512x32", "-o", "r.exr", "--vdb",
+                      "r.vdb", "--repeat", "64x64"},
+                     "r.exr", {"--repeat", "64x64", "2^28 voxels"});
 }
 
 TEST_F(Cli, BakesTheJapaneseWeaveAndChecksItAgainstItsParams) {

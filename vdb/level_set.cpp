@@ -40,9 +40,8 @@ LevelSet LevelSet::fromDistanceRows(const RowDistanceFunction& rowDistance, cons
                      tile, source, params});
 }
 
-LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
-    const Size3& tile = parts_->tile;
-    const int margin = int(std::ceil(parts_->grid->halfBandTexels()));
+void LevelSet::checkRepeat(const Size3& tile, float halfBandTexels, int repeatX, int repeatY) {
+    const int margin = int(std::ceil(halfBandTexels));
     const std::size_t voxels = std::size_t(tile.width) * std::size_t(std::max(repeatX, 1)) *
                                std::size_t(tile.height) * std::size_t(std::max(repeatY, 1)) *
                                std::size_t(tile.depth + 2 * margin);
@@ -54,6 +53,11 @@ LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
                                                           "in [1, 64] and the repeated level "
                                                           "set at most 2^28 voxels (1 GiB)");
     }
+}
+
+LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
+    const Size3& tile = parts_->tile;
+    checkRepeat(tile, parts_->grid->halfBandTexels(), repeatX, repeatY);
     return LevelSet({parts_->grid->repeated(tile, repeatX, repeatY, parts_->source, parts_->params),
                      {tile.width * repeatX, tile.height * repeatY, tile.depth},
                      parts_->source,
@@ -65,8 +69,8 @@ LevelSet LevelSet::load(const std::filesystem::path& file) {
 }
 
 void LevelSet::save(const std::filesystem::path& file) const {
-    writeAtomically(file,
-                    [&](const std::filesystem::path& temporary) { parts_->grid->write(temporary); });
+    writeAtomically(
+        file, [&](const std::filesystem::path& temporary) { parts_->grid->write(temporary); });
 }
 
 const Size3& LevelSet::tileSize() const {

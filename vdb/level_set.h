@@ -67,6 +67,10 @@ class LevelSet {
     /// in [1, 64] and the result has at most 2^28 voxels (1 GiB).
     LevelSet repeated(int repeatX, int repeatY) const;
 
+    /// Throws InputError::inField("repeatX, repeatY", ...) as repeated() does, for a level set of
+    /// `tile` whose half band is `halfBandTexels`: before the level set exists.
+    static void checkRepeat(const Size3& tile, float halfBandTexels, int repeatX, int repeatY);
+
     /// Writes the grid to `file` atomically (see common/atomic_file.h).
     void save(const std::filesystem::path& file) const;
 
