@@ -295,7 +295,8 @@ void addRenderCommand(CLI::App& app) {
         ->capture_default_str()
         ->check(CLI::Range(1, 4096));
     command
-        ->add_option("--epsilon", arguments->options.march.epsilonTexels, "Hit threshold in texels")
+        ->add_option("--epsilon", arguments->options.march.epsilonTexels,
+                     "Hit threshold in texels, in [1e-5, 1]")
         ->capture_default_str();
     const auto methods = namesOf(kMarchMethods, marchMethodName);
     command

@@ -732,6 +732,14 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
     Scene badDepth = scene;
     badDepth.objects[0].material.depthWorld = -1.0f;
     EXPECT_THROW(renderScene(badDepth, RenderOptions{}), InputError);
+    // A hit threshold below what single precision resolves spent every ray's whole budget.
+    RenderOptions small;
+    small.width = 8;
+    small.height = 8;
+    small.march.epsilonTexels = 1e-6f;
+    EXPECT_THROW(renderScene(scene, small), InputError);
+    small.march.epsilonTexels = 1e-5f;
+    EXPECT_NO_THROW(renderScene(scene, small));
     // An eye so far away that the view direction's squared length overflows: refused as such
     // (it used to be reported as an up vector parallel to the view).
     Scene farEye = scene;
