@@ -36,12 +36,10 @@ void printClass(const char* name, const HitErrorSummary& summary) {
 }
 
 void runCompare(const CompareArguments& arguments) {
-    const fs::path differencePath = arguments.difference.empty()
-                                        ? aovPath(arguments.a, "diff", ".png")
-                                        : arguments.difference;
-    const fs::path heatMapPath = arguments.heatMap.empty()
-                                     ? aovPath(arguments.a, "hit_error", ".png")
-                                     : arguments.heatMap;
+    const fs::path differencePath =
+        arguments.difference.empty() ? aovPath(arguments.a, "diff", ".png") : arguments.difference;
+    const fs::path heatMapPath =
+        arguments.heatMap.empty() ? aovPath(arguments.a, "hit_error", ".png") : arguments.heatMap;
     requireOutput(differencePath, "-o", {".png", ".exr", ".tif", ".tiff"});
     requireOutput(heatMapPath, "--heatmap", {".png", ".exr", ".tif", ".tiff"});
     OutputFiles outputs;  // checked now, written together after the comparison
@@ -49,6 +47,13 @@ void runCompare(const CompareArguments& arguments) {
     const fs::path heatMapTemporary = outputs.add(heatMapPath, "--heatmap");
     const RenderFiles a = readRenderFiles(arguments.a, "A");
     const RenderFiles b = readRenderFiles(arguments.b, "B");
+    if (a.image.width != b.image.width || a.image.height != b.image.height) {
+        throw InputError("compare: A (" + arguments.a.string() + ") is " +
+                         std::to_string(a.image.width) + "x" + std::to_string(a.image.height) +
+                         " but B (" + arguments.b.string() + ") is " +
+                         std::to_string(b.image.width) + "x" + std::to_string(b.image.height) +
+                         "; only renders of the same size can be compared");
+    }
     Image difference, heatMap;
     const RenderComparison c = compareRenders(a.view(), b.view(), &difference, &heatMap);
     writeImage(difference, differenceTemporary);

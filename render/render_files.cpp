@@ -1,5 +1,7 @@
 #include "render/render_files.h"
 
+#include <utility>
+
 #include "common/atomic_file.h"
 #include "common/error.h"
 
@@ -39,9 +41,23 @@ Image readLayer(const fs::path& file, const std::string& role) {
 RenderFiles readRenderFiles(const fs::path& image, const std::string& role) {
     if (!fs::exists(image))
         throw InputError(role + ": image " + image.string() + " does not exist");
-    return {readImage(image), readLayer(aovPath(image, "depth", ".exr"), role),
-            readLayer(aovPath(image, "normal", ".png"), role),
-            readLayer(aovPath(image, "texel_scale", ".exr"), role)};
+    const fs::path depth = aovPath(image, "depth", ".exr");
+    const fs::path normal = aovPath(image, "normal", ".png");
+    const fs::path texelScale = aovPath(image, "texel_scale", ".exr");
+    RenderFiles files{readImage(image), readLayer(depth, role), readLayer(normal, role),
+                      readLayer(texelScale, role)};
+    const auto sizeOf = [](const Image& layer) {
+        return std::to_string(layer.width) + "x" + std::to_string(layer.height);
+    };
+    for (const auto& [layer, file] :
+         {std::pair{&files.depth, &depth}, std::pair{&files.normal, &normal},
+          std::pair{&files.texelScale, &texelScale}}) {
+        if (layer->width == files.image.width && layer->height == files.image.height) continue;
+        throw InputError(role + ": " + file->string() + " is " + sizeOf(*layer) +
+                         " but its image " + image.string() + " is " + sizeOf(files.image) +
+                         "; compare needs the AOVs written with the image (render --aovs)");
+    }
+    return files;
 }
 
 }  // namespace distile

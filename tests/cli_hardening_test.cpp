@@ -473,6 +473,26 @@ TEST_F(Hardening, NoOutputReplacesOneOfTheCommandsInputs) {
     }
 }
 
+TEST_F(Hardening, CompareNamesTheFilesWhoseSizesDisagree) {
+    writeText(path("bare.json"), kBareScene);
+    for (const std::string& width : {"16", "24"}) {
+        ASSERT_EQ(run({"render", "bare.json", "-o", "w" + width + ".png", "--width", width,
+                       "--height", "12", "--aovs"})
+                      .status,
+                  0);
+    }
+    EXPECT_EQ(expectInputError({"compare", "w16.png", "w24.png", "-o", "d.png"}, "d.png",
+                               {"A (w16.png) is 16x12 but B (w24.png) is 24x12"})
+                  .status,
+              cli::kExitInput);
+    fs::copy_file(path("w24.depth.exr"), path("w16.depth.exr"),
+                  fs::copy_options::overwrite_existing);
+    EXPECT_EQ(expectInputError({"compare", "w16.png", "w16.png", "-o", "d.png"}, "d.png",
+                               {"A: w16.depth.exr is 24x12 but its image w16.png is 16x12"})
+                  .status,
+              cli::kExitInput);
+}
+
 TEST_F(Hardening, OutputsAreCheckedAgainBeforeTheFirstIsRenamed) {
     // All or none: a target that became a folder, or a file read since it was added, stops the
     // commit before anything is renamed, and the temporaries go with the OutputFiles.
