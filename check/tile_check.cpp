@@ -209,6 +209,14 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
         };
         against = "level set " + againstFile + " (trilinear of its voxels)";
     } else {
+        const std::string extension = lowerExtension(againstFile);
+        if (extension != ".obj" && extension != ".ply" && extension != ".off" &&
+            extension != ".stl") {
+            throw InputError::inField(
+                "against", "'" + againstFile +
+                               "' is not a truth check reads; accepted: analytic, a level set "
+                               "(.vdb) or a mesh (.obj, .ply, .off, .stl)");
+        }
         const TriangleSoup soup = loadDetailMesh(againstFile);
         MeshPlacement placement;
         if (options.meshScale || options.meshOffsetTexels) {

@@ -153,8 +153,9 @@ std::map<std::string, Value> namesOf(const Value (&values)[N], const char* (*nam
 }
 
 /// A library's InputError as the user wrote the value: under the render command's flag, or the
-/// scene file's JSON path (validateScene's Scene members).
-InputError underRenderNames(const InputError& error) {
+/// scene file's JSON path (validateScene's Scene members) after the file's name (`scene`; empty
+/// for the demo).
+InputError underRenderNames(const InputError& error, const fs::path& scene) {
     if (error.field().empty()) return error;
     const InputError flagged = underFlag(error, {{"width", "--width"},
                                                  {"height", "--height"},
@@ -164,7 +165,8 @@ InputError underRenderNames(const InputError& error) {
                                                  {"march.epsilonTexels", "--epsilon"},
                                                  {"march.relaxation", "--relaxation"}});
     if (flagged.field() != error.field()) return flagged;
-    return underSceneJsonPath(error);
+    const InputError inScene = underSceneJsonPath(error);
+    return scene.empty() ? inScene : inScene.renamed(scene.string() + ": " + inScene.field());
 }
 
 void runRender(RenderArguments arguments) {
@@ -395,7 +397,7 @@ void addRenderCommand(CLI::App& app) {
         try {
             runRender(*arguments);
         } catch (const InputError& error) {
-            throw underRenderNames(error);
+            throw underRenderNames(error, arguments->scene);
         }
     });
 }

@@ -56,9 +56,9 @@ void requireTexelDensity(std::size_t index, float texelsPerWorld, const char* ax
     if (texelsPerWorld <= kMaxTexelsPerWorld) return;
     char value[32];
     std::snprintf(value, sizeof value, "%.3g", double(texelsPerWorld));
-    throw InputError("objects[" + std::to_string(index) + "].material: " + value +
-                     " texels per world unit along " + axis + " is not accepted; at most 1e15 " +
-                     "(" + remedy + ")");
+    throw InputError::inField("objects[" + std::to_string(index) + "].material",
+                              std::string(value) + " texels per world unit along " + axis +
+                                  " is not accepted; at most 1e15 (" + remedy + ")");
 }
 
 /// The march's result taken from the material's exact first hit (reference renders,

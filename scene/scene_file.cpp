@@ -123,7 +123,11 @@ class Field {
         glm::vec<N, float> result;
         for (int i = 0; i < N; ++i) {
             const double component = (*this)[std::size_t(i)].number();
-            if (std::abs(component) > 1e30) (*this)[std::size_t(i)].fail("is too large");
+            if (std::abs(component) > 1e30) {
+                std::ostringstream problem;
+                problem << component << " is too large; components must be within +-1e30";
+                (*this)[std::size_t(i)].fail(problem.str());
+            }
             result[i] = float(component);
         }
         return result;
