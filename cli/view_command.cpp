@@ -1,5 +1,6 @@
 // distile view and distile preview: a tile as a web page (the reference shader in WebGL2) and
 // as a contact sheet of its slices.
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -50,6 +51,14 @@ void runView(const ViewArguments& arguments) {
                                 {"sphereDepthWorld", "--sphere-depth"}});
     }
     files.commit();
+    // WebGL2 promises 3D textures of 256 texels a side; GPUs give 2048 and more.
+    const Size3 size = tile.size();
+    if (std::max({size.width, size.height, size.depth}) > 2048) {
+        std::fprintf(stderr,
+                     "distile: warning: the tile is %dx%dx%d texels; most GPUs take 3D textures of "
+                     "at most 2048 a side, and the page says so where this one does not fit\n",
+                     size.width, size.height, size.depth);
+    }
     std::printf("page written to %s (open it in a browser with WebGL2)\n",
                 arguments.output.c_str());
 }

@@ -162,6 +162,35 @@ TEST_F(ViewCommand, ShaderPageAgreesWithTheCpuRenderInChromium) {
     }
 }
 
+TEST_F(ViewCommand, ATileLargerThanTheGpusTexturesSaysSoInThePage) {
+    // 2100 texels along y: past the 2048 a side that Chromium's SwiftShader (and most GPUs) take
+    // in a 3D texture. distile warns; the page says why it draws nothing instead of a WebGL
+    // error number.
+    const fs::path browser = chromium();
+    if (browser.empty()) GTEST_SKIP() << "chromium is not installed (Debian: chromium)";
+    ASSERT_EQ(run({"bake", "grating", "--size", "8x2100x8", "--bars", "1", "--bar-width", "2",
+                   "--bar-height", "2", "--edge-radius", "0.5", "-o", "tall.exr"})
+                  .status,
+              0);
+    const RunResult view = run({"view", "tall.exr", "-o", "tall.html"});
+    ASSERT_EQ(view.status, 0) << view.err;
+    EXPECT_NE(view.err.find("the tile is 8x2100x8 texels"), std::string::npos) << view.err;
+    const std::string dump =
+        "timeout 60 " + shellQuote(browser.string()) +
+        " --headless=new --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader"
+        " --virtual-time-budget=5000 --user-data-dir=" +
+        shellQuote(path("profile").string()) + " --dump-dom " +
+        shellQuote("file://" + path("tall.html").string()) + " 2>/dev/null";
+    FILE* pipe = popen(dump.c_str(), "r");
+    std::string dom;
+    for (char buffer[4096]; pipe && std::fgets(buffer, sizeof buffer, pipe);) dom += buffer;
+    if (pipe) pclose(pipe);
+    EXPECT_NE(dom.find("data-status=\"error: the tile is 8x2100x8 texels; this GPU's 3D textures "
+                       "take at most"),
+              std::string::npos)
+        << dom.substr(0, 400);
+}
+
 /// Pixel (x, y) of an 8-bit RGB picture as colour components in [0, 1].
 glm::vec3 colorAt(const Pixels& pixels, int x, int y) {
     const std::uint8_t* rgb = pixels.at(x, y);
