@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <sstream>
 #include <string>
 
@@ -25,6 +26,16 @@ int wrap(int index, int count) {
 
 HeightImage readHeightImage(const fs::path& file) {
     requireRegularFile(file, "a height map image (.png, .exr)");
+    // By content, not name: OpenImageIO would read any of its ~100 formats (a 38-byte WebP
+    // declaring 66 million pixels, named .png, decoded).
+    if (!startsAsPng(file) && !startsAsExr(file)) {
+        std::ifstream in(file, std::ios::binary);
+        char start[8] = {};
+        in.read(start, sizeof start);
+        throw FormatError(file.string() + ": not a PNG or OpenEXR file (it starts with '" +
+                          quotedInput(std::string_view(start, std::size_t(in.gcount()))) +
+                          "'); a height map must be an 8/16-bit PNG or an EXR");
+    }
     checkPngChunks(file);  // libpng would report a broken one on stderr itself
     checkExrHeader(file);  // OpenEXR allocates what a damaged header declares
     std::string openError;

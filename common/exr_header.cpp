@@ -41,13 +41,14 @@ std::uint64_t fixedValueBytes(const std::string& type) {
         const char* type;
         std::uint64_t bytes;
     };
-    static constexpr Fixed kFixed[] = {
-        {"box2i", 16},          {"box2f", 16},   {"compression", 1}, {"lineOrder", 1},
-        {"envmap", 1},          {"deepImageState", 1}, {"int", 4},   {"float", 4},
-        {"double", 8},          {"rational", 8}, {"timecode", 8},    {"keycode", 28},
-        {"tiledesc", 9},        {"v2i", 8},      {"v2f", 8},         {"v2d", 16},
-        {"v3i", 12},            {"v3f", 12},     {"v3d", 24},        {"m33f", 36},
-        {"m33d", 72},           {"m44f", 64},    {"m44d", 128},      {"chromaticities", 32}};
+    static constexpr Fixed kFixed[] = {{"box2i", 16},    {"box2f", 16},   {"compression", 1},
+                                       {"lineOrder", 1}, {"envmap", 1},   {"deepImageState", 1},
+                                       {"int", 4},       {"float", 4},    {"double", 8},
+                                       {"rational", 8},  {"timecode", 8}, {"keycode", 28},
+                                       {"tiledesc", 9},  {"v2i", 8},      {"v2f", 8},
+                                       {"v2d", 16},      {"v3i", 12},     {"v3f", 12},
+                                       {"v3d", 24},      {"m33f", 36},    {"m33d", 72},
+                                       {"m44f", 64},     {"m44d", 128},   {"chromaticities", 32}};
     for (const Fixed& fixed : kFixed)
         if (type == fixed.type) return fixed.bytes;
     return 0;
@@ -77,8 +78,8 @@ struct Box {
 /// Tiles across `extent` pixels at level `level`, OpenEXR's level sizes (halved, rounded down or
 /// up, at least 1).
 std::uint64_t tilesAcross(std::uint64_t extent, int level, bool roundUp, std::uint64_t tileSize) {
-    std::uint64_t size = roundUp ? (extent + (std::uint64_t(1) << level) - 1) >> level
-                                 : extent >> level;
+    std::uint64_t size =
+        roundUp ? (extent + (std::uint64_t(1) << level) - 1) >> level : extent >> level;
     size = std::max<std::uint64_t>(size, 1);
     return (size + tileSize - 1) / tileSize;
 }
@@ -91,19 +92,21 @@ int levelCount(std::uint64_t extent, bool roundUp) {
 
 }  // namespace
 
+bool startsAsExr(const std::filesystem::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    unsigned char magic[4] = {};
+    in.read(reinterpret_cast<char*>(magic), 4);
+    return in.gcount() == 4 && std::equal(magic, magic + 4, kExrMagic);
+}
+
 void checkExrHeader(const std::filesystem::path& file) {
-    {
-        std::ifstream in(file, std::ios::binary);
-        unsigned char magic[4] = {};
-        in.read(reinterpret_cast<char*>(magic), 4);
-        if (in.gcount() != 4 || !std::equal(magic, magic + 4, kExrMagic)) return;  // not EXR
-    }
+    if (!startsAsExr(file)) return;
     FieldReader reader(file, std::filesystem::file_size(file), "OpenEXR file");
     reader.skip(4, "magic number");
     const std::uint64_t versionField = reader.unsignedField(4, "version field");
     if ((versionField & 0xff) != kExrVersion)
-        reader.refuse("version field", "says version " + std::to_string(versionField & 0xff) +
-                                           "; accepted: 2");
+        reader.refuse("version field",
+                      "says version " + std::to_string(versionField & 0xff) + "; accepted: 2");
     const std::uint64_t flags = versionField & ~std::uint64_t(0xff);
     if (flags & (kFlagDeep | kFlagMultiPart)) {
         reader.refuse("version field", std::string("marks a ") +
@@ -126,10 +129,9 @@ void checkExrHeader(const std::filesystem::path& file) {
         const std::string type = nameField(reader, maxNameBytes, "attribute type");
         const std::int64_t size = reader.int32Field("attribute size");
         if (size < 0 || std::uint64_t(size) > reader.remaining()) {
-            reader.refuse("attribute size", "is " + std::to_string(size) + " for attribute '" +
-                                                name + "', but " +
-                                                std::to_string(reader.remaining()) +
-                                                " bytes of the file follow");
+            reader.refuse("attribute size",
+                          "is " + std::to_string(size) + " for attribute '" + name + "', but " +
+                              std::to_string(reader.remaining()) + " bytes of the file follow");
         }
         const std::uint64_t valueBytes = std::uint64_t(size);
         const std::uint64_t valueEnd = reader.offset() + valueBytes;
@@ -141,19 +143,21 @@ void checkExrHeader(const std::filesystem::path& file) {
         if (type == "preview") {  // width, height, then 4 bytes per pixel
             const std::uint64_t width = reader.unsignedField(4, "preview width");
             const std::uint64_t height = reader.unsignedField(4, "preview height");
-            const std::uint64_t bytes = saturatingSum(8, saturatingProduct(saturatingProduct(width, height), 4));
+            const std::uint64_t bytes =
+                saturatingSum(8, saturatingProduct(saturatingProduct(width, height), 4));
             if (bytes != valueBytes)
-                reader.refuse("preview size", "is " + std::to_string(width) + "x" +
-                                                  std::to_string(height) + " pixels, which needs " +
-                                                  std::to_string(bytes) +
-                                                  " bytes; the attribute has " +
-                                                  std::to_string(valueBytes));
+                reader.refuse("preview size",
+                              "is " + std::to_string(width) + "x" + std::to_string(height) +
+                                  " pixels, which needs " + std::to_string(bytes) +
+                                  " bytes; the attribute has " + std::to_string(valueBytes));
         } else if (type == "stringvector") {  // strings of a 32-bit length each
             while (reader.offset() < valueEnd) {
                 const std::int64_t length = reader.int32Field("string length");
-                if (length < 0 || std::uint64_t(length) > valueEnd - std::min(valueEnd, reader.offset()))
+                if (length < 0 ||
+                    std::uint64_t(length) > valueEnd - std::min(valueEnd, reader.offset()))
                     reader.refuse("string length", "is " + std::to_string(length) +
-                                                       ", past the end of attribute '" + name + "'");
+                                                       ", past the end of attribute '" + name +
+                                                       "'");
                 reader.skip(std::uint64_t(length), "string");
             }
         } else if (name == "channels" && type == "chlist") {
@@ -247,13 +251,17 @@ void checkExrHeader(const std::filesystem::path& file) {
                               std::to_string(tileWidth) + "x" + std::to_string(tileHeight) +
                               " pixels; accepted: at least 1x1)");
         // OpenEXR keeps a buffer of a whole tile.
-        requireWithinMemoryBudget(file,
-                                  "a tile of " + std::to_string(tileWidth) + "x" +
-                                      std::to_string(tileHeight) + " pixels",
-                                  saturatingProduct(saturatingProduct(tileWidth, tileHeight),
-                                                    channels * kChannelMemoryBytes));
-        const int xLevels = levelMode == 0 ? 1 : levelCount(levelMode == 1 ? std::max(width, height) : width, roundUp);
-        const int yLevels = levelMode == 0 ? 1 : levelCount(levelMode == 1 ? std::max(width, height) : height, roundUp);
+        requireWithinMemoryBudget(
+            file,
+            "a tile of " + std::to_string(tileWidth) + "x" + std::to_string(tileHeight) + " pixels",
+            saturatingProduct(saturatingProduct(tileWidth, tileHeight),
+                              channels * kChannelMemoryBytes));
+        const int xLevels =
+            levelMode == 0 ? 1
+                           : levelCount(levelMode == 1 ? std::max(width, height) : width, roundUp);
+        const int yLevels =
+            levelMode == 0 ? 1
+                           : levelCount(levelMode == 1 ? std::max(width, height) : height, roundUp);
         if (levelMode == 2) {  // rip map: every pair of levels
             std::uint64_t across = 0, down = 0;
             for (int level = 0; level < xLevels; ++level)
@@ -263,9 +271,9 @@ void checkExrHeader(const std::filesystem::path& file) {
             chunks = saturatingProduct(across, down);
         } else {
             for (int level = 0; level < xLevels; ++level)
-                chunks = saturatingSum(chunks,
-                                       saturatingProduct(tilesAcross(width, level, roundUp, tileWidth),
-                                                         tilesAcross(height, level, roundUp, tileHeight)));
+                chunks = saturatingSum(
+                    chunks, saturatingProduct(tilesAcross(width, level, roundUp, tileWidth),
+                                              tilesAcross(height, level, roundUp, tileHeight)));
         }
     }
     if (chunkCount && *chunkCount != chunks) {
@@ -282,8 +290,8 @@ void checkExrHeader(const std::filesystem::path& file) {
         reader.seek(headerEnd + 8 * chunk, "offset table");
         const std::uint64_t offset = reader.unsignedField(8, "chunk offset");
         if (offset < tableEnd || offset > reader.fileBytes() - chunkFieldBytes)
-            reader.refuse("chunk offset", "is " + std::to_string(offset) + "; accepted: " +
-                                              std::to_string(tableEnd) + " to " +
+            reader.refuse("chunk offset", "is " + std::to_string(offset) +
+                                              "; accepted: " + std::to_string(tableEnd) + " to " +
                                               std::to_string(reader.fileBytes() - chunkFieldBytes) +
                                               " (the file is truncated or corrupt)");
         reader.seek(offset + chunkFieldBytes - 4, "chunk offset");

@@ -18,4 +18,7 @@ namespace distile {
 /// reads single-part flat images only). Other files pass unchecked.
 void checkExrHeader(const std::filesystem::path& file);
 
+/// True when `file` starts with OpenEXR's magic number.
+bool startsAsExr(const std::filesystem::path& file);
+
 }  // namespace distile

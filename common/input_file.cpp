@@ -139,12 +139,18 @@ std::uint32_t crc32(std::uint32_t crc, const unsigned char* bytes, std::size_t c
 
 }  // namespace
 
-void checkPngChunks(const fs::path& file) {
+bool startsAsPng(const fs::path& file) {
     constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
     std::ifstream in(file, std::ios::binary);
     unsigned char header[8] = {};
     in.read(reinterpret_cast<char*>(header), 8);
-    if (in.gcount() != 8 || !std::equal(header, header + 8, kSignature)) return;  // not a PNG
+    return in.gcount() == 8 && std::equal(header, header + 8, kSignature);
+}
+
+void checkPngChunks(const fs::path& file) {
+    if (!startsAsPng(file)) return;
+    std::ifstream in(file, std::ios::binary);
+    in.seekg(8);
     const std::uint64_t fileBytes = fs::file_size(file);
     const std::string name = file.string();
     std::uint64_t offset = 8;

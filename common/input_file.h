@@ -57,6 +57,9 @@ void requireWithinMemoryBudget(const std::filesystem::path& file, std::string_vi
 /// unchecked.
 void checkPngChunks(const std::filesystem::path& file);
 
+/// True when `file` starts with the PNG signature.
+bool startsAsPng(const std::filesystem::path& file);
+
 /// `bytes` from an input file as it can be quoted in a one-line message: control and non-ASCII
 /// bytes become '?', and more than `maxCharacters` are cut to that many followed by "...".
 std::string quotedInput(std::string_view bytes, std::size_t maxCharacters = 40);

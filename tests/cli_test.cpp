@@ -740,6 +740,10 @@ TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
     };
     writeText(path("zero.png"), "");
     bakeHeightMap("zero.png", {"zero.png"});
+    // Only PNG and OpenEXR, by content: OpenImageIO would have read this GIF named .png.
+    writeText(path("gif.png"), std::string("GIF89a\x01\x00\x01\x00\x00\x00\x00;", 14));
+    bakeHeightMap("gif.png", {"gif.png", "not a PNG or OpenEXR file (it starts with 'GIF89a",
+                              "a height map must be an 8/16-bit PNG or an EXR"});
     // (A corrupted PNG body is also refused, but libpng prints its own extra line on stderr.)
     bakeHeightMap("missing.png", {"missing.png", "no such file"});
 }
