@@ -131,7 +131,8 @@ struct MeasuredLowerings {
 /// largest r of its 3 x 3 x 3 points. The face points (m = 0 and m = 2D) interpolate 1.5 x the
 /// edge slice - 0.5 x its inner neighbour (the filter's linear extension): their r is returned
 /// per column for raiseEdgeSlicesForFaces. Points none of whose corners is within bandTexels of
-/// the surface are not checked.
+/// the surface are not checked. With `outsideOnly` a point's target is its distance to the
+/// outside, max(exact, 0): inside the detail it must only read at most 0 (plus the allowance).
 MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLine& exactDistances,
                                     float allowanceTexels, float bandTexels, bool outsideOnly) {
     const Size3 size = exact.size();
