@@ -398,6 +398,19 @@ PYBIND11_MODULE(_distile, module) {
         .def_readwrite("scale", &TileCheckOptions::meshScale)
         .def_readwrite("offset", &TileCheckOptions::meshOffsetTexels);
 
+    // Tiles and renders come from the module's functions only. Python's default __new__ would
+    // make an instance no constructor filled, whose accessors read freed or unwritten memory (a
+    // segfault); the module's own results are made without __new__.
+    for (const char* name : {"Tile", "Render"}) {
+        const std::string message = std::string("distile.") + name +
+                                    " objects come from the module's functions (load_tile, "
+                                    "bake_*, render); they cannot be made empty";
+        module.attr(name).attr("__new__") =
+            py::cpp_function([message](const py::args&, const py::kwargs&) -> py::object {
+                throw py::type_error(message);
+            });
+    }
+
     // tbb::global_control limits every TBB arena of the process while it lives.
     module.def(
         "set_threads",

@@ -54,6 +54,16 @@ def test_array_is_a_read_only_view_that_keeps_the_tile_alive():
     np.testing.assert_array_equal(first, expected)
 
 
+def test_tiles_and_renders_cannot_be_made_empty():
+    # An instance no constructor filled read unwritten memory: Render.__new__(Render).image
+    # ended the interpreter with a segfault.
+    for cls in (distile.Tile, distile.Render):
+        with pytest.raises(TypeError, match="come from the module's functions"):
+            cls.__new__(cls)
+        with pytest.raises(TypeError):
+            cls()
+
+
 def test_grating_texels_take_the_analytic_distance():
     # 64x64x32, 4 bars of width 8 and height 6 per layer (edge radius 3), gap 1: the upper
     # layer's bars run along x centred at y = 8 + 16j, the layer spans z in [16.5, 22.5] (the
