@@ -74,6 +74,15 @@ glm::vec3 unitDirection(const glm::vec3& direction) {
     return length > 0.0 ? glm::vec3(exact / length) : glm::vec3(0.0f);
 }
 
+void requireSceneTriangleBudget(std::size_t index, std::size_t trianglesSoFar) {
+    if (trianglesSoFar <= kMaxSceneTriangles) return;
+    throw InputError::inField(
+        "objects[" + std::to_string(index) + "].mesh",
+        "brings the scene's base meshes to " + std::to_string(trianglesSoFar) +
+            " triangles; a scene may have at most " + std::to_string(kMaxSceneTriangles) +
+            " in all its objects (about 5 GB to render)");
+}
+
 void validateScene(const Scene& scene) {
     const Camera& camera = scene.camera;
     requireFinite(camera.eye, "camera.eye");
@@ -108,9 +117,12 @@ void validateScene(const Scene& scene) {
     }
     if (scene.objects.empty())
         throw InputError::inField("objects", "the scene has no objects; at least one is needed");
+    std::size_t triangles = 0;
     for (std::size_t i = 0; i < scene.objects.size(); ++i) {
         const std::string field = "objects[" + std::to_string(i) + "]";
         const SceneObject& object = scene.objects[i];
+        triangles += object.mesh.triangles.size();
+        requireSceneTriangleBudget(i, triangles);
         if (object.mesh.triangles.empty())
             throw InputError::inField(field + ".mesh", "has no triangles");
         const Material& material = object.material;

@@ -4,6 +4,7 @@
 /// programs fill them, the renderer never parses text. World units throughout, angles in degrees.
 #pragma once
 
+#include <cstddef>
 #include <functional>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -103,11 +104,21 @@ void applyTransform(BaseMesh& mesh, const Transform& transform);
 /// Zero stays zero.
 glm::vec3 unitDirection(const glm::vec3& direction);
 
+/// The most base-mesh triangles a scene may have in all objects together: 2^23. Rendering takes
+/// about 500-650 bytes a triangle (the mesh, its BVH, the shells' prisms; measured on spheres and
+/// a 1 M triangle torus), so about 5 GB at the most.
+inline constexpr std::size_t kMaxSceneTriangles = std::size_t(1) << 23;
+
+/// Throws InputError::inField("objects[index].mesh", ...) when `trianglesSoFar` (the triangles of
+/// objects 0..index) exceed kMaxSceneTriangles: checked as objects are added, before the next
+/// one is built.
+void requireSceneTriangleBudget(std::size_t index, std::size_t trianglesSoFar);
+
 /// Throws InputError::inField, naming the Scene member ("camera.up",
 /// "objects[1].material.depthWorld", ...), when the
 /// scene cannot be rendered: non-finite vectors, eye == target, up parallel to the view, field of
 /// view outside (0, 180), no objects, an empty mesh, depth <= 0, uv scale <= 0, a zero light
-/// direction.
+/// direction, more than kMaxSceneTriangles triangles in all.
 void validateScene(const Scene& scene);
 
 }  // namespace distile

@@ -732,6 +732,7 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
     const Field objects = root["objects"];
     if (!objects.value().is_array() || objects.value().empty())
         objects.fail("must be a non-empty array");
+    std::size_t triangles = 0;
     for (std::size_t i = 0; i < objects.value().size(); ++i) {
         const Field object = objects[i];
         object.requireObject({"mesh", "transform", "material"});
@@ -739,6 +740,12 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
             object.fail("missing field 'mesh' (plane, sphere, torus or a mesh file)");
         SceneObject parsed;
         parsed.mesh = loadMesh(object["mesh"], folder);
+        triangles += parsed.mesh.triangles.size();
+        try {
+            requireSceneTriangleBudget(i, triangles);
+        } catch (const InputError& error) {
+            object["mesh"].fail(error.problem());
+        }
         if (object.has("transform")) {
             const Field transform = object["transform"];
             transform.requireObject({"translate", "rotate_deg", "scale"});

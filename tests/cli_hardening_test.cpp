@@ -312,6 +312,17 @@ TEST_F(Hardening, ImagesLargerThanTheMemoryBudgetAreRefused) {
 // ---------------------------------------------------------------------------------------------
 // Options whose cost grows with their value have an upper bound.
 
+TEST_F(Hardening, AScenesTrianglesHaveAnUpperBound) {
+    // 1000 built-in spheres of 9030 triangles: each object alone is small, all of them would take
+    // about 4.4 GB to render (and 20 000 of them grew past 10 GB). The loader stops at the object
+    // that passes 2^23 triangles, within this test's 2 GB.
+    std::string scene = R"({"image": {"width": 32, "height": 24}, "objects": [)";
+    for (int i = 0; i < 1000; ++i)
+        scene += std::string(i ? "," : "") + R"({"mesh": "sphere", "transform": {"scale": 0.01}})";
+    scene += "]}";
+    expectSceneError(scene, {"scene.json: objects[929].mesh", "8392320", "8388608"});
+}
+
 TEST_F(Hardening, CostlyOptionsHaveUpperBounds) {
     // The widest band of a 64x64x8 tile is 16 texels.
     EXPECT_EQ(expectInputError(
