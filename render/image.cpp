@@ -242,6 +242,10 @@ void writeImage(const Image& image, const fs::path& file) {
     }
 }
 
+void requireImageExtension(const fs::path& file) {
+    formatFromExtension(file);
+}
+
 Image readImage(const fs::path& file) {
     requireRegularFile(file, "an image file");
     checkPngChunks(file);  // libpng would report a broken one on stderr itself

@@ -73,6 +73,10 @@ std::uint8_t srgbCode8(float linear);
 /// partial file at `file`.
 void writeImage(const Image& image, const std::filesystem::path& file);
 
+/// Throws InputError naming `file` unless writeImage takes its extension (.png, .exr, .tif,
+/// .tiff, any case): for callers that check a target before writing it through a temporary.
+void requireImageExtension(const std::filesystem::path& file);
+
 /// Reads any image OpenImageIO reads as linear RGB: float and half pixels as they are; integer
 /// pixels sRGB-decoded unless the file says it is linear (or gamma-decoded for a PNG gAMA).
 /// One or two channels (grey, grey + alpha) become grey RGB; channels past the third are

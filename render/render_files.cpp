@@ -14,6 +14,7 @@ fs::path aovPath(const fs::path& image, const std::string& name, const std::stri
 }
 
 void writeRenderFiles(const RenderResult& render, const fs::path& image) {
+    requireImageExtension(image);  // named as given, not as its temporary
     OutputFiles files;
     writeImage(render.image, files.add(image, "image"));
     if (render.aovs) {

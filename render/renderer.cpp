@@ -592,6 +592,11 @@ void validateOptions(const RenderOptions& options) {
                "it must be in [1, 256]");
     }
     const std::int64_t pixels = std::int64_t(options.width) * options.height;
+    if (pixels > kMaxRenderSamples) {  // no sample count fits: the size is what to change
+        reject("width", std::to_string(options.width) + "x" + std::to_string(options.height),
+               "width x height must be at most 2^24 pixels (16777216, e.g. 4096x4096; ~40 s on "
+               "two cores)");
+    }
     if (pixels * options.samplesPerPixel > kMaxRenderSamples) {
         reject("samplesPerPixel", std::to_string(options.samplesPerPixel),
                "width x height x samples per pixel must be at most 2^24 camera samples (" +

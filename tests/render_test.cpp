@@ -740,6 +740,17 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
     EXPECT_THROW(renderScene(scene, small), InputError);
     small.march.epsilonTexels = 1e-5f;
     EXPECT_NO_THROW(renderScene(scene, small));
+    // An image past 2^24 pixels is refused for its size, whatever the sample count.
+    RenderOptions huge;
+    huge.width = 16384;
+    huge.height = 16384;
+    try {
+        renderScene(scene, huge);
+        ADD_FAILURE() << "a 16384x16384 image was accepted";
+    } catch (const InputError& error) {
+        EXPECT_EQ(error.field(), "width");
+        EXPECT_NE(error.problem().find("16384x16384"), std::string::npos) << error.what();
+    }
     // An eye so far away that the view direction's squared length overflows: refused as such
     // (it used to be reported as an up vector parallel to the view).
     Scene farEye = scene;

@@ -113,6 +113,11 @@ def test_errors_are_value_errors_with_the_commands_messages(tmp_path, distile_co
         distile.bake("rivets")
     with pytest.raises(distile.InputError, match="missing.exr: no such file"):
         distile.load_tile(tmp_path / "missing.exr")
+    # The path as given, not the temporary the image would have been written to first.
+    bare = {"objects": [{"mesh": "plane", "material": {"color": [0.8, 0.8, 0.8]}}]}
+    with pytest.raises(distile.InputError, match=r"/x\.txt: image extension '\.txt'"):
+        distile.render(bare, width=8, height=6).save(tmp_path / "x.txt")
+    assert list(tmp_path.glob("*x*.txt")) == []
     (tmp_path / "not_a_tile.exr").write_bytes(b"not an image")
     with pytest.raises(distile.FormatError):
         distile.load_tile(tmp_path / "not_a_tile.exr")
