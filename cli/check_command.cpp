@@ -1,4 +1,6 @@
 // distile check: how far a tile is from the truth (analytic, mesh or level set).
+#include <charconv>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -60,10 +62,11 @@ void printReport(const CheckArguments& arguments, const TileCheckOptions& option
         "  overestimates beyond %.3f: %d (%.4f%%), largest %.4f; sign errors (|d| > 1): %d\n",
         options.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
         report.maxOverestimateTexels, report.signErrors);
-    std::printf("  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
-                "inside it\n",
-                bandTexels, bandDeclared ? "declared by the tile" : "not declared: the tile depth",
-                100.0 * report.bandShare);
+    std::printf(
+        "  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
+        "inside it\n",
+        bandTexels, bandDeclared ? "declared by the tile" : "not declared: the tile depth",
+        100.0 * report.bandShare);
     if (check.passed()) {
         std::printf("passed\n");
     } else {
@@ -125,12 +128,12 @@ void addCheckCommand(CLI::App& app) {
                                            "its error in texels; exit 1 when a tolerance "
                                            "is exceeded");
     command->add_option("tile", arguments->tile, "Tile file (.exr)")->required();
-    command
-        ->add_option("--against", arguments->options.against,
-                     "Truth: analytic (from the tile's distile:source/params), a mesh file "
-                     "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
-                     "Default: the analytic truth, or for a tile baked from a mesh or a .vdb file "
-                     "that file (its recorded distile:source_file, placed as it was baked)");
+    command->add_option(
+        "--against", arguments->options.against,
+        "Truth: analytic (from the tile's distile:source/params), a mesh file "
+        "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
+        "Default: the analytic truth, or for a tile baked from a mesh or a .vdb file "
+        "that file (its recorded distile:source_file, placed as it was baked)");
     // Time and memory grow linearly: 10^7 points take ~5 s and ~400 MB.
     command
         ->add_option("--samples", arguments->options.samples,
@@ -138,7 +141,17 @@ void addCheckCommand(CLI::App& app) {
         ->capture_default_str()
         ->check(CLI::Range(1, 10000000));
     command->add_option("--seed", arguments->options.seed, "Seed of the sample points")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(CLI::Validator(
+            [](const std::string& text) {
+                std::uint64_t seed = 0;
+                const auto [end, error] =
+                    std::from_chars(text.data(), text.data() + text.size(), seed);
+                return error == std::errc() && end == text.data() + text.size() && !text.empty()
+                           ? std::string()
+                           : "'" + text + "' is not accepted; give an integer in [0, 2^64 - 1]";
+            },
+            "SEED"));
     command->add_flag("--json", arguments->json, "Print the report as one JSON object");
     command->add_option("--plot", arguments->plot,
                         "Also draw where the error lies: tile - truth at every texel, slice by "
@@ -154,7 +167,9 @@ void addCheckCommand(CLI::App& app) {
                      "Largest accepted share of overestimates (0.001 = 0.1%)")
         ->capture_default_str()
         ->check(finiteRange(0.0, 1.0));
-    command->add_option("--max-rms", arguments->options.maxRmsTexels, "Largest accepted RMS error, texels")
+    command
+        ->add_option("--max-rms", arguments->options.maxRmsTexels,
+                     "Largest accepted RMS error, texels")
         ->capture_default_str()
         ->check(finiteRange(0.0, 1e6));
     command
@@ -170,9 +185,7 @@ void addCheckCommand(CLI::App& app) {
         ->add_option("--offset", arguments->meshOffset,
                      "Mesh truth: explicit placement, offset X Y Z in texels")
         ->expected(3);
-    command->callback([arguments, command] {
-        runCheck(*arguments);
-    });
+    command->callback([arguments, command] { runCheck(*arguments); });
 }
 
 }  // namespace distile::cli

@@ -312,6 +312,17 @@ TEST_F(Hardening, ImagesLargerThanTheMemoryBudgetAreRefused) {
 // ---------------------------------------------------------------------------------------------
 // Options whose cost grows with their value have an upper bound.
 
+TEST_F(Hardening, CheckSeedsAreUnsigned64BitIntegers) {
+    // CLI11 took -1 as 2^64 - 1 and clamped 2^64: the run then checked other points than asked.
+    bakeChainmail();
+    for (const std::string seed : {"-1", "18446744073709551616", "1.5"}) {
+        EXPECT_EQ(expectInputError({"check", "tile.exr", "--seed", seed}, "none",
+                                   {"--seed", seed, "[0, 2^64 - 1]"})
+                      .status,
+                  cli::kExitInput);
+    }
+}
+
 TEST_F(Hardening, AScenesTrianglesHaveAnUpperBound) {
     // 1000 built-in spheres of 9030 triangles: each object alone is small, all of them would take
     // about 4.4 GB to render (and 20 000 of them grew past 10 GB). The loader stops at the object
