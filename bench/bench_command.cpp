@@ -588,6 +588,14 @@ std::vector<EmbreePeerOptions> embreeConfigurations() {
 }
 
 void runBench(const BenchArguments& arguments) {
+    // Every report writes into -o, made if missing: it must name a folder, not a file.
+    if (arguments.outputDir.empty())
+        throw InputError("-o: is empty; give the folder for the results");
+    if (std::error_code status;
+        fs::exists(arguments.outputDir, status) && !fs::is_directory(arguments.outputDir, status)) {
+        throw InputError("-o: '" + arguments.outputDir.string() +
+                         "' is a file; give the folder for the results (made if missing)");
+    }
     if (arguments.stress) {
         runStressReport(arguments.outputDir);
         return;

@@ -312,6 +312,17 @@ TEST_F(Hardening, ImagesLargerThanTheMemoryBudgetAreRefused) {
 // ---------------------------------------------------------------------------------------------
 // Options whose cost grows with their value have an upper bound.
 
+TEST_F(Hardening, BenchRefusesAnOutputThatIsNoFolder) {
+    // -o "" wrote its scenes into the working folder; a file gave a raw filesystem error.
+    writeText(path("results.txt"), "x");
+    EXPECT_EQ(expectInputError({"bench", "--quick", "-o", ""}, "scenes", {"-o", "is empty"}).status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError({"bench", "--quick", "-o", "results.txt"}, "scenes",
+                               {"-o", "'results.txt' is a file"})
+                  .status,
+              cli::kExitInput);
+}
+
 TEST_F(Hardening, CheckSeedsAreUnsigned64BitIntegers) {
     // CLI11 took -1 as 2^64 - 1 and clamped 2^64: the run then checked other points than asked.
     bakeChainmail();
