@@ -34,6 +34,22 @@ __all__ = [
 ]
 
 
+def _plain(value):
+    """NumPy numbers and arrays as the Python numbers and lists they hold (for json)."""
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    raise TypeError(f"{value!r} ({type(value).__name__}) is not a number, string, bool or list")
+
+
+def _json_text(value, what):
+    """`value` as JSON text; NaN and infinities are refused as InputError naming `what`, not
+    passed on as text the JSON reader cannot read."""
+    try:
+        return _json.dumps(value, allow_nan=False, default=_plain)
+    except ValueError:
+        raise InputError(f"{what}: {value!r} is not accepted; numbers must be finite") from None
+
+
 def bake(detail, file=None, **options):
     """Bake `detail` ("chainmail", "grating", "mesh", "heightmap" or "vdb"; the last three
     read `file`) into a Tile, as ``distile bake DETAIL [FILE]`` does, with its options as
@@ -46,7 +62,8 @@ def bake(detail, file=None, **options):
         recipe["file"] = _os.path.abspath(_os.fspath(file))
     for name, value in options.items():
         recipe[name] = list(value) if isinstance(value, tuple) else value
-    tile, found = _distile.bake_recipe(_json.dumps(recipe), "bake " + str(detail))
+        _json_text(recipe[name], name)  # a NaN refused under its keyword
+    tile, found = _distile.bake_recipe(_json_text(recipe, "bake"), "bake " + str(detail))
     for warning in found:
         _warnings.warn(warning, stacklevel=2)
     return tile
@@ -114,7 +131,7 @@ def render(scene, **options):
             raise TypeError(f"render() got an unexpected keyword argument '{name}'")
         setattr(arguments, name, value)
     if isinstance(scene, dict):
-        return _distile.render_scene_json(_json.dumps(scene), ".", "scene", arguments)
+        return _distile.render_scene_json(_json_text(scene, "scene"), ".", "scene", arguments)
     return _distile.render_scene_file(_os.fspath(scene), arguments)
 
 

@@ -64,6 +64,17 @@ def test_tiles_and_renders_cannot_be_made_empty():
             cls()
 
 
+def test_keywords_take_numpy_numbers_and_refuse_nan_by_name():
+    # NaN reached the JSON reader as text ("FormatError: not valid JSON"), and NumPy numbers
+    # were "not JSON serializable".
+    tile = distile.bake_chainmail(size=np.array([32, 32, 8]), rings_per_row=np.int64(4))
+    assert tile.size == (32, 32, 8)
+    with pytest.raises(distile.InputError, match="ring_radius: nan is not accepted"):
+        distile.bake_chainmail(ring_radius=float("nan"))
+    with pytest.raises(distile.InputError, match="numbers must be finite"):
+        distile.render({"objects": [{"mesh": "plane", "transform": {"scale": float("inf")}}]})
+
+
 def test_grating_texels_take_the_analytic_distance():
     # 64x64x32, 4 bars of width 8 and height 6 per layer (edge radius 3), gap 1: the upper
     # layer's bars run along x centred at y = 8 + 16j, the layer spans z in [16.5, 22.5] (the
