@@ -378,9 +378,22 @@ PYBIND11_MODULE(_distile, module) {
         [](const PyTile& tile, const std::string& tileName, const fs::path& tileFile,
            const TileCheckOptions& options) {
             TileCheck check;
-            {
+            try {
                 py::gil_scoped_release released;
                 check = checkTile(*tile.tile, tileName, tileFile, options);
+            } catch (const InputError& error) {
+                // Under check()'s keywords (the CheckOptions attributes), not the C++ members.
+                static const std::pair<const char*, const char*> kKeywords[] = {
+                    {"maxOverestimateTexels", "max_overestimate"},
+                    {"maxOverestimateShare", "max_overestimate_share"},
+                    {"maxRmsTexels", "max_rms"},
+                    {"maxNearErrorTexels", "max_near_error"},
+                    {"meshScale", "scale"},
+                    {"meshOffsetTexels", "offset"}};
+                for (const auto& [member, keyword] : kKeywords) {
+                    if (error.field() == member) throw error.renamed(keyword);
+                }
+                throw;
             }
             return jsonValue(tileCheckJson(check, options, tileName).dump());
         },

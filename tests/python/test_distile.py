@@ -73,6 +73,9 @@ def test_keywords_take_numpy_numbers_and_refuse_nan_by_name():
         distile.bake_chainmail(ring_radius=float("nan"))
     with pytest.raises(distile.InputError, match="numbers must be finite"):
         distile.render({"objects": [{"mesh": "plane", "transform": {"scale": float("inf")}}]})
+    # check()'s limits under its own keywords (they were named maxRmsTexels, ...).
+    with pytest.raises(distile.InputError, match="^max_rms: nan is not accepted"):
+        distile.check(tile, max_rms=float("nan"))
 
 
 def test_grating_texels_take_the_analytic_distance():
