@@ -372,9 +372,16 @@ TEST_F(Hardening, CostlyOptionsHaveUpperBounds) {
                   .status,
               cli::kExitInput);
     writeText(path("bare.json"), kBareScene);
+    // An image past 2^24 pixels is refused for its size, whatever the sample count; within it,
+    // the samples per pixel are what pass the bound.
     EXPECT_EQ(expectInputError(
                   {"render", "bare.json", "-o", "r.png", "--width", "16384", "--height", "16384"},
-                  "r.png", {"--spp", "2^24"})
+                  "r.png", {"--width", "16384x16384", "2^24 pixels"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError({"render", "bare.json", "-o", "r.png", "--width", "4096", "--height",
+                                "4096", "--spp", "2"},
+                               "r.png", {"--spp", "2^24"})
                   .status,
               cli::kExitInput);
     const std::string sheet = sourceFile("data/scenes/sheet.json");
