@@ -342,7 +342,11 @@ TEST_F(Hardening, AScenesTrianglesHaveAnUpperBound) {
     for (int i = 0; i < 1000; ++i)
         scene += std::string(i ? "," : "") + R"({"mesh": "sphere", "transform": {"scale": 0.01}})";
     scene += "]}";
-    expectSceneError(scene, {"scene.json: objects[929].mesh", "8392320", "8388608"});
+    writeText(path("scene.json"), scene);
+    EXPECT_EQ(expectInputError({"render", "scene.json", "-o", "out.png"}, "out.png",
+                               {"scene.json: objects[929].mesh", "8392320", "8388608"})
+                  .status,
+              cli::kExitInput);
 }
 
 TEST_F(Hardening, CostlyOptionsHaveUpperBounds) {
