@@ -115,6 +115,20 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
         requireTolerance("maxNearErrorTexels", *options.maxNearErrorTexels, 1e6);
     const bool againstGiven = !options.against.empty();
     std::string againstFile = againstGiven ? options.against : "analytic";
+    if (options.meshScale || options.meshOffsetTexels) {
+        // Only a mesh given as the truth is placed by them; ignoring them elsewhere would measure
+        // against a truth the user did not ask for.
+        const std::string extension = lowerExtension(againstFile);
+        if (extension != ".obj" && extension != ".ply" && extension != ".off" &&
+            extension != ".stl") {
+            throw InputError::inField(
+                options.meshScale ? "meshScale" : "meshOffsetTexels",
+                "places only a mesh given as the truth (against: .obj, .ply, .off, .stl); the "
+                "truth here is " +
+                    (againstGiven ? "'" + againstFile + "'"
+                                  : std::string("the tile's own (its recorded source)")));
+        }
+    }
     if (!againstGiven && tile.provenance.source == "vdb") {
         // The level set the tile was baked from (distile:source_file), placed as its params say.
         try {

@@ -10,6 +10,7 @@
 #include <string>
 #include <system_error>
 
+#include "cli/arguments.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/input_file.h"
@@ -40,7 +41,7 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
     app.set_version_flag("--version", "distile 0.1.0");
     int threads = 0;
     app.add_option("--threads", threads, "Worker threads (default: all cores)")
-        ->check(CLI::Range(1, 1024));
+        ->check(integerRange(1, 1024));
     // The thread limit must be in force before a command's callback runs.
     std::unique_ptr<tbb::global_control> threadLimit;
     app.parse_complete_callback([&] {

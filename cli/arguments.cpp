@@ -1,6 +1,7 @@
 #include "cli/arguments.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <sstream>
 #include <utility>
@@ -37,6 +38,20 @@ CLI::Validator finiteRange(double lowest, double highest) {
             return "value " + value + " is not accepted; give a finite number in " + text;
         },
         "FLOAT in " + range.str());
+}
+
+CLI::Validator integerRange(std::int64_t lowest, std::int64_t highest) {
+    const std::string range = "[" + std::to_string(lowest) + ", " + std::to_string(highest) + "]";
+    return CLI::Validator(
+        [lowest, highest, range](std::string& value) -> std::string {
+            std::int64_t number = 0;
+            const char* end = value.data() + value.size();
+            const auto [last, error] = std::from_chars(value.data(), end, number);
+            if (error == std::errc() && last == end && number >= lowest && number <= highest)
+                return {};
+            return "'" + value + "' is not accepted; give an integer in " + range;
+        },
+        "INT in " + range);
 }
 
 std::string lowerExtension(const fs::path& path) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <filesystem>
 #include <initializer_list>
 #include <string>
@@ -35,6 +36,10 @@ void requireOutput(const std::filesystem::path& path, const std::string& option,
 /// A CLI11 check that the value is a finite number in [lowest, highest]. CLI::Range alone lets NaN
 /// through (every comparison with NaN is false), which would switch a tolerance off.
 CLI::Validator finiteRange(double lowest, double highest);
+
+/// A CLI11 check that the value is an integer in [lowest, highest]. CLI::Range reports "8.5" as
+/// out of range when it is not an integer.
+CLI::Validator integerRange(std::int64_t lowest, std::int64_t highest);
 
 /// Lower-case extension with the dot, e.g. ".exr".
 std::string lowerExtension(const std::filesystem::path& path);

@@ -139,7 +139,7 @@ void addCheckCommand(CLI::App& app) {
         ->add_option("--samples", arguments->options.samples,
                      "Uniform random sample points, at most 10^7 (~5 s, ~400 MB)")
         ->capture_default_str()
-        ->check(CLI::Range(1, 10000000));
+        ->check(integerRange(1, 10000000));
     command->add_option("--seed", arguments->options.seed, "Seed of the sample points")
         ->capture_default_str()
         ->check(CLI::Validator(
@@ -180,10 +180,10 @@ void addCheckCommand(CLI::App& app) {
                       "Do not fail on sign errors (samples more than 1 texel from the surface with "
                       "the wrong sign)");
     command->add_option("--scale", arguments->options.meshScale,
-                        "Mesh truth: explicit placement, texels per file unit");
+                        "A mesh given with --against: explicit placement, texels per file unit");
     command
         ->add_option("--offset", arguments->meshOffset,
-                     "Mesh truth: explicit placement, offset X Y Z in texels")
+                     "A mesh given with --against: explicit placement, offset X Y Z in texels")
         ->expected(3);
     command->callback([arguments, command] { runCheck(*arguments); });
 }

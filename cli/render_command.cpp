@@ -281,21 +281,21 @@ void addRenderCommand(CLI::App& app) {
         ->add_option("--width", arguments->width,
                      "Image width in pixels (default: the scene's, else 1280); see --spp for "
                      "the bound on width x height")
-        ->check(CLI::Range(1, 16384));
+        ->check(integerRange(1, 16384));
     command
         ->add_option("--height", arguments->height,
                      "Image height in pixels (default: the scene's, else 1024)")
-        ->check(CLI::Range(1, 16384));
+        ->check(integerRange(1, 16384));
     command
         ->add_option("--spp", arguments->samplesPerPixel,
                      "Samples per pixel (default: the scene's, else 1); width x height x spp at "
                      "most 2^24 (~40 s on two cores)")
-        ->check(CLI::Range(1, 256));
+        ->check(integerRange(1, 256));
     command
         ->add_option("--iterations", arguments->options.march.maxIterations,
                      "Sphere-tracing budget per ray")
         ->capture_default_str()
-        ->check(CLI::Range(1, 4096));
+        ->check(integerRange(1, 4096));
     command
         ->add_option("--epsilon", arguments->options.march.epsilonTexels,
                      "Hit threshold in texels, in [1e-5, 1]")

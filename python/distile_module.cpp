@@ -204,6 +204,14 @@ py::object compareAny(const py::object& a, const py::object& b) {
     auto view = [](const py::object& render, std::optional<RenderFiles>& files,
                    const std::string& role) -> RenderLayersView {
         if (py::isinstance<PyRender>(render)) return layers(render.cast<const PyRender&>());
+        if (!py::isinstance<py::str>(render) && !py::hasattr(render, "__fspath__")) {
+            const std::string keyword = role == "A" ? "a" : "b";
+            throw py::type_error(
+                "compare: " + keyword +
+                " must be a distile.Render or the path (str or os.PathLike) of "
+                "an image `distile render --aovs` wrote; got " +
+                py::str(py::type::of(render).attr("__name__")).cast<std::string>());
+        }
         files.emplace(readRenderFiles(render.cast<fs::path>(), role));
         return files->view();
     };

@@ -647,6 +647,19 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
             } catch (const FormatError& error) {
                 color.fail(error.what());
             }
+            // An albedo is never negative, in a texture as in an array (an EXR may hold any value).
+            const auto& texels = material.colorTexture->rgbLinear;
+            for (std::size_t i = 0; i < texels.size(); ++i) {
+                const glm::vec3& texel = texels[i];
+                if (std::min({texel.r, texel.g, texel.b}) < 0.0f) {
+                    const std::size_t width = std::size_t(material.colorTexture->width);
+                    std::ostringstream message;
+                    message << "colour texture '" << path.string() << "': pixel (" << i % width
+                            << ", " << i / width << ") is (" << texel.r << ", " << texel.g << ", "
+                            << texel.b << "); colour components must be at least 0";
+                    color.fail(message.str());
+                }
+            }
         } else {
             material.color = color.colour();
         }

@@ -388,6 +388,15 @@ TEST_F(Hardening, CostlyOptionsHaveUpperBounds) {
                                "r.png", {"--spp", "2^24"})
                   .status,
               cli::kExitInput);
+    // A count that is no integer is told so, not that it is out of range.
+    EXPECT_EQ(expectInputError({"render", "bare.json", "-o", "r.png", "--width", "8.5"}, "r.png",
+                               {"--width", "'8.5'", "an integer in [1, 16384]"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError({"render", "bare.json", "-o", "r.png", "--spp", "0"}, "r.png",
+                               {"--spp", "'0'", "an integer in [1, 256]"})
+                  .status,
+              cli::kExitInput);
     const std::string sheet = sourceFile("data/scenes/sheet.json");
     EXPECT_EQ(expectInputError({"render", sheet, "-o", "r.png", "--reference", "world-levelset",
                                 "--reference-voxels", "1e-30"},
@@ -519,7 +528,7 @@ TEST_F(Hardening, NoOutputReplacesOneOfTheCommandsInputs) {
 
 TEST_F(Hardening, CompareNamesTheFilesWhoseSizesDisagree) {
     writeText(path("bare.json"), kBareScene);
-    for (const std::string& width : {"16", "24"}) {
+    for (const std::string width : {"16", "24"}) {
         ASSERT_EQ(run({"render", "bare.json", "-o", "w" + width + ".png", "--width", width,
                        "--height", "12", "--aovs"})
                       .status,

@@ -251,6 +251,14 @@ TEST_F(Cli, RejectsNegativeColours) {
         planeScene(chainmailMaterial(R"({"bake": "chainmail", "size": "64x64x8"})"));
     scene.insert(scene.find(R"("angle_deg")"), R"("color": [1, 1, -2], )");  // the light's
     ASSERT_NO_FATAL_FAILURE(expectSceneError(scene, {"lights[0].color[2]", "-2", "at least 0"}));
+    // A colour texture is held to the same rule, pixel by pixel (an EXR may hold any value).
+    Image texture(4, 3, glm::vec3(0.5f));
+    texture.at(2, 1) = glm::vec3(0.5f, -0.125f, 0.5f);
+    writeImage(texture, path("albedo.exr"));
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
+        planeScene(R"({"tile": {"bake": "chainmail", "size": "64x64x8"}, "uv_scale": [1, 1],
+                       "depth": 0.25, "color": "albedo.exr"})"),
+        {"objects[0].material.color", "albedo.exr", "pixel (2, 1)", "-0.125", "at least 0"}));
 }
 
 TEST_F(Cli, RejectsPngAsTile) {
@@ -430,6 +438,12 @@ TEST_F(Cli, CheckAgainstTheLevelSetAndRejectsBadInput) {
     expectInputError({"check", "grating.exr", "--against", "missing.vdb"}, "missing.vdb",
                      {"missing.vdb"});
     expectInputError({"check", "grating.exr", "--samples", "0"}, "x", {"--samples"});
+    // A placement places only a mesh truth: elsewhere it would be ignored, not obeyed.
+    expectInputError({"check", "grating.exr", "--scale", "nan"}, "x",
+                     {"--scale", "places only a mesh", "tile's own"});
+    expectInputError(
+        {"check", "grating.exr", "--against", "grating.vdb", "--offset", "1", "2", "3"}, "x",
+        {"--offset", "'grating.vdb'"});
 }
 
 // `check` cannot be fooled by a tile that does not represent its source: the grating tile made

@@ -172,6 +172,11 @@ def test_render_is_byte_identical_to_the_commands(tmp_path, source_dir, distile_
         assert report["both_hit"] + report["coverage_mismatches"] > 0
     # The 8-bit PNG against the float image it was written from: quantisation only.
     assert distile.compare(rendered, tmp_path / "cli.png")["psnr_db"] > 40
+    # Anything else is a TypeError naming the argument and what it takes.
+    with pytest.raises(TypeError, match="b must be a distile.Render or the path .* got NoneType"):
+        distile.compare(rendered, None)
+    with pytest.raises(TypeError, match="a must be .* got int"):
+        distile.compare(3, rendered)
 
 
 def test_check_matches_the_commands_report(tmp_path, distile_command):
