@@ -212,6 +212,14 @@ ProceduralOptions proceduralOptions(const BakeArguments& arguments) {
     } else if (arguments.weave != "european4in1") {
         throw InputError("--weave: '" + arguments.weave +
                          "' is not accepted; accepted: european4in1, japanese4in1");
+    } else {
+        // The European weave has no small rings: an option for them would be silently ignored.
+        for (const char* name : {"--small-ring-radius", "--small-wire-radius"}) {
+            if (arguments.chainmailGiven.count(name) > 0)
+                throw InputError(std::string(name) +
+                                 ": only for --weave japanese4in1 (the European weave has no "
+                                 "small rings)");
+        }
     }
     return procedural;
 }
@@ -369,10 +377,12 @@ void addBakeCommand(CLI::App& app) {
     auto* chainmail = command->add_option_group(
         "chainmail", "European 4-in-1 chain mail (defaults fill 256x256x16)");
     chainmail
-        ->add_option("--rings-per-row", arguments->chainmail.ringsPerRow, "Rings along x per tile")
+        ->add_option("--rings-per-row", arguments->chainmail.ringsPerRow,
+                     "Rings along x per tile, at most W/4")
         ->capture_default_str();
     chainmail
-        ->add_option("--rows", arguments->chainmail.rowsPerTile, "Rows along y per tile (even)")
+        ->add_option("--rows", arguments->chainmail.rowsPerTile,
+                     "Rows along y per tile (European: even, at most H/2; Japanese: at most H/4)")
         ->capture_default_str();
     chainmail
         ->add_option("--ring-radius", arguments->chainmail.ringRadiusSpacings,
@@ -388,9 +398,9 @@ void addBakeCommand(CLI::App& app) {
         ->add_option("--weave", arguments->weave, "european4in1 or japanese4in1 (its own defaults)")
         ->capture_default_str();
     chainmail->add_option("--small-ring-radius", arguments->chainmail.smallRingRadiusSpacings,
-                          "Japanese 4-in-1: small ring radius, in ring spacings");
+                          "Japanese 4-in-1 only: small ring radius, in ring spacings");
     chainmail->add_option("--small-wire-radius", arguments->chainmail.smallWireRadiusSpacings,
-                          "Japanese 4-in-1: small ring wire radius, in ring spacings");
+                          "Japanese 4-in-1 only: small ring wire radius, in ring spacings");
     auto* grating =
         command->add_option_group("grating", "Grating: two layers of bars with rounded edges");
     grating->add_option("--bars", arguments->grating.barsPerTile, "Bars per layer across the tile")

@@ -370,6 +370,8 @@ MeshPlacement meshPlacementOf(const Field& spec) {
     MeshPlacement placement;
     if (spec.has("fit") && spec["fit"].boolean() && (spec.has("scale") || spec.has("offset")))
         spec["fit"].fail("cannot be combined with scale/offset; give one placement");
+    if (spec.has("fit") && !spec["fit"].boolean() && !spec.has("scale") && !spec.has("offset"))
+        spec["fit"].fail("false needs the explicit placement instead: give scale and/or offset");
     if (spec.has("scale") || spec.has("offset")) {
         placement.fit = false;
         if (spec.has("scale")) placement.scale = spec["scale"].number(1e-12, 1e12);
@@ -514,6 +516,15 @@ ChainmailOptions chainmailOf(const Field& spec) {
     spec.numberInto("wire_radius", chainmail.wireRadiusSpacings, 0.0, 2.0);
     if (const auto tilt = aliased(spec, "tilt", "tilt_deg"))
         chainmail.tiltDeg = tilt->number(0.0, 60.0);
+    if (chainmail.weave != ChainmailWeave::Japanese4in1) {
+        // The European weave has no small rings: a value for them would be silently ignored.
+        for (const char* name : {"small_ring_radius", "small_wire_radius"}) {
+            if (spec.has(name))
+                spec[name].fail(
+                    "only for \"weave\": \"japanese4in1\" (the European weave has "
+                    "no small rings)");
+        }
+    }
     spec.numberInto("small_ring_radius", chainmail.smallRingRadiusSpacings, 0.0, 1.0);
     spec.numberInto("small_wire_radius", chainmail.smallWireRadiusSpacings, 0.0, 1.0);
     return chainmail;

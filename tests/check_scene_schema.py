@@ -107,6 +107,28 @@ BAD_SCENES = [
     ("mesh option on a vdb recipe", "objects[0].material.tile.thickness",
      edited(lambda s: material(s).update(tile={"bake": "vdb", "file": "level.vdb",
                                                "thickness": 1}))),
+    ("small ring radius on the European weave", "objects[0].material.tile.small_ring_radius",
+     edited(lambda s: material(s).update(tile={"bake": "chainmail", "small_ring_radius": 0.2}))),
+    ("mesh fit false without scale or offset", "objects[0].material.tile.fit",
+     edited(lambda s: material(s).update(tile={"bake": "mesh", "file": "ring.obj",
+                                               "fit": False}))),
+    ("vdb fit false without scale or offset", "objects[0].material.tile.fit",
+     edited(lambda s: material(s).update(tile={"bake": "vdb", "file": "level.vdb",
+                                               "fit": False}))),
+    ("vdb window with fit", "objects[0].material.tile.window",
+     edited(lambda s: material(s).update(tile={"bake": "vdb", "file": "level.vdb",
+                                               "window": [0, 0, 0, 1, 1, 1], "fit": True}))),
+]
+
+# Scenes the schema must accept (the reader's checks that need a bake are not run here).
+GOOD_TILES = [
+    ("Japanese weave with an odd number of rows",
+     {"bake": "chainmail", "weave": "japanese4in1", "rows": 3}),
+    ("Japanese weave with small rings", {"bake": "chainmail", "weave": "japanese4in1",
+                                         "small_ring_radius": 0.2, "small_wire_radius": 0.03}),
+    ("mesh fit false with a scale", {"bake": "mesh", "file": "ring.obj", "fit": False,
+                                     "scale": 2}),
+    ("vdb window", {"bake": "vdb", "file": "level.vdb", "window": [0, 0, 0, 1, 1, 1]}),
 ]
 
 
@@ -132,6 +154,12 @@ def main():
             failures.append(f"{os.path.relpath(path, arguments.source)}: schema refuses "
                             f"{error.json_path}: {error.message}")
         print(f"{'ok  ' if not errors else 'FAIL'} schema accepts {os.path.basename(path)}")
+    for what, tile in GOOD_TILES:
+        scene = edited(lambda s: material(s).update(tile=tile))
+        errors = list(validator.iter_errors(scene))
+        print(f"{'ok  ' if not errors else 'FAIL'} schema accepts {what}")
+        for error in errors:
+            failures.append(f"{what}: schema refuses {error.json_path}: {error.message}")
     if validator.is_valid(BASE):
         print("ok   schema accepts the base scene of the bad cases")
     else:

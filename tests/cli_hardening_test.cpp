@@ -617,6 +617,27 @@ TEST_F(Hardening, MeshErrorsQuoteOnlyPrintableBytes) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Options the documentation names that were silently ignored or took another syntax.
+
+TEST_F(Hardening, SmallRingOptionsAreRefusedForTheEuropeanWeave) {
+    EXPECT_EQ(expectInputError({"bake", "chainmail", "--small-ring-radius", "0.2", "--size",
+                                "64x64x8", "-o", "t.exr"},
+                               "t.exr", {"--small-ring-radius", "japanese4in1"})
+                  .status,
+              cli::kExitInput);
+    expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"tile":
+        {"bake": "chainmail", "size": "64x64x8", "small_wire_radius": 0.03}}}]})",
+                     {"objects[0].material.tile.small_wire_radius", "japanese4in1"});
+}
+
+TEST_F(Hardening, AMeshRecipeWithFitFalseNeedsScaleOrOffset) {
+    fs::copy_file(sourceFile("data/meshes/ring.obj"), path("ring.obj"));
+    expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"tile":
+        {"bake": "mesh", "file": "ring.obj", "size": "32x32x8", "fit": false}}}]})",
+                     {"objects[0].material.tile.fit", "scale", "offset"});
+}
+
+// ---------------------------------------------------------------------------------------------
 // Exit statuses (cli/app.h): 2 for refused input and memory, 3 for a bug.
 
 int exitStatusOf(const std::function<void()>& command) {

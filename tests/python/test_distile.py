@@ -143,6 +143,14 @@ def test_errors_are_value_errors_with_the_commands_messages(tmp_path, distile_co
         distile.render({"objects": [{"mesh": "plane"}]}, width=8, height=8, spp=0)
 
 
+def test_options_that_would_be_ignored_are_refused(source_dir):
+    # fit=False alone used to bake the fitted tile; the European weave has no small rings.
+    with pytest.raises(distile.InputError, match="fit: false needs the explicit placement"):
+        distile.bake_mesh(source_dir / "data/meshes/ring.obj", size="32x32x8", fit=False)
+    with pytest.raises(distile.InputError, match="small_ring_radius: only for"):
+        distile.bake_chainmail(size="64x64x8", small_ring_radius=0.2)
+
+
 def test_render_is_byte_identical_to_the_commands(tmp_path, source_dir, distile_command):
     scene = source_dir / "data" / "scenes" / "sheet.json"
     run = distile_command("render", scene, "-o", tmp_path / "cli.png", "--aovs", "--width", 96,
