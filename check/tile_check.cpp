@@ -179,9 +179,11 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
         truth = procedural.signedDistanceTexels;
         against = "analytic " + procedural.source + " " + procedural.paramsJson;
     } else if (lowerExtension(againstFile) == ".vdb" && tile.provenance.source == "vdb" &&
-               !isDistileLevelSet(againstFile)) {
+               (!againstGiven || !isDistileLevelSet(againstFile))) {
         // A tile of `bake vdb`: its source file placed as its params say, resampled at the texel
-        // centres without the conservative lowering (as for distile's own level sets below).
+        // centres without the conservative lowering (as for distile's own level sets below). The
+        // recorded source is placed even when distile wrote it (a level set of another tile); a
+        // distile level set given with --against is the tile's own (`bake vdb --vdb`).
         const VdbProvenance recorded = vdbFromProvenance(tile.provenance, tileName);
         const std::string& gridName = recorded.gridName;
         VdbPlacement explicitPlacement;

@@ -86,7 +86,7 @@ void runCheck(const CheckArguments& arguments) {
     TileCheckOptions options = arguments.options;
     if (!arguments.meshOffset.empty()) {
         if (arguments.meshOffset.size() != 3)
-            throw InputError("--offset: give three numbers X Y Z (texels)");
+            throw InputError("--offset: give three numbers X,Y,Z (texels)");
         options.meshOffsetTexels = {arguments.meshOffset[0], arguments.meshOffset[1],
                                     arguments.meshOffset[2]};
     }
@@ -183,8 +183,10 @@ void addCheckCommand(CLI::App& app) {
                         "A mesh given with --against: explicit placement, texels per file unit");
     command
         ->add_option("--offset", arguments->meshOffset,
-                     "A mesh given with --against: explicit placement, offset X Y Z in texels")
-        ->expected(3);
+                     "A mesh given with --against: explicit placement, offset X,Y,Z (or X Y Z) in "
+                     "texels")
+        ->expected(3)
+        ->delimiter(',');
     command->callback([arguments, command] { runCheck(*arguments); });
 }
 

@@ -637,6 +637,30 @@ TEST_F(Hardening, AMeshRecipeWithFitFalseNeedsScaleOrOffset) {
                      {"objects[0].material.tile.fit", "scale", "offset"});
 }
 
+TEST_F(Hardening, CheckOffsetTakesCommasAsBakeMeshDoes) {
+    fs::copy_file(sourceFile("data/meshes/ring.obj"), path("ring.obj"));
+    const RunResult bake = run({"bake", "mesh", "ring.obj", "--scale", "14", "--offset", "32,32,4",
+                                "--size", "64x64x8", "-o", "t.exr"});
+    ASSERT_EQ(bake.status, 0) << bake.err;
+    const RunResult check = run({"check", "t.exr", "--against", "ring.obj", "--scale", "14",
+                                 "--offset", "32,32,4", "--samples", "2000"});
+    EXPECT_EQ(check.status, 0) << check.err;
+    EXPECT_NE(check.out.find("explicit placement"), std::string::npos) << check.out;
+}
+
+TEST_F(Hardening, CheckPlacesTheRecordedSourceOfAVdbTileEvenWhenDistileWroteIt) {
+    // pipeline.md: `check T.exr` compares a `bake vdb` tile with the source it records, placed as
+    // its params say; a source written by `bake --vdb` (another tile's size) was taken unplaced.
+    bakeChainmail();
+    const RunResult bake = run({"bake", "vdb", "level.vdb", "--scale", "1", "--offset", "0,0,0",
+                                "--size", "32x32x8", "-o", "v.exr"});
+    ASSERT_EQ(bake.status, 0) << bake.err;
+    // A 32x32 cut of a 64x64 period does not repeat: the seam raises the RMS, not overestimates.
+    const RunResult check = run({"check", "v.exr", "--samples", "5000", "--max-rms", "0.5"});
+    EXPECT_EQ(check.status, 0) << check.err;
+    EXPECT_NE(check.out.find("as placed by the bake"), std::string::npos) << check.out;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Exit statuses (cli/app.h): 2 for refused input and memory, 3 for a bug.
 
