@@ -918,7 +918,9 @@ void addBenchCommand(CLI::App& app) {
         ->capture_default_str();
     command->add_flag("--quick", arguments->quick,
                       "Reduced sweep at 640x512 (peers included), a few minutes on 2 cores");
-    command->add_flag("!--no-peers", arguments->peers, "Skip Embree and vdb_render");
+    // A callback, not "!--no-peers": the negated flag shows in --help as "--no-peers{false}".
+    command->add_flag_callback(
+        "--no-peers", [arguments] { arguments->peers = false; }, "Skip Embree and vdb_render");
     command->add_flag("--stress", arguments->stress,
                       "Instead of the sweep: the numerical-stability stress cases, written as "
                       "stress.md and stress.csv; exit 1 when a case fails");

@@ -3,8 +3,10 @@
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "check/reports.h"
+#include "cli/app.h"
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "common/atomic_file.h"
@@ -129,7 +131,8 @@ void addCompareCommand(CLI::App& app) {
         "step beside it on the same line of pixels), and interior pixels, the others. One pixel "
         "that hits a far surface behind a silhouette can outweigh all the others in a mean; the "
         "headline mean and p99 are the interior ones. On detail the image does not resolve "
-        "(several texels per pixel) most pixels are silhouette pixels.");
+        "(several texels per pixel) most pixels are silhouette pixels.\n\n" +
+        std::string(kExitStatusHelp));
     command->callback([arguments] { runCompare(*arguments); });
 }
 

@@ -153,10 +153,21 @@ std::map<std::string, Value> namesOf(const Value (&values)[N], const char* (*nam
 }
 
 /// A library's InputError as the user wrote the value: under the render command's flag, or the
-/// scene file's JSON path (validateScene's Scene members) after the file's name (`scene`; empty
-/// for the demo).
-InputError underRenderNames(const InputError& error, const fs::path& scene) {
+/// scene file's JSON path (validateScene's Scene members) after the file's name (empty for the
+/// demo). The image size and samples are named where they came from: the flag when given, else
+/// the scene's `image` field.
+InputError underRenderNames(const InputError& error, const RenderArguments& arguments) {
     if (error.field().empty()) return error;
+    const fs::path& scene = arguments.scene;
+    if (!scene.empty()) {
+        const std::pair<const char*, const char*> fromScene[] = {
+            {"width", arguments.width ? nullptr : "image.width"},
+            {"height", arguments.height ? nullptr : "image.height"},
+            {"samplesPerPixel", arguments.samplesPerPixel ? nullptr : "image.spp"}};
+        for (const auto& [field, path] : fromScene) {
+            if (path && error.field() == field) return error.renamed(scene.string() + ": " + path);
+        }
+    }
     const InputError flagged = underFlag(error, {{"width", "--width"},
                                                  {"height", "--height"},
                                                  {"samplesPerPixel", "--spp"},
@@ -397,7 +408,7 @@ void addRenderCommand(CLI::App& app) {
         try {
             runRender(*arguments);
         } catch (const InputError& error) {
-            throw underRenderNames(error, arguments->scene);
+            throw underRenderNames(error, *arguments);
         }
     });
 }

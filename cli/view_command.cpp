@@ -96,12 +96,14 @@ void addViewCommands(CLI::App& app) {
     command
         ->add_option("--object", view->view.object, "Object the page opens with: plane or sphere")
         ->capture_default_str();
-    command->add_option("--uv-scale", view->uvScale, "Tile repeats over the plane, U V")
+    command
+        ->add_option("--uv-scale", view->uvScale, "Tile repeats over the plane, U V (default 4 4)")
         ->expected(2);
     command->add_option("--depth", view->view.depthWorld, "Shell depth on the plane, world units")
         ->capture_default_str();
     command
-        ->add_option("--sphere-uv-scale", view->sphereUvScale, "Tile repeats over the sphere, U V")
+        ->add_option("--sphere-uv-scale", view->sphereUvScale,
+                     "Tile repeats over the sphere, U V (default 8 4)")
         ->expected(2);
     command
         ->add_option("--sphere-depth", view->view.sphereDepthWorld,

@@ -661,6 +661,27 @@ TEST_F(Hardening, CheckPlacesTheRecordedSourceOfAVdbTileEvenWhenDistileWroteIt) 
     EXPECT_NE(check.out.find("as placed by the bake"), std::string::npos) << check.out;
 }
 
+TEST_F(Hardening, AnImageTooLargeIsNamedWhereItsSizeCameFrom) {
+    // No --width was given: the scene's image.width is what to change, not a flag.
+    expectSceneError(R"({"image": {"width": 16384, "height": 1025},
+        "objects": [{"mesh": "plane", "material": {"color": [0.8, 0.8, 0.8]}}]})",
+                     {"scene.json: image.width", "16384x1025", "2^24 pixels"});
+    expectSceneError(R"({"image": {"width": 4096, "height": 4096, "spp": 2},
+        "objects": [{"mesh": "plane", "material": {"color": [0.8, 0.8, 0.8]}}]})",
+                     {"scene.json: image.spp", "2^24"});
+    // A flag that was given is named as the flag.
+    const RunResult flagged = expectInputError(
+        {"render", "scene.json", "-o", "out.png", "--spp", "3"}, "out.png", {"--spp", "2^24"});
+    EXPECT_EQ(flagged.status, cli::kExitInput);
+}
+
+TEST_F(Hardening, CompareHelpEndsWithTheExitStatuses) {
+    const RunResult help = run({"compare", "--help"});
+    EXPECT_EQ(help.status, 0) << help.err;
+    EXPECT_NE(help.out.find("Figures: hit error"), std::string::npos) << help.out;
+    EXPECT_NE(help.out.find("Exit status: 0 success"), std::string::npos) << help.out;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Exit statuses (cli/app.h): 2 for refused input and memory, 3 for a bug.
 

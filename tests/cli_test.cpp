@@ -1382,6 +1382,14 @@ TEST_F(Cli, BenchWritesEveryRowItsPlotAndTheChapterClaims) {
     EXPECT_FALSE(fs::exists(path("bad/bench.csv")));
 }
 
+TEST_F(Cli, BenchHelpNamesNoPeersAsItIsTyped) {
+    if (!benchBuilt()) GTEST_SKIP() << "distile-bench was not built (DISTILE_BUILD_BENCH=OFF)";
+    const RunResult help = run({"bench", "--help"});
+    EXPECT_EQ(help.status, 0) << help.err;
+    EXPECT_NE(help.out.find("--no-peers "), std::string::npos) << help.out;
+    EXPECT_EQ(help.out.find("{false}"), std::string::npos) << help.out;
+}
+
 TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     if (!benchBuilt()) GTEST_SKIP() << "distile-bench was not built (DISTILE_BUILD_BENCH=OFF)";
     // A tiny speed report (no peers): every RenderSkips switch (all bools) is measured on each of
