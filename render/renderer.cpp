@@ -283,7 +283,8 @@ class Renderer {
             stats.shellsTested += shellCounters.tested;
             stats.shellsTraced += shellCounters.traced;
             if (batchSelfShadows) marchSelfShadows(count, hits, found, selfShadows);
-            countFacingHits(std::span(hits, count), std::span(found, count), facingHits);
+            countFacingHits(std::span(rays, count), std::span(hits, count), std::span(found, count),
+                            facingHits);
             for (std::size_t k = 0; k < count; ++k) {
                 const int x = rays[k].x;
                 const int y = rays[k].y;
@@ -321,11 +322,14 @@ class Renderer {
     }
 
   private:
-    /// Counts the hits among `hits` (where `found`) into `facingHits` (per object: front, back).
+    /// Counts the hits of `rays` (where `found`) into `facingHits` (per object: front, back). A
+    /// back face the ray meets after the front of the same object (through an opening of its
+    /// detail) counts as neither: only back faces met first say a mesh is wound inside out.
     /// In registers while consecutive hits share an object: one memory increment per hit would
     /// make a chain of store-to-load waits on one counter.
-    static void countFacingHits(std::span<const SurfaceHit> hits, std::span<const bool> found,
-                                std::span<std::uint64_t> facingHits) {
+    void countFacingHits(std::span<const ScreenShells::PixelRay> rays,
+                         std::span<const SurfaceHit> hits, std::span<const bool> found,
+                         std::span<std::uint64_t> facingHits) const {
         std::size_t object = 0;
         std::uint64_t front = 0, back = 0;
         const auto add = [&] {
@@ -340,7 +344,12 @@ class Renderer {
                 object = hits[k].object;
                 front = back = 0;
             }
-            (hits[k].entry.frontFacing ? front : back) += 1;
+            if (hits[k].entry.frontFacing) {
+                ++front;
+            } else if (!tracer_.entersFrontFirst(rays[k].ray, 0.0f, hits[k].object,
+                                                 hits[k].distanceWorld)) {
+                ++back;
+            }
         }
         add();
     }

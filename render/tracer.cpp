@@ -253,6 +253,21 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
                             depthTexels / object.material.depthWorld};
 }
 
+bool SceneTracer::entersFrontFirst(const Ray& ray, float minDistance, std::uint32_t object,
+                                   float distanceWorld) const {
+    // Past other objects' triangles, a bounded number of them (then: not known to be an opening).
+    constexpr int kMaxOtherTriangles = 16;
+    TriangleHit baseHit;
+    float from = minDistance;
+    for (int other = 0; other <= kMaxOtherTriangles; ++other) {
+        if (!bvh_.intersect(ray, from, distanceWorld, baseHit)) return false;
+        const ShellTriangle& triangle = triangles_[baseHit.triangle];
+        if (triangle.object == object) return triangle.frontFacing(ray.direction);
+        from = baseHit.distanceWorld;
+    }
+    return false;
+}
+
 bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit,
                                TraceCounters& counters) const {
     bool found = false;

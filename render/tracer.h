@@ -226,6 +226,14 @@ class SceneTracer {
                            std::span<bool> found, TraceCounters& counters,
                            bool withNormals = true) const;
 
+    /// Whether `ray`, from `minDistance`, meets `object`'s base surface first on a front face
+    /// nearer than `distanceWorld`. A ray stopped by a back face of `object` at `distanceWorld`
+    /// then looks through an opening of its detail (an open floor, between the exits of a curved
+    /// shell) at the inside of the far side; otherwise the back face is where the ray comes to
+    /// the object first: the sign of a closed mesh wound inside out. Thread-safe.
+    bool entersFrontFirst(const Ray& ray, float minDistance, std::uint32_t object,
+                          float distanceWorld) const;
+
     /// Base triangles of all objects, in scene order: shell `s` is the detail shell of one of them.
     std::uint32_t shellCount() const { return std::uint32_t(triangles_.size()); }
     /// World corners of shell `shell`: its top (the base triangle) and its bottom, the top moved

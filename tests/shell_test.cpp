@@ -19,6 +19,7 @@
 #include "mesh/base_mesh.h"
 #include "render/bvh.h"
 #include "render/renderer.h"
+#include "render/shading.h"
 #include "render/shell_march.h"
 #include "render/tracer.h"
 
@@ -499,6 +500,41 @@ TEST(CurvedShell, AMeshWoundClockwiseIsReported) {
     ASSERT_EQ(flipped.warnings.size(), 1u);
     EXPECT_NE(flipped.warnings[0].find("objects[0]: 100% of the camera rays"), std::string::npos)
         << flipped.warnings[0];
+    EXPECT_NE(flipped.warnings[0].find("clockwise"), std::string::npos);
+}
+
+TEST(CurvedShell, AnOpenFloorSeenThroughIsNoSignOfAMeshWoundClockwise) {
+    // A sphere with an open floor and sparse detail (a post of radius 2 texels in each 32 x 32
+    // tile): most camera rays pass between the posts and stop on the inside of the far side, a
+    // back face met after the front of the same sphere. That is no sign of a mesh wound inside
+    // out: no warning. Flipped, the rays meet back faces first, and it is reported.
+    Tile posts({32, 32, 16});
+    for (int z = 0; z < 16; ++z)
+        for (int y = 0; y < 32; ++y)
+            for (int x = 0; x < 32; ++x)
+                posts.at(x, y, z) = std::hypot(x + 0.5f - 16.0f, y + 0.5f - 16.0f) - 2.0f;
+    Scene scene = layerScene(makeUvSphere(0.6f, 32, 16));
+    scene.objects[0].material.tile = std::make_shared<const Tile>(std::move(posts));
+    scene.objects[0].material.floor = Floor::Open;
+    scene.camera = {{0.0f, -2.5f, 0.8f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
+    RenderOptions options;
+    options.width = 48;
+    options.height = 36;
+    options.shadowFilter = ShadowFilter::None;
+    const RenderResult open = renderScene(scene, options);
+    EXPECT_TRUE(open.warnings.empty()) << open.warnings.front();
+    // The rays did stop on the inside: the back faces are there to be miscounted.
+    std::size_t insideStops = 0;
+    for (const glm::vec3& pixel : open.image.rgbLinear)
+        insideStops += pixel == backFaceColor(scene.objects[0].material.color);
+    EXPECT_GT(insideStops, open.image.rgbLinear.size() / 8);
+
+    for (glm::uvec3& triangle : scene.objects[0].mesh.triangles)
+        std::swap(triangle[1], triangle[2]);
+    computeTangentFrames(scene.objects[0].mesh);
+    const RenderResult flipped = renderScene(scene, options);
+    ASSERT_EQ(flipped.warnings.size(), 1u);
+    EXPECT_NE(flipped.warnings[0].find("objects[0]:"), std::string::npos) << flipped.warnings[0];
     EXPECT_NE(flipped.warnings[0].find("clockwise"), std::string::npos);
 }
 
