@@ -53,7 +53,7 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
         !(std::isfinite(sign.thicknessTexels) && sign.thicknessTexels >= 0.0 &&
           sign.thicknessTexels <= options.size.depth)) {
         throw InputError::inField("sign.thicknessTexels",
-                                  std::to_string(sign.thicknessTexels) +
+                                  numberText(sign.thicknessTexels) +
                                       " texels is not accepted; it must be in [0, " +
                                       std::to_string(options.size.depth) + "] (the tile depth)");
     }

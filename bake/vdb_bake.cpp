@@ -132,7 +132,7 @@ VdbDistance::VdbDistance(const VdbVolume& volume, const TexelPlacement& placemen
     : source_(volume, placement), tile_(tile), halfBandTexels_(halfBandTexels) {
     validateTileSize(tile, "size");
     if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
-        throw InputError::inField("halfBandTexels", std::to_string(halfBandTexels) +
+        throw InputError::inField("halfBandTexels", numberText(halfBandTexels) +
                                                         " texels is not accepted; it must be in "
                                                         "[1, 1024]");
     }

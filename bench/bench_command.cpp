@@ -932,9 +932,9 @@ void addBenchCommand(CLI::App& app) {
                    "speed.csv")
         ->excludes("--stress");
     command->add_option("--width", arguments->width, "Image width (default 1280, quick 640)")
-        ->check(CLI::Range(16, 16384));
+        ->check(integerRange(16, 16384));
     command->add_option("--height", arguments->height, "Image height (default 1024, quick 512)")
-        ->check(CLI::Range(16, 16384));
+        ->check(integerRange(16, 16384));
     command->callback([arguments] { runBench(*arguments); });
 }
 

@@ -310,7 +310,7 @@ void runSpeedBench(const BenchArguments& arguments) {
         bake.size = sheetTile;
         const std::string recipe =
             "speed bench low height field: smoothHeightImage(" + std::to_string(sheetTile.width) +
-            "), height " + std::to_string(heightMap.heightTexels) + " texels, size " +
+            "), height " + numberText(heightMap.heightTexels) + " texels, size " +
             std::to_string(sheetTile.width) + "x" + std::to_string(sheetTile.height) + "x" +
             std::to_string(sheetTile.depth);
         const std::shared_ptr<const Tile> tile = cachedBake(recipe, [&] {
@@ -883,12 +883,12 @@ void runSpeedBench(const BenchArguments& arguments) {
             findRow(rows, kCurvedSection, s.id, "curved against planar, shadow maps only");
         const SpeedRow* self =
             findRow(rows, kCurvedSection, s.id, "curved against planar, self-shadows only");
-        for (const auto& [render, r] : {std::pair{"default render (shadows)", shaded},
-                                        std::pair{"shadow maps only", maps},
-                                        std::pair{"self-shadows only", self}}) {
+        for (const auto& [render, r] :
+             {std::pair{"default render (shadows)", shaded}, std::pair{"shadow maps only", maps},
+              std::pair{"self-shadows only", self}}) {
             md << "| " << s.id << " " << s.name << " | " << image << " | curved, " << render
-               << " | " << fixed(r->seconds, 4) << " | " << fixed(r->seconds / r->comparedSeconds, 3)
-               << " | | | | | | | |\n";
+               << " | " << fixed(r->seconds, 4) << " | "
+               << fixed(r->seconds / r->comparedSeconds, 3) << " | | | | | | | |\n";
             md << "| " << s.id << " " << s.name << " | " << image << " | planar, " << render
                << " | " << fixed(r->comparedSeconds, 4) << " | | | | | | | | |\n";
         }

@@ -479,7 +479,14 @@ void addBakeCommand(CLI::App& app) {
         "is rebuilt: the exact distance to its surface, refined on its triquadratic "
         "reconstruction, signed by the file. Nothing is wrapped");
     vdb->add_option("--grid", arguments->gridName,
-                    "The grid to bake (default: the file's only float level set)");
+                    "The grid to bake (default: the file's only float level set)")
+        ->check(CLI::Validator(
+            [](const std::string& name) {
+                return name.empty() ? "is empty; name a grid, or leave --grid out for the file's "
+                                      "only float level set"
+                                    : std::string();
+            },
+            "NAME"));
     vdb->add_option("--iso", arguments->iso,
                     "The surface's value: required for a fog volume (inside above it, e.g. 0.5); "
                     "for a level set it offsets the surface (inside below it)");

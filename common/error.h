@@ -4,19 +4,22 @@
 /// line, so the command can print them as they are.
 #pragma once
 
+#include <charconv>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 
 namespace distile {
 
 /// A value the caller passed (a size, a parameter, a path, a scene field) is not acceptable.
 ///
-/// Libraries name the field of their own options struct (`InputError::inField("march.epsilonTexels",
-/// "0 is not accepted; ...")`); a program that filled the struct from its own input (a command-line
-/// flag, a JSON path) shows the error under that name with `renamed`.
+/// Libraries name the field of their own options struct
+/// (`InputError::inField("march.epsilonTexels", "0 is not accepted; ...")`); a program that filled
+/// the struct from its own input (a command-line flag, a JSON path) shows the error under that name
+/// with `renamed`.
 class InputError : public std::runtime_error {
-public:
+  public:
     using std::runtime_error::runtime_error;
 
     /// An error about one field, as the options struct names it (member path, e.g.
@@ -37,10 +40,21 @@ public:
     /// The same error about `shownAs` (a flag, a JSON path) instead of the field.
     InputError renamed(std::string shownAs) const { return inField(std::move(shownAs), problem()); }
 
-private:
+  private:
     std::string field_;
     std::string problem_;
 };
+
+/// `value` as messages show a number: the shortest text that reads back as the same value ("2",
+/// "0.1", "1e+30"), not std::to_string's six decimals ("2.000000", "0.000000" for 1e-7). A float
+/// is shown as the float it is ("0.1", not 0.1f widened to "0.10000000149011612").
+template <typename Number>
+std::string numberText(Number value) {
+    static_assert(std::is_floating_point_v<Number>, "integers: std::to_string");
+    char text[32];
+    const auto end = std::to_chars(text, text + sizeof text, value).ptr;
+    return std::string(text, end);
+}
 
 /// A file exists but its contents are not what distile reads (truncated, corrupted, wrong kind).
 struct FormatError : std::runtime_error {

@@ -416,8 +416,8 @@ BaseMesh makeTorus(float majorRadiusWorld, float minorRadiusWorld, int segmentsM
     validateLength("makeTorus", "majorRadiusWorld", majorRadiusWorld);
     validateLength("makeTorus", "minorRadiusWorld", minorRadiusWorld);
     if (!(minorRadiusWorld < majorRadiusWorld)) {
-        throw InputError("makeTorus: minorRadiusWorld = " + std::to_string(minorRadiusWorld) +
-                         " with majorRadiusWorld = " + std::to_string(majorRadiusWorld) +
+        throw InputError("makeTorus: minorRadiusWorld = " + numberText(minorRadiusWorld) +
+                         " with majorRadiusWorld = " + numberText(majorRadiusWorld) +
                          "; accepted: minor radius < major radius");
     }
     validateSegments("makeTorus", "segmentsMajor", segmentsMajor, 3);

@@ -585,11 +585,10 @@ void validateOptions(const RenderOptions& options) {
                "it must be in [1e-5, 1] texels (single precision resolves no closer hit)");
     }
     if (!(options.march.relaxation >= 1.0f && options.march.relaxation < 2.0f)) {
-        reject("march.relaxation", std::to_string(options.march.relaxation),
-               "it must be in [1, 2)");
+        reject("march.relaxation", numberText(options.march.relaxation), "it must be in [1, 2)");
     }
     if (!(options.march.reliefLinearShare > 0.0f && options.march.reliefLinearShare <= 1.0f)) {
-        reject("march.reliefLinearShare", std::to_string(options.march.reliefLinearShare),
+        reject("march.reliefLinearShare", numberText(options.march.reliefLinearShare),
                "it must be in (0, 1]");
     }
     if (options.shadowIterations < 1 || options.shadowIterations > 4096) {

@@ -128,7 +128,7 @@ void validateScene(const Scene& scene) {
         const Material& material = object.material;
         if (!(std::isfinite(material.depthWorld) && material.depthWorld > 0.0f)) {
             throw InputError::inField(field + ".material.depthWorld",
-                                      std::to_string(material.depthWorld) +
+                                      numberText(material.depthWorld) +
                                           " is not accepted; it must be a positive number of "
                                           "world units");
         }

@@ -30,7 +30,7 @@ TileErrorReport measureTileError(const Tile& tile,
     requireNonNegative(options.overestimateToleranceTexels, "overestimateToleranceTexels");
     requireNonNegative(options.signMarginTexels, "signMarginTexels");
     if (!(options.truthClampTexels > 0.0)) {
-        throw InputError::inField("truthClampTexels", std::to_string(options.truthClampTexels) +
+        throw InputError::inField("truthClampTexels", numberText(options.truthClampTexels) +
                                                           " is not accepted; it must be > 0");
     }
 

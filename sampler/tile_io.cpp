@@ -198,7 +198,7 @@ DistanceInterval acceptedDistances(const Size3& size, double halfBandTexels) {
     if (halfBandTexels > 0.0) {
         return {-halfBandTexels - double(size.depth), halfBandTexels,
                 "outside the band the tile declares (distile:band_texels " +
-                    std::to_string(halfBandTexels) +
+                    numberText(halfBandTexels) +
                     ": at most the band, at least minus the band "
                     "minus the tile depth)"};
     }
@@ -224,7 +224,7 @@ std::string distanceProblem(const Tile& tile, const DistanceInterval& accepted) 
 std::string bandValueProblem(const Size3& size, double halfBandTexels) {
     const double most = acceptedDistances(size, 0.0).highest;
     if (halfBandTexels == 0.0 || (halfBandTexels > 0.0 && halfBandTexels <= most)) return {};
-    return "the declared band (distile:band_texels) " + std::to_string(halfBandTexels) +
+    return "the declared band (distile:band_texels) " + numberText(halfBandTexels) +
            " is not a positive number of at most " + std::to_string(int(most)) + " texels";
 }
 
@@ -235,8 +235,8 @@ std::string bandValueProblem(const Size3& size, double halfBandTexels) {
 void useExrThreads() {
     static std::once_flag once;
     std::call_once(once, [] {
-        const int threads = int(
-            tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+        const int threads =
+            int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
         if (threads > 1) Imf::setGlobalThreadCount(threads);
     });
 }

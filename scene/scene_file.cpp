@@ -410,6 +410,9 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
         placement.offsetTexels = fitOrExplicit.offsetTexels;
     }
     const std::string gridName = spec.has("grid") ? spec["grid"].string() : std::string();
+    if (spec.has("grid") && gridName.empty())
+        spec["grid"].fail("is empty; name a grid, or leave \"grid\" out for the file's only float "
+                          "level set");
     std::optional<double> iso;
     if (spec.has("iso")) iso = spec["iso"].number();
     const RecipeFile source = recipeFile(spec, folder, "an OpenVDB .vdb file");

@@ -931,6 +931,12 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
     bakeVdb({"flipped.vdb"}, {"flipped.vdb"});
     bakeVdb({"g.vdb", "--grid", "density"},
             {"--grid", "'density'", "'surface' (float, level set)"});
+    // An empty name is no name: refused, not taken as "the only level set".
+    bakeVdb({"g.vdb", "--grid", ""}, {"--grid", "is empty"});
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
+        planeScene(R"({"tile": {"bake": "vdb", "file": "g.vdb", "grid": "", "size": "32x32x16"},
+                       "uv_scale": [1, 1], "depth": 1})"),
+        {"objects[0].material.tile.grid", "is empty"}));
     bakeVdb({"g.vdb", "--iso", "nan"}, {"--iso"});
     bakeVdb({"g.vdb", "--iso", "100"}, {"g.vdb", "no surface", "100"});
     bakeVdb({"g.vdb", "--scale", "0"}, {"--scale", "0"});

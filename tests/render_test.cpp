@@ -732,6 +732,23 @@ TEST(Renderer, RejectsBadOptionsAndScenes) {
     Scene badDepth = scene;
     badDepth.objects[0].material.depthWorld = -1.0f;
     EXPECT_THROW(renderScene(badDepth, RenderOptions{}), InputError);
+    // A value is shown as given (2, 0.1), not with six decimals (2.000000, 0.100000).
+    RenderOptions badRelaxation;
+    badRelaxation.march.relaxation = 2.0f;
+    try {
+        renderScene(scene, badRelaxation);
+        ADD_FAILURE() << "a relaxation of 2 was accepted";
+    } catch (const InputError& error) {
+        EXPECT_EQ(error.problem().rfind("2 is not accepted", 0), 0u) << error.what();
+    }
+    badDepth.objects[0].material.depthWorld = -0.1f;
+    try {
+        renderScene(badDepth, RenderOptions{});
+        ADD_FAILURE() << "a depth of -0.1 was accepted";
+    } catch (const InputError& error) {
+        EXPECT_NE(std::string(error.what()).find("-0.1 "), std::string::npos) << error.what();
+        EXPECT_EQ(std::string(error.what()).find("-0.100000"), std::string::npos) << error.what();
+    }
     // A hit threshold below what single precision resolves spent every ray's whole budget.
     RenderOptions small;
     small.width = 8;

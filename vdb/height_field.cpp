@@ -237,8 +237,7 @@ LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, fl
                                  const ProgressCallback& progress) {
     validateTileSize(tile, "height field level set");
     if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
-        throw InputError("height field level set: half band width " +
-                         std::to_string(halfBandTexels) +
+        throw InputError("height field level set: half band width " + numberText(halfBandTexels) +
                          " texels is not accepted; it must be in [1, 1024]");
     }
     validateHeightField(field, tile, "height field level set");

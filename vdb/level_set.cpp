@@ -32,7 +32,7 @@ LevelSet LevelSet::fromDistanceRows(const RowDistanceFunction& rowDistance, cons
                                     bool fillMargins) {
     validateTileSize(tile, "level set");
     if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
-        throw InputError("level set: half band width " + std::to_string(halfBandTexels) +
+        throw InputError("level set: half band width " + numberText(halfBandTexels) +
                          " texels is not accepted; it must be in [1, 1024]");
     }
     return LevelSet({detail::openVdb().levelSetFromDistanceRows(

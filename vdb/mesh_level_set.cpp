@@ -12,7 +12,7 @@ LevelSet levelSetFromMesh(const TriangleSoup& meshTexels, const Size3& tile, flo
                           const ProgressCallback& progress, const InsideTest& insideTest) {
     validateTileSize(tile, "mesh level set");
     if (!(halfBandTexels >= 1.0f && halfBandTexels <= 1024.0f)) {
-        throw InputError("mesh level set: half band width " + std::to_string(halfBandTexels) +
+        throw InputError("mesh level set: half band width " + numberText(halfBandTexels) +
                          " texels is not accepted; it must be in [1, 1024]");
     }
     validateTriangleSoup(meshTexels, "mesh level set");

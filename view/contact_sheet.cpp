@@ -98,7 +98,7 @@ bool writeContactSheet(std::span<const float> values, const Size3& size,
                          " values; it needs one per texel, as values");
     }
     if (!(std::isfinite(options.rangeTexels) && options.rangeTexels > 0.0f)) {
-        throw InputError("rangeTexels = " + std::to_string(options.rangeTexels) +
+        throw InputError("rangeTexels = " + numberText(options.rangeTexels) +
                          " is not accepted; it must be finite and > 0");
     }
     const ContactSheetLayout layout(size);

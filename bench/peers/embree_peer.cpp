@@ -49,7 +49,7 @@ namespace {
 void validateEmbreeOptions(const EmbreePeerOptions& options) {
     if (!(options.tessellationErrorTexels > 0.0) || !std::isfinite(options.tessellationErrorTexels))
         throw InputError("tessellationErrorTexels: " +
-                         std::to_string(options.tessellationErrorTexels) +
+                         numberText(options.tessellationErrorTexels) +
                          " is not accepted; it must be a finite number > 0");
     const int rays = options.raysPerPacket;
     if (rays != 1 && rays != 4 && rays != 8 && rays != 16)
