@@ -514,7 +514,7 @@ ChainmailOptions chainmailOf(const Field& spec) {
     }
     if (spec.has("rings_per_row")) chainmail.ringsPerRow = spec["rings_per_row"].integer(1, 4096);
     if (const auto rows = aliased(spec, "rows", "rows_per_tile"))
-        chainmail.rowsPerTile = rows->integer(2, 4096);
+        chainmail.rowsPerTile = rows->integer(1, 4096);
     spec.numberInto("ring_radius", chainmail.ringRadiusSpacings, 0.0, 2.0);
     spec.numberInto("wire_radius", chainmail.wireRadiusSpacings, 0.0, 2.0);
     if (const auto tilt = aliased(spec, "tilt", "tilt_deg"))

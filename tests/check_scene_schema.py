@@ -124,6 +124,7 @@ BAD_SCENES = [
 GOOD_TILES = [
     ("Japanese weave with an odd number of rows",
      {"bake": "chainmail", "weave": "japanese4in1", "rows": 3}),
+    ("Japanese weave with one row", {"bake": "chainmail", "weave": "japanese4in1", "rows": 1}),
     ("Japanese weave with small rings", {"bake": "chainmail", "weave": "japanese4in1",
                                          "small_ring_radius": 0.2, "small_wire_radius": 0.03}),
     ("mesh fit false with a scale", {"bake": "mesh", "file": "ring.obj", "fit": False,

@@ -1205,6 +1205,11 @@ TEST_F(Cli, SceneRecipesBakeTheSameTilesAsTheCommand) {
              "small_wire_radius": 0.045})",
          {"bake", "chainmail", "--weave", "japanese4in1", "--size", "128x128x16",
           "--small-wire-radius", "0.045"}},
+        // One row of the Japanese weave, as the command takes it.
+        {R"({"bake": "chainmail", "weave": "japanese4in1", "size": "64x64x16", "rows": 1,
+             "rings_per_row": 2})",
+         {"bake", "chainmail", "--weave", "japanese4in1", "--size", "64x64x16", "--rows", "1",
+          "--rings-per-row", "2"}},
         {R"({"bake": "mesh", "file": "ring.obj", "size": "32x32x8", "unsigned": true,
              "thickness": 1.5})",
          {"bake", "mesh", "ring.obj", "--size", "32x32x8", "--unsigned", "--thickness", "1.5"}},
