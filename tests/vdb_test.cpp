@@ -1,5 +1,6 @@
 // Tests of vdb/: the chain-mail distance against closed-form torus geometry, and level sets.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <cmath>
@@ -7,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <glm/geometric.hpp>
+#include <iterator>
 #include <numbers>
 #include <random>
 
@@ -269,6 +271,35 @@ TEST_F(LevelSetTest, SavesAndLoadsAndCopiesTheTileVoxels) {
             }
         }
     }
+}
+
+TEST_F(LevelSetTest, SavesTheSameBytesOnAnyThreadCountAndEveryTime) {
+    // OpenVDB stamps each file with a random UUID; save() makes it a hash of the content instead.
+    const auto bytesOf = [](const std::filesystem::path& file) {
+        std::ifstream in(file, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    const auto saved = [&](int threads, const std::string& name) {
+        const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+        const LevelSet levelSet = LevelSet::fromDistance(
+            [](const glm::dvec3& p) { return glm::length(p - glm::dvec3(8, 8, 4)) - 3.0; },
+            Size3{16, 16, 8}, 4.0f, "sphere", "{\"r\":3}");
+        levelSet.save(folder_ / name);
+        return bytesOf(folder_ / name);
+    };
+    const std::string first = saved(1, "one.vdb");
+    ASSERT_GT(first.size(), 57u);
+    // Compared as a whole (a mismatch shows the UUIDs, not the binary file).
+    const std::string two = saved(2, "two.vdb");
+    EXPECT_TRUE(two == first) << two.substr(21, 36) << " vs " << first.substr(21, 36);
+    const std::string again = saved(2, "again.vdb");
+    EXPECT_TRUE(again == first) << again.substr(21, 36) << " vs " << first.substr(21, 36);
+    EXPECT_NO_THROW(LevelSet::load(folder_ / "again.vdb"));
+    const LevelSet other = LevelSet::fromDistance(
+        [](const glm::dvec3& p) { return glm::length(p - glm::dvec3(8, 8, 4)) - 2.0; },
+        Size3{16, 16, 8}, 4.0f, "sphere", "{\"r\":2}");
+    other.save(folder_ / "other.vdb");
+    EXPECT_NE(bytesOf(folder_ / "other.vdb").substr(21, 36), first.substr(21, 36));
 }
 
 TEST_F(LevelSetTest, RejectsMissingAndCorruptedFiles) {

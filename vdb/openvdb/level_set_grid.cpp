@@ -1,6 +1,4 @@
 // The OpenVDB half of vdb/level_set.h, in the module (vdb/detail/openvdb_module.h).
-#include "vdb/openvdb/openvdb_parts.h"
-
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>
@@ -9,12 +7,18 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cctype>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
 #include <sstream>
+#include <string_view>
 #include <vector>
 
 #include "common/error.h"
 #include "common/input_file.h"
+#include "vdb/openvdb/openvdb_parts.h"
 #include "vdb/openvdb/openvdb_setup.h"
 #include "vdb/openvdb/vdb_header_check.h"
 
@@ -26,6 +30,51 @@ constexpr const char* kGridName = "surface";
 constexpr const char* kSizeKey = "distile:size";
 constexpr const char* kSourceKey = "distile:source";
 constexpr const char* kParamsKey = "distile:params";
+
+/// OpenVDB stamps every file it writes with a random UUID, so the same grid written twice gave
+/// two different files. Replace it with one made of a hash of the file's other bytes: the same
+/// grid gives the same file, and a changed grid still a new UUID (what readers use it for).
+void stampContentUuid(const std::filesystem::path& file) {
+    // The header: the magic (8 bytes), the file version and the library's major and minor version
+    // (4 bytes each), the grid-offsets flag (1 byte), then the UUID as 36 characters.
+    constexpr std::streamoff kUuidAt = 8 + 4 + 4 + 4 + 1;
+    constexpr std::size_t kUuidLength = 36;
+    std::fstream stream(file, std::ios::in | std::ios::out | std::ios::binary);
+    std::string header(std::size_t(kUuidAt) + kUuidLength, '\0');
+    if (!stream.read(header.data(), std::streamsize(header.size())))
+        throw FormatError(file.string() + ": OpenVDB wrote no file header");
+    const std::string_view uuid = std::string_view(header).substr(std::size_t(kUuidAt));
+    for (std::size_t n = 0; n < kUuidLength; ++n) {
+        const bool dash = n == 8 || n == 13 || n == 18 || n == 23;
+        if (dash ? uuid[n] != '-' : !std::isxdigit(static_cast<unsigned char>(uuid[n])))
+            throw FormatError(file.string() + ": OpenVDB wrote no UUID where one was expected");
+    }
+    // FNV-1a 64 of every byte but the UUID's, twice from different offset bases.
+    std::uint64_t first = 0xcbf29ce484222325ull;
+    std::uint64_t second = 0x84222325cbf29ce4ull;
+    const auto add = [&](const char* bytes, std::size_t count) {
+        for (std::size_t n = 0; n < count; ++n) {
+            const auto byte = static_cast<unsigned char>(bytes[n]);
+            first = (first ^ byte) * 0x100000001b3ull;
+            second = (second ^ byte) * 0x100000001b3ull;
+        }
+    };
+    add(header.data(), std::size_t(kUuidAt));
+    std::vector<char> chunk(1 << 20);
+    while (stream.read(chunk.data(), std::streamsize(chunk.size())) || stream.gcount() > 0)
+        add(chunk.data(), std::size_t(stream.gcount()));
+    char digits[40];
+    std::snprintf(digits, sizeof digits, "%08llx-%04llx-%04llx-%04llx-%012llx",
+                  static_cast<unsigned long long>(first >> 32),
+                  static_cast<unsigned long long>((first >> 16) & 0xffff),
+                  static_cast<unsigned long long>(first & 0xffff),
+                  static_cast<unsigned long long>(second >> 48),
+                  static_cast<unsigned long long>(second & 0xffffffffffffull));
+    stream.clear();
+    stream.seekp(kUuidAt);
+    if (!stream.write(digits, std::streamsize(kUuidLength)) || !stream.flush())
+        throw FormatError(file.string() + ": could not write the file's UUID");
+}
 
 std::string stringMeta(const openvdb::FloatGrid& grid, const char* key) {
     auto meta = grid.getMetadata<openvdb::StringMetadata>(key);
@@ -80,7 +129,8 @@ class OpenVdbLevelSetGrid final : public LevelSetGrid {
     void copyTileVoxels(const Size3& tile, std::span<float> texels) const override {
         assert(texels.size() == tile.texelCount());
         const openvdb::CoordBBox box(
-            openvdb::Coord(0, 0, 0), openvdb::Coord(tile.width - 1, tile.height - 1, tile.depth - 1));
+            openvdb::Coord(0, 0, 0),
+            openvdb::Coord(tile.width - 1, tile.height - 1, tile.depth - 1));
         openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box, texels.data());
         openvdb::tools::copyToDense(*grid_, dense);
     }
@@ -97,30 +147,29 @@ class OpenVdbLevelSetGrid final : public LevelSetGrid {
         openvdb::tools::copyToDense(*grid_, tileVoxels);
         const Size3 repeatedTile{tile.width * repeatX, tile.height * repeatY, tile.depth};
         const openvdb::CoordBBox box(openvdb::Coord(0, 0, -margin),
-                                     openvdb::Coord(repeatedTile.width - 1,
-                                                    repeatedTile.height - 1,
+                                     openvdb::Coord(repeatedTile.width - 1, repeatedTile.height - 1,
                                                     tile.depth - 1 + margin));
         openvdb::tools::Dense<float, openvdb::tools::LayoutXYZ> dense(box);
         const float* from = tileVoxels.data();
         float* to = dense.data();
         const std::size_t rows = std::size_t(tile.height) * std::size_t(tile.depth + 2 * margin);
-        tbb::parallel_for(
-            tbb::blocked_range<std::size_t>(0, rows),
-            [&](const tbb::blocked_range<std::size_t>& range) {
-                for (std::size_t row = range.begin(); row != range.end(); ++row) {
-                    const std::size_t j = row % std::size_t(tile.height);
-                    const std::size_t k = row / std::size_t(tile.height);
-                    const float* sourceRow = from + row * std::size_t(tile.width);
-                    for (int n = 0; n < repeatY; ++n) {
-                        float* targetRow = to + (k * std::size_t(repeatedTile.height) +
-                                                 std::size_t(n) * tile.height + j) *
-                                                    std::size_t(repeatedTile.width);
-                        for (int m = 0; m < repeatX; ++m)
-                            std::copy_n(sourceRow, tile.width,
-                                        targetRow + std::size_t(m) * tile.width);
-                    }
-                }
-            });
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows),
+                          [&](const tbb::blocked_range<std::size_t>& range) {
+                              for (std::size_t row = range.begin(); row != range.end(); ++row) {
+                                  const std::size_t j = row % std::size_t(tile.height);
+                                  const std::size_t k = row / std::size_t(tile.height);
+                                  const float* sourceRow = from + row * std::size_t(tile.width);
+                                  for (int n = 0; n < repeatY; ++n) {
+                                      float* targetRow =
+                                          to + (k * std::size_t(repeatedTile.height) +
+                                                std::size_t(n) * tile.height + j) *
+                                                   std::size_t(repeatedTile.width);
+                                      for (int m = 0; m < repeatX; ++m)
+                                          std::copy_n(sourceRow, tile.width,
+                                                      targetRow + std::size_t(m) * tile.width);
+                                  }
+                              }
+                          });
         return std::make_unique<OpenVdbLevelSetGrid>(
             sparseGrid(dense, halfBand, repeatedTile, source, params));
     }
@@ -129,6 +178,7 @@ class OpenVdbLevelSetGrid final : public LevelSetGrid {
         openvdb::io::File vdbFile(file.string());
         vdbFile.write({grid_});
         vdbFile.close();
+        stampContentUuid(file);
     }
 
   private:
@@ -193,7 +243,8 @@ LevelSetParts loadLevelSet(const std::filesystem::path& file) {
                 chosen = candidate;
             }
         }
-        if (chosen) grid = openvdb::gridPtrCast<openvdb::FloatGrid>(vdbFile.readGrid(chosen->getName()));
+        if (chosen)
+            grid = openvdb::gridPtrCast<openvdb::FloatGrid>(vdbFile.readGrid(chosen->getName()));
         vdbFile.close();
     } catch (const std::exception& error) {
         throw FormatError(file.string() + ": not a readable .vdb file (" + error.what() + ")");
