@@ -90,6 +90,9 @@ std::unique_ptr<Input> openFile(const fs::path& file, std::string& error) {
 std::string writeFile(const fs::path& file, const Spec& spec, PixelType given, const void* pixels) {
     OIIO::ImageSpec to(spec.width, spec.height, spec.channels, typeOf(spec.pixelType));
     if (!spec.channelNames.empty()) to.channelnames = spec.channelNames;
+    // OpenImageIO stamps EXR and TIFF files with the time of writing unless DateTime is given;
+    // empty, none is written, so the same pixels give the same file (an attribute may set one).
+    to.attribute("DateTime", "");
     for (const Attribute& attribute : spec.attributes) {
         std::visit([&](const auto& value) { to.attribute(attribute.name, value); },
                    attribute.value);

@@ -256,6 +256,18 @@ TEST_F(SamplerIo, PlainExrIsNotADistileTile) {
     EXPECT_NE(formatErrorMessage(path("plain.exr")).find("not a distile tile"), std::string::npos);
 }
 
+TEST_F(SamplerIo, ExrAndTiffRendersCarryNoWriteTime) {
+    // OpenImageIO stamps a DateTime on files unless told otherwise: the same render written a
+    // second later would differ.
+    Image image(8, 8, glm::vec3(0.25f));
+    for (const std::string name : {"plain.exr", "plain.tif"}) {
+        writeImage(image, path(name));
+        auto input = OIIO::ImageInput::open(path(name).string());
+        ASSERT_TRUE(input) << name;
+        EXPECT_EQ(input->spec().find_attribute("DateTime"), nullptr) << name;
+    }
+}
+
 TEST_F(SamplerIo, PngNamedExrIsRejected) {
     Image image(8, 8, glm::vec3(0.25f));
     writeImage(image, path("plain.png"));
@@ -331,9 +343,11 @@ TEST_F(SamplerIo, DeclaredBandRoundTripsAndBoundsTheDistances) {
     EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:band_texels"), std::string::npos);
     // One bound: the declared band replaces the bound by size (+-16 texels here), and may not
     // exceed it.
-    rewriteRaw(path("huge.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 12.0f); });
+    rewriteRaw(path("huge.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 12.0f); });
     EXPECT_EQ(readTileExr(path("huge.exr")).at(5, 0, 0), 12.0f);
-    rewriteRaw(path("huge.exr"), [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 1e30f); });
+    rewriteRaw(path("huge.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:band_texels", 1e30f); });
     EXPECT_NE(formatErrorMessage(path("huge.exr")).find("at most 16 texels"), std::string::npos);
 }
 
@@ -576,7 +590,7 @@ TEST_F(SamplerIo, PngsAreWrittenWithLibpngAndReadBackByOpenImageIo) {
     rgb.set("oiio:ColorSpace", std::string("sRGB"));
     rgb.set("distile:note", std::string("a note"));
     rgb.set("png:compressionLevel", 1);
-    const std::vector<float> floats = {0.0f, 1.0f,  0.5f,  -1.0f, 2.0f,   std::nanf(""),
+    const std::vector<float> floats = {0.0f, 1.0f,  0.5f,  -1.0f,  2.0f,   std::nanf(""),
                                        0.1f, 0.25f, 0.75f, 0.998f, 0.002f, 1.0f / 255.0f,
                                        0.3f, 0.6f,  0.9f,  0.4f,   0.7f,   0.2f};
     const fs::path rgbFile = path("rgb.png");
@@ -587,7 +601,8 @@ TEST_F(SamplerIo, PngsAreWrittenWithLibpngAndReadBackByOpenImageIo) {
     EXPECT_EQ(rgbRead.spec.get_string_attribute("oiio:ColorSpace"), "sRGB");
     EXPECT_EQ(rgbRead.spec.get_string_attribute("distile:note"), "a note");
     EXPECT_EQ(rgbRead.spec.find_attribute("png:compressionLevel"), nullptr);
-    const int expected[18] = {0, 255, 128, 0, 255, 0, 26, 64, 191, 254, 1, 1, 77, 153, 230, 102, 179, 51};
+    const int expected[18] = {0,   255, 128, 0,  255, 0,   26,  64,  191,
+                              254, 1,   1,   77, 153, 230, 102, 179, 51};
     for (int i = 0; i < 18; ++i)
         EXPECT_EQ(std::lround(rgbRead.pixels[std::size_t(i)] * 255.0f), expected[i]) << i;
 
