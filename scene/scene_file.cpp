@@ -342,13 +342,27 @@ struct BakedTile {
     std::shared_ptr<const TriangleSoup> placedMesh;  ///< null unless "bake": "mesh"
 };
 
+/// `tile` recording `path` as its source file. A recipe names its input file by the file's bytes,
+/// so the tile that `tiles` or the bake cache hold for it may have been baked from a copy of the
+/// file elsewhere and record that copy: the tile a bake returns would then depend on what was
+/// baked before. The distances are the same; a copy of the tile names `path` instead.
+std::shared_ptr<const Tile> recordingSource(std::shared_ptr<const Tile> tile,
+                                            const fs::path& path) {
+    const fs::path file = fs::absolute(path).lexically_normal();  // as recordSourceFile
+    if (tile->provenance.sourceFile == file) return tile;
+    auto copy = std::make_shared<Tile>(*tile);
+    copy->provenance.sourceFile = file;
+    return copy;
+}
+
 /// The tile of a recipe that bakes the file at `path` (`bake` bakes it): from `tiles` or the bake
 /// cache when there, else baked and recorded there, its source file recorded in its provenance.
 /// The bake's errors are told under the spec's keys or its "file".
 BakedTile bakedFileTile(const Field& spec, TileCache& tiles, const std::string& recipe,
                         const fs::path& path, const std::function<Tile()>& bake) {
     const std::string key = "bake:" + recipe;
-    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
+    if (auto found = tiles.find(key); found != tiles.end())
+        return {recordingSource(found->second, path), nullptr};
     try {
         auto tile = cachedBake(recipe, [&] {
             Tile baked = bake();
@@ -356,7 +370,7 @@ BakedTile bakedFileTile(const Field& spec, TileCache& tiles, const std::string& 
             return baked;
         });
         tiles[key] = tile;
-        return {tile, nullptr};
+        return {recordingSource(tile, path), nullptr};
     } catch (const InputError& error) {
         failInSpec(spec, spec["file"], error);
     } catch (const FormatError& error) {
@@ -467,6 +481,7 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
             });
             tiles[key] = baked.tile;
         }
+        baked.tile = recordingSource(baked.tile, path);
         // After the bake: a refused mesh gets its one-line error only.
         if (warn) {
             for (const std::string& warning : solid.warnings) warn(warning);

@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <glm/geometric.hpp>
 #include <optional>
 #include <random>
@@ -20,10 +22,14 @@
 #include "common/error.h"
 #include "detail_meshes.h"
 #include "sampler/filters.h"
+#include "scene/scene_file.h"
+#include "tests/temp_folder.h"
 #include "truth/mesh_truth.h"
 
 namespace distile {
 namespace {
+
+namespace fs = std::filesystem;
 
 using test::inscribedTessellationError;
 using test::makeBoxSoup;
@@ -820,5 +826,28 @@ TEST(BakeOptions, TheBandIsZeroForTheDepthOrOneTexelAndMore) {
     EXPECT_EQ(validatedHalfBandTexels(options), 1024.0f);
 }
 
+TEST(BakeCache, AMeshTileRecordsTheFileGivenNotTheCopyBakedBefore) {
+    // Two copies of one mesh: the recipe names a file by its bytes, so both bake to one cached
+    // tile, but each bake must record its own file, warm cache or cold.
+    const TempFolder folder("distile_bake_cache_source");
+    const fs::path ring = fs::path(DISTILE_SOURCE_DIR) / "data" / "meshes" / "ring.obj";
+    for (const char* copy : {"a", "b"}) {
+        fs::create_directories(folder.path(copy));
+        fs::copy_file(ring, folder.path(copy) / "ring.obj");
+    }
+    const std::string recipe = R"({"bake": "mesh", "file": "ring.obj", "size": "32x32x16"})";
+    setenv("DISTILE_CACHE", folder.path("cache").c_str(), 1);
+    TileCache process, another;
+    const auto a = bakeRecipeTile(recipe, folder.path("a"), "a", process);
+    const auto fromProcess = bakeRecipeTile(recipe, folder.path("b"), "b", process);
+    const auto fromDisk = bakeRecipeTile(recipe, folder.path("b"), "b", another);
+    unsetenv("DISTILE_CACHE");
+    EXPECT_EQ(a->provenance.sourceFile, folder.path("a") / "ring.obj");
+    EXPECT_EQ(fromProcess->provenance.sourceFile, folder.path("b") / "ring.obj");
+    EXPECT_EQ(fromDisk->provenance.sourceFile, folder.path("b") / "ring.obj");
+    EXPECT_EQ(fromDisk->provenance.sourceHash, a->provenance.sourceHash);
+    EXPECT_TRUE(std::ranges::equal(fromDisk->distancesTexels(), a->distancesTexels()));
+    EXPECT_TRUE(std::ranges::equal(fromProcess->distancesTexels(), a->distancesTexels()));
+}
 }  // namespace
 }  // namespace distile
