@@ -27,6 +27,8 @@ nlohmann::json tileCheckJson(const TileCheck& check, const TileCheckOptions& opt
             {"overestimates", report.overestimates},
             {"overestimate_share", report.overestimateShare},
             {"max_overestimate", report.maxOverestimateTexels},
+            {"tracer_overestimates", report.tracerOverestimates},
+            {"max_tracer_overestimate", report.maxTracerOverestimateTexels},
             {"sign_errors", report.signErrors},
             {"band", check.bandTexels},
             {"band_declared", check.bandDeclared},

@@ -63,6 +63,10 @@ void printReport(const CheckArguments& arguments, const TileCheckOptions& option
         options.maxOverestimateTexels, report.overestimates, 100.0 * report.overestimateShare,
         report.maxOverestimateTexels, report.signErrors);
     std::printf(
+        "    of them where a sphere tracer could step over the surface (tile above max(truth, 0)): "
+        "%d, largest %.4f\n",
+        report.tracerOverestimates, report.maxTracerOverestimateTexels);
+    std::printf(
         "  band +-%g texels (%s): the truth is clamped to it; %.1f%% of the samples lie "
         "inside it\n",
         bandTexels, bandDeclared ? "declared by the tile" : "not declared: the tile depth",

@@ -78,6 +78,10 @@ TileErrorReport measureTileError(const Tile& tile,
         }
         report.maxOverestimateTexels = std::max(report.maxOverestimateTexels, error);
         if (error > options.overestimateToleranceTexels) ++report.overestimates;
+        const double tracerError = double(tileValues[i]) - std::max(trueDistance, 0.0);
+        report.maxTracerOverestimateTexels =
+            std::max(report.maxTracerOverestimateTexels, tracerError);
+        if (tracerError > options.overestimateToleranceTexels) ++report.tracerOverestimates;
         if (std::abs(exactDistance) > options.signMarginTexels &&
             (tileValues[i] < 0.0f) != (exactDistance < 0.0)) {
             ++report.signErrors;

@@ -45,6 +45,11 @@ struct TileErrorReport {
         0.0;                         ///< largest tile - truth (0 if the tile never overestimates)
     int overestimates = 0;           ///< samples with tile - truth > overestimateToleranceTexels
     double overestimateShare = 0.0;  ///< overestimates / samples
+    /// The overestimates a sphere tracer can step over the surface by: tile - max(truth, 0) >
+    /// overestimateToleranceTexels. Inside the detail a tile above the truth but still below 0
+    /// (or within the tolerance of 0) stops no tracer short of the surface or past it.
+    int tracerOverestimates = 0;
+    double maxTracerOverestimateTexels = 0.0;  ///< largest tile - max(truth, 0), at least 0
     int signErrors = 0;  ///< samples with |truth| > signMarginTexels and the other sign in the tile
     int bandSamples = 0;     ///< samples with |truth| < truthClampTexels (inside the band)
     double bandShare = 0.0;  ///< bandSamples / samples: how much of the tile the band covers

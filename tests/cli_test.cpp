@@ -417,11 +417,13 @@ TEST_F(Cli, CheckJsonIsOneObjectWithTheFigures) {
     const nlohmann::json report = nlohmann::json::parse(result.out);
     EXPECT_EQ(report.at("samples").get<int>(), 5000);
     EXPECT_TRUE(report.at("passed").get<bool>());
-    for (const char* key : {"rms", "max_abs", "near_rms", "near_max_abs", "near_p999_abs",
-                            "overestimate_share", "sign_errors", "max_abs_at"}) {
+    for (const char* key :
+         {"rms", "max_abs", "near_rms", "near_max_abs", "near_p999_abs", "overestimate_share",
+          "sign_errors", "max_abs_at", "tracer_overestimates", "max_tracer_overestimate"}) {
         EXPECT_TRUE(report.contains(key)) << key;
     }
     EXPECT_LE(report.at("rms").get<double>(), 0.1);
+    EXPECT_LE(report.at("tracer_overestimates").get<int>(), report.at("overestimates").get<int>());
 }
 
 TEST_F(Cli, CheckAgainstTheLevelSetAndRejectsBadInput) {

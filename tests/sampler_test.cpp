@@ -512,6 +512,30 @@ std::vector<std::pair<std::string, ProceduralOptions>> proceduralKinds() {
             {"grating", grating}};
 }
 
+TEST(TileErrorReport, TellsTheOverestimatesATracerCanStepOverFromTheOthers) {
+    // The plane z = 8 in a 16-deep tile whose every value is 0.5 texel above the truth: every
+    // point overestimates, but a tracer can step over the surface only where the tile exceeds
+    // max(truth, 0) by more than 0.05: outside (truth > 0) and just inside (truth > -0.45), the
+    // share 8.45 / 16 of the volume. The trilinear filter reproduces the ramp between the first
+    // and last texel centres; beyond them it holds the end values, which changes neither count.
+    Tile tile({8, 8, 16});
+    for (int z = 0; z < 16; ++z)
+        for (int y = 0; y < 8; ++y)
+            for (int x = 0; x < 8; ++x) tile.at(x, y, z) = (z + 0.5f - 8.0f) + 0.5f;
+    const TileErrorReport report =
+        measureTileError(tile, [](const glm::dvec3& p) { return p.z - 8.0; });
+    EXPECT_GT(report.overestimateShare, 0.93);  // all but the bottom and top half texels
+    const double tracerShare = double(report.tracerOverestimates) / double(report.samples);
+    EXPECT_NEAR(tracerShare, 8.45 / 16.0, 0.01);
+    EXPECT_NEAR(report.maxTracerOverestimateTexels, 0.5, 1e-5);
+    // A tile that only lowers the truth has neither.
+    for (float& distance : tile.distancesTexels()) distance -= 1.0f;
+    const TileErrorReport lowered =
+        measureTileError(tile, [](const glm::dvec3& p) { return p.z - 8.0; });
+    EXPECT_EQ(lowered.overestimates, 0);
+    EXPECT_EQ(lowered.tracerOverestimates, 0);
+}
+
 TEST(ConservativeResampling, EveryProceduralTileMeetsTheOverestimateAndRmsTargets) {
     // Against the analytic truth at 100,000 uniform random points: trilinear
     // overestimates beyond 0.05 texel in under 0.1% of the samples, and RMS <= 0.1 texel. The
