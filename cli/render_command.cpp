@@ -109,22 +109,23 @@ void runWorldReference(const RenderArguments& arguments, SceneFile sceneFile,
     }
     for (std::size_t index = 0; index < result.levelSets.size(); ++index) {
         const DisplacedLevelSetStats& levelSet = result.levelSets[index];
-        std::printf("level set %zu: voxel %.3g world units, %zu active voxels, %.1f MB, %.2f s\n",
-                    index, levelSet.voxelSizeWorld, levelSet.activeVoxels,
-                    double(levelSet.memoryBytes) / 1e6, levelSet.levelSetSeconds);
+        std::printf(
+            "level set %zu: %.3g voxels per texel (voxel %.3g world units), %zu active "
+            "voxels, %.1f MB, %.2f s\n",
+            index, levelSet.voxelsPerTexel, levelSet.voxelSizeWorld, levelSet.activeVoxels,
+            double(levelSet.memoryBytes) / 1e6, levelSet.levelSetSeconds);
     }
     const RenderStats& stats = result.render.stats;
+    char levelSets[64] = "";
+    if (options.method == WorldReferenceMethod::LevelSet)
+        std::snprintf(levelSets, sizeof levelSets, "level sets %.2f s, ", result.levelSetSeconds);
     std::printf(
         "world reference (%dx%d, %s) in %.2f s: meshes %.2f s, %sBVH %.2f s (%.0f MB), trace "
         "and shade %.2f s; %.1f%% of %llu rays hit\n",
         options.width, options.height,
         options.method == WorldReferenceMethod::LevelSet ? "level sets" : "BVH", seconds,
-        result.meshSeconds,
-        options.method == WorldReferenceMethod::LevelSet
-            ? ("level sets " + std::to_string(result.levelSetSeconds) + " s, ").c_str()
-            : "",
-        result.bvhSeconds, double(result.bvhBytes) / 1e6, result.traceSeconds,
-        stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0,
+        result.meshSeconds, levelSets, result.bvhSeconds, double(result.bvhBytes) / 1e6,
+        result.traceSeconds, stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0,
         static_cast<unsigned long long>(stats.rays));
     std::printf(
         "detail hits on the exact surface: %llu refined, %llu left on the traced %s; %llu rays "
@@ -400,8 +401,8 @@ void addRenderCommand(CLI::App& app) {
         ->add_option("--reference-voxels", arguments->referenceVoxelsPerTexel,
                      "With --reference world-levelset: world voxels per world size of a texel, in "
                      "[0.25, 16] (2: voxels of half a texel); memory grows as its square, and "
-                     "a level set estimated to need more than 1 GiB is refused")
-        ->capture_default_str()
+                     "a level set estimated to need more than 1 GiB is refused. Default: 2, or "
+                     "the finest that fits in 1 GiB")
         ->check(finiteRange(0.25, 16.0));
     command->callback([arguments, reference] {
         arguments->referenceGiven = reference->count() > 0;

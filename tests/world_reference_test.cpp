@@ -178,6 +178,9 @@ TEST(DisplacedLevelSet, OnATorusTheFloorIsATubeAtTheShellDepth) {
         DisplacedLevelSet::build([](const glm::dvec3&) { return 100.0; }, {32, 32, 8}, shell);
     const DisplacedLevelSetStats& stats = levelSet.stats();
     EXPECT_EQ(stats.mesh.borderEdges, 0u);
+    // The default resolution: 2 voxels per texel, the surface being small enough for it.
+    EXPECT_EQ(stats.voxelsPerTexel, DisplacedLevelSetOptions::kAutomaticVoxelsPerTexel);
+    EXPECT_NEAR(stats.voxelSizeWorld * 2.0, stats.mesh.texelSizeWorld, 1e-12);
     for (double angle : {0.0, 0.3, 1.0, 2.5, 4.0}) {
         const glm::dvec3 above(majorRadius * std::cos(angle), majorRadius * std::sin(angle), 1.0);
         double distance = 0.0;
@@ -192,7 +195,7 @@ TEST(DisplacedLevelSet, RejectsBadOptions) {
     const DisplacementShell shell{plane.positions, plane.normals, plane.uvs, plane.triangles};
     const auto flat = [](const glm::dvec3& texel) { return texel.z - 4.0; };
     DisplacedLevelSetOptions options;
-    options.voxelsPerTexel = 0.0;
+    options.voxelsPerTexel = 0.2;
     EXPECT_THROW(DisplacedLevelSet::build(flat, {32, 32, 8}, shell, options), InputError);
     DisplacementShell noDepth = shell;
     noDepth.depthWorld = 0.0;

@@ -115,8 +115,11 @@ DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Siz
 struct DisplacedLevelSetOptions {
     DisplacedMeshOptions mesh;
     /// World voxels per world size of one texel (DisplacedMeshStats::texelSizeWorld), in
-    /// [0.25, 16]: 2 gives voxels of half a texel. Memory grows as its square.
-    double voxelsPerTexel = 2.0;
+    /// [0.25, 16]: 2 gives voxels of half a texel. Memory grows as its square. 0 (the default):
+    /// kAutomaticVoxelsPerTexel, or where the detail's surface would need more than the 1 GiB
+    /// build budget there, the finest that fits it (at least 0.25).
+    double voxelsPerTexel = 0.0;
+    static constexpr double kAutomaticVoxelsPerTexel = 2.0;
     /// Half width of the world level set's narrow band, voxels.
     float halfBandVoxels = 3.0f;
 };
@@ -124,6 +127,7 @@ struct DisplacedLevelSetOptions {
 /// Figures of a level-set build, for reports.
 struct DisplacedLevelSetStats {
     DisplacedMeshStats mesh;
+    double voxelsPerTexel = 0.0;  ///< as built (the automatic choice made)
     double voxelSizeWorld = 0.0;
     std::size_t activeVoxels = 0;
     std::size_t memoryBytes = 0;   ///< of the world level set (OpenVDB's memUsage)
@@ -136,9 +140,10 @@ class DisplacedLevelSet {
 
     /// Builds the world level set of `detail` (tile size `tile`) mapped through `shell`: the
     /// narrow-band level set of buildDisplacedMesh's surface.
-    /// @throws InputError as buildDisplacedMesh, and options out of range (voxelsPerTexel in
+    /// @throws InputError as buildDisplacedMesh, and options out of range (voxelsPerTexel 0 or in
     ///         [0.25, 16], halfBandVoxels in [2, 16]) or a band estimated to need more than 1 GiB
-    ///         while it builds (the surface's area over the voxel area, times the band's width).
+    ///         while it builds (the surface's area over the voxel area, times the band's width;
+    ///         with voxelsPerTexel 0, only when even 0.25 would).
     static DisplacedLevelSet build(const DistanceFunction& detail, const Size3& tile,
                                    const DisplacementShell& shell,
                                    const DisplacedLevelSetOptions& options = {});

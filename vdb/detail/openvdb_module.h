@@ -90,9 +90,11 @@ inline constexpr double kMinVoxelsPerTexel = 0.25;
 /// Throws InputError unless `options` are accepted (before the mesh is built, and again by the
 /// module).
 inline void validateDisplacedLevelSetOptions(const DisplacedLevelSetOptions& options) {
-    if (!(options.voxelsPerTexel >= kMinVoxelsPerTexel && options.voxelsPerTexel <= 16.0)) {
-        throw InputError("world reference mesh: voxels per texel: " +
-                         std::to_string(options.voxelsPerTexel) + " is not in [0.25, 16]");
+    if (options.voxelsPerTexel != 0.0 &&
+        !(options.voxelsPerTexel >= kMinVoxelsPerTexel && options.voxelsPerTexel <= 16.0)) {
+        throw InputError(
+            "world reference mesh: voxels per texel: " + numberText(options.voxelsPerTexel) +
+            " is not in [0.25, 16] (or 0: the finest up to 2 that fits 1 GiB)");
     }
     if (!(options.halfBandVoxels >= 2.0f && options.halfBandVoxels <= 16.0f)) {
         throw InputError("world reference mesh: half band: " +
@@ -123,10 +125,12 @@ struct OpenVdbFunctions {
         const std::string& source, const std::string& params, const ProgressCallback& progress,
         bool fillMargins);
     LevelSetParts (*loadLevelSet)(const std::filesystem::path& file);
-    std::unique_ptr<LevelSetGrid> (*levelSetFromMesh)(
-        const TriangleSoup& meshTexels, const Size3& tile, float halfBandTexels,
-        const std::string& source, const std::string& params, const ProgressCallback& progress,
-        const InsideTest& insideTest);
+    std::unique_ptr<LevelSetGrid> (*levelSetFromMesh)(const TriangleSoup& meshTexels,
+                                                      const Size3& tile, float halfBandTexels,
+                                                      const std::string& source,
+                                                      const std::string& params,
+                                                      const ProgressCallback& progress,
+                                                      const InsideTest& insideTest);
     DisplacedMesh (*buildDisplacedMesh)(const DetailDistanceFunction& detail, const Size3& tile,
                                         const DisplacementShell& shell,
                                         const DisplacedMeshOptions& options);

@@ -1,6 +1,4 @@
 // The OpenVDB half of vdb/displaced_level_set.h, in the module (vdb/detail/openvdb_module.h).
-#include "vdb/openvdb/openvdb_parts.h"
-
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
 #include <openvdb/tools/RayIntersector.h>
@@ -24,6 +22,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "vdb/openvdb/openvdb_parts.h"
 
 namespace distile::detail {
 
@@ -780,8 +779,8 @@ class OpenVdbDisplacedGrid final : public DisplacedGrid {
         const glm::dvec3 hit(world.x(), world.y(), world.z());
         distanceWorld = glm::dot(hit - origin, unitDirection);
         const double length = normal.length();
-        normalWorld = length > 0.0 ? glm::dvec3(normal.x(), normal.y(), normal.z()) / length
-                                   : -unitDirection;
+        normalWorld =
+            length > 0.0 ? glm::dvec3(normal.x(), normal.y(), normal.z()) / length : -unitDirection;
         return true;
     }
 
@@ -801,22 +800,31 @@ BuiltDisplacedLevelSet buildDisplacedLevelSet(const DisplacedMesh& mesh,
     DisplacedLevelSetStats& stats = built.stats;
     stats.mesh = mesh.stats;
     const auto start = std::chrono::steady_clock::now();
-    stats.voxelSizeWorld = mesh.stats.texelSizeWorld / options.voxelsPerTexel;
-    // The band's voxels, estimated from the surface before OpenVDB allocates for them.
-    const double bandVoxels = surfaceAreaWorld(mesh) /
-                              (stats.voxelSizeWorld * stats.voxelSizeWorld) * 2.0 *
-                              double(options.halfBandVoxels);
+    // The band's voxels, estimated from the surface before OpenVDB allocates for them: the
+    // surface's area over a voxel's, times the band's width. Per voxel per texel squared:
+    const double bandVoxelsPerSquare = surfaceAreaWorld(mesh) /
+                                       (mesh.stats.texelSizeWorld * mesh.stats.texelSizeWorld) *
+                                       2.0 * double(options.halfBandVoxels);
+    // The finest resolution the budget allows, rounded down to a hundredth.
+    const double largest =
+        std::floor(100.0 * std::sqrt(kLevelSetBuildBudgetBytes /
+                                     (bandVoxelsPerSquare * kBuildBytesPerBandVoxel))) /
+        100.0;
+    stats.voxelsPerTexel = options.voxelsPerTexel;
+    if (stats.voxelsPerTexel == 0.0) {
+        stats.voxelsPerTexel = std::min(DisplacedLevelSetOptions::kAutomaticVoxelsPerTexel,
+                                        std::max(largest, kMinVoxelsPerTexel));
+    }
+    const double bandVoxels = bandVoxelsPerSquare * stats.voxelsPerTexel * stats.voxelsPerTexel;
     if (!(bandVoxels * kBuildBytesPerBandVoxel <= kLevelSetBuildBudgetBytes)) {
-        const double largest =
-            options.voxelsPerTexel *
-            std::sqrt(kLevelSetBuildBudgetBytes / (bandVoxels * kBuildBytesPerBandVoxel));
         char message[200];
         std::snprintf(message, sizeof message,
                       "%g needs about %.1f GB for this detail's surface; at most 1 GiB is "
                       "accepted, so use at most %.2f",
-                      options.voxelsPerTexel, bandVoxels * kBuildBytesPerBandVoxel / 1e9, largest);
+                      stats.voxelsPerTexel, bandVoxels * kBuildBytesPerBandVoxel / 1e9, largest);
         reject("voxels per texel", message);
     }
+    stats.voxelSizeWorld = mesh.stats.texelSizeWorld / stats.voxelsPerTexel;
     const auto transform = openvdb::math::Transform::createLinearTransform(stats.voxelSizeWorld);
     openvdb::FloatGrid::Ptr grid = openvdb::tools::meshToVolume<openvdb::FloatGrid>(
         MeshAdapter(mesh, *transform), *transform, options.halfBandVoxels, options.halfBandVoxels);
