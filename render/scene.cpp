@@ -22,6 +22,19 @@ void requireFinite(const glm::vec3& v, const std::string& field) {
     if (!finite(v)) throw InputError::inField(field, "must be three finite numbers");
 }
 
+/// A colour's components in [0, kMaxColorComponent]; the first one outside is named.
+void requireColor(const glm::vec3& color, const std::string& field) {
+    requireFinite(color, field);
+    for (int i = 0; i < 3; ++i) {
+        if (!(color[i] >= 0.0f && color[i] <= kMaxColorComponent)) {
+            throw InputError::inField(field + "[" + std::to_string(i) + "]",
+                                      numberText(color[i]) +
+                                          " is not accepted; colour components must be at least "
+                                          "0 and at most 1e9");
+        }
+    }
+}
+
 }  // namespace
 
 void applyTransform(BaseMesh& mesh, const Transform& transform) {
@@ -108,7 +121,7 @@ void validateScene(const Scene& scene) {
     for (std::size_t i = 0; i < scene.lights.size(); ++i) {
         const std::string field = "lights[" + std::to_string(i) + "]";
         requireFinite(scene.lights[i].direction, field + ".direction");
-        requireFinite(scene.lights[i].color, field + ".color");
+        requireColor(scene.lights[i].color, field + ".color");
         if (unitDirection(scene.lights[i].direction) == glm::vec3(0.0f))
             throw InputError::inField(field + ".direction", "must not be zero");
         if (!(scene.lights[i].angleDeg >= 0.0f && scene.lights[i].angleDeg < 90.0f)) {
@@ -136,7 +149,7 @@ void validateScene(const Scene& scene) {
               material.uvScale.x > 0.0f && material.uvScale.y > 0.0f)) {
             throw InputError::inField(field + ".material.uvScale", "must be two positive numbers");
         }
-        requireFinite(material.color, field + ".material.color");
+        requireColor(material.color, field + ".material.color");
     }
 }
 

@@ -114,11 +114,18 @@ inline constexpr std::size_t kMaxSceneTriangles = std::size_t(1) << 23;
 /// one is built.
 void requireSceneTriangleBudget(std::size_t index, std::size_t trianglesSoFar);
 
+/// The largest colour component of a scene (a light's colour, an albedo, a colour texture's
+/// pixel). A pixel sums albedo x light colour over the lights and its samples: at most 1e18 x
+/// 1.35 x 256 per light, finite in single precision for any number of lights that fits in memory
+/// (at 1e30 each, one light gave an infinite pixel).
+inline constexpr float kMaxColorComponent = 1e9f;
+
 /// Throws InputError::inField, naming the Scene member ("camera.up",
 /// "objects[1].material.depthWorld", ...), when the
 /// scene cannot be rendered: non-finite vectors, eye == target, up parallel to the view, field of
 /// view outside (0, 180), no objects, an empty mesh, depth <= 0, uv scale <= 0, a zero light
-/// direction, more than kMaxSceneTriangles triangles in all.
+/// direction, a colour component (light or material, as "lights[0].color[1]") outside [0,
+/// kMaxColorComponent], more than kMaxSceneTriangles triangles in all.
 void validateScene(const Scene& scene);
 
 }  // namespace distile

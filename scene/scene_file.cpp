@@ -104,13 +104,16 @@ class Field {
         if (!value_.is_string()) fail("must be a string, not " + std::string(value_.type_name()));
         return value_.get<std::string>();
     }
-    /// A colour: three numbers, none negative (light and albedo add up, they do not subtract).
+    /// A colour: three numbers, none negative (light and albedo add up, they do not subtract)
+    /// nor above kMaxColorComponent (their products over the lights stay finite).
     glm::vec3 colour() const {
         const glm::vec3 result = vector<3>();
         for (int i = 0; i < 3; ++i) {
-            if (result[i] < 0.0f) {
+            if (!(result[i] >= 0.0f && result[i] <= kMaxColorComponent)) {
                 std::ostringstream message;
-                message << result[i] << " is not accepted; colour components must be at least 0";
+                message << result[i]
+                        << " is not accepted; colour components must be at least 0 and at most "
+                           "1e9";
                 (*this)[std::size_t(i)].fail(message.str());
             }
         }
@@ -425,8 +428,9 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
     }
     const std::string gridName = spec.has("grid") ? spec["grid"].string() : std::string();
     if (spec.has("grid") && gridName.empty())
-        spec["grid"].fail("is empty; name a grid, or leave \"grid\" out for the file's only float "
-                          "level set");
+        spec["grid"].fail(
+            "is empty; name a grid, or leave \"grid\" out for the file's only float "
+            "level set");
     std::optional<double> iso;
     if (spec.has("iso")) iso = spec["iso"].number();
     const RecipeFile source = recipeFile(spec, folder, "an OpenVDB .vdb file");
@@ -676,16 +680,18 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
             } catch (const FormatError& error) {
                 color.fail(error.what());
             }
-            // An albedo is never negative, in a texture as in an array (an EXR may hold any value).
+            // An albedo is in [0, kMaxColorComponent], in a texture as in an array (an EXR may
+            // hold any value).
             const auto& texels = material.colorTexture->rgbLinear;
+            const auto accepted = [](float c) { return c >= 0.0f && c <= kMaxColorComponent; };
             for (std::size_t i = 0; i < texels.size(); ++i) {
                 const glm::vec3& texel = texels[i];
-                if (std::min({texel.r, texel.g, texel.b}) < 0.0f) {
+                if (!(accepted(texel.r) && accepted(texel.g) && accepted(texel.b))) {
                     const std::size_t width = std::size_t(material.colorTexture->width);
                     std::ostringstream message;
                     message << "colour texture '" << path.string() << "': pixel (" << i % width
                             << ", " << i / width << ") is (" << texel.r << ", " << texel.g << ", "
-                            << texel.b << "); colour components must be at least 0";
+                            << texel.b << "); colour components must be at least 0 and at most 1e9";
                     color.fail(message.str());
                 }
             }

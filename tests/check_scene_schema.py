@@ -56,6 +56,8 @@ BAD_SCENES = [
      edited(lambda s: s["lights"][0].update(angle_deg=89.5))),
     ("negative colour", "lights[0].color[1]",
      edited(lambda s: s["lights"][0].update(color=[1, -1, 1]))),
+    ("colour too bright", "objects[0].material.color[0]",
+     edited(lambda s: material(s).update(color=[2e9, 1, 1]))),
     ("zero light direction", "lights[0].direction",
      edited(lambda s: s["lights"][0].update(direction=[0, 0, 0]))),
     ("no objects", "objects", edited(lambda s: s.update(objects=[]))),

@@ -902,6 +902,40 @@ TEST(Renderer, RejectsTexelSpacesTooDenseForFloatAndRendersTheDensestAccepted) {
     EXPECT_GT(result.stats.baseHits, result.stats.rays / 2);
 }
 
+TEST(Renderer, RefusesColoursWhoseProductsOverflowAndRendersTheBrightestAccepted) {
+    // A pixel sums albedo x light colour: at 1e30 each (a scene's colours were accepted up to
+    // 1e30) the product overflowed to an infinite pixel. Now refused, naming the component; at
+    // the bound (1e9), with six lights and four samples a pixel, the image is finite.
+    RenderOptions options;
+    options.width = 8;
+    options.height = 6;
+    options.samplesPerPixel = 4;
+    const auto field = [&](const Scene& scene) {
+        try {
+            renderScene(scene, options);
+        } catch (const InputError& error) {
+            return error.field() + ": " + error.problem();
+        }
+        return std::string("accepted");
+    };
+    Scene overflowing = planeScene(nullptr);
+    overflowing.lights[0].color = {1e30f, 1.0f, 1.0f};
+    overflowing.objects[0].material.color = {1e30f, 0.5f, 0.5f};
+    EXPECT_EQ(field(overflowing).rfind("lights[0].color[0]: 1e+30 is not accepted", 0), 0u)
+        << field(overflowing);
+    Scene brightAlbedo = planeScene(nullptr);
+    brightAlbedo.objects[0].material.color = {0.5f, 2e9f, 0.5f};
+    EXPECT_EQ(field(brightAlbedo).rfind("objects[0].material.color[1]: 2e+09", 0), 0u)
+        << field(brightAlbedo);
+    Scene brightest = planeScene(nullptr);
+    brightest.lights.assign(6, DirectionalLight{{-0.4f, -0.3f, -1.0f}, glm::vec3(1e9f), 2.0f});
+    brightest.objects[0].material.color = glm::vec3(1e9f);
+    const RenderResult result = renderScene(brightest, options);
+    for (const glm::vec3& pixel : result.image.rgbLinear)
+        ASSERT_TRUE(std::isfinite(pixel.x) && std::isfinite(pixel.y) && std::isfinite(pixel.z));
+    EXPECT_GT(result.stats.baseHits, result.stats.rays / 2);
+}
+
 // ---- Conservative rasterization (ch. 42): coverage and shell culling -------------------------
 
 /// Exact overlap of a closed triangle and the closed box [x0, x1] x [y0, y1] in double precision,
