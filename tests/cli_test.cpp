@@ -261,6 +261,21 @@ TEST_F(Cli, RejectsNegativeColours) {
         {"objects[0].material.color", "albedo.exr", "pixel (2, 1)", "-0.125", "at least 0"}));
 }
 
+TEST_F(Cli, RejectsColoursAbove1e9) {
+    // Albedo x light colour overflowed to an infinite pixel at 1e30 each (write failed as an
+    // internal error); a colour component, in an array or a texture, is now at most 1e9.
+    std::string scene = planeScene(R"({"color": [0.8, 0.8, 0.85]})");
+    scene.insert(scene.find(R"("angle_deg")"), R"("color": [1e30, 1, 1], )");  // the light's
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(scene, {"lights[0].color[0]", "1e+30", "at most 1e9"}));
+    Image texture(4, 3, glm::vec3(0.5f));
+    texture.at(1, 2) = glm::vec3(0.5f, 0.5f, 2e9f);
+    writeImage(texture, path("bright.exr"));
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
+        planeScene(R"({"color": "bright.exr"})"),
+        {"objects[0].material.color", "bright.exr", "pixel (1, 2)", "2e+09", "at most 1e9"}));
+}
+
 TEST_F(Cli, RejectsPngAsTile) {
     Image plain(8, 8, glm::vec3(0.5f));
     writeImage(plain, path("picture.png"));
