@@ -632,9 +632,9 @@ TEST_F(Hardening, SmallRingOptionsAreRefusedForTheEuropeanWeave) {
 
 TEST_F(Hardening, AMeshRecipeWithFitFalseNeedsScaleOrOffset) {
     fs::copy_file(sourceFile("data/meshes/ring.obj"), path("ring.obj"));
-    expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"tile":
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"tile":
         {"bake": "mesh", "file": "ring.obj", "size": "32x32x8", "fit": false}}}]})",
-                     {"objects[0].material.tile.fit", "scale", "offset"});
+                                             {"objects[0].material.tile.fit", "scale", "offset"}));
 }
 
 TEST_F(Hardening, CheckOffsetTakesCommasAsBakeMeshDoes) {
