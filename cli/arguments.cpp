@@ -18,14 +18,6 @@ Size3 parseSize(const std::string& text, const std::string& option) {
     return size;
 }
 
-InputError underFlag(const InputError& error, std::initializer_list<FieldFlag> flags) {
-    for (const FieldFlag& entry : flags) {
-        if (!error.field().empty() && error.field() == entry.field)
-            return error.renamed(std::string(entry.flag));
-    }
-    return error;
-}
-
 CLI::Validator finiteRange(double lowest, double highest) {
     std::ostringstream range;
     range << "[" << lowest << ", " << highest << "]";

@@ -18,16 +18,6 @@ namespace distile::cli {
 /// "WxHxD" to a validated Size3; InputError naming `option` otherwise.
 Size3 parseSize(const std::string& text, const std::string& option);
 
-/// A field of a library's options struct (InputError::field) and the flag it is given with.
-struct FieldFlag {
-    std::string_view field;  ///< e.g. "march.epsilonTexels"
-    std::string_view flag;   ///< e.g. "--epsilon"
-};
-
-/// `error` under the flag `flags` gives its field, so the user reads the name they typed; as it
-/// is when its field is not in `flags` (a field the command does not take from a flag).
-InputError underFlag(const InputError& error, std::initializer_list<FieldFlag> flags);
-
 /// Throws InputError unless `path` has one of `extensions` (case-insensitive) and its folder
 /// exists.
 void requireOutput(const std::filesystem::path& path, const std::string& option,

@@ -155,18 +155,18 @@ BakeResult bakeVdbFile(const BakeArguments& arguments, const BakeOptions& option
 /// The library's error about one field of the bake's options (bake/bake.h) under the flag that
 /// filled it; other errors as they are.
 InputError underBakeFlag(const InputError& error) {
-    return underFlag(error, {{"size", "--size"},
-                             {"halfBandTexels", "--band"},
-                             {"placement.scale", "--scale"},
-                             {"placement.offsetTexels", "--offset"},
-                             {"heightTexels", "--height-texels"},
-                             {"sign.unsignedDistance", "--unsigned"},
-                             {"sign.thicknessTexels", "--thickness"},
+    return shownUnder(error, {{"size", "--size"},
+                              {"halfBandTexels", "--band"},
+                              {"placement.scale", "--scale"},
+                              {"placement.offsetTexels", "--offset"},
+                              {"heightTexels", "--height-texels"},
+                              {"sign.unsignedDistance", "--unsigned"},
+                              {"sign.thicknessTexels", "--thickness"},
 
-                             {"grid", "--grid"},
-                             {"iso", "--iso"},
-                             {"placement.windowWorld", "--window"},
-                             {"repeatX, repeatY", "--repeat"}});
+                              {"grid", "--grid"},
+                              {"iso", "--iso"},
+                              {"placement.windowWorld", "--window"},
+                              {"repeatX, repeatY", "--repeat"}});
 }
 
 /// "NxM" -> (N, M) for --repeat; the level set checks the range.

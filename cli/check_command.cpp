@@ -98,11 +98,11 @@ void runCheck(const CheckArguments& arguments) {
     try {
         check = checkTile(tile, arguments.tile.string(), arguments.tile, options);
     } catch (const InputError& error) {
-        throw underFlag(error, {{"against", "--against"},
-                                {"samples", "--samples"},
-                                {"maxOverestimateTexels", "--max-overestimate"},
-                                {"meshScale", "--scale"},
-                                {"meshOffsetTexels", "--offset"}});
+        throw shownUnder(error, {{"against", "--against"},
+                                 {"samples", "--samples"},
+                                 {"maxOverestimateTexels", "--max-overestimate"},
+                                 {"meshScale", "--scale"},
+                                 {"meshOffsetTexels", "--offset"}});
     }
     printReport(arguments, options, check);
     if (!plot.empty()) {

@@ -169,13 +169,13 @@ InputError underRenderNames(const InputError& error, const RenderArguments& argu
             if (path && error.field() == field) return error.renamed(scene.string() + ": " + path);
         }
     }
-    const InputError flagged = underFlag(error, {{"width", "--width"},
-                                                 {"height", "--height"},
-                                                 {"samplesPerPixel", "--spp"},
-                                                 {"outputAovs", "--aovs"},
-                                                 {"march.maxIterations", "--iterations"},
-                                                 {"march.epsilonTexels", "--epsilon"},
-                                                 {"march.relaxation", "--relaxation"}});
+    const InputError flagged = shownUnder(error, {{"width", "--width"},
+                                                  {"height", "--height"},
+                                                  {"samplesPerPixel", "--spp"},
+                                                  {"outputAovs", "--aovs"},
+                                                  {"march.maxIterations", "--iterations"},
+                                                  {"march.epsilonTexels", "--epsilon"},
+                                                  {"march.relaxation", "--relaxation"}});
     if (flagged.field() != error.field()) return flagged;
     const InputError inScene = underSceneJsonPath(error);
     return scene.empty() ? inScene : inScene.renamed(scene.string() + ": " + inScene.field());

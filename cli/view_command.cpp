@@ -42,13 +42,13 @@ void runView(const ViewArguments& arguments) {
     try {
         writeTilePage(tile, arguments.tile.filename().string(), view, page);
     } catch (const InputError& error) {
-        throw underFlag(error, {{"object", "--object"},
-                                {"uvScale.x", "--uv-scale"},
-                                {"uvScale.y", "--uv-scale"},
-                                {"depthWorld", "--depth"},
-                                {"sphereUvScale.x", "--sphere-uv-scale"},
-                                {"sphereUvScale.y", "--sphere-uv-scale"},
-                                {"sphereDepthWorld", "--sphere-depth"}});
+        throw shownUnder(error, {{"object", "--object"},
+                                 {"uvScale.x", "--uv-scale"},
+                                 {"uvScale.y", "--uv-scale"},
+                                 {"depthWorld", "--depth"},
+                                 {"sphereUvScale.x", "--sphere-uv-scale"},
+                                 {"sphereUvScale.y", "--sphere-uv-scale"},
+                                 {"sphereDepthWorld", "--sphere-depth"}});
     }
     files.commit();
     // WebGL2 promises 3D textures of 256 texels a side; GPUs give 2048 and more.

@@ -5,8 +5,10 @@
 #pragma once
 
 #include <charconv>
+#include <initializer_list>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <type_traits>
 #include <utility>
 
@@ -44,6 +46,23 @@ class InputError : public std::runtime_error {
     std::string field_;
     std::string problem_;
 };
+
+/// A field as a library names it (an options member, "march.epsilonTexels") and the name a
+/// program shows it under (the flag or keyword that filled it, "--epsilon").
+struct ShownName {
+    std::string_view field;
+    std::string_view shownAs;
+};
+
+/// `error` under the name `names` gives its field, so the user reads the name they typed; as it
+/// is when its field is not among `names`.
+inline InputError shownUnder(const InputError& error, std::initializer_list<ShownName> names) {
+    for (const ShownName& name : names) {
+        if (!error.field().empty() && error.field() == name.field)
+            return error.renamed(std::string(name.shownAs));
+    }
+    return error;
+}
 
 /// `value` as messages show a number: the shortest text that reads back as the same value ("2",
 /// "0.1", "1e+30"), not std::to_string's six decimals ("2.000000", "0.000000" for 1e-7). A float

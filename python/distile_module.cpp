@@ -139,16 +139,12 @@ RenderOptions renderOptions(const PyRenderArguments& arguments, const ImageSetti
 
 /// A library's error about a RenderOptions member under the keyword that filled it.
 InputError underRenderKeyword(const InputError& error) {
-    static const std::pair<const char*, const char*> keywords[] = {
-        {"samplesPerPixel", "spp"},
-        {"outputAovs", "aovs"},
-        {"march.maxIterations", "iterations"},
-        {"march.epsilonTexels", "epsilon"},
-        {"march.relaxation", "relaxation"}};
-    for (const auto& [field, keyword] : keywords) {
-        if (error.field() == field) return error.renamed(keyword);
-    }
-    return underSceneJsonPath(error);
+    const InputError shown = shownUnder(error, {{"samplesPerPixel", "spp"},
+                                                {"outputAovs", "aovs"},
+                                                {"march.maxIterations", "iterations"},
+                                                {"march.epsilonTexels", "epsilon"},
+                                                {"march.relaxation", "relaxation"}});
+    return shown.field() != error.field() ? shown : underSceneJsonPath(error);
 }
 
 /// Renders the scene `load` reads, as `distile render` does.
@@ -391,17 +387,12 @@ PYBIND11_MODULE(_distile, module) {
                 check = checkTile(*tile.tile, tileName, tileFile, options);
             } catch (const InputError& error) {
                 // Under check()'s keywords (the CheckOptions attributes), not the C++ members.
-                static const std::pair<const char*, const char*> kKeywords[] = {
-                    {"maxOverestimateTexels", "max_overestimate"},
-                    {"maxOverestimateShare", "max_overestimate_share"},
-                    {"maxRmsTexels", "max_rms"},
-                    {"maxNearErrorTexels", "max_near_error"},
-                    {"meshScale", "scale"},
-                    {"meshOffsetTexels", "offset"}};
-                for (const auto& [member, keyword] : kKeywords) {
-                    if (error.field() == member) throw error.renamed(keyword);
-                }
-                throw;
+                throw shownUnder(error, {{"maxOverestimateTexels", "max_overestimate"},
+                                         {"maxOverestimateShare", "max_overestimate_share"},
+                                         {"maxRmsTexels", "max_rms"},
+                                         {"maxNearErrorTexels", "max_near_error"},
+                                         {"meshScale", "scale"},
+                                         {"meshOffsetTexels", "offset"}});
             }
             return jsonValue(tileCheckJson(check, options, tileName).dump());
         },

@@ -26,11 +26,10 @@ void requireFinite(const glm::vec3& v, const std::string& field) {
 void requireColor(const glm::vec3& color, const std::string& field) {
     requireFinite(color, field);
     for (int i = 0; i < 3; ++i) {
-        if (!(color[i] >= 0.0f && color[i] <= kMaxColorComponent)) {
-            throw InputError::inField(field + "[" + std::to_string(i) + "]",
-                                      numberText(color[i]) +
-                                          " is not accepted; colour components must be at least "
-                                          "0 and at most 1e9");
+        if (!acceptedColorComponent(color[i])) {
+            throw InputError::inField(
+                field + "[" + std::to_string(i) + "]",
+                numberText(color[i]) + " is not accepted; " + kColorComponentRule);
         }
     }
 }

@@ -120,6 +120,14 @@ void requireSceneTriangleBudget(std::size_t index, std::size_t trianglesSoFar);
 /// (at 1e30 each, one light gave an infinite pixel).
 inline constexpr float kMaxColorComponent = 1e9f;
 
+/// Whether `component` is an accepted colour component: in [0, kMaxColorComponent].
+inline bool acceptedColorComponent(float component) {
+    return component >= 0.0f && component <= kMaxColorComponent;
+}
+/// What acceptedColorComponent accepts, in words, for messages.
+inline constexpr const char* kColorComponentRule =
+    "colour components must be at least 0 and at most 1e9";
+
 /// Throws InputError::inField, naming the Scene member ("camera.up",
 /// "objects[1].material.depthWorld", ...), when the
 /// scene cannot be rendered: non-finite vectors, eye == target, up parallel to the view, field of

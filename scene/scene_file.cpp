@@ -109,11 +109,9 @@ class Field {
     glm::vec3 colour() const {
         const glm::vec3 result = vector<3>();
         for (int i = 0; i < 3; ++i) {
-            if (!(result[i] >= 0.0f && result[i] <= kMaxColorComponent)) {
+            if (!acceptedColorComponent(result[i])) {
                 std::ostringstream message;
-                message << result[i]
-                        << " is not accepted; colour components must be at least 0 and at most "
-                           "1e9";
+                message << result[i] << " is not accepted; " << kColorComponentRule;
                 (*this)[std::size_t(i)].fail(message.str());
             }
         }
@@ -683,15 +681,15 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
             // An albedo is in [0, kMaxColorComponent], in a texture as in an array (an EXR may
             // hold any value).
             const auto& texels = material.colorTexture->rgbLinear;
-            const auto accepted = [](float c) { return c >= 0.0f && c <= kMaxColorComponent; };
             for (std::size_t i = 0; i < texels.size(); ++i) {
                 const glm::vec3& texel = texels[i];
-                if (!(accepted(texel.r) && accepted(texel.g) && accepted(texel.b))) {
+                if (!(acceptedColorComponent(texel.r) && acceptedColorComponent(texel.g) &&
+                      acceptedColorComponent(texel.b))) {
                     const std::size_t width = std::size_t(material.colorTexture->width);
                     std::ostringstream message;
                     message << "colour texture '" << path.string() << "': pixel (" << i % width
                             << ", " << i / width << ") is (" << texel.r << ", " << texel.g << ", "
-                            << texel.b << "); colour components must be at least 0 and at most 1e9";
+                            << texel.b << "); " << kColorComponentRule;
                     color.fail(message.str());
                 }
             }
