@@ -166,7 +166,19 @@ InputError underBakeFlag(const InputError& error) {
                               {"grid", "--grid"},
                               {"iso", "--iso"},
                               {"placement.windowWorld", "--window"},
-                              {"repeatX, repeatY", "--repeat"}});
+                              {"repeatX, repeatY", "--repeat"},
+                              {"chainmail.ringsPerRow", "--rings-per-row"},
+                              {"chainmail.rowsPerTile", "--rows"},
+                              {"chainmail.ringRadiusSpacings", "--ring-radius"},
+                              {"chainmail.wireRadiusSpacings", "--wire-radius"},
+                              {"chainmail.tiltDeg", "--tilt"},
+                              {"chainmail.smallRingRadiusSpacings", "--small-ring-radius"},
+                              {"chainmail.smallWireRadiusSpacings", "--small-wire-radius"},
+                              {"grating.barsPerTile", "--bars"},
+                              {"grating.barWidthTexels", "--bar-width"},
+                              {"grating.barHeightTexels", "--bar-height"},
+                              {"grating.edgeRadiusTexels", "--edge-radius"},
+                              {"grating.layerGapTexels", "--layer-gap"}});
 }
 
 /// "NxM" -> (N, M) for --repeat; the level set checks the range.

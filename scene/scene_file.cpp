@@ -80,9 +80,8 @@ class Field {
     double number(double low, double high) const {
         const double result = number();
         if (!(result >= low && result <= high)) {
-            std::ostringstream message;
-            message << result << " is not accepted; it must be in [" << low << ", " << high << "]";
-            fail(message.str());
+            fail(numberText(result) + " is not accepted; it must be in [" + numberText(low) + ", " +
+                 numberText(high) + "]");
         }
         return result;
     }
@@ -275,17 +274,40 @@ std::string vdbRecipe(const std::string& vdbFileBytes, const std::string& gridNa
 /// The bake library's error about one field of its options (bake/bake.h) under the key of the
 /// tile spec that filled it; other errors under `fallback`, as they are.
 [[noreturn]] void failInSpec(const Field& spec, const Field& fallback, const InputError& error) {
-    static const std::map<std::string, std::string> keys = {{"size", "size"},
-                                                            {"halfBandTexels", "band"},
-                                                            {"heightTexels", "height_texels"},
-                                                            {"placement.scale", "scale"},
-                                                            {"placement.offsetTexels", "offset"},
-                                                            {"placement.windowWorld", "window"},
-                                                            {"sign.thicknessTexels", "thickness"},
-                                                            {"grid", "grid"},
-                                                            {"iso", "iso"}};
-    const auto found = keys.find(error.field());
-    if (found != keys.end() && spec.has(found->second)) spec[found->second].fail(error.problem());
+    // The library's field and the recipe's key that filled it (a field with two keys, the new
+    // name and the older one, is listed under both).
+    static const std::pair<std::string_view, std::string_view> keys[] = {
+        {"size", "size"},
+        {"halfBandTexels", "band"},
+        {"heightTexels", "height_texels"},
+        {"placement.scale", "scale"},
+        {"placement.offsetTexels", "offset"},
+        {"placement.windowWorld", "window"},
+        {"sign.thicknessTexels", "thickness"},
+        {"grid", "grid"},
+        {"iso", "iso"},
+        {"chainmail.ringsPerRow", "rings_per_row"},
+        {"chainmail.rowsPerTile", "rows"},
+        {"chainmail.rowsPerTile", "rows_per_tile"},
+        {"chainmail.ringRadiusSpacings", "ring_radius"},
+        {"chainmail.wireRadiusSpacings", "wire_radius"},
+        {"chainmail.tiltDeg", "tilt"},
+        {"chainmail.tiltDeg", "tilt_deg"},
+        {"chainmail.smallRingRadiusSpacings", "small_ring_radius"},
+        {"chainmail.smallWireRadiusSpacings", "small_wire_radius"},
+        {"grating.barsPerTile", "bars"},
+        {"grating.barWidthTexels", "bar_width"},
+        {"grating.barHeightTexels", "bar_height"},
+        {"grating.edgeRadiusTexels", "edge_radius"},
+        {"grating.layerGapTexels", "layer_gap"}};
+    for (const auto& [field, key] : keys) {
+        if (error.field() == field && spec.has(std::string(key)))
+            spec[std::string(key)].fail(error.problem());
+    }
+    for (const auto& [field, key] : keys) {  // a default the recipe did not override
+        if (error.field() == field)
+            spec.fail(std::string(key) + " (not given, its default): " + error.problem());
+    }
     // The mesh's sign options have no key in a recipe: their problem (it names the mesh) only.
     if (error.field().rfind("sign.", 0) == 0) fallback.fail(error.problem());
     fallback.fail(error.what());

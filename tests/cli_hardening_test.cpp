@@ -630,6 +630,35 @@ TEST_F(Hardening, SmallRingOptionsAreRefusedForTheEuropeanWeave) {
                      {"objects[0].material.tile.small_wire_radius", "japanese4in1"});
 }
 
+TEST_F(Hardening, ARefusedWeaveOrGratingValueNamesTheFlagOrKeyThatGaveIt) {
+    EXPECT_EQ(
+        expectInputError({"bake", "chainmail", "--rows", "3", "--size", "64x64x8", "-o", "t.exr"},
+                         "t.exr", {"--rows: 3 is not accepted", "even"})
+            .status,
+        cli::kExitInput);
+    EXPECT_EQ(expectInputError(
+                  {"bake", "grating", "--bar-width", "100", "--size", "64x64x8", "-o", "t.exr"},
+                  "t.exr", {"--bar-width: 100 is not accepted"})
+                  .status,
+              cli::kExitInput);
+    // Under the key the scene gave, the older alias included.
+    for (const char* key : {"rows", "rows_per_tile"}) {
+        ASSERT_NO_FATAL_FAILURE(expectSceneError(
+            R"({"objects": [{"mesh": "plane", "material": {"tile":
+            {"bake": "chainmail", "size": "64x64x8", ")" +
+                std::string(key) + R"(": 3}}}]})",
+            {"objects[0].material.tile." + std::string(key) + ": 3 is not accepted", "even"}));
+    }
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"tile":
+        {"bake": "grating", "size": "64x64x16", "bars": 4, "layer_gap": 0}}}]})",
+                                             {"objects[0].material.tile.layer_gap: 0 is not"}));
+    // A default the recipe did not override, under its key.
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"tile":
+        {"bake": "grating", "size": "64x64x16"}}}]})",
+                                             {"objects[0].material.tile: bar_width (not given, "
+                                              "its default): 8 is not accepted"}));
+}
+
 TEST_F(Hardening, AMeshRecipeWithFitFalseNeedsScaleOrOffset) {
     fs::copy_file(sourceFile("data/meshes/ring.obj"), path("ring.obj"));
     ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"tile":

@@ -47,33 +47,35 @@ const char* weaveName(ChainmailWeave weave) {
 Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
     : options_(options), tile_(tile) {
     validateTileSize(tile, "chainmail");
-    auto reject = [](const std::string& field, double value, const std::string& accepted) {
-        std::ostringstream message;
-        message << "chainmail: " << field << " = " << value << " is not accepted; " << accepted;
-        throw InputError(message.str());
+    // About the field of ProceduralOptions it came from ("chainmail.rowsPerTile"), so a program
+    // can show it under the flag or key that filled it.
+    auto reject = [](const char* member, double value, const std::string& accepted) {
+        throw InputError::inField(std::string("chainmail.") + member,
+                                  numberText(value) + " is not accepted; " + accepted);
     };
     if (options.ringsPerRow < 1 || options.ringsPerRow > tile.width / 4) {
-        reject("rings per row", options.ringsPerRow, "it must be in [1, width/4]");
+        reject("ringsPerRow", options.ringsPerRow, "it must be in [1, width/4]");
     }
     const bool japanese = options.weave == ChainmailWeave::Japanese4in1;
     if (japanese) {
         if (options.rowsPerTile < 1 || options.rowsPerTile > tile.height / 4) {
-            reject("rows per tile", options.rowsPerTile, "it must be in [1, height/4]");
+            reject("rowsPerTile", options.rowsPerTile, "it must be in [1, height/4]");
         }
     } else if (options.rowsPerTile < 2 || options.rowsPerTile % 2 != 0 ||
                options.rowsPerTile > tile.height / 2) {
-        reject("rows per tile", options.rowsPerTile, "it must be even and in [2, height/2]");
+        reject("rowsPerTile", options.rowsPerTile, "it must be even and in [2, height/2]");
     }
     if (!(options.ringRadiusSpacings > 0.0 && options.ringRadiusSpacings <= 2.0)) {
-        reject("ring radius", options.ringRadiusSpacings, "it must be in (0, 2] ring spacings");
+        reject("ringRadiusSpacings", options.ringRadiusSpacings,
+               "it must be in (0, 2] ring spacings");
     }
     if (!(options.wireRadiusSpacings > 0.0 &&
           options.wireRadiusSpacings < options.ringRadiusSpacings)) {
-        reject("wire radius", options.wireRadiusSpacings,
+        reject("wireRadiusSpacings", options.wireRadiusSpacings,
                "it must be positive and below the ring radius");
     }
     if (!(options.tiltDeg >= 0.0 && options.tiltDeg <= 60.0)) {
-        reject("tilt", options.tiltDeg, "it must be in [0, 60] degrees");
+        reject("tiltDeg", options.tiltDeg, "it must be in [0, 60] degrees");
     }
     ringSpacingTexels_ = double(tile.width) / options.ringsPerRow;
     rowSpacingTexels_ = double(tile.height) / options.rowsPerTile;
@@ -83,12 +85,12 @@ Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
     sinTilt_ = std::sin(options.tiltDeg * kPi / 180.0);
     if (japanese) {
         if (!(options.smallRingRadiusSpacings > 0.0 && options.smallRingRadiusSpacings <= 1.0)) {
-            reject("small ring radius", options.smallRingRadiusSpacings,
+            reject("smallRingRadiusSpacings", options.smallRingRadiusSpacings,
                    "it must be in (0, 1] ring spacings");
         }
         if (!(options.smallWireRadiusSpacings > 0.0 &&
               options.smallWireRadiusSpacings < options.smallRingRadiusSpacings)) {
-            reject("small wire radius", options.smallWireRadiusSpacings,
+            reject("smallWireRadiusSpacings", options.smallWireRadiusSpacings,
                    "it must be positive and below the small ring radius");
         }
         smallRingRadiusTexels_ = options.smallRingRadiusSpacings * ringSpacingTexels_;
@@ -96,7 +98,7 @@ Chainmail::Chainmail(const ChainmailOptions& options, const Size3& tile)
         const double outerRadius = ringRadiusTexels_ + wireRadiusTexels_;
         if (2.0 * outerRadius >= std::min(ringSpacingTexels_, rowSpacingTexels_)) {
             reject(
-                "ring radius", options.ringRadiusSpacings,
+                "ringRadiusSpacings", options.ringRadiusSpacings,
                 "Japanese 4-in-1 large rings (ring + wire radius) must not touch their neighbours");
         }
     }

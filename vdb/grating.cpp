@@ -32,29 +32,31 @@ double offsetFromNearestBar(double value, double spacing) {
 Grating::Grating(const GratingOptions& options, const Size3& tile)
     : options_(options), tile_(tile) {
     validateTileSize(tile, "grating");
-    auto reject = [](const std::string& field, double value, const std::string& accepted) {
-        std::ostringstream message;
-        message << "grating: " << field << " = " << value << " is not accepted; " << accepted;
-        throw InputError(message.str());
+    // About the field of ProceduralOptions it came from ("grating.barsPerTile"), so a program can
+    // show it under the flag or key that filled it.
+    auto reject = [](const char* member, double value, const std::string& accepted) {
+        throw InputError::inField(std::string("grating.") + member,
+                                  numberText(value) + " is not accepted; " + accepted);
     };
     if (options.barsPerTile < 1 || options.barsPerTile > std::min(tile.width, tile.height) / 4) {
-        reject("bars per tile", options.barsPerTile, "it must be in [1, min(width, height)/4]");
+        reject("barsPerTile", options.barsPerTile, "it must be in [1, min(width, height)/4]");
     }
     const double spacing = double(std::min(tile.width, tile.height)) / options.barsPerTile;
     if (!(options.barWidthTexels > 0.0 && options.barWidthTexels < spacing)) {
-        reject("bar width", options.barWidthTexels,
+        reject("barWidthTexels", options.barWidthTexels,
                "it must be positive and below the bar spacing (texels)");
     }
     if (!(options.barHeightTexels > 0.0 && std::isfinite(options.barHeightTexels))) {
-        reject("bar height", options.barHeightTexels, "it must be a positive number of texels");
+        reject("barHeightTexels", options.barHeightTexels,
+               "it must be a positive number of texels");
     }
     const double halfSmaller = 0.5 * std::min(options.barWidthTexels, options.barHeightTexels);
     if (!(options.edgeRadiusTexels >= 0.0 && options.edgeRadiusTexels <= halfSmaller)) {
-        reject("edge radius", options.edgeRadiusTexels,
+        reject("edgeRadiusTexels", options.edgeRadiusTexels,
                "it must be in [0, half the bar width and height]");
     }
     if (!(options.layerGapTexels > 0.0 && std::isfinite(options.layerGapTexels))) {
-        reject("layer gap", options.layerGapTexels,
+        reject("layerGapTexels", options.layerGapTexels,
                "it must be a positive number of texels (the layers must not touch)");
     }
     if (heightTexels() > tile.depth - 1.0) {
