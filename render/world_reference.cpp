@@ -793,8 +793,11 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     validateScene(scene);
     validateOptions(options);
     WorldReferenceResult result;
-    // Progress: the meshes are the first half of kBuildShare, the BVH the second, then the rows.
+    // Progress: the meshes (and their level sets, half of it) are the first half of kBuildShare,
+    // the BVH the second, then the rows.
     constexpr double kBuildShare = 0.6;
+    const double meshShare =
+        kBuildShare * (options.method == WorldReferenceMethod::LevelSet ? 0.25 : 0.5);
 
     // 1. The world-space detail meshes (and, for the level-set method, their level sets).
     auto start = std::chrono::steady_clock::now();
@@ -816,22 +819,36 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
             meshes[index] = buildDisplacedMesh(detailDistance(material), material.tile->size(),
                                                shell, options.levelSet.mesh);
             result.meshes.push_back(meshes[index].stats);
-            if (options.method == WorldReferenceMethod::LevelSet) {
-                const auto levelSetStart = std::chrono::steady_clock::now();
-                levelSets[index] = DisplacedLevelSet::build(meshes[index], options.levelSet);
-                result.levelSets.push_back(levelSets[index]->stats());
-                result.levelSetSeconds += secondsSince(levelSetStart);
-            }
+            // Every level set's budget is checked before the first takes its minutes.
+            if (options.method == WorldReferenceMethod::LevelSet)
+                DisplacedLevelSet::voxelsPerTexel(meshes[index], options.levelSet);
         } catch (const InputError& error) {
             throw InputError("objects[" + std::to_string(index) + "]: " + error.what());
         }
-        if (progress) progress(kBuildShare * 0.5 * double(index + 1) / scene.objects.size());
+        if (progress) progress(meshShare * double(index + 1) / scene.objects.size());
+    }
+    result.meshSeconds = secondsSince(start);
+    for (std::size_t index = 0; index < scene.objects.size(); ++index) {
+        if (!scene.objects[index].material.tile) continue;
+        if (options.method == WorldReferenceMethod::LevelSet) {
+            const auto levelSetStart = std::chrono::steady_clock::now();
+            try {
+                levelSets[index] = DisplacedLevelSet::build(meshes[index], options.levelSet);
+            } catch (const InputError& error) {
+                throw InputError("objects[" + std::to_string(index) + "]: " + error.what());
+            }
+            result.levelSets.push_back(levelSets[index]->stats());
+            result.levelSetSeconds += secondsSince(levelSetStart);
+            if (progress) {
+                progress(meshShare + (kBuildShare * 0.5 - meshShare) * double(index + 1) /
+                                         scene.objects.size());
+            }
+        }
         // Embree reads vertex buffers 16 bytes at a time: one unused element past the end.
         vertexCounts[index] = meshes[index].positions.size();
         meshes[index].positions.emplace_back(0.0f);
         meshes[index].texelPositions.emplace_back(0.0f);
     }
-    result.meshSeconds = secondsSince(start) - result.levelSetSeconds;
 
     // 2. One BVH of every object.
     start = std::chrono::steady_clock::now();

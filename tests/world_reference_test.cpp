@@ -202,6 +202,37 @@ TEST(DisplacedLevelSet, RejectsBadOptions) {
     EXPECT_THROW(DisplacedLevelSet::build(flat, {32, 32, 8}, noDepth), InputError);
 }
 
+TEST(DisplacedLevelSet, TheResolutionFollowsTheBuildBudgetAndIsKnownBeforeBuilding) {
+    // A square of side `sideTexels` texels as a quad: its band at v voxels per texel holds about
+    // sideTexels^2 v^2 x 6 voxels (3 voxels each side), 40 bytes each while OpenVDB builds it,
+    // and 1 GiB allows 2^30 / 40 = 26.8 million of them.
+    const auto square = [](double sideTexels) {
+        DisplacedMesh mesh;
+        const float side = float(sideTexels * 0.01);
+        mesh.positions = {{0, 0, 0}, {side, 0, 0}, {side, side, 0}, {0, side, 0}};
+        mesh.quads = {{0, 1, 2, 3}};
+        mesh.stats.texelSizeWorld = 0.01;
+        return mesh;
+    };
+    // 1000 texels a side: 2 voxels per texel need 24 million voxels, within the budget.
+    EXPECT_EQ(DisplacedLevelSet::voxelsPerTexel(square(1000.0)), 2.0);
+    // 2000 a side: the finest that fits is sqrt(26.84 / 24) = 1.0576, rounded down to 1.05,
+    // and 2 asked for explicitly is refused, naming it.
+    EXPECT_EQ(DisplacedLevelSet::voxelsPerTexel(square(2000.0)), 1.05);
+    DisplacedLevelSetOptions two;
+    two.voxelsPerTexel = 2.0;
+    try {
+        DisplacedLevelSet::voxelsPerTexel(square(2000.0), two);
+        ADD_FAILURE() << "2 voxels per texel accepted over the budget";
+    } catch (const InputError& error) {
+        EXPECT_NE(std::string(error.what()).find("use at most 1.05"), std::string::npos)
+            << error.what();
+    }
+    // 100 000 a side: not even 0.25 fits.
+    EXPECT_THROW(DisplacedLevelSet::voxelsPerTexel(square(1e5)), InputError);
+    EXPECT_THROW(DisplacedLevelSet::voxelsPerTexel(DisplacedMesh{}), InputError);
+}
+
 TEST(WorldReference, OnAFlatPlaneItAgreesWithTheAnalyticReference) {
     // A plane of 1 x 1 world units carrying 2 x 2 tiles (texels of 1/128 world unit, cubic with
     // depth 16/128), seen from 45 degrees above; the whole image lies inside the plane, so

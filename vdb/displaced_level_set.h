@@ -149,9 +149,17 @@ class DisplacedLevelSet {
                                    const DisplacedLevelSetOptions& options = {});
 
     /// The level set of a mesh built already (buildDisplacedMesh).
-    /// @throws InputError options out of range (as above), an empty mesh.
+    /// @throws InputError as voxelsPerTexel.
     static DisplacedLevelSet build(const DisplacedMesh& mesh,
                                    const DisplacedLevelSetOptions& options = {});
+
+    /// The voxels per texel build(mesh, options) builds at (the automatic choice made), checked
+    /// against the 1 GiB build budget without building: a caller with several meshes can refuse
+    /// before any level set takes its minutes.
+    /// @throws InputError options out of range (as above), an empty mesh, or a band estimated to
+    ///         need more than 1 GiB (with voxelsPerTexel 0, only when even 0.25 would).
+    static double voxelsPerTexel(const DisplacedMesh& mesh,
+                                 const DisplacedLevelSetOptions& options = {});
 
     DisplacedLevelSet(DisplacedLevelSet&&) noexcept;
     DisplacedLevelSet& operator=(DisplacedLevelSet&&) noexcept;

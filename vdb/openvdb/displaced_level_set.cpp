@@ -70,28 +70,6 @@ void validateInput(const Size3& tile, const DisplacementShell& shell,
     }
 }
 
-/// Bytes OpenVDB's meshToVolume holds per voxel of the narrow band while it builds: a float
-/// distance and an int32 closest-polygon index per voxel, their partitions and tree overhead,
-/// with room (an estimate, not a measurement).
-constexpr double kBuildBytesPerBandVoxel = 40.0;
-
-/// The most memory building one world level set may take, bytes.
-constexpr double kLevelSetBuildBudgetBytes = double(1u << 30);
-
-/// World area of the mesh's triangles and quads, world units squared.
-double surfaceAreaWorld(const DisplacedMesh& mesh) {
-    const auto& p = mesh.positions;
-    double area = 0.0;
-    for (const glm::uvec3& t : mesh.triangles)
-        area +=
-            0.5 * glm::length(glm::cross(glm::dvec3(p[t.y] - p[t.x]), glm::dvec3(p[t.z] - p[t.x])));
-    for (const glm::uvec4& q : mesh.quads) {
-        area +=
-            0.5 * glm::length(glm::cross(glm::dvec3(p[q.z] - p[q.x]), glm::dvec3(p[q.w] - p[q.y])));
-    }
-    return area;
-}
-
 double cross2(const glm::dvec2& a, const glm::dvec2& b) {
     return a.x * b.y - a.y * b.x;
 }
@@ -800,30 +778,12 @@ BuiltDisplacedLevelSet buildDisplacedLevelSet(const DisplacedMesh& mesh,
     DisplacedLevelSetStats& stats = built.stats;
     stats.mesh = mesh.stats;
     const auto start = std::chrono::steady_clock::now();
-    // The band's voxels, estimated from the surface before OpenVDB allocates for them: the
-    // surface's area over a voxel's, times the band's width. Per voxel per texel squared:
-    const double bandVoxelsPerSquare = surfaceAreaWorld(mesh) /
-                                       (mesh.stats.texelSizeWorld * mesh.stats.texelSizeWorld) *
-                                       2.0 * double(options.halfBandVoxels);
-    // The finest resolution the budget allows, rounded down to a hundredth.
-    const double largest =
-        std::floor(100.0 * std::sqrt(kLevelSetBuildBudgetBytes /
-                                     (bandVoxelsPerSquare * kBuildBytesPerBandVoxel))) /
-        100.0;
+    // The voxels per texel as vdb/displaced_level_set.cpp resolved and checked them against the
+    // build budget (the automatic choice made).
+    if (options.voxelsPerTexel == 0.0) {
+        throw InternalError("the displaced level set's resolution reached the module unresolved");
+    }
     stats.voxelsPerTexel = options.voxelsPerTexel;
-    if (stats.voxelsPerTexel == 0.0) {
-        stats.voxelsPerTexel = std::min(DisplacedLevelSetOptions::kAutomaticVoxelsPerTexel,
-                                        std::max(largest, kMinVoxelsPerTexel));
-    }
-    const double bandVoxels = bandVoxelsPerSquare * stats.voxelsPerTexel * stats.voxelsPerTexel;
-    if (!(bandVoxels * kBuildBytesPerBandVoxel <= kLevelSetBuildBudgetBytes)) {
-        char message[200];
-        std::snprintf(message, sizeof message,
-                      "%g needs about %.1f GB for this detail's surface; at most 1 GiB is "
-                      "accepted, so use at most %.2f",
-                      stats.voxelsPerTexel, bandVoxels * kBuildBytesPerBandVoxel / 1e9, largest);
-        reject("voxels per texel", message);
-    }
     stats.voxelSizeWorld = mesh.stats.texelSizeWorld / stats.voxelsPerTexel;
     const auto transform = openvdb::math::Transform::createLinearTransform(stats.voxelSizeWorld);
     openvdb::FloatGrid::Ptr grid = openvdb::tools::meshToVolume<openvdb::FloatGrid>(
