@@ -40,7 +40,7 @@ nlohmann::json tileCheckJson(const TileCheck& check, const TileCheckOptions& opt
 const char* const kSilhouetteRule =
     "silhouette: a pixel where both hit and, in either render, one of its 8 neighbours misses or "
     "lies across a depth jump (a step over 1 texel and over twice the steps beside it on the same "
-    "line); interior: the other both-hit pixels";
+    "line that go the same way); interior: the other both-hit pixels";
 
 namespace {
 

@@ -128,7 +128,8 @@ void addCompareCommand(CLI::App& app) {
         "classes, reported apart and together (all): silhouette pixels, where in either render "
         "one of the pixel's 8 neighbours misses or lies across a depth jump (a step between the "
         "two depths, in texels by the pixel's texel scale, over 1 texel and over twice each "
-        "step beside it on the same line of pixels), and interior pixels, the others. One pixel "
+        "step beside it on the same line of pixels that goes the same way: a pixel alone "
+        "through a gap is one), and interior pixels, the others. One pixel "
         "that hits a far surface behind a silhouette can outweigh all the others in a mean; the "
         "headline mean and p99 are the interior ones. On detail the image does not resolve "
         "(several texels per pixel) most pixels are silhouette pixels.\n\n" +

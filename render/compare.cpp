@@ -72,17 +72,22 @@ bool isSilhouette(const Image& depthA, const Image& depthB, int x, int y, double
                 if ((dx == 0 && dy == 0) || !inside(x + dx, y + dy)) continue;
                 const double neighbour = hitDepth(x + dx, y + dy);
                 if (neighbour <= 0.0) return true;
-                const double stepTexels = std::abs(neighbour - here) * texelsPerWorld;
-                if (stepTexels <= kDepthJumpFloorTexels) continue;
-                // The steps beside this one on the same line, where both their pixels hit.
+                const double step = (neighbour - here) * texelsPerWorld;  // signed, texels
+                if (std::abs(step) <= kDepthJumpFloorTexels) continue;
+                // The steps beside this one on the same line, where both their pixels hit. One
+                // explains it as a slope when it goes the same way and is at least
+                // 1 / kDepthJumpRatio of it; one the other way makes a spike (a pixel that sees
+                // through a gap or hits a thin wire), no slope.
                 const double before = hitDepth(x - dx, y - dy);
                 const double after = hitDepth(x + 2 * dx, y + 2 * dy);
                 if (before <= 0.0 && after <= 0.0) continue;  // no line to judge the step by
-                const double beforeTexels =
-                    before > 0.0 ? std::abs(here - before) * texelsPerWorld : 0.0;
-                const double afterTexels =
-                    after > 0.0 ? std::abs(after - neighbour) * texelsPerWorld : 0.0;
-                if (stepTexels > kDepthJumpRatio * std::max(beforeTexels, afterTexels)) return true;
+                const auto slopesOn = [&](double besideStep) {
+                    return besideStep * step > 0.0 &&
+                           std::abs(step) <= kDepthJumpRatio * std::abs(besideStep);
+                };
+                const bool slope = (before > 0.0 && slopesOn((here - before) * texelsPerWorld)) ||
+                                   (after > 0.0 && slopesOn((after - neighbour) * texelsPerWorld));
+                if (!slope) return true;
             }
         }
     }

@@ -12,16 +12,18 @@
 ///     misses, or lies across a depth jump from it;
 ///   - interior: every other both-hit pixel.
 /// A depth jump between neighbours p and q = p + o (o one of the eight offsets) in one render is
-/// a step |depth(q) - depth(p)|, converted to texels with p's texel scale, that is larger than
-/// kDepthJumpFloorTexels and larger than kDepthJumpRatio times each of the steps beside it on
-/// the same line of pixels, from p - o to p and from q to q + o, taken where those pixels are
-/// inside the image and hit (a step with neither is not judged: no line to judge it by). On a
-/// continuous surface consecutive steps along a line change slowly whatever its slope and the
-/// image resolution (on a plane only through perspective), so a step more than twice its
-/// neighbours' marks an occlusion or a fold, where moving the edge by one pixel moves the hit by
-/// the whole step. Steps of at most one texel are never jumps: misplacing such an edge by a pixel
-/// costs at most a texel. On detail the image does not resolve (several texels per pixel) most
-/// pixels are silhouette pixels; the counts say how many.
+/// a step depth(q) - depth(p), converted to texels with p's texel scale, that is larger than
+/// kDepthJumpFloorTexels and that neither step beside it on the same line of pixels, from p - o
+/// to p and from q to q + o (taken where those pixels are inside the image and hit; a step with
+/// neither is not judged: no line to judge it by), explains as a slope: going the same way and at
+/// least 1 / kDepthJumpRatio of it. On a continuous surface consecutive steps along a line change
+/// slowly whatever its slope and the image resolution (on a plane only through perspective), so
+/// a step more than twice its neighbours' marks an occlusion or a fold, where moving the edge by
+/// one pixel moves the hit by the whole step; and a step back the other way right after it marks
+/// a spike: one pixel seeing through a gap in the detail, or hitting a wire thinner than a pixel,
+/// whose own error may be thousands of texels. Steps of at most one texel are never jumps:
+/// misplacing such an edge by a pixel costs at most a texel. On detail the image does not resolve
+/// (several texels per pixel) most pixels are silhouette pixels; the counts say how many.
 #pragma once
 
 #include <cstdint>
@@ -42,7 +44,7 @@ struct RenderLayersView {
 };
 
 /// A depth step between neighbouring pixels is a jump (see the file note) when it is larger than
-/// this many texels and than kDepthJumpRatio times the steps beside it.
+/// this many texels and than kDepthJumpRatio times the steps beside it that go the same way.
 inline constexpr double kDepthJumpFloorTexels = 1.0;
 inline constexpr double kDepthJumpRatio = 2.0;
 

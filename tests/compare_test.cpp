@@ -152,6 +152,24 @@ TEST(CompareRenders, ADepthJumpIsASilhouetteAndASlopeIsNot) {
     EXPECT_EQ(c.silhouette.maxHitErrorTexels, 0.0);
 }
 
+TEST(CompareRenders, APixelAloneThroughAGapIsASilhouetteNotAnInteriorOutlier) {
+    // Both renders hit a plane at depth 2 everywhere, 100 texels per world unit, with B 0.1 texel
+    // farther; at (5, 5) B alone sees through a gap to a surface one world unit behind (100
+    // texels). Its steps to each neighbour and back the other way on every line through it make
+    // it and its 8 neighbours silhouette pixels, so the interior keeps its 0.1 texel.
+    Layers a(20, 10), b(20, 10);
+    for (glm::vec3& depth : b.depth.rgbLinear) depth += 0.001f;
+    b.depth.at(5, 5) = glm::vec3(3.0f);
+    const RenderComparison c = compareRenders(a.view(), b.view());
+    EXPECT_EQ(c.bothHit, 200u);
+    EXPECT_EQ(c.silhouette.pixels, 9u);
+    EXPECT_EQ(c.interior.pixels, 191u);
+    EXPECT_NEAR(c.interior.maxHitErrorTexels, 0.1, 1e-4);
+    EXPECT_NEAR(c.interior.meanHitErrorTexels, 0.1, 1e-4);
+    EXPECT_NEAR(c.silhouette.maxHitErrorTexels, 100.0, 1e-3);
+    EXPECT_LE(c.interior.meanHitErrorTexels, c.interior.p99HitErrorTexels + 1e-9);
+}
+
 TEST(CompareRenders, HeatMapColoursTheHitErrorInTexelsAndDrawsItsColourBar) {
     // 200 x 12 pixels, 128 texels per world unit: depth steps of 1/128 world unit are exactly
     // one texel, and depths of 2 + k/128 are exact floats.
