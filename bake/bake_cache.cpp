@@ -1,10 +1,10 @@
 #include "bake/bake_cache.h"
 
-#include <cstdint>
-#include <cstdio>
 #include <cstdlib>
+#include <span>
 
 #include "common/error.h"
+#include "common/fnv1a.h"
 #include "sampler/tile_io.h"
 
 namespace distile {
@@ -12,14 +12,9 @@ namespace distile {
 namespace fs = std::filesystem;
 
 std::string contentHash(std::string_view bytes) {
-    std::uint64_t hash = 0xcbf29ce484222325ull;  // FNV-1a 64
-    for (unsigned char byte : bytes) {
-        hash ^= byte;
-        hash *= 0x100000001b3ull;
-    }
-    char digits[17];
-    std::snprintf(digits, sizeof digits, "%016llx", static_cast<unsigned long long>(hash));
-    return digits;
+    Fnv1a64 hash;
+    hash.update(std::as_bytes(std::span(bytes)));
+    return hexDigits(hash.value());
 }
 
 std::optional<fs::path> bakeCacheFolder() {

@@ -3,6 +3,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <cstdint>
 #include <ctime>
 #include <glm/geometric.hpp>
 #include <random>
@@ -16,6 +17,7 @@
 #include "render/renderer.h"
 #include "sampler/filters.h"
 #include "sampler/tile_columns.h"
+#include "sampler/tile_io.h"
 
 namespace distile {
 namespace {
@@ -134,6 +136,15 @@ void bakeDefaultChainmail(benchmark::State& state) {
         benchmark::DoNotOptimize(bakeChainmail(ChainmailOptions{}, BakeOptions{}).tile.size());
 }
 BENCHMARK(bakeDefaultChainmail)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+/// The hash every tile read checks (distile:hash), over the default 256x256x16 tile (4 MiB).
+void tileHashChainmail(benchmark::State& state) {
+    const Tile& tile = chainmailTile();
+    for (auto _ : state) benchmark::DoNotOptimize(tileHash(tile));
+    state.SetBytesProcessed(std::int64_t(state.iterations()) *
+                            std::int64_t(tile.distancesTexels().size_bytes()));
+}
+BENCHMARK(tileHashChainmail)->Unit(benchmark::kMillisecond);
 
 /// CPU seconds used by all threads of this process: steadier than wall time on a shared machine.
 double processCpuSeconds() {

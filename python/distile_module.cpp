@@ -9,7 +9,6 @@
 #include <tbb/global_control.h>
 
 #include <cstdint>
-#include <cstdio>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -20,6 +19,7 @@
 #include "check/reports.h"
 #include "check/tile_check.h"
 #include "common/error.h"
+#include "common/fnv1a.h"
 #include "common/size3.h"
 #include "render/compare.h"
 #include "render/render_files.h"
@@ -266,9 +266,6 @@ PYBIND11_MODULE(_distile, module) {
             [](const PyTile& self) {
                 const Tile& tile = *self.tile;
                 const TileProvenance& provenance = tile.provenance;
-                char hash[17];
-                std::snprintf(hash, sizeof hash, "%016llx",
-                              static_cast<unsigned long long>(tileHash(tile)));
                 py::dict out;
                 out["size"] = toString(tile.size());
                 out["units"] = "texels";
@@ -276,7 +273,7 @@ PYBIND11_MODULE(_distile, module) {
                 out["params"] = provenance.params.empty() ? py::object(py::dict())
                                                           : jsonValue(provenance.params);
                 out["band_texels"] = provenance.halfBandTexels;
-                out["hash"] = std::string(hash);
+                out["hash"] = hexDigits(tileHash(tile));
                 if (!provenance.sourceFile.empty()) {
                     out["source_file"] = provenance.sourceFile.string();
                     out["source_hash"] = provenance.sourceHash;

@@ -31,6 +31,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/exr_header.h"
+#include "common/fnv1a.h"
 #include "common/image_files.h"
 #include "common/input_file.h"
 
@@ -60,30 +61,15 @@ constexpr std::array<const char*, 7> kTileAttributes = {
 using image_files::firstLine;
 using image_files::PixelType;
 
-std::uint64_t fnv1a(std::uint64_t hash, std::uint32_t value) {
-    constexpr std::uint64_t kPrime = 0x100000001b3ull;
-    for (int byte = 0; byte < 4; ++byte) {
-        hash ^= (value >> (8 * byte)) & 0xffu;
-        hash *= kPrime;
-    }
-    return hash;
-}
-
 std::uint64_t hashDistances(const Size3& size, std::span<const float> distancesTexels) {
-    std::uint64_t hash = 0xcbf29ce484222325ull;
+    Fnv1a64 hash;
     for (int extent : {size.width, size.height, size.depth}) {
-        hash = fnv1a(hash, static_cast<std::uint32_t>(extent));
+        hash.updateU32LittleEndian(static_cast<std::uint32_t>(extent));
     }
     for (float distance : distancesTexels) {
-        hash = fnv1a(hash, std::bit_cast<std::uint32_t>(distance));
+        hash.updateU32LittleEndian(std::bit_cast<std::uint32_t>(distance));
     }
-    return hash;
-}
-
-std::string hexDigits(std::uint64_t value) {
-    char text[17];
-    std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(value));
-    return text;
+    return hash.value();
 }
 
 std::string layoutText(const AtlasGrid& grid) {

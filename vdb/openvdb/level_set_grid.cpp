@@ -9,14 +9,17 @@
 #include <cassert>
 #include <cctype>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <span>
 #include <sstream>
 #include <string_view>
 #include <vector>
 
 #include "common/error.h"
+#include "common/fnv1a.h"
 #include "common/input_file.h"
 #include "vdb/openvdb/openvdb_parts.h"
 #include "vdb/openvdb/openvdb_setup.h"
@@ -49,14 +52,14 @@ void stampContentUuid(const std::filesystem::path& file) {
         if (dash ? uuid[n] != '-' : !std::isxdigit(static_cast<unsigned char>(uuid[n])))
             throw FormatError(file.string() + ": OpenVDB wrote no UUID where one was expected");
     }
-    // FNV-1a 64 of every byte but the UUID's, twice from different offset bases.
-    std::uint64_t first = 0xcbf29ce484222325ull;
-    std::uint64_t second = 0x84222325cbf29ce4ull;
+    // FNV-1a 64 of every byte but the UUID's, twice from different offset bases. Each byte goes
+    // to both hashes in turn, so that their multiplications overlap.
+    Fnv1a64 first;
+    Fnv1a64 second(0x84222325cbf29ce4ull);
     const auto add = [&](const char* bytes, std::size_t count) {
-        for (std::size_t n = 0; n < count; ++n) {
-            const auto byte = static_cast<unsigned char>(bytes[n]);
-            first = (first ^ byte) * 0x100000001b3ull;
-            second = (second ^ byte) * 0x100000001b3ull;
+        for (const std::byte byte : std::as_bytes(std::span(bytes, count))) {
+            first.update(byte);
+            second.update(byte);
         }
     };
     add(header.data(), std::size_t(kUuidAt));
@@ -65,11 +68,11 @@ void stampContentUuid(const std::filesystem::path& file) {
         add(chunk.data(), std::size_t(stream.gcount()));
     char digits[40];
     std::snprintf(digits, sizeof digits, "%08llx-%04llx-%04llx-%04llx-%012llx",
-                  static_cast<unsigned long long>(first >> 32),
-                  static_cast<unsigned long long>((first >> 16) & 0xffff),
-                  static_cast<unsigned long long>(first & 0xffff),
-                  static_cast<unsigned long long>(second >> 48),
-                  static_cast<unsigned long long>(second & 0xffffffffffffull));
+                  static_cast<unsigned long long>(first.value() >> 32),
+                  static_cast<unsigned long long>((first.value() >> 16) & 0xffff),
+                  static_cast<unsigned long long>(first.value() & 0xffff),
+                  static_cast<unsigned long long>(second.value() >> 48),
+                  static_cast<unsigned long long>(second.value() & 0xffffffffffffull));
     stream.clear();
     stream.seekp(kUuidAt);
     if (!stream.write(digits, std::streamsize(kUuidLength)) || !stream.flush())
@@ -153,23 +156,23 @@ class OpenVdbLevelSetGrid final : public LevelSetGrid {
         const float* from = tileVoxels.data();
         float* to = dense.data();
         const std::size_t rows = std::size_t(tile.height) * std::size_t(tile.depth + 2 * margin);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows),
-                          [&](const tbb::blocked_range<std::size_t>& range) {
-                              for (std::size_t row = range.begin(); row != range.end(); ++row) {
-                                  const std::size_t j = row % std::size_t(tile.height);
-                                  const std::size_t k = row / std::size_t(tile.height);
-                                  const float* sourceRow = from + row * std::size_t(tile.width);
-                                  for (int n = 0; n < repeatY; ++n) {
-                                      float* targetRow =
-                                          to + (k * std::size_t(repeatedTile.height) +
-                                                std::size_t(n) * tile.height + j) *
-                                                   std::size_t(repeatedTile.width);
-                                      for (int m = 0; m < repeatX; ++m)
-                                          std::copy_n(sourceRow, tile.width,
-                                                      targetRow + std::size_t(m) * tile.width);
-                                  }
-                              }
-                          });
+        // Row j of slice k goes to rows n * height + j (n < repeatY) of slice k, repeatX times
+        // side by side.
+        const auto copyRows = [&](const tbb::blocked_range<std::size_t>& range) {
+            for (std::size_t row = range.begin(); row != range.end(); ++row) {
+                const std::size_t j = row % std::size_t(tile.height);
+                const std::size_t k = row / std::size_t(tile.height);
+                const float* sourceRow = from + row * std::size_t(tile.width);
+                for (int n = 0; n < repeatY; ++n) {
+                    const std::size_t targetRowIndex =
+                        k * std::size_t(repeatedTile.height) + std::size_t(n) * tile.height + j;
+                    float* targetRow = to + targetRowIndex * std::size_t(repeatedTile.width);
+                    for (int m = 0; m < repeatX; ++m)
+                        std::copy_n(sourceRow, tile.width, targetRow + std::size_t(m) * tile.width);
+                }
+            }
+        };
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows), copyRows);
         return std::make_unique<OpenVdbLevelSetGrid>(
             sparseGrid(dense, halfBand, repeatedTile, source, params));
     }
