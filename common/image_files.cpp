@@ -9,6 +9,8 @@
 #include "common/detail/module_loader.h"
 #include "common/detail/png_file.h"
 #include "common/error.h"
+#include "common/exr_header.h"
+#include "common/input_file.h"
 
 namespace distile::image_files {
 
@@ -70,8 +72,16 @@ std::string Spec::text(std::string_view name) const {
     return value ? *value : std::string();
 }
 
-std::unique_ptr<Input> open(const fs::path& file, std::string& error) {
-    return module().open(file, error);
+std::unique_ptr<Input> open(const fs::path& file, std::string_view acceptedNote) {
+    checkPngChunks(file);
+    checkExrHeader(file);
+    std::string error;
+    std::unique_ptr<Input> input = module().open(file, error);
+    if (!input) {
+        throw FormatError(file.string() + ": not a readable image (" + firstLine(error) + ")" +
+                          std::string(acceptedNote));
+    }
+    return input;
 }
 
 bool writesWithoutModule(const fs::path& file) {

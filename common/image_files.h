@@ -57,8 +57,12 @@ class Input {
 /// Opens `file` with the reader its extension names, and only that one: a file that reader
 /// cannot read is not offered to every other format in turn (OpenImageIO's fallback), where a
 /// damaged .exr would be tried as DICOM, FITS... each with its own costs (the DICOM reader alone
-/// took 2 GB on a fuzzed tile). Null, with `error` set to OpenImageIO's message, if it cannot.
-std::unique_ptr<Input> open(const std::filesystem::path& file, std::string& error);
+/// took 2 GB on a fuzzed tile). A PNG's chunks and an EXR's header are checked first
+/// (checkPngChunks, checkExrHeader): the libraries would print a broken chunk on stderr and
+/// allocate what a damaged header declares.
+/// @throws FormatError "FILE: not a readable image (OpenImageIO's reason)" followed by
+///         `acceptedNote` (e.g. "; a height map must be ..."), or the checks' errors.
+std::unique_ptr<Input> open(const std::filesystem::path& file, std::string_view acceptedNote = "");
 
 /// True when writing `file` does not load the module: a PNG (by its extension).
 bool writesWithoutModule(const std::filesystem::path& file);
