@@ -2,14 +2,16 @@
 
 #include <cmath>
 #include <fstream>
-#include <iterator>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
+#include <span>
+#include <vector>
 
 #include "bake/bake.h"
 #include "bake/bake_cache.h"
 #include "common/error.h"
+#include "common/fnv1a.h"
 #include "mesh/detail_mesh.h"
 
 namespace distile {
@@ -87,13 +89,18 @@ ProceduralOptions proceduralFromProvenance(const TileProvenance& provenance,
 
 namespace {
 
-/// FNV-1a 64 of the bytes of `file`, or nothing if it cannot be read.
+/// FNV-1a 64 of the bytes of `file` as contentHash gives it, read in chunks (a source mesh may
+/// be a gigabyte), or nothing if it cannot be read.
 std::optional<std::string> fileContentHash(const std::filesystem::path& file) {
     std::ifstream in(file, std::ios::binary);
     if (!in) return std::nullopt;
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    Fnv1a64 hash;
+    std::vector<char> chunk(std::size_t(1) << 20);
+    while (in.read(chunk.data(), std::streamsize(chunk.size())) || in.gcount() > 0) {
+        hash.update(std::as_bytes(std::span(chunk.data(), std::size_t(in.gcount()))));
+    }
     if (in.bad()) return std::nullopt;
-    return contentHash(bytes);
+    return hexDigits(hash.value());
 }
 
 }  // namespace
