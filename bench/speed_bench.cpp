@@ -35,29 +35,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// One switch of RenderSkips: its name, the field, and the work it leaves out.
-struct SkipSwitch {
-    const char* name;
-    bool RenderSkips::*enabled;
-    const char* skips;
-};
-
-/// Every RenderSkips switch, once: the speed report flips each and measures it.
-constexpr std::array kSkipSwitches{
-    SkipSwitch{"emptySpace", &RenderSkips::emptySpace,
-               "the march through the empty layers above the tile columns' occupied top"},
-    SkipSwitch{"adaptiveBudget", &RenderSkips::adaptiveBudget,
-               "march samples beyond what a ray's path through the slab needs"},
-    SkipSwitch{"shellCulling", &RenderSkips::shellCulling,
-               "shells whose conservative depth is behind the pixel's best hit"},
-    SkipSwitch{"unlitShadows", &RenderSkips::unlitShadows,
-               "shadow rays and shadow-map lookups toward lights the normal faces away from"},
-    SkipSwitch{"casterlessShadowMaps", &RenderSkips::casterlessShadowMaps,
-               "shadow maps of a scene where no surface can shadow another (one flat object)"},
-};
-static_assert(sizeof(RenderSkips) == kSkipSwitches.size() * sizeof(bool),
-              "every RenderSkips field must be a bool listed in kSkipSwitches");
-
 /// A scene of the report, with the label its tables show it under (the report defines them).
 struct SpeedScene {
     std::string id;
@@ -142,7 +119,7 @@ void setError(SpeedRow& row, const RenderComparison& comparison) {
 }
 
 /// The `what` of a skip's row: the switch, and the render unless it is the default one.
-std::string skipRowName(const SkipSwitch& skip, const char* renderName) {
+std::string skipRowName(const RenderSkipSwitch& skip, const char* renderName) {
     return renderName == std::string(kShadowedRender) ? std::string(skip.name)
                                                       : std::string(skip.name) + ", " + renderName;
 }
@@ -511,7 +488,7 @@ void runSpeedBench(const BenchArguments& arguments) {
     const std::array<std::pair<const char*, const RenderOptions*>, 3> skipRenders{
         std::pair{kShadowedRender, &shadowed}, std::pair{"no shadows", &unshadowed},
         std::pair{"tricubic march", &tricubicMarch}};
-    for (const SkipSwitch& skip : kSkipSwitches) {
+    for (const RenderSkipSwitch& skip : kRenderSkipSwitches) {
         for (const auto& [renderName, render] : skipRenders) {
             for (std::size_t index = 0; index < scenes.size(); ++index) {
                 RenderOptions without = *render;
@@ -790,7 +767,7 @@ void runSpeedBench(const BenchArguments& arguments) {
           "codes |\n"
           "|---|---|---|---|---|---|---|---|---|\n";
     std::vector<std::string> verdicts;
-    for (const SkipSwitch& skip : kSkipSwitches) {
+    for (const RenderSkipSwitch& skip : kRenderSkipSwitches) {
         bool savesSomewhere = false;
         bool imageKept = true;
         for (const auto& [renderName, render] : skipRenders)
@@ -809,7 +786,7 @@ void runSpeedBench(const BenchArguments& arguments) {
                    << fixed(r->maxDifferenceCodes, 0) << " |\n";
             }
         verdicts.push_back(verdict(savesSomewhere && imageKept) + " skip " + skip.name + " (" +
-                           skip.skips + "): " +
+                           skip.skipped + "): " +
                            (savesSomewhere ? "saves time (> 2%, less work) on at least one scene"
                                            : "saves no time (> 2% with less work) on any scene") +
                            ", " +

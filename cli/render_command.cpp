@@ -215,11 +215,9 @@ void runRender(RenderArguments arguments) {
     // --no-shadows is --shadows none: neither shadow maps nor self-shadow rays.
     if (arguments.noShadows) options.shadowFilter = ShadowFilter::None;
     for (const std::string& name : arguments.noSkips) {
-        if (name == "empty-space") options.skips.emptySpace = false;
-        if (name == "adaptive-budget") options.skips.adaptiveBudget = false;
-        if (name == "shell-culling") options.skips.shellCulling = false;
-        if (name == "unlit-shadows") options.skips.unlitShadows = false;
-        if (name == "casterless-shadow-maps") options.skips.casterlessShadowMaps = false;
+        for (const RenderSkipSwitch& skip : kRenderSkipSwitches) {
+            if (name == skip.name) options.skips.*skip.enabled = false;
+        }
     }
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachTruth(sceneFile);
@@ -356,6 +354,8 @@ void addRenderCommand(CLI::App& app) {
             ->default_str("adaptive");
     command->add_flag("--no-shadows", arguments->noShadows, "Same as --shadows none")
         ->excludes(shadows);
+    std::vector<std::string> skipNames;
+    for (const RenderSkipSwitch& skip : kRenderSkipSwitches) skipNames.push_back(skip.name);
     command
         ->add_option("--no-skip", arguments->noSkips,
                      "Do work the renderer normally skips, to measure the skip (repeatable): "
@@ -365,8 +365,7 @@ void addRenderCommand(CLI::App& app) {
                      "unlit-shadows (shadow work also where the detail faces away from the "
                      "light; same image), casterless-shadow-maps (shadow maps also for a scene "
                      "of one flat object, where nothing can cast into them)")
-        ->check(CLI::IsMember({"empty-space", "adaptive-budget", "shell-culling", "unlit-shadows",
-                               "casterless-shadow-maps"}))
+        ->check(CLI::IsMember(skipNames))
         ->expected(1)
         ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
     command->add_flag("--aovs", arguments->options.outputAovs,

@@ -64,18 +64,6 @@ constexpr double kMaxShadowMapResolution = 512.0;
 /// The key of the input's render options.
 constexpr const char* kRenderOptionsKey = "render_options";
 
-/// `distile render --no-skip` names, with the RenderSkips member each switches off.
-struct SkipName {
-    const char* name;
-    bool distile::RenderSkips::*skip;
-};
-constexpr SkipName kSkipNames[] = {
-    {"empty-space", &distile::RenderSkips::emptySpace},
-    {"adaptive-budget", &distile::RenderSkips::adaptiveBudget},
-    {"shell-culling", &distile::RenderSkips::shellCulling},
-    {"unlit-shadows", &distile::RenderSkips::unlitShadows},
-    {"casterless-shadow-maps", &distile::RenderSkips::casterlessShadowMaps}};
-
 /// The texels of a recipe's "size" ("WxHxD" or [W, H, D]); 0 when it is not one (the loader
 /// refuses it), infinity when it is absent (the default size is too large here).
 double recipeTexels(const json& recipe) {
@@ -182,7 +170,8 @@ const json& renderOptionValues() {
         table["aovs"] = {true, false};
         table["self_shadows"] = {true, false};
         table["no_skip"] = json::array();
-        for (const SkipName& skip : kSkipNames) table["no_skip"].push_back(skip.name);
+        for (const distile::RenderSkipSwitch& skip : distile::kRenderSkipSwitches)
+            table["no_skip"].push_back(skip.name);
         return table;
     }();
     return values;
@@ -275,12 +264,12 @@ distile::RenderOptions requestedRender(const json& given, const distile::ImageSe
     if (options.contains("no_skip")) {
         if (!options["no_skip"].is_array()) throw refusedOption("no_skip", "not an array");
         for (const json& name : options["no_skip"]) {
-            const auto skip =
-                std::find_if(std::begin(kSkipNames), std::end(kSkipNames),
-                             [&](const SkipName& known) { return name == known.name; });
-            if (skip == std::end(kSkipNames))
+            const auto skip = std::find_if(
+                std::begin(distile::kRenderSkipSwitches), std::end(distile::kRenderSkipSwitches),
+                [&](const distile::RenderSkipSwitch& known) { return name == known.name; });
+            if (skip == std::end(distile::kRenderSkipSwitches))
                 throw refusedOption("no_skip", "not a name the command line accepts");
-            rendered.skips.*skip->skip = false;
+            rendered.skips.*skip->enabled = false;
         }
     }
     // As the command line: self-shadows with shadows, none without.

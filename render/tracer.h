@@ -46,6 +46,30 @@ struct RenderSkips {
     bool casterlessShadowMaps = true;
 };
 
+/// One switch of RenderSkips: its name (`distile render --no-skip NAME`, the speed report's
+/// rows), the field, and the work it leaves out.
+struct RenderSkipSwitch {
+    const char* name;
+    bool RenderSkips::*enabled;
+    const char* skipped;
+};
+
+/// Every RenderSkips switch, once.
+inline constexpr RenderSkipSwitch kRenderSkipSwitches[] = {
+    {"empty-space", &RenderSkips::emptySpace,
+     "the march through the empty layers above the tile columns' occupied top"},
+    {"adaptive-budget", &RenderSkips::adaptiveBudget,
+     "march samples beyond what a ray's path through the slab needs"},
+    {"shell-culling", &RenderSkips::shellCulling,
+     "shells whose conservative depth is behind the pixel's best hit"},
+    {"unlit-shadows", &RenderSkips::unlitShadows,
+     "shadow rays and shadow-map lookups toward lights the normal faces away from"},
+    {"casterless-shadow-maps", &RenderSkips::casterlessShadowMaps,
+     "shadow maps of a scene where no surface can shadow another (one flat object)"},
+};
+static_assert(sizeof(RenderSkips) == std::size(kRenderSkipSwitches) * sizeof(bool),
+              "every RenderSkips field must be a bool listed in kRenderSkipSwitches");
+
 /// How rays go through the shell of a curved base (one whose vertex normals differ over a
 /// triangle; flat faces always take the planar march, which is exact there).
 enum class ShellMapping {

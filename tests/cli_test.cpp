@@ -1461,9 +1461,9 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     const std::size_t skipCount = sizeof(RenderSkips) / sizeof(bool);
     EXPECT_EQ(skipRows.size(), skipCount * 6u * 3u);
     for (const char* scene : {"S1", "S2", "S3", "S4", "S5", "S6"}) {
-        EXPECT_TRUE(skipRows.count(std::string("shellCulling ") + scene)) << scene;
-        EXPECT_TRUE(skipRows.count(std::string("emptySpace, no shadows ") + scene)) << scene;
-        EXPECT_TRUE(skipRows.count(std::string("adaptiveBudget, tricubic march ") + scene))
+        EXPECT_TRUE(skipRows.count(std::string("shell-culling ") + scene)) << scene;
+        EXPECT_TRUE(skipRows.count(std::string("empty-space, no shadows ") + scene)) << scene;
+        EXPECT_TRUE(skipRows.count(std::string("adaptive-budget, tricubic march ") + scene))
             << scene;
     }
     for (const char* section :
