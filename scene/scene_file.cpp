@@ -109,9 +109,8 @@ class Field {
         const glm::vec3 result = vector<3>();
         for (int i = 0; i < 3; ++i) {
             if (!acceptedColorComponent(result[i])) {
-                std::ostringstream message;
-                message << result[i] << " is not accepted; " << kColorComponentRule;
-                (*this)[std::size_t(i)].fail(message.str());
+                (*this)[std::size_t(i)].fail(numberText(result[i]) + " is not accepted; " +
+                                             kColorComponentRule);
             }
         }
         return result;
