@@ -92,7 +92,7 @@ struct Row {
     std::shared_ptr<const Scene> scene;
     std::optional<RenderOptions> options;
     /// Embree rows: distile rows (index into the rows) rendered again before each of this
-    /// configuration's traces, with the median of those renders' times, seconds.
+    /// configuration's traces, with the fastest of those renders' times, seconds.
     std::vector<std::pair<std::size_t, double>> pairedDistileSeconds;
 };
 
@@ -110,8 +110,10 @@ double tileMiB(const Tile& tile, Storage storage) {
     return double(tile.distancesTexels().size()) * bytes / (1024.0 * 1024.0);
 }
 
-/// Timed runs of every distile row and every Embree configuration: the row's time is their median
-/// (with 3, the default's time beside two Embree rows of one run differed by a fifth).
+/// Timed runs of every distile row and every Embree configuration: the row's time is the fastest
+/// of them. Disturbances on a shared machine only add time, so the minimum is the least disturbed
+/// measure of the work (with medians of 5, the default's ratio to Embree moved by about 30% from
+/// run to run).
 constexpr int kRunsPerRow = 5;
 
 /// Coverage mismatch a distile row may have beyond the row it is compared with (0.5% of the
@@ -147,7 +149,7 @@ void markParetoFront(std::vector<Row>& rows) {
 }
 
 /// How much slower than the front a distile row may be in the sweep and still be rendered again
-/// beside the peers: the sweep's times are medians of kRunsPerRow renders in one spell of the
+/// beside the peers: the sweep's times are the fastest of kRunsPerRow renders in one spell of the
 /// machine, and rows a few percent apart swap places from run to run, so a row the sweep's noise
 /// pushed off the front still gets its paired time.
 constexpr double kNearFrontSlack = 1.25;
@@ -246,8 +248,9 @@ std::string embreeSection(const std::vector<Row>& rows) {
        << kRunsPerRow
        << " of one built scene) "
           "every one of those distile configurations renders once, so both are timed in the same "
-          "spell of the machine; the times here are the medians of those runs (the other tables "
-          "hold the sweep's own medians).\n\n"
+          "spell of the machine; the times here are the fastest of those runs (the other tables "
+          "hold the sweep's own). Disturbances on a shared machine only add time: the fastest "
+          "run is the least disturbed measure of each one's work.\n\n"
        << "| Embree configuration | Embree s | Embree mean err | distile at <= that error | "
           "distile s | distile mean err | distile / Embree |\n|---|---|---|---|---|---|---|\n";
     bool everyLevel = true;
@@ -404,7 +407,7 @@ std::string reportOf(const std::vector<Row>& rows, const std::vector<ClaimRow>& 
           "render (double precision, 512 sphere-tracing steps, epsilon 0.001 texel; "
        << referenceSeconds
        << " s). distile rows are frames without shadows (primary rays, march, normals, "
-          "shading) of a prepared scene, timed without AOVs (the median of "
+          "shading) of a prepared scene, timed without AOVs (the fastest of "
        << kRunsPerRow
        << "; the error from one "
           "more render with them); peer rows are their primary-ray trace times of a built scene. "
@@ -676,9 +679,9 @@ void runBench(const BenchArguments& arguments) {
         row.scene = std::make_shared<const Scene>(scene);
         row.options = timed;
         TimedRender render = timedRender(scene, options);
-        const TimedRender median = medianRender(scene, timed, kRunsPerRow);
-        render.frameSeconds = median.frameSeconds;
-        render.setupSeconds = median.setupSeconds;
+        const TimedRender fastest = fastestRender(scene, timed, kRunsPerRow);
+        render.frameSeconds = fastest.frameSeconds;
+        render.setupSeconds = fastest.setupSeconds;
         record(std::move(row), render, scene, options, storage, truth, true);
     };
     const RenderOptions defaults = benchRenderOptions(width, height);
@@ -872,9 +875,9 @@ void runBench(const BenchArguments& arguments) {
             const PeerRender peer = renderSheetWithEmbree(sheet, width, height, threads, options);
             std::vector<std::pair<std::size_t, double>> pairedSeconds;
             for (std::size_t p = 0; p < paired.size(); ++p) {
-                std::sort(pairedRuns[p].begin(), pairedRuns[p].end());
                 if (!pairedRuns[p].empty())
-                    pairedSeconds.emplace_back(paired[p], pairedRuns[p][pairedRuns[p].size() / 2]);
+                    pairedSeconds.emplace_back(
+                        paired[p], *std::min_element(pairedRuns[p].begin(), pairedRuns[p].end()));
             }
             // Embree's curve (its recommended configuration at each bound) is a series of its own.
             const bool recommended = options.raysPerPacket > 1 && options.quads;

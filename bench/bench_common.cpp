@@ -101,23 +101,13 @@ TimedRender timedRender(const Scene& scene, const RenderOptions& options) {
     return timed;
 }
 
-TimedRender medianRender(const Scene& scene, const RenderOptions& options, int runs) {
-    std::vector<double> seconds, setupSeconds, frameSeconds;
-    TimedRender timed;
-    for (int run = 0; run < std::max(runs, 1); ++run) {
-        timed = timedRender(scene, options);
-        seconds.push_back(timed.seconds);
-        setupSeconds.push_back(timed.setupSeconds);
-        frameSeconds.push_back(timed.frameSeconds);
+TimedRender fastestRender(const Scene& scene, const RenderOptions& options, int runs) {
+    TimedRender fastest = timedRender(scene, options);
+    for (int run = 1; run < runs; ++run) {
+        TimedRender timed = timedRender(scene, options);
+        if (timed.frameSeconds < fastest.frameSeconds) fastest = std::move(timed);
     }
-    const auto median = [](std::vector<double>& values) {
-        std::sort(values.begin(), values.end());
-        return values[values.size() / 2];
-    };
-    timed.seconds = median(seconds);
-    timed.setupSeconds = median(setupSeconds);
-    timed.frameSeconds = median(frameSeconds);
-    return timed;
+    return fastest;
 }
 
 FastestPair fastestPair(const Scene& sceneA, const RenderOptions& optionsA, const Scene& sceneB,

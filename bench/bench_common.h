@@ -86,9 +86,10 @@ struct TimedRender {
 
 TimedRender timedRender(const Scene& scene, const RenderOptions& options);
 
-/// `runs` renders (at least one) of one configuration: the last one's result, with the median of
-/// each of their times (renders are deterministic, so every run's image is the same).
-TimedRender medianRender(const Scene& scene, const RenderOptions& options, int runs);
+/// The render with the fastest frame of `runs` renders (at least one) of one configuration, with
+/// its set-up. On a shared machine disturbances only add time, so the minimum is the least
+/// disturbed measure of the work (renders are deterministic: every run's image is the same).
+TimedRender fastestRender(const Scene& scene, const RenderOptions& options, int runs);
 
 /// The fastest of `runs` renders of each of two configurations, run alternately (A, B, A, B, ...)
 /// so that a slow spell of the shared machine hits both alike.

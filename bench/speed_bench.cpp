@@ -150,17 +150,6 @@ std::pair<std::string, double> largestWorkSaving(const RenderStats& on, const Re
     return largest;
 }
 
-/// The fastest frame of `runs` renders (the machine is shared: the minimum is the least
-/// disturbed), with its set-up.
-TimedRender fastestFrame(const Scene& scene, const RenderOptions& options, int runs) {
-    TimedRender fastest = timedRender(scene, options);
-    for (int run = 1; run < runs; ++run) {
-        TimedRender timed = timedRender(scene, options);
-        if (timed.frameSeconds < fastest.frameSeconds) fastest = std::move(timed);
-    }
-    return fastest;
-}
-
 /// Sets an environment variable for the lifetime of the object, then restores it.
 class ScopedEnvironment {
   public:
@@ -346,7 +335,7 @@ void runSpeedBench(const BenchArguments& arguments) {
     // fresh pages (the peers' times exclude their start too: set-up, reading the level set).
     timedRender(sheet, unshadowed);
     // Frames of the prepared scene, as the peers' traces are of their built scenes.
-    TimedRender sheetUnshadowed = fastestFrame(sheet, unshadowed, runs);
+    TimedRender sheetUnshadowed = fastestRender(sheet, unshadowed, runs);
     // Said once distile's runs are over (with the peers, after theirs).
     auto sayDistileTime = [&] {
         std::snprintf(line, sizeof line,

@@ -497,8 +497,7 @@ PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int 
         traceSeconds.push_back(secondsSince(traceStart));
     }
     device.check("tracing");
-    std::sort(traceSeconds.begin(), traceSeconds.end());
-    result.traceSeconds = traceSeconds[traceSeconds.size() / 2];
+    result.traceSeconds = *std::min_element(traceSeconds.begin(), traceSeconds.end());
     return result;
 }
 

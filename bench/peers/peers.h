@@ -57,7 +57,7 @@ struct EmbreePeerOptions {
     /// RTC_BUILD_QUALITY_HIGH (spatial splits: a slower build, faster traces) rather than Embree's
     /// default medium quality.
     bool highQualityBvh = false;
-    /// Traces of the one built scene (>= 1); traceSeconds is their median.
+    /// Traces of the one built scene (>= 1); traceSeconds is the fastest (the least disturbed).
     int traceRuns = 1;
     /// Called before each trace, untimed (may be empty): a caller times its own work there, so
     /// that a slow spell of a shared machine hits both alike.
