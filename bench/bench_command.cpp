@@ -101,10 +101,6 @@ std::string torusGroup(ShellMapping mapping) {
     return std::string(shellMappingName(mapping)) + " shell, torus on sheet";
 }
 
-double convergedShare(const RenderStats& stats) {
-    return stats.baseHits ? double(stats.converged) / double(stats.baseHits) : 0.0;
-}
-
 double tileMiB(const Tile& tile, Storage storage) {
     const double bytes = storage == Storage::Float32 ? 4.0 : storage == Storage::Half16 ? 2.0 : 1.0;
     return double(tile.distancesTexels().size()) * bytes / (1024.0 * 1024.0);
@@ -648,7 +644,7 @@ void runBench(const BenchArguments& arguments) {
                       const RenderLayersView& truthOf, bool inTruthTexels) {
         row.seconds = timed.frameSeconds;
         row.setupSeconds = timed.setupSeconds;
-        row.convergedShare = convergedShare(timed.result.stats);
+        row.convergedShare = timed.result.stats.convergedShare();
         const RenderLayersView measured = layers(timed.result);
         row.error = compareRenders(inTruthTexels ? RenderLayersView{measured.image, measured.depth,
                                                                     measured.normal, noTexelScale}
@@ -788,7 +784,7 @@ void runBench(const BenchArguments& arguments) {
             options.march.maxIterations = budget;
             options.outputAovs = false;
             const TimedRender timed = timedRender(field, options);
-            claims.push_back({"smooth height field", budget, convergedShare(timed.result.stats)});
+            claims.push_back({"smooth height field", budget, timed.result.stats.convergedShare()});
             say("  height field, sphere tracing " + std::to_string(budget) + ": converged " +
                 std::to_string(claims.back().convergedShare));
         }

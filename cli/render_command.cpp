@@ -240,15 +240,14 @@ void runRender(RenderArguments arguments) {
     outputs.commit();
     const RenderStats& stats = result.stats;
     std::printf(
-        "rendered %s (%dx%d, %d spp) in %.2f s: %llu rays, %.1f%% hit a surface, mean %.2f "
-        "iterations, "
-        "%.1f%% converged within %d\n",
+        "rendered %s (%dx%d, %d spp) in %.2f s: %llu rays, %.1f%% hit a surface (%.1f%% a "
+        "tile), mean %.2f iterations, %.1f%% of the tile hits converged within %d\n",
         arguments.scene.empty() ? "the demo scene" : arguments.scene.c_str(), options.width,
         options.height, options.samplesPerPixel, seconds,
         static_cast<unsigned long long>(stats.rays),
         stats.rays ? 100.0 * double(stats.baseHits) / double(stats.rays) : 0.0,
-        stats.meanIterations(),
-        stats.baseHits ? 100.0 * double(stats.converged) / double(stats.baseHits) : 0.0,
+        stats.rays ? 100.0 * double(stats.detailHits) / double(stats.rays) : 0.0,
+        stats.meanIterations(), 100.0 * stats.convergedShare(),
         options.reference ? RenderOptions::kReferenceIterations : options.march.maxIterations);
     std::printf("shells: %llu coverage tests, %llu traced (%.2f per ray), culling %s\n",
                 static_cast<unsigned long long>(stats.shellsTested),

@@ -168,6 +168,7 @@ py::dict renderStats(const RenderStats& stats) {
     py::dict out;
     out["rays"] = stats.rays;
     out["base_hits"] = stats.baseHits;
+    out["detail_hits"] = stats.detailHits;
     out["march_iterations"] = stats.marchIterations;
     out["mean_iterations"] = stats.meanIterations();
     out["converged"] = stats.converged;

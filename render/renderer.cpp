@@ -364,7 +364,10 @@ class Renderer {
         sample = Sample{};
         stats.marchIterations += counters.marchIterations;
         // Per camera ray, from the march of its nearest hit.
-        if (found && hit.onDetail && hit.march.converged) ++stats.converged;
+        if (found && hit.onDetail) {
+            ++stats.detailHits;
+            if (hit.march.converged) ++stats.converged;
+        }
         if (!found) {
             sample.color = skyColor(ray.direction);
             return;
@@ -718,8 +721,8 @@ RenderResult PreparedScene::render(const ProgressCallback& progress) const {
         float(options.shadowIterations * std::max<std::size_t>(scene.lights.size(), 1));
     const float shadowMapBudget = float((kShadowRingSamples + kShadowDiskSamples) *
                                         std::max<std::size_t>(scene.lights.size(), 1));
-    std::atomic<std::uint64_t> rays{0}, baseHits{0}, iterations{0}, converged{0}, shadowSteps{0},
-        shadowMapSamples{0};
+    std::atomic<std::uint64_t> rays{0}, baseHits{0}, detailHits{0}, iterations{0}, converged{0},
+        shadowSteps{0}, shadowMapSamples{0};
     std::atomic<std::uint64_t> shellsTested{0}, shellsTraced{0};
     // Bands of rows, so progress can be reported from this thread between them (each band ends
     // in a wait for its slowest block: one band when nobody asks for progress); inside a band,
@@ -768,6 +771,7 @@ RenderResult PreparedScene::render(const ProgressCallback& progress) const {
                 renderer.addFacingHits(facingHits);
                 rays += local.rays;
                 baseHits += local.baseHits;
+                detailHits += local.detailHits;
                 iterations += local.marchIterations;
                 converged += local.converged;
                 shadowSteps += local.shadowSteps;
@@ -777,7 +781,13 @@ RenderResult PreparedScene::render(const ProgressCallback& progress) const {
             });
         if (progress) progress(double(bandEnd) / options.height);
     }
-    result.stats = {rays, baseHits, iterations, converged, shadowSteps, shadowMapSamples};
+    result.stats.rays = rays;
+    result.stats.baseHits = baseHits;
+    result.stats.detailHits = detailHits;
+    result.stats.marchIterations = iterations;
+    result.stats.converged = converged;
+    result.stats.shadowSteps = shadowSteps;
+    result.stats.shadowMapSamples = shadowMapSamples;
     result.stats.shellsTested = shellsTested;
     result.stats.shellsTraced = shellsTraced;
     result.stats.shadowMapTexels = renderer.shadowMapTexels(false);

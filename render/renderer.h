@@ -55,10 +55,13 @@ struct RenderOptions {
 };
 
 struct RenderStats {
-    std::uint64_t rays = 0;              ///< camera rays (pixels x samples per pixel)
-    std::uint64_t baseHits = 0;          ///< camera rays that hit a base surface
+    std::uint64_t rays = 0;      ///< camera rays (pixels x samples per pixel)
+    std::uint64_t baseHits = 0;  ///< camera rays that hit a base surface
+    /// Camera rays whose nearest hit is a tile's (its detail or its floor, marched to): base hits
+    /// less those on bare surfaces (no tile) and back faces.
+    std::uint64_t detailHits = 0;
     std::uint64_t marchIterations = 0;   ///< sphere-tracing steps over all camera rays
-    std::uint64_t converged = 0;         ///< camera rays that hit detail or floor within the budget
+    std::uint64_t converged = 0;         ///< of detailHits, those that converged within the budget
     std::uint64_t shadowSteps = 0;       ///< steps of self-shadow rays
     std::uint64_t shadowMapSamples = 0;  ///< shadow-map depth comparisons (PCF samples), all lights
     std::uint64_t shadowMapTexels = 0;   ///< shadow-map texels traced (tiles lookups reached)
@@ -69,6 +72,10 @@ struct RenderStats {
         0;  ///< camera rays x shells whose top was intersected (and marched if entered)
     double meanIterations() const {
         return baseHits ? double(marchIterations) / double(baseHits) : 0.0;
+    }
+    /// The share of the hits on a tile that converged within the budget (1 with none).
+    double convergedShare() const {
+        return detailHits ? double(converged) / double(detailHits) : 1.0;
     }
 };
 

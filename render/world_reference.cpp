@@ -984,6 +984,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     result.traceSeconds = secondsSince(start);
     render.stats.rays = std::uint64_t(options.width) * std::uint64_t(options.height);
     render.stats.baseHits = hits;
+    render.stats.detailHits = hits;
     render.stats.converged = hits;
     result.refinedHits = refined;
     result.unrefinedHits = unrefined;

@@ -387,6 +387,40 @@ SceneObject bareSquare(float sizeWorld, float heightWorld) {
     return square;
 }
 
+TEST(Renderer, TheConvergedShareCountsOnlyHitsOnATile) {
+    // Looking straight down on the tiled plane (flat detail: every ray converges), whose view a
+    // bare square at z = 0.5 partly hides: every pixel hits a surface, the square's pixels hit
+    // no tile, and all the tile's hits converged.
+    Scene scene = planeScene(std::make_shared<const Tile>(flatTile({32, 32, 16}, 8.0f)));
+    scene.camera = {{0.01f, 0.02f, 2.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 40.0f};
+    scene.objects.push_back(bareSquare(0.5f, 0.5f));
+    RenderOptions options;
+    options.width = 64;
+    options.height = 48;
+    options.shadowFilter = ShadowFilter::None;
+    options.selfShadows = false;
+    const RenderStats stats = renderScene(scene, options).stats;
+    // The square's pixels, from the pixel rays and the plane z = 0.5 (none within 1e-4 of its
+    // edge here, so rounding cannot move a pixel across it).
+    const PinholeProjection projection(scene.camera, options.width, options.height);
+    std::uint64_t onSquare = 0;
+    for (int y = 0; y < options.height; ++y)
+        for (int x = 0; x < options.width; ++x) {
+            const Ray ray = projection.ray(float(x) + 0.5f, float(y) + 0.5f);
+            const glm::vec3 at =
+                ray.origin + ray.direction * ((0.5f - ray.origin.z) / ray.direction.z);
+            const float fromEdge = 0.25f - std::max(std::abs(at.x), std::abs(at.y));
+            ASSERT_GT(std::abs(fromEdge), 1e-4f) << x << ", " << y;
+            onSquare += fromEdge > 0.0f;
+        }
+    ASSERT_GT(onSquare, 100u);
+    EXPECT_EQ(stats.rays, std::uint64_t(64 * 48));
+    EXPECT_EQ(stats.baseHits, stats.rays);
+    EXPECT_EQ(stats.detailHits, stats.rays - onSquare);
+    EXPECT_EQ(stats.converged, stats.detailHits);
+    EXPECT_EQ(stats.convergedShare(), 1.0);
+}
+
 /// Ground (2 x 2 at z = 0) under a 0.5 x 0.5 occluder at z = 0.5, lit straight down by a light
 /// of 2 degrees: the shadow is the occluder's square, with penumbrae tan(1 deg) * 0.5 = 8.7 mm
 /// (4.5 map texels at 1024 texels over 2 units) to either side of its edges.

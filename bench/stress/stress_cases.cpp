@@ -142,10 +142,6 @@ ImageDifference compareImages(const Image& a, const Image& b) {
     return difference;
 }
 
-double convergedShare(const RenderStats& stats) {
-    return stats.baseHits ? double(stats.converged) / double(stats.baseHits) : 0.0;
-}
-
 /// A ray of elevation `elevationDeg` below the horizon and azimuth `azimuthDeg` that crosses the
 /// plane z = 0 at `target` after starting 0.3 world units above it.
 Ray grazingRay(double elevationDeg, double azimuthDeg, const glm::vec3& target) {
@@ -689,9 +685,10 @@ void subTexelWireCase(std::vector<StressCase>& cases) {
     result.errorTexels = std::max(0.0, maxOverestimate);
     result.toleranceTexels = 1e-3;
     result.measured = formatLine(
-        "tile max overestimate %.2g, max |error| %.4f texels; converged %.3f of %llu base hits",
-        maxOverestimate, maxAbsError, convergedShare(render.stats),
-        (unsigned long long)render.stats.baseHits);
+        "tile max overestimate %.2g, max |error| %.4f texels; converged %.3f of %llu hits on the "
+        "tile",
+        maxOverestimate, maxAbsError, render.stats.convergedShare(),
+        (unsigned long long)render.stats.detailHits);
     record.check(true, "the bake accepts the wire");
     cases.push_back(record.finish());
 }
@@ -714,10 +711,10 @@ void shellDepthCases(std::vector<StressCase>& cases) {
         result.errorTexels = std::abs(hit.detailErrorTexels);
         result.toleranceTexels = epsilon;
         result.measured = formatLine(
-            "straight-down hit error %.2g texels; converged %.3f of %llu camera base hits, %.2f "
-            "steps each",
-            hit.detailErrorTexels, convergedShare(render.stats),
-            (unsigned long long)render.stats.baseHits, render.stats.meanIterations());
+            "straight-down hit error %.2g texels; converged %.3f of %llu camera hits on the tile, "
+            "%.2f steps each",
+            hit.detailErrorTexels, render.stats.convergedShare(),
+            (unsigned long long)render.stats.detailHits, render.stats.meanIterations());
         record.check(hit.traced && hit.finite && hit.onDetail,
                      "the straight-down ray hits the detail");
         record.check(hit.detailErrorTexels >= -1e-4,

@@ -162,6 +162,9 @@ def test_render_is_byte_identical_to_the_commands(tmp_path, source_dir, distile_
     assert set(rendered.aovs) == {"depth", "normal", "iterations", "shadow_samples",
                                   "shadow_map_samples", "curvature", "texel_scale"}
     assert rendered.stats["rays"] == 96 * 72
+    # Every surface the sheet's rays hit is the tiled sheet, and every one of them converged.
+    assert rendered.stats["detail_hits"] == rendered.stats["base_hits"] > 0
+    assert rendered.stats["converged"] == rendered.stats["detail_hits"]
     rendered.save(tmp_path / "py.png")
     for suffix in [".png", ".depth.exr", ".normal.png", ".iterations.png",
                    ".shadow_samples.png", ".shadow_map_samples.png", ".curvature.png",
