@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <glm/common.hpp>
 #include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -117,9 +118,14 @@ class Field {
     }
     template <int N>
     glm::vec<N, float> vector() const {
+        return glm::vec<N, float>(vectorInDouble<N>());
+    }
+    /// vector(), its components as given (a position far from the origin keeps its fraction).
+    template <int N>
+    glm::vec<N, double> vectorInDouble() const {
         if (!value_.is_array() || value_.size() != N)
             fail("must be an array of " + std::to_string(N) + " numbers");
-        glm::vec<N, float> result;
+        glm::vec<N, double> result;
         for (int i = 0; i < N; ++i) {
             const double component = (*this)[std::size_t(i)].number();
             if (std::abs(component) > 1e30) {
@@ -127,7 +133,7 @@ class Field {
                 problem << component << " is too large; components must be within +-1e30";
                 (*this)[std::size_t(i)].fail(problem.str());
             }
-            result[i] = float(component);
+            result[i] = component;
         }
         return result;
     }
@@ -747,6 +753,9 @@ std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson, const 
     return bakedTile(Field(document, "", name), folder, tiles, warn).tile;
 }
 
+/// The grid of the origin a scene is moved to (loadSceneJson): world units.
+constexpr double kOriginGridWorld = 1024.0;
+
 SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
                         const std::string& name, TileCache& tiles,
                         const SceneWarningCallback& warn) {
@@ -759,15 +768,25 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
 
     SceneFile result;
     Scene& scene = result.scene;
+    // The scene is placed relative to its camera: positions are taken in double precision and
+    // moved by `origin`, the multiple of kOriginGridWorld nearest the eye, before they are rounded
+    // to float, so a scene far from the world origin renders as precisely as one near it (floats
+    // at 1e5 resolve 0.008 world units). A camera within half the grid of the origin moves
+    // nothing. What the renderer writes (colours, depth along the ray, normals) does not depend
+    // on where the origin is.
+    glm::dvec3 eye(scene.camera.eye), target(scene.camera.target);
     if (root.has("camera")) {
         const Field camera = root["camera"];
         camera.requireObject({"eye", "target", "up", "fov_deg"});
-        if (camera.has("eye")) scene.camera.eye = camera["eye"].vector<3>();
-        if (camera.has("target")) scene.camera.target = camera["target"].vector<3>();
+        if (camera.has("eye")) eye = camera["eye"].vectorInDouble<3>();
+        if (camera.has("target")) target = camera["target"].vectorInDouble<3>();
         if (camera.has("up")) scene.camera.up = camera["up"].vector<3>();
         if (camera.has("fov_deg"))
             scene.camera.fovDeg = float(camera["fov_deg"].number(1e-3, 179.0));
     }
+    const glm::dvec3 origin = kOriginGridWorld * glm::round(eye / kOriginGridWorld);
+    scene.camera.eye = glm::vec3(eye - origin);
+    scene.camera.target = glm::vec3(target - origin);
     if (root.has("image")) {
         const Field image = root["image"];
         image.requireObject({"width", "height", "spp"});
@@ -813,16 +832,20 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
         } catch (const InputError& error) {
             object["mesh"].fail(error.problem());
         }
-        if (object.has("transform")) {
-            const Field transform = object["transform"];
-            transform.requireObject({"translate", "rotate_deg", "scale"});
+        if (object.has("transform") || origin != glm::dvec3(0.0)) {
             Transform placement;
-            if (transform.has("translate"))
-                placement.translate = transform["translate"].vector<3>();
-            if (transform.has("rotate_deg"))
-                placement.rotateDeg = transform["rotate_deg"].vector<3>();
-            if (transform.has("scale"))
-                placement.scale = float(transform["scale"].number(1e-12, 1e12));
+            glm::dvec3 translate(0.0);
+            if (object.has("transform")) {
+                const Field transform = object["transform"];
+                transform.requireObject({"translate", "rotate_deg", "scale"});
+                if (transform.has("translate"))
+                    translate = transform["translate"].vectorInDouble<3>();
+                if (transform.has("rotate_deg"))
+                    placement.rotateDeg = transform["rotate_deg"].vector<3>();
+                if (transform.has("scale"))
+                    placement.scale = float(transform["scale"].number(1e-12, 1e12));
+            }
+            placement.translate = glm::vec3(translate - origin);
             applyTransform(parsed.mesh, placement);
         }
         std::shared_ptr<const TriangleSoup> placedMesh;
