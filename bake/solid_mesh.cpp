@@ -19,11 +19,13 @@
 
 namespace distile {
 
-SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& path) {
+SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& path,
+                                    const MeshSignOptions& sign) {
     const std::string file = path.string();
     SolidDetailMesh solid{loadDetailMesh(path), {}};
     const MeshTopology topology = inspectMesh(solid.mesh);
-    if (!topology.closed || !topology.manifold) {
+    const bool signedByWindingNumber = !sign.unsignedDistance;
+    if (signedByWindingNumber && (!topology.closed || !topology.manifold)) {
         std::ostringstream message;
         message << file << ": the mesh is ";
         if (!topology.closed) message << "open (" << topology.boundaryEdges << " boundary edges)";
@@ -36,7 +38,7 @@ SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& path) {
         solid.warnings.push_back(file + ": " + std::to_string(topology.degenerateFaces) +
                                  " degenerate (zero-area) faces");
     }
-    if (topology.selfIntersecting) {
+    if (signedByWindingNumber && topology.selfIntersecting) {
         solid.warnings.push_back(file +
                                  ": the mesh intersects itself; inside is where its winding "
                                  "number exceeds 1/2");

@@ -17,20 +17,6 @@
 
 namespace distile {
 
-/// A detail mesh read for baking, and what is odd about it without stopping a bake.
-struct SolidDetailMesh {
-    TriangleSoup mesh;  ///< file units
-    /// One line each, naming the file: open or non-manifold parts, degenerate (zero-area)
-    /// faces, self-intersections. The caller shows them (the library writes nothing to the
-    /// terminal).
-    std::vector<std::string> warnings;
-};
-
-/// Reads a detail mesh (mesh/detail_mesh.h) and inspects it (truth/mesh_truth.h inspectMesh):
-/// what is not a clean solid becomes a warning, since the winding-number sign copes with it.
-/// @throws FormatError as loadDetailMesh.
-SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& file);
-
 /// How the distances of a mesh bake are signed.
 struct MeshSignOptions {
     /// false: negative where the generalized winding number exceeds 1/2 (inside).
@@ -40,6 +26,22 @@ struct MeshSignOptions {
     bool unsignedDistance = false;
     double thicknessTexels = 0.0;  ///< unsignedDistance only: shell thickness, texels, >= 0
 };
+
+/// A detail mesh read for baking, and what is odd about it without stopping a bake.
+struct SolidDetailMesh {
+    TriangleSoup mesh;  ///< file units
+    /// One line each, naming the file: degenerate (zero-area) faces and, for a mesh signed by
+    /// its winding number, open or non-manifold parts and self-intersections. The caller shows
+    /// them (the library writes nothing to the terminal).
+    std::vector<std::string> warnings;
+};
+
+/// Reads a detail mesh (mesh/detail_mesh.h) and inspects it (truth/mesh_truth.h inspectMesh):
+/// what is not a clean solid becomes a warning, since the winding-number sign copes with it.
+/// Baked with `sign` unsigned, the mesh has no inside to find: being open, non-manifold or
+/// self-intersecting is then no warning (a sheet is open).
+/// @throws FormatError as loadDetailMesh.
+SolidDetailMesh loadSolidDetailMesh(const std::filesystem::path& file, const MeshSignOptions& sign);
 
 struct SolidMeshBake {
     BakeResult result;

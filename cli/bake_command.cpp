@@ -95,7 +95,7 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
                 "around an unsigned surface)");
         sign.thicknessTexels = *arguments.thicknessTexels;
     }
-    const SolidDetailMesh solid = loadSolidDetailMesh(arguments.input);
+    const SolidDetailMesh solid = loadSolidDetailMesh(arguments.input, sign);
     const MeshPlacement placement = meshPlacement(arguments);
     SolidMeshBake bake =
         bakeSolidMesh(solid.mesh, placement, options, file, std::ref(progress), sign);

@@ -494,7 +494,7 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
     const std::string recipe = meshRecipe(bytes, placement, sign, options);
     BakedTile baked;
     try {
-        const SolidDetailMesh solid = loadSolidDetailMesh(path);
+        const SolidDetailMesh solid = loadSolidDetailMesh(path, sign);
         const TriangleSoup& mesh = solid.mesh;
         baked.placedMesh =
             std::make_shared<const TriangleSoup>(placeMesh(mesh, placement, options.size));

@@ -844,6 +844,24 @@ TEST_F(Cli, BakesOpenMeshesByWindingNumberAndSheetsOnlyWithUnsigned) {
     EXPECT_NE(shell.out.find("unsigned distance, shell 2 texels thick"), std::string::npos)
         << shell.out;
     EXPECT_TRUE(fs::exists(path("sheet.exr")));
+    // Being open matters to the winding-number sign alone: an open box (the cube without its
+    // top) is warned about when signed by it, not when baked unsigned (a sheet is open).
+    writeText(path("box.obj"),
+              "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\n"
+              "v 0 1 1\nf 1 4 3 2\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n");
+    const std::vector<std::string> box{"bake",    "mesh",     "box.obj",  "-o",
+                                       "box.exr", "--size",   "32x32x16", "--scale",
+                                       "10",      "--offset", "5,5,2"};
+    const RunResult signedBox = run(box);
+    ASSERT_EQ(signedBox.status, 0) << signedBox.err;
+    EXPECT_NE(signedBox.err.find("warning: box.obj: the mesh is open (4 boundary edges)"),
+              std::string::npos)
+        << signedBox.err;
+    std::vector<std::string> unsignedArguments = box;
+    unsignedArguments.push_back("--unsigned");
+    const RunResult unsignedBox = run(unsignedArguments);
+    ASSERT_EQ(unsignedBox.status, 0) << unsignedBox.err;
+    EXPECT_EQ(unsignedBox.err.find("warning"), std::string::npos) << unsignedBox.err;
 }
 
 TEST_F(Cli, OpenMeshesAndSoupsPassCheckAgainstTheSurfaceTheyBound) {
