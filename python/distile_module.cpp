@@ -344,8 +344,12 @@ PYBIND11_MODULE(_distile, module) {
             },
             "The AOVs by name (depth, normal, ...), each a (height, width, 3) view; empty "
             "without aovs=True")
-        .def_property_readonly("stats",
-                               [](const PyRender& self) { return renderStats(self.result->stats); })
+        .def_property_readonly(
+            "stats", [](const PyRender& self) { return renderStats(self.result->stats); },
+            "Counters as distile render prints them: rays, base_hits (rays that hit a surface), "
+            "detail_hits (of those, on a tile), converged (of detail_hits, within the budget), "
+            "march_iterations, mean_iterations, shadow_steps, shadow_map_samples, shells_tested, "
+            "shells_traced")
         .def_property_readonly("warnings",
                                [](const PyRender& self) { return self.result->warnings; })
         .def(
