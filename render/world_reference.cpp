@@ -875,7 +875,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     if (options.outputAovs) {
         render.aovs.emplace(RenderAovs::blank(options.width, options.height));
     }
-    std::atomic<std::uint64_t> hits{0}, refined{0}, unrefined{0}, backFaces{0};
+    std::atomic<std::uint64_t> hits{0}, detailHits{0}, refined{0}, unrefined{0}, backFaces{0};
     constexpr int kBlock = 16;
     constexpr int kBandRows = 64;
     for (int bandStart = 0; bandStart < options.height; bandStart += kBandRows) {
@@ -883,8 +883,8 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
         tbb::parallel_for(
             tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
             [&](const tbb::blocked_range2d<int>& block) {
-                std::uint64_t localHits = 0, localRefined = 0, localUnrefined = 0,
-                              localBackFaces = 0;
+                std::uint64_t localHits = 0, localDetailHits = 0, localRefined = 0,
+                              localUnrefined = 0, localBackFaces = 0;
                 for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
                     for (int x = block.cols().begin(); x != block.cols().end(); ++x) {
                         const Ray ray = projection.ray(float(x) + 0.5f, float(y) + 0.5f);
@@ -967,6 +967,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                             continue;
                         }
                         ++localHits;
+                        localDetailHits += hit.onDetail;
                         render.image.at(x, y) = shader.shade(ray, hit, pixelRotation(x, y));
                         if (!render.aovs) continue;
                         render.aovs->depth.at(x, y) = glm::vec3(hit.distanceWorld);
@@ -974,6 +975,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                     }
                 }
                 hits += localHits;
+                detailHits += localDetailHits;
                 refined += localRefined;
                 unrefined += localUnrefined;
                 backFaces += localBackFaces;
@@ -984,8 +986,9 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     result.traceSeconds = secondsSince(start);
     render.stats.rays = std::uint64_t(options.width) * std::uint64_t(options.height);
     render.stats.baseHits = hits;
-    render.stats.detailHits = hits;
-    render.stats.converged = hits;
+    // The reference's hits on detail are exact: all of them converged.
+    render.stats.detailHits = detailHits;
+    render.stats.converged = detailHits;
     result.refinedHits = refined;
     result.unrefinedHits = unrefined;
     result.backFaceStops = backFaces;

@@ -460,6 +460,7 @@ TEST(WorldReference, ABackFaceOfATiledBaseMeshStopsTheRayAsTheTracerDoes) {
     const std::uint64_t pixels = kSize * kSize;
     EXPECT_EQ(world.backFaceStops, pixels);
     EXPECT_EQ(world.render.stats.baseHits, pixels);
+    EXPECT_EQ(world.render.stats.detailHits, 0u);  // a back face is no hit on the tile
     EXPECT_EQ(world.refinedHits + world.unrefinedHits, 0u);
     EXPECT_NEAR(world.render.aovs->depth.at(kSize / 2, kSize / 2).x, 1.0f, 1e-6f);
     const SceneTracer tracer(scene, TraceOptions{});
