@@ -832,22 +832,22 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
         } catch (const InputError& error) {
             object["mesh"].fail(error.problem());
         }
-        if (object.has("transform") || origin != glm::dvec3(0.0)) {
-            Transform placement;
-            glm::dvec3 translate(0.0);
-            if (object.has("transform")) {
-                const Field transform = object["transform"];
-                transform.requireObject({"translate", "rotate_deg", "scale"});
-                if (transform.has("translate"))
-                    translate = transform["translate"].vectorInDouble<3>();
-                if (transform.has("rotate_deg"))
-                    placement.rotateDeg = transform["rotate_deg"].vector<3>();
-                if (transform.has("scale"))
-                    placement.scale = float(transform["scale"].number(1e-12, 1e12));
-            }
-            placement.translate = glm::vec3(translate - origin);
-            applyTransform(parsed.mesh, placement);
+        Transform placement;
+        glm::dvec3 translate(0.0);
+        if (object.has("transform")) {
+            const Field transform = object["transform"];
+            transform.requireObject({"translate", "rotate_deg", "scale"});
+            if (transform.has("translate")) translate = transform["translate"].vectorInDouble<3>();
+            if (transform.has("rotate_deg"))
+                placement.rotateDeg = transform["rotate_deg"].vector<3>();
+            if (transform.has("scale"))
+                placement.scale = float(transform["scale"].number(1e-12, 1e12));
         }
+        placement.translate = glm::vec3(translate - origin);
+        // A mesh neither transformed nor moved is left as read (applyTransform would normalise
+        // its normals again, changing their last bits).
+        if (object.has("transform") || origin != glm::dvec3(0.0))
+            applyTransform(parsed.mesh, placement);
         std::shared_ptr<const TriangleSoup> placedMesh;
         if (object.has("material"))
             parsed.material = loadMaterial(object["material"], folder, tiles, placedMesh, warn);
