@@ -1,5 +1,6 @@
 #include "check/tile_check.h"
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <memory>
@@ -296,6 +297,37 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
                            " sign errors more than 1 texel from the surface");
     }
     return check;
+}
+
+TileCheck recordAnalyticCheck(Tile& tile) {
+    const TileCheckOptions options;
+    TileCheck check = checkTile(tile, "tile", {}, options);
+    const TileErrorReport& report = check.report;
+    std::ostringstream verdict;
+    verdict.precision(4);
+    if (check.passed()) {
+        verdict << TileProvenance::kCheckWithin << ": RMS " << report.rmsTexels
+                << " texel, overestimates beyond " << options.maxOverestimateTexels << " texel in "
+                << 100.0 * report.overestimateShare << "% of samples";
+    } else {
+        verdict << TileProvenance::kCheckBeyond << ": ";
+        for (std::size_t i = 0; i < check.failures.size(); ++i)
+            verdict << (i == 0 ? "" : "; ") << check.failures[i];
+    }
+    verdict << "; " << report.samples << " samples against the analytic truth";
+    tile.provenance.check = verdict.str();
+    return check;
+}
+
+std::string recordedCheckWarning(const Tile& tile, const std::string& tileName) {
+    const std::string_view check = tile.provenance.check;
+    if (!check.starts_with(TileProvenance::kCheckBeyond)) return {};
+    // After "beyond tolerances: ", as recordAnalyticCheck writes it.
+    const std::string_view figures =
+        check.substr(std::min(check.size(), TileProvenance::kCheckBeyond.size() + 2));
+    return tileName + " misses distile check's tolerances: " + std::string(figures) +
+           ". Wires under about 1.25 texels in radius and sharp edges are what a tile holds "
+           "poorly";
 }
 
 }  // namespace distile

@@ -60,4 +60,15 @@ struct TileCheck {
 TileCheck checkTile(const Tile& tile, const std::string& tileName,
                     const std::filesystem::path& tileFile, const TileCheckOptions& options);
 
+/// Checks a tile of procedural detail (chain mail, grating) against its analytic truth as
+/// `distile check` does by default, and records the verdict in tile.provenance.check
+/// (distile:check), so the figures travel with the tile: to a file, to the bake cache, to whoever
+/// renders it. Throws as checkTile (InputError for a tile without analytic truth).
+TileCheck recordAnalyticCheck(Tile& tile);
+
+/// For a tile whose recorded check (TileProvenance::check) found it beyond the tolerances: a
+/// warning naming the tile `tileName`, the figures, and what a tile holds poorly (callers add
+/// the remedy in their own terms). Empty for any other tile.
+std::string recordedCheckWarning(const Tile& tile, const std::string& tileName);
+
 }  // namespace distile

@@ -237,30 +237,22 @@ ProceduralOptions proceduralOptions(const BakeArguments& arguments) {
     return procedural;
 }
 
-/// A procedural tile measured against its analytic truth as `distile check` measures it (its
-/// samples and tolerances; 0.07 s for the default chain mail): one line of figures, and a warning
-/// when the tile misses the tolerances, which a wire about a texel thin or a sharp edge does.
-void reportAgainstAnalyticTruth(const Tile& tile, const fs::path& output) {
-    const TileCheckOptions options;
-    const TileCheck check = checkTile(tile, output.string(), output, options);
+/// The figures of a procedural tile's check against its analytic truth (recordAnalyticCheck, as
+/// `distile check` measures it; 0.07 s for the default chain mail): one line, and a warning when
+/// the tile misses the tolerances, which a wire about a texel thin or a sharp edge does.
+void reportAgainstAnalyticTruth(const Tile& tile, const TileCheck& check, const fs::path& output) {
     const TileErrorReport& report = check.report;
     std::printf(
         "against its analytic truth (%d samples, as distile check): RMS %.4f texel, "
         "overestimates beyond %g texel %.3f%%: %s\n",
-        report.samples, report.rmsTexels, options.maxOverestimateTexels,
+        report.samples, report.rmsTexels, TileCheckOptions().maxOverestimateTexels,
         100.0 * report.overestimateShare,
         check.passed() ? "within the check's tolerances" : "beyond them");
-    if (!check.passed()) {
-        std::string failures;
-        for (const std::string& failure : check.failures)
-            failures += (failures.empty() ? "" : "; ") + failure;
-        std::fprintf(
-            stderr,
-            "distile: warning: %s misses distile check's tolerances (%s). Wires under about "
-            "1.25 texels in radius and sharp edges are what a tile holds poorly: raise "
-            "--size, or thicken or round the detail; `distile check %s --plot error.png` "
-            "shows where\n",
-            output.c_str(), failures.c_str(), output.c_str());
+    if (const std::string warning = recordedCheckWarning(tile, output.string()); !warning.empty()) {
+        std::fprintf(stderr,
+                     "distile: warning: %s; raise --size, or thicken or round the detail; "
+                     "`distile check %s --plot error.png` shows where\n",
+                     warning.c_str(), output.c_str());
     }
 }
 
@@ -346,6 +338,9 @@ void runBake(const BakeArguments& arguments) {
     } catch (const InputError& error) {
         throw underBakeFlag(error);
     }
+    // Procedural detail has an analytic truth: its check's verdict is written with the tile.
+    std::optional<TileCheck> check;
+    if (!fromFile) check = recordAnalyticCheck(result->tile);
     // The repeated level set is built before anything is written: a refused --repeat leaves no
     // file.
     std::optional<LevelSet> repeatedLevelSet;
@@ -388,7 +383,7 @@ void runBake(const BakeArguments& arguments) {
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::printf("baked in %.2f s\n", seconds);
-    if (!fromFile) reportAgainstAnalyticTruth(result->tile, arguments.output);
+    if (check) reportAgainstAnalyticTruth(result->tile, *check, arguments.output);
 }
 
 }  // namespace

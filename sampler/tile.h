@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/size3.h"
@@ -29,6 +30,12 @@ struct TileProvenance {
     /// its distances beyond it are clamped to +-this, so it is what the tile can tell about its
     /// source. 0 when unknown (tiles written before the attribute existed).
     double halfBandTexels = 0.0;
+    /// What a check against the detail's truth found when the tile was baked (distile:check),
+    /// one line: kCheckWithin or kCheckBeyond, ": ", then the figures. Bakes of procedural detail
+    /// record it (check/tile_check.h recordAnalyticCheck); empty when none was made.
+    std::string check;
+    static constexpr std::string_view kCheckWithin = "within tolerances";
+    static constexpr std::string_view kCheckBeyond = "beyond tolerances";
 };
 
 class Tile {

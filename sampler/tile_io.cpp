@@ -167,6 +167,7 @@ image_files::Spec tileSpec(const Size3& size, PixelType stored, const TileProven
         spec.set("distile:source_file", recordedSourceFile(provenance.sourceFile, file));
         spec.set("distile:source_hash", provenance.sourceHash);
     }
+    if (!provenance.check.empty()) spec.set("distile:check", provenance.check);
     return spec;
 }
 
@@ -486,6 +487,16 @@ Tile readTileExr(const fs::path& file) {
         tile.provenance.sourceFile =
             (fs::absolute(file).parent_path() / fs::path(sourceFile)).lexically_normal();
         tile.provenance.sourceHash = spec.text("distile:source_hash");
+    }
+    // Optional: the verdict of the check made when the tile was baked.
+    tile.provenance.check = spec.text("distile:check");
+    const std::string_view check = tile.provenance.check;
+    if (!check.empty() && !check.starts_with(TileProvenance::kCheckWithin) &&
+        !check.starts_with(TileProvenance::kCheckBeyond)) {
+        throw FormatError(file.string() + ": distile:check '" + tile.provenance.check +
+                          "' is not a check's verdict; accepted: text that starts '" +
+                          std::string(TileProvenance::kCheckWithin) + "' or '" +
+                          std::string(TileProvenance::kCheckBeyond) + "'");
     }
     return tile;
 }

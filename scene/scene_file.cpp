@@ -20,6 +20,7 @@
 #include "bake/provenance.h"
 #include "bake/solid_mesh.h"
 #include "bake/vdb_bake.h"
+#include "check/tile_check.h"
 #include "common/error.h"
 #include "common/input_file.h"
 #include "mesh/base_mesh.h"
@@ -42,8 +43,10 @@ class Field {
         : value_(value), path_(std::move(path)), file_(file) {}
 
     [[noreturn]] void fail(const std::string& message) const {
-        throw InputError(file_ + ": " + (path_.empty() ? "top level" : path_) + ": " + message);
+        throw InputError(where() + ": " + message);
     }
+    /// "FILE: PATH", as messages name the field.
+    std::string where() const { return file_ + ": " + (path_.empty() ? "top level" : path_); }
 
     const json& value() const { return value_; }
     const std::string& path() const { return path_; }
@@ -590,6 +593,22 @@ GratingOptions gratingOf(const Field& spec) {
     return grating;
 }
 
+/// The tile of a procedural pattern with the verdict of its check against the analytic truth
+/// recorded (check/tile_check.h), so a cached tile warns as a fresh one does.
+Tile checkedProceduralBake(const ProceduralOptions& procedural, const BakeOptions& options) {
+    Tile tile = bakeProcedural(procedural, options).tile;
+    recordAnalyticCheck(tile);
+    return tile;
+}
+
+/// Gives `warn` the warning of a tile whose recorded check missed the tolerances, naming the
+/// scene's field that holds it. Called once per tile and load: when it is first read or baked.
+void warnOfRecordedCheck(const Tile& tile, const Field& field, const SceneWarningCallback& warn) {
+    if (!warn) return;
+    if (const std::string warning = recordedCheckWarning(tile, field.where()); !warning.empty())
+        warn(warning + "; a larger \"size\", or thicker or rounder detail, holds them better");
+}
+
 BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
                     const SceneWarningCallback& warn) {
     if (!spec.has("bake")) {
@@ -619,15 +638,17 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
     const std::string key = "bake:" + recipe;
     if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
     try {
-        auto tile = cachedBake(recipe, [&] { return bakeProcedural(procedural, options).tile; });
+        auto tile = cachedBake(recipe, [&] { return checkedProceduralBake(procedural, options); });
         tiles[key] = tile;
+        warnOfRecordedCheck(*tile, spec, warn);
         return {tile, nullptr};
     } catch (const InputError& error) {
         failInSpec(spec, spec, error);
     }
 }
 
-std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder, TileCache& tiles) {
+std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder, TileCache& tiles,
+                                     const SceneWarningCallback& warn) {
     const fs::path path = folder / field.string();
     if (!fs::exists(path)) field.fail("tile file '" + path.string() + "' does not exist");
     const std::string key = "file:" + fs::weakly_canonical(path).string();
@@ -635,6 +656,7 @@ std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder,
     try {
         auto tile = std::make_shared<const Tile>(readTileExr(path));
         tiles[key] = tile;
+        warnOfRecordedCheck(*tile, field, warn);
         return tile;
     } catch (const FormatError& error) {
         field.fail(error.what());
@@ -669,7 +691,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
             material.tile = std::move(baked.tile);
             placedMesh = std::move(baked.placedMesh);
         } else {
-            material.tile = tileFile(tile, folder, tiles);
+            material.tile = tileFile(tile, folder, tiles, warn);
         }
     }
     if (field.has("uv_scale")) material.uvScale = field["uv_scale"].vector<2>();
@@ -897,7 +919,7 @@ SceneFile demoScene(TileCache& tiles) {
                          [&] {
                              if (tiles.count(key)) return;
                              tiles[key] = cachedBake(chainmailRecipe({}, {}),
-                                                     [] { return bakeChainmail({}, {}).tile; });
+                                                     [] { return checkedProceduralBake({}, {}); });
                          });
     SceneFile demo;
     demo.scene = distile::demoScene(tiles[key], std::move(meshes));

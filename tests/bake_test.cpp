@@ -852,6 +852,37 @@ TEST(BakeCache, AMeshTileRecordsTheFileGivenNotTheCopyBakedBefore) {
     EXPECT_TRUE(std::ranges::equal(fromProcess->distancesTexels(), a->distancesTexels()));
 }
 
+TEST(BakeCache, AProceduralTileThatMissesTheCheckWarnsBakedOrCached) {
+    // The default chain mail at 64 texels wide has wires 0.53 texel in radius: its bake misses
+    // the check's tolerances. Two rings a row, tilted 5 degrees, with wires 2.1 texels thick,
+    // pass. The verdict is in the tile, so a load from the disk cache (a new process's tiles)
+    // warns as the bake did; a tile already loaded warns no more.
+    const TempFolder folder("distile_bake_cache_check");
+    const std::string thin = R"({"bake": "chainmail", "size": "64x64x16"})";
+    const std::string thick =
+        R"({"bake": "chainmail", "size": "64x64x16", "rings_per_row": 2, "rows": 2, "tilt": 5})";
+    setenv("DISTILE_CACHE", folder.path("cache").c_str(), 1);
+    for (const char* pass : {"baked", "cached"}) {
+        SCOPED_TRACE(pass);
+        TileCache process;
+        std::vector<std::string> warnings;
+        const auto warn = [&](const std::string& warning) { warnings.push_back(warning); };
+        const auto thinTile = bakeRecipeTile(thin, ".", "thin.json", process, warn);
+        bakeRecipeTile(thin, ".", "thin.json", process, warn);
+        const auto thickTile = bakeRecipeTile(thick, ".", "thick.json", process, warn);
+        EXPECT_TRUE(thinTile->provenance.check.starts_with(TileProvenance::kCheckBeyond));
+        EXPECT_TRUE(thickTile->provenance.check.starts_with(TileProvenance::kCheckWithin));
+        ASSERT_EQ(warnings.size(), 1u);
+        EXPECT_TRUE(
+            warnings[0].starts_with("thin.json: top level misses distile check's "
+                                    "tolerances: overestimates beyond 0.05 texel in "))
+            << warnings[0];
+    }
+    unsetenv("DISTILE_CACHE");
+    EXPECT_EQ(std::distance(fs::directory_iterator(folder.path("cache")), fs::directory_iterator()),
+              2);
+}
+
 /// A chain-mail sphere on a bare floor, the camera looking at it from 3 units: everything moved
 /// by `shift` world units.
 std::string sphereSceneAt(double shift) {

@@ -351,6 +351,23 @@ TEST_F(SamplerIo, DeclaredBandRoundTripsAndBoundsTheDistances) {
     EXPECT_NE(formatErrorMessage(path("huge.exr")).find("at most 16 texels"), std::string::npos);
 }
 
+TEST_F(SamplerIo, ACheckVerdictRoundTripsAndAnyOtherTextIsAFormatError) {
+    Tile tile = patternTile({16, 16, 4});
+    writeTileExr(tile, path("unchecked.exr"));
+    EXPECT_EQ(readTileExr(path("unchecked.exr")).provenance.check, "");
+    tile.provenance.check = "beyond tolerances: RMS 0.2 texel (allowed 0.1)";
+    writeTileExr(tile, path("tile.exr"));
+    EXPECT_EQ(readTileExr(path("tile.exr")).provenance.check, tile.provenance.check);
+    rewriteRaw(path("tile.exr"), [](RawImage& raw) {
+        raw.spec.attribute("distile:check", "within tolerances: RMS 0.01 texel");
+    });
+    EXPECT_EQ(readTileExr(path("tile.exr")).provenance.check, "within tolerances: RMS 0.01 texel");
+    rewriteRaw(path("tile.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:check", "looks fine to me"); });
+    EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:check 'looks fine to me'"),
+              std::string::npos);
+}
+
 TEST_F(SamplerIo, DistancesBeyondTwiceTheWidestBandAreAFormatError) {
     // A 16x16x4 tile's widest band is 2 x 4 = 8 texels: it holds distances within +-16. Far
     // distances near the float range, with a valid hash, made the tracer compute NaN.
