@@ -7,7 +7,9 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <map>
 #include <mutex>
+#include <optional>
 #include <system_error>
 
 #include "common/error.h"
@@ -102,6 +104,41 @@ extern "C" void removeTemporariesThenDie(int signal) {
     ::raise(signal);
 }
 
+/// The targets of OutputFiles' temporaries, by the temporary's absolute path: what a write into
+/// one is shown as.
+std::mutex outputTargetsMutex;
+std::map<fs::path, fs::path> outputTargets;
+
+fs::path absoluteNormal(const fs::path& path) {
+    std::error_code ignored;
+    return fs::absolute(path, ignored).lexically_normal();
+}
+
+/// The target of `file` when it is a temporary of OutputFiles; nothing otherwise.
+std::optional<fs::path> outputTargetOf(const fs::path& file) {
+    const std::lock_guard lock(outputTargetsMutex);
+    const auto found = outputTargets.find(absoluteNormal(file));
+    if (found == outputTargets.end()) return std::nullopt;
+    return found->second;
+}
+
+/// `error`, thrown by a writer of `temporary`, as the WriteError of `target`: every mention of
+/// the temporary's name (it lies in the target's folder) reads as the target's.
+WriteError writeErrorOf(const std::exception& error, const fs::path& temporary,
+                        const fs::path& target) {
+    std::string message = error.what();
+    const auto replaceAll = [&](const std::string& from, const std::string& to) {
+        for (std::size_t at = message.find(from); !from.empty() && at != std::string::npos;
+             at = message.find(from, at + to.size()))
+            message.replace(at, from.size(), to);
+    };
+    replaceAll(temporary.string(), target.string());
+    replaceAll(temporary.filename().string(), target.filename().string());
+    if (message.find(target.filename().string()) == std::string::npos)
+        message = target.string() + ": " + message;
+    return WriteError(message);
+}
+
 /// InputError unless `target` may be written: not a folder, its folder exists, not an input.
 void requireWritableTarget(const fs::path& target, const std::string& shownAs) {
     const std::string name = shownAs + ": '" + target.string() + "'";
@@ -143,16 +180,44 @@ void writeAtomically(const fs::path& target, const std::function<void(const fs::
     if (!fs::is_directory(folder)) {
         throw InputError(target.string() + ": folder '" + folder.string() + "' does not exist");
     }
+    const auto failed = [](const std::exception& error, const fs::path& temporary) {
+        const fs::path target = outputTargetOf(temporary).value_or(temporary);
+        return writeErrorOf(error, temporary, target);
+    };
+    if (outputTargetOf(target)) {  // already a temporary, renamed by its OutputFiles
+        try {
+            write(target);
+        } catch (const InputError&) {
+            throw;
+        } catch (const FormatError&) {
+            throw;
+        } catch (const std::runtime_error& error) {
+            throw failed(error, target);
+        }
+        return;
+    }
     removeStaleTemporaries(target);
     const fs::path temporary = temporaryBeside(target);
     const int slot = registerTemporary(temporary);
-    try {
-        write(temporary);
-        fs::rename(temporary, target);
-    } catch (...) {
+    const auto removeTemporary = [&] {
         std::error_code ignored;
         fs::remove(temporary, ignored);
         releaseTemporary(slot);
+    };
+    try {
+        write(temporary);
+        fs::rename(temporary, target);
+    } catch (const InputError&) {
+        removeTemporary();
+        throw;
+    } catch (const FormatError&) {
+        removeTemporary();
+        throw;
+    } catch (const std::runtime_error& error) {
+        removeTemporary();
+        throw writeErrorOf(error, temporary, target);
+    } catch (...) {
+        removeTemporary();
         throw;
     }
     releaseTemporary(slot);
@@ -163,7 +228,13 @@ OutputFiles::~OutputFiles() {
         std::error_code ignored;
         fs::remove(file.temporary, ignored);
         releaseTemporary(file.signalSlot);
+        forget(file);
     }
+}
+
+void OutputFiles::forget(const File& file) {
+    const std::lock_guard lock(outputTargetsMutex);
+    outputTargets.erase(absoluteNormal(file.temporary));
 }
 
 fs::path OutputFiles::add(const fs::path& target, const std::string& shownAs) {
@@ -186,6 +257,8 @@ fs::path OutputFiles::add(const fs::path& target, const std::string& shownAs) {
     }
     ::close(descriptor);
     files_.push_back({temporary, target, shownAs, slot});
+    const std::lock_guard lock(outputTargetsMutex);
+    outputTargets[absoluteNormal(temporary)] = target;
     return temporary;
 }
 
@@ -196,6 +269,7 @@ void OutputFiles::commit() {
         const File& file = files_.front();
         fs::rename(file.temporary, file.target);
         releaseTemporary(file.signalSlot);
+        forget(file);
         files_.erase(files_.begin());
     }
 }

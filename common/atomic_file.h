@@ -21,7 +21,10 @@ void removeTemporariesOnSignal();
 
 /// Calls `write` with a temporary path in the target's folder that keeps the target's extension
 /// (so writers that choose the format by extension, like OpenImageIO, still work), then renames
-/// it to `target`. If `write` throws, the temporary file is removed and the exception propagates.
+/// it to `target`. A `target` that is itself a temporary of OutputFiles is written directly (its
+/// OutputFiles renames it). If `write` throws, the temporary file is removed and the exception
+/// propagates, except that a writer's failure (any std::runtime_error but InputError and
+/// FormatError: a full disk, an I/O error) becomes a WriteError naming the file the user gave.
 /// Throws InputError if the target's folder does not exist.
 void writeAtomically(const std::filesystem::path& target,
                      const std::function<void(const std::filesystem::path& temporary)>& write);
@@ -57,6 +60,8 @@ class OutputFiles {
         std::string shownAs;
         int signalSlot;  ///< its entry among the temporaries a signal removes (-1: none)
     };
+    /// No longer shows writes into file.temporary as writes of its target (writeAtomically).
+    static void forget(const File& file);
     /// Files not yet renamed.
     std::vector<File> files_;
 };

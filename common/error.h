@@ -1,14 +1,16 @@
 /// @file
-/// The exception types distile throws: two for bad input, which every entry point checks, and
-/// one for bugs. Messages name the file or field, the bad value and what is accepted, in one
-/// line, so the command can print them as they are.
+/// The exception types distile throws: two for bad input, which every entry point checks, one
+/// for an output the system refused, and one for bugs. Messages name the file or field, the bad
+/// value and what is accepted, in one line, so the command can print them as they are.
 #pragma once
 
+#include <cerrno>
 #include <charconv>
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <system_error>
 #include <type_traits>
 #include <utility>
 
@@ -78,6 +80,20 @@ std::string numberText(Number value) {
 /// A file exists but its contents are not what distile reads (truncated, corrupted, wrong kind).
 struct FormatError : std::runtime_error {
     using std::runtime_error::runtime_error;
+};
+
+/// An output file the system would not let distile write (the disk is full, a quota, an I/O
+/// error): neither bad input nor a bug. A std::system_error, as the system's other refusals are
+/// (programs report it as refused input and leave nothing written; Python raises OSError); its
+/// message names the file as the user gave it and says why.
+class WriteError : public std::system_error {
+  public:
+    explicit WriteError(std::string message)
+        : std::system_error(EIO, std::generic_category()), message_(std::move(message)) {}
+    const char* what() const noexcept override { return message_.c_str(); }
+
+  private:
+    std::string message_;
 };
 
 /// A broken invariant: distile computed something it never should (a NaN pixel from valid

@@ -72,10 +72,12 @@ class Cli : public ::testing::Test {
     }
 
     /// Bounds for the runs of one test: at most `seconds` of wall time and `memoryKiB` of
-    /// address space (ulimit -v).
+    /// address space (ulimit -v); files of at most `fileBlocks` 512-byte blocks (ulimit -f:
+    /// a longer write fails with EFBIG, as on a full disk, SIGXFSZ ignored).
     struct RunLimits {
         int seconds = 0;  ///< 0: unbounded
         long long memoryKiB = 0;
+        long long fileBlocks = 0;  ///< 0: unbounded
     };
     void limitRuns(RunLimits limits) { limits_ = limits; }
 
@@ -88,6 +90,8 @@ class Cli : public ::testing::Test {
         const fs::path outFile = root_ / "logs" / "stdout.txt";
         const fs::path errFile = root_ / "logs" / "stderr.txt";
         std::string command = "cd " + shellQuote(work().string()) + " && ";
+        if (limits_.fileBlocks > 0)
+            command += "trap '' XFSZ && ulimit -f " + std::to_string(limits_.fileBlocks) + " && ";
         if (limits_.seconds > 0) {
             // A run beyond its limits fails (timeout's status 124, or an allocation refused)
             // instead of holding up or swapping out the test machine.

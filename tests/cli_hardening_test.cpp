@@ -14,6 +14,7 @@
 #include <functional>
 #include <limits>
 #include <new>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -23,6 +24,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/input_file.h"
+#include "render/image.h"
 #include "sampler/tile_io.h"
 
 namespace distile {
@@ -466,6 +468,45 @@ TEST_F(Hardening, AnOutputThatCannotBeWrittenLeavesNoOtherOutput) {
               cli::kExitInput);
 }
 
+TEST_F(Hardening, AWriteTheSystemRefusesIsRefusedOutputNamingTheFile) {
+    // Files of at most 32 KiB (ulimit -f 64): a longer write fails with EFBIG, as a full disk's
+    // with ENOSPC. Each such write was an "internal failure" (exit 3) naming a temporary file;
+    // and OpenVDB, which never checks its stream, left a truncated .vdb reported as written.
+    limitRuns({10, kTwoGigabytesKiB, 64});
+    const std::vector<std::string> grating = {
+        "bake", "grating",      "--size", "32x32x8",       "--bars", "2",           "--bar-width",
+        "6",    "--bar-height", "2",      "--edge-radius", "0.5",    "--layer-gap", "0.5"};
+    auto bake = [&](std::initializer_list<std::string> outputs) {
+        std::vector<std::string> arguments = grating;
+        arguments.insert(arguments.end(), outputs);
+        return arguments;
+    };
+    // The tile (5 KB) fits and its level set (48 KB) does not: neither is written.
+    EXPECT_EQ(expectInputError(bake({"-o", "g.exr", "--vdb", "g.vdb"}), "g.exr",
+                               {"g.vdb: writing failed", "File too large"})
+                  .status,
+              cli::kExitInput);
+    // A plane under a noise texture: its render does not compress into 32 KiB either.
+    Image noise(64, 64);
+    std::mt19937 random(5);
+    std::uniform_real_distribution<float> shade(0.1f, 0.9f);
+    for (glm::vec3& texel : noise.rgbLinear) texel = glm::vec3(shade(random), shade(random), 0.5f);
+    writeImage(noise, path("noise.png"));
+    writeText(path("noise.json"), R"({"objects": [{"mesh": "plane", "material": {
+                                     "color": "noise.png", "uv_scale": [4, 4]}}]})");
+    for (const std::string image : {"r.png", "r.exr", "r.tif"}) {
+        EXPECT_EQ(expectInputError(
+                      {"render", "noise.json", "-o", image, "--width", "320", "--height", "256"},
+                      image, {image + ": writing failed"})
+                      .status,
+                  cli::kExitInput);
+    }
+    limitRuns({10, kTwoGigabytesKiB});
+    const RunResult fits = run(bake({"-o", "g.exr", "--vdb", "g.vdb"}));
+    EXPECT_EQ(fits.status, 0) << fits.err;
+    EXPECT_EQ(workEntries(), (std::set<std::string>{"noise.png", "noise.json", "g.exr", "g.vdb"}));
+}
+
 TEST_F(Hardening, AKilledRunsReservedOutputsAreRemovedByTheNextRun) {
     // A killed run leaves its reservations ".NAME.partial-PID-N.EXT". PIDs above 2^22 (Linux's
     // largest pid_max) belong to no process; this process is alive. The next write of o.exr
@@ -499,6 +540,7 @@ TEST_F(Hardening, NoOutputReplacesOneOfTheCommandsInputs) {
         path("tiled.json"),
         R"({"objects": [{"mesh": "plane", "material": {"tile": "tile.exr", "depth": 0.1}}]})");
     fs::create_symlink("a.png", path("link.png"));
+    fs::create_symlink("level.vdb", path("level_link.vdb"));
 
     struct Case {
         std::vector<std::string> arguments;
@@ -518,6 +560,14 @@ TEST_F(Hardening, NoOutputReplacesOneOfTheCommandsInputs) {
           "16x16x8"},
          "a.normal.png",
          "--png8"},
+        // OpenVDB's reader lives in a module of its own: its reads are recorded all the same.
+        {{"bake", "vdb", "level.vdb", "-o", "v.exr", "--vdb", "level.vdb", "--size", "32x32x8"},
+         "level.vdb",
+         "--vdb"},
+        {{"bake", "vdb", "level_link.vdb", "-o", "v.exr", "--vdb", "./level.vdb", "--size",
+          "32x32x8"},
+         "level.vdb",
+         "--vdb"},
     };
     for (const Case& bad : cases) {
         const std::string before = readText(path(bad.input));

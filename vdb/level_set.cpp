@@ -65,6 +65,7 @@ LevelSet LevelSet::repeated(int repeatX, int repeatY) const {
 }
 
 LevelSet LevelSet::load(const std::filesystem::path& file) {
+    detail::requireVdbInput(file);
     return LevelSet(detail::openVdb().loadLevelSet(file));
 }
 

@@ -4,6 +4,7 @@
 
 #include "common/detail/module_loader.h"
 #include "common/error.h"
+#include "common/input_file.h"
 #include "vdb/detail/openvdb_module.h"
 
 namespace distile {
@@ -16,10 +17,12 @@ VdbVolume::~VdbVolume() = default;
 
 VdbVolume VdbVolume::read(const std::filesystem::path& file, const std::string& gridName,
                           std::optional<double> iso) {
+    detail::requireVdbInput(file);
     return VdbVolume(detail::openVdb().readVolume(file, gridName, iso));
 }
 
 std::vector<VdbGridInfo> listVdbGrids(const std::filesystem::path& file) {
+    detail::requireVdbInput(file);
     return detail::openVdb().listVdbGrids(file);
 }
 
@@ -83,6 +86,10 @@ void writeSphereVolume(const std::filesystem::path& file, const SphereVolumeOpti
 }
 
 namespace detail {
+
+void requireVdbInput(const std::filesystem::path& file) {
+    requireRegularFile(file, "an OpenVDB .vdb file");
+}
 
 const OpenVdbFunctions& openVdb() {
     static const OpenVdbFunctions& functions = *static_cast<const OpenVdbFunctions*>(

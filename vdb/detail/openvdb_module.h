@@ -149,4 +149,9 @@ inline constexpr const char* kOpenVdbModuleEntry = "distile_vdb_openvdb_module";
 /// The module's table, loaded on the first call. Throws InternalError if it cannot be loaded.
 const OpenVdbFunctions& openVdb();
 
+/// requireRegularFile for a .vdb file the module is about to read, on this side of it: the
+/// module holds its own copy of common/'s record of the command's inputs, so without this a
+/// command could write an output over the .vdb file it read.
+void requireVdbInput(const std::filesystem::path& file);
+
 }  // namespace distile::detail

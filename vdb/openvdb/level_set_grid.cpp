@@ -1,4 +1,5 @@
 // The OpenVDB half of vdb/level_set.h, in the module (vdb/detail/openvdb_module.h).
+#include <openvdb/io/Archive.h>
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>
@@ -8,10 +9,12 @@
 #include <algorithm>
 #include <cassert>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <span>
 #include <sstream>
@@ -37,6 +40,16 @@ constexpr const char* kParamsKey = "distile:params";
 /// OpenVDB stamps every file it writes with a random UUID, so the same grid written twice gave
 /// two different files. Replace it with one made of a hash of the file's other bytes: the same
 /// grid gives the same file, and a changed grid still a new UUID (what readers use it for).
+/// What openvdb::io::File writes (the grids with their offsets, for random access), written to a
+/// stream the caller owns and checks: io::File never checks its own after writing, so a full
+/// disk left a truncated file that seemed written.
+class VdbFileWriter final : public openvdb::io::Archive {
+  public:
+    void write(std::ostream& stream, const openvdb::GridCPtrVec& grids) const {
+        Archive::write(stream, grids, /*seekable=*/true);
+    }
+};
+
 void stampContentUuid(const std::filesystem::path& file) {
     // The header: the magic (8 bytes), the file version and the library's major and minor version
     // (4 bytes each), the grid-offsets flag (1 byte), then the UUID as 36 characters.
@@ -45,12 +58,13 @@ void stampContentUuid(const std::filesystem::path& file) {
     std::fstream stream(file, std::ios::in | std::ios::out | std::ios::binary);
     std::string header(std::size_t(kUuidAt) + kUuidLength, '\0');
     if (!stream.read(header.data(), std::streamsize(header.size())))
-        throw FormatError(file.string() + ": OpenVDB wrote no file header");
+        throw std::runtime_error(file.string() + ": OpenVDB wrote no file header");
     const std::string_view uuid = std::string_view(header).substr(std::size_t(kUuidAt));
     for (std::size_t n = 0; n < kUuidLength; ++n) {
         const bool dash = n == 8 || n == 13 || n == 18 || n == 23;
         if (dash ? uuid[n] != '-' : !std::isxdigit(static_cast<unsigned char>(uuid[n])))
-            throw FormatError(file.string() + ": OpenVDB wrote no UUID where one was expected");
+            throw std::runtime_error(file.string() +
+                                     ": OpenVDB wrote no UUID where one was expected");
     }
     // FNV-1a 64 of every byte but the UUID's, twice from different offset bases. Each byte goes
     // to both hashes in turn, so that their multiplications overlap.
@@ -76,7 +90,8 @@ void stampContentUuid(const std::filesystem::path& file) {
     stream.clear();
     stream.seekp(kUuidAt);
     if (!stream.write(digits, std::streamsize(kUuidLength)) || !stream.flush())
-        throw FormatError(file.string() + ": could not write the file's UUID");
+        throw std::runtime_error(file.string() + ": could not write the file's UUID (" +
+                                 std::strerror(errno) + ")");
 }
 
 std::string stringMeta(const openvdb::FloatGrid& grid, const char* key) {
@@ -178,9 +193,17 @@ class OpenVdbLevelSetGrid final : public LevelSetGrid {
     }
 
     void write(const std::filesystem::path& file) const override {
-        openvdb::io::File vdbFile(file.string());
-        vdbFile.write({grid_});
-        vdbFile.close();
+        std::ofstream stream(file, std::ios::binary | std::ios::trunc);
+        if (!stream) {
+            throw std::runtime_error(file.string() + ": cannot be opened for writing (" +
+                                     std::strerror(errno) + ")");
+        }
+        VdbFileWriter().write(stream, {grid_});
+        stream.close();
+        if (!stream) {
+            throw std::runtime_error(file.string() + ": writing failed (" + std::strerror(errno) +
+                                     ")");
+        }
         stampContentUuid(file);
     }
 
