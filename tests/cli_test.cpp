@@ -1012,6 +1012,12 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
                    "64x64x64", "-o", "fog.exr"})
                   .status,
               0);
+    // The file's only float grid needs no name when an iso value is given: the same tile.
+    EXPECT_EQ(
+        run({"bake", "vdb", "fog.vdb", "--iso", "0.5", "--size", "64x64x64", "-o", "unnamed.exr"})
+            .status,
+        0);
+    EXPECT_EQ(readText(path("unnamed.exr")), readText(path("fog.exr")));
     // `check` against the bake's own source: placed, and at the iso value, as the tile says.
     const RunResult check = run({"check", "fog.exr", "--against", "fog.vdb", "--samples", "5000"});
     EXPECT_EQ(check.status, 0) << check.out << check.err;

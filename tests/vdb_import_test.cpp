@@ -1,6 +1,7 @@
 // Level sets made elsewhere (vdb/vdb_volume.h) baked into tiles (bake/vdb_bake.h), against the
 // analytic sphere.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -12,8 +13,6 @@
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <tbb/global_control.h>
 
 #include "bake/vdb_bake.h"
 #include "common/error.h"
@@ -174,6 +173,37 @@ TEST_F(VdbImport, FogSphereAtTheIsoValueMatchesTheAnalyticSphere) {
     const SphereErrors errors =
         measureSphere(path("fog.vdb"), sphereInTile(sphere), "density", 0.5);
     expectTheSphere(errors);
+    // The file's only float grid, with an iso value, needs no name.
+    EXPECT_EQ(VdbVolume::read(path("fog.vdb"), "", 0.5).gridName(), "density");
+}
+
+TEST_F(VdbImport, AFileOfSeveralGridsHasEachReadByName) {
+    // Each grid's data follows its descriptor: the header check once read the descriptors back
+    // to back and refused every file of two or more grids as truncated.
+    SphereVolumeOptions a = rotatedSphere(), b = rotatedSphere(), fog = rotatedSphere();
+    a.gridName = "a";
+    b.gridName = "b";
+    b.radiusWorld = 0.5;
+    b.centreWorld = a.centreWorld;
+    fog.gridName = "density";
+    fog.fog = true;
+    writeSphereVolumes(path("three.vdb"), {a, b, fog});
+    std::vector<std::string> names;
+    for (const VdbGridInfo& grid : listVdbGrids(path("three.vdb"))) names.push_back(grid.name);
+    EXPECT_EQ(names, (std::vector<std::string>{"a", "b", "density"}));
+    try {
+        VdbVolume::read(path("three.vdb"));
+        FAIL() << "two level sets, and no grid named";
+    } catch (const InputError& error) {
+        EXPECT_EQ(error.field(), "grid");
+        EXPECT_NE(std::string(error.what()).find("several level sets"), std::string::npos)
+            << error.what();
+    }
+    // Each grid is the sphere it holds: a's surface lies 12 texels from the centre, b's 6.
+    expectTheSphere(measureSphere(path("three.vdb"), sphereInTile(a), "a"));
+    const VdbVolume half = VdbVolume::read(path("three.vdb"), "b");
+    EXPECT_NEAR(half.surfaceBoundsWorld().max.x - half.surfaceBoundsWorld().min.x, 1.0, 0.02);
+    EXPECT_FALSE(VdbVolume::read(path("three.vdb"), "density", 0.5).isLevelSet());
 }
 
 // Fit: the surface's box (2 units) spans the 64-texel footprint: 32 texels per unit, the sphere

@@ -81,8 +81,9 @@ VdbSourceSampler::Sample VdbSourceSampler::sample(const glm::dvec3& texelPositio
     return sampler_->sample(texelPosition);
 }
 
-void writeSphereVolume(const std::filesystem::path& file, const SphereVolumeOptions& options) {
-    detail::openVdb().writeSphereVolume(file, options);
+void writeSphereVolumes(const std::filesystem::path& file,
+                        const std::vector<SphereVolumeOptions>& spheres) {
+    detail::openVdb().writeSphereVolumes(file, spheres);
 }
 
 namespace detail {

@@ -140,7 +140,7 @@ class VdbSourceSampler {
 /// (1 inside, 0 outside, a linear ramp across the band; surface at 0.5), in a grid named
 /// `gridName` with voxel size `voxelSizeWorld` and its index axes rotated by `rotationDegrees`
 /// about x, then by as much about y (world positions are unchanged: only the voxel lattice turns).
-/// Written to `file` (overwritten).
+/// Written to `file` (overwritten), one grid per sphere, in order.
 struct SphereVolumeOptions {
     double radiusWorld = 1.0;
     glm::dvec3 centreWorld{0.0};
@@ -150,6 +150,11 @@ struct SphereVolumeOptions {
     bool fog = false;
     std::string gridName = "surface";
 };
-void writeSphereVolume(const std::filesystem::path& file, const SphereVolumeOptions& options);
+void writeSphereVolumes(const std::filesystem::path& file,
+                        const std::vector<SphereVolumeOptions>& spheres);
+inline void writeSphereVolume(const std::filesystem::path& file,
+                              const SphereVolumeOptions& sphere) {
+    writeSphereVolumes(file, {sphere});
+}
 
 }  // namespace distile

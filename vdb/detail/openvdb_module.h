@@ -139,8 +139,8 @@ struct OpenVdbFunctions {
     ReadVolume (*readVolume)(const std::filesystem::path& file, const std::string& gridName,
                              std::optional<double> iso);
     std::vector<VdbGridInfo> (*listVdbGrids)(const std::filesystem::path& file);
-    void (*writeSphereVolume)(const std::filesystem::path& file,
-                              const SphereVolumeOptions& options);
+    void (*writeSphereVolumes)(const std::filesystem::path& file,
+                               const std::vector<SphereVolumeOptions>& spheres);
 };
 
 /// The name the module exports its table under: `const void* NAME()`, an OpenVdbFunctions.

@@ -4,9 +4,9 @@
 namespace distile::detail {
 namespace {
 
-constexpr OpenVdbFunctions kFunctions{levelSetFromDistanceRows, loadLevelSet,    levelSetFromMesh,
-                                      buildDisplacedMesh,       buildDisplacedLevelSet,
-                                      readVolume,               listVdbGrids,    writeSphereVolume};
+constexpr OpenVdbFunctions kFunctions{
+    levelSetFromDistanceRows, loadLevelSet, levelSetFromMesh, buildDisplacedMesh,
+    buildDisplacedLevelSet,   readVolume,   listVdbGrids,     writeSphereVolumes};
 
 }  // namespace
 }  // namespace distile::detail

@@ -32,6 +32,7 @@ BuiltDisplacedLevelSet buildDisplacedLevelSet(const DisplacedMesh& mesh,
 ReadVolume readVolume(const std::filesystem::path& file, const std::string& gridName,
                       std::optional<double> iso);
 std::vector<VdbGridInfo> listVdbGrids(const std::filesystem::path& file);
-void writeSphereVolume(const std::filesystem::path& file, const SphereVolumeOptions& options);
+void writeSphereVolumes(const std::filesystem::path& file,
+                        const std::vector<SphereVolumeOptions>& spheres);
 
 }  // namespace distile::detail

@@ -369,6 +369,11 @@ void checkVdbHeader(const std::filesystem::path& file, std::uint64_t fileBytes) 
                               " bytes; the file is truncated or corrupt)");
         }
         offsets.push_back(grid);
+        // The grid follows its descriptor: the next descriptor starts where the grid ends.
+        if (grid.end < reader.offset())
+            reader.refuse("grid end offset", "is " + std::to_string(grid.end) +
+                                                 ", before the grid's own descriptor ends");
+        reader.seek(grid.end, "grid end offset");
     }
     std::uint64_t memoryBytes = 0;
     for (const GridOffsets& grid : offsets) {

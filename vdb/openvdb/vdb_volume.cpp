@@ -194,7 +194,8 @@ std::unique_ptr<VolumeSampler> OpenVdbVolumeGrid::sampler(bool levelSet, double 
 
 std::vector<VdbGridInfo> listVdbGrids(const std::filesystem::path& file) {
     std::vector<VdbGridInfo> list;
-    for (const auto& grid : *readGridMetadata(file)) {
+    const openvdb::GridPtrVecPtr grids = readGridMetadata(file);  // kept alive over the loop
+    for (const auto& grid : *grids) {
         list.push_back({grid->getName(), grid->valueType(),
                         openvdb::GridBase::gridClassToString(grid->getGridClass())});
     }
@@ -226,13 +227,15 @@ ReadVolume readVolume(const std::filesystem::path& file, const std::string& grid
                                                   "sets and fog volumes");
         }
     } else {
-        std::vector<openvdb::GridBase::ConstPtr> levelSets;
+        std::vector<openvdb::GridBase::ConstPtr> levelSets, floatGrids;
         for (const auto& grid : *metadata) {
-            if (grid->valueType() == openvdb::typeNameAsString<float>() &&
-                grid->getGridClass() == openvdb::GRID_LEVEL_SET) {
-                levelSets.push_back(grid);
-            }
+            if (grid->valueType() != openvdb::typeNameAsString<float>()) continue;
+            floatGrids.push_back(grid);
+            if (grid->getGridClass() == openvdb::GRID_LEVEL_SET) levelSets.push_back(grid);
         }
+        // With an iso value, a file without level sets may hold one fog volume (or another float
+        // grid) to take.
+        if (levelSets.empty() && iso && floatGrids.size() == 1) levelSets = floatGrids;
         if (levelSets.size() != 1) {
             const bool none = levelSets.empty();
             throw InputError::inField(
@@ -425,8 +428,9 @@ TriangleSoup OpenVdbVolumeGrid::refinedSurfaceWorld(const TriangleSoup& coarse, 
     return fine;
 }
 
-void writeSphereVolume(const std::filesystem::path& file, const SphereVolumeOptions& options) {
-    initializeOpenVdb();
+namespace {
+
+openvdb::FloatGrid::Ptr sphereGrid(const SphereVolumeOptions& options) {
     const double voxel = options.voxelSizeWorld;
     const double bandWorld = double(options.halfWidthVoxels) * voxel;
     auto transform = openvdb::math::Transform::createLinearTransform(voxel);
@@ -473,8 +477,18 @@ void writeSphereVolume(const std::filesystem::path& file, const SphereVolumeOpti
     }
     if (!options.fog) openvdb::tools::signedFloodFill(grid->tree());
     grid->pruneGrid();
+    return grid;
+}
+
+}  // namespace
+
+void writeSphereVolumes(const std::filesystem::path& file,
+                        const std::vector<SphereVolumeOptions>& spheres) {
+    initializeOpenVdb();
+    openvdb::GridPtrVec grids;
+    for (const SphereVolumeOptions& sphere : spheres) grids.push_back(sphereGrid(sphere));
     openvdb::io::File vdbFile(file.string());
-    vdbFile.write({grid});
+    vdbFile.write(grids);
     vdbFile.close();
 }
 
