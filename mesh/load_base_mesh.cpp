@@ -960,6 +960,33 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file) {
 
 namespace {
 
+/// The corners of the `count` triangles of a binary STL, read from `in` (just past the header):
+/// each coordinate finite and within kMaxDetailCoordinate. OpenMesh's reader drops a triangle
+/// with a NaN corner without a word, leaving a hole in the mesh.
+void checkBinaryStlCorners(std::istream& in, std::uint32_t count, const std::string& name) {
+    constexpr std::size_t kTriangleBytes = 50, kBatch = 4096;
+    std::vector<char> batch(kTriangleBytes * kBatch);
+    for (std::uint32_t first = 0; first < count; first += std::uint32_t(kBatch)) {
+        const std::size_t triangles = std::min<std::size_t>(kBatch, count - first);
+        in.read(batch.data(), std::streamsize(triangles * kTriangleBytes));
+        for (std::size_t t = 0; t < triangles; ++t) {
+            // After the facet normal (3 floats): 3 corners of 3 little-endian floats each.
+            for (int n = 3; n < 12; ++n) {
+                const auto* bytes = reinterpret_cast<const unsigned char*>(
+                    batch.data() + t * kTriangleBytes + 4 * std::size_t(n));
+                const float value = std::bit_cast<float>(littleEndianWord(bytes));
+                if (!std::isfinite(value) || std::abs(double(value)) > kMaxDetailCoordinate) {
+                    std::ostringstream message;
+                    message << name << ": triangle " << first + t << " (counting from 0) has the "
+                            << "coordinate " << value << "; detail meshes need finite "
+                            << "coordinates within +-" << kMaxDetailCoordinate;
+                    throw FormatError(message.str());
+                }
+            }
+        }
+    }
+}
+
 /// Binary STL: 80-byte header, uint32 triangle count, 50 bytes per triangle. ASCII STL starts
 /// with "solid" and is a text file; a binary file whose header happens to start with "solid" is
 /// recognised by its exact size. Checks the size of binary files and, in ASCII files, what
@@ -980,7 +1007,10 @@ void checkStlFile(const std::filesystem::path& file) {
         count = littleEndianWord(reinterpret_cast<const unsigned char*>(header + 80));
     }
     const std::uintmax_t binarySize = 84 + 50 * std::uintmax_t(count);
-    if (in.gcount() == 84 && size == binarySize) return;  // a complete binary STL
+    if (in.gcount() == 84 && size == binarySize) {  // a complete binary STL
+        checkBinaryStlCorners(in, count, name);
+        return;
+    }
     if (!startsWithSolid) {
         throw FormatError(name + ": binary STL of " + std::to_string(size) + " bytes, but its " +
                           "header promises " + std::to_string(count) + " triangles (" +

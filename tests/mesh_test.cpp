@@ -5,9 +5,11 @@
 
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <glm/geometric.hpp>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <sstream>
@@ -755,6 +757,12 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
     expectFormatError("degenerate.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 0\nf 1 2 4\n",
                       "none of its 1 faces has three distinct corners");
     expectFormatError("truncated.stl", tetrahedronBinaryStl(30), "truncated");
+    // OpenMesh drops a binary facet with a NaN corner: the mesh baked with a hole in it.
+    for (const float bad : {std::numeric_limits<float>::quiet_NaN(), 3e9f}) {
+        std::string stl = tetrahedronBinaryStl();
+        std::memcpy(stl.data() + 84 + 50 + 12, &bad, 4);  // triangle 1, first corner's x
+        expectFormatError("bad_corner.stl", stl, "triangle 1 (counting from 0) has the coordinate");
+    }
     // OpenMesh reads the 3 lines after any line holding "outer" as corners.
     const std::string facet =
         "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
