@@ -85,6 +85,34 @@ TexelPlacement resolvePlacement(const VdbPlacement& placement, const VdbVolume& 
     return {fitted.scale, fitted.offsetTexels};
 }
 
+/// Throws InputError (naming the placement's offset) unless the surface of `volume` placed by
+/// `placement` is at least a texel across and its box overlaps the tile: otherwise the tile holds
+/// no detail (or a speck no texel resolves). The surface may extend beyond the tile: a placement
+/// may cut one tile out of a larger volume.
+void requireSurfaceInTile(const VdbVolume& volume, const TexelPlacement& placement,
+                          const Size3& tile, const std::string& fileName) {
+    const Bounds3 world = volume.surfaceBoundsWorld();
+    const glm::dvec3 low = placement.scale * world.min + placement.offsetTexels;
+    const glm::dvec3 high = placement.scale * world.max + placement.offsetTexels;
+    const glm::dvec3 tileTexels(tile.width, tile.height, tile.depth);
+    std::ostringstream problem;
+    problem << fileName << ": the surface of grid '" << volume.gridName() << "', placed at "
+            << placement.scale << " texels per unit in the " << toString(tile) << " tile, ";
+    const double largestExtent = std::max({high.x - low.x, high.y - low.y, high.z - low.z});
+    if (!(largestExtent >= 1.0)) {
+        problem << "is " << largestExtent << " texels across, less than one texel";
+        throw InputError::inField("placement.scale", problem.str());
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+        if (high[axis] < 0.0 || low[axis] > tileTexels[axis]) {
+            problem << "lies at "
+                    << "xyz"[axis] << " in [" << low[axis] << ", " << high[axis]
+                    << "], outside the tile's [0, " << tileTexels[axis] << "]";
+            throw InputError::inField("placement.offsetTexels", problem.str());
+        }
+    }
+}
+
 /// The largest difference between the faces x = 0 and x = W (y = 0 and y = H) at the texel
 /// rows that cross them, texels.
 glm::dvec2 seamMismatch(const VdbDistance& sampler, const Size3& tile) {
@@ -194,7 +222,8 @@ VdbBakeResult bakeVdb(const VdbVolume& volume, const VdbPlacement& placement,
                       const ProgressCallback& progress) {
     const float halfBand = validatedHalfBandTexels(options);
     const TexelPlacement texelPlacement = resolvePlacement(placement, volume, options.size);
-    const VdbDistance sampler(volume, texelPlacement, options.size, halfBand);
+    const VdbDistance sampler(volume, texelPlacement, options.size, halfBand);  // checks it
+    requireSurfaceInTile(volume, texelPlacement, options.size, fileName);
 
     nlohmann::json params = {
         {"file", fileName},

@@ -87,7 +87,9 @@ struct VdbBakeResult {
 /// @throws InputError bad sizes or band (as bakeProcedural); "placement.scale" or
 ///   "placement.offsetTexels" not finite or scale <= 0; "placement.windowWorld" empty, not
 ///   finite, not the tile's x/y aspect, taller than the tile depth, or outside the grid's active
-///   box in x or y or missing the surface; a fitted surface taller than the tile depth.
+///   box in x or y or missing the surface; a fitted surface taller than the tile depth;
+///   "placement.scale" for a placed surface under a texel across; "placement.offsetTexels" for a
+///   placed surface whose box misses the tile.
 VdbBakeResult bakeVdb(const VdbVolume& volume, const VdbPlacement& placement,
                       const BakeOptions& options, const std::string& fileName,
                       const ProgressCallback& progress = {});

@@ -996,6 +996,10 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
     bakeVdb({"g.vdb", "--iso", "nan"}, {"--iso"});
     bakeVdb({"g.vdb", "--iso", "100"}, {"g.vdb", "no surface", "100"});
     bakeVdb({"g.vdb", "--scale", "0"}, {"--scale", "0"});
+    // A placement that leaves the tile empty, or the surface a speck: refused, as for meshes.
+    bakeVdb({"g.vdb", "--scale", "1", "--offset", "1e5", "0", "0"},
+            {"--offset", "g.vdb", "lies at x in [100000, 100064], outside the tile's [0, 64]"});
+    bakeVdb({"g.vdb", "--scale", "1e-12"}, {"--scale", "g.vdb", "less than one texel"});
     bakeVdb({"g.vdb", "--scale", "1", "--offset", "0", "inf", "0"}, {"--offset", "finite"});
     bakeVdb({"g.vdb", "--window", "100", "100", "0", "164", "164", "16"},
             {"--window", "outside grid 'surface'"});
