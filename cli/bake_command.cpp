@@ -45,6 +45,8 @@ struct BakeArguments {
     bool exactTexels = false;
     /// Chain-mail options given on the command line (the others take the weave's defaults).
     std::set<std::string> chainmailGiven;
+    /// The detail-specific options given (kDetailOptions' flags), each once.
+    std::set<std::string> detailOptionsGiven;
     bool fit = false;  ///< --fit given (it is also the default placement)
     std::optional<double> meshScale;
     std::vector<double> meshOffset;
@@ -61,6 +63,50 @@ struct BakeOutputs {
     OutputFiles files;
     fs::path tile, vdb, png8, png16, png16Signed;
 };
+
+/// The options that only some details take, and which: any other detail refuses them rather
+/// than ignore them.
+struct DetailOption {
+    const char* flag;
+    const char* detail;
+    const char* alsoDetail = nullptr;  ///< a second detail taking it, if any
+};
+constexpr DetailOption kDetailOptions[] = {
+    {"--rings-per-row", "chainmail"},
+    {"--rows", "chainmail"},
+    {"--ring-radius", "chainmail"},
+    {"--wire-radius", "chainmail"},
+    {"--tilt", "chainmail"},
+    {"--weave", "chainmail"},
+    {"--small-ring-radius", "chainmail"},
+    {"--small-wire-radius", "chainmail"},
+    {"--bars", "grating"},
+    {"--bar-width", "grating"},
+    {"--bar-height", "grating"},
+    {"--edge-radius", "grating"},
+    {"--layer-gap", "grating"},
+    {"--fit", "mesh", "vdb"},
+    {"--scale", "mesh", "vdb"},
+    {"--offset", "mesh", "vdb"},
+    {"--unsigned", "mesh"},
+    {"--thickness", "mesh"},
+    {"--height-texels", "heightmap"},
+    {"--grid", "vdb"},
+    {"--iso", "vdb"},
+    {"--window", "vdb"},
+};
+
+/// Throws InputError for the first option given that `detail` does not take.
+void requireOptionsOfDetail(const BakeArguments& arguments) {
+    for (const DetailOption& option : kDetailOptions) {
+        if (!arguments.detailOptionsGiven.contains(option.flag)) continue;
+        if (arguments.detail == option.detail ||
+            (option.alsoDetail && arguments.detail == option.alsoDetail))
+            continue;
+        throw InputError(std::string(option.flag) + ": only for bake " + option.detail +
+                         (option.alsoDetail ? std::string(" and bake ") + option.alsoDetail : ""));
+    }
+}
 
 /// How `bake mesh` places the mesh: --fit (default) or --scale/--offset.
 MeshPlacement meshPlacement(const BakeArguments& arguments) {
@@ -273,10 +319,7 @@ void runBake(const BakeArguments& arguments) {
                                                       : " stones.png") +
                          " -o tile.exr`");
     }
-    if (arguments.detail != "mesh" && (arguments.unsignedDistance || arguments.thicknessTexels)) {
-        throw InputError(std::string(arguments.unsignedDistance ? "--unsigned" : "--thickness") +
-                         ": only for bake mesh");
-    }
+    requireOptionsOfDetail(arguments);
     if (!fromFile && !arguments.input.empty()) {
         throw InputError("bake " + arguments.detail + ": takes no input file ('" +
                          arguments.input.string() + "')");
@@ -537,6 +580,9 @@ void addBakeCommand(CLI::App& app) {
         for (const char* name : {"--rings-per-row", "--rows", "--ring-radius", "--wire-radius",
                                  "--tilt", "--small-ring-radius", "--small-wire-radius"}) {
             if (command->count(name) > 0) arguments->chainmailGiven.insert(name);
+        }
+        for (const DetailOption& option : kDetailOptions) {
+            if (command->count(option.flag) > 0) arguments->detailOptionsGiven.insert(option.flag);
         }
         runBake(*arguments);
     });

@@ -683,6 +683,27 @@ TEST_F(Hardening, SmallRingOptionsAreRefusedForTheEuropeanWeave) {
                      {"objects[0].material.tile.small_wire_radius", "japanese4in1"});
 }
 
+TEST_F(Hardening, AnOptionOfAnotherDetailIsRefusedNotIgnored) {
+    // Each bake took every detail's options and ignored those of the others.
+    writeText(path("tet.obj"),
+              "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n"
+              "f 2 3 4\n");
+    const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+        {{"heightmap", "tet.obj", "--scale", "5"}, "--scale: only for bake mesh and bake vdb"},
+        {{"chainmail", "--bars", "2"}, "--bars: only for bake grating"},
+        {{"grating", "--rings-per-row", "3"}, "--rings-per-row: only for bake chainmail"},
+        {{"mesh", "tet.obj", "--iso", "0.5"}, "--iso: only for bake vdb"},
+        {{"vdb", "tet.obj", "--height-texels", "3"}, "--height-texels: only for bake heightmap"},
+        {{"grating", "--thickness", "2"}, "--thickness: only for bake mesh"},
+    };
+    for (const auto& [arguments, message] : cases) {
+        std::vector<std::string> command = {"bake"};
+        command.insert(command.end(), arguments.begin(), arguments.end());
+        command.insert(command.end(), {"--size", "16x16x8", "-o", "t.exr"});
+        EXPECT_EQ(expectInputError(command, "t.exr", {message}).status, cli::kExitInput);
+    }
+}
+
 TEST_F(Hardening, ARefusedWeaveOrGratingValueNamesTheFlagOrKeyThatGaveIt) {
     EXPECT_EQ(
         expectInputError({"bake", "chainmail", "--rows", "3", "--size", "64x64x8", "-o", "t.exr"},
