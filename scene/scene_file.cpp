@@ -749,13 +749,44 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
     return material;
 }
 
-/// `text` parsed as JSON; FormatError naming `name` when it is not JSON.
+/// `text` parsed as JSON; FormatError naming `name` when it is not JSON, or when it or one of its
+/// strings or keys holds a NUL character: the parser stops at a NUL byte (what follows it went
+/// unread), a path ends at one (a "tile" of "chain.exr\u0000x" opened chain.exr), and messages
+/// quoting one were cut short.
 json parseJson(const std::string& text, const std::string& name) {
+    if (const std::size_t at = text.find('\0'); at != std::string::npos) {
+        throw FormatError(name + ": byte " + std::to_string(at) +
+                          " is a NUL byte; a scene is JSON text");
+    }
+    json document;
     try {
-        return json::parse(text);
+        document = json::parse(text);
     } catch (const json::exception& error) {
         throw FormatError(name + ": not valid JSON (" + error.what() + ")");
     }
+    // Walked with a stack of its own: a document may nest deeper than the call stack goes.
+    std::vector<std::pair<const json*, std::string>> pending{{&document, ""}};
+    while (!pending.empty()) {
+        const auto [value, path] = pending.back();
+        pending.pop_back();
+        const auto refuse = [&](const std::string& what) {
+            throw FormatError(name + ": " + (path.empty() ? "top level" : path) + ": " + what +
+                              " holds a NUL character (\\u0000); accepted: text without one");
+        };
+        if (value->is_string() &&
+            value->get_ref<const std::string&>().find('\0') != std::string::npos)
+            refuse("the text");
+        if (value->is_object()) {
+            for (const auto& [key, member] : value->items()) {
+                if (key.find('\0') != std::string::npos) refuse("a key");
+                pending.emplace_back(&member, path.empty() ? key : path + "." + key);
+            }
+        } else if (value->is_array()) {
+            for (std::size_t i = 0; i < value->size(); ++i)
+                pending.emplace_back(&(*value)[i], path + "[" + std::to_string(i) + "]");
+        }
+    }
+    return document;
 }
 
 }  // namespace

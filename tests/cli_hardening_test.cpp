@@ -704,6 +704,20 @@ TEST_F(Hardening, AnOptionOfAnotherDetailIsRefusedNotIgnored) {
     }
 }
 
+TEST_F(Hardening, ASceneWithANulCharacterIsRefused) {
+    // The JSON parser stopped at a NUL byte, a path ended at one ("chain.exr\u0000x" opened
+    // chain.exr), and a message quoting one was cut short there.
+    using namespace std::string_literals;
+    expectSceneError(R"({"objects": [{"mesh": "plane"}]})"s + '\0' + "garbage",
+                     {"scene.json: byte 32 is a NUL byte"});
+    writeText(path("bare.json"), kBareScene);
+    expectSceneError(
+        R"({"objects": [{"mesh": "plane", "material": {"tile": "bare.json\u0000x"}}]})",
+        {"objects[0].material.tile: the text holds a NUL character"});
+    expectSceneError(R"({"objects": [{"mesh": "plane", "material\u0000": {}}]})",
+                     {"objects[0]: a key holds a NUL character"});
+}
+
 TEST_F(Hardening, ARefusedWeaveOrGratingValueNamesTheFlagOrKeyThatGaveIt) {
     EXPECT_EQ(
         expectInputError({"bake", "chainmail", "--rows", "3", "--size", "64x64x8", "-o", "t.exr"},
