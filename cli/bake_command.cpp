@@ -452,7 +452,8 @@ void addBakeCommand(CLI::App& app) {
     command->add_option(
         "--band", arguments->halfBandTexels,
         "Half width of the level set's narrow band in texels, from 1 to twice the tile depth "
-        "(and 1024): the time grows steeply with it (default: the tile depth, at most 1024)");
+        "(and 1024), or 0 for the default: the tile depth, at most 1024; the time grows steeply "
+        "with it");
     auto* chainmail = command->add_option_group(
         "chainmail", "European 4-in-1 chain mail (defaults fill 256x256x16)");
     chainmail

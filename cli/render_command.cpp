@@ -368,8 +368,8 @@ void addRenderCommand(CLI::App& app) {
         ->expected(1)
         ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
     command->add_flag("--aovs", arguments->options.outputAovs,
-                      "Also write depth (.exr), normal, iteration, shadow-sample and curvature "
-                      "heat maps beside the image");
+                      "Also write depth and texel scale (.exr: what distile compare reads), "
+                      "normal, iteration, shadow-sample and curvature heat maps beside the image");
     CLI::Option* reference =
         command
             ->add_option(

@@ -109,6 +109,12 @@ BAD_SCENES = [
     ("mesh option on a vdb recipe", "objects[0].material.tile.thickness",
      edited(lambda s: material(s).update(tile={"bake": "vdb", "file": "level.vdb",
                                                "thickness": 1}))),
+    ("mesh thickness without unsigned", "objects[0].material.tile.thickness",
+     edited(lambda s: material(s).update(tile={"bake": "mesh", "file": "ring.obj",
+                                               "thickness": 2}))),
+    ("mesh thickness with unsigned false", "objects[0].material.tile.thickness",
+     edited(lambda s: material(s).update(tile={"bake": "mesh", "file": "ring.obj",
+                                               "unsigned": False, "thickness": 0}))),
     ("small ring radius on the European weave", "objects[0].material.tile.small_ring_radius",
      edited(lambda s: material(s).update(tile={"bake": "chainmail", "small_ring_radius": 0.2}))),
     ("mesh fit false without scale or offset", "objects[0].material.tile.fit",
@@ -132,6 +138,8 @@ GOOD_TILES = [
     ("mesh fit false with a scale", {"bake": "mesh", "file": "ring.obj", "fit": False,
                                      "scale": 2}),
     ("vdb window", {"bake": "vdb", "file": "level.vdb", "window": [0, 0, 0, 1, 1, 1]}),
+    ("unsigned mesh with a thickness", {"bake": "mesh", "file": "ring.obj", "unsigned": True,
+                                        "thickness": 2}),
 ]
 
 
