@@ -80,7 +80,7 @@ FootprintFit fitToFootprint(const Bounds3& box, const Size3& tile, const std::st
                 << " footprint it is " << scale * extent.z << " texels tall, more than the "
                 << "tile depth " << tile.depth
                 << "; use a deeper tile size or an explicit scale and offset";
-        throw InputError(message.str());
+        throw InputError::inField("size", message.str());
     }
     return {scale, offset};
 }
@@ -90,6 +90,7 @@ void requireMeshInTile(const Bounds3& placedTexels, const Size3& tile) {
     const glm::dvec3 tileTexels(tile.width, tile.height, tile.depth);
     const double largestExtent = std::max({extent.x, extent.y, extent.z});
     std::ostringstream problem;
+    const char* field = "placement.scale";  // its size is wrong; else where it lies
     if (!(largestExtent >= 1.0)) {
         problem << "is " << largestExtent << " texels across, less than one texel";
     } else if (!(extent.x <= kMaxPlacedFootprints * tile.width &&
@@ -105,13 +106,15 @@ void requireMeshInTile(const Bounds3& placedTexels, const Size3& tile) {
                         << "xyz"[axis] << " in [" << placedTexels.min[axis] << ", "
                         << placedTexels.max[axis] << "], outside the tile's [0, "
                         << tileTexels[axis] << "]";
+                field = "placement.offsetTexels";
                 break;
             }
         }
     }
     if (!problem.str().empty()) {
-        throw InputError("detail mesh: placed in the " + toString(tile) + " tile it " +
-                         problem.str() + " (check the scale and offset)");
+        throw InputError::inField(field, "detail mesh: placed in the " + toString(tile) +
+                                             " tile it " + problem.str() +
+                                             " (check the scale and offset)");
     }
 }
 
@@ -168,7 +171,11 @@ TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& p
             message << "detail mesh: placed at (" << texel.x << ", " << texel.y << ", " << texel.z
                     << ") texels; placed coordinates must be within +-" << kMaxPlacedTexelCoordinate
                     << " (check the scale and offset)";
-            throw InputError(message.str());
+            const bool offsetBeyond =
+                std::max({std::abs(offset.x), std::abs(offset.y), std::abs(offset.z)}) >
+                0.5 * kMaxPlacedTexelCoordinate;
+            throw InputError::inField(offsetBeyond ? "placement.offsetTexels" : "placement.scale",
+                                      message.str());
         }
         placed.positions.push_back(texel);
     }

@@ -76,8 +76,8 @@ struct MeshPlacement {
 /// The fit placement of a box (file units): the uniform scale (texels per unit) and offset
 /// (texels) that make its x/y extent span the tile footprint (the axis with the larger extent
 /// relative to W or H spans it exactly), centred in x and y, its bottom on the floor z = 0.
-/// @pre the box has an x or y extent > 0. @throws InputError "<what>: fitted ... tall" when the
-///   fitted box is taller than the tile depth.
+/// @pre the box has an x or y extent > 0. @throws InputError::inField "size", "<what>: fitted
+///   ... tall", when the fitted box is taller than the tile depth.
 struct FootprintFit {
     double scale = 1.0;
     glm::dvec3 offsetTexels{0.0};
@@ -94,8 +94,9 @@ inline constexpr double kMaxPlacedTexelCoordinate = 1 << 20;
 inline constexpr double kMaxPlacedFootprints = 2.0;
 
 /// Throws InputError unless a mesh placed in `tile` with bounds `placedTexels` (texels) overlaps
-/// the tile (x in [0, W], y in [0, H], z in [0, D]), is at least one texel across, and at most
-/// kMaxPlacedFootprints tile footprints wide.
+/// the tile (x in [0, W], y in [0, H], z in [0, D]; else in field "placement.offsetTexels"), is
+/// at least one texel across, and at most kMaxPlacedFootprints tile footprints wide (else in
+/// field "placement.scale").
 void requireMeshInTile(const Bounds3& placedTexels, const Size3& tile);
 
 /// The explicit placement `placement` amounts to for this mesh and tile: itself when explicit,
@@ -106,7 +107,8 @@ MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPla
 /// The mesh (file units) placed in the tile by `placement`, positions in texels.
 /// @throws InputError the mesh fails validateTriangleSoup, has no x/y extent (Fit), is taller
 ///   than the tile depth after fitting, the scale is not finite and > 0, the offset is not
-///   finite, a placed coordinate exceeds kMaxPlacedTexelCoordinate, or the placed mesh fails
+///   finite, a placed coordinate exceeds kMaxPlacedTexelCoordinate (in field "placement.scale",
+///   or "placement.offsetTexels" for an offset of half that), or the placed mesh fails
 ///   requireMeshInTile.
 TriangleSoup placeMesh(const TriangleSoup& meshFileUnits, const MeshPlacement& placement,
                        const Size3& tile);

@@ -143,8 +143,15 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
     }
     const SolidDetailMesh solid = loadSolidDetailMesh(arguments.input, sign);
     const MeshPlacement placement = meshPlacement(arguments);
-    SolidMeshBake bake =
-        bakeSolidMesh(solid.mesh, placement, options, file, std::ref(progress), sign);
+    SolidMeshBake bake = [&] {
+        try {
+            return bakeSolidMesh(solid.mesh, placement, options, file, std::ref(progress), sign);
+        } catch (const InputError& error) {  // the placement's: say which mesh
+            const std::string problem = file + ": " + error.problem();
+            throw error.field().empty() ? InputError(problem)
+                                        : InputError::inField(error.field(), problem);
+        }
+    }();
     // After the bake: a refused mesh gets its one-line error only.
     for (const std::string& warning : solid.warnings)
         std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());

@@ -704,6 +704,34 @@ TEST_F(Hardening, AnOptionOfAnotherDetailIsRefusedNotIgnored) {
     }
 }
 
+TEST_F(Hardening, AMeshPlacementErrorNamesTheMeshAndWhatToChange) {
+    // They read "detail mesh: ..." under no flag, or under the recipe's "file".
+    writeText(path("tall.obj"),
+              "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 3\nf 1 3 2\nf 1 2 4\nf 1 4 3\n"
+              "f 2 3 4\n");
+    const std::vector<std::string> bake = {"bake", "mesh", "tall.obj", "-o", "t.exr", "--size"};
+    auto with = [&](std::initializer_list<std::string> more) {
+        std::vector<std::string> arguments = bake;
+        arguments.insert(arguments.end(), more);
+        return arguments;
+    };
+    EXPECT_EQ(expectInputError(with({"16x16x8"}), "t.exr",
+                               {"--size: tall.obj: detail mesh: fitted", "48 texels tall"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError(with({"16x16x8", "--scale", "1e-9"}), "t.exr",
+                               {"--scale: tall.obj", "less than one texel"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError(with({"16x16x8", "--scale", "1", "--offset", "1e5,0,0"}), "t.exr",
+                               {"--offset: tall.obj", "outside the tile"})
+                  .status,
+              cli::kExitInput);
+    expectSceneError(R"({"objects": [{"mesh": "plane", "material": {"tile": {"bake": "mesh",
+                         "file": "tall.obj", "size": "16x16x8", "scale": 1e-12}}}]})",
+                     {"objects[0].material.tile.scale", "less than one texel"});
+}
+
 TEST_F(Hardening, ASceneWithANulCharacterIsRefused) {
     // The JSON parser stopped at a NUL byte, a path ended at one ("chain.exr\u0000x" opened
     // chain.exr), and a message quoting one was cut short there.
