@@ -1046,9 +1046,14 @@ void attachTruth(SceneFile& sceneFile) {
             provenance.source != proceduralSourceName(ProceduralKind::Grating)) {
             continue;
         }
-        material.analyticDistance =
-            proceduralDistance(proceduralFromProvenance(provenance, where), material.tile->size())
-                .signedDistanceTexels;
+        const ProceduralOptions pattern = proceduralFromProvenance(provenance, where);
+        try {
+            material.analyticDistance =
+                proceduralDistance(pattern, material.tile->size()).signedDistanceTexels;
+        } catch (const InputError& error) {  // the tile's metadata, not the scene, is wrong
+            throw FormatError(where + ": distile:params do not describe a valid pattern (" +
+                              error.what() + ")");
+        }
     }
 }
 

@@ -1042,6 +1042,25 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
 // ---------------------------------------------------------------------------------------------
 // Reference renders and distile compare.
 
+TEST_F(Cli, AReferenceRenderBlamesATilesParamsNotTheScene) {
+    // Params edited to a pattern the tile cannot hold read "scene.json: chainmail.ringsPerRow:
+    // 4096 is not accepted", as if the scene had a field of that name.
+    ASSERT_EQ(run({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x16", "--rings-per-row",
+                   "2", "--rows", "2", "--tilt", "5"})
+                  .status,
+              0);
+    Tile tile = readTileExr(path("tile.exr"));
+    const std::size_t at = tile.provenance.params.find("\"rings_per_row\":2");
+    ASSERT_NE(at, std::string::npos) << tile.provenance.params;
+    tile.provenance.params.replace(at, 17, "\"rings_per_row\":4096");
+    writeTileExr(tile, path("tile.exr"));
+    writeText(path("scene.json"), planeScene(chainmailMaterial(R"("tile.exr")")));
+    expectInputError(
+        {"render", "scene.json", "-o", "truth.png", "--width", "8", "--height", "8", "--reference"},
+        "truth.png",
+        {"objects[0].material.tile: distile:params do not describe a valid pattern", "4096"});
+}
+
 TEST_F(Cli, ReferenceRenderAndCompareReportTheFigures) {
     ASSERT_EQ(run({"bake", "chainmail", "-o", "tile.exr", "--size", "64x64x8"}).status, 0);
     writeText(path("scene.json"), planeScene(chainmailMaterial(R"("tile.exr")")));
