@@ -821,12 +821,14 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
 
     SceneFile result;
     Scene& scene = result.scene;
-    // The scene is placed relative to its camera: positions are taken in double precision and
-    // moved by `origin`, the multiple of kOriginGridWorld nearest the eye, before they are rounded
-    // to float, so a scene far from the world origin renders as precisely as one near it (floats
-    // at 1e5 resolve 0.008 world units). A camera within half the grid of the origin moves
-    // nothing. What the renderer writes (colours, depth along the ray, normals) does not depend
-    // on where the origin is.
+    // The scene is placed relative to what its camera looks at: positions are taken in double
+    // precision and moved by `origin`, the multiple of kOriginGridWorld nearest the camera's
+    // target, before they are rounded to float, so a scene far from the world origin renders as
+    // precisely as one near it (floats at 1e5 resolve 0.008 world units). The target, not the
+    // eye: the objects looked at keep their precision when the eye is far from them (a distant
+    // eye at 1e5 moved a unit sphere at the origin there, and its shell folded). A target within
+    // half the grid of the origin moves nothing. What the renderer writes (colours, depth along
+    // the ray, normals) does not depend on where the origin is.
     glm::dvec3 eye(scene.camera.eye), target(scene.camera.target);
     if (root.has("camera")) {
         const Field camera = root["camera"];
@@ -837,7 +839,7 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
         if (camera.has("fov_deg"))
             scene.camera.fovDeg = float(camera["fov_deg"].number(1e-3, 179.0));
     }
-    const glm::dvec3 origin = kOriginGridWorld * glm::round(eye / kOriginGridWorld);
+    const glm::dvec3 origin = kOriginGridWorld * glm::round(target / kOriginGridWorld);
     scene.camera.eye = glm::vec3(eye - origin);
     scene.camera.target = glm::vec3(target - origin);
     if (root.has("image")) {

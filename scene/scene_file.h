@@ -7,10 +7,11 @@
 /// naming the file and the JSON path of the bad field, e.g. "scene.json: objects[0].material.depth:
 /// -1 is not accepted; ...".
 ///
-/// The scene is placed relative to its camera: positions are read in double precision and the
-/// world origin is moved to the multiple of 1024 world units nearest the camera's eye before they
-/// are rounded to float, so a scene far from the origin (at 1e5, where floats resolve 0.008 units)
-/// renders as one near it does; a camera within 512 units of the origin moves nothing. The image
+/// The scene is placed relative to what its camera looks at: positions are read in double
+/// precision and the world origin is moved to the multiple of 1024 world units nearest the
+/// camera's target before they are rounded to float, so a scene far from the origin (at 1e5,
+/// where floats resolve 0.008 units) renders as one near it does; a target within 512 units of
+/// the origin moves nothing. The image
 /// and its AOVs do not depend on where the origin is; the Scene's positions do.
 ///
 /// Loading and rendering a scene (examples/render_scene.cpp is the whole program):

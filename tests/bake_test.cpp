@@ -930,6 +930,18 @@ TEST(SceneFile, ASceneFarFromTheOriginRendersAsItDoesNearIt) {
             glm::length(offGridImage.image.rgbLinear[i] - nearImage.image.rgbLinear[i]) > 0.02f;
     // Measured: 0.1% of the pixels (14% with the scene placed in float at 1e5).
     EXPECT_LT(differing, nearImage.image.rgbLinear.size() / 100);
+
+    // The origin follows the target, not the eye: a sphere at the world origin seen through a
+    // telescope from 1e5 units stays where it is. Moved near the eye, its shell folded in float.
+    const SceneFile telescope = loadSceneJson(R"({
+      "camera": {"eye": [0, -1e5, 0], "target": [0, 0, 0], "fov_deg": 0.002},
+      "objects": [{"mesh": "sphere", "material": {"tile": {"bake": "chainmail", "size": "64x64x8"},
+                   "uv_scale": [8, 4], "depth": 0.03}}]})",
+                                              ".", "telescope.json", tiles);
+    EXPECT_EQ(telescope.scene.camera.target, glm::vec3(0.0f));
+    options.width = 64;
+    options.height = 48;
+    EXPECT_EQ(renderScene(telescope.scene, options).warnings, std::vector<std::string>{});
 }
 }  // namespace
 }  // namespace distile
