@@ -326,6 +326,21 @@ TEST_F(ViewCommand, BadInputIsRefusedWithoutOutput) {
                                "page.html", {"--depth", "> 0"})
                   .status,
               2);
+    // Values the page cannot show: uv beyond float's fraction, shells deeper than the object.
+    const std::vector<std::pair<std::vector<std::string>, std::vector<std::string>>> beyond = {
+        {{"--uv-scale", "1e30", "4"}, {"--uv-scale", "1e+30", "at most 65536"}},
+        {{"--depth", "1e30"}, {"--depth", "at most 4", "plane's size"}},
+        {{"--sphere-depth", "2"}, {"--sphere-depth", "at most 1", "sphere's radius"}},
+    };
+    for (const auto& [flags, keywords] : beyond) {
+        std::vector<std::string> arguments = {"view", "tile.exr", "-o", "page.html"};
+        arguments.insert(arguments.end(), flags.begin(), flags.end());
+        const RunResult refused = run(arguments);
+        EXPECT_EQ(refused.status, 2) << refused.err;
+        for (const std::string& keyword : keywords)
+            EXPECT_NE(refused.err.find(keyword), std::string::npos) << refused.err;
+        EXPECT_FALSE(fs::exists(path("page.html")));
+    }
     EXPECT_EQ(
         expectInputError({"preview", "broken.exr", "-o", "sheet.png"}, "sheet.png", {"broken.exr"})
             .status,

@@ -85,12 +85,21 @@ void requireFinite(const std::string& field, std::initializer_list<float> values
     }
 }
 
-void requirePositive(const std::string& field, float value) {
+/// Throws InputError::inField unless `value` is in (0, `most`] (`most` and `why` say the bound).
+void requirePositive(const std::string& field, float value, float most = HUGE_VALF,
+                     const char* why = "") {
     if (!(std::isfinite(value) && value > 0.0f)) {
         throw InputError::inField(
-            field, std::to_string(value) + " is not accepted; it must be finite and > 0");
+            field, numberText(value) + " is not accepted; it must be finite and > 0");
     }
+    if (value > most)
+        throw InputError::inField(field, numberText(value) + " is not accepted; at most " +
+                                             numberText(most) + " (" + why + ")");
 }
+
+/// The most tile repeats across an object: the page's shader computes uv x repeats in float,
+/// whose 24 bits keep 8 for the place within a tile at 2^16 repeats.
+constexpr float kMaxUvRepeats = 65536.0f;
 
 void validateView(const TilePageView& view) {
     if (view.object != "plane" && view.object != "sphere") {
@@ -108,12 +117,15 @@ void validateView(const TilePageView& view) {
             "fovDeg", std::to_string(view.fovDeg) + " is not accepted; it must be in (0, 180)");
     }
     requirePositive("planeSizeWorld", view.planeSizeWorld);
-    requirePositive("uvScale.x", view.uvScale.x);
-    requirePositive("uvScale.y", view.uvScale.y);
-    requirePositive("depthWorld", view.depthWorld);
-    requirePositive("sphereUvScale.x", view.sphereUvScale.x);
-    requirePositive("sphereUvScale.y", view.sphereUvScale.y);
-    requirePositive("sphereDepthWorld", view.sphereDepthWorld);
+    const char* repeatsWhy = "the page's shader resolves a tile's texels up to 2^16 repeats";
+    requirePositive("uvScale.x", view.uvScale.x, kMaxUvRepeats, repeatsWhy);
+    requirePositive("uvScale.y", view.uvScale.y, kMaxUvRepeats, repeatsWhy);
+    requirePositive("depthWorld", view.depthWorld, view.planeSizeWorld,
+                    "the plane's size: a shell deeper than the plane is wide");
+    requirePositive("sphereUvScale.x", view.sphereUvScale.x, kMaxUvRepeats, repeatsWhy);
+    requirePositive("sphereUvScale.y", view.sphereUvScale.y, kMaxUvRepeats, repeatsWhy);
+    requirePositive("sphereDepthWorld", view.sphereDepthWorld, 1.0f,
+                    "the sphere's radius: a deeper shell folds through its centre");
 }
 
 nlohmann::json vector3(const glm::vec3& v) {

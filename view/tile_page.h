@@ -38,8 +38,9 @@ struct TilePageView {
 /// The page for `tile`, titled `title` (HTML-escaped here). The march skips the empty space above
 /// the tile's highest detail as the CPU renderer does (sampler/occupancy.h). Throws InputError
 /// (naming the TilePageView member) for an object other than plane or sphere, non-finite vectors,
-/// sizes or depths <= 0, a field of view outside (0, 180), and for a distance beyond half-float
-/// range (65504 texels).
+/// sizes or depths <= 0, uv scales over 2^16 repeats, a plane depth over the plane's size, a
+/// sphere depth over its radius, a field of view outside (0, 180), and for a distance beyond
+/// half-float range (65504 texels).
 std::string tilePageHtml(const Tile& tile, const std::string& title, const TilePageView& view = {});
 
 /// tilePageHtml() written to `file` through writeAtomically. Throws as tilePageHtml, and
