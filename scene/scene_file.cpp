@@ -107,6 +107,13 @@ class Field {
         if (!value_.is_string()) fail("must be a string, not " + std::string(value_.type_name()));
         return value_.get<std::string>();
     }
+    /// A file named by this string, relative to `folder` unless absolute; an empty name is
+    /// refused (it named the folder itself).
+    fs::path file(const fs::path& folder) const {
+        const std::string name = string();
+        if (name.empty()) fail("is empty; give a file name");
+        return folder / name;
+    }
     /// A colour: three numbers, none negative (light and albedo add up, they do not subtract)
     /// nor above kMaxColorComponent (their products over the lights stay finite).
     glm::vec3 colour() const {
@@ -352,7 +359,7 @@ struct RecipeFile {
 RecipeFile recipeFile(const Field& spec, const fs::path& folder, const std::string& what) {
     if (!spec.has("file")) spec.fail("missing field 'file' (" + what + ")");
     const Field file = spec["file"];
-    const fs::path path = folder / file.string();
+    const fs::path path = file.file(folder);
     if (!fs::exists(path)) file.fail("file '" + path.string() + "' does not exist");
     std::uint64_t bytesInFile = 0;
     try {
@@ -649,7 +656,7 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
 
 std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder, TileCache& tiles,
                                      const SceneWarningCallback& warn) {
-    const fs::path path = folder / field.string();
+    const fs::path path = field.file(folder);
     if (!fs::exists(path)) field.fail("tile file '" + path.string() + "' does not exist");
     const std::string key = "file:" + fs::weakly_canonical(path).string();
     if (auto found = tiles.find(key); found != tiles.end()) return found->second;
@@ -668,7 +675,7 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
     if (name == "plane") return makePlane(2.0f, 1);
     if (name == "sphere") return makeUvSphere(1.0f, 96, 48);
     if (name == "torus") return makeTorus(1.0f, 0.4f, 128, 48);
-    const fs::path path = folder / name;
+    const fs::path path = field.file(folder);
     if (!fs::exists(path)) {
         field.fail("'" + name +
                    "' is neither a built-in mesh (plane, sphere, torus) nor an existing file (" +
@@ -719,7 +726,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
     if (field.has("color")) {
         const Field color = field["color"];
         if (color.value().is_string()) {
-            const fs::path path = folder / color.string();
+            const fs::path path = color.file(folder);
             if (!fs::exists(path))
                 color.fail("colour texture '" + path.string() + "' does not exist");
             try {

@@ -732,6 +732,19 @@ TEST_F(Hardening, AMeshPlacementErrorNamesTheMeshAndWhatToChange) {
                      {"objects[0].material.tile.scale", "less than one texel"});
 }
 
+TEST_F(Hardening, AnEmptyFileNameIsRefusedNamingItsField) {
+    // It named the scene's folder: "./: is a folder; a mesh file is expected".
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {R"({"mesh": ""})", "objects[0].mesh: is empty"},
+        {R"({"mesh": "plane", "material": {"tile": ""}})", "objects[0].material.tile: is empty"},
+        {R"({"mesh": "plane", "material": {"color": ""}})", "objects[0].material.color: is empty"},
+        {R"({"mesh": "plane", "material": {"tile": {"bake": "mesh", "file": ""}}})",
+         "objects[0].material.tile.file: is empty"},
+    };
+    for (const auto& [object, message] : cases)
+        expectSceneError(R"({"objects": [)" + object + "]}", {message});
+}
+
 TEST_F(Hardening, ASceneWithANulCharacterIsRefused) {
     // The JSON parser stopped at a NUL byte, a path ended at one ("chain.exr\u0000x" opened
     // chain.exr), and a message quoting one was cut short there.
