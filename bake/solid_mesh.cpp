@@ -149,9 +149,9 @@ SolidMeshBake bakeSolidMesh(const TriangleSoup& mesh, const MeshPlacement& place
     if (insideTexels == 0 && !sign.unsignedDistance) {
         throw InputError::inField(
             "sign.unsignedDistance",
-            file +
+            "needed for " + file +
                 ": the mesh has no inside in the tile (its winding number is nowhere above "
-                "1/2); sheet-like detail must be baked as an unsigned distance");
+                "1/2), as sheet-like detail has none; bake it as an unsigned distance");
     }
     Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistances);
     return {{std::move(levelSet), std::move(tile)}, insideTexels};

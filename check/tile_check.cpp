@@ -29,7 +29,8 @@ namespace {
 
 /// The tile's own truth cannot be found (`error` says why): the caller must name one.
 InputError noTruth(const InputError& error) {
-    return InputError::inField("against", std::string(error.what()) + "; give the truth's file");
+    return InputError::inField("against",
+                               "needed: " + std::string(error.what()) + "; give the truth's file");
 }
 
 /// Throws InputError::inField(field) unless `value` is a finite number in [0, highest].
@@ -248,6 +249,7 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
         } catch (const InputError& error) {
             if (error.field() == "placement.scale") throw error.renamed("meshScale");
             if (error.field() == "placement.offsetTexels") throw error.renamed("meshOffsetTexels");
+            if (error.field() == "size") throw error.renamed("against");  // the mesh, fitted
             throw;
         }
         std::string how;

@@ -147,7 +147,9 @@ BakeResult bakeMeshFile(const BakeArguments& arguments, const BakeOptions& optio
         try {
             return bakeSolidMesh(solid.mesh, placement, options, file, std::ref(progress), sign);
         } catch (const InputError& error) {  // the placement's: say which mesh
-            const std::string problem = file + ": " + error.problem();
+            const std::string problem = error.problem().find(file) != std::string::npos
+                                            ? error.problem()
+                                            : file + ": " + error.problem();
             throw error.field().empty() ? InputError(problem)
                                         : InputError::inField(error.field(), problem);
         }

@@ -645,10 +645,11 @@ TEST_F(Cli, CheckFindsTheRecordedSourceMeshOfAMeshTile) {
 
     // Moved: refused (exit 2) naming the recorded path, relative to the tile's folder.
     fs::rename(path("meshes/cube.obj"), path("meshes/moved.obj"));
-    expectInputError({"check", "tiles/cube.exr"}, "none",
-                     {"--against: tiles/cube.exr: its source mesh ../meshes/cube.obj (recorded) "
-                      "is not found",
-                      "give the truth's file"});
+    expectInputError(
+        {"check", "tiles/cube.exr"}, "none",
+        {"--against: needed: tiles/cube.exr: its source mesh ../meshes/cube.obj (recorded) "
+         "is not found",
+         "give the truth's file"});
     EXPECT_EQ(run({"check", "tiles/cube.exr"}).status, 2);
     // --against still overrides.
     EXPECT_EQ(check({"check", "tiles/cube.exr", "--against", "meshes/moved.obj", "--scale", "16",
@@ -1035,7 +1036,7 @@ TEST_F(Cli, RejectsBadVdbInputsWithOneLineEach) {
     // Edited since the bake: refused, saying what to do.
     std::ofstream(path("fog.vdb"), std::ios::app) << "edited";
     expectInputError({"check", "fog.exr"}, "no-output",
-                     {"--against: fog.exr", "its source vdb", "fog.vdb",
+                     {"--against: needed: fog.exr", "its source vdb", "fog.vdb",
                       "has changed since the bake", "give the truth's file"});
 }
 
