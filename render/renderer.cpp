@@ -209,8 +209,10 @@ class Renderer {
             all.push_back("objects[" + std::to_string(object) + "]: " +
                           std::to_string(int(std::lround(100.0 * double(back) / double(hits)))) +
                           "% of the camera rays that reach it meet back faces, which show no "
-                          "detail; if the mesh is closed, its faces are wound clockwise (distile "
-                          "expects them counter-clockwise seen from outside)");
+                          "detail: the camera is inside the object or its detail shell (detail "
+                          "is seen from outside only), or, if the mesh is closed, its faces are "
+                          "wound clockwise (distile expects them counter-clockwise seen from "
+                          "outside)");
         }
         return all;
     }
