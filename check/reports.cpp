@@ -45,11 +45,15 @@ const char* const kSilhouetteRule =
 namespace {
 
 json classJson(const HitErrorSummary& summary) {
+    // No pixel measured in texels: null, not an error of 0.
+    const auto hitError = [&](double texels) {
+        return summary.hitErrorSamples > 0 ? json(texels) : json(nullptr);
+    };
     return {{"pixels", summary.pixels},
             {"hit_error_samples", summary.hitErrorSamples},
-            {"hit_error_mean", summary.meanHitErrorTexels},
-            {"hit_error_p99", summary.p99HitErrorTexels},
-            {"hit_error_max", summary.maxHitErrorTexels},
+            {"hit_error_mean", hitError(summary.meanHitErrorTexels)},
+            {"hit_error_p99", hitError(summary.p99HitErrorTexels)},
+            {"hit_error_max", hitError(summary.maxHitErrorTexels)},
             {"normal_error_mean_deg", summary.meanNormalErrorDeg}};
 }
 

@@ -30,11 +30,14 @@ struct CompareArguments {
 };
 
 void printClass(const char* name, const HitErrorSummary& summary) {
-    std::printf("  %-10s %9llu %9llu %10.4f %10.4f %12.4f %10.3f\n", name,
-                static_cast<unsigned long long>(summary.pixels),
-                static_cast<unsigned long long>(summary.hitErrorSamples),
-                summary.meanHitErrorTexels, summary.p99HitErrorTexels, summary.maxHitErrorTexels,
-                summary.meanNormalErrorDeg);
+    std::printf("  %-10s %9llu %9llu", name, static_cast<unsigned long long>(summary.pixels),
+                static_cast<unsigned long long>(summary.hitErrorSamples));
+    if (summary.hitErrorSamples == 0) {  // no pixel to measure in texels: no figure, not 0
+        std::printf(" %10s %10s %12s %10.3f\n", "n/a", "n/a", "n/a", summary.meanNormalErrorDeg);
+        return;
+    }
+    std::printf(" %10.4f %10.4f %12.4f %10.3f\n", summary.meanHitErrorTexels,
+                summary.p99HitErrorTexels, summary.maxHitErrorTexels, summary.meanNormalErrorDeg);
 }
 
 void runCompare(const CompareArguments& arguments) {
@@ -79,9 +82,15 @@ void runCompare(const CompareArguments& arguments) {
         static_cast<unsigned long long>(c.interior.pixels),
         static_cast<unsigned long long>(c.silhouette.pixels),
         static_cast<unsigned long long>(c.coverageMismatches), 100.0 * c.coverageMismatchShare);
-    std::printf("mean hit error (interior pixels): %.4f texels, p99 %.4f, max %.4f\n",
-                c.interior.meanHitErrorTexels, c.interior.p99HitErrorTexels,
-                c.interior.maxHitErrorTexels);
+    if (c.interior.hitErrorSamples == 0) {
+        std::printf(
+            "mean hit error (interior pixels): n/a (no interior pixel where either render has a "
+            "texel scale: a tile hit of a render made with --aovs, not a world reference)\n");
+    } else {
+        std::printf("mean hit error (interior pixels): %.4f texels, p99 %.4f, max %.4f\n",
+                    c.interior.meanHitErrorTexels, c.interior.p99HitErrorTexels,
+                    c.interior.maxHitErrorTexels);
+    }
     std::printf("by class (hit error in texels, normal angle error in degrees):\n");
     std::printf("  %-10s %9s %9s %10s %10s %12s %10s\n", "class", "pixels", "samples", "mean",
                 "p99", "max", "normal");

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 
+#include "check/reports.h"
 #include "common/error.h"
 #include "render/renderer.h"
 
@@ -34,6 +35,25 @@ TEST(CompareRenders, IdenticalRendersHaveNoErrorAndInfinitePsnr) {
     EXPECT_EQ(c.maxHitErrorTexels, 0.0);
     EXPECT_EQ(c.meanNormalErrorDeg, 0.0);
     EXPECT_TRUE(std::isinf(c.psnrDb) && c.psnrDb > 0.0);
+}
+
+TEST(CompareRenders, WithoutATexelScaleTheHitErrorIsUnknownNotZero) {
+    // World references write no texel scale: two of them, their depths 0.001 apart, have no hit
+    // error in texels. Reported as 0, it read as a perfect match.
+    Layers a(8, 4), b(8, 4);
+    for (Layers* layers : {&a, &b})
+        for (glm::vec3& scale : layers->texelScale.rgbLinear) scale = glm::vec3(0.0f);
+    for (glm::vec3& depth : b.depth.rgbLinear) depth += 0.001f;
+    const RenderComparison c = compareRenders(a.view(), b.view());
+    EXPECT_EQ(c.bothHit, 32u);
+    EXPECT_EQ(c.hitErrorSamples, 0u);
+    const nlohmann::json report = renderComparisonJson(c);
+    EXPECT_TRUE(report["interior"]["hit_error_mean"].is_null()) << report.dump();
+    EXPECT_TRUE(report["all_both_hit"]["hit_error_max"].is_null()) << report.dump();
+    // With A's scale the same depths measure 0.1 texel.
+    for (glm::vec3& scale : a.texelScale.rgbLinear) scale = glm::vec3(100.0f);
+    const nlohmann::json measured = renderComparisonJson(compareRenders(a.view(), b.view()));
+    EXPECT_NEAR(measured["all_both_hit"]["hit_error_mean"].get<double>(), 0.1, 1e-4);
 }
 
 TEST(CompareRenders, KnownDepthOffsetNormalTurnAndMissingHit) {
