@@ -139,7 +139,7 @@ MeshPlacement explicitPlacement(const TriangleSoup& meshFileUnits, const MeshPla
         if (!(std::isfinite(scale) && scale > 0.0)) {
             throw InputError::inField(
                 "placement.scale",
-                std::to_string(scale) +
+                numberText(scale) +
                     " is not accepted; it must be a finite number > 0 (texels per unit)");
         }
         if (!isFinite(offset)) {

@@ -269,7 +269,7 @@ void makeConservative(Tile& tile, const ConservativeOptions& options,
     auto requireNonNegative = [](float value, const char* field) {
         if (!(value >= 0.0f && std::isfinite(value))) {
             throw InputError(std::string("conservative resampling: ") + field + " = " +
-                             std::to_string(value) +
+                             numberText(value) +
                              " is not accepted; it must be a finite number >= 0");
         }
     };

@@ -188,7 +188,7 @@ VdbDistance::VdbDistance(const VdbVolume& volume, const TexelPlacement& placemen
     const double period = std::ceil(std::max(span.x, span.y) + halfBandTexels_ + 1.0);
     if (!(period < double(INT_MAX))) {
         throw InputError::inField("placement.scale",
-                                  std::to_string(placement.scale) +
+                                  numberText(placement.scale) +
                                       " texels per unit makes the source's voxels too large to "
                                       "rebuild its band");
     }

@@ -142,7 +142,7 @@ void validateSegments(const char* function, const char* name, int value, int min
 
 void validateLength(const char* function, const char* name, float value) {
     if (!std::isfinite(value) || !(value > 0.0f)) {
-        throw InputError(std::string(function) + ": " + name + " = " + std::to_string(value) +
+        throw InputError(std::string(function) + ": " + name + " = " + numberText(value) +
                          "; accepted: a finite number > 0");
     }
 }

@@ -40,7 +40,7 @@ void applyTransform(BaseMesh& mesh, const Transform& transform) {
     requireFinite(transform.translate, "transform.translate");
     requireFinite(transform.rotateDeg, "transform.rotateDeg");
     if (!(std::isfinite(transform.scale) && transform.scale > 0.0f)) {
-        throw InputError::inField("transform.scale", std::to_string(transform.scale) +
+        throw InputError::inField("transform.scale", numberText(transform.scale) +
                                                          " is not accepted; it must be a positive "
                                                          "number");
     }
@@ -114,7 +114,7 @@ void validateScene(const Scene& scene) {
             "camera.up", "parallel to the view direction (or zero); it must point sideways of it");
     }
     if (!(camera.fovDeg > 0.0f && camera.fovDeg < 180.0f)) {
-        throw InputError::inField("camera.fovDeg", std::to_string(camera.fovDeg) +
+        throw InputError::inField("camera.fovDeg", numberText(camera.fovDeg) +
                                                        " is not accepted; it must be in (0, 180)");
     }
     for (std::size_t i = 0; i < scene.lights.size(); ++i) {

@@ -21,7 +21,7 @@ TileErrorReport measureTileError(const Tile& tile,
     auto requireNonNegative = [](double value, const char* field) {
         if (!(value >= 0.0 && std::isfinite(value))) {
             throw InputError::inField(field,
-                                      std::to_string(value) +
+                                      numberText(value) +
                                           " is not accepted; it must be a finite number >= 0 "
                                           "(texels)");
         }

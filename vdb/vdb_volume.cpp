@@ -55,7 +55,7 @@ TriangleSoup VdbVolume::refinedSurfaceWorld(double maxEdgeWorld, const Bounds3& 
 VdbSourceSampler::VdbSourceSampler(const VdbVolume& volume, const TexelPlacement& placement) {
     if (!(std::isfinite(placement.scale) && placement.scale > 0.0)) {
         throw InputError::inField("placement.scale",
-                                  std::to_string(placement.scale) +
+                                  numberText(placement.scale) +
                                       " is not accepted; it must be a finite number > 0 (texels "
                                       "per world unit)");
     }

@@ -114,7 +114,7 @@ void validateView(const TilePageView& view) {
     requireFinite("color", {view.color.r, view.color.g, view.color.b});
     if (!(view.fovDeg > 0.0f && view.fovDeg < 180.0f)) {
         throw InputError::inField(
-            "fovDeg", std::to_string(view.fovDeg) + " is not accepted; it must be in (0, 180)");
+            "fovDeg", numberText(view.fovDeg) + " is not accepted; it must be in (0, 180)");
     }
     requirePositive("planeSizeWorld", view.planeSizeWorld);
     const char* repeatsWhy = "the page's shader resolves a tile's texels up to 2^16 repeats";
