@@ -765,11 +765,62 @@ json parseJson(const std::string& text, const std::string& name) {
         throw FormatError(name + ": byte " + std::to_string(at) +
                           " is a NUL byte; a scene is JSON text");
     }
+    // The parser keeps the last of a key given twice in one object; the first duplicate is
+    // found on the way (with its path) and refused: which of the two was meant is unknown.
+    struct Level {
+        bool array = false;
+        std::size_t index = 0;       ///< array: the element being read
+        std::string key;             ///< object: the member being read
+        std::set<std::string> keys;  ///< object: the keys so far
+    };
+    std::vector<Level> levels;
+    std::string duplicate;  ///< "PATH: key 'K'" of the first key given twice
+    const auto pathOf = [&](std::size_t count) {
+        std::string path;
+        for (std::size_t i = 0; i < count; ++i) {
+            path += levels[i].array ? "[" + std::to_string(levels[i].index) + "]"
+                                    : (path.empty() ? "" : ".") + levels[i].key;
+        }
+        return path.empty() ? std::string("top level") : path;
+    };
+    const json::parser_callback_t track = [&](int, json::parse_event_t event, json& parsed) {
+        using Event = json::parse_event_t;
+        const auto elementDone = [&] {
+            if (!levels.empty() && levels.back().array) ++levels.back().index;
+        };
+        switch (event) {
+            case Event::object_start:
+            case Event::array_start:
+                levels.push_back({event == Event::array_start, 0, {}, {}});
+                break;
+            case Event::key:
+                if (!levels.back().keys.insert(parsed.get<std::string>()).second &&
+                    duplicate.empty()) {
+                    duplicate =
+                        pathOf(levels.size() - 1) + ": key '" + parsed.get<std::string>() + "'";
+                }
+                levels.back().key = parsed.get<std::string>();
+                break;
+            case Event::object_end:
+            case Event::array_end:
+                levels.pop_back();
+                elementDone();
+                break;
+            case Event::value:
+                elementDone();
+                break;
+        }
+        return true;
+    };
     json document;
     try {
-        document = json::parse(text);
+        document = json::parse(text, track);
     } catch (const json::exception& error) {
         throw FormatError(name + ": not valid JSON (" + error.what() + ")");
+    }
+    if (!duplicate.empty()) {
+        throw FormatError(name + ": " + duplicate +
+                          " is given twice in one object; give each key once");
     }
     // Walked with a stack of its own: a document may nest deeper than the call stack goes.
     std::vector<std::pair<const json*, std::string>> pending{{&document, ""}};

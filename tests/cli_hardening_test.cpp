@@ -745,6 +745,18 @@ TEST_F(Hardening, AnEmptyFileNameIsRefusedNamingItsField) {
         expectSceneError(R"({"objects": [)" + object + "]}", {message});
 }
 
+TEST_F(Hardening, AKeyGivenTwiceInOneObjectIsRefused) {
+    // The parser kept the last of the two silently: which was meant is unknown.
+    expectSceneError(R"({"objects": [{"mesh": "plane", "mesh": "sphere"}]})",
+                     {"objects[0]: key 'mesh' is given twice"});
+    expectSceneError(
+        R"({"objects": [{"mesh": "plane"}, {"mesh": "plane", "material": {"uv_scale": [1, 1],
+             "depth": 0.1, "uv_scale": [2, 2]}}]})",
+        {"objects[1].material: key 'uv_scale' is given twice"});
+    expectSceneError(R"({"objects": [{"mesh": "plane"}], "objects": []})",
+                     {"top level: key 'objects' is given twice"});
+}
+
 TEST_F(Hardening, ASceneWithANulCharacterIsRefused) {
     // The JSON parser stopped at a NUL byte, a path ended at one ("chain.exr\u0000x" opened
     // chain.exr), and a message quoting one was cut short there.
