@@ -816,7 +816,9 @@ json parseJson(const std::string& text, const std::string& name) {
     try {
         document = json::parse(text, track);
     } catch (const json::exception& error) {
-        throw FormatError(name + ": not valid JSON (" + error.what() + ")");
+        // The parser's message quotes the bytes it last read, which may be any bytes.
+        const std::string what = error.what();
+        throw FormatError(name + ": not valid JSON (" + quotedInput(what, what.size()) + ")");
     }
     if (!duplicate.empty()) {
         throw FormatError(name + ": " + duplicate +

@@ -755,6 +755,9 @@ TEST_F(Hardening, AKeyGivenTwiceInOneObjectIsRefused) {
         {"objects[1].material: key 'uv_scale' is given twice"});
     expectSceneError(R"({"objects": [{"mesh": "plane"}], "objects": []})",
                      {"top level: key 'objects' is given twice"});
+    // Not JSON: the parser's quote of the bytes it last read shows no raw byte.
+    expectSceneError("{\"objects\": [{\"mesh\": \"pl\xff",
+                     {"not valid JSON", "last read: '\"pl?'"});
 }
 
 TEST_F(Hardening, ASceneWithANulCharacterIsRefused) {
