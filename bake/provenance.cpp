@@ -129,8 +129,17 @@ std::filesystem::path recordedSourceFile(const Tile& tile, const std::string& ti
                       std::filesystem::absolute(tileFile).parent_path().lexically_normal())
                   .generic_string();
     std::error_code status;
-    if (!std::filesystem::is_regular_file(file, status)) {
+    if (!std::filesystem::exists(file, status)) {
         throw InputError(tileName + ": " + what + " " + recorded + " (recorded) is not found");
+    }
+    if (!std::filesystem::is_regular_file(file, status)) {
+        throw InputError(tileName + ": " + what + " " + recorded +
+                         " (recorded) is not a regular file");
+    }
+    if (provenance.sourceHash.empty()) {
+        throw InputError(tileName + ": records " + what + " " + recorded +
+                         " without its content hash (distile:source_hash), so whether it changed "
+                         "since the bake is unknown; the file was modified");
     }
     const std::optional<std::string> hash = fileContentHash(file);
     if (!hash) throw InputError(tileName + ": " + what + " " + recorded + " cannot be read");

@@ -462,7 +462,12 @@ Tile readTileExr(const fs::path& file) {
     }
     if (const image_files::Attribute* band = spec.find("distile:band_texels")) {
         const float* value = std::get_if<float>(&band->value);
-        tile.provenance.halfBandTexels = value ? *value : -1.0;
+        if (!value) {
+            throw FormatError(file.string() +
+                              ": distile:band_texels is not a float attribute (the band in "
+                              "texels); the file was modified or corrupted");
+        }
+        tile.provenance.halfBandTexels = *value;
         if (const std::string problem = bandValueProblem(size, tile.provenance.halfBandTexels);
             !problem.empty())
             throw FormatError(file.string() + ": " + problem +

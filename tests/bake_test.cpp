@@ -17,6 +17,7 @@
 #include <span>
 
 #include "bake/mesh_surface.h"
+#include "bake/provenance.h"
 #include "bake/solid_mesh.h"
 #include "bake/soup_distance.h"
 #include "bake/soup_distance_grid.h"
@@ -826,6 +827,26 @@ TEST(BakeOptions, TheBandIsZeroForTheDepthOrOneTexelAndMore) {
     options.size = {8, 8, 1100};
     options.halfBandTexels = 0.0f;
     EXPECT_EQ(validatedHalfBandTexels(options), 1024.0f);
+}
+
+TEST(Provenance, ARecordedSourceWithoutItsHashOrThatIsNoFileIsRefusedSayingSo) {
+    // Without its hash the source read "has changed since the bake (content hash ..., recorded )".
+    const TempFolder folder("distile_provenance_hash");
+    const fs::path ring = fs::path(DISTILE_SOURCE_DIR) / "data" / "meshes" / "ring.obj";
+    Tile tile({8, 8, 4});
+    tile.provenance.source = "mesh";
+    tile.provenance.sourceFile = ring;
+    const auto refusal = [&] {
+        try {
+            recordedSourceFile(tile, "t.exr");
+        } catch (const InputError& error) {
+            return std::string(error.what());
+        }
+        return std::string("accepted");
+    };
+    EXPECT_NE(refusal().find("without its content hash"), std::string::npos) << refusal();
+    tile.provenance.sourceFile = folder.path("");
+    EXPECT_NE(refusal().find("is not a regular file"), std::string::npos) << refusal();
 }
 
 TEST(BakeCache, AMeshTileRecordsTheFileGivenNotTheCopyBakedBefore) {

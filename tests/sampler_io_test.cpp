@@ -341,6 +341,11 @@ TEST_F(SamplerIo, DeclaredBandRoundTripsAndBoundsTheDistances) {
     rewriteRaw(path("tile.exr"),
                [](RawImage& raw) { raw.spec.attribute("distile:band_texels", -1.0f); });
     EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:band_texels"), std::string::npos);
+    // Given as text, the band read as -1: "-1 is not a positive number".
+    rewriteRaw(path("tile.exr"),
+               [](RawImage& raw) { raw.spec.attribute("distile:band_texels", "8"); });
+    EXPECT_NE(formatErrorMessage(path("tile.exr")).find("distile:band_texels is not a float"),
+              std::string::npos);
     // One bound: the declared band replaces the bound by size (+-16 texels here), and may not
     // exceed it.
     rewriteRaw(path("huge.exr"),
