@@ -51,10 +51,8 @@ std::string toString(const Size3& size) {
 }
 
 void validateTileSize(const Size3& size, const std::string& what) {
-    constexpr int kMinExtent = 2;
-    constexpr int kMaxExtent = 65536;
     for (int extent : {size.width, size.height, size.depth}) {
-        if (extent < kMinExtent || extent > kMaxExtent) {
+        if (extent < kMinTileExtent || extent > kMaxTileExtent) {
             throw InputError::inField(what,
                                       "tile size " + toString(size) +
                                           " is not accepted; each extent must be in [2, 65536]");

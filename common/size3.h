@@ -42,6 +42,10 @@ inline constexpr std::size_t kMaxTileTexels = std::size_t(1) << 28;
 /// chain mail took 11 s at a half band of 64 texels, 3.5 s at 16, on two busy cores).
 float maxHalfBandTexels(const Size3& size);
 
+/// The extents a tile may have, texels.
+inline constexpr int kMinTileExtent = 2;
+inline constexpr int kMaxTileExtent = 65536;
+
 /// Throws InputError unless every extent is in [2, 65536] and the texel count is at most
 /// kMaxTileTexels. `what` names the value in the message and is the error's field() (a library
 /// passes its options' field, e.g. "size"; a program its flag or JSON path).

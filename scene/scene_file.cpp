@@ -160,8 +160,9 @@ Size3 parseSize(const Field& field) {
     if (field.value().is_array()) {
         if (field.value().size() != 3)
             field.fail("must be [W, H, D] (three whole numbers) or \"WxHxD\"");
-        size = {field[0].integer(1, 1 << 20), field[1].integer(1, 1 << 20),
-                field[2].integer(1, 1 << 20)};
+        size = {field[0].integer(kMinTileExtent, kMaxTileExtent),
+                field[1].integer(kMinTileExtent, kMaxTileExtent),
+                field[2].integer(kMinTileExtent, kMaxTileExtent)};
     } else {
         try {
             size = parseSize3(field.string(), field.path());
