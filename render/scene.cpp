@@ -152,4 +152,23 @@ void validateScene(const Scene& scene) {
     }
 }
 
+glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle,
+                           const glm::vec2& uvScale, const Size3& tileSize) {
+    const glm::vec3 edge1 = mesh.positions[triangle[1]] - mesh.positions[triangle[0]];
+    const glm::vec3 edge2 = mesh.positions[triangle[2]] - mesh.positions[triangle[0]];
+    const glm::vec2 duv1 = mesh.uvs[triangle[1]] - mesh.uvs[triangle[0]];
+    const glm::vec2 duv2 = mesh.uvs[triangle[2]] - mesh.uvs[triangle[0]];
+    const float determinant = duv1.x * duv2.y - duv2.x * duv1.y;
+    if (std::abs(determinant) < 1e-12f) return glm::vec2(0.0f);
+    const glm::vec3 dPdu = (edge1 * duv2.y - edge2 * duv1.y) / determinant;
+    const glm::vec3 dPdv = (edge2 * duv1.x - edge1 * duv2.x) / determinant;
+    const float worldPerU = glm::length(dPdu);
+    const float worldPerV = glm::length(dPdv);
+    if (!(worldPerU > 0.0f && worldPerV > 0.0f) || !std::isfinite(worldPerU) ||
+        !std::isfinite(worldPerV)) {
+        return glm::vec2(0.0f);
+    }
+    return {tileSize.width * uvScale.x / worldPerU, tileSize.height * uvScale.y / worldPerV};
+}
+
 }  // namespace distile

@@ -98,6 +98,13 @@ struct Transform {
 /// Throws InputError::inField ("transform.scale", ...) for a non-finite transform or a scale <= 0.
 void applyTransform(BaseMesh& mesh, const Transform& transform);
 
+/// Texels per world unit along `triangle`'s u and v directions, for a tile of `tileSize` repeated
+/// `uvScale` times per unit of uv (|dP/du|, |dP/dv| convert uv to world units). Zero when the
+/// triangle's uvs are degenerate (their triangle has no area, or its world lengths per uv are
+/// not finite): such a triangle carries no detail, and shows its bare base surface.
+glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle,
+                           const glm::vec2& uvScale, const Size3& tileSize);
+
 /// `direction` at unit length (a light's direction, the camera's up: only their direction
 /// counts): glm::normalize where single precision can square it, in double precision beyond
 /// (lengths from about 1e15 or below 1e-15), so that any finite length keeps its direction.

@@ -24,27 +24,6 @@ namespace distile {
 
 namespace {
 
-/// Texels per world unit along a triangle's u and v directions: the tile spans 1/uvScale in uv,
-/// and |dP/du|, |dP/dv| convert uv to world units. Zero when the UVs are degenerate.
-glm::vec2 texelsPerWorldUv(const BaseMesh& mesh, const glm::uvec3& triangle,
-                           const glm::vec2& uvScale, const Size3& tileSize) {
-    const glm::vec3 edge1 = mesh.positions[triangle[1]] - mesh.positions[triangle[0]];
-    const glm::vec3 edge2 = mesh.positions[triangle[2]] - mesh.positions[triangle[0]];
-    const glm::vec2 duv1 = mesh.uvs[triangle[1]] - mesh.uvs[triangle[0]];
-    const glm::vec2 duv2 = mesh.uvs[triangle[2]] - mesh.uvs[triangle[0]];
-    const float determinant = duv1.x * duv2.y - duv2.x * duv1.y;
-    if (std::abs(determinant) < 1e-12f) return glm::vec2(0.0f);
-    const glm::vec3 dPdu = (edge1 * duv2.y - edge2 * duv1.y) / determinant;
-    const glm::vec3 dPdv = (edge2 * duv1.x - edge1 * duv2.x) / determinant;
-    const float worldPerU = glm::length(dPdu);
-    const float worldPerV = glm::length(dPdv);
-    if (!(worldPerU > 0.0f && worldPerV > 0.0f) || !std::isfinite(worldPerU) ||
-        !std::isfinite(worldPerV)) {
-        return glm::vec2(0.0f);
-    }
-    return {tileSize.width * uvScale.x / worldPerU, tileSize.height * uvScale.y / worldPerV};
-}
-
 /// The most texels per world unit along any axis of a shell's texel space: a texel-space ray
 /// direction's squared length must stay finite in float (about 1e38), with room to spare.
 constexpr float kMaxTexelsPerWorld = 1e15f;

@@ -54,6 +54,12 @@ struct GeometryInfo {
     const DisplacedMesh* detail = nullptr;  ///< Kind::Detail: the mesh
     bool quads = false;                     ///< Kind::Detail: its quads (else its triangles)
     const BaseMesh* base = nullptr;         ///< Kind::TiledBase: the base mesh
+    /// Kind::TiledBase: per triangle, 1 where its uvs are degenerate (texelsPerWorldUv is 0): it
+    /// carries no detail and is a bare surface, as the renderer shows it.
+    const std::vector<std::uint8_t>* bareTriangles = nullptr;
+    bool bare(unsigned triangle) const {
+        return kind == Kind::Bare || (bareTriangles && (*bareTriangles)[triangle] != 0);
+    }
 };
 
 /// What a query lets through (the Embree filter functions read it): the context of every
@@ -136,8 +142,10 @@ class WorldBvh {
     }
 
     /// Adds a tiled object's base mesh (its positions are copied), to both scenes.
-    void addTiledBase(std::uint32_t object, const BaseMesh& mesh) {
-        const GeometryInfo info{GeometryInfo::Kind::TiledBase, object, nullptr, false, &mesh};
+    void addTiledBase(std::uint32_t object, const BaseMesh& mesh,
+                      const std::vector<std::uint8_t>& bareTriangles) {
+        const GeometryInfo info{
+            GeometryInfo::Kind::TiledBase, object, nullptr, false, &mesh, &bareTriangles};
         attach(scene_, baseGeometry(mesh), info);
         attach(bases_, baseGeometry(mesh), info);
     }
@@ -244,7 +252,8 @@ class WorldBvh {
             bool accepted = false;
             switch (context.mode) {
                 case QueryContext::Mode::Shadow:
-                    accepted = info.kind == GeometryInfo::Kind::Detail;
+                    accepted = info.kind == GeometryInfo::Kind::Detail ||
+                               info.bare(RTCHitN_primID(arguments->hit, arguments->N, lane));
                     break;
                 case QueryContext::Mode::BaseOf:
                     accepted = info.object == context.object;
@@ -252,12 +261,13 @@ class WorldBvh {
                 case QueryContext::Mode::Camera:
                     if (info.kind == GeometryInfo::Kind::Detail) {
                         accepted = info.object != context.object;
-                    } else {  // a tiled base triangle: its back face alone
-                        const glm::uvec3& triangle =
-                            info.base
-                                ->triangles[RTCHitN_primID(arguments->hit, arguments->N, lane)];
-                        accepted = glm::dot(geometricNormal(*info.base, triangle),
-                                            context.direction) > 0.0f;
+                    } else {  // a tiled base triangle: its back face, or a bare one
+                        const unsigned primitive =
+                            RTCHitN_primID(arguments->hit, arguments->N, lane);
+                        const glm::uvec3& triangle = info.base->triangles[primitive];
+                        accepted =
+                            info.bare(primitive) || glm::dot(geometricNormal(*info.base, triangle),
+                                                             context.direction) > 0.0f;
                     }
                     break;
             }
@@ -591,7 +601,11 @@ class WorldShader {
             const float u = rayHit.hit.u, v = rayHit.hit.v;
             if (info.kind != GeometryInfo::Kind::Detail) {
                 const glm::uvec3& triangle = object.mesh.triangles[rayHit.hit.primID];
-                const bool backFace = info.kind == GeometryInfo::Kind::TiledBase;
+                // A tiled base triangle seen from the front is a bare one (the filter lets no
+                // other through); from behind it stops the ray as the renderer's back faces do.
+                const bool backFace =
+                    info.kind == GeometryInfo::Kind::TiledBase &&
+                    glm::dot(geometricNormal(object.mesh, triangle), ray.direction) >= 0.0f;
                 if (backFace && info.object != context.object &&
                     wayOut(ray, info.object, rayHit.hit.primID, distance)) {
                     from = std::nextafter(distance, std::numeric_limits<float>::infinity());
@@ -853,10 +867,18 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     // 2. One BVH of every object.
     start = std::chrono::steady_clock::now();
     WorldBvh bvh;
+    std::vector<std::vector<std::uint8_t>> bareTriangles(scene.objects.size());
     for (std::size_t index = 0; index < scene.objects.size(); ++index) {
-        if (scene.objects[index].material.tile) {
+        const SceneObject& object = scene.objects[index];
+        if (object.material.tile) {
+            for (const glm::uvec3& triangle : object.mesh.triangles) {
+                bareTriangles[index].push_back(texelsPerWorldUv(object.mesh, triangle,
+                                                                object.material.uvScale,
+                                                                object.material.tile->size())
+                                                   .x == 0.0f);
+            }
             bvh.addDetail(std::uint32_t(index), meshes[index], vertexCounts[index]);
-            bvh.addTiledBase(std::uint32_t(index), scene.objects[index].mesh);
+            bvh.addTiledBase(std::uint32_t(index), object.mesh, bareTriangles[index]);
         } else {
             bvh.addBare(std::uint32_t(index), scene.objects[index].mesh);
         }

@@ -483,6 +483,56 @@ TEST(WorldReference, ABackFaceOfATiledBaseMeshStopsTheRayAsTheTracerDoes) {
     }
 }
 
+TEST(WorldReference, ATriangleWithDegenerateUvsIsABareSurfaceAsInTheTracer) {
+    // A tiled plane seen from above, its two triangles apart, one with all three uvs equal: no
+    // texel scale, so the tracer shows its bare base surface. The reference left a hole there.
+    const BaseMesh grid = makePlane(4.0f, 1);
+    BaseMesh mesh;
+    for (const glm::uvec3& triangle : grid.triangles) {
+        const auto first = std::uint32_t(mesh.positions.size());
+        for (int corner = 0; corner < 3; ++corner) {
+            mesh.positions.push_back(grid.positions[triangle[corner]]);
+            mesh.normals.push_back(grid.normals[triangle[corner]]);
+            mesh.tangents.push_back(grid.tangents[triangle[corner]]);
+            mesh.uvs.push_back(mesh.triangles.empty() ? glm::vec2(0.3f)
+                                                      : grid.uvs[triangle[corner]]);
+        }
+        mesh.triangles.push_back({first, first + 1, first + 2});
+    }
+    Scene scene;
+    scene.camera = {{0.0f, 0.0f, 1.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 30.0f};
+    SceneObject plane;
+    plane.mesh = std::move(mesh);
+    plane.material = chainmailMaterial({8.0f, 8.0f}, 0.05f);
+    scene.objects.push_back(std::move(plane));
+    constexpr int kSize = 33;
+    WorldReferenceOptions options;
+    options.width = options.height = kSize;
+    options.outputAovs = true;
+    const WorldReferenceResult world = renderWorldReference(scene, options);
+    const SceneTracer tracer(scene, TraceOptions{});
+    const PinholeProjection projection(scene.camera, kSize, kSize);
+    std::uint64_t bare = 0;
+    for (int y = 0; y < kSize; ++y) {
+        for (int x = 0; x < kSize; ++x) {
+            SurfaceHit hit;
+            TraceCounters counters;
+            ASSERT_TRUE(tracer.traceNearest(projection.ray(float(x) + 0.5f, float(y) + 0.5f), 0.0f,
+                                            hit, counters));
+            if (hit.onDetail) continue;
+            ++bare;
+            EXPECT_NEAR(world.render.aovs->depth.at(x, y).x, hit.distanceWorld, 1e-5f)
+                << x << ", " << y;
+        }
+    }
+    // About half the view lies over the degenerate triangle; its pixels are no detail hits.
+    EXPECT_GT(bare, std::uint64_t(kSize * kSize / 3));
+    EXPECT_EQ(world.render.stats.baseHits, std::uint64_t(kSize * kSize));
+    // Up to a pixel a row differs along the diagonal, where the detail meets the bare triangle
+    // (measured: 2 of 33).
+    EXPECT_NEAR(double(world.render.stats.detailHits), double(kSize * kSize - bare), kSize);
+}
+
 TEST(WorldReference, TheImageDoesNotDependOnTheThreadCount) {
     // A torus with chain mail over a plane (shadows between the objects and self-shadows through
     // the BVH): one thread and two threads give the same bits, image and AOVs.
