@@ -896,10 +896,9 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file) {
         }
     }
     if (polygons.n_faces() == 0) {
-        throw FormatError(name + (extension == ".obj"
-                                      ? ": has no faces (f lines); expected a mesh"
-                                      : ": has no faces OpenMesh could read; expected a mesh "
-                                        "(NaN/Inf numbers also end up here)"));
+        throw FormatError(name +
+                          ": has no faces OpenMesh could read (in OBJ, f lines; a face needs "
+                          "three distinct corners); expected a mesh");
     }
     if (extension == ".obj" && polygons.n_faces() < objFacts.faceCount) {
         throw FormatError(name + ": OpenMesh read only " + std::to_string(polygons.n_faces()) +

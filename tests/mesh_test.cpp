@@ -493,6 +493,14 @@ TEST(LoadBaseMesh, ObjWithoutTexcoordsIsFormatError) {
                            ": has no texture coordinates (vt lines); base meshes need UVs");
 }
 
+TEST(LoadBaseMesh, AnObjWhoseOnlyFaceRepeatsACornerHasNoFaceToRead) {
+    // OpenMesh drops the face; the message said the file had no f lines.
+    const TempFile file("repeated.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 1/1 1/1\n");
+    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(file.path()); });
+    EXPECT_NE(message.find("has no faces OpenMesh could read"), std::string::npos) << message;
+    EXPECT_NE(message.find("three distinct corners"), std::string::npos) << message;
+}
+
 TEST(LoadBaseMesh, ObjWithNanVertexIsFormatError) {
     const TempFile file("nan.obj",
                         "v 0 0 0\nv nan 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
