@@ -757,17 +757,18 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
     return material;
 }
 
-/// `text` parsed as JSON; FormatError naming `name` when it is not JSON, or when it or one of its
-/// strings or keys holds a NUL character: the parser stops at a NUL byte (what follows it went
-/// unread), a path ends at one (a "tile" of "chain.exr\u0000x" opened chain.exr), and messages
-/// quoting one were cut short.
+/// `text` parsed as JSON; FormatError naming `name` when it is not JSON, or when it holds a NUL
+/// character or a key given twice in one object. The parser stops at a NUL byte (what follows
+/// went unread), a path ends at one (a "tile" of "chain.exr\u0000x" opened chain.exr), messages
+/// quoting one were cut short; and it keeps the last of a key given twice, where which was meant
+/// is unknown.
 json parseJson(const std::string& text, const std::string& name) {
     if (const std::size_t at = text.find('\0'); at != std::string::npos) {
         throw FormatError(name + ": byte " + std::to_string(at) +
                           " is a NUL byte; a scene is JSON text");
     }
-    // The parser keeps the last of a key given twice in one object; the first duplicate is
-    // found on the way (with its path) and refused: which of the two was meant is unknown.
+    // The path to each value is followed as the parser reads (it reads iteratively, however
+    // deep the document nests), and the first problem is kept with it.
     struct Level {
         bool array = false;
         std::size_t index = 0;       ///< array: the element being read
@@ -775,7 +776,7 @@ json parseJson(const std::string& text, const std::string& name) {
         std::set<std::string> keys;  ///< object: the keys so far
     };
     std::vector<Level> levels;
-    std::string duplicate;  ///< "PATH: key 'K'" of the first key given twice
+    std::string problem;  ///< "PATH: what is wrong" of the first problem
     const auto pathOf = [&](std::size_t count) {
         std::string path;
         for (std::size_t i = 0; i < count; ++i) {
@@ -784,6 +785,10 @@ json parseJson(const std::string& text, const std::string& name) {
         }
         return path.empty() ? std::string("top level") : path;
     };
+    const auto holdsNul = [](const json& value) {
+        return value.get_ref<const std::string&>().find('\0') != std::string::npos;
+    };
+    const std::string kNul = " holds a NUL character (\\u0000); accepted: text without one";
     const json::parser_callback_t track = [&](int, json::parse_event_t event, json& parsed) {
         using Event = json::parse_event_t;
         const auto elementDone = [&] {
@@ -794,20 +799,25 @@ json parseJson(const std::string& text, const std::string& name) {
             case Event::array_start:
                 levels.push_back({event == Event::array_start, 0, {}, {}});
                 break;
-            case Event::key:
-                if (!levels.back().keys.insert(parsed.get<std::string>()).second &&
-                    duplicate.empty()) {
-                    duplicate =
-                        pathOf(levels.size() - 1) + ": key '" + parsed.get<std::string>() + "'";
+            case Event::key: {
+                const std::string& key = parsed.get_ref<const std::string&>();
+                if (problem.empty() && holdsNul(parsed))
+                    problem = pathOf(levels.size() - 1) + ": a key" + kNul;
+                if (!levels.back().keys.insert(key).second && problem.empty()) {
+                    problem = pathOf(levels.size() - 1) + ": key '" + key +
+                              "' is given twice in one object; give each key once";
                 }
-                levels.back().key = parsed.get<std::string>();
+                levels.back().key = key;
                 break;
+            }
             case Event::object_end:
             case Event::array_end:
                 levels.pop_back();
                 elementDone();
                 break;
             case Event::value:
+                if (problem.empty() && parsed.is_string() && holdsNul(parsed))
+                    problem = pathOf(levels.size()) + ": the text" + kNul;
                 elementDone();
                 break;
         }
@@ -821,32 +831,7 @@ json parseJson(const std::string& text, const std::string& name) {
         const std::string what = error.what();
         throw FormatError(name + ": not valid JSON (" + quotedInput(what, what.size()) + ")");
     }
-    if (!duplicate.empty()) {
-        throw FormatError(name + ": " + duplicate +
-                          " is given twice in one object; give each key once");
-    }
-    // Walked with a stack of its own: a document may nest deeper than the call stack goes.
-    std::vector<std::pair<const json*, std::string>> pending{{&document, ""}};
-    while (!pending.empty()) {
-        const auto [value, path] = pending.back();
-        pending.pop_back();
-        const auto refuse = [&](const std::string& what) {
-            throw FormatError(name + ": " + (path.empty() ? "top level" : path) + ": " + what +
-                              " holds a NUL character (\\u0000); accepted: text without one");
-        };
-        if (value->is_string() &&
-            value->get_ref<const std::string&>().find('\0') != std::string::npos)
-            refuse("the text");
-        if (value->is_object()) {
-            for (const auto& [key, member] : value->items()) {
-                if (key.find('\0') != std::string::npos) refuse("a key");
-                pending.emplace_back(&member, path.empty() ? key : path + "." + key);
-            }
-        } else if (value->is_array()) {
-            for (std::size_t i = 0; i < value->size(); ++i)
-                pending.emplace_back(&(*value)[i], path + "[" + std::to_string(i) + "]");
-        }
-    }
+    if (!problem.empty()) throw FormatError(name + ": " + problem);
     return document;
 }
 
