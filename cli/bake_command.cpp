@@ -43,9 +43,8 @@ struct BakeArguments {
     fs::path png16SignedOutput;
     std::string repeat;
     bool exactTexels = false;
-    /// Chain-mail options given on the command line (the others take the weave's defaults).
-    std::set<std::string> chainmailGiven;
-    /// The detail-specific options given (kDetailOptions' flags), each once.
+    /// The detail-specific options given on the command line (kDetailOptions' flags): others
+    /// take the detail's defaults (a chain mail's, its weave's).
     std::set<std::string> detailOptionsGiven;
     bool fit = false;  ///< --fit given (it is also the default placement)
     std::optional<double> meshScale;
@@ -266,7 +265,7 @@ ProceduralOptions proceduralOptions(const BakeArguments& arguments) {
         // Options not given take the Japanese weave's defaults.
         ChainmailOptions& chainmail = procedural.chainmail;
         const ChainmailOptions defaults = japanese4in1Defaults();
-        auto given = [&](const char* name) { return arguments.chainmailGiven.count(name) > 0; };
+        auto given = [&](const char* name) { return arguments.detailOptionsGiven.contains(name); };
         chainmail.weave = ChainmailWeave::Japanese4in1;
         if (!given("--rings-per-row")) chainmail.ringsPerRow = defaults.ringsPerRow;
         if (!given("--rows")) chainmail.rowsPerTile = defaults.rowsPerTile;
@@ -283,7 +282,7 @@ ProceduralOptions proceduralOptions(const BakeArguments& arguments) {
     } else {
         // The European weave has no small rings: an option for them would be silently ignored.
         for (const char* name : {"--small-ring-radius", "--small-wire-radius"}) {
-            if (arguments.chainmailGiven.count(name) > 0)
+            if (arguments.detailOptionsGiven.contains(name))
                 throw InputError(std::string(name) +
                                  ": only for --weave japanese4in1 (the European weave has no "
                                  "small rings)");
@@ -587,10 +586,6 @@ void addBakeCommand(CLI::App& app) {
                       "Keep the exact distances at texel centres (no conservative lowering; "
                       "trilinear may overestimate)");
     command->callback([arguments, command] {
-        for (const char* name : {"--rings-per-row", "--rows", "--ring-radius", "--wire-radius",
-                                 "--tilt", "--small-ring-radius", "--small-wire-radius"}) {
-            if (command->count(name) > 0) arguments->chainmailGiven.insert(name);
-        }
         for (const DetailOption& option : kDetailOptions) {
             if (command->count(option.flag) > 0) arguments->detailOptionsGiven.insert(option.flag);
         }
