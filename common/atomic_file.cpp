@@ -180,11 +180,8 @@ void writeAtomically(const fs::path& target, const std::function<void(const fs::
     if (!fs::is_directory(folder)) {
         throw InputError(target.string() + ": folder '" + folder.string() + "' does not exist");
     }
-    const auto failed = [](const std::exception& error, const fs::path& temporary) {
-        const fs::path target = outputTargetOf(temporary).value_or(temporary);
-        return writeErrorOf(error, temporary, target);
-    };
-    if (outputTargetOf(target)) {  // already a temporary, renamed by its OutputFiles
+    // Already a temporary, renamed by its OutputFiles: written as it is.
+    if (const std::optional<fs::path> shownAs = outputTargetOf(target)) {
         try {
             write(target);
         } catch (const InputError&) {
@@ -192,7 +189,7 @@ void writeAtomically(const fs::path& target, const std::function<void(const fs::
         } catch (const FormatError&) {
             throw;
         } catch (const std::runtime_error& error) {
-            throw failed(error, target);
+            throw writeErrorOf(error, target, *shownAs);
         }
         return;
     }
