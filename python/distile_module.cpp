@@ -279,6 +279,7 @@ PYBIND11_MODULE(_distile, module) {
                     out["source_file"] = provenance.sourceFile.string();
                     out["source_hash"] = provenance.sourceHash;
                 }
+                if (!provenance.check.empty()) out["check"] = provenance.check;
                 return out;
             },
             "What the tile file's distile: attributes say, without the prefix "
