@@ -742,36 +742,39 @@ TEST_F(Hardening, AnEmptyFileNameIsRefusedNamingItsField) {
          "objects[0].material.tile.file: is empty"},
     };
     for (const auto& [object, message] : cases)
-        expectSceneError(R"({"objects": [)" + object + "]}", {message});
+        ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [)" + object + "]}", {message}));
 }
 
 TEST_F(Hardening, AKeyGivenTwiceInOneObjectIsRefused) {
     // The parser kept the last of the two silently: which was meant is unknown.
-    expectSceneError(R"({"objects": [{"mesh": "plane", "mesh": "sphere"}]})",
-                     {"objects[0]: key 'mesh' is given twice"});
-    expectSceneError(
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"objects": [{"mesh": "plane", "mesh": "sphere"}]})",
+                         {"objects[0]: key 'mesh' is given twice"}));
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
         R"({"objects": [{"mesh": "plane"}, {"mesh": "plane", "material": {"uv_scale": [1, 1],
              "depth": 0.1, "uv_scale": [2, 2]}}]})",
-        {"objects[1].material: key 'uv_scale' is given twice"});
-    expectSceneError(R"({"objects": [{"mesh": "plane"}], "objects": []})",
-                     {"top level: key 'objects' is given twice"});
+        {"objects[1].material: key 'uv_scale' is given twice"}));
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [{"mesh": "plane"}], "objects": []})",
+                                             {"top level: key 'objects' is given twice"}));
     // Not JSON: the parser's quote of the bytes it last read shows no raw byte.
-    expectSceneError("{\"objects\": [{\"mesh\": \"pl\xff",
-                     {"not valid JSON", "last read: '\"pl?'"});
+    ASSERT_NO_FATAL_FAILURE(expectSceneError("{\"objects\": [{\"mesh\": \"pl\xff",
+                                             {"not valid JSON", "last read: '\"pl?'"}));
 }
 
 TEST_F(Hardening, ASceneWithANulCharacterIsRefused) {
     // The JSON parser stopped at a NUL byte, a path ended at one ("chain.exr\u0000x" opened
     // chain.exr), and a message quoting one was cut short there.
     using namespace std::string_literals;
-    expectSceneError(R"({"objects": [{"mesh": "plane"}]})"s + '\0' + "garbage",
-                     {"scene.json: byte 32 is a NUL byte"});
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"objects": [{"mesh": "plane"}]})"s + '\0' + "garbage",
+                         {"scene.json: byte 32 is a NUL byte"}));
     writeText(path("bare.json"), kBareScene);
-    expectSceneError(
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
         R"({"objects": [{"mesh": "plane", "material": {"tile": "bare.json\u0000x"}}]})",
-        {"objects[0].material.tile: the text holds a NUL character"});
-    expectSceneError(R"({"objects": [{"mesh": "plane", "material\u0000": {}}]})",
-                     {"objects[0]: a key holds a NUL character"});
+        {"objects[0].material.tile: the text holds a NUL character"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"objects": [{"mesh": "plane", "material\u0000": {}}]})",
+                         {"objects[0]: a key holds a NUL character"}));
 }
 
 TEST_F(Hardening, ARefusedWeaveOrGratingValueNamesTheFlagOrKeyThatGaveIt) {

@@ -440,23 +440,37 @@ TEST(WorldReference, MirroredUvsCarryTheDetailOnBothHalves) {
     EXPECT_GT(double(close) / double(bothHit), 0.85);  // measured 92.6%
 }
 
+/// `mesh` (in z = 0) under chain mail, 8 x 8 repeats 0.05 deep, seen straight along z from the
+/// eye (0, 0, eyeZ) through a 30 degree field of view.
+Scene tiledPlaneSeenAlongZ(BaseMesh mesh, float eyeZ) {
+    Scene scene;
+    scene.camera = {{0.0f, 0.0f, eyeZ}, {0.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 30.0f};
+    SceneObject plane;
+    plane.mesh = std::move(mesh);
+    plane.material = chainmailMaterial({8.0f, 8.0f}, 0.05f);
+    scene.objects.push_back(std::move(plane));
+    return scene;
+}
+
+/// The world reference of `scene`, `size` x `size` pixels, with its AOVs.
+WorldReferenceResult referenceWithAovs(const Scene& scene, int size) {
+    WorldReferenceOptions options;
+    options.width = options.height = size;
+    options.outputAovs = true;
+    return renderWorldReference(scene, options);
+}
+
+/// The side of the images of the tiled planes below, pixels.
+constexpr int kSize = 33;
+
 TEST(WorldReference, ABackFaceOfATiledBaseMeshStopsTheRayAsTheTracerDoes) {
     // A tiled plane (an open mesh, solid floor) seen from below: every camera ray meets the
     // underside of the floor's slab, then the base triangles from behind. The renderer's tracer
     // (SceneTracer::traceNearest) stops there with a back-face hit; so must the reference, at the
     // base plane itself (the centre ray of the 33 x 33 image runs straight up: depth 1, the
     // camera's distance), shaded with the back-face colour.
-    Scene scene;
-    scene.camera = {{0.0f, 0.0f, -1.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 30.0f};
-    SceneObject plane;
-    plane.mesh = makePlane(4.0f, 1);
-    plane.material = chainmailMaterial({8.0f, 8.0f}, 0.05f);
-    scene.objects.push_back(std::move(plane));
-    constexpr int kSize = 33;
-    WorldReferenceOptions options;
-    options.width = options.height = kSize;
-    options.outputAovs = true;
-    const WorldReferenceResult world = renderWorldReference(scene, options);
+    const Scene scene = tiledPlaneSeenAlongZ(makePlane(4.0f, 1), -1.0f);
+    const WorldReferenceResult world = referenceWithAovs(scene, kSize);
     const std::uint64_t pixels = kSize * kSize;
     EXPECT_EQ(world.backFaceStops, pixels);
     EXPECT_EQ(world.render.stats.baseHits, pixels);
@@ -499,17 +513,8 @@ TEST(WorldReference, ATriangleWithDegenerateUvsIsABareSurfaceAsInTheTracer) {
         }
         mesh.triangles.push_back({first, first + 1, first + 2});
     }
-    Scene scene;
-    scene.camera = {{0.0f, 0.0f, 1.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 30.0f};
-    SceneObject plane;
-    plane.mesh = std::move(mesh);
-    plane.material = chainmailMaterial({8.0f, 8.0f}, 0.05f);
-    scene.objects.push_back(std::move(plane));
-    constexpr int kSize = 33;
-    WorldReferenceOptions options;
-    options.width = options.height = kSize;
-    options.outputAovs = true;
-    const WorldReferenceResult world = renderWorldReference(scene, options);
+    const Scene scene = tiledPlaneSeenAlongZ(std::move(mesh), 1.0f);
+    const WorldReferenceResult world = referenceWithAovs(scene, kSize);
     const SceneTracer tracer(scene, TraceOptions{});
     const PinholeProjection projection(scene.camera, kSize, kSize);
     std::uint64_t bare = 0;
