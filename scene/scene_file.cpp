@@ -154,6 +154,13 @@ class Field {
     const std::string& file_;
 };
 
+/// Whether `path` names something that exists; false also where it cannot be looked up (a name
+/// too long for the system): the throwing fs::exists ended the process on such a name.
+bool fileExists(const fs::path& path) {
+    std::error_code status;
+    return fs::exists(path, status);
+}
+
 /// A tile size written "WxHxD" or [W, H, D].
 Size3 parseSize(const Field& field) {
     Size3 size{0, 0, 0};
@@ -361,7 +368,7 @@ RecipeFile recipeFile(const Field& spec, const fs::path& folder, const std::stri
     if (!spec.has("file")) spec.fail("missing field 'file' (" + what + ")");
     const Field file = spec["file"];
     const fs::path path = file.file(folder);
-    if (!fs::exists(path)) file.fail("file '" + path.string() + "' does not exist");
+    if (!fileExists(path)) file.fail("file '" + path.string() + "' does not exist");
     std::uint64_t bytesInFile = 0;
     try {
         bytesInFile = requireRegularFile(path, "the recipe's input file");
@@ -658,8 +665,9 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
 std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder, TileCache& tiles,
                                      const SceneWarningCallback& warn) {
     const fs::path path = field.file(folder);
-    if (!fs::exists(path)) field.fail("tile file '" + path.string() + "' does not exist");
-    const std::string key = "file:" + fs::weakly_canonical(path).string();
+    if (!fileExists(path)) field.fail("tile file '" + path.string() + "' does not exist");
+    std::error_code status;  // weakly_canonical only fails where fileExists did not
+    const std::string key = "file:" + fs::weakly_canonical(path, status).string();
     if (auto found = tiles.find(key); found != tiles.end()) return found->second;
     try {
         auto tile = std::make_shared<const Tile>(readTileExr(path));
@@ -677,7 +685,7 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
     if (name == "sphere") return makeUvSphere(1.0f, 96, 48);
     if (name == "torus") return makeTorus(1.0f, 0.4f, 128, 48);
     const fs::path path = field.file(folder);
-    if (!fs::exists(path)) {
+    if (!fileExists(path)) {
         field.fail("'" + name +
                    "' is neither a built-in mesh (plane, sphere, torus) nor an existing file (" +
                    path.string() + ")");
@@ -728,7 +736,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
         const Field color = field["color"];
         if (color.value().is_string()) {
             const fs::path path = color.file(folder);
-            if (!fs::exists(path))
+            if (!fileExists(path))
                 color.fail("colour texture '" + path.string() + "' does not exist");
             try {
                 material.colorTexture = std::make_shared<const Image>(readImage(path));
