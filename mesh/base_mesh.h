@@ -49,28 +49,30 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file);
 
 /// Fills mesh.normals and mesh.tangents (resized to one per position) from positions, uvs and
 /// triangles, following the convention in the file note above:
-/// - N: area-weighted face normals summed over all vertices that share exactly the same
-///   position, so duplicates along a UV seam get the same normal (no shading crack). Where that
-///   sum cancels (e.g. a two-sided sheet), the vertex's own faces are used; where everything is
-///   degenerate N = +z.
+/// - N: area-weighted face normals summed over all vertices welded at one position
+///   (weldedPositionGroups), so duplicates along a UV seam get the same normal (no crack). Where
+///   that sum cancels (e.g. a two-sided sheet), the vertex's own faces are used; where everything
+///   is degenerate N = +z.
 /// - T, w: per triangle dP/du and dP/dv from the edge and UV deltas; each corner adds the
 ///   unit projection of dP/du into its vertex's tangent plane, weighted by the corner angle.
 ///   Triangles with (near) zero area or zero UV area (|e1 x e2| <= 1e-7 |e1| |e2| for the edges
-///   from the first corner, in 3D or in UV space) contribute nothing. Vertices at the same position
-///   whose uvs differ by a whole-number vector (a wrapping seam such as u = 0 / u = 1, where the
-///   repeating texture continues unchanged) pool their sums, so both copies get the same tangent. A
-///   vertex without any valid contribution gets a fixed unit vector orthogonal to N (the coordinate
-///   axis least aligned with N, projected) and w = +1.
+///   from the first corner, in 3D or in UV space) contribute nothing. Vertices welded at one
+///   position whose uvs differ by a whole-number vector (a wrapping seam such as u = 0 / u = 1,
+///   where the repeating texture continues unchanged) pool their sums, so both copies get the same
+///   tangent. A vertex without any valid contribution gets a fixed unit vector orthogonal to N (the
+///   coordinate axis least aligned with N, projected) and w = +1.
 /// Results are finite and orthonormal for any finite input.
 /// @pre  every position and uv is finite. Units: any (frames are unit vectors).
 /// @throws InputError uvs.size() != positions.size(), a triangle index is out of range, or a
 ///                    position or uv is NaN/Inf.
 void computeTangentFrames(BaseMesh& mesh);
 
-/// Per vertex, the lowest index of the vertices at exactly its position (+0 == -0): vertices
-/// welded by position (the copies along a uv seam are one point of the surface), their ids near
-/// their own indices. Preconditions: finite positions.
-std::vector<std::uint32_t> samePositionGroups(const std::vector<glm::vec3>& positions);
+/// Per vertex, the lowest index of the vertices welded with it: one point of the surface (the
+/// copies along a uv seam), whose positions lie within 1e-6 of the bounding box's diagonal of each
+/// other (directly or through a chain of such vertices), so that copies an exporter wrote with
+/// rounding noise (sin(2 pi) != 0) weld too. Ids are near their vertices' own indices.
+/// Preconditions: finite positions.
+std::vector<std::uint32_t> weldedPositionGroups(const std::vector<glm::vec3>& positions);
 
 /// Largest segment count the built-in meshes accept (keeps them far from exhausting memory:
 /// 4096 x 4096 quads are 16.8 M vertices).

@@ -87,7 +87,7 @@ void buildShellMeshInto(const BaseMesh& mesh, const glm::vec2& uvScale, const Si
         neighbourCorners[t] = {0, 0, 0};
     });
     // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
-    const std::vector<std::uint32_t> surfaceVertex = samePositionGroups(mesh.positions);
+    const std::vector<std::uint32_t> surfaceVertex = weldedPositionGroups(mesh.positions);
     // Directed edges (from, to), grouped by their undirected edge {lo, hi}, the edges from lo
     // first: the side opposite corner c of triangle t is 3 t + c.
     struct DirectedEdge {

@@ -12,8 +12,12 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <numeric>
+#include <random>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "common/error.h"
 #include "detail_meshes.h"
@@ -368,6 +372,106 @@ TEST(TangentFrames, TwoSidedSheetKeepsEachSidesNormal) {
     for (std::size_t v = 3; v < 6; ++v) EXPECT_EQ(mesh.normals[v], glm::vec3(0, 0, -1)) << v;
     // Back side: u still runs along +x, but seen from -z that is mirrored: w = -1.
     for (std::size_t v = 3; v < 6; ++v) EXPECT_EQ(mesh.tangents[v].w, -1.0f) << v;
+}
+
+/// An open cylinder of radius 1 around z, height 1, `segments` quads around, its seam column
+/// (u = 1) at angle 2 pi computed as a script or exporter would: sin(2 pi) is -2.4e-16, not 0,
+/// so the seam copies differ from the u = 0 column by rounding noise.
+BaseMesh cylinderWithNoisySeam(int segments) {
+    BaseMesh mesh;
+    for (int column = 0; column <= segments; ++column) {
+        const double angle = 2.0 * kPi * column / segments;
+        for (int row = 0; row < 2; ++row) {
+            mesh.positions.emplace_back(std::cos(angle), std::sin(angle), row);
+            mesh.uvs.emplace_back(double(column) / segments, row);
+        }
+    }
+    for (std::uint32_t column = 0; column < std::uint32_t(segments); ++column) {
+        const std::uint32_t a = 2 * column, b = a + 2;
+        mesh.triangles.push_back({a, b, b + 1});
+        mesh.triangles.push_back({a, b + 1, a + 1});
+    }
+    return mesh;
+}
+
+TEST(TangentFrames, SeamCopiesWithRoundingNoiseWeldIntoOneNormal) {
+    constexpr int kSegments = 12;
+    BaseMesh mesh = cylinderWithNoisySeam(kSegments);
+    const std::uint32_t seam = 2 * kSegments;            // the first vertex of the u = 1 column
+    ASSERT_NE(mesh.positions[seam], mesh.positions[0]);  // the noise survives in float
+    const std::vector<std::uint32_t> groups = weldedPositionGroups(mesh.positions);
+    EXPECT_EQ(groups[seam], 0u);
+    EXPECT_EQ(groups[seam + 1], 1u);
+    for (std::uint32_t v = 2; v < seam; ++v) EXPECT_EQ(groups[v], v);
+    computeTangentFrames(mesh);
+    expectValidFrames(mesh, true);
+    // One normal on both sides of the seam, the one every column has (the cylinder turns into
+    // itself): column 0's is column 6's (at angle pi) turned by pi about z, to float rounding.
+    for (std::uint32_t row = 0; row < 2; ++row) {
+        EXPECT_EQ(mesh.normals[seam + row], mesh.normals[row]) << row;
+        EXPECT_EQ(mesh.tangents[seam + row], mesh.tangents[row]) << row;
+        const glm::dvec3 opposite(mesh.normals[2 * (kSegments / 2) + row]);
+        EXPECT_LT(
+            angleBetween(glm::dvec3(mesh.normals[row]), {-opposite.x, -opposite.y, opposite.z}),
+            1e-6)
+            << row;
+    }
+}
+
+TEST(TangentFrames, VerticesApartByMoreThanTheWeldToleranceStayApart) {
+    // The weld takes 1e-6 of the bounding box's diagonal (here 1): a crack of 1e-5 in the file
+    // is kept; 1e-7 is welded.
+    for (const auto& [gap, welded] : {std::pair{1e-5f, false}, std::pair{1e-7f, true}}) {
+        BaseMesh mesh;
+        mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, gap, 0}, {0, 0, 0}};
+        const std::vector<std::uint32_t> groups = weldedPositionGroups(mesh.positions);
+        EXPECT_EQ(groups[3], welded ? 1u : 3u) << gap;
+        EXPECT_EQ(groups[4], 0u) << gap;
+        EXPECT_EQ(groups[2], 2u) << gap;
+    }
+}
+
+TEST(TangentFrames, WeldGroupsAreTheComponentsOfPairsWithinTheTolerance) {
+    // Clusters of points jittered around random centres by up to a few tolerances, straddling
+    // the weld's cells every way: its groups are the connected components of the pairs closer
+    // than the tolerance (chains included), each named by its lowest index.
+    std::mt19937 random(7);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 1, 1}};  // diagonal sqrt(3)
+    const double tolerance = 1e-6 * std::sqrt(3.0);
+    for (int cluster = 0; cluster < 300; ++cluster) {
+        const glm::vec3 centre(unit(random), unit(random), unit(random));
+        const int members = 1 + cluster % 4;
+        for (int member = 0; member < members; ++member) {
+            const glm::vec3 jitter(unit(random) - 0.5f, unit(random) - 0.5f, unit(random) - 0.5f);
+            positions.push_back(centre + jitter * float(2.0 * tolerance));
+        }
+    }
+    const std::size_t count = positions.size();
+    std::vector<std::uint32_t> expected(count);
+    std::iota(expected.begin(), expected.end(), 0u);
+    bool merged = true;
+    while (merged) {  // relax to the components' lowest indices
+        merged = false;
+        for (std::size_t a = 0; a < count; ++a) {
+            for (std::size_t b = a + 1; b < count; ++b) {
+                if (glm::distance(glm::dvec3(positions[a]), glm::dvec3(positions[b])) > tolerance)
+                    continue;
+                const std::uint32_t least = std::min(expected[a], expected[b]);
+                if (expected[a] != least || expected[b] != least) merged = true;
+                expected[a] = expected[b] = least;
+            }
+        }
+    }
+    const std::vector<std::uint32_t> groups = weldedPositionGroups(positions);
+    int weldedVertices = 0;
+    for (std::size_t v = 0; v < count; ++v) {
+        EXPECT_EQ(groups[v], expected[v]) << v;
+        weldedVertices += groups[v] != v;
+    }
+    // The case welds many and leaves many apart within clusters (300 clusters and 2 corners).
+    EXPECT_GT(weldedVertices, 100);
+    EXPECT_GT(int(count) - weldedVertices, 302 + 50);
 }
 
 TEST(TangentFrames, RejectsInconsistentMeshes) {

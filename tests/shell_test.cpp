@@ -161,6 +161,23 @@ TEST(ShellMap, DeterminantIsTheJacobiansToTheBit) {
         }
 }
 
+TEST(ShellMesh, JoinsTrianglesWhoseSharedCornersDifferByRoundingNoise) {
+    // The unit square as triangles 0 1 2 and 4 3 5, whose corners 4 and 5 are 1 and 2 written with
+    // rounding noise (as sin(2 pi) = -2.4e-16 puts a cylinder's seam column): one edge, joined.
+    BaseMesh mesh;
+    mesh.positions = {{0, 0, 0}, {1, 0, 0},         {0, 1, 0},
+                      {1, 1, 0}, {1, -2.4e-16f, 0}, {1e-7f * 0.5f, 1, 0}};
+    mesh.uvs = {{0, 0}, {1, 0}, {0, 1}, {1, 1}, {1, 0}, {0, 1}};
+    mesh.triangles = {{0, 1, 2}, {4, 3, 5}};
+    computeTangentFrames(mesh);
+    const ShellMesh shell = buildShellMesh(mesh, {1.0f, 1.0f}, {32, 32, 16}, 0.05);
+    EXPECT_EQ(shell.neighbours[0][0], 1u);  // edge 1-2 is edge 5-4
+    EXPECT_EQ(shell.neighbourCorners[0][0], 1);
+    EXPECT_EQ(shell.neighbours[1][1], 0u);
+    EXPECT_EQ(shell.neighbourCorners[1][1], 0);
+    EXPECT_EQ(mesh.normals[4], mesh.normals[1]);
+}
+
 TEST(ShellMesh, JoinsTrianglesAcrossEdgesUsedOnceEachWayOnly) {
     // The square 0 1 2 3 as triangles 0 1 2 and 0 2 4, vertex 4 a uv seam's copy of 3; a sliver
     // 1 5 2 with 5 a copy of 1 (its side 1-5 has both ends at one position, and edge 1-2 is then
