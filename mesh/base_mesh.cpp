@@ -322,17 +322,45 @@ void computeTangentFrames(BaseMesh& mesh) {
     }
 }
 
+namespace {
+
+/// The weld distance of a mesh: kWeldFraction of its bounding box's diagonal; `low` receives the
+/// box's low corner. Preconditions: positions is not empty.
+double weldDistance(const std::vector<glm::vec3>& positions, glm::dvec3& low) {
+    low = glm::dvec3(positions[0]);
+    glm::dvec3 high = low;
+    for (const glm::vec3& position : positions) {
+        low = glm::min(low, glm::dvec3(position));
+        high = glm::max(high, glm::dvec3(position));
+    }
+    return kWeldFraction * glm::length(high - low);
+}
+
+}  // namespace
+
+std::size_t removeTrianglesWithoutArea(BaseMesh& mesh) {
+    if (mesh.positions.empty()) return 0;
+    glm::dvec3 low;
+    const double tolerance = weldDistance(mesh.positions, low);
+    const std::size_t before = mesh.triangles.size();
+    std::erase_if(mesh.triangles, [&](const glm::uvec3& triangle) {
+        const glm::dvec3 p0(mesh.positions[triangle[0]]), p1(mesh.positions[triangle[1]]),
+            p2(mesh.positions[triangle[2]]);
+        const double longestEdge =
+            std::max({glm::distance(p0, p1), glm::distance(p1, p2), glm::distance(p2, p0)});
+        // Twice the area over the longest edge: the height above it.
+        return glm::length(glm::cross(p1 - p0, p2 - p0)) <= tolerance * longestEdge;
+    });
+    return before - mesh.triangles.size();
+}
+
 std::vector<std::uint32_t> weldedPositionGroups(const std::vector<glm::vec3>& positions) {
     const std::size_t count = positions.size();
     std::vector<std::uint32_t> groupOf(count);
     std::iota(groupOf.begin(), groupOf.end(), 0u);
     if (count < 2) return groupOf;
-    glm::dvec3 low(positions[0]), high(positions[0]);
-    for (const glm::vec3& position : positions) {
-        low = glm::min(low, glm::dvec3(position));
-        high = glm::max(high, glm::dvec3(position));
-    }
-    const double tolerance = kWeldFraction * glm::length(high - low);
+    glm::dvec3 low;
+    const double tolerance = weldDistance(positions, low);
     // Cells of the tolerance's size from the box's low corner, at most 1 / kWeldFraction + 1 per
     // axis (21 bits each, packed into one key x, y, z): positions within the tolerance lie in the
     // same or neighbouring cells. All positions equal: one cell.

@@ -31,14 +31,15 @@ struct BaseMesh {
 /// Reads a base mesh with UVs through OpenMesh: `.obj` (texture coordinates from `vt` lines),
 /// `.off` (STOFF vertex texture coordinates) or `.ply` (per-vertex u,v properties); the
 /// extension picks the reader, case-insensitively. Polygons are fan-triangulated from their
-/// first corner (fine for convex polygons). Vertices are split per (position, uv) pair, so a UV
-/// seam becomes duplicated vertices with the same position. Normals and tangents are computed
-/// with computeTangentFrames. Positions and UVs are returned as stored in the file.
-/// OBJ files are checked line by line before OpenMesh reads them (OpenMesh accepts some broken
-/// files silently): every `v`/`vt` needs finite numbers, every face at least 3 corners, each
-/// with an in-range vertex index and an in-range `vt` index.
-/// Not thread-safe with other code that uses OpenMesh's global log streams at the same time
-/// (they are redirected during the read); concurrent loadBaseMesh calls are serialised.
+/// first corner (fine for convex polygons), each with the uvs the file gives its corners, also
+/// where an edge has three or more faces or a face is wound against its neighbours. Vertices are
+/// split per (position, uv) pair, so a UV seam becomes duplicated vertices with the same position.
+/// Normals and tangents are computed with computeTangentFrames. Positions and UVs are returned as
+/// stored in the file. OBJ files are checked line by line before OpenMesh reads them (OpenMesh
+/// accepts some broken files silently): every `v`/`vt` needs finite numbers, every face at least 3
+/// corners, each with an in-range vertex index and an in-range `vt` index. Not thread-safe with
+/// other code that uses OpenMesh's global log streams at the same time (they are redirected during
+/// the read); concurrent loadBaseMesh calls are serialised.
 /// @throws InputError  the file does not exist, is not a regular file or cannot be opened.
 /// @throws FormatError the extension is not one of the above, the counts a header declares do
 ///                     not fit in the file or in kInputMemoryBudgetBytes, a PLY/OFF value is not
@@ -73,6 +74,13 @@ void computeTangentFrames(BaseMesh& mesh);
 /// rounding noise (sin(2 pi) != 0) weld too. Ids are near their vertices' own indices.
 /// Preconditions: finite positions.
 std::vector<std::uint32_t> weldedPositionGroups(const std::vector<glm::vec3>& positions);
+
+/// Removes the triangles without area: those whose height above their longest edge is at most
+/// the weld distance of weldedPositionGroups (1e-6 of the bounding box's diagonal), such as a
+/// triangle lying along an edge of its neighbour or one with two welded corners. They show
+/// nothing, and in the shell they would stand between triangles that meet (an edge of three
+/// faces is not crossed) and fold at every depth. Returns how many were removed; vertices stay.
+std::size_t removeTrianglesWithoutArea(BaseMesh& mesh);
 
 /// Largest segment count the built-in meshes accept (keeps them far from exhausting memory:
 /// 4096 x 4096 quads are 16.8 M vertices).

@@ -1,6 +1,5 @@
 // loadBaseMesh: OBJ / OFF / PLY through OpenMesh, with the checks OpenMesh does not make.
 #include <OpenMesh/Core/IO/MeshIO.hh>
-#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <OpenMesh/Core/System/omstream.hh>
 #include <algorithm>
 #include <bit>
@@ -28,12 +27,9 @@
 namespace distile {
 namespace {
 
-using OpenMeshPolygons = OpenMesh::PolyMesh_ArrayKernelT<>;
-
-/// Memory one vertex or face of a mesh file takes once read, bytes: OpenMesh's polygon mesh
-/// (point, vertex, face, two halfedges per edge, properties) and the loader's welded copy, with
-/// room to spare (an estimate, not a measurement). A file's declared counts are checked against
-/// the memory budget with it.
+/// Memory one vertex or face of a mesh file takes once read, bytes: the faces and points as read
+/// (with their uvs) and the loader's copies, with room to spare (an estimate, not a measurement). A
+/// file's declared counts are checked against the memory budget with it.
 constexpr std::uint64_t kBytesPerMeshElement = 256;
 
 std::string lowercase(std::string text) {
@@ -71,6 +67,27 @@ bool isHexadecimal(std::string_view token) {
     return token.find_first_of("xX") != std::string_view::npos;
 }
 
+/// What some Windows tools write at the start of a text file; OpenMesh's OBJ reader would take it
+/// as part of the first line's keyword and skip the line.
+constexpr std::string_view kUtf8ByteOrderMark = "\xEF\xBB\xBF";
+
+/// OpenMesh's reader for `file` (its extension, lowercase, picks it) into `importer`; an OBJ is
+/// read past a UTF-8 byte-order mark. False when the reader fails.
+bool readWithOpenMesh(const std::filesystem::path& file, const std::string& extension,
+                      OpenMesh::IO::BaseImporter& importer, OpenMesh::IO::Options& options) {
+    if (extension != ".obj")
+        return OpenMesh::IO::IOManager().read(file.string(), importer, options);
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return false;
+    char start[3] = {};
+    in.read(start, 3);
+    if (std::string_view(start, std::size_t(in.gcount())) != kUtf8ByteOrderMark) {
+        in.clear();
+        in.seekg(0);
+    }
+    return OpenMesh::IO::IOManager().read(in, ".obj", importer, options);
+}
+
 /// What the OBJ check learned that the OpenMesh result is compared against afterwards.
 struct ObjFacts {
     std::size_t faceCount = 0;  ///< faces whose corners are distinct vertices (OpenMesh keeps)
@@ -97,6 +114,7 @@ ObjFacts checkObjFile(const std::filesystem::path& file, bool requireUvs = true)
     std::vector<std::string_view> tokens;
     std::vector<long long> vertices;
     for (std::size_t lineNumber = 1; std::getline(in, line); ++lineNumber) {
+        if (lineNumber == 1 && line.starts_with(kUtf8ByteOrderMark)) line.erase(0, 3);
         splitWhitespace(line, tokens);
         if (tokens.empty()) continue;
         // Built only for a message: most lines of a large file have none.
@@ -260,21 +278,39 @@ std::mutex& openMeshReadMutex() {
 }
 
 /// What OpenMesh's readers (OBJ, PLY, OFF, STL) find in a file, kept as they hand it over: the
-/// points and each face's corners, without the halfedge connectivity a PolyMesh builds (which
-/// a detail mesh, welded and triangulated by loadDetailMesh, does not need: it took 60% of the
-/// read of a 1 M triangle OBJ). Normals, colours and texture coordinates are dropped.
+/// points, each face's corners and, when asked, the texture coordinates, without the halfedge
+/// connectivity a PolyMesh builds. Neither mesh needs it (it took 60% of the read of a 1 M
+/// triangle OBJ), and building it fails on an edge of three faces or a face wound against its
+/// neighbours: OpenMesh then re-adds the face on copies of its vertices, and hands that face's
+/// corner uvs over rotated by one corner (OBJ) or not at all (PLY, OFF). Normals and colours are
+/// dropped.
 class SoupImporter final : public OpenMesh::IO::BaseImporter {
   public:
+    explicit SoupImporter(bool keepUvs) : keepUvs_(keepUvs) {}
+
     std::vector<OpenMesh::Vec3f> points;
     std::vector<std::uint32_t> corners;         ///< the faces' vertex indices, face after face
     std::vector<std::size_t> faceStarts = {0};  ///< face f: corners [faceStarts[f], [f + 1])
     /// The first vertex index a face gave that is not a vertex of the file (the face is left out).
     std::optional<int> firstInvalidCorner;
+    /// With keepUvs: each vertex's uv (PLY, OFF and OBJ give them) and whether it has one.
+    std::vector<OpenMesh::Vec2f> vertexUvs;
+    std::vector<bool> vertexHasUv;
+    /// With keepUvs: each corner's uv, for the faces the file gives them to (OBJ `f v/vt`).
+    std::vector<OpenMesh::Vec2f> cornerUvs;
+    std::vector<bool> faceHasUvs;
+    /// The first face whose corner uvs do not match its corners one to one (a corner named twice
+    /// in an OBJ face, which OpenMesh's reader leaves out of the face but not of its uvs).
+    std::optional<std::size_t> firstMismatchedUvFace;
 
     std::size_t faceCount() const { return faceStarts.size() - 1; }
 
     OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3f& point) override {
         points.push_back(point);
+        if (keepUvs_) {
+            vertexUvs.emplace_back(0.0f, 0.0f);
+            vertexHasUv.push_back(false);
+        }
         return OpenMesh::VertexHandle(int(points.size() - 1));
     }
     OpenMesh::VertexHandle add_vertex() override { return add_vertex(OpenMesh::Vec3f(0.0f)); }
@@ -288,6 +324,10 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
         for (const OpenMesh::VertexHandle vertex : vertices)
             corners.push_back(std::uint32_t(vertex.idx()));
         faceStarts.push_back(corners.size());
+        if (keepUvs_) {
+            cornerUvs.resize(corners.size(), OpenMesh::Vec2f(0.0f, 0.0f));
+            faceHasUvs.push_back(false);
+        }
         return OpenMesh::FaceHandle(int(faceCount() - 1));
     }
     void set_point(OpenMesh::VertexHandle vertex, const OpenMesh::Vec3f& point) override {
@@ -309,8 +349,29 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     OpenMesh::FaceHandle add_face(OpenMesh::HalfedgeHandle) override {
         return OpenMesh::FaceHandle();
     }
-    void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle,
-                            const std::vector<OpenMesh::Vec2f>&) override {}
+    /// The uvs of face `face`'s corners in order, from its corner at `first`.
+    void add_face_texcoords(OpenMesh::FaceHandle face, OpenMesh::VertexHandle first,
+                            const std::vector<OpenMesh::Vec2f>& uvs) override {
+        if (!keepUvs_ || uvs.empty() || !face.is_valid() || std::size_t(face.idx()) >= faceCount())
+            return;
+        const std::size_t f = std::size_t(face.idx());
+        const std::size_t begin = faceStarts[f], count = faceStarts[f + 1] - begin;
+        const auto start =
+            std::find(corners.begin() + std::ptrdiff_t(begin),
+                      corners.begin() + std::ptrdiff_t(begin + count), std::uint32_t(first.idx()));
+        if (uvs.size() != count || start == corners.begin() + std::ptrdiff_t(begin + count)) {
+            if (!firstMismatchedUvFace) firstMismatchedUvFace = f;
+            return;
+        }
+        const std::size_t offset = std::size_t(start - corners.begin()) - begin;
+        for (std::size_t k = 0; k < count; ++k) cornerUvs[begin + (offset + k) % count] = uvs[k];
+        faceHasUvs[f] = true;
+    }
+    void set_texcoord(OpenMesh::VertexHandle vertex, const OpenMesh::Vec2f& uv) override {
+        if (!keepUvs_ || !vertex.is_valid() || std::size_t(vertex.idx()) >= points.size()) return;
+        vertexUvs[std::size_t(vertex.idx())] = uv;
+        vertexHasUv[std::size_t(vertex.idx())] = true;
+    }
     void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle,
                             const std::vector<OpenMesh::Vec3f>&) override {}
     void set_face_texindex(OpenMesh::FaceHandle, int) override {}
@@ -321,7 +382,6 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec4uc&) override {}
     void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec3f&) override {}
     void set_color(OpenMesh::VertexHandle, const OpenMesh::Vec4f&) override {}
-    void set_texcoord(OpenMesh::VertexHandle, const OpenMesh::Vec2f&) override {}
     void set_status(OpenMesh::VertexHandle, const OpenMesh::Attributes::StatusInfo&) override {}
     void set_next(OpenMesh::HalfedgeHandle, OpenMesh::HalfedgeHandle) override {}
     void set_face(OpenMesh::HalfedgeHandle, OpenMesh::FaceHandle) override {}
@@ -343,6 +403,9 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     void set_color(OpenMesh::FaceHandle, const OpenMesh::Vec4f&) override {}
     void set_status(OpenMesh::FaceHandle, const OpenMesh::Attributes::StatusInfo&) override {}
     void add_texture_information(int, std::string) override {}
+
+  private:
+    bool keepUvs_;
 };
 
 /// The most corners a polygon of a mesh file may have.
@@ -880,78 +943,96 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file) {
     if (extension == ".ply") checkPlyFile(file);
     if (extension == ".off") checkOffFile(file);
 
-    OpenMeshPolygons polygons;
-    polygons.request_vertex_texcoords2D();
-    polygons.request_halfedge_texcoords2D();
+    SoupImporter read(true);
     OpenMesh::IO::Options options =
         OpenMesh::IO::Options::VertexTexCoord | OpenMesh::IO::Options::FaceTexCoord;
     {
         std::lock_guard<std::mutex> lock(openMeshReadMutex());
         OpenMeshLogCapture log;
-        const bool readOk = OpenMesh::IO::read_mesh(polygons, name, options);
+        const bool readOk = readWithOpenMesh(file, extension, read, options);
         const std::string failure = log.firstFailure();
+        if (read.firstInvalidCorner) {
+            throw FormatError(name + ": a face refers to vertex " +
+                              std::to_string(*read.firstInvalidCorner) +
+                              " (counting from 0); the file has " +
+                              std::to_string(read.points.size()) + " vertices");
+        }
         if (!readOk || !failure.empty()) {
             throw FormatError(name + ": OpenMesh cannot read it as " + extension.substr(1) +
                               (failure.empty() ? std::string() : " (" + failure + ")"));
         }
     }
-    if (polygons.n_faces() == 0) {
+    if (read.faceCount() == 0) {
         throw FormatError(name +
                           ": has no faces OpenMesh could read (in OBJ, f lines; a face needs "
                           "three distinct corners); expected a mesh");
     }
-    if (extension == ".obj" && polygons.n_faces() < objFacts.faceCount) {
-        throw FormatError(name + ": OpenMesh read only " + std::to_string(polygons.n_faces()) +
+    if (extension == ".obj" && read.faceCount() < objFacts.faceCount) {
+        throw FormatError(name + ": OpenMesh read only " + std::to_string(read.faceCount()) +
                           " of its " + std::to_string(objFacts.faceCount) + " faces");
+    }
+    if (read.firstMismatchedUvFace) {
+        throw FormatError(name + ": face " + std::to_string(*read.firstMismatchedUvFace) +
+                          " (counting from 0) names one vertex at two of its corners; expected "
+                          "distinct corners");
     }
     const bool cornerUvs = options.face_has_texcoord();
     if (!cornerUvs && !options.vertex_has_texcoord()) {
         throw FormatError(name + ": has no texture coordinates" +
-                          (extension == ".obj"   ? std::string(" (vt lines)")
-                           : extension == ".off" ? std::string(" (STOFF header)")
-                                                 : std::string(" (u, v vertex properties)")) +
+                          (extension == ".obj" ? std::string(" (vt lines)")
+                           : extension == ".off"
+                               ? std::string(" (STOFF header)")
+                               : std::string(" (u, v or s, t vertex properties)")) +
                           "; base meshes need UVs");
     }
-    for (const auto vertex : polygons.vertices()) {
-        const auto& p = polygons.point(vertex);
+    for (std::size_t vertex = 0; vertex < read.points.size(); ++vertex) {
+        const OpenMesh::Vec3f& p = read.points[vertex];
         if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
-            throw FormatError(name + ": vertex " + std::to_string(vertex.idx()) +
+            throw FormatError(name + ": vertex " + std::to_string(vertex) +
                               " (counting from 0) has a NaN/Inf position; expected finite");
         }
     }
 
-    // Split vertices per (OpenMesh vertex, uv): each OpenMesh vertex keeps a short list of the
-    // distinct uvs seen at its corners and the BaseMesh vertex made for each.
+    // Split vertices per (file vertex, uv): each file vertex keeps a short list of the distinct
+    // uvs seen at its corners and the BaseMesh vertex made for each. A corner takes its face's
+    // uv where the file gives one (OBJ), else its vertex's.
     BaseMesh mesh;
-    std::vector<std::vector<std::pair<glm::vec2, std::uint32_t>>> splits(polygons.n_vertices());
-    auto baseVertex = [&](OpenMeshPolygons::HalfedgeHandle halfedge) {
-        const auto vertex = polygons.to_vertex_handle(halfedge);
-        const auto& texcoord =
-            cornerUvs ? polygons.texcoord2D(halfedge) : polygons.texcoord2D(vertex);
+    std::vector<std::vector<std::pair<glm::vec2, std::uint32_t>>> splits(read.points.size());
+    auto baseVertex = [&](std::size_t face, std::size_t corner) {
+        const std::uint32_t vertex = read.corners[corner];
+        const OpenMesh::Vec2f& texcoord =
+            read.faceHasUvs[face] ? read.cornerUvs[corner] : read.vertexUvs[vertex];
         const glm::vec2 uv(texcoord[0], texcoord[1]);
         if (!std::isfinite(uv.x) || !std::isfinite(uv.y)) {
-            throw FormatError(name + ": vertex " + std::to_string(vertex.idx()) +
+            throw FormatError(name + ": vertex " + std::to_string(vertex) +
                               " (counting from 0) has a NaN/Inf texture coordinate; expected "
                               "finite");
         }
-        auto& seen = splits[static_cast<std::size_t>(vertex.idx())];
+        auto& seen = splits[vertex];
         for (const auto& [knownUv, index] : seen) {
             if (knownUv == uv) return index;
         }
         const auto index = static_cast<std::uint32_t>(mesh.positions.size());
-        const auto& p = polygons.point(vertex);
+        const OpenMesh::Vec3f& p = read.points[vertex];
         mesh.positions.emplace_back(p[0], p[1], p[2]);
         mesh.uvs.push_back(uv);
         seen.emplace_back(uv, index);
         return index;
     };
     std::vector<std::uint32_t> corners;
-    for (const auto face : polygons.faces()) {
+    for (std::size_t face = 0; face < read.faceCount(); ++face) {
         corners.clear();
-        for (const auto halfedge : polygons.fh_range(face)) corners.push_back(baseVertex(halfedge));
+        for (std::size_t corner = read.faceStarts[face]; corner < read.faceStarts[face + 1];
+             ++corner)
+            corners.push_back(baseVertex(face, corner));
         for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
             mesh.triangles.emplace_back(corners[0], corners[k], corners[k + 1]);
         }
+    }
+    removeTrianglesWithoutArea(mesh);
+    if (mesh.triangles.empty()) {
+        throw FormatError(name + ": none of its " + std::to_string(read.faceCount()) +
+                          " faces has an area; expected a mesh");
     }
     computeTangentFrames(mesh);
     return mesh;
@@ -1093,12 +1174,12 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
                           "'; accepted: .obj, .ply, .off, .stl");
     }
 
-    SoupImporter read;
+    SoupImporter read(false);
     OpenMesh::IO::Options options;
     {
         std::lock_guard<std::mutex> lock(openMeshReadMutex());
         OpenMeshLogCapture log;
-        const bool readOk = OpenMesh::IO::IOManager().read(name, read, options);
+        const bool readOk = readWithOpenMesh(file, extension, read, options);
         const std::string failure = log.firstFailure();
         // A face that names a missing vertex first: OpenMesh's own line for it says less.
         if (read.firstInvalidCorner) {

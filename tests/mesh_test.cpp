@@ -583,6 +583,126 @@ TEST(LoadBaseMesh, NonManifoldObjLoadsQuietly) {
     expectValidFrames(mesh, true);
 }
 
+// Faces OpenMesh's halfedge mesh cannot take as they are: a fin on the edge 1-2 of the strip
+// (the edge's third face) and the strip's last quad wound against its neighbour. Each triangle
+// corner, in file order, and whether its uv comes with the face (OBJ `f v/vt`) or the vertex.
+struct FileCorner {
+    glm::vec3 position;
+    glm::vec2 uv;
+};
+const std::vector<std::vector<FileCorner>> kAwkwardFaces = {
+    {{{0, 0, 0}, {0.0f, 0.0f}}, {{1, 0, 0}, {0.5f, 0.0f}}, {{1, 1, 0}, {0.5f, 1.0f}}},
+    {{{0, 0, 0}, {0.0f, 0.0f}}, {{1, 1, 0}, {0.5f, 1.0f}}, {{0, 1, 0}, {0.0f, 1.0f}}},
+    {{{1, 0, 0}, {0.5f, 0.0f}}, {{1, 1, 0}, {0.5f, 1.0f}}, {{2, 1, 0}, {1.0f, 1.0f}}},  // flipped
+    {{{1, 0, 0}, {0.5f, 0.0f}}, {{2, 1, 0}, {1.0f, 1.0f}}, {{2, 0, 0}, {1.0f, 0.0f}}},  // flipped
+    {{{1, 0, 0}, {0.5f, 0.0f}}, {{1, 1, 0}, {0.5f, 1.0f}}, {{1, 0.5f, 1}, {0.8f, 0.3f}}},  // fin
+};
+
+void expectTheFilesCorners(const BaseMesh& mesh) {
+    ASSERT_EQ(mesh.triangles.size(), kAwkwardFaces.size());
+    for (std::size_t t = 0; t < kAwkwardFaces.size(); ++t) {
+        for (int corner = 0; corner < 3; ++corner) {
+            const std::uint32_t v = mesh.triangles[t][corner];
+            EXPECT_EQ(mesh.positions[v], kAwkwardFaces[t][corner].position) << t << " " << corner;
+            EXPECT_EQ(mesh.uvs[v], kAwkwardFaces[t][corner].uv) << t << " " << corner;
+        }
+    }
+}
+
+TEST(LoadBaseMesh, FacesOnAnEdgeOfThreeOrWoundAgainstTheirNeighboursKeepTheirUvs) {
+    // OBJ, one vt per corner: OpenMesh re-added the fin and the flipped triangles on copies of
+    // their vertices and handed their uvs over rotated by one corner.
+    std::ostringstream obj;
+    for (const auto& face : kAwkwardFaces) {
+        for (const FileCorner& corner : face) {
+            obj << "v " << corner.position.x << " " << corner.position.y << " " << corner.position.z
+                << "\n";
+            obj << "vt " << corner.uv.x << " " << corner.uv.y << "\n";
+        }
+    }
+    for (std::size_t face = 0, next = 1; face < kAwkwardFaces.size(); ++face, next += 3)
+        obj << "f " << next << "/" << next << " " << next + 1 << "/" << next + 1 << " " << next + 2
+            << "/" << next + 2 << "\n";
+    const TempFile objFile("awkward.obj", obj.str());
+    ASSERT_NO_FATAL_FAILURE(expectTheFilesCorners(loadBaseMesh(objFile.path())));
+
+    // PLY, one uv per vertex, the faces sharing vertices: OpenMesh's copies had no uvs at all.
+    std::vector<FileCorner> vertices;
+    std::ostringstream faces;
+    for (const auto& face : kAwkwardFaces) {
+        faces << "3";
+        for (const FileCorner& corner : face) {
+            std::size_t index = 0;
+            while (index < vertices.size() && vertices[index].position != corner.position) ++index;
+            if (index == vertices.size()) vertices.push_back(corner);
+            faces << " " << index;
+        }
+        faces << "\n";
+    }
+    std::ostringstream ply;
+    ply << "ply\nformat ascii 1.0\nelement vertex " << vertices.size()
+        << "\nproperty float x\nproperty float y\nproperty float z\nproperty float u\n"
+           "property float v\nelement face "
+        << kAwkwardFaces.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
+    for (const FileCorner& vertex : vertices) {
+        ply << vertex.position.x << " " << vertex.position.y << " " << vertex.position.z << " "
+            << vertex.uv.x << " " << vertex.uv.y << "\n";
+    }
+    const TempFile plyFile("awkward.ply", ply.str() + faces.str());
+    ASSERT_NO_FATAL_FAILURE(expectTheFilesCorners(loadBaseMesh(plyFile.path())));
+}
+
+TEST(LoadBaseMesh, TrianglesWithoutAreaAreLeftOut) {
+    // The unit square (faces 1, 2), a triangle along its diagonal 1-3 through the midpoint 5
+    // (face 3), one with two corners 1e-7 apart, under the weld distance 1e-6 x sqrt(2) (face 4),
+    // and a sliver 1e-5 high over the edge 1-2, thin but over the weld distance (face 5).
+    const TempFile file("flat.obj",
+                        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 0\nv 1e-7 0 0\n"
+                        "v 0.5 -1e-5 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\n"
+                        "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 1/1 5/5 3/3\nf 1/1 6/2 4/4\n"
+                        "f 1/1 7/5 2/2\n");
+    const BaseMesh mesh = loadBaseMesh(file.path());
+    ASSERT_EQ(mesh.triangles.size(), 3u);
+    const glm::vec3 kept[3][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}},
+                                  {{0, 0, 0}, {1, 1, 0}, {0, 1, 0}},
+                                  {{0, 0, 0}, {0.5f, -1e-5f, 0}, {1, 0, 0}}};
+    for (int t = 0; t < 3; ++t) {
+        for (int corner = 0; corner < 3; ++corner)
+            EXPECT_EQ(mesh.positions[mesh.triangles[t][corner]], kept[t][corner]) << t;
+    }
+    const TempFile none("none.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nvt 0 0\nf 1/1 2/1 3/1\n");
+    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(none.path()); });
+    EXPECT_NE(message.find("none.obj: none of its 1 faces has an area"), std::string::npos)
+        << message;
+}
+
+TEST(LoadBaseMesh, AnObjStartingWithAByteOrderMarkReadsItsFirstLine) {
+    // Some Windows tools start text files with a UTF-8 byte-order mark; OpenMesh's reader took
+    // it as part of the first line's keyword and skipped the line (here the first vertex).
+    const std::string ridge(kRidgeObj);
+    const std::string body = ridge.substr(ridge.find('\n') + 1);  // from its first v line
+    const TempFile plain("plain.obj", body);
+    const TempFile marked("marked.obj", "\xEF\xBB\xBF" + body);
+    const BaseMesh expected = loadBaseMesh(plain.path());
+    const BaseMesh mesh = loadBaseMesh(marked.path());
+    EXPECT_EQ(mesh.positions, expected.positions);
+    EXPECT_EQ(mesh.uvs, expected.uvs);
+    EXPECT_EQ(mesh.triangles, expected.triangles);
+}
+
+TEST(LoadBaseMesh, AnObjFaceNamingOneVertexTwiceIsRefused) {
+    // OpenMesh leaves the repeated corner out of the face but not out of its uvs, which then
+    // no longer match the corners.
+    const TempFile file("twice.obj",
+                        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+                        "f 1/1 2/2 2/3 3/3 4/4\n");
+    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(file.path()); });
+    EXPECT_NE(message.find("twice.obj: face 0 (counting from 0) names one vertex at two of its "
+                           "corners"),
+              std::string::npos)
+        << message;
+}
+
 TEST(LoadBaseMesh, MissingFileIsInputError) {
     const std::filesystem::path missing =
         std::filesystem::temp_directory_path() / "no_such_mesh.obj";
