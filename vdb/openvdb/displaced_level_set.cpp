@@ -118,6 +118,9 @@ struct TileMesh {
     static constexpr unsigned kNoCorner = ~0u;
     std::vector<glm::dvec3> points;
     std::vector<glm::uvec4> polygons;
+    /// How far its polygons reach out of the tile [0, W) x [0, H) (whole polygons are kept by
+    /// their centroid), texels per axis: a repeat also covers this much of its neighbours.
+    glm::dvec2 overhangTexels{0.0};
 };
 
 /// The detail on one tile's lattice (periodic in x and y), with the floor and the top applied.
@@ -233,6 +236,11 @@ class TileLattice {
         };
         for (const openvdb::Vec3I& t : triangles) keep(t.asPointer(), 3);
         for (const openvdb::Vec4I& q : quads) keep(q.asPointer(), 4);
+        for (const glm::dvec3& point : kept.points) {
+            kept.overhangTexels = glm::max(
+                kept.overhangTexels,
+                glm::max(-glm::dvec2(point), glm::dvec2(point) - glm::dvec2(width, height)));
+        }
         return kept;
     }
 
@@ -478,8 +486,12 @@ void mapTriangle(const ShellTriangleMap& map, const std::array<bool, 3>& border,
                  const TileMesh& tileMesh, const TileMeshCells& cells, const TileLattice& lattice,
                  const glm::dvec2& tileTexels, MapScratch& scratch, TrianglePieces& pieces) {
     const glm::dvec2 low = map.low(), high = map.high();
-    const auto firstCopy = glm::vec<2, long long>(glm::floor(low / tileTexels));
-    const auto lastCopy = glm::vec<2, long long>(glm::floor(high / tileTexels));
+    // The repeats that reach the triangle, also those whose polygons only hang over into it
+    // (a triangle whose uvs start on a tile's border takes the wires crossing it from both).
+    const auto firstCopy =
+        glm::vec<2, long long>(glm::floor((low - tileMesh.overhangTexels) / tileTexels));
+    const auto lastCopy =
+        glm::vec<2, long long>(glm::floor((high + tileMesh.overhangTexels) / tileTexels));
     if (scratch.stamp.size() != tileMesh.points.size()) {
         scratch.stamp.assign(tileMesh.points.size(), 0);
         scratch.vertex.assign(tileMesh.points.size(), 0);
