@@ -45,6 +45,30 @@ struct PyRender {
     std::shared_ptr<const RenderResult> result;
 };
 
+/// The tile a Python Tile holds. pybind11_object.__new__ (the base's, which the module's own
+/// __new__ cannot stop) makes an instance no constructor filled: refused, not read.
+template <class Held>
+const Held& filled(py::handle self, const char* message) {
+    if (!py::isinstance<Held>(self)) throw py::type_error(message);
+    auto* instance = reinterpret_cast<py::detail::instance*>(self.ptr());
+    const py::detail::value_and_holder held =
+        instance->get_value_and_holder(py::detail::get_type_info(typeid(Held)), false);
+    if (!held || !held.holder_constructed()) throw py::type_error(message);
+    return *held.value_ptr<Held>();
+}
+
+const Tile& tileOf(py::handle self) {
+    const PyTile& held =
+        filled<PyTile>(self, "this distile.Tile is empty: tiles come from load_tile and bake_*");
+    return *held.tile;
+}
+
+/// The render a Python Render holds (see tileOf).
+const RenderResult& renderOf(py::handle self) {
+    return *filled<PyRender>(self, "this distile.Render is empty: renders come from render()")
+                .result;
+}
+
 /// `values` (row-major, `channels` floats per element) as a read-only NumPy array of `shape`
 /// that keeps `owner` alive instead of copying.
 py::array readOnlyView(const float* values, std::vector<py::ssize_t> shape, py::handle owner) {
@@ -147,17 +171,22 @@ InputError underRenderKeyword(const InputError& error) {
     return shown.field() != error.field() ? shown : underSceneJsonPath(error);
 }
 
-/// Renders the scene `load` reads, as `distile render` does.
-PyRender renderLoaded(const std::function<SceneFile(TileCache&)>& load,
+/// Renders the scene `load` reads (passing its warnings to the callback), as `distile render`
+/// does: the render's warnings after the scene's.
+PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarningCallback&)>& load,
                       const PyRenderArguments& arguments) {
     auto result = std::make_shared<RenderResult>();
     py::gil_scoped_release released;
     try {
         TileCache tiles;
-        SceneFile sceneFile = load(tiles);
+        std::vector<std::string> sceneWarnings;
+        SceneFile sceneFile =
+            load(tiles, [&](const std::string& warning) { sceneWarnings.push_back(warning); });
         const RenderOptions options = renderOptions(arguments, sceneFile.image);
         if (options.reference) attachTruth(sceneFile);
         *result = renderScene(sceneFile.scene, options);
+        result->warnings.insert(result->warnings.begin(), sceneWarnings.begin(),
+                                sceneWarnings.end());
     } catch (const InputError& error) {
         throw underRenderKeyword(error);
     }
@@ -179,11 +208,11 @@ py::dict renderStats(const RenderStats& stats) {
     return out;
 }
 
-RenderLayersView layers(const PyRender& render) {
-    if (!render.result->aovs)
+RenderLayersView layers(const RenderResult& render) {
+    if (!render.aovs)
         throw InputError("compare: needs renders made with aovs=True (depth, normal, texel scale)");
-    const RenderAovs& aovs = *render.result->aovs;
-    return {render.result->image, aovs.depth, aovs.normal, aovs.texelScale};
+    const RenderAovs& aovs = *render.aovs;
+    return {render.image, aovs.depth, aovs.normal, aovs.texelScale};
 }
 
 /// Each Render's layers in memory; each path's read back from the files `distile render --aovs`
@@ -200,7 +229,7 @@ py::object compareAny(const py::object& a, const py::object& b) {
     std::optional<RenderFiles> filesA, filesB;
     auto view = [](const py::object& render, std::optional<RenderFiles>& files,
                    const std::string& role) -> RenderLayersView {
-        if (py::isinstance<PyRender>(render)) return layers(render.cast<const PyRender&>());
+        if (py::isinstance<PyRender>(render)) return layers(renderOf(render));
         if (!py::isinstance<py::str>(render) && !py::hasattr(render, "__fspath__")) {
             const std::string keyword = role == "A" ? "a" : "b";
             throw py::type_error(
@@ -247,25 +276,25 @@ PYBIND11_MODULE(_distile, module) {
     py::class_<PyTile>(module, "Tile", "A distance tile (signed distances in texels)")
         .def_property_readonly(
             "size",
-            [](const PyTile& self) {
-                const Size3& size = self.tile->size();
+            [](py::handle self) {
+                const Size3& size = tileOf(self).size();
                 return py::make_tuple(size.width, size.height, size.depth);
             },
             "(W, H, D) in texels")
         .def_property_readonly(
             "array",
             [](py::object self) {
-                const PyTile& tile = self.cast<const PyTile&>();
-                const Size3& size = tile.tile->size();
-                return readOnlyView(tile.tile->distancesTexels().data(),
+                const Tile& tile = tileOf(self);
+                const Size3& size = tile.size();
+                return readOnlyView(tile.distancesTexels().data(),
                                     {size.depth, size.height, size.width}, self);
             },
             "The distances as a read-only (D, H, W) float32 view (no copy): array[z, y, x] is "
             "texel (x, y, z), centred at (x + 0.5, y + 0.5, z + 0.5); negative inside")
         .def_property_readonly(
             "metadata",
-            [](const PyTile& self) {
-                const Tile& tile = *self.tile;
+            [](py::handle self) {
+                const Tile& tile = tileOf(self);
                 const TileProvenance& provenance = tile.provenance;
                 py::dict out;
                 out["size"] = toString(tile.size());
@@ -286,17 +315,19 @@ PYBIND11_MODULE(_distile, module) {
             "(docs/tile_format.md)")
         .def(
             "save",
-            [](const PyTile& self, const fs::path& file, bool half) {
+            [](py::handle self, const fs::path& file, bool half) {
+                const Tile& tile = tileOf(self);
                 py::gil_scoped_release released;
-                writeTileExr(*self.tile, file, half ? TileStorage::Half16 : TileStorage::Float32);
+                writeTileExr(tile, file, half ? TileStorage::Half16 : TileStorage::Float32);
             },
             py::arg("file"), py::arg("half") = false,
             "Write the tile as an EXR atlas (as `distile bake -o`, `--half` with half=True)")
         .def(
             "save_png",
-            [](const PyTile& self, const fs::path& file, int bits) {
+            [](py::handle self, const fs::path& file, int bits) {
+                const Tile& tile = tileOf(self);
                 py::gil_scoped_release released;
-                writeTilePng(*self.tile, file, bits);
+                writeTilePng(tile, file, bits);
             },
             py::arg("file"), py::arg("bits") = 16,
             "Write the 8- or 16-bit PNG atlas (as `distile bake --png8/--png16`)");
@@ -328,36 +359,35 @@ PYBIND11_MODULE(_distile, module) {
 
     py::class_<PyRender>(module, "Render", "A rendered image with its statistics and AOVs")
         .def_property_readonly(
-            "image",
-            [](py::object self) {
-                return imageView(self.cast<const PyRender&>().result->image, self);
-            },
+            "image", [](py::object self) { return imageView(renderOf(self).image, self); },
             "Linear RGB as a read-only (height, width, 3) float32 view, row 0 at the top")
         .def_property_readonly(
             "aovs",
             [](py::object self) {
-                const PyRender& render = self.cast<const PyRender&>();
+                const RenderResult& render = renderOf(self);
                 py::dict out;
-                if (!render.result->aovs) return out;
+                if (!render.aovs) return out;
                 for (const AovFile& aov : kAovFiles)
-                    out[aov.name] = imageView((*render.result->aovs).*aov.layer, self);
+                    out[aov.name] = imageView((*render.aovs).*aov.layer, self);
                 return out;
             },
             "The AOVs by name (depth, normal, ...), each a (height, width, 3) view; empty "
             "without aovs=True")
         .def_property_readonly(
-            "stats", [](const PyRender& self) { return renderStats(self.result->stats); },
+            "stats", [](py::handle self) { return renderStats(renderOf(self).stats); },
             "Counters as distile render prints them: rays, base_hits (rays that hit a surface), "
             "detail_hits (of those, on a tile), converged (of detail_hits, within the budget), "
             "march_iterations, mean_iterations, shadow_steps, shadow_map_samples, shells_tested, "
             "shells_traced")
-        .def_property_readonly("warnings",
-                               [](const PyRender& self) { return self.result->warnings; })
+        .def_property_readonly(
+            "warnings", [](py::handle self) { return renderOf(self).warnings; },
+            "What distile render prints as warnings (render() also gives each as a UserWarning)")
         .def(
             "save",
-            [](const PyRender& self, const fs::path& file) {
+            [](py::handle self, const fs::path& file) {
+                const RenderResult& render = renderOf(self);
                 py::gil_scoped_release released;
-                writeRenderFiles(*self.result, file);
+                writeRenderFiles(render, file);
             },
             py::arg("file"),
             "Write the image (.png, .exr, .tif) and, with AOVs, each beside it as `distile "
@@ -365,8 +395,11 @@ PYBIND11_MODULE(_distile, module) {
     module.def(
         "render_scene_file",
         [](const fs::path& file, const PyRenderArguments& arguments) {
-            return renderLoaded([&](TileCache& tiles) { return loadSceneFile(file, tiles); },
-                                arguments);
+            return renderLoaded(
+                [&](TileCache& tiles, const SceneWarningCallback& warn) {
+                    return loadSceneFile(file, tiles, warn);
+                },
+                arguments);
         },
         py::arg("file"), py::arg("arguments"));
     module.def(
@@ -374,7 +407,9 @@ PYBIND11_MODULE(_distile, module) {
         [](const std::string& sceneJson, const fs::path& folder, const std::string& name,
            const PyRenderArguments& arguments) {
             return renderLoaded(
-                [&](TileCache& tiles) { return loadSceneJson(sceneJson, folder, name, tiles); },
+                [&](TileCache& tiles, const SceneWarningCallback& warn) {
+                    return loadSceneJson(sceneJson, folder, name, tiles, warn);
+                },
                 arguments);
         },
         py::arg("scene_json"), py::arg("folder"), py::arg("name"), py::arg("arguments"));
@@ -382,12 +417,13 @@ PYBIND11_MODULE(_distile, module) {
 
     module.def(
         "check_tile",
-        [](const PyTile& tile, const std::string& tileName, const fs::path& tileFile,
+        [](py::handle tile, const std::string& tileName, const fs::path& tileFile,
            const TileCheckOptions& options) {
+            const Tile& checked = tileOf(tile);
             TileCheck check;
             try {
                 py::gil_scoped_release released;
-                check = checkTile(*tile.tile, tileName, tileFile, options);
+                check = checkTile(checked, tileName, tileFile, options);
             } catch (const InputError& error) {
                 // Under check()'s keywords (the CheckOptions attributes), not the C++ members.
                 throw shownUnder(error, {{"maxOverestimateTexels", "max_overestimate"},

@@ -47,6 +47,8 @@ class Field {
     }
     /// "FILE: PATH", as messages name the field.
     std::string where() const { return file_ + ": " + (path_.empty() ? "top level" : path_); }
+    /// "FILE: PATH", or FILE alone for the whole document (a recipe given on its own).
+    std::string name() const { return path_.empty() ? file_ : where(); }
 
     const json& value() const { return value_; }
     const std::string& path() const { return path_; }
@@ -171,8 +173,12 @@ Size3 parseSize(const Field& field) {
                 field[1].integer(kMinTileExtent, kMaxTileExtent),
                 field[2].integer(kMinTileExtent, kMaxTileExtent)};
     } else {
+        if (!field.value().is_string()) {
+            field.fail("must be [W, H, D] (three whole numbers) or \"WxHxD\", not " +
+                       std::string(field.value().type_name()));
+        }
         try {
-            size = parseSize3(field.string(), field.path());
+            size = parseSize3(field.value().get<std::string>(), field.path());
         } catch (const InputError& error) {
             field.fail(error.problem());
         }
@@ -620,7 +626,7 @@ Tile checkedProceduralBake(const ProceduralOptions& procedural, const BakeOption
 /// scene's field that holds it. Called once per tile and load: when it is first read or baked.
 void warnOfRecordedCheck(const Tile& tile, const Field& field, const SceneWarningCallback& warn) {
     if (!warn) return;
-    if (const std::string warning = recordedCheckWarning(tile, field.where()); !warning.empty())
+    if (const std::string warning = recordedCheckWarning(tile, field.name()); !warning.empty())
         warn(warning + "; a larger \"size\", or thicker or rounder detail, holds them better");
 }
 

@@ -13,6 +13,8 @@ command's message. Bakes and renders release the GIL.
 """
 
 import json as _json
+import numbers as _numbers
+import operator as _operator
 import os as _os
 import warnings as _warnings
 
@@ -23,7 +25,6 @@ from ._distile import (  # noqa: F401  (the package's names)
     Render,
     Tile,
     load_tile,
-    set_threads,
 )
 from . import _distile
 
@@ -42,12 +43,92 @@ def _plain(value):
 
 
 def _json_text(value, what):
-    """`value` as JSON text; NaN and infinities are refused as InputError naming `what`, not
-    passed on as text the JSON reader cannot read."""
+    """`value` as JSON text; NaN and infinities, and a dict or list that holds itself, are
+    refused as InputError naming `what`, not passed on as text the JSON reader cannot read."""
     try:
         return _json.dumps(value, allow_nan=False, default=_plain)
     except ValueError:
-        raise InputError(f"{what}: {value!r} is not accepted; numbers must be finite") from None
+        pass
+    try:
+        _json.dumps(value, allow_nan=True, default=_plain)
+    except ValueError:
+        raise InputError(f"{what}: is not accepted; it holds itself") from None
+    raise InputError(f"{what}: {value!r} is not accepted; numbers must be finite") from None
+
+
+def _keyword(function, name, value, kind):
+    """`value` of keyword `name` of `function`, checked to be of `kind`: "int" (32-bit), "uint64",
+    "float", "bool", "str" or "xyz" (three numbers); with a trailing "?", None too (the
+    default). A wrong type raises TypeError naming the keyword, an int beyond the kind's range
+    InputError."""
+    if kind.endswith("?"):
+        if value is None:
+            return None
+        kind = kind[:-1]
+    got = f"not {value!r} ({type(value).__name__})"
+    if kind == "bool":
+        if isinstance(value, bool):
+            return value
+        raise TypeError(f"{function}(): {name} must be True or False, {got}")
+    if kind in ("int", "uint64"):
+        if not isinstance(value, bool):
+            try:
+                number = _operator.index(value)
+            except TypeError:
+                number = None
+            if number is not None:
+                low, high = (-(2**31), 2**31 - 1) if kind == "int" else (0, 2**64 - 1)
+                if not low <= number <= high:
+                    raise InputError(f"{name}: {number} is not accepted; it must be in "
+                                     f"[{low}, {high}] at the very least")
+                return number
+        raise TypeError(f"{function}(): {name} must be a whole number, {got}")
+    if kind == "float":
+        if isinstance(value, _numbers.Real) and not isinstance(value, bool):
+            return float(value)
+        raise TypeError(f"{function}(): {name} must be a number, {got}")
+    if kind == "str":
+        if isinstance(value, str):
+            return value
+        raise TypeError(f"{function}(): {name} must be a string, {got}")
+    if isinstance(value, (tuple, list)) and len(value) == 3:
+        return [_keyword(function, name, component, "float") for component in value]
+    raise TypeError(f"{function}(): {name} must be three numbers (x, y, z), {got}")
+
+
+def _set_keywords(function, target, options, kinds):
+    """Sets each of `options` on `target` after _keyword's check; unknown keywords are a
+    TypeError, as Python gives for a function's own."""
+    for name, value in options.items():
+        if name not in kinds:
+            raise TypeError(f"{function}() got an unexpected keyword argument '{name}'")
+        setattr(target, name, _keyword(function, name, value, kinds[name]))
+
+
+def set_threads(threads):
+    """Limit distile's work to `threads` threads (1 to 1024; 0: all cores), as the command's
+    --threads; results do not depend on it."""
+    _distile.set_threads(_keyword("set_threads", "threads", threads, "int"))
+
+
+def _bake(detail, file, options):
+    """bake()'s work; its warnings are told at the line that called bake() or bake_*()."""
+    recipe = {"bake": detail}
+    if file is not None:
+        path = _os.path.abspath(_os.fsdecode(_os.fspath(file)))
+        try:
+            path.encode("utf-8")
+        except UnicodeEncodeError:
+            raise InputError(f"bake {detail}: file: {path!r} is not accepted; bake() takes file "
+                             "names in UTF-8 (the distile command takes any)") from None
+        recipe["file"] = path
+    for name, value in options.items():
+        recipe[name] = list(value) if isinstance(value, tuple) else value
+        _json_text(recipe[name], name)  # a NaN refused under its keyword
+    tile, found = _distile.bake_recipe(_json_text(recipe, "bake"), "bake " + str(detail))
+    for warning in found:
+        _warnings.warn(warning, stacklevel=3)
+    return tile
 
 
 def bake(detail, file=None, **options):
@@ -57,46 +138,50 @@ def bake(detail, file=None, **options):
     bake recipe takes the same; docs/scene.md). The tile is kept in the bake cache
     (DISTILE_CACHE), so baking the same recipe again reads it back. What is odd about a mesh
     is told as a UserWarning."""
-    recipe = {"bake": detail}
-    if file is not None:
-        recipe["file"] = _os.path.abspath(_os.fspath(file))
-    for name, value in options.items():
-        recipe[name] = list(value) if isinstance(value, tuple) else value
-        _json_text(recipe[name], name)  # a NaN refused under its keyword
-    tile, found = _distile.bake_recipe(_json_text(recipe, "bake"), "bake " + str(detail))
-    for warning in found:
-        _warnings.warn(warning, stacklevel=2)
-    return tile
+    return _bake(detail, file, options)
 
 
 def bake_chainmail(**options):
     """Chain mail (``distile bake chainmail``): weave, rings_per_row, rows, ring_radius,
     wire_radius, tilt, small_ring_radius, small_wire_radius, and size, band, exact_texels."""
-    return bake("chainmail", **options)
+    return _bake("chainmail", None, options)
 
 
 def bake_grating(**options):
     """A grating (``distile bake grating``): bars, bar_width, bar_height, edge_radius,
     layer_gap, and size, band, exact_texels."""
-    return bake("grating", **options)
+    return _bake("grating", None, options)
 
 
 def bake_mesh(file, **options):
     """A detail mesh, OBJ, PLY, OFF or STL (``distile bake mesh FILE``): fit, scale,
     offset=(x, y, z), unsigned, thickness, and size, band, exact_texels."""
-    return bake("mesh", file, **options)
+    return _bake("mesh", file, options)
 
 
 def bake_heightmap(file, **options):
     """A grey image as heights (``distile bake heightmap IMAGE``): height_texels, and size,
     band, exact_texels."""
-    return bake("heightmap", file, **options)
+    return _bake("heightmap", file, options)
 
 
 def bake_vdb(file, **options):
     """A level set or fog volume from a .vdb file (``distile bake vdb FILE``): grid, iso, fit,
     scale, offset, window=(x0, y0, z0, x1, y1, z1), and size, band, exact_texels."""
-    return bake("vdb", file, **options)
+    return _bake("vdb", file, options)
+
+
+_CHECK_KEYWORDS = {
+    "samples": "int", "seed": "uint64", "max_overestimate": "float",
+    "max_overestimate_share": "float", "max_rms": "float", "max_near_error": "float?",
+    "allow_sign_errors": "bool", "scale": "float?", "offset": "xyz?",
+}
+
+_RENDER_KEYWORDS = {
+    "width": "int?", "height": "int?", "spp": "int?", "aovs": "bool", "reference": "bool",
+    "iterations": "int?", "epsilon": "float?", "march": "str?", "relaxation": "float?",
+    "filter": "str?", "normal_filter": "str?", "shell": "str?", "shadows": "str?",
+}
 
 
 def check(tile, against=None, **options):
@@ -107,11 +192,8 @@ def check(tile, against=None, **options):
     allow_sign_errors, scale, offset=(x, y, z)."""
     settings = _distile.CheckOptions()
     if against is not None:
-        settings.against = _os.fspath(against)
-    for name, value in options.items():
-        if not hasattr(settings, name):
-            raise TypeError(f"check() got an unexpected keyword argument '{name}'")
-        setattr(settings, name, value)
+        settings.against = _os.fsdecode(_os.fspath(against))
+    _set_keywords("check", settings, options, _CHECK_KEYWORDS)
     if isinstance(tile, Tile):
         return _distile.check_tile(tile, "tile", "", settings)
     path = _os.fspath(tile)
@@ -124,15 +206,17 @@ def render(scene, **options):
     (height, width, 3) float32), ``.aovs`` (with aovs=True), ``.stats``, ``.save(path)``.
     Keywords as the command's flags: width, height, spp, aovs, reference (True: the analytic
     reference), iterations, epsilon, march, relaxation, filter, normal_filter, shell, shadows
-    ("none", "full", "adaptive")."""
+    ("none", "full", "adaptive"). What the command prints as warnings is told as UserWarnings
+    and kept in ``.warnings``."""
     arguments = _distile.RenderArguments()
-    for name, value in options.items():
-        if not hasattr(arguments, name):
-            raise TypeError(f"render() got an unexpected keyword argument '{name}'")
-        setattr(arguments, name, value)
+    _set_keywords("render", arguments, options, _RENDER_KEYWORDS)
     if isinstance(scene, dict):
-        return _distile.render_scene_json(_json_text(scene, "scene"), ".", "scene", arguments)
-    return _distile.render_scene_file(_os.fspath(scene), arguments)
+        result = _distile.render_scene_json(_json_text(scene, "scene"), ".", "scene", arguments)
+    else:
+        result = _distile.render_scene_file(_os.fspath(scene), arguments)
+    for warning in result.warnings:
+        _warnings.warn(warning, stacklevel=2)
+    return result
 
 
 def compare(a, b):

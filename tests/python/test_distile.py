@@ -66,6 +66,62 @@ def test_tiles_and_renders_cannot_be_made_empty():
             cls()
 
 
+def test_an_instance_made_by_the_base_classes_new_is_refused_not_read():
+    # pybind11_object.__new__ (which the error of object.__new__ points to) made an instance no
+    # constructor filled: reading it was a segfault.
+    for cls, readers in ((distile.Tile, ("size", "array", "metadata")),
+                         (distile.Render, ("image", "aovs", "stats", "warnings"))):
+        empty = cls.__mro__[1].__new__(cls)
+        for reader in readers:
+            with pytest.raises(TypeError, match="is empty"):
+                getattr(empty, reader)
+        with pytest.raises(TypeError, match="is empty"):
+            empty.save("never.exr")
+    with pytest.raises(TypeError, match="is empty"):
+        distile.check(distile.Tile.__mro__[1].__new__(distile.Tile))
+
+
+def test_keywords_of_the_wrong_type_are_refused_by_name():
+    scene = {"objects": [{"mesh": "plane"}]}
+    for keyword, value in (("width", 128.0), ("width", True), ("aovs", "false"),
+                           ("epsilon", "0.1"), ("march", 2)):
+        with pytest.raises(TypeError, match=f"^render\\(\\): {keyword} must be"):
+            distile.render(scene, **{keyword: value})
+    with pytest.raises(distile.InputError, match="^width: 1099511627776 is not accepted"):
+        distile.render(scene, width=2**40)
+    tile = distile.bake_chainmail(size="32x32x8", rings_per_row=2, rows=2)
+    for keyword, value in (("samples", 1000.0), ("samples", None), ("allow_sign_errors", "no"),
+                           ("offset", (1, 2))):
+        with pytest.raises(TypeError, match=f"^check\\(\\): {keyword} must be"):
+            distile.check(tile, **{keyword: value})
+    with pytest.raises(TypeError, match="^set_threads\\(\\): threads must be"):
+        distile.set_threads(True)
+    # What the types allow still reaches the library's own checks.
+    with pytest.raises(distile.InputError, match="^width: 0 is not accepted"):
+        distile.render(scene, width=0)
+    cyclic = {"objects": []}
+    cyclic["objects"].append(cyclic)
+    with pytest.raises(distile.InputError, match="^scene: is not accepted; it holds itself"):
+        distile.render(cyclic)
+
+
+def test_renders_tell_the_scenes_warnings(recwarn):
+    # A tile that misses the check's tolerances: the command warns, and so does render().
+    scene = {"objects": [{"mesh": "plane", "material": {
+        "tile": {"bake": "chainmail", "size": "64x64x16"}}}]}
+    render = distile.render(scene, width=16, height=12)
+    assert any("misses distile check's tolerances" in warning for warning in render.warnings)
+    told = [str(warning.message) for warning in recwarn.list]
+    assert told == render.warnings
+    assert recwarn.list[0].filename == __file__  # at the caller's line, not distile's
+
+
+def test_bake_warnings_point_at_the_callers_line(recwarn):
+    distile.bake_chainmail(size="64x64x16")  # misses the check's tolerances: warned
+    assert recwarn.list, "expected a warning"
+    assert all(warning.filename == __file__ for warning in recwarn.list)
+
+
 def test_keywords_take_numpy_numbers_and_refuse_nan_by_name():
     # NaN reached the JSON reader as text ("FormatError: not valid JSON"), and NumPy numbers
     # were "not JSON serializable".
