@@ -162,7 +162,8 @@ void requireWritableTarget(const fs::path& target, const std::string& shownAs) {
 void removeTemporariesOnSignal() {
     static std::once_flag installed;
     std::call_once(installed, [] {
-        for (const int signal : {SIGINT, SIGTERM, SIGHUP}) {
+        for (const int signal :
+             {SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGALRM, SIGUSR1, SIGUSR2, SIGXCPU}) {
             struct sigaction previous {};
             if (::sigaction(signal, nullptr, &previous) != 0 || previous.sa_handler == SIG_IGN)
                 continue;  // e.g. nohup: stay immune
@@ -172,6 +173,8 @@ void removeTemporariesOnSignal() {
             action.sa_flags = SA_RESETHAND;
             ::sigaction(signal, &action, nullptr);
         }
+        ::signal(SIGPIPE, SIG_IGN);
+        ::signal(SIGXFSZ, SIG_IGN);
     });
 }
 

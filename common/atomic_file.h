@@ -14,9 +14,11 @@
 
 namespace distile {
 
-/// From now on, SIGINT, SIGTERM and SIGHUP (unless ignored) remove the temporary files being
-/// written before the process ends as the signal would have ended it. For programs (the command
-/// line); a library leaves a host's signals alone.
+/// From now on, the signals that end a process by default (SIGINT, SIGTERM, SIGHUP, SIGQUIT,
+/// SIGALRM, SIGUSR1, SIGUSR2, SIGXCPU; those not ignored) remove the temporary files being written
+/// before the process ends as the signal would have ended it, and SIGPIPE and SIGXFSZ are
+/// ignored, so a closed pipe or a file size limit fails the write (EPIPE, EFBIG) instead of
+/// ending the process. For programs (the command line); a library leaves a host's signals alone.
 void removeTemporariesOnSignal();
 
 /// Calls `write` with a temporary path in the target's folder that keeps the target's extension

@@ -1,6 +1,7 @@
 #include "common/detail/module_loader.h"
 
 #include <dlfcn.h>
+#include <link.h>
 
 #include <algorithm>
 #include <string>
@@ -14,11 +15,22 @@ namespace fs = std::filesystem;
 
 fs::path moduleFile(const ModuleName& module) {
     std::vector<fs::path> candidates;
+    // The file this code was loaded from: a shared library by the path it was loaded by, the
+    // program by /proc/self/exe. (dladdr names the program by argv[0], which a run through $PATH,
+    // a symlink or `exec -a` leaves relative to some other folder, or anything at all.)
     Dl_info self{};
-    if (dladdr(reinterpret_cast<const void*>(&moduleFile), &self) && self.dli_fname) {
-        std::error_code ignored;
-        const fs::path binary = fs::absolute(fs::path(self.dli_fname), ignored).parent_path();
-        candidates.push_back((binary / ".." / "lib" / module.fileName).lexically_normal());
+    link_map* loaded = nullptr;
+    if (dladdr1(reinterpret_cast<const void*>(&moduleFile), &self,
+                reinterpret_cast<void**>(&loaded), RTLD_DL_LINKMAP) &&
+        loaded) {
+        std::error_code error;
+        const fs::path object = loaded->l_name && *loaded->l_name
+                                    ? fs::absolute(loaded->l_name, error)
+                                    : fs::read_symlink("/proc/self/exe", error);
+        if (!error && !object.empty()) {
+            candidates.push_back(
+                (object.parent_path() / ".." / "lib" / module.fileName).lexically_normal());
+        }
     }
     candidates.push_back(fs::path(module.buildDir) / module.fileName);
     // Where cmake/DistileInstall.cmake installs every module.

@@ -507,6 +507,42 @@ TEST_F(Hardening, AWriteTheSystemRefusesIsRefusedOutputNamingTheFile) {
     EXPECT_EQ(workEntries(), (std::set<std::string>{"noise.png", "noise.json", "g.exr", "g.vdb"}));
 }
 
+TEST_F(Hardening, ModulesAreLoadedBesideTheProgramNotBesideItsName) {
+    // distile found its modules from argv[0]: run through $PATH, a symlink or `exec -a`, that
+    // names the program relative to some other folder, and a file planted at ../lib from there
+    // was loaded and run. A symlink bin/distile in the work folder, and beside it a lib/ of
+    // planted modules that are not libraries at all.
+    fs::create_directories(path("bin"));
+    fs::create_directories(path("lib"));
+    fs::create_symlink(DISTILE_BINARY, path("bin") / "distile");
+    for (const char* module : {"libdistile_image_files_oiio.so", "libdistile_vdb_openvdb.so"})
+        writeText(path("lib") / module, "not a library");
+    const RunResult rendered =
+        run({"render", "--width", "16", "--height", "12", "-o", "demo.tif"}, "bin/distile");
+    EXPECT_EQ(rendered.status, 0) << rendered.err;
+    EXPECT_TRUE(fs::is_regular_file(path("demo.tif")));
+    const RunResult baked = run(
+        {"bake", "grating", "--size", "32x32x8", "--bars", "2", "--bar-width", "6", "--bar-height",
+         "2", "--edge-radius", "0.5", "--layer-gap", "0.5", "-o", "g.exr", "--vdb", "g.vdb"},
+        "bin/distile");
+    EXPECT_EQ(baked.status, 0) << baked.err;
+    EXPECT_TRUE(fs::is_regular_file(path("g.vdb")));
+}
+
+TEST_F(Hardening, AClosedPipeDoesNotEndARunHalfway) {
+    // stdout and stderr a pipe whose reader has gone: the first line written raised SIGPIPE,
+    // which ended the run with its temporaries left. Now the lines are lost and the run ends
+    // with its outputs written.
+    const std::string command =
+        "cd " + shellQuote(work().string()) + " && (" + shellQuote(DISTILE_BINARY) +
+        " render --width 16 --height 12 -o demo.png --aovs; echo $? > status.txt) 2>&1 | true";
+    ASSERT_EQ(std::system(command.c_str()), 0);
+    EXPECT_EQ(readText(path("status.txt")), "0\n");
+    const std::set<std::string> entries = workEntries();
+    EXPECT_TRUE(entries.count("demo.png"));
+    for (const std::string& entry : entries) EXPECT_EQ(entry.find("partial"), std::string::npos);
+}
+
 TEST_F(Hardening, AKilledRunsReservedOutputsAreRemovedByTheNextRun) {
     // A killed run leaves its reservations ".NAME.partial-PID-N.EXT". PIDs above 2^22 (Linux's
     // largest pid_max) belong to no process; this process is alive. The next write of o.exr
