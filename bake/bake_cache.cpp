@@ -29,30 +29,39 @@ std::optional<fs::path> bakeCacheFolder() {
     return std::nullopt;
 }
 
-std::shared_ptr<const Tile> cachedBake(const std::string& recipe,
-                                       const std::function<Tile()>& bake) {
+std::shared_ptr<const Tile> cachedBake(const std::string& recipe, const std::function<Tile()>& bake,
+                                       const std::string& sourceHash) {
     const std::string fullRecipe = "revision " + std::to_string(kBakeRevision) + "\n" + recipe;
+    const std::string recipeHash = contentHash(fullRecipe);
     const std::optional<fs::path> folder = bakeCacheFolder();
-    const fs::path file =
-        folder ? *folder / ("tile-" + contentHash(fullRecipe) + ".exr") : fs::path();
+    const fs::path file = folder ? *folder / ("tile-" + recipeHash + ".exr") : fs::path();
     std::error_code error;
     if (folder && fs::is_regular_file(file, error)) {
         try {
-            return std::make_shared<const Tile>(readTileExr(file));
+            Tile cached = readTileExr(file);
+            // A sound tile of another recipe (a file copied over this one) is foreign too.
+            if (cached.provenance.recipeHash == recipeHash) {
+                cached.provenance.recipeHash.clear();
+                return std::make_shared<const Tile>(std::move(cached));
+            }
         } catch (const std::exception&) {
             // Damaged or foreign: bake again and replace it below.
         }
     }
-    auto tile = std::make_shared<const Tile>(bake());
-    if (folder) {
+    Tile baked = bake();
+    // Stored only when the bake read the bytes the recipe names: a source file replaced while
+    // it was baked gave the tile of its new bytes.
+    if (folder && (sourceHash.empty() || baked.provenance.sourceHash == sourceHash)) {
         try {
             fs::create_directories(*folder);
-            writeTileExr(*tile, file);
+            baked.provenance.recipeHash = recipeHash;
+            writeTileExr(baked, file);
         } catch (const std::exception&) {
             // A cache that cannot be written is no cache; the tile is still good.
         }
+        baked.provenance.recipeHash.clear();
     }
-    return tile;
+    return std::make_shared<const Tile>(std::move(baked));
 }
 
 }  // namespace distile

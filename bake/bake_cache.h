@@ -6,8 +6,8 @@
 ///
 /// Folder: $DISTILE_CACHE, else $XDG_CACHE_HOME/distile, else $HOME/.cache/distile;
 /// DISTILE_CACHE=off disables the cache. A cache that cannot be read or written is skipped (the
-/// tile is baked as without one); a cached file that fails readTileExr's checks is baked again
-/// and replaced.
+/// tile is baked as without one); a cached file that fails readTileExr's checks, or was stored
+/// for another recipe, is baked again and replaced.
 #pragma once
 
 #include <filesystem>
@@ -32,9 +32,12 @@ std::string contentHash(std::string_view bytes);
 /// The cache folder as the file note says, or nothing when disabled or no home is known.
 std::optional<std::filesystem::path> bakeCacheFolder();
 
-/// The tile of `recipe`: read from the cache when present and valid, else `bake()` (then stored,
-/// atomically). `recipe` must name everything the tile depends on.
-std::shared_ptr<const Tile> cachedBake(const std::string& recipe,
-                                       const std::function<Tile()>& bake);
+/// The tile of `recipe`: read from the cache when present, valid and stored for this recipe
+/// (distile:recipe_hash), else `bake()` (then stored, atomically). `recipe` must name everything
+/// the tile depends on. A recipe that names an input file by its bytes passes their contentHash
+/// as `sourceHash`: a tile whose provenance records other bytes (the file was replaced while it
+/// was baked) is returned but not stored.
+std::shared_ptr<const Tile> cachedBake(const std::string& recipe, const std::function<Tile()>& bake,
+                                       const std::string& sourceHash = {});
 
 }  // namespace distile

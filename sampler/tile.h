@@ -34,6 +34,10 @@ struct TileProvenance {
     /// one line: kCheckWithin or kCheckBeyond, ": ", then the figures. Bakes of procedural detail
     /// record it (check/tile_check.h recordAnalyticCheck); empty when none was made.
     std::string check;
+    /// The bake cache's name of the recipe the tile was baked for (bake/bake_cache.h,
+    /// distile:recipe_hash): set in the cache's own files only, so that a file of another recipe
+    /// put in its place is not taken for it. Empty elsewhere.
+    std::string recipeHash;
     static constexpr std::string_view kCheckWithin = "within tolerances";
     static constexpr std::string_view kCheckBeyond = "beyond tolerances";
 };

@@ -168,6 +168,7 @@ image_files::Spec tileSpec(const Size3& size, PixelType stored, const TileProven
         spec.set("distile:source_hash", provenance.sourceHash);
     }
     if (!provenance.check.empty()) spec.set("distile:check", provenance.check);
+    if (!provenance.recipeHash.empty()) spec.set("distile:recipe_hash", provenance.recipeHash);
     return spec;
 }
 
@@ -493,7 +494,9 @@ Tile readTileExr(const fs::path& file) {
             (fs::absolute(file).parent_path() / fs::path(sourceFile)).lexically_normal();
         tile.provenance.sourceHash = spec.text("distile:source_hash");
     }
-    // Optional: the verdict of the check made when the tile was baked.
+    // Optional: the bake cache's recipe, and the verdict of the check made when the tile was
+    // baked.
+    tile.provenance.recipeHash = spec.text("distile:recipe_hash");
     tile.provenance.check = spec.text("distile:check");
     const std::string_view check = tile.provenance.check;
     if (!check.empty() && !check.starts_with(TileProvenance::kCheckWithin) &&

@@ -407,20 +407,25 @@ std::shared_ptr<const Tile> recordingSource(std::shared_ptr<const Tile> tile,
     return copy;
 }
 
-/// The tile of a recipe that bakes the file at `path` (`bake` bakes it): from `tiles` or the bake
-/// cache when there, else baked and recorded there, its source file recorded in its provenance.
+/// The tile of a recipe that bakes the file `source` read (`bake` bakes it again from its path):
+/// from `tiles` or the bake cache when there, else baked and recorded there, its source file
+/// recorded in its provenance.
 /// The bake's errors are told under the spec's keys or its "file".
 BakedTile bakedFileTile(const Field& spec, TileCache& tiles, const std::string& recipe,
-                        const fs::path& path, const std::function<Tile()>& bake) {
+                        const RecipeFile& source, const std::function<Tile()>& bake) {
+    const fs::path& path = source.path;
     const std::string key = "bake:" + recipe;
     if (auto found = tiles.find(key); found != tiles.end())
         return {recordingSource(found->second, path), nullptr};
     try {
-        auto tile = cachedBake(recipe, [&] {
-            Tile baked = bake();
-            recordSourceFile(baked.provenance, path);
-            return baked;
-        });
+        auto tile = cachedBake(
+            recipe,
+            [&] {
+                Tile baked = bake();
+                recordSourceFile(baked.provenance, path);
+                return baked;
+            },
+            contentHash(source.bytes));
         tiles[key] = tile;
         return {recordingSource(tile, path), nullptr};
     } catch (const InputError& error) {
@@ -486,7 +491,7 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const std::string recipe = vdbRecipe(bytes, gridName, iso, placement, options);
-    return bakedFileTile(spec, tiles, recipe, path, [&] {
+    return bakedFileTile(spec, tiles, recipe, source, [&] {
         const VdbVolume volume = VdbVolume::read(path, gridName, iso);
         return bakeVdb(volume, placement, options, path.filename().string()).bake.tile;
     });
@@ -526,12 +531,15 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
         if (auto found = tiles.find(key); found != tiles.end()) {
             baked.tile = found->second;
         } else {
-            baked.tile = cachedBake(recipe, [&] {
-                Tile tile =
-                    bakeSolidMesh(mesh, placement, options, path.string(), {}, sign).result.tile;
-                recordSourceFile(tile.provenance, path);
-                return tile;
-            });
+            baked.tile = cachedBake(
+                recipe,
+                [&] {
+                    Tile tile = bakeSolidMesh(mesh, placement, options, path.string(), {}, sign)
+                                    .result.tile;
+                    recordSourceFile(tile.provenance, path);
+                    return tile;
+                },
+                contentHash(bytes));
             tiles[key] = baked.tile;
         }
         baked.tile = recordingSource(baked.tile, path);
@@ -558,7 +566,7 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
-    return bakedFileTile(spec, tiles, recipe, path, [&] {
+    return bakedFileTile(spec, tiles, recipe, source, [&] {
         return bakeHeightMap(readHeightImage(path), heightMap, options).tile;
     });
 }

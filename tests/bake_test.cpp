@@ -16,6 +16,7 @@
 #include <random>
 #include <span>
 
+#include "bake/bake_cache.h"
 #include "bake/mesh_surface.h"
 #include "bake/provenance.h"
 #include "bake/solid_mesh.h"
@@ -25,6 +26,7 @@
 #include "detail_meshes.h"
 #include "render/renderer.h"
 #include "sampler/filters.h"
+#include "sampler/tile_io.h"
 #include "scene/scene_file.h"
 #include "tests/temp_folder.h"
 #include "truth/mesh_truth.h"
@@ -895,13 +897,63 @@ TEST(BakeCache, AProceduralTileThatMissesTheCheckWarnsBakedOrCached) {
         EXPECT_TRUE(thickTile->provenance.check.starts_with(TileProvenance::kCheckWithin));
         ASSERT_EQ(warnings.size(), 1u);
         EXPECT_TRUE(
-            warnings[0].starts_with("thin.json: top level misses distile check's "
+            warnings[0].starts_with("thin.json misses distile check's "
                                     "tolerances: overestimates beyond 0.05 texel in "))
             << warnings[0];
     }
     unsetenv("DISTILE_CACHE");
     EXPECT_EQ(std::distance(fs::directory_iterator(folder.path("cache")), fs::directory_iterator()),
               2);
+}
+
+TEST(BakeCache, AFileOfAnotherRecipePutInPlaceOfAnEntryIsBakedAgain) {
+    // Each entry was only checked to be a sound tile: a tile of another recipe copied over it
+    // (here a grating over a chain mail) was rendered for it, from then on.
+    const TempFolder folder("distile_bake_cache_foreign");
+    const std::string chainmail =
+        R"({"bake": "chainmail", "size": "32x32x8", "rings_per_row": 2, "rows": 2})";
+    const std::string grating = R"({"bake": "grating", "size": "32x32x16", "bars": 2})";
+    setenv("DISTILE_CACHE", folder.path("cache").c_str(), 1);
+    TileCache first;
+    const auto fresh = bakeRecipeTile(chainmail, ".", "c", first);
+    const fs::path entry = fs::directory_iterator(folder.path("cache"))->path();
+    bakeRecipeTile(grating, ".", "g", first);
+    for (const auto& file : fs::directory_iterator(folder.path("cache"))) {
+        if (file.path() != entry)
+            fs::copy_file(file.path(), entry, fs::copy_options::overwrite_existing);
+    }
+    TileCache second;
+    const auto again = bakeRecipeTile(chainmail, ".", "c", second);
+    EXPECT_EQ(again->provenance.source, "chainmail");
+    EXPECT_TRUE(std::ranges::equal(again->distancesTexels(), fresh->distancesTexels()));
+    EXPECT_TRUE(again->provenance.recipeHash.empty());  // the cache's own mark stays there
+    // The entry was replaced: a third process reads the chain mail from it.
+    EXPECT_EQ(readTileExr(entry).provenance.source, "chainmail");
+    unsetenv("DISTILE_CACHE");
+}
+
+TEST(BakeCache, ATileBakedFromOtherBytesThanTheRecipeNamesIsNotStored) {
+    // A recipe names its input file by the bytes read first; the bake reads the file again. A
+    // file replaced in between gave the cache an entry of the old bytes holding the new file's
+    // tile, used from then on. The tile's provenance records the bytes it was baked from.
+    const TempFolder folder("distile_bake_cache_changed");
+    setenv("DISTILE_CACHE", folder.path("cache").c_str(), 1);
+    const auto bakeFrom = [](const char* hash) {
+        return [hash] {
+            Tile tile(Size3{4, 4, 4}, 1.0f);
+            tile.provenance.source = "heightmap";
+            tile.provenance.sourceHash = hash;
+            return tile;
+        };
+    };
+    const auto changed =
+        cachedBake("heightmap file A", bakeFrom("bbbbbbbbbbbbbbbb"), "aaaaaaaaaaaaaaaa");
+    EXPECT_EQ(changed->provenance.sourceHash, "bbbbbbbbbbbbbbbb");  // this run shows what it read
+    EXPECT_FALSE(fs::exists(folder.path("cache")) && !fs::is_empty(folder.path("cache")));
+    cachedBake("heightmap file A", bakeFrom("aaaaaaaaaaaaaaaa"), "aaaaaaaaaaaaaaaa");
+    EXPECT_EQ(std::distance(fs::directory_iterator(folder.path("cache")), fs::directory_iterator()),
+              1);
+    unsetenv("DISTILE_CACHE");
 }
 
 /// A chain-mail sphere on a bare floor, the camera looking at it from 3 units: everything moved
