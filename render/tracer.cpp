@@ -701,6 +701,9 @@ bool SceneTracer::finishShell(const Ray& ray, const ShellMarch& march, SurfaceHi
                      : march.baseHit.distanceWorld + travelTexels / hit.texelsPerWorldAlongRay;
     hit.distanceWorld = distanceWorld;
     hit.position = ray.origin + ray.direction * distanceWorld;
+    // The floor shades as the base surface does, smooth: with the vertex normals interpolated at
+    // the hit (a curved shell's entry was moved there; a straight prism's normal is one).
+    if (result.onFloor) hit.normal = hit.entry.normal;
     if (result.onFloor || !withNormal) return true;
     const glm::vec3 gradient =
         march.gradientKnown

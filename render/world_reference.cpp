@@ -368,6 +368,15 @@ class ObjectShell {
         return where == detail::Located::Inside || where == detail::Located::AboveTop;
     }
 
+    /// Whether the clipped detail at `texel` is the solid floor's top (z = 0) rather than the
+    /// detail.
+    bool onSolidFloor(const glm::dvec3& texel) const {
+        if (!solidFloor_) return false;
+        const double detail = detailTexels(texel);
+        const double clipped = clippedDetailTexels(detail, texel.z, depthTexels_, solidFloor_);
+        return clipped != detail && clipped == texel.z;
+    }
+
   private:
     double detailTexels(const glm::dvec3& texel) const {
         return analytic_ ? analytic_(texel)
@@ -471,9 +480,14 @@ bool refineHit(const ObjectShell& shell, const glm::dvec3& origin, const glm::dv
     exact.triangle = triangle;
     exact.point = point;
     exact.texel = prism.texelAt(point);
-    // n ~ J^-T (d texel / d prism)^T grad d: the gradient of d in world space.
-    const glm::dvec3 normal = prism.jacobianAt(point).solveTransposed(
-        prism.texelGradientToPrism(shell.gradientTexels(exact.texel)));
+    // n ~ J^-T (d texel / d prism)^T grad d: the gradient of d in world space; on the solid
+    // floor, the vertex normals interpolated at the hit, as the renderer shades the floor (its
+    // facets are flat: the smooth base surface they stand for is not).
+    const glm::dvec3 normal =
+        shell.onSolidFloor(exact.texel)
+            ? prism.normalAt(point.b1, point.b2)
+            : prism.jacobianAt(point).solveTransposed(
+                  prism.texelGradientToPrism(shell.gradientTexels(exact.texel)));
     const double length = glm::length(normal);
     if (!(length > 0.0) || !std::isfinite(length)) return false;
     exact.normal = normal / length;
