@@ -263,15 +263,53 @@ fs::path OutputFiles::add(const fs::path& target, const std::string& shownAs) {
 }
 
 void OutputFiles::commit() {
-    // All or none: every target is checked before the first rename.
+    // All or none: every target is checked before the first rename, and a target that exists is
+    // linked to a backup beside it before it is replaced, so that should a later rename fail (a
+    // file another user owns in a sticky folder, an immutable one), the targets replaced so far
+    // get their old files back and the new ones go.
     for (const File& file : files_) requireWritableTarget(file.target, file.shownAs);
-    while (!files_.empty()) {
-        const File& file = files_.front();
-        fs::rename(file.temporary, file.target);
+    struct Replaced {
+        fs::path target;
+        fs::path backup;  ///< empty: the target did not exist (or cannot be linked)
+        int backupSlot = -1;
+    };
+    std::vector<Replaced> replaced;
+    const auto dropBackup = [](const Replaced& entry) {
+        std::error_code ignored;
+        if (!entry.backup.empty()) fs::remove(entry.backup, ignored);
+        releaseTemporary(entry.backupSlot);
+    };
+    for (const File& file : files_) {
+        Replaced entry{file.target, {}, -1};
+        std::error_code status;
+        if (fs::exists(fs::symlink_status(file.target, status))) {
+            const fs::path backup = temporaryBeside(file.target);
+            entry.backupSlot = registerTemporary(backup);
+            if (::link(file.target.c_str(), backup.c_str()) == 0) entry.backup = backup;
+        }
+        if (::rename(file.temporary.c_str(), file.target.c_str()) != 0) {
+            const int renameError = errno;
+            for (auto undo = replaced.rbegin(); undo != replaced.rend(); ++undo) {
+                std::error_code ignored;
+                if (undo->backup.empty())
+                    fs::remove(undo->target, ignored);
+                else
+                    fs::rename(undo->backup, undo->target, ignored);
+                dropBackup(*undo);
+            }
+            dropBackup(entry);
+            throw WriteError(file.shownAs + ": '" + file.target.string() +
+                             "' cannot be replaced (" + std::strerror(renameError) +
+                             "); nothing was written");
+        }
+        replaced.push_back(entry);
+    }
+    for (const Replaced& entry : replaced) dropBackup(entry);
+    for (const File& file : files_) {
         releaseTemporary(file.signalSlot);
         forget(file);
-        files_.erase(files_.begin());
     }
+    files_.clear();
 }
 
 }  // namespace distile

@@ -529,6 +529,26 @@ TEST_F(Hardening, ModulesAreLoadedBesideTheProgramNotBesideItsName) {
     EXPECT_TRUE(fs::is_regular_file(path("g.vdb")));
 }
 
+TEST_F(Hardening, AnOutputThatCannotBeReplacedPutsBackTheOutputsReplacedBeforeIt) {
+    // The targets are checked before the first rename, but a rename can still fail: a file
+    // another user owns in a sticky folder, an immutable file (made here with chattr, which needs
+    // root and a file system that keeps the flag). The tile was replaced and the run then failed
+    // naming the temporary in a raw file system message.
+    writeText(path("t.exr"), "the old tile");
+    writeText(path("t.vdb"), "the old level set");
+    const std::string immutable =
+        "chattr +i " + shellQuote(path("t.vdb").string()) + " 2>/dev/null";
+    if (std::system(immutable.c_str()) != 0) GTEST_SKIP() << "chattr +i is not available here";
+    const RunResult run = expectInputError(
+        {"bake", "grating", "--size", "32x32x8", "--bars", "2", "--bar-width", "6", "--bar-height",
+         "2", "--edge-radius", "0.5", "--layer-gap", "0.5", "-o", "t.exr", "--vdb", "t.vdb"},
+        "never.exr", {"--vdb: '", "t.vdb' cannot be replaced (", "nothing was written"});
+    std::system(("chattr -i " + shellQuote(path("t.vdb").string())).c_str());
+    EXPECT_EQ(run.status, cli::kExitInput);
+    EXPECT_EQ(readText(path("t.exr")), "the old tile");
+    EXPECT_EQ(readText(path("t.vdb")), "the old level set");
+}
+
 TEST_F(Hardening, AClosedPipeDoesNotEndARunHalfway) {
     // stdout and stderr a pipe whose reader has gone: the first line written raised SIGPIPE,
     // which ended the run with its temporaries left. Now the lines are lost and the run ends

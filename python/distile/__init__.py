@@ -115,7 +115,11 @@ def _bake(detail, file, options):
     """bake()'s work; its warnings are told at the line that called bake() or bake_*()."""
     recipe = {"bake": detail}
     if file is not None:
-        path = _os.path.abspath(_os.fsdecode(_os.fspath(file)))
+        path = _os.fsdecode(_os.fspath(file))
+        if "\0" in path:
+            raise InputError(f"bake {detail}: file: {path!r} is not accepted; a file name cannot "
+                             "hold a NUL character")
+        path = _os.path.abspath(path)
         try:
             path.encode("utf-8")
         except UnicodeEncodeError:

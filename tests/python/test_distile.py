@@ -105,6 +105,13 @@ def test_keywords_of_the_wrong_type_are_refused_by_name():
         distile.render(cyclic)
 
 
+def test_bake_file_names_as_bytes_or_with_a_nul(source_dir):
+    ring = source_dir / "data" / "meshes" / "ring.obj"
+    assert distile.bake_mesh(bytes(ring), size="32x32x8").size == (32, 32, 8)
+    with pytest.raises(distile.InputError, match="cannot hold a NUL character"):
+        distile.bake_mesh("ring\0.obj", size="32x32x8")
+
+
 def test_renders_tell_the_scenes_warnings(recwarn):
     # A tile that misses the check's tolerances: the command warns, and so does render().
     scene = {"objects": [{"mesh": "plane", "material": {
