@@ -10,9 +10,11 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <system_error>
 
 #include "common/error.h"
+#include "common/fnv1a.h"
 #include "common/input_file.h"
 
 namespace distile {
@@ -25,11 +27,29 @@ fs::path folderOf(const fs::path& target) {
     return target.has_parent_path() ? target.parent_path() : fs::path(".");
 }
 
+/// The stem that names the temporaries of `target` (".STEM.partial-PID-N.EXT"): its own, or
+/// where such a name would not fit in a file name (255 bytes), its start (whole UTF-8
+/// characters), "~" and the FNV-1a 64 of the whole stem.
+std::string temporaryStem(const fs::path& target) {
+    constexpr std::size_t kNameMax = 255;
+    constexpr std::size_t kHashed = 1 + 16;               // "~" and the hash
+    constexpr std::size_t kAround = 1 + 9 + 10 + 1 + 10;  // ".", ".partial-", PID, "-", N
+    const std::string stem = target.stem().string();
+    const std::size_t extension = target.extension().string().size();
+    if (kAround + extension + stem.size() <= kNameMax) return stem;
+    std::size_t keep =
+        kNameMax > kAround + extension + kHashed ? kNameMax - kAround - extension - kHashed : 0;
+    while (keep > 0 && (static_cast<unsigned char>(stem[keep]) & 0xC0) == 0x80) --keep;
+    Fnv1a64 hash;
+    hash.update(std::as_bytes(std::span(stem.data(), stem.size())));
+    return stem.substr(0, keep) + "~" + hexDigits(hash.value());
+}
+
 /// A name beside `target` no other write of this process or another uses, with its extension.
 fs::path temporaryBeside(const fs::path& target) {
     static std::atomic<int> counter{0};
     return folderOf(target) /
-           ("." + target.stem().string() + ".partial-" + std::to_string(::getpid()) + "-" +
+           ("." + temporaryStem(target) + ".partial-" + std::to_string(::getpid()) + "-" +
             std::to_string(counter++) + target.extension().string());
 }
 
@@ -37,7 +57,7 @@ fs::path temporaryBeside(const fs::path& target) {
 /// files whose process PID no longer exists (a live run's temporaries, ours included, stay). A
 /// killed run cannot clean up after itself, so the next write of the same target does.
 void removeStaleTemporaries(const fs::path& target) {
-    const std::string prefix = "." + target.stem().string() + ".partial-";
+    const std::string prefix = "." + temporaryStem(target) + ".partial-";
     const std::string extension = target.extension().string();
     const auto digits = [](const std::string& text) {
         return !text.empty() && text.size() <= 9 &&

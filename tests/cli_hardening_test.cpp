@@ -549,6 +549,21 @@ TEST_F(Hardening, AnOutputThatCannotBeReplacedPutsBackTheOutputsReplacedBeforeIt
     EXPECT_EQ(readText(path("t.vdb")), "the old level set");
 }
 
+TEST_F(Hardening, AnOutputNameNearTheLongestAFileMayHaveIsWritten) {
+    // A temporary ".NAME.partial-PID-N.EXT" is about 30 bytes longer than its target: names of
+    // 226 to 255 bytes were refused ("refuses a new file (File name too long)"), though the
+    // system takes them. Such a temporary now shortens the name and adds its hash.
+    for (const std::size_t length : {250u, 255u}) {
+        const std::string name = std::string(length - 4, 'a') + ".exr";
+        const RunResult run = this->run({"bake", "grating", "--size", "32x32x8", "--bars", "2",
+                                         "--bar-width", "6", "--bar-height", "2", "--edge-radius",
+                                         "0.5", "--layer-gap", "0.5", "-o", name});
+        EXPECT_EQ(run.status, 0) << run.err;
+        EXPECT_EQ(workEntries(), std::set<std::string>{name});
+        fs::remove(path(name));
+    }
+}
+
 TEST_F(Hardening, AClosedPipeDoesNotEndARunHalfway) {
     // stdout and stderr a pipe whose reader has gone: the first line written raised SIGPIPE,
     // which ended the run with its temporaries left. Now the lines are lost and the run ends
