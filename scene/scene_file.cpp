@@ -45,6 +45,10 @@ class Field {
     [[noreturn]] void fail(const std::string& message) const {
         throw InputError(where() + ": " + message);
     }
+    /// A file this field names is not what distile reads: FormatError, under the field.
+    [[noreturn]] void failFormat(const FormatError& error) const {
+        throw FormatError(where() + ": " + error.what());
+    }
     /// "FILE: PATH", as messages name the field.
     std::string where() const { return file_ + ": " + (path_.empty() ? "top level" : path_); }
     /// "FILE: PATH", or FILE alone for the whole document (a recipe given on its own).
@@ -431,7 +435,7 @@ BakedTile bakedFileTile(const Field& spec, TileCache& tiles, const std::string& 
     } catch (const InputError& error) {
         failInSpec(spec, spec["file"], error);
     } catch (const FormatError& error) {
-        spec["file"].fail(error.what());
+        spec["file"].failFormat(error);
     }
 }
 
@@ -550,7 +554,7 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
     } catch (const InputError& error) {
         failInSpec(spec, file, error);
     } catch (const FormatError& error) {
-        file.fail(error.what());
+        file.failFormat(error);
     }
     return baked;
 }
@@ -689,7 +693,7 @@ std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder,
         warnOfRecordedCheck(*tile, field, warn);
         return tile;
     } catch (const FormatError& error) {
-        field.fail(error.what());
+        field.failFormat(error);
     }
 }
 
@@ -755,7 +759,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
             try {
                 material.colorTexture = std::make_shared<const Image>(readImage(path));
             } catch (const FormatError& error) {
-                color.fail(error.what());
+                color.failFormat(error);
             }
             // An albedo is in [0, kMaxColorComponent], in a texture as in an array (an EXR may
             // hold any value).

@@ -112,6 +112,19 @@ def test_bake_file_names_as_bytes_or_with_a_nul(source_dir):
         distile.bake_mesh("ring\0.obj", size="32x32x8")
 
 
+def test_a_file_that_is_not_what_distile_reads_is_a_format_error_wherever_given(tmp_path):
+    # bake_* gave InputError, check and load_tile FormatError, for the same kind of file.
+    (tmp_path / "bad.vdb").write_bytes(b"not a level set")
+    (tmp_path / "bad.png").write_bytes(b"GIF89a not a png")
+    with pytest.raises(distile.FormatError, match="bad.vdb"):
+        distile.bake_vdb(tmp_path / "bad.vdb", size="32x32x8")
+    with pytest.raises(distile.FormatError, match="bad.png"):
+        distile.bake_heightmap(tmp_path / "bad.png", size="32x32x8")
+    tile = distile.bake_chainmail(size="64x64x16", rings_per_row=2, rows=2)
+    with pytest.raises(distile.FormatError, match="bad.vdb"):
+        distile.check(tile, against=tmp_path / "bad.vdb")
+
+
 def test_renders_tell_the_scenes_warnings(recwarn):
     # A tile that misses the check's tolerances: the command warns, and so does render().
     scene = {"objects": [{"mesh": "plane", "material": {
