@@ -290,7 +290,8 @@ void OutputFiles::commit() {
     for (const File& file : files_) requireWritableTarget(file.target, file.shownAs);
     struct Replaced {
         fs::path target;
-        fs::path backup;  ///< empty: the target did not exist (or cannot be linked)
+        bool existed = false;  ///< the target was there before
+        fs::path backup;       ///< empty: none (the target was new, or cannot be linked)
         int backupSlot = -1;
     };
     std::vector<Replaced> replaced;
@@ -300,27 +301,35 @@ void OutputFiles::commit() {
         releaseTemporary(entry.backupSlot);
     };
     for (const File& file : files_) {
-        Replaced entry{file.target, {}, -1};
+        Replaced entry{file.target};
         std::error_code status;
-        if (fs::exists(fs::symlink_status(file.target, status))) {
+        entry.existed = fs::exists(fs::symlink_status(file.target, status));
+        if (entry.existed) {
             const fs::path backup = temporaryBeside(file.target);
             entry.backupSlot = registerTemporary(backup);
             if (::link(file.target.c_str(), backup.c_str()) == 0) entry.backup = backup;
         }
         if (::rename(file.temporary.c_str(), file.target.c_str()) != 0) {
             const int renameError = errno;
+            // Undone: a new target removed, a replaced one put back from its backup; one that
+            // was replaced without a backup (a file system without hard links, a file another
+            // user owns) keeps its new content.
+            std::string kept;
             for (auto undo = replaced.rbegin(); undo != replaced.rend(); ++undo) {
                 std::error_code ignored;
-                if (undo->backup.empty())
+                if (!undo->backup.empty())
+                    fs::rename(undo->backup, undo->target, ignored);
+                else if (!undo->existed)
                     fs::remove(undo->target, ignored);
                 else
-                    fs::rename(undo->backup, undo->target, ignored);
+                    kept += (kept.empty() ? "" : ", ") + undo->target.string();
                 dropBackup(*undo);
             }
             dropBackup(entry);
             throw WriteError(file.shownAs + ": '" + file.target.string() +
-                             "' cannot be replaced (" + std::strerror(renameError) +
-                             "); nothing was written");
+                             "' cannot be replaced (" + std::strerror(renameError) + "); " +
+                             (kept.empty() ? std::string("nothing was written")
+                                           : "already replaced, and not put back: " + kept));
         }
         replaced.push_back(entry);
     }

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/position_weld.h"
 
 namespace distile {
 namespace {
@@ -23,9 +24,6 @@ namespace {
 constexpr double kDegenerateSine = 1e-7;
 /// Two uvs whose difference is this close to a whole-number vector are the same texture point.
 constexpr double kWholeUvTolerance = 1e-5;
-/// Vertices closer than this fraction of the mesh's bounding-box diagonal are one point of the
-/// surface (weldedPositionGroups).
-constexpr double kWeldFraction = 1e-6;
 /// Coincident-vertex groups up to this size are searched pairwise for tangent welding.
 constexpr std::uint32_t kMaxWeldGroup = 64;
 /// A summed direction shorter than this fraction of the summed weights has cancelled out.
@@ -227,7 +225,7 @@ void computeTangentFrames(BaseMesh& mesh) {
     auto uv = [&](std::uint32_t v) { return glm::dvec2(mesh.uvs[v]); };
 
     // Normals: the length of cross(e1, e2) is twice the area, so summing it area-weights.
-    const std::vector<std::uint32_t> groupOf = weldedPositionGroups(mesh.positions);
+    const std::vector<std::uint32_t> groupOf = weldedPositionGroups(mesh.positions, mesh.triangles);
     const std::size_t groupCount =
         vertexCount == 0 ? 0 : *std::max_element(groupOf.begin(), groupOf.end()) + 1;
     std::vector<glm::dvec3> groupSum(groupCount, glm::dvec3(0.0));
@@ -322,26 +320,9 @@ void computeTangentFrames(BaseMesh& mesh) {
     }
 }
 
-namespace {
-
-/// The weld distance of a mesh: kWeldFraction of its bounding box's diagonal; `low` receives the
-/// box's low corner. Preconditions: positions is not empty.
-double weldDistance(const std::vector<glm::vec3>& positions, glm::dvec3& low) {
-    low = glm::dvec3(positions[0]);
-    glm::dvec3 high = low;
-    for (const glm::vec3& position : positions) {
-        low = glm::min(low, glm::dvec3(position));
-        high = glm::max(high, glm::dvec3(position));
-    }
-    return kWeldFraction * glm::length(high - low);
-}
-
-}  // namespace
-
 std::size_t removeTrianglesWithoutArea(BaseMesh& mesh) {
     if (mesh.positions.empty()) return 0;
-    glm::dvec3 low;
-    const double tolerance = weldDistance(mesh.positions, low);
+    const double tolerance = weldDistanceWorld(mesh.positions, mesh.triangles);
     const std::size_t before = mesh.triangles.size();
     std::erase_if(mesh.triangles, [&](const glm::uvec3& triangle) {
         const glm::dvec3 p0(mesh.positions[triangle[0]]), p1(mesh.positions[triangle[1]]),
@@ -352,81 +333,6 @@ std::size_t removeTrianglesWithoutArea(BaseMesh& mesh) {
         return glm::length(glm::cross(p1 - p0, p2 - p0)) <= tolerance * longestEdge;
     });
     return before - mesh.triangles.size();
-}
-
-std::vector<std::uint32_t> weldedPositionGroups(const std::vector<glm::vec3>& positions) {
-    const std::size_t count = positions.size();
-    std::vector<std::uint32_t> groupOf(count);
-    std::iota(groupOf.begin(), groupOf.end(), 0u);
-    if (count < 2) return groupOf;
-    glm::dvec3 low;
-    const double tolerance = weldDistance(positions, low);
-    // Cells of the tolerance's size from the box's low corner, at most 1 / kWeldFraction + 1 per
-    // axis (21 bits each, packed into one key x, y, z): positions within the tolerance lie in the
-    // same or neighbouring cells. All positions equal: one cell.
-    constexpr int kAxisBits = 21;
-    static_assert(1.0 / kWeldFraction + 1.0 < double(1 << kAxisBits));
-    auto keyOf = [](std::uint64_t x, std::uint64_t y, std::uint64_t z) {
-        return (x << (2 * kAxisBits)) | (y << kAxisBits) | z;
-    };
-    constexpr std::uint64_t kAxisMask = (std::uint64_t(1) << kAxisBits) - 1;
-    struct CellVertex {
-        std::uint64_t key;
-        std::uint32_t index;
-        bool operator<(const CellVertex& other) const {
-            return key != other.key ? key < other.key : index < other.index;
-        }
-    };
-    std::vector<CellVertex> sorted(count);
-    for (std::uint32_t v = 0; v < count; ++v) {
-        const glm::dvec3 cell = tolerance > 0.0
-                                    ? glm::floor((glm::dvec3(positions[v]) - low) / tolerance)
-                                    : glm::dvec3(0.0);
-        sorted[v] = {keyOf(std::uint64_t(cell.x), std::uint64_t(cell.y), std::uint64_t(cell.z)), v};
-    }
-    // Sorted by value rather than through an index array, so each comparison reads its own data;
-    // the order is total (ties broken by index), so the parallel sort's result is unique.
-    tbb::parallel_sort(sorted.begin(), sorted.end());
-
-    // Union-find whose roots are each group's lowest index.
-    auto root = [&](std::uint32_t v) {
-        while (groupOf[v] != v) v = groupOf[v] = groupOf[groupOf[v]];
-        return v;
-    };
-    auto weldIfNear = [&](std::uint32_t a, std::uint32_t b) {
-        if (glm::distance(glm::dvec3(positions[a]), glm::dvec3(positions[b])) > tolerance) return;
-        const std::uint32_t rootA = root(a), rootB = root(b);
-        groupOf[std::max(rootA, rootB)] = std::min(rootA, rootB);
-    };
-    // Every vertex is compared with the later vertices of its own cell and of the neighbouring
-    // cells after it in key order (each neighbouring pair of cells once): (x, y, z..z+1) follows
-    // the vertex in the sorted array; (x+1, y-1..y+1, z-1..z+1) and (x, y+1, z-1..z+1) are four
-    // runs whose starts only move forward as the vertex does.
-    auto weldRun = [&](std::uint32_t vertex, std::size_t from, std::uint64_t lastKey) {
-        for (std::size_t next = from; next < count && sorted[next].key <= lastKey; ++next)
-            weldIfNear(vertex, sorted[next].index);
-    };
-    constexpr std::int64_t kRunOffsets[4][2] = {{1, -1}, {1, 0}, {1, 1}, {0, 1}};
-    std::size_t runStart[4] = {0, 0, 0, 0};
-    for (std::size_t k = 0; k < count; ++k) {
-        const std::uint64_t key = sorted[k].key;
-        const std::int64_t x = std::int64_t(key >> (2 * kAxisBits));
-        const std::int64_t y = std::int64_t((key >> kAxisBits) & kAxisMask);
-        const std::int64_t z = std::int64_t(key & kAxisMask);
-        const std::uint32_t vertex = sorted[k].index;
-        weldRun(vertex, k + 1, keyOf(x, y, std::min<std::int64_t>(z + 1, kAxisMask)));
-        for (int run = 0; run < 4; ++run) {
-            const std::int64_t runX = x + kRunOffsets[run][0], runY = y + kRunOffsets[run][1];
-            if (runY < 0 || runX > std::int64_t(kAxisMask) || runY > std::int64_t(kAxisMask))
-                continue;
-            const std::uint64_t firstKey = keyOf(runX, runY, std::max<std::int64_t>(z - 1, 0));
-            std::size_t& at = runStart[run];
-            while (at < count && sorted[at].key < firstKey) ++at;
-            weldRun(vertex, at, keyOf(runX, runY, std::min<std::int64_t>(z + 1, kAxisMask)));
-        }
-    }
-    for (std::uint32_t v = 0; v < count; ++v) groupOf[v] = root(v);
-    return groupOf;
 }
 
 BaseMesh makePlane(float sizeWorld, int segments) {

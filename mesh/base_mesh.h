@@ -51,7 +51,7 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file);
 /// Fills mesh.normals and mesh.tangents (resized to one per position) from positions, uvs and
 /// triangles, following the convention in the file note above:
 /// - N: area-weighted face normals summed over all vertices welded at one position
-///   (weldedPositionGroups), so duplicates along a UV seam get the same normal (no crack). Where
+///   (common/position_weld.h), so duplicates along a UV seam get the same normal (no crack). Where
 ///   that sum cancels (e.g. a two-sided sheet), the vertex's own faces are used; where everything
 ///   is degenerate N = +z.
 /// - T, w: per triangle dP/du and dP/dv from the edge and UV deltas; each corner adds the
@@ -68,15 +68,8 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file);
 ///                    position or uv is NaN/Inf.
 void computeTangentFrames(BaseMesh& mesh);
 
-/// Per vertex, the lowest index of the vertices welded with it: one point of the surface (the
-/// copies along a uv seam), whose positions lie within 1e-6 of the bounding box's diagonal of each
-/// other (directly or through a chain of such vertices), so that copies an exporter wrote with
-/// rounding noise (sin(2 pi) != 0) weld too. Ids are near their vertices' own indices.
-/// Preconditions: finite positions.
-std::vector<std::uint32_t> weldedPositionGroups(const std::vector<glm::vec3>& positions);
-
 /// Removes the triangles without area: those whose height above their longest edge is at most
-/// the weld distance of weldedPositionGroups (1e-6 of the bounding box's diagonal), such as a
+/// the weld distance (common/position_weld.h: 1e-3 of the median edge length), such as a
 /// triangle lying along an edge of its neighbour or one with two welded corners. They show
 /// nothing, and in the shell they would stand between triangles that meet (an edge of three
 /// faces is not crossed) and fold at every depth. Returns how many were removed; vertices stay.

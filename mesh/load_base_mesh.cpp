@@ -296,12 +296,10 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     /// With keepUvs: each vertex's uv (PLY, OFF and OBJ give them) and whether it has one.
     std::vector<OpenMesh::Vec2f> vertexUvs;
     std::vector<bool> vertexHasUv;
-    /// With keepUvs: each corner's uv, for the faces the file gives them to (OBJ `f v/vt`).
+    /// With keepUvs: each corner's uv, for the faces the file gives them to (OBJ `f v/vt`); the
+    /// other faces take their vertices' uvs.
     std::vector<OpenMesh::Vec2f> cornerUvs;
     std::vector<bool> faceHasUvs;
-    /// The first face whose corner uvs do not match its corners one to one (a corner named twice
-    /// in an OBJ face, which OpenMesh's reader leaves out of the face but not of its uvs).
-    std::optional<std::size_t> firstMismatchedUvFace;
 
     std::size_t faceCount() const { return faceStarts.size() - 1; }
 
@@ -359,10 +357,9 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
         const auto start =
             std::find(corners.begin() + std::ptrdiff_t(begin),
                       corners.begin() + std::ptrdiff_t(begin + count), std::uint32_t(first.idx()));
-        if (uvs.size() != count || start == corners.begin() + std::ptrdiff_t(begin + count)) {
-            if (!firstMismatchedUvFace) firstMismatchedUvFace = f;
-            return;
-        }
+        // A vertex named at two corners of an OBJ face is left out of the face (its first corner
+        // kept) but not out of the uvs: the face then takes its vertices' uvs.
+        if (uvs.size() != count || start == corners.begin() + std::ptrdiff_t(begin + count)) return;
         const std::size_t offset = std::size_t(start - corners.begin()) - begin;
         for (std::size_t k = 0; k < count; ++k) cornerUvs[begin + (offset + k) % count] = uvs[k];
         faceHasUvs[f] = true;
@@ -970,11 +967,6 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file) {
     if (extension == ".obj" && read.faceCount() < objFacts.faceCount) {
         throw FormatError(name + ": OpenMesh read only " + std::to_string(read.faceCount()) +
                           " of its " + std::to_string(objFacts.faceCount) + " faces");
-    }
-    if (read.firstMismatchedUvFace) {
-        throw FormatError(name + ": face " + std::to_string(*read.firstMismatchedUvFace) +
-                          " (counting from 0) names one vertex at two of its corners; expected "
-                          "distinct corners");
     }
     const bool cornerUvs = options.face_has_texcoord();
     if (!cornerUvs && !options.vertex_has_texcoord()) {

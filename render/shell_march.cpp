@@ -8,6 +8,8 @@
 #include <utility>
 #include <vector>
 
+#include "common/position_weld.h"
+
 namespace distile::detail {
 
 Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
@@ -87,7 +89,8 @@ void buildShellMeshInto(const BaseMesh& mesh, const glm::vec2& uvScale, const Si
         neighbourCorners[t] = {0, 0, 0};
     });
     // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
-    const std::vector<std::uint32_t> surfaceVertex = weldedPositionGroups(mesh.positions);
+    const std::vector<std::uint32_t> surfaceVertex =
+        weldedPositionGroups(mesh.positions, mesh.triangles);
     // Directed edges (from, to), grouped by their undirected edge {lo, hi}, the edges from lo
     // first: the side opposite corner c of triangle t is 3 t + c.
     struct DirectedEdge {

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/position_weld.h"
 #include "detail_meshes.h"
 #include "mesh/base_mesh.h"
 #include "mesh/detail_mesh.h"
@@ -399,7 +400,7 @@ TEST(TangentFrames, SeamCopiesWithRoundingNoiseWeldIntoOneNormal) {
     BaseMesh mesh = cylinderWithNoisySeam(kSegments);
     const std::uint32_t seam = 2 * kSegments;            // the first vertex of the u = 1 column
     ASSERT_NE(mesh.positions[seam], mesh.positions[0]);  // the noise survives in float
-    const std::vector<std::uint32_t> groups = weldedPositionGroups(mesh.positions);
+    const std::vector<std::uint32_t> groups = weldedPositionGroups(mesh.positions, mesh.triangles);
     EXPECT_EQ(groups[seam], 0u);
     EXPECT_EQ(groups[seam + 1], 1u);
     for (std::uint32_t v = 2; v < seam; ++v) EXPECT_EQ(groups[v], v);
@@ -419,12 +420,14 @@ TEST(TangentFrames, SeamCopiesWithRoundingNoiseWeldIntoOneNormal) {
 }
 
 TEST(TangentFrames, VerticesApartByMoreThanTheWeldToleranceStayApart) {
-    // The weld takes 1e-6 of the bounding box's diagonal (here 1): a crack of 1e-5 in the file
-    // is kept; 1e-7 is welded.
-    for (const auto& [gap, welded] : {std::pair{1e-5f, false}, std::pair{1e-7f, true}}) {
-        BaseMesh mesh;
-        mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, gap, 0}, {0, 0, 0}};
-        const std::vector<std::uint32_t> groups = weldedPositionGroups(mesh.positions);
+    // The weld takes 1e-3 of the median edge length (here 1: three triangles of edges 1, 1 and
+    // sqrt 2): a crack of 2e-3 in the file is kept; 5e-4 is welded. A stray face a million away
+    // changes nothing: the weld is not a fraction of the mesh's extent.
+    for (const auto& [gap, welded] : {std::pair{2e-3f, false}, std::pair{5e-4f, true}}) {
+        const std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 0, 0},    {0, 1, 0},   {1, gap, 0},
+                                                  {0, 0, 0}, {1e6f, 0, 0}, {0, 1e6f, 0}};
+        const std::vector<glm::uvec3> triangles = {{0, 1, 2}, {0, 1, 2}, {0, 1, 2}, {0, 5, 6}};
+        const std::vector<std::uint32_t> groups = weldedPositionGroups(positions, triangles);
         EXPECT_EQ(groups[3], welded ? 1u : 3u) << gap;
         EXPECT_EQ(groups[4], 0u) << gap;
         EXPECT_EQ(groups[2], 2u) << gap;
@@ -437,8 +440,17 @@ TEST(TangentFrames, WeldGroupsAreTheComponentsOfPairsWithinTheTolerance) {
     // than the tolerance (chains included), each named by its lowest index.
     std::mt19937 random(7);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 1, 1}};  // diagonal sqrt(3)
-    const double tolerance = 1e-6 * std::sqrt(3.0);
+    // 101 triangles of edges 1, 1 and sqrt 2 far from the clusters: the median edge is 1.
+    std::vector<glm::vec3> positions;
+    std::vector<glm::uvec3> triangles;
+    for (std::uint32_t t = 0; t < 101; ++t) {
+        const glm::vec3 corner(10.0f + 3.0f * float(t), 0.0f, 0.0f);
+        positions.insert(positions.end(),
+                         {corner, corner + glm::vec3(1, 0, 0), corner + glm::vec3(0, 1, 0)});
+        triangles.push_back({3 * t, 3 * t + 1, 3 * t + 2});
+    }
+    const std::size_t triangleCorners = positions.size();
+    const double tolerance = 1e-3;
     for (int cluster = 0; cluster < 300; ++cluster) {
         const glm::vec3 centre(unit(random), unit(random), unit(random));
         const int members = 1 + cluster % 4;
@@ -463,15 +475,16 @@ TEST(TangentFrames, WeldGroupsAreTheComponentsOfPairsWithinTheTolerance) {
             }
         }
     }
-    const std::vector<std::uint32_t> groups = weldedPositionGroups(positions);
+    const std::vector<std::uint32_t> groups = weldedPositionGroups(positions, triangles);
     int weldedVertices = 0;
     for (std::size_t v = 0; v < count; ++v) {
         EXPECT_EQ(groups[v], expected[v]) << v;
         weldedVertices += groups[v] != v;
     }
-    // The case welds many and leaves many apart within clusters (300 clusters and 2 corners).
+    // The case welds many and leaves many apart within clusters (300 clusters and the
+    // triangles' corners).
     EXPECT_GT(weldedVertices, 100);
-    EXPECT_GT(int(count) - weldedVertices, 302 + 50);
+    EXPECT_GT(int(count) - weldedVertices, int(300 + triangleCorners) + 50);
 }
 
 TEST(TangentFrames, RejectsInconsistentMeshes) {
@@ -654,18 +667,18 @@ TEST(LoadBaseMesh, FacesOnAnEdgeOfThreeOrWoundAgainstTheirNeighboursKeepTheirUvs
 
 TEST(LoadBaseMesh, TrianglesWithoutAreaAreLeftOut) {
     // The unit square (faces 1, 2), a triangle along its diagonal 1-3 through the midpoint 5
-    // (face 3), one with two corners 1e-7 apart, under the weld distance 1e-6 x sqrt(2) (face 4),
-    // and a sliver 1e-5 high over the edge 1-2, thin but over the weld distance (face 5).
+    // (face 3), one with two corners 1e-7 apart, under the weld distance (1e-3 of the median edge,
+    // 1) (face 4), and a sliver 2e-3 high over the edge 1-2, thin but over it (face 5).
     const TempFile file("flat.obj",
                         "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 0\nv 1e-7 0 0\n"
-                        "v 0.5 -1e-5 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\n"
+                        "v 0.5 -2e-3 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\n"
                         "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 1/1 5/5 3/3\nf 1/1 6/2 4/4\n"
                         "f 1/1 7/5 2/2\n");
     const BaseMesh mesh = loadBaseMesh(file.path());
     ASSERT_EQ(mesh.triangles.size(), 3u);
     const glm::vec3 kept[3][3] = {{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}},
                                   {{0, 0, 0}, {1, 1, 0}, {0, 1, 0}},
-                                  {{0, 0, 0}, {0.5f, -1e-5f, 0}, {1, 0, 0}}};
+                                  {{0, 0, 0}, {0.5f, -2e-3f, 0}, {1, 0, 0}}};
     for (int t = 0; t < 3; ++t) {
         for (int corner = 0; corner < 3; ++corner)
             EXPECT_EQ(mesh.positions[mesh.triangles[t][corner]], kept[t][corner]) << t;
@@ -690,17 +703,17 @@ TEST(LoadBaseMesh, AnObjStartingWithAByteOrderMarkReadsItsFirstLine) {
     EXPECT_EQ(mesh.triangles, expected.triangles);
 }
 
-TEST(LoadBaseMesh, AnObjFaceNamingOneVertexTwiceIsRefused) {
+TEST(LoadBaseMesh, AnObjFaceNamingOneVertexTwiceTakesItsVerticesUvs) {
     // OpenMesh leaves the repeated corner out of the face but not out of its uvs, which then
-    // no longer match the corners.
+    // no longer match the corners one to one: the face takes its vertices' uvs.
     const TempFile file("twice.obj",
-                        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
-                        "f 1/1 2/2 2/3 3/3 4/4\n");
-    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(file.path()); });
-    EXPECT_NE(message.find("twice.obj: face 0 (counting from 0) names one vertex at two of its "
-                           "corners"),
-              std::string::npos)
-        << message;
+                        "v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\n"
+                        "f 1/1 2/2 3/3 1/1\n");
+    const BaseMesh mesh = loadBaseMesh(file.path());
+    ASSERT_EQ(mesh.triangles.size(), 1u);
+    const glm::vec2 expected[3] = {{0, 0}, {1, 0}, {1, 1}};
+    for (int corner = 0; corner < 3; ++corner)
+        EXPECT_EQ(mesh.uvs[mesh.triangles[0][corner]], expected[corner]) << corner;
 }
 
 TEST(LoadBaseMesh, MissingFileIsInputError) {

@@ -196,6 +196,21 @@ TEST(DisplacedMesh, TrianglesStartingOnATileBorderTakeTheWiresCrossingIt) {
     EXPECT_NEAR(areas[1], areas[0], 1e-4 * areas[0]);
 }
 
+TEST(DisplacedMesh, AnEdgeWhoseCornersDifferByRoundingNoiseIsNotABorder) {
+    // The unit square as two triangles whose shared corners one of them writes with rounding
+    // noise (as a script puts a cylinder's seam at sin(2 pi) = -2.4e-16): the renderer joins
+    // them (common/position_weld.h); the reference walled the diagonal off as an open border.
+    const std::vector<glm::vec3> positions = {{0, 0, 0}, {1, 0, 0},         {0, 1, 0},
+                                              {1, 1, 0}, {1, -2.4e-16f, 0}, {5e-8f, 1, 0}};
+    const std::vector<glm::vec3> normals(6, glm::vec3(0, 0, 1));
+    const std::vector<glm::vec2> uvs = {{0, 0}, {1, 0}, {0, 1}, {1, 1}, {1, 0}, {0, 1}};
+    const std::vector<glm::uvec3> triangles = {{0, 1, 2}, {4, 3, 5}};
+    const DisplacementShell shell{positions, normals, uvs, triangles, glm::dvec2(1.0), 0.125, true};
+    const DisplacedMesh mesh = buildDisplacedMesh(
+        [](const glm::dvec3& texel) { return texel.z - 4.0; }, {32, 32, 8}, shell);
+    EXPECT_EQ(mesh.stats.borderEdges, 4u);
+}
+
 TEST(DisplacedLevelSet, OnATorusTheFloorIsATubeAtTheShellDepth) {
     // No detail (distance 100 texels everywhere): only the solid floor, z = 0 of the shell, a tube
     // of radius r - depth around the torus's centre circle. 4 x 2 tiles of 32 x 32 x 8 on a torus

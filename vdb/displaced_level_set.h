@@ -15,8 +15,9 @@
 /// and N_i the unit vertex normals. Mapping per triangle, not per uv, makes mirrored and
 /// overlapping uv charts right: each triangle carries the detail of its own uv triangle. Points
 /// cut on an edge shared by two triangles are mapped along that edge alone, so both sides meet.
-/// An edge no other triangle shares (by world position: a uv seam is not a border) is an open
-/// border: the detail's cross-section there is closed by a wall, so the surface is closed.
+/// An edge no other triangle shares (by welded world position, common/position_weld.h: a uv seam
+/// is not a border) is an open border: the detail's cross-section there is closed by a wall, so
+/// the surface is closed.
 #pragma once
 
 #include <algorithm>

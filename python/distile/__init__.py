@@ -56,43 +56,52 @@ def _json_text(value, what):
     raise InputError(f"{what}: {value!r} is not accepted; numbers must be finite") from None
 
 
+def _numpy_scalar(value, kinds):
+    """Whether `value` is a NumPy scalar or 0-d array of one of the dtype `kinds` ("b", "iu",
+    "iuf")."""
+    dtype = getattr(value, "dtype", None)
+    return dtype is not None and getattr(value, "shape", None) == () and dtype.kind in kinds
+
+
 def _keyword(function, name, value, kind):
     """`value` of keyword `name` of `function`, checked to be of `kind`: "int" (32-bit), "uint64",
     "float", "bool", "str" or "xyz" (three numbers); with a trailing "?", None too (the
-    default). A wrong type raises TypeError naming the keyword, an int beyond the kind's range
-    InputError."""
+    default). NumPy scalars and 0-d arrays count as the Python numbers they hold, but a bool is
+    no number here. A wrong type raises TypeError naming the keyword, an int beyond the kind's
+    range InputError."""
     if kind.endswith("?"):
         if value is None:
             return None
         kind = kind[:-1]
     got = f"not {value!r} ({type(value).__name__})"
+    is_bool = isinstance(value, bool) or _numpy_scalar(value, "b")
     if kind == "bool":
-        if isinstance(value, bool):
-            return value
+        if is_bool:
+            return bool(value)
         raise TypeError(f"{function}(): {name} must be True or False, {got}")
     if kind in ("int", "uint64"):
-        if not isinstance(value, bool):
-            try:
-                number = _operator.index(value)
-            except TypeError:
-                number = None
-            if number is not None:
-                low, high = (-(2**31), 2**31 - 1) if kind == "int" else (0, 2**64 - 1)
-                if not low <= number <= high:
-                    raise InputError(f"{name}: {number} is not accepted; it must be in "
-                                     f"[{low}, {high}] at the very least")
-                return number
+        try:
+            number = None if is_bool else _operator.index(value)
+        except TypeError:
+            number = None
+        if number is not None:
+            low, high = (-(2**31), 2**31 - 1) if kind == "int" else (0, 2**64 - 1)
+            if not low <= number <= high:
+                raise InputError(f"{name}: {number} is not accepted; it must be in "
+                                 f"[{low}, {high}] at the very least")
+            return number
         raise TypeError(f"{function}(): {name} must be a whole number, {got}")
     if kind == "float":
-        if isinstance(value, _numbers.Real) and not isinstance(value, bool):
+        if not is_bool and (isinstance(value, _numbers.Real) or _numpy_scalar(value, "iuf")):
             return float(value)
         raise TypeError(f"{function}(): {name} must be a number, {got}")
     if kind == "str":
         if isinstance(value, str):
             return value
         raise TypeError(f"{function}(): {name} must be a string, {got}")
-    if isinstance(value, (tuple, list)) and len(value) == 3:
-        return [_keyword(function, name, component, "float") for component in value]
+    components = value.tolist() if hasattr(value, "tolist") else value
+    if isinstance(components, (tuple, list)) and len(components) == 3:
+        return [_keyword(function, name, component, "float") for component in components]
     raise TypeError(f"{function}(): {name} must be three numbers (x, y, z), {got}")
 
 

@@ -96,6 +96,15 @@ def test_keywords_of_the_wrong_type_are_refused_by_name():
             distile.check(tile, **{keyword: value})
     with pytest.raises(TypeError, match="^set_threads\\(\\): threads must be"):
         distile.set_threads(True)
+    with pytest.raises(TypeError, match="^render\\(\\): width must be a whole number"):
+        distile.render(scene, width=np.True_)
+    # NumPy scalars and 0-d arrays are the numbers they hold; a NumPy bool is a bool.
+    render = distile.render(scene, width=np.int32(16), height=np.array(12), aovs=np.True_,
+                            epsilon=np.float32(0.02))
+    assert render.image.shape == (12, 16, 3) and render.aovs
+    report = distile.check(tile, samples=np.int64(1000), max_rms=np.array(0.5),
+                           allow_sign_errors=np.False_)
+    assert report["samples"] == 1000
     # What the types allow still reaches the library's own checks.
     with pytest.raises(distile.InputError, match="^width: 0 is not accepted"):
         distile.render(scene, width=0)

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/position_weld.h"
 #include "vdb/openvdb/openvdb_parts.h"
 
 namespace distile::detail {
@@ -403,19 +404,15 @@ class ShellTriangleMap {
 };
 
 /// Which edges of the base triangles are open borders: not shared by another triangle with a uv
-/// area (edges matched by their corners' world positions, so a uv seam is not a border).
+/// area (edges matched by their corners' welded world positions, so a uv seam is not a border).
 std::vector<std::array<bool, 3>> findBorderEdges(const DisplacementShell& shell,
                                                  const std::vector<bool>& hasArea) {
-    using Point = std::array<float, 3>;
-    const auto point = [&](unsigned vertex) {
-        const glm::vec3& p = shell.positions[vertex];
-        return Point{p.x, p.y, p.z};
-    };
-    std::map<std::pair<Point, Point>, int> uses;
+    // Corners by their welded position (common/position_weld.h), as the renderer joins prisms.
+    const std::vector<std::uint32_t> point = weldedPositionGroups(shell.positions, shell.triangles);
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> uses;
     const auto key = [&](const glm::uvec3& t, int edge) {
-        Point a = point(t[edge]), b = point(t[(edge + 1) % 3]);
-        if (b < a) std::swap(a, b);
-        return std::make_pair(a, b);
+        const std::uint32_t a = point[t[edge]], b = point[t[(edge + 1) % 3]];
+        return std::make_pair(std::min(a, b), std::max(a, b));
     };
     for (std::size_t index = 0; index < shell.triangles.size(); ++index) {
         if (!hasArea[index]) continue;
