@@ -124,6 +124,20 @@ TEST_F(VdbImport, RotatedSphereWithAThinBandMatchesTheAnalyticSphere) {
     expectTheSphere(errors);
 }
 
+// A file whose background (what reads back beyond the band) is far wider than its band: the
+// band was taken from the background, so past the real band the background's +-10 units read
+// as distances (here RMS 17 texels, 1408 sign errors). The band is what the values reach.
+TEST_F(VdbImport, ABackgroundWiderThanTheBandIsNotTakenForTheBand) {
+    SphereVolumeOptions sphere = rotatedSphere();
+    sphere.backgroundWorld = 10.0;  // 120 texels; the band is 3 voxels, 0.21 units
+    writeSphereVolume(path("sphere.vdb"), sphere);
+    const VdbVolume volume = VdbVolume::read(path("sphere.vdb"));
+    EXPECT_NEAR(VdbSourceSampler(volume, {12.0, glm::dvec3(0.0)}).bandTexels(), 12.0 * 0.21,
+                12.0 * 0.01);
+    EXPECT_TRUE(VdbDistance(volume, {12.0, glm::dvec3(0.0)}, {64, 64, 32}, 32.0f).rebuilt());
+    expectTheSphere(measureSphere(path("sphere.vdb"), sphereInTile(sphere)));
+}
+
 // A band as wide as the tile needs: the source's own values everywhere, no rebuild.
 // The rebuilt band (surface refined in parallel, distances a row per task) is the same on one
 // thread as on two.

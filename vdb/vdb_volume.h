@@ -125,8 +125,9 @@ class VdbSourceSampler {
     };
     Sample sample(const glm::dvec3& texelPosition) const;
 
-    /// A level set's half band less the iso offset, in texels ((background - |iso|) * scale): how
-    /// far from the surface its values are distances; 0 for other grids.
+    /// A level set's half band less the iso offset, in texels: how far from the surface its values
+    /// are distances, the smaller of its background and its largest stored value, less |iso|,
+    /// times the scale; 0 for other grids.
     double bandTexels() const;
     bool isLevelSet() const;
 
@@ -147,6 +148,9 @@ struct SphereVolumeOptions {
     double voxelSizeWorld = 0.1;
     double rotationDegrees = 0.0;
     float halfWidthVoxels = 3.0f;
+    /// A level set's background (what reads back beyond its band), world units; 0: the band's
+    /// half width, as OpenVDB's tools make it.
+    double backgroundWorld = 0.0;
     bool fog = false;
     std::string gridName = "surface";
 };

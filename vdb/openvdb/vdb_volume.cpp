@@ -153,7 +153,18 @@ class OpenVdbVolumeSampler final : public VolumeSampler {
   public:
     OpenVdbVolumeSampler(openvdb::FloatGrid::ConstPtr source, bool levelSet, double iso,
                          const TexelPlacement& placement)
-        : source_(std::move(source)), levelSet_(levelSet), iso_(iso), placement_(placement) {}
+        : source_(std::move(source)), levelSet_(levelSet), iso_(iso), placement_(placement) {
+        // How far the stored distances reach: the largest active value. A file may set its
+        // background (what reads back beyond the band) larger than that; the band is the
+        // smaller of the two, or values past the real band would read as distances.
+        if (levelSet_) {
+            reachWorld_ = double(source_->background());
+            float largest = 0.0f;
+            for (auto value = source_->cbeginValueOn(); value; ++value)
+                largest = std::max(largest, std::abs(*value));
+            reachWorld_ = std::min(reachWorld_, double(largest));
+        }
+    }
 
     VdbSourceSampler::Sample sample(const glm::dvec3& texelPosition) const override {
         const glm::dvec3 world = (texelPosition - placement_.offsetTexels) / placement_.scale;
@@ -175,12 +186,13 @@ class OpenVdbVolumeSampler final : public VolumeSampler {
 
     double bandTexels() const override {
         if (!levelSet_) return 0.0;
-        return std::max(0.0, (double(source_->background()) - std::abs(iso_)) * placement_.scale);
+        return std::max(0.0, (reachWorld_ - std::abs(iso_)) * placement_.scale);
     }
 
   private:
     openvdb::FloatGrid::ConstPtr source_;
     bool levelSet_ = true;
+    double reachWorld_ = 0.0;  ///< the band the stored distances cover, world units
     double iso_ = 0.0;
     TexelPlacement placement_;
 };
@@ -437,7 +449,8 @@ openvdb::FloatGrid::Ptr sphereGrid(const SphereVolumeOptions& options) {
     const double radians = options.rotationDegrees * std::numbers::pi / 180.0;
     transform->postRotate(radians, openvdb::math::X_AXIS);
     transform->postRotate(radians, openvdb::math::Y_AXIS);
-    auto grid = openvdb::FloatGrid::create(options.fog ? 0.0f : float(bandWorld));
+    const double background = options.backgroundWorld > 0.0 ? options.backgroundWorld : bandWorld;
+    auto grid = openvdb::FloatGrid::create(options.fog ? 0.0f : float(background));
     grid->setTransform(transform);
     grid->setName(options.gridName);
     grid->setGridClass(options.fog ? openvdb::GRID_FOG_VOLUME : openvdb::GRID_LEVEL_SET);
