@@ -113,6 +113,7 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
     requireTolerance("maxOverestimateTexels", options.maxOverestimateTexels, 1e6);
     requireTolerance("maxOverestimateShare", options.maxOverestimateShare, 1.0);
     requireTolerance("maxRmsTexels", options.maxRmsTexels, 1e6);
+    requireTolerance("maxTracerOverestimateTexels", options.maxTracerOverestimateTexels, 1e6);
     if (options.maxNearErrorTexels)
         requireTolerance("maxNearErrorTexels", *options.maxNearErrorTexels, 1e6);
     const bool againstGiven = !options.against.empty();
@@ -289,6 +290,11 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
     if (report.rmsTexels > options.maxRmsTexels) {
         failures.push_back("RMS " + text(report.rmsTexels) + " texel (allowed " +
                            text(options.maxRmsTexels) + ")");
+    }
+    if (report.maxTracerOverestimateTexels > options.maxTracerOverestimateTexels) {
+        failures.push_back("a tracer can step past the surface by " +
+                           text(report.maxTracerOverestimateTexels) + " texel (allowed " +
+                           text(options.maxTracerOverestimateTexels) + ")");
     }
     if (options.maxNearErrorTexels && report.nearMaxAbsTexels > *options.maxNearErrorTexels) {
         failures.push_back("max error near the surface " + text(report.nearMaxAbsTexels) +

@@ -8,11 +8,10 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <glm/vec3.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <glm/vec3.hpp>
 
 #include "sampler/tile.h"
 #include "sampler/tile_error.h"
@@ -30,6 +29,10 @@ struct TileCheckOptions {
     double maxOverestimateTexels = 0.05;  ///< tile - truth above it is an overestimate
     double maxOverestimateShare = 0.001;  ///< largest accepted share of overestimates
     double maxRmsTexels = 0.1;
+    /// Largest accepted tile - max(truth, 0): how far a sphere tracer can step past the surface.
+    /// The share above catches spread error; this catches a local one, such as a few damaged
+    /// texels (good tiles stay near maxOverestimateTexels).
+    double maxTracerOverestimateTexels = 1.0;
     std::optional<double>
         maxNearErrorTexels;  ///< within 2 texels of the surface; unchecked if unset
     bool allowSignErrors = false;

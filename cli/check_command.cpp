@@ -177,6 +177,12 @@ void addCheckCommand(CLI::App& app) {
         ->capture_default_str()
         ->check(finiteRange(0.0, 1e6));
     command
+        ->add_option("--max-tracer-overestimate", arguments->options.maxTracerOverestimateTexels,
+                     "Largest accepted step past the surface, texels: tile - max(truth, 0) at any "
+                     "sample (a local error, such as a damaged texel, the share above misses)")
+        ->capture_default_str()
+        ->check(finiteRange(0.0, 1e6));
+    command
         ->add_option("--max-near-error", arguments->options.maxNearErrorTexels,
                      "Largest accepted error within 2 texels of the surface (default: not checked)")
         ->check(finiteRange(0.0, 1e6));

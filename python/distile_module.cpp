@@ -429,6 +429,7 @@ PYBIND11_MODULE(_distile, module) {
                 throw shownUnder(error, {{"maxOverestimateTexels", "max_overestimate"},
                                          {"maxOverestimateShare", "max_overestimate_share"},
                                          {"maxRmsTexels", "max_rms"},
+                                         {"maxTracerOverestimateTexels", "max_tracer_overestimate"},
                                          {"maxNearErrorTexels", "max_near_error"},
                                          {"meshScale", "scale"},
                                          {"meshOffsetTexels", "offset"}});
@@ -444,6 +445,7 @@ PYBIND11_MODULE(_distile, module) {
         .def_readwrite("max_overestimate", &TileCheckOptions::maxOverestimateTexels)
         .def_readwrite("max_overestimate_share", &TileCheckOptions::maxOverestimateShare)
         .def_readwrite("max_rms", &TileCheckOptions::maxRmsTexels)
+        .def_readwrite("max_tracer_overestimate", &TileCheckOptions::maxTracerOverestimateTexels)
         .def_readwrite("max_near_error", &TileCheckOptions::maxNearErrorTexels)
         .def_readwrite("allow_sign_errors", &TileCheckOptions::allowSignErrors)
         .def_readwrite("scale", &TileCheckOptions::meshScale)

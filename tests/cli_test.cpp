@@ -530,6 +530,34 @@ TEST_F(Cli, CheckFailsTilesThatDoNotRepresentTheirSource) {
     }
 }
 
+// A local dent, 3 x 3 x 3 texels at the surface raised by 3 texels: a tracer steps through the
+// detail there, but the share of overestimates and the RMS average it away; the largest step
+// past the surface does not.
+TEST_F(Cli, CheckFailsALocalDentTheShareAndTheRmsAverageAway) {
+    ASSERT_EQ(run(kBakeGrating).status, 0);
+    Tile dented = readTileExr(path("grating.exr"));
+    const Size3 size = dented.size();
+    glm::ivec3 centre(-1);
+    for (int z = 1; z + 1 < size.depth && centre.x < 0; ++z)
+        for (int y = 1; y + 1 < size.height && centre.x < 0; ++y)
+            for (int x = 1; x + 1 < size.width && centre.x < 0; ++x)
+                if (std::abs(dented.at(x, y, z)) < 0.5f) centre = {x, y, z};
+    ASSERT_GE(centre.x, 0);
+    for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx)
+                dented.at(centre.x + dx, centre.y + dy, centre.z + dz) += 3.0f;
+    writeTileExr(dented, path("dented.exr"));
+    const RunResult strict = run({"check", "dented.exr"});
+    EXPECT_EQ(strict.status, 1) << strict.out << strict.err;
+    EXPECT_NE(strict.out.find("FAILED: a tracer can step past the surface by "), std::string::npos)
+        << strict.out;
+    // Without it (and with the few sign errors inside the dent allowed), the tile passes.
+    const RunResult lenient =
+        run({"check", "dented.exr", "--max-tracer-overestimate", "100", "--allow-sign-errors"});
+    EXPECT_EQ(lenient.status, 0) << lenient.out << lenient.err;
+}
+
 // NaN or infinite tolerances would switch a check off (every comparison with NaN is false).
 TEST_F(Cli, CheckRefusesToleranceThatIsNotAFiniteNumber) {
     ASSERT_EQ(run(kBakeGrating).status, 0);

@@ -186,7 +186,8 @@ def bake_vdb(file, **options):
 
 _CHECK_KEYWORDS = {
     "samples": "int", "seed": "uint64", "max_overestimate": "float",
-    "max_overestimate_share": "float", "max_rms": "float", "max_near_error": "float?",
+    "max_overestimate_share": "float", "max_rms": "float", "max_tracer_overestimate": "float",
+    "max_near_error": "float?",
     "allow_sign_errors": "bool", "scale": "float?", "offset": "xyz?",
 }
 

@@ -154,15 +154,17 @@ class OpenVdbVolumeSampler final : public VolumeSampler {
     OpenVdbVolumeSampler(openvdb::FloatGrid::ConstPtr source, bool levelSet, double iso,
                          const TexelPlacement& placement)
         : source_(std::move(source)), levelSet_(levelSet), iso_(iso), placement_(placement) {
-        // How far the stored distances reach: the largest active value. A file may set its
-        // background (what reads back beyond the band) larger than that; the band is the
+        // How far the stored distances reach: the largest active value, and a voxel beyond it
+        // (the band's last voxels hold values up to a voxel short of its edge). A file may set
+        // its background (what reads back beyond the band) larger than that; the band is the
         // smaller of the two, or values past the real band would read as distances.
         if (levelSet_) {
-            reachWorld_ = double(source_->background());
             float largest = 0.0f;
             for (auto value = source_->cbeginValueOn(); value; ++value)
                 largest = std::max(largest, std::abs(*value));
-            reachWorld_ = std::min(reachWorld_, double(largest));
+            const openvdb::Vec3d voxel = source_->voxelSize();
+            reachWorld_ = std::min(double(source_->background()),
+                                   double(largest) + std::max({voxel[0], voxel[1], voxel[2]}));
         }
     }
 
