@@ -22,4 +22,10 @@ extern const char* const kSilhouetteRule;
 /// PSNR (null when infinite: the images are identical).
 nlohmann::json renderComparisonJson(const RenderComparison& comparison);
 
+/// `report` as one line of JSON text. Bytes of a file name that are not UTF-8 (Linux names are
+/// any bytes) become U+FFFD rather than an exception.
+inline std::string reportText(const nlohmann::json& report) {
+    return report.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 }  // namespace distile

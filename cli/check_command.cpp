@@ -45,7 +45,7 @@ void printReport(const CheckArguments& arguments, const TileCheckOptions& option
     const bool bandDeclared = check.bandDeclared;
     if (arguments.json) {
         const nlohmann::json out = tileCheckJson(check, options, arguments.tile.string());
-        std::printf("%s\n", out.dump().c_str());
+        std::printf("%s\n", reportText(out).c_str());
         return;
     }
     std::printf("%s against %s, %d samples (seed %llu), trilinear, texels:\n",

@@ -70,7 +70,7 @@ void runCompare(const CompareArguments& arguments) {
         out["b"] = arguments.b.string();
         out["difference"] = differencePath.string();
         out["heatmap"] = heatMapPath.string();
-        std::printf("%s\n", out.dump().c_str());
+        std::printf("%s\n", reportText(out).c_str());
         return;
     }
     std::printf("compared %s with %s (%dx%d)\n", arguments.a.c_str(), arguments.b.c_str(), c.width,

@@ -9,6 +9,7 @@
 #include <tbb/global_control.h>
 
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -224,7 +225,7 @@ py::object compareAny(const py::object& a, const py::object& b) {
             py::gil_scoped_release released;
             comparison = compareRenders(viewA, viewB);
         }
-        return jsonValue(renderComparisonJson(comparison).dump());
+        return jsonValue(reportText(renderComparisonJson(comparison)));
     };
     std::optional<RenderFiles> filesA, filesB;
     auto view = [](const py::object& render, std::optional<RenderFiles>& files,
@@ -260,16 +261,29 @@ PYBIND11_MODULE(_distile, module) {
     static py::exception<FormatError> formatError(module, "FormatError", PyExc_ValueError);
     static py::exception<InternalError> internalError(module, "InternalError", PyExc_RuntimeError);
     py::register_exception_translator([](std::exception_ptr thrown) {
+        // A message quotes file names, which on Linux may be any bytes: those that are not UTF-8
+        // are shown escaped (PyErr_SetString's strict decoding left the message empty).
+        const auto raise = [](PyObject* type, const char* message) {
+            PyObject* text =
+                PyUnicode_DecodeUTF8(message, Py_ssize_t(std::strlen(message)), "backslashreplace");
+            if (!text) {
+                PyErr_Clear();
+                PyErr_SetString(type, "(a message that is not text)");
+                return;
+            }
+            PyErr_SetObject(type, text);
+            Py_DECREF(text);
+        };
         try {
             if (thrown) std::rethrow_exception(thrown);
         } catch (const InputError& error) {
-            inputError(error.what());
+            raise(inputError.ptr(), error.what());
         } catch (const FormatError& error) {
-            formatError(error.what());
+            raise(formatError.ptr(), error.what());
         } catch (const InternalError& error) {
-            internalError(error.what());
+            raise(internalError.ptr(), error.what());
         } catch (const std::system_error& error) {
-            PyErr_SetString(PyExc_OSError, error.what());
+            raise(PyExc_OSError, error.what());
         }
     });
 
@@ -434,7 +448,7 @@ PYBIND11_MODULE(_distile, module) {
                                          {"meshScale", "scale"},
                                          {"meshOffsetTexels", "offset"}});
             }
-            return jsonValue(tileCheckJson(check, options, tileName).dump());
+            return jsonValue(reportText(tileCheckJson(check, options, tileName)));
         },
         py::arg("tile"), py::arg("tile_name"), py::arg("tile_file"), py::arg("options"));
     py::class_<TileCheckOptions>(module, "CheckOptions")

@@ -462,6 +462,18 @@ TEST_F(Cli, CheckJsonIsOneObjectWithTheFigures) {
     EXPECT_LE(report.at("tracer_overestimates").get<int>(), report.at("overestimates").get<int>());
 }
 
+// A Linux file name may be any bytes: a tile named with one that is not UTF-8 ended `check
+// --json` with a JSON library exception (exit 3). Such bytes show as U+FFFD in the report.
+TEST_F(Cli, CheckJsonOfAFileNameThatIsNotUtf8) {
+    ASSERT_EQ(run(kBakeGrating).status, 0);
+    const std::string name = "grating\xff.exr";
+    fs::copy_file(path("grating.exr"), path(name));
+    const RunResult result = run({"check", name, "--samples", "5000", "--json"});
+    ASSERT_EQ(result.status, 0) << result.err;
+    const nlohmann::json report = nlohmann::json::parse(result.out);
+    EXPECT_EQ(report.at("tile").get<std::string>(), "grating\xef\xbf\xbd.exr");
+}
+
 TEST_F(Cli, CheckAgainstTheLevelSetAndRejectsBadInput) {
     std::vector<std::string> bake = kBakeGrating;
     bake.insert(bake.end(),

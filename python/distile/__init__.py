@@ -210,8 +210,9 @@ def check(tile, against=None, **options):
     _set_keywords("check", settings, options, _CHECK_KEYWORDS)
     if isinstance(tile, Tile):
         return _distile.check_tile(tile, "tile", "", settings)
-    path = _os.fspath(tile)
-    return _distile.check_tile(load_tile(path), path, path, settings)
+    path = _os.fsdecode(_os.fspath(tile))
+    # The name as the file's bytes: any a Linux name may hold, as the command takes them.
+    return _distile.check_tile(load_tile(path), _os.fsencode(path), path, settings)
 
 
 def render(scene, **options):

@@ -1,6 +1,7 @@
 """The Python module against known answers and against the `distile` command."""
 
 import gc
+import os
 import json
 import re
 import threading
@@ -132,6 +133,17 @@ def test_a_file_that_is_not_what_distile_reads_is_a_format_error_wherever_given(
     tile = distile.bake_chainmail(size="64x64x16", rings_per_row=2, rows=2)
     with pytest.raises(distile.FormatError, match="bad.vdb"):
         distile.check(tile, against=tmp_path / "bad.vdb")
+
+
+def test_file_names_that_are_not_utf8(tmp_path):
+    # Linux names are any bytes: check() refused such a name (pybind11's "incompatible function
+    # arguments"), and an error naming one came with an empty message.
+    tile = distile.bake_grating(size="32x32x16", bars=2)
+    name = os.fsdecode(bytes(tmp_path) + b"/grating\xff.exr")
+    tile.save(name)
+    assert distile.check(name)["passed"]
+    with pytest.raises(distile.InputError, match=r"missing\\xff\.exr: no such file"):
+        distile.load_tile(os.fsdecode(bytes(tmp_path) + b"/missing\xff.exr"))
 
 
 def test_renders_tell_the_scenes_warnings(recwarn):
