@@ -1,8 +1,6 @@
 // Tangent frames and the built-in base meshes (plane, UV sphere, torus).
 #include "mesh/base_mesh.h"
 
-#include <tbb/parallel_sort.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>

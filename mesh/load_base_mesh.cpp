@@ -293,9 +293,8 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     std::vector<std::size_t> faceStarts = {0};  ///< face f: corners [faceStarts[f], [f + 1])
     /// The first vertex index a face gave that is not a vertex of the file (the face is left out).
     std::optional<int> firstInvalidCorner;
-    /// With keepUvs: each vertex's uv (PLY, OFF and OBJ give them) and whether it has one.
+    /// With keepUvs: each vertex's uv (PLY, OFF and OBJ give them; (0, 0) where none is given).
     std::vector<OpenMesh::Vec2f> vertexUvs;
-    std::vector<bool> vertexHasUv;
     /// With keepUvs: each corner's uv, for the faces the file gives them to (OBJ `f v/vt`); the
     /// other faces take their vertices' uvs.
     std::vector<OpenMesh::Vec2f> cornerUvs;
@@ -307,7 +306,6 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
         points.push_back(point);
         if (keepUvs_) {
             vertexUvs.emplace_back(0.0f, 0.0f);
-            vertexHasUv.push_back(false);
         }
         return OpenMesh::VertexHandle(int(points.size() - 1));
     }
@@ -367,7 +365,6 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     void set_texcoord(OpenMesh::VertexHandle vertex, const OpenMesh::Vec2f& uv) override {
         if (!keepUvs_ || !vertex.is_valid() || std::size_t(vertex.idx()) >= points.size()) return;
         vertexUvs[std::size_t(vertex.idx())] = uv;
-        vertexHasUv[std::size_t(vertex.idx())] = true;
     }
     void add_face_texcoords(OpenMesh::FaceHandle, OpenMesh::VertexHandle,
                             const std::vector<OpenMesh::Vec3f>&) override {}
@@ -404,6 +401,39 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
   private:
     bool keepUvs_;
 };
+
+/// Reads `file` with OpenMesh's reader for `extension` into `read` (`options` in and out), one
+/// read at a time, with the checks every mesh file gets: a face naming a missing vertex (before
+/// OpenMesh's own line for it, which says less), a failure OpenMesh logs, no face at all
+/// (`noFacesHint` follows "has no faces OpenMesh could read"), and an OBJ of which OpenMesh read
+/// fewer faces than the check counted (`objFacts`).
+void readSoup(const std::filesystem::path& file, const std::string& extension,
+              const ObjFacts& objFacts, const std::string& noFacesHint, SoupImporter& read,
+              OpenMesh::IO::Options& options) {
+    const std::string name = file.string();
+    {
+        std::lock_guard<std::mutex> lock(openMeshReadMutex());
+        OpenMeshLogCapture log;
+        const bool readOk = readWithOpenMesh(file, extension, read, options);
+        const std::string failure = log.firstFailure();
+        if (read.firstInvalidCorner) {
+            throw FormatError(name + ": a face refers to vertex " +
+                              std::to_string(*read.firstInvalidCorner) +
+                              " (counting from 0); the file has " +
+                              std::to_string(read.points.size()) + " vertices");
+        }
+        if (!readOk || !failure.empty()) {
+            throw FormatError(name + ": OpenMesh cannot read it as " + extension.substr(1) +
+                              (failure.empty() ? std::string() : " (" + failure + ")"));
+        }
+    }
+    if (read.faceCount() == 0)
+        throw FormatError(name + ": has no faces OpenMesh could read" + noFacesHint);
+    if (extension == ".obj" && read.faceCount() < objFacts.faceCount) {
+        throw FormatError(name + ": OpenMesh read only " + std::to_string(read.faceCount()) +
+                          " of its " + std::to_string(objFacts.faceCount) + " faces");
+    }
+}
 
 /// The most corners a polygon of a mesh file may have.
 constexpr std::uint64_t kMaxPolygonCorners = 65536;
@@ -943,31 +973,9 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file) {
     SoupImporter read(true);
     OpenMesh::IO::Options options =
         OpenMesh::IO::Options::VertexTexCoord | OpenMesh::IO::Options::FaceTexCoord;
-    {
-        std::lock_guard<std::mutex> lock(openMeshReadMutex());
-        OpenMeshLogCapture log;
-        const bool readOk = readWithOpenMesh(file, extension, read, options);
-        const std::string failure = log.firstFailure();
-        if (read.firstInvalidCorner) {
-            throw FormatError(name + ": a face refers to vertex " +
-                              std::to_string(*read.firstInvalidCorner) +
-                              " (counting from 0); the file has " +
-                              std::to_string(read.points.size()) + " vertices");
-        }
-        if (!readOk || !failure.empty()) {
-            throw FormatError(name + ": OpenMesh cannot read it as " + extension.substr(1) +
-                              (failure.empty() ? std::string() : " (" + failure + ")"));
-        }
-    }
-    if (read.faceCount() == 0) {
-        throw FormatError(name +
-                          ": has no faces OpenMesh could read (in OBJ, f lines; a face needs "
-                          "three distinct corners); expected a mesh");
-    }
-    if (extension == ".obj" && read.faceCount() < objFacts.faceCount) {
-        throw FormatError(name + ": OpenMesh read only " + std::to_string(read.faceCount()) +
-                          " of its " + std::to_string(objFacts.faceCount) + " faces");
-    }
+    readSoup(file, extension, objFacts,
+             " (in OBJ, f lines; a face needs three distinct corners); expected a mesh", read,
+             options);
     const bool cornerUvs = options.face_has_texcoord();
     if (!cornerUvs && !options.vertex_has_texcoord()) {
         throw FormatError(name + ": has no texture coordinates" +
@@ -1168,32 +1176,8 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
 
     SoupImporter read(false);
     OpenMesh::IO::Options options;
-    {
-        std::lock_guard<std::mutex> lock(openMeshReadMutex());
-        OpenMeshLogCapture log;
-        const bool readOk = readWithOpenMesh(file, extension, read, options);
-        const std::string failure = log.firstFailure();
-        // A face that names a missing vertex first: OpenMesh's own line for it says less.
-        if (read.firstInvalidCorner) {
-            throw FormatError(name + ": a face refers to vertex " +
-                              std::to_string(*read.firstInvalidCorner) +
-                              " (counting from 0); the file has " +
-                              std::to_string(read.points.size()) + " vertices");
-        }
-        if (!readOk || !failure.empty()) {
-            throw FormatError(name + ": OpenMesh cannot read it as " + extension.substr(1) +
-                              (failure.empty() ? std::string() : " (" + failure + ")"));
-        }
-    }
-    if (read.faceCount() == 0) {
-        throw FormatError(name +
-                          ": has no faces OpenMesh could read; expected a mesh "
-                          "(NaN/Inf numbers also end up here)");
-    }
-    if (extension == ".obj" && read.faceCount() < objFacts.faceCount) {
-        throw FormatError(name + ": OpenMesh read only " + std::to_string(read.faceCount()) +
-                          " of its " + std::to_string(objFacts.faceCount) + " faces");
-    }
+    readSoup(file, extension, objFacts, "; expected a mesh (NaN/Inf numbers also end up here)",
+             read, options);
     // Corners at identical positions become one vertex, whatever the format: OpenMesh merges
     // them for STL only, and an OBJ/PLY/OFF soup of unwelded corners would otherwise have no
     // shared edges at all.
