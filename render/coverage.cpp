@@ -292,11 +292,40 @@ std::uint64_t ScreenShells::passingPixels(const ScreenTriangle& top, int tileX, 
                                  std::ceil(top.boundsMax.x + top.marginPixels)}));
     const int y1 = int(std::min({upper + (kTilePixels - 1), double(projection.height() - 1),
                                  std::ceil(top.boundsMax.y + top.marginPixels)}));
+    if (x0 > x1 || y0 > y1) return 0;
+    // trianglePixelOverlapConservative over the range, its terms taken once per column and per
+    // row: each pixel's sums are those of its own test (the same products, added in the same
+    // order), so its answer is the same. Column c of a row is bit c of the row's bits.
+    const double margin = top.marginPixels;
+    bool columnInBounds[kTilePixels] = {};
+    double columnTerms[3][kTilePixels] = {};
+    for (int column = 0; column <= x1 - x0; ++column) {
+        const double low = double(x0 + column) - margin;
+        const double high = (double(x0 + column) + 1.0) + margin;
+        columnInBounds[column] = !(high < top.boundsMin.x || low > top.boundsMax.x);
+        for (int i = 0; i < 3; ++i)
+            columnTerms[i][column] = top.edges[i].x * (top.edges[i].x > 0.0 ? high : low);
+    }
     std::uint64_t pixels = 0;
-    for (int y = y0; y <= y1; ++y)
-        for (int x = x0; x <= x1; ++x)
-            if (trianglePixelOverlapConservative(top, x, y))
-                pixels |= std::uint64_t(1) << pixelBit(x, y);
+    for (int y = y0; y <= y1; ++y) {
+        const double low = double(y) - margin;
+        const double high = (double(y) + 1.0) + margin;
+        if (high < top.boundsMin.y || low > top.boundsMax.y) continue;
+        double rowTerms[3];
+        for (int i = 0; i < 3; ++i)
+            rowTerms[i] = top.edges[i].y * (top.edges[i].y > 0.0 ? high : low);
+        unsigned rowBits = 0;
+        for (int column = 0; column < kTilePixels; ++column) {
+            bool passes = columnInBounds[column];
+            if (top.hasEdges) {
+                for (int i = 0; i < 3; ++i)
+                    passes &= !(columnTerms[i][column] + rowTerms[i] + top.edges[i].z <
+                                -top.edgeTolerance[i]);
+            }
+            rowBits |= unsigned(passes) << column;
+        }
+        pixels |= std::uint64_t(rowBits) << pixelBit(x0, y);
+    }
     return pixels;
 }
 

@@ -1,7 +1,6 @@
 #include "render/renderer.h"
 
 #include <tbb/blocked_range2d.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
@@ -14,6 +13,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/image_blocks.h"
 #include "render/analytic_filter.h"
 #include "render/coverage.h"
 #include "render/shading.h"
@@ -726,63 +726,55 @@ RenderResult PreparedScene::render(const ProgressCallback& progress) const {
     std::atomic<std::uint64_t> rays{0}, baseHits{0}, detailHits{0}, iterations{0}, converged{0},
         shadowSteps{0}, shadowMapSamples{0};
     std::atomic<std::uint64_t> shellsTested{0}, shellsTraced{0};
-    // Bands of rows, so progress can be reported from this thread between them (each band ends
-    // in a wait for its slowest block: one band when nobody asks for progress); inside a band,
-    // 16 x 16 pixel blocks are shared among the threads. Every pixel is computed on its own.
+    // Blocks of 16 x 16 pixels shared among the threads; every pixel is computed on its own.
     constexpr int kBlock = 16;
-    const int bandRows = progress ? 64 : options.height;
-    for (int bandStart = 0; bandStart < options.height; bandStart += bandRows) {
-        const int bandEnd = std::min(bandStart + bandRows, options.height);
-        tbb::parallel_for(
-            tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
-            [&](const tbb::blocked_range2d<int>& block) {
-                RenderStats local;
-                thread_local std::vector<std::uint64_t> facingHits;
-                facingHits.assign(renderer.facingSlots(), 0);
-                constexpr int kRows = Renderer::kRunRows;
-                Sample run[kRows * kBlock];
-                for (int y0 = block.rows().begin(); y0 < block.rows().end(); y0 += kRows) {
-                    const int y1 = std::min(y0 + kRows, block.rows().end());
-                    for (int x0 = block.cols().begin(); x0 < block.cols().end(); x0 += kBlock) {
-                        const int x1 = std::min(x0 + kBlock, block.cols().end());
-                        renderer.renderRun(y0, y1, x0, x1, run, local, facingHits);
-                        for (int y = y0; y != y1; ++y)
-                            for (int x = x0; x != x1; ++x) {
-                                const Sample& pixel = run[(y - y0) * (x1 - x0) + (x - x0)];
-                                result.image.at(x, y) = pixel.color;
-                                if (!result.aovs) continue;
-                                result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
-                                result.aovs->normal.at(x, y) = pixel.depth > 0.0f
-                                                                   ? pixel.normal * 0.5f + 0.5f
-                                                                   : glm::vec3(0.0f);
-                                result.aovs->iterations.at(x, y) = heatColor(
-                                    float(pixel.iterations) / float(options.march.maxIterations));
-                                result.aovs->shadowSamples.at(x, y) =
-                                    heatColor(float(pixel.shadowSteps) / shadowBudget);
-                                result.aovs->shadowMapSamples.at(x, y) =
-                                    heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
-                                result.aovs->texelScale.at(x, y) =
-                                    glm::vec3(pixel.texelsPerWorldAlongRay);
-                                if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
-                                    result.aovs->curvature.at(x, y) =
-                                        heatColor(0.5f + pixel.meanCurvature);
-                                }
+    forEachImageBlock(
+        options.width, options.height, kBlock, progress, 0.0, 1.0,
+        [&](const tbb::blocked_range2d<int>& block) {
+            RenderStats local;
+            thread_local std::vector<std::uint64_t> facingHits;
+            facingHits.assign(renderer.facingSlots(), 0);
+            constexpr int kRows = Renderer::kRunRows;
+            Sample run[kRows * kBlock];
+            for (int y0 = block.rows().begin(); y0 < block.rows().end(); y0 += kRows) {
+                const int y1 = std::min(y0 + kRows, block.rows().end());
+                for (int x0 = block.cols().begin(); x0 < block.cols().end(); x0 += kBlock) {
+                    const int x1 = std::min(x0 + kBlock, block.cols().end());
+                    renderer.renderRun(y0, y1, x0, x1, run, local, facingHits);
+                    for (int y = y0; y != y1; ++y)
+                        for (int x = x0; x != x1; ++x) {
+                            const Sample& pixel = run[(y - y0) * (x1 - x0) + (x - x0)];
+                            result.image.at(x, y) = pixel.color;
+                            if (!result.aovs) continue;
+                            result.aovs->depth.at(x, y) = glm::vec3(pixel.depth);
+                            result.aovs->normal.at(x, y) =
+                                pixel.depth > 0.0f ? pixel.normal * 0.5f + 0.5f : glm::vec3(0.0f);
+                            result.aovs->iterations.at(x, y) = heatColor(
+                                float(pixel.iterations) / float(options.march.maxIterations));
+                            result.aovs->shadowSamples.at(x, y) =
+                                heatColor(float(pixel.shadowSteps) / shadowBudget);
+                            result.aovs->shadowMapSamples.at(x, y) =
+                                heatColor(float(pixel.shadowMapSamples) / shadowMapBudget);
+                            result.aovs->texelScale.at(x, y) =
+                                glm::vec3(pixel.texelsPerWorldAlongRay);
+                            if (pixel.hasCurvature) {  // +-0.5 / texel over the heat map
+                                result.aovs->curvature.at(x, y) =
+                                    heatColor(0.5f + pixel.meanCurvature);
                             }
-                    }
+                        }
                 }
-                renderer.addFacingHits(facingHits);
-                rays += local.rays;
-                baseHits += local.baseHits;
-                detailHits += local.detailHits;
-                iterations += local.marchIterations;
-                converged += local.converged;
-                shadowSteps += local.shadowSteps;
-                shadowMapSamples += local.shadowMapSamples;
-                shellsTested += local.shellsTested;
-                shellsTraced += local.shellsTraced;
-            });
-        if (progress) progress(double(bandEnd) / options.height);
-    }
+            }
+            renderer.addFacingHits(facingHits);
+            rays += local.rays;
+            baseHits += local.baseHits;
+            detailHits += local.detailHits;
+            iterations += local.marchIterations;
+            converged += local.converged;
+            shadowSteps += local.shadowSteps;
+            shadowMapSamples += local.shadowMapSamples;
+            shellsTested += local.shellsTested;
+            shellsTraced += local.shellsTraced;
+        });
     result.stats.rays = rays;
     result.stats.baseHits = baseHits;
     result.stats.detailHits = detailHits;

@@ -2,7 +2,6 @@
 
 #include <embree3/rtcore.h>
 #include <tbb/blocked_range2d.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
@@ -17,6 +16,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/image_blocks.h"
 #include "common/shell_map.h"
 #include "render/analytic_filter.h"
 #include "render/coverage.h"
@@ -902,7 +902,7 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     if (progress) progress(kBuildShare);
     result.bvhBytes = bvh.allocatedBytes();
 
-    // 3. The pixels: one ray through each centre, bands of rows for progress reports.
+    // 3. The pixels: one ray through each centre.
     start = std::chrono::steady_clock::now();
     const WorldShader shader(scene, bvh, meshes, options.shadowSamples);
     const PinholeProjection projection(scene.camera, options.width, options.height);
@@ -913,112 +913,106 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     }
     std::atomic<std::uint64_t> hits{0}, detailHits{0}, refined{0}, unrefined{0}, backFaces{0};
     constexpr int kBlock = 16;
-    constexpr int kBandRows = 64;
-    for (int bandStart = 0; bandStart < options.height; bandStart += kBandRows) {
-        const int bandEnd = std::min(bandStart + kBandRows, options.height);
-        tbb::parallel_for(
-            tbb::blocked_range2d<int>(bandStart, bandEnd, kBlock, 0, options.width, kBlock),
-            [&](const tbb::blocked_range2d<int>& block) {
-                std::uint64_t localHits = 0, localDetailHits = 0, localRefined = 0,
-                              localUnrefined = 0, localBackFaces = 0;
-                for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
-                    for (int x = block.cols().begin(); x != block.cols().end(); ++x) {
-                        const Ray ray = projection.ray(float(x) + 0.5f, float(y) + 0.5f);
-                        WorldHit hit;
-                        bool found = shader.trace(ray, hit, localBackFaces);
-                        bool refinable = found && hit.onDetail;
-                        if (options.method == WorldReferenceMethod::LevelSet) {
-                            // Hits and normals from the level sets where one is nearer than
-                            // the BVH's bare surfaces and back faces; the rest from the BVH's
-                            // hit. A level set's hit is refined from the BVH's base triangle when
-                            // the BVH hit the same object's detail.
-                            double nearest = found && !hit.onDetail
-                                                 ? double(hit.distanceWorld)
-                                                 : std::numeric_limits<double>::infinity();
-                            std::optional<std::uint32_t> levelSetObject;
-                            glm::dvec3 levelSetNormal(0.0);
-                            for (std::size_t index = 0; index < levelSets.size(); ++index) {
-                                double distance = 0.0;
-                                glm::dvec3 normal(0.0);
-                                // Detail the BVH's ray ignored (seen from below its shell), with
-                                // a margin of two texels for the two surfaces' difference.
-                                const double ignoredFrom =
-                                    found && hit.ignoredDetailOf == index
-                                        ? double(hit.ignoredDetailFromWorld) -
-                                              2.0 * meshes[index].stats.texelSizeWorld
-                                        : std::numeric_limits<double>::infinity();
-                                if (levelSets[index] &&
-                                    levelSets[index]->intersect(
-                                        glm::dvec3(ray.origin), glm::dvec3(ray.direction),
-                                        std::numeric_limits<double>::max(), distance, normal) &&
-                                    distance < nearest && distance < ignoredFrom) {
-                                    nearest = distance;
-                                    levelSetNormal = normal;
-                                    levelSetObject = std::uint32_t(index);
-                                }
+    forEachImageBlock(
+        options.width, options.height, kBlock, progress, kBuildShare, 1.0,
+        [&](const tbb::blocked_range2d<int>& block) {
+            std::uint64_t localHits = 0, localDetailHits = 0, localRefined = 0, localUnrefined = 0,
+                          localBackFaces = 0;
+            for (int y = block.rows().begin(); y != block.rows().end(); ++y) {
+                for (int x = block.cols().begin(); x != block.cols().end(); ++x) {
+                    const Ray ray = projection.ray(float(x) + 0.5f, float(y) + 0.5f);
+                    WorldHit hit;
+                    bool found = shader.trace(ray, hit, localBackFaces);
+                    bool refinable = found && hit.onDetail;
+                    if (options.method == WorldReferenceMethod::LevelSet) {
+                        // Hits and normals from the level sets where one is nearer than
+                        // the BVH's bare surfaces and back faces; the rest from the BVH's
+                        // hit. A level set's hit is refined from the BVH's base triangle when
+                        // the BVH hit the same object's detail.
+                        double nearest = found && !hit.onDetail
+                                             ? double(hit.distanceWorld)
+                                             : std::numeric_limits<double>::infinity();
+                        std::optional<std::uint32_t> levelSetObject;
+                        glm::dvec3 levelSetNormal(0.0);
+                        for (std::size_t index = 0; index < levelSets.size(); ++index) {
+                            double distance = 0.0;
+                            glm::dvec3 normal(0.0);
+                            // Detail the BVH's ray ignored (seen from below its shell), with
+                            // a margin of two texels for the two surfaces' difference.
+                            const double ignoredFrom =
+                                found && hit.ignoredDetailOf == index
+                                    ? double(hit.ignoredDetailFromWorld) -
+                                          2.0 * meshes[index].stats.texelSizeWorld
+                                    : std::numeric_limits<double>::infinity();
+                            if (levelSets[index] &&
+                                levelSets[index]->intersect(
+                                    glm::dvec3(ray.origin), glm::dvec3(ray.direction),
+                                    std::numeric_limits<double>::max(), distance, normal) &&
+                                distance < nearest && distance < ignoredFrom) {
+                                nearest = distance;
+                                levelSetNormal = normal;
+                                levelSetObject = std::uint32_t(index);
                             }
-                            if (levelSetObject) {
-                                if (!found || hit.object != *levelSetObject) {
-                                    // The BVH saw another surface: no texel attributes here.
-                                    hit = WorldHit{};
-                                    hit.object = *levelSetObject;
-                                    hit.onDetail = true;
-                                    hit.texelZ = float(
-                                        scene.objects[hit.object].material.tile->size().depth);
-                                    hit.baseNormal = glm::vec3(levelSetNormal);
-                                    refinable = false;
-                                } else {
-                                    refinable = hit.onDetail;
-                                }
-                                found = true;
-                                // Shadow rays are traced through the BVH: from the mesh's hit
-                                // when it is the level set's (within half a texel), else from
-                                // the level set's.
-                                const bool meshHitNear =
-                                    refinable && std::abs(nearest - double(hit.distanceWorld)) <
-                                                     0.5 * meshes[hit.object].stats.texelSizeWorld;
-                                hit.distanceWorld = float(nearest);
-                                hit.position = ray.origin + ray.direction * hit.distanceWorld;
-                                hit.normal = glm::vec3(levelSetNormal);
-                                if (glm::dot(hit.normal, ray.direction) > 0.0f)
-                                    hit.normal = -hit.normal;
-                                if (!meshHitNear) {
-                                    hit.shadowFrom = hit.position;
-                                    hit.shadowNormal = hit.normal;
-                                }
-                            } else if (found && hit.onDetail) {
-                                found = false;  // the level sets saw no detail here
+                        }
+                        if (levelSetObject) {
+                            if (!found || hit.object != *levelSetObject) {
+                                // The BVH saw another surface: no texel attributes here.
+                                hit = WorldHit{};
+                                hit.object = *levelSetObject;
+                                hit.onDetail = true;
+                                hit.texelZ =
+                                    float(scene.objects[hit.object].material.tile->size().depth);
+                                hit.baseNormal = glm::vec3(levelSetNormal);
                                 refinable = false;
-                            }
-                        }
-                        if (refinable) {
-                            if (shader.refine(ray, hit)) {
-                                ++localRefined;
                             } else {
-                                ++localUnrefined;
+                                refinable = hit.onDetail;
                             }
+                            found = true;
+                            // Shadow rays are traced through the BVH: from the mesh's hit
+                            // when it is the level set's (within half a texel), else from
+                            // the level set's.
+                            const bool meshHitNear =
+                                refinable && std::abs(nearest - double(hit.distanceWorld)) <
+                                                 0.5 * meshes[hit.object].stats.texelSizeWorld;
+                            hit.distanceWorld = float(nearest);
+                            hit.position = ray.origin + ray.direction * hit.distanceWorld;
+                            hit.normal = glm::vec3(levelSetNormal);
+                            if (glm::dot(hit.normal, ray.direction) > 0.0f)
+                                hit.normal = -hit.normal;
+                            if (!meshHitNear) {
+                                hit.shadowFrom = hit.position;
+                                hit.shadowNormal = hit.normal;
+                            }
+                        } else if (found && hit.onDetail) {
+                            found = false;  // the level sets saw no detail here
+                            refinable = false;
                         }
-                        if (!found) {
-                            render.image.at(x, y) = skyColor(ray.direction);
-                            continue;
-                        }
-                        ++localHits;
-                        localDetailHits += hit.onDetail;
-                        render.image.at(x, y) = shader.shade(ray, hit, pixelRotation(x, y));
-                        if (!render.aovs) continue;
-                        render.aovs->depth.at(x, y) = glm::vec3(hit.distanceWorld);
-                        render.aovs->normal.at(x, y) = hit.normal * 0.5f + 0.5f;
                     }
+                    if (refinable) {
+                        if (shader.refine(ray, hit)) {
+                            ++localRefined;
+                        } else {
+                            ++localUnrefined;
+                        }
+                    }
+                    if (!found) {
+                        render.image.at(x, y) = skyColor(ray.direction);
+                        continue;
+                    }
+                    ++localHits;
+                    localDetailHits += hit.onDetail;
+                    render.image.at(x, y) = shader.shade(ray, hit, pixelRotation(x, y));
+                    if (!render.aovs) continue;
+                    render.aovs->depth.at(x, y) = glm::vec3(hit.distanceWorld);
+                    render.aovs->normal.at(x, y) = hit.normal * 0.5f + 0.5f;
                 }
-                hits += localHits;
-                detailHits += localDetailHits;
-                refined += localRefined;
-                unrefined += localUnrefined;
-                backFaces += localBackFaces;
-            });
-        if (progress)
-            progress(kBuildShare + (1.0 - kBuildShare) * double(bandEnd) / options.height);
-    }
+            }
+            hits += localHits;
+            detailHits += localDetailHits;
+            refined += localRefined;
+            unrefined += localUnrefined;
+            backFaces += localBackFaces;
+        });
     result.traceSeconds = secondsSince(start);
     render.stats.rays = std::uint64_t(options.width) * std::uint64_t(options.height);
     render.stats.baseHits = hits;

@@ -13,6 +13,8 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "common/error.h"
 #include "common/simd.h"
@@ -339,9 +341,8 @@ Scene planeScene(std::shared_ptr<const Tile> tile) {
     return scene;
 }
 
-TEST(Renderer, ImageIsFiniteAndIndependentOfTheThreadCount) {
-    // A wavy height field: distances are a bound, not exact, but any bug that produces NaN or a
-    // thread-dependent pixel shows here.
+/// A wavy height field of 32 x 32 x 16 texels: distances are a bound, not exact.
+Tile wavyTile() {
     Tile tile({32, 32, 16});
     for (int z = 0; z < 16; ++z)
         for (int y = 0; y < 32; ++y)
@@ -349,7 +350,12 @@ TEST(Renderer, ImageIsFiniteAndIndependentOfTheThreadCount) {
                 tile.at(x, y, z) =
                     0.5f * ((z + 0.5f) - (8.0f + 4.0f * std::sin(2 * kPi * (x + 0.5f) / 32) *
                                                      std::cos(2 * kPi * (y + 0.5f) / 32)));
-    const Scene scene = planeScene(std::make_shared<const Tile>(std::move(tile)));
+    return tile;
+}
+
+TEST(Renderer, ImageIsFiniteAndIndependentOfTheThreadCount) {
+    // Any bug that produces NaN or a thread-dependent pixel shows here.
+    const Scene scene = planeScene(std::make_shared<const Tile>(wavyTile()));
     RenderOptions options;
     options.width = 96;
     options.height = 64;
@@ -377,6 +383,32 @@ TEST(Renderer, ImageIsFiniteAndIndependentOfTheThreadCount) {
     }
     EXPECT_EQ(stats.rays, std::uint64_t(96 * 64));
     EXPECT_GT(stats.baseHits, stats.rays / 2);  // the plane fills most of the view
+}
+
+TEST(Renderer, ReportsProgressOnTheCallingThreadWithoutChangingAPixel) {
+    // Progress comes from the calling thread as it finishes blocks of pixels (the other threads
+    // never wait for it), rises to 1 and leaves the image as it is without it.
+    const Scene scene = planeScene(std::make_shared<const Tile>(wavyTile()));
+    RenderOptions options;
+    options.width = 96;
+    options.height = 64;  // 6 x 4 blocks
+    const RenderResult quiet = renderScene(scene, options);
+    for (int threads : {1, 2}) {
+        tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+        const std::thread::id caller = std::this_thread::get_id();
+        std::vector<double> reported;
+        bool elsewhere = false;
+        const RenderResult result = renderScene(scene, options, [&](double fractionDone) {
+            elsewhere |= std::this_thread::get_id() != caller;
+            reported.push_back(fractionDone);
+        });
+        EXPECT_FALSE(elsewhere) << threads << " threads";
+        ASSERT_FALSE(reported.empty());
+        EXPECT_TRUE(std::is_sorted(reported.begin(), reported.end())) << threads << " threads";
+        EXPECT_GT(reported.front(), 0.0);
+        EXPECT_EQ(reported.back(), 1.0);
+        EXPECT_EQ(result.image.rgbLinear, quiet.image.rgbLinear) << threads << " threads";
+    }
 }
 
 /// A bare (untiled) square of side `sizeWorld` at height `heightWorld`, facing +z.
