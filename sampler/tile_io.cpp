@@ -50,6 +50,7 @@ std::string lowerExtension(const std::filesystem::path& file) {
 constexpr const char* kFormatVersion = "0.1.0";
 constexpr const char* kChannelName = "distance";
 constexpr float kHalfMax = 65504.0f;
+
 constexpr const char* kUnknownSource = "unknown";
 constexpr const char* kNoParams = "{}";
 
@@ -346,6 +347,16 @@ std::uint64_t tileHash(const Tile& tile) {
     return hashDistances(tile.size(), tile.distancesTexels());
 }
 
+std::uint16_t halfBitsAtMost(float value) {
+    Imath::half rounded(value);
+    if (float(rounded) > value) {
+        // One step down: away from 0 below it (-0 included), toward 0 above it.
+        const std::uint16_t bits = rounded.bits();
+        rounded.setBits(bits & 0x8000 ? bits + 1 : bits - 1);
+    }
+    return rounded.bits();
+}
+
 void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
     if (lowerExtension(file) != ".exr") {
         throw InputError(file.string() + ": extension '" + file.extension().string() +
@@ -357,13 +368,15 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
     std::vector<float> roundedToHalf;
     PixelType fileType = PixelType::Float;
     if (storage == TileStorage::Half16) {
-        // Round once here (to nearest even, as OpenEXR does) so the hash covers exactly the
-        // values a reader will get back.
+        // Rounded once here, so the hash covers exactly the values a reader will get back.
         roundedToHalf.resize(stored.size());
-        std::transform(stored.begin(), stored.end(), roundedToHalf.begin(),
-                       [](float value) { return float(Imath::half(value)); });
+        std::transform(stored.begin(), stored.end(), roundedToHalf.begin(), [](float value) {
+            Imath::half rounded;
+            rounded.setBits(halfBitsAtMost(value));
+            return float(rounded);
+        });
         for (std::size_t i = 0; i < stored.size(); ++i) {
-            if (!std::isfinite(roundedToHalf[i])) {
+            if (!(std::abs(stored[i]) <= kHalfMax)) {
                 throw InputError(file.string() + ": distance " + std::to_string(stored[i]) +
                                  " at " + texelName(size, i) +
                                  " does not fit in half storage; |distance| must be at most " +

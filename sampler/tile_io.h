@@ -26,8 +26,8 @@
 
 namespace distile {
 
-/// How an EXR tile stores its distances: 32-bit float (exact) or 16-bit half (relative error at
-/// most 2^-11, |distance| at most 65504 texels).
+/// How an EXR tile stores its distances: 32-bit float (exact) or 16-bit half (rounded down:
+/// relative error below 2^-10, never above the float value; |distance| at most 65504 texels).
 enum class TileStorage { Float32, Half16 };
 
 /// Columns and rows of the slice atlas of a tile `depthSlices` deep (see the file note).
@@ -41,8 +41,13 @@ AtlasGrid atlasGrid(int depthSlices);
 /// then every distance as its little-endian IEEE 754 float bits, in tile order (x fastest).
 std::uint64_t tileHash(const Tile& tile);
 
+/// The bits of the largest 16-bit half float at most `value` (rounded toward -infinity, where a
+/// plain conversion rounds to nearest): distances stored as halves never exceed the float ones,
+/// so a conservative tile stays conservative. Precondition: |value| <= 65504 or NaN.
+std::uint16_t halfBitsAtMost(float value);
+
 /// Writes `tile` as an OpenEXR atlas (see the file note). With Half16 the distances are rounded
-/// to half first and distile:hash is the hash of the rounded values, so the file verifies when
+/// down to half first and distile:hash is the hash of the rounded values, so the file verifies when
 /// read back. Throws InputError if `file` does not end in .exr, if a distance is NaN or
 /// infinite, if a distance does not fit in a half (Half16), or if the target's folder does not
 /// exist; std::runtime_error if OpenEXR fails to write. Never leaves a partial file at `file`.
@@ -57,8 +62,8 @@ void writeTileExr(const Tile& tile, const std::filesystem::path& file,
 /// disagree with distile:size, needs more than kInputMemoryBudgetBytes to read, holds NaN or
 /// infinite distances, declares a band (distile:band_texels) that is not positive or beyond
 /// 2 maxHalfBandTexels(size), holds distances outside the declared band (at least minus the band
-/// minus the tile depth) or, without one, beyond +-2 maxHalfBandTexels(size), or fails the distile:hash
-/// check.
+/// minus the tile depth) or, without one, beyond +-2 maxHalfBandTexels(size), or fails the
+/// distile:hash check.
 Tile readTileExr(const std::filesystem::path& file);
 
 /// Writes `tile` as a one-channel grey PNG atlas of `bitsPerChannel` 8 or 16 bits, for GPU

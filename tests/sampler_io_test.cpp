@@ -129,19 +129,37 @@ TEST_F(SamplerIo, FloatExrRoundTripIsExact) {
     EXPECT_EQ(folderEntries(), std::vector<std::string>{"tile.exr"});
 }
 
-TEST_F(SamplerIo, HalfExrRoundTripIsWithinHalfPrecision) {
-    const Tile tile = patternTile({16, 12, 5});
+TEST_F(SamplerIo, HalfExrRoundTripRoundsDownWithinHalfPrecision) {
+    Tile tile = patternTile({16, 12, 5});
+    // Where rounding to nearest would go up: 1.0005 (halves 1 and 1 + 2^-10 apart, nearer the
+    // upper), -1.0004 (nearer -1) and -1e-9 (nearer -0); exact ones stay.
+    tile.at(0, 0, 0) = 1.0005f;
+    tile.at(1, 0, 0) = -1.0004f;
+    tile.at(2, 0, 0) = -1e-9f;
+    tile.at(3, 0, 0) = 0.5f;
+    tile.at(4, 0, 0) = -0.75f;
     writeTileExr(tile, path("tile.exr"), TileStorage::Half16);
     EXPECT_EQ(readRaw(path("tile.exr")).spec.format, OIIO::TypeDesc::HALF);
     const Tile read = readTileExr(path("tile.exr"));
-    // Half has an 11-bit significand: round to nearest is within 2^-11 relative; below the
-    // smallest normal (2^-14) the spacing is absolute, 2^-24.
+    EXPECT_EQ(read.at(0, 0, 0), 1.0f);
+    EXPECT_EQ(read.at(1, 0, 0), -1.0f - std::ldexp(1.0f, -10));
+    EXPECT_EQ(read.at(2, 0, 0), -std::ldexp(1.0f, -24));  // the negative half nearest 0
+    EXPECT_EQ(read.at(3, 0, 0), 0.5f);
+    EXPECT_EQ(read.at(4, 0, 0), -0.75f);
+    // Half has an 11-bit significand: rounding down lands within one spacing, 2^-10 relative;
+    // below the smallest normal (2^-14) the spacing is absolute, 2^-24. Never above: a
+    // conservative tile stays conservative.
+    int lowered = 0;
     for (std::size_t i = 0; i < tile.distancesTexels().size(); ++i) {
         const float expected = tile.distancesTexels()[i];
-        const float tolerance =
-            std::max(std::abs(expected) * std::ldexp(1.0f, -11), std::ldexp(1.0f, -24));
-        ASSERT_NEAR(read.distancesTexels()[i], expected, tolerance) << "texel index " << i;
+        const float stored = read.distancesTexels()[i];
+        const float spacing =
+            std::max(std::abs(expected) * std::ldexp(1.0f, -10), std::ldexp(1.0f, -24));
+        ASSERT_LE(stored, expected) << "texel index " << i;
+        ASSERT_GT(stored, expected - spacing) << "texel index " << i;
+        lowered += stored < expected;
     }
+    EXPECT_GT(lowered, 100);  // the pattern's values are mostly not halves
 }
 
 TEST_F(SamplerIo, HalfStorageRejectsDistancesBeyondHalfRange) {

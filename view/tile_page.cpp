@@ -1,7 +1,5 @@
 #include "view/tile_page.h"
 
-#include <Imath/half.h>
-
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -147,7 +145,7 @@ std::string tilePageHtml(const Tile& tile, const std::string& title, const TileP
     }
     std::vector<std::uint8_t> bytes(distances.size() * 2);
     for (std::size_t i = 0; i < distances.size(); ++i) {  // little endian, as Uint16Array reads it
-        const std::uint16_t half = Imath::half(distances[i]).bits();
+        const std::uint16_t half = halfBitsAtMost(distances[i]);
         bytes[2 * i] = std::uint8_t(half & 0xff);
         bytes[2 * i + 1] = std::uint8_t(half >> 8);
     }
