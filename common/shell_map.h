@@ -138,7 +138,9 @@ struct ShellPrism {
     /// The prism point at world offset `offset` (world - P_0) by Newton's method from `guess`
     /// (the map is nearly affine: one step from a nearby guess). Converged when a step moves
     /// the barycentrics and the depth (relative to depthWorld) by less than 1e-3: the error left
-    /// is then of the order of the square of that times the map's small nonlinearity. `jacobian`
+    /// is then of the order of the square of that times the map's small nonlinearity. A longer
+    /// step is followed by a chord step (its Jacobian kept), converged when its move is below
+    /// 1e-3 and its move times the Newton step's below 1e-6 (the same order of error). `jacobian`
     /// receives the Jacobian of the last step (at the point before it). False when it does not
     /// converge within `maxSteps` (a fold of the map, a degenerate prism, non-finite input);
     /// `point` then holds the last iterate.
@@ -169,8 +171,8 @@ inline bool ShellPrism::invert(const glm::dvec3& offset, PrismPoint& point, Jaco
         at.determinant = glm::dot(at.column[0], at.cofactor[0]);
         if (!(at.determinant != 0.0)) break;
         at.inverseDeterminant = 1.0 / at.determinant;
-        const glm::dvec3 residual = b1 * edge1 + b2 * edge2 - depth * normal - offset;
-        const glm::dvec3 change = at.solve(residual);
+        glm::dvec3 residual = b1 * edge1 + b2 * edge2 - depth * normal - offset;
+        glm::dvec3 change = at.solve(residual);
         b1 -= change.x;
         b2 -= change.y;
         depth -= change.z;
@@ -182,6 +184,25 @@ inline bool ShellPrism::invert(const glm::dvec3& offset, PrismPoint& point, Jaco
             return true;
         }
         if (!(moved < 1e6 && movedTexelsZ < 1e6 * depthTexels)) break;  // diverging, or NaN
+        // A step too long to call converged left an error of the order of its square: a chord
+        // step (the residual there, solved with the same Jacobian) takes most of it at a third
+        // of a Newton step's cost. It falls short of the Newton step there by about its own move
+        // times the Jacobian's change along the Newton step: converged when its move is below
+        // 1e-3 and that product below 1e-6 (what a converged Newton step leaves), else Newton
+        // goes on from the better point.
+        const double newtonMove = std::max(moved, movedTexelsZ / depthTexels);
+        residual = b1 * edge1 + b2 * edge2 - depth * normalAt(b1, b2) - offset;
+        change = at.solve(residual);
+        b1 -= change.x;
+        b2 -= change.y;
+        depth -= change.z;
+        const double chordMove =
+            std::max({std::abs(change.x), std::abs(change.y), std::abs(change.z) / depthWorld});
+        if (chordMove < kConverged && chordMove * newtonMove < kConverged * kConverged) {
+            point = {b1, b2, depth};
+            jacobian = at;
+            return true;
+        }
         if (step + 1 == maxSteps) jacobian = at;
     }
     point = {b1, b2, depth};

@@ -12,41 +12,52 @@
 
 namespace distile::detail {
 
-Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
-               double distanceWorld, CurvedCursor& cursor) {
+SideWalk walkAcrossSide(const ShellPrisms& shell, const glm::dvec3& origin, CurvedCursor& cursor) {
     // A point on a shared side face belongs to both prisms: rounding may put it a hair outside
     // each, so a little outside counts as inside (no walk back and forth).
     constexpr double kOnFace = 1e-9;
+    const double weights[3] = {cursor.point.b0(), cursor.point.b1, cursor.point.b2};
+    // Inside the triangle (most samples): no need to know which weight is least, whose
+    // comparisons the processor cannot predict.
+    if (weights[0] >= -kOnFace && weights[1] >= -kOnFace && weights[2] >= -kOnFace)
+        return SideWalk::Inside;
+    int outside = 0;
+    for (int corner = 1; corner < 3; ++corner)
+        if (weights[corner] < weights[outside]) outside = corner;
+    if (weights[outside] >= -kOnFace) return SideWalk::Inside;
+    const std::uint32_t neighbour = shell.neighbours[cursor.prism][std::size_t(outside)];
+    if (neighbour == ShellPrisms::kNoNeighbour) return SideWalk::OpenSide;
+    // The guess in the neighbour, exact where the two triangles form a parallelogram: the far
+    // corner takes the weight beyond the shared face, which its two corners (in reverse order)
+    // give up.
+    const int far = shell.neighbourCorners[cursor.prism][std::size_t(outside)];
+    double across[3];
+    across[far] = -weights[outside];
+    across[(far + 1) % 3] = weights[(outside + 2) % 3] + weights[outside];
+    across[(far + 2) % 3] = weights[(outside + 1) % 3] + weights[outside];
+    cursor.prism = neighbour;
+    cursor.originOffset = origin - shell.prisms[neighbour].corner0;
+    cursor.point = {across[1], across[2], cursor.point.depthWorld};
+    return SideWalk::Walked;
+}
+
+Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
+               double distanceWorld, CurvedCursor& cursor) {
     constexpr int kMaxWalk = 64;
     for (int walk = 0; walk < kMaxWalk; ++walk) {
         const ShellPrism& prism = shell.prisms[cursor.prism];
         if (!prism.invert(cursor.originOffset + distanceWorld * direction, cursor.point,
                           cursor.jacobian, 12))
             return Located::Lost;
-        const double weights[3] = {cursor.point.b0(), cursor.point.b1, cursor.point.b2};
         const bool aboveTop = cursor.point.depthWorld < 0.0;
-        // Inside the triangle (most samples): no need to know which weight is least, whose
-        // comparisons the processor cannot predict.
-        if (weights[0] >= -kOnFace && weights[1] >= -kOnFace && weights[2] >= -kOnFace)
-            return aboveTop ? Located::AboveTop : Located::Inside;
-        int outside = 0;
-        for (int corner = 1; corner < 3; ++corner)
-            if (weights[corner] < weights[outside]) outside = corner;
-        if (weights[outside] >= -kOnFace) return aboveTop ? Located::AboveTop : Located::Inside;
-        const std::uint32_t neighbour = shell.neighbours[cursor.prism][std::size_t(outside)];
-        if (neighbour == ShellPrisms::kNoNeighbour)
-            return aboveTop ? Located::AboveTop : Located::OpenSide;
-        // The guess in the neighbour, exact where the two triangles form a parallelogram: the
-        // far corner takes the weight beyond the shared face, which its two corners (in reverse
-        // order) give up.
-        const int far = shell.neighbourCorners[cursor.prism][std::size_t(outside)];
-        double across[3];
-        across[far] = -weights[outside];
-        across[(far + 1) % 3] = weights[(outside + 2) % 3] + weights[outside];
-        across[(far + 2) % 3] = weights[(outside + 1) % 3] + weights[outside];
-        cursor.prism = neighbour;
-        cursor.originOffset = origin - shell.prisms[neighbour].corner0;
-        cursor.point = {across[1], across[2], cursor.point.depthWorld};
+        switch (walkAcrossSide(shell, origin, cursor)) {
+            case SideWalk::Inside:
+                return aboveTop ? Located::AboveTop : Located::Inside;
+            case SideWalk::OpenSide:
+                return aboveTop ? Located::AboveTop : Located::OpenSide;
+            case SideWalk::Walked:
+                break;
+        }
     }
     return Located::Lost;
 }
@@ -165,10 +176,40 @@ void CurvedMarchRay::start(const ShellPrisms& shell, const Ray& ray, std::uint32
     }
     directionTexels_ = velocity * (1.0 / speed_);
     samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
+    pathSinceNewtonTexels_ = 0.0;
     needsSample_ = true;
 }
 
+bool CurvedMarchRay::takeChordStep(double stepTexels) {
+    if (pathSinceNewtonTexels_ + stepTexels > kChordPathTexels) return false;
+    const ShellPrism& prism = shell_->prisms[cursor_.prism];
+    PrismPoint point = cursor_.point;
+    const glm::dvec3 residual =
+        prism.offsetAt(point) - (cursor_.originOffset + distanceWorld_ * direction_);
+    const glm::dvec3 change = cursor_.jacobian.solve(residual);
+    point.b1 -= change.x;
+    point.b2 -= change.y;
+    point.depthWorld -= change.z;
+    // Converged as a Newton step is (a move below 1e-3), and between the top and the floor.
+    const double moved = std::max(std::abs(change.x), std::abs(change.y));
+    const double movedTexelsZ = std::abs(change.z) * prism.texelsPerDepthWorld;
+    if (!(moved < 1e-3 && movedTexelsZ < 1e-3 * prism.depthTexels && point.depthWorld >= 0.0 &&
+          point.depthWorld <= prism.depthWorld))
+        return false;
+    // Beyond a side: locate() goes on from the neighbour (no Newton step here first).
+    detail::CurvedCursor at = cursor_;
+    at.point = point;
+    const detail::SideWalk walk = detail::walkAcrossSide(*shell_, origin_, at);
+    if (walk == detail::SideWalk::Walked) cursor_ = at;
+    if (walk != detail::SideWalk::Inside) return false;
+    cursor_.point = point;
+    pathSinceNewtonTexels_ += stepTexels;
+    samplePosition_ = glm::vec3(prism.texelAt(point));
+    return needsSample_ = true;
+}
+
 bool CurvedMarchRay::prepareSample(double stepTexels) {
+    if (takeChordStep(stepTexels)) return true;
     const double startSpeed = speed_;
     for (int attempt = 0;; ++attempt) {
         const Located where = detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_);
@@ -193,6 +234,7 @@ bool CurvedMarchRay::prepareSample(double stepTexels) {
         const double stepWorld = distanceWorld_ - outsideWorld_;
         if (attempt > 0 || meanSpeed * stepWorld <= stepTexels + epsilonTexels_) {
             samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
+            pathSinceNewtonTexels_ = 0.0;
             return needsSample_ = true;
         }
         const double shorter = stepTexels / meanSpeed;
@@ -276,6 +318,7 @@ bool CurvedMarchRay::toEstimate() {
     if (detail::locate(*shell_, origin_, direction_, estimate, at) != Located::Inside)
         return stop(true);
     cursor_ = at;
+    pathSinceNewtonTexels_ = 0.0;
     distanceWorld_ = estimate;
     const ShellPrism& prism = shell_->prisms[cursor_.prism];
     speed_ =

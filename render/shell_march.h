@@ -92,6 +92,13 @@ struct CurvedCursor {
 /// The outcome of locating the ray's point at some distance.
 enum class Located { Inside, AboveTop, OpenSide, Lost };
 
+/// Where a prism point found in cursor.prism lies against the prism's side faces: inside them,
+/// beyond an open border, or beyond a side with a neighbour, where `cursor` has walked: the
+/// neighbour, the ray origin's offset from its corner 0 and a guess of the point in it (exact
+/// where the two triangles form a parallelogram).
+enum class SideWalk { Inside, OpenSide, Walked };
+SideWalk walkAcrossSide(const ShellPrisms& shell, const glm::dvec3& origin, CurvedCursor& cursor);
+
 /// Moves `cursor` to the prism holding the ray's point at `distanceWorld` (walking to neighbours
 /// across side faces, at most 64 of them) and inverts the map there from cursor.point as the
 /// guess. AboveTop: the point is above the top (depth < 0) of the prism it is in; OpenSide: it is
@@ -138,6 +145,14 @@ class CurvedMarchRay {
     /// its sample (the step shortened where the texel-space path grew longer than it), or ends
     /// the march there when it is outside the shell.
     bool prepareSample(double stepTexels);
+    /// prepareSample's short cut: the point moved `stepTexels` along the velocity, corrected by
+    /// one chord step (the map's residual there solved with the Jacobian of the last Newton step,
+    /// whose velocity and stretch the march keeps), while the path since that Newton step is at
+    /// most kChordPathTexels, the step moves the point as little as a converged Newton step and
+    /// the point stays in its prism. False otherwise; a point beyond a side with a neighbour has
+    /// then walked into it (locate() goes on from there).
+    bool takeChordStep(double stepTexels);
+    static constexpr double kChordPathTexels = 4.0;
     /// Ends at the current point: a hit (converged, or at the end of the budget).
     bool stop(bool converged);
     /// Ends without a hit: the ray left the shell at `atWorld`, between the last point sampled
@@ -167,9 +182,10 @@ class CurvedMarchRay {
     bool refining_ = false;
     double insideWorld_ = 0.0;  ///< refining: the bracket's inside end (outside: outsideWorld_)
     float insideTexels_ = 0.0f;
-    glm::dvec3 prismVelocity_{0.0};    ///< d(b1, b2, h) / dt at the current point
-    glm::dvec3 directionTexels_{0.0};  ///< unit texel-space direction of the ray there
-    double speed_ = 0.0;               ///< |d texel / dt| there: texels per world unit
+    glm::dvec3 prismVelocity_{0.0};       ///< d(b1, b2, h) / dt at the current point
+    glm::dvec3 directionTexels_{0.0};     ///< unit texel-space direction of the ray there
+    double speed_ = 0.0;                  ///< |d texel / dt| there: texels per world unit
+    double pathSinceNewtonTexels_ = 0.0;  ///< texel path since the Jacobian was taken
     glm::vec3 samplePosition_{0.0f};
     bool needsSample_ = false;
     CurvedMarchEnd end_;
