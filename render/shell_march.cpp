@@ -62,6 +62,37 @@ Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dv
     return Located::Lost;
 }
 
+Chord chordStep(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
+                double distanceWorld, CurvedCursor& cursor) {
+    const ShellPrism& prism = shell.prisms[cursor.prism];
+    PrismPoint point = cursor.point;
+    const glm::dvec3 residual =
+        prism.offsetAt(point) - (cursor.originOffset + distanceWorld * direction);
+    const glm::dvec3 change = cursor.jacobian.solve(residual);
+    point.b1 -= change.x;
+    point.b2 -= change.y;
+    point.depthWorld -= change.z;
+    // Converged as a Newton step is (a move below 1e-3), and between the top and the floor.
+    const double moved = std::max(std::abs(change.x), std::abs(change.y));
+    const double movedTexelsZ = std::abs(change.z) * prism.texelsPerDepthWorld;
+    if (!(moved < 1e-3 && movedTexelsZ < 1e-3 * prism.depthTexels && point.depthWorld >= 0.0 &&
+          point.depthWorld <= prism.depthWorld))
+        return Chord::Declined;
+    CurvedCursor at = cursor;
+    at.point = point;
+    switch (walkAcrossSide(shell, origin, at)) {
+        case SideWalk::Inside:
+            cursor.point = point;
+            return Chord::Taken;
+        case SideWalk::Walked:
+            cursor = at;
+            return Chord::Walked;
+        case SideWalk::OpenSide:
+            break;
+    }
+    return Chord::Declined;
+}
+
 }  // namespace distile::detail
 
 namespace distile {
@@ -181,30 +212,12 @@ void CurvedMarchRay::start(const ShellPrisms& shell, const Ray& ray, std::uint32
 }
 
 bool CurvedMarchRay::takeChordStep(double stepTexels) {
-    if (pathSinceNewtonTexels_ + stepTexels > kChordPathTexels) return false;
-    const ShellPrism& prism = shell_->prisms[cursor_.prism];
-    PrismPoint point = cursor_.point;
-    const glm::dvec3 residual =
-        prism.offsetAt(point) - (cursor_.originOffset + distanceWorld_ * direction_);
-    const glm::dvec3 change = cursor_.jacobian.solve(residual);
-    point.b1 -= change.x;
-    point.b2 -= change.y;
-    point.depthWorld -= change.z;
-    // Converged as a Newton step is (a move below 1e-3), and between the top and the floor.
-    const double moved = std::max(std::abs(change.x), std::abs(change.y));
-    const double movedTexelsZ = std::abs(change.z) * prism.texelsPerDepthWorld;
-    if (!(moved < 1e-3 && movedTexelsZ < 1e-3 * prism.depthTexels && point.depthWorld >= 0.0 &&
-          point.depthWorld <= prism.depthWorld))
+    if (pathSinceNewtonTexels_ + stepTexels > detail::kChordPathTexels) return false;
+    if (detail::chordStep(*shell_, origin_, direction_, distanceWorld_, cursor_) !=
+        detail::Chord::Taken)
         return false;
-    // Beyond a side: locate() goes on from the neighbour (no Newton step here first).
-    detail::CurvedCursor at = cursor_;
-    at.point = point;
-    const detail::SideWalk walk = detail::walkAcrossSide(*shell_, origin_, at);
-    if (walk == detail::SideWalk::Walked) cursor_ = at;
-    if (walk != detail::SideWalk::Inside) return false;
-    cursor_.point = point;
     pathSinceNewtonTexels_ += stepTexels;
-    samplePosition_ = glm::vec3(prism.texelAt(point));
+    samplePosition_ = glm::vec3(shell_->prisms[cursor_.prism].texelAt(cursor_.point));
     return needsSample_ = true;
 }
 
@@ -390,12 +403,14 @@ bool ShellRayPath::start(const ShellPrisms& shell, const glm::dvec3& originWorld
     cursor_.point = guess;
     cursor_.originOffset = origin_ - shell.prisms[prism].corner0;
     distanceWorld_ = 0.0;
+    pathSinceNewtonTexels_ = std::numeric_limits<double>::infinity();  // no Jacobian yet
     return settle();
 }
 
 bool ShellRayPath::advance(double texels) {
     const double stepWorld = texels / speed_;
     distanceWorld_ += stepWorld;
+    pathSinceNewtonTexels_ += texels;
     PrismPoint& point = cursor_.point;
     point.b1 += prismVelocity_.x * stepWorld;
     point.b2 += prismVelocity_.y * stepWorld;
@@ -414,6 +429,15 @@ bool ShellRayPath::advance(double texels) {
 
 bool ShellRayPath::settle() {
     stepsSinceSettle_ = 0;
+    // A chord step while the last Newton step is near (its velocity kept), as the camera rays'
+    // march takes them.
+    if (pathSinceNewtonTexels_ <= detail::kChordPathTexels &&
+        detail::chordStep(*shell_, origin_, direction_, distanceWorld_, cursor_) ==
+            detail::Chord::Taken) {
+        texelPosition_ = glm::vec3(shell_->prisms[cursor_.prism].texelAt(cursor_.point));
+        return true;
+    }
+    pathSinceNewtonTexels_ = 0.0;
     if (detail::locate(*shell_, origin_, direction_, distanceWorld_, cursor_) != Located::Inside)
         return false;
     const ShellPrism& prism = shell_->prisms[cursor_.prism];

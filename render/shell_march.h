@@ -106,6 +106,22 @@ SideWalk walkAcrossSide(const ShellPrisms& shell, const glm::dvec3& origin, Curv
 Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
                double distanceWorld, CurvedCursor& cursor);
 
+/// A march takes its samples by chordStep() while its path since the last Newton step is at
+/// most this long, texels (the velocity and stretch it keeps change little over it).
+inline constexpr double kChordPathTexels = 4.0;
+
+/// How chordStep() went.
+enum class Chord { Taken, Walked, Declined };
+
+/// One chord step to the ray's point at `distanceWorld`, from cursor.point (the guess) with
+/// cursor.jacobian kept, the Jacobian of an earlier Newton step in the same prism: the map's
+/// residual there solved with it. Taken: cursor.point is the corrected point (it moved as
+/// little as a converged Newton step, and lies in the prism between its top and floor). Walked:
+/// the corrected point lies beyond a side with a neighbour, and `cursor` has walked into it
+/// (walkAcrossSide) for locate() to go on from there. Declined: `cursor` is unchanged.
+Chord chordStep(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
+                double distanceWorld, CurvedCursor& cursor);
+
 /// The texel-space velocity d texel / dt of a ray along unit `direction` where the map's
 /// Jacobian is `jacobian`; `prismVelocity` receives d(b1, b2, h) / dt.
 inline glm::dvec3 texelVelocity(const ShellPrism& prism, const ShellPrism::Jacobian& jacobian,
@@ -148,11 +164,10 @@ class CurvedMarchRay {
     /// prepareSample's short cut: the point moved `stepTexels` along the velocity, corrected by
     /// one chord step (the map's residual there solved with the Jacobian of the last Newton step,
     /// whose velocity and stretch the march keeps), while the path since that Newton step is at
-    /// most kChordPathTexels, the step moves the point as little as a converged Newton step and
-    /// the point stays in its prism. False otherwise; a point beyond a side with a neighbour has
-    /// then walked into it (locate() goes on from there).
+    /// most detail::kChordPathTexels, the step moves the point as little as a converged Newton
+    /// step and the point stays in its prism. False otherwise; a point beyond a side with a
+    /// neighbour has then walked into it (locate() goes on from there).
     bool takeChordStep(double stepTexels);
-    static constexpr double kChordPathTexels = 4.0;
     /// Ends at the current point: a hit (converged, or at the end of the budget).
     bool stop(bool converged);
     /// Ends without a hit: the ray left the shell at `atWorld`, between the last point sampled
@@ -225,6 +240,7 @@ class ShellRayPath {
     glm::dvec3 prismVelocity_{0.0}, directionTexels_{0.0, 0.0, 1.0};
     glm::vec3 texelPosition_{0.0f};
     int stepsSinceSettle_ = 0;
+    double pathSinceNewtonTexels_ = 0.0;  ///< texel path since the Jacobian was taken
 };
 
 /// A whole curved march of one ray over `filter` (CurvedMarchRay, sample by sample).

@@ -181,6 +181,46 @@ TEST(CurvedShell, EverySampleOfACurvedMarchLiesOnItsWorldRay) {
     }
 }
 
+TEST(CurvedShell, SelfShadowPathsComeBackToTheirWorldRayAtEverySettle) {
+    // A self-shadow path moves along its tangent in the prism between corrections; every
+    // kStepsPerSettle steps its point is put back on the world ray, by a chord step near the
+    // last Newton step: as close as the camera rays' samples (above).
+    for (const auto& [depthWorld, toleranceWorld] : {std::pair(0.05, 2e-7), std::pair(0.3, 5e-5)}) {
+        ShellPrism prism = curvedPrism();
+        prism.depthWorld = depthWorld;
+        prism.texelsPerDepthWorld = prism.depthTexels / depthWorld;
+        const std::array<std::uint32_t, 3> noNeighbours = {
+            ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour};
+        const std::array<std::uint8_t, 3> noCorners = {0, 0, 0};
+        const ShellPrisms shell{std::span(&prism, 1), std::span(&noNeighbours, 1),
+                                std::span(&noCorners, 1)};
+        std::mt19937 random(9);
+        std::uniform_real_distribution<double> unit(0.0, 1.0);
+        double farthestWorld = 0.0;
+        int settled = 0;
+        for (int index = 0; index < 200; ++index) {
+            const PrismPoint from{0.2 + 0.3 * unit(random), 0.2 + 0.3 * unit(random),
+                                  (0.7 + 0.2 * unit(random)) * depthWorld};
+            const glm::dvec3 outward = glm::normalize(prism.normalAt(from.b1, from.b2));
+            const glm::dvec3 tilt(unit(random) - 0.5, unit(random) - 0.5, unit(random) - 0.5);
+            const glm::dvec3 origin = prism.worldAt(from);
+            const glm::dvec3 direction = glm::normalize(outward + 0.8 * tilt);
+            ShellRayPath path;
+            ASSERT_TRUE(path.start(shell, origin, direction, 0, from));
+            for (int step = 1; path.advance(0.75); ++step) {
+                if (step % ShellRayPath::kStepsPerSettle != 0) continue;
+                const glm::dvec3 offset =
+                    prism.worldAt(prism.pointAtTexel(glm::dvec3(path.texelPosition()))) - origin;
+                farthestWorld = std::max(
+                    farthestWorld, glm::length(offset - glm::dot(offset, direction) * direction));
+                ++settled;
+            }
+        }
+        EXPECT_LT(farthestWorld, toleranceWorld) << depthWorld;
+        EXPECT_GT(settled, 200) << depthWorld;
+    }
+}
+
 TEST(ShellMap, JacobianIsTheMapsDerivative) {
     const ShellPrism prism = curvedPrism();
     const PrismPoint point{0.3, 0.25, 0.1};
