@@ -325,17 +325,31 @@ bool CurvedMarchRay::refineStep(float distance) {
 bool CurvedMarchRay::toEstimate() {
     const double estimate = outsideWorld_ + (insideWorld_ - outsideWorld_) * outsideTexels_ /
                                                 (outsideTexels_ - insideTexels_);
-    // The crossing is within the bracket; should the estimate fall outside the shell (a
-    // rounding at its faces), the march ends at the current point.
+    // The guess: the current point moved along the velocity to the estimate; a chord step
+    // there while the last Newton step is near, else Newton. The crossing is within the
+    // bracket; should the estimate fall outside the shell (a rounding at its faces), the march
+    // ends at the current point.
     detail::CurvedCursor at = cursor_;
-    if (detail::locate(*shell_, origin_, direction_, estimate, at) != Located::Inside)
+    const double stepWorld = estimate - distanceWorld_;
+    at.point.b1 += prismVelocity_.x * stepWorld;
+    at.point.b2 += prismVelocity_.y * stepWorld;
+    at.point.depthWorld += prismVelocity_.z * stepWorld;
+    const double pathTexels = std::abs(stepWorld) * speed_;
+    const bool chord =
+        pathSinceNewtonTexels_ + pathTexels <= detail::kChordPathTexels &&
+        detail::chordStep(*shell_, origin_, direction_, estimate, at) == detail::Chord::Taken;
+    if (!chord && detail::locate(*shell_, origin_, direction_, estimate, at) != Located::Inside)
         return stop(true);
     cursor_ = at;
-    pathSinceNewtonTexels_ = 0.0;
     distanceWorld_ = estimate;
     const ShellPrism& prism = shell_->prisms[cursor_.prism];
-    speed_ =
-        glm::length(detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_));
+    if (chord) {
+        pathSinceNewtonTexels_ += pathTexels;
+    } else {
+        pathSinceNewtonTexels_ = 0.0;
+        speed_ =
+            glm::length(detail::texelVelocity(prism, cursor_.jacobian, direction_, prismVelocity_));
+    }
     if (end_.march.iterations >= budget_) return stop(true);  // at the estimate, unsampled
     samplePosition_ = glm::vec3(prism.texelAt(cursor_.point));
     return true;
