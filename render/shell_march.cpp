@@ -78,18 +78,17 @@ Chord chordStep(const ShellPrisms& shell, const glm::dvec3& origin, const glm::d
     if (!(moved < 1e-3 && movedTexelsZ < 1e-3 * prism.depthTexels && point.depthWorld >= 0.0 &&
           point.depthWorld <= prism.depthWorld))
         return Chord::Declined;
-    CurvedCursor at = cursor;
-    at.point = point;
-    switch (walkAcrossSide(shell, origin, at)) {
+    const PrismPoint guess = cursor.point;
+    cursor.point = point;
+    switch (walkAcrossSide(shell, origin, cursor)) {
         case SideWalk::Inside:
-            cursor.point = point;
             return Chord::Taken;
         case SideWalk::Walked:
-            cursor = at;
             return Chord::Walked;
         case SideWalk::OpenSide:
             break;
     }
+    cursor.point = guess;
     return Chord::Declined;
 }
 
