@@ -1,7 +1,8 @@
 // The compiled part of the Python package `distile` (python/distile/__init__.py is the rest):
 // bake recipes, tiles as NumPy views, renders, checks and comparisons, each through the library
 // function the command calls. The GIL is released while the libraries work; they never call
-// back into Python.
+// back into Python, except that a render takes the GIL between blocks of pixels to let Python
+// handle a pending signal (Ctrl-C).
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -172,8 +173,22 @@ InputError underRenderKeyword(const InputError& error) {
     return shown.field() != error.field() ? shown : underSceneJsonPath(error);
 }
 
+/// Thrown through a library's work when Python's handler of a pending signal raised (Ctrl-C:
+/// KeyboardInterrupt); the Python error is set.
+struct PythonSignalRaised {};
+
+/// A progress callback that lets Python handle pending signals. Called on the thread that
+/// started the work (with the GIL released); a handler that raises ends the work.
+ProgressCallback handlingPythonSignals() {
+    return [](double) {
+        py::gil_scoped_acquire acquired;
+        if (PyErr_CheckSignals() != 0) throw PythonSignalRaised{};
+    };
+}
+
 /// Renders the scene `load` reads (passing its warnings to the callback), as `distile render`
-/// does: the render's warnings after the scene's.
+/// does: the render's warnings after the scene's. Ctrl-C ends the render's pixels
+/// (KeyboardInterrupt).
 PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarningCallback&)>& load,
                       const PyRenderArguments& arguments) {
     auto result = std::make_shared<RenderResult>();
@@ -185,11 +200,14 @@ PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarni
             load(tiles, [&](const std::string& warning) { sceneWarnings.push_back(warning); });
         const RenderOptions options = renderOptions(arguments, sceneFile.image);
         if (options.reference) attachTruth(sceneFile);
-        *result = renderScene(sceneFile.scene, options);
+        *result = renderScene(sceneFile.scene, options, handlingPythonSignals());
         result->warnings.insert(result->warnings.begin(), sceneWarnings.begin(),
                                 sceneWarnings.end());
     } catch (const InputError& error) {
         throw underRenderKeyword(error);
+    } catch (const PythonSignalRaised&) {
+        py::gil_scoped_acquire acquired;
+        throw py::error_already_set();
     }
     return PyRender{result};
 }

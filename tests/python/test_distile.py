@@ -4,6 +4,7 @@ import gc
 import os
 import json
 import re
+import signal
 import threading
 import time
 
@@ -332,3 +333,27 @@ def test_renders_release_the_gil():
     during = [t for t in ticks if window["start"] < t < window["end"]]
     assert window["end"] - window["start"] > 0.05
     assert len(during) >= 10
+
+
+def test_ctrl_c_ends_a_render_at_its_next_block_of_pixels(source_dir):
+    # A render of 2^24 camera samples of the torus on the sheet (several seconds on two cores),
+    # its tile baked beforehand. Ctrl-C (SIGINT) half a second in raises KeyboardInterrupt as the
+    # render finishes its block of pixels, not when its last pixel is done.
+    scene = source_dir / "data" / "scenes" / "torus_on_sheet.json"
+    distile.render(scene, width=32, height=32, shadows="none")  # the tile, into the cache
+    sent = []
+
+    def interrupt():
+        sent.append(time.monotonic())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    timer = threading.Timer(0.5, interrupt)
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            distile.render(scene, width=1024, height=1024, spp=16)
+        raised = time.monotonic()
+    finally:
+        timer.cancel()
+    assert len(sent) == 1
+    assert raised - sent[0] < 1.0
