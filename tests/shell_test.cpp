@@ -125,15 +125,23 @@ TEST(ShellMap, InvertsTheForwardMapInsideThePrism) {
     }
 }
 
+/// A shell of one prism (no neighbours: every side is an open border).
+struct LoneShell {
+    std::array<std::uint32_t, 3> neighbours = {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour,
+                                               ShellPrisms::kNoNeighbour};
+    std::array<std::uint8_t, 3> corners = {0, 0, 0};
+    /// The shell of `prism`, which must outlive it.
+    ShellPrisms of(const ShellPrism& prism) const {
+        return {std::span(&prism, 1), std::span(&neighbours, 1), std::span(&corners, 1)};
+    }
+};
+
 /// The largest distance (world units) of the samples of curved marches through `prism` alone
 /// (rays entering its top, tilted from its normal, marching to the layer 3 texels above its
 /// floor) from their world rays: each sample's texel position mapped back to world space.
 double farthestSampleFromTheRay(const ShellPrism& prism, int& samples) {
-    const std::array<std::uint32_t, 3> noNeighbours = {
-        ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour};
-    const std::array<std::uint8_t, 3> noCorners = {0, 0, 0};
-    const ShellPrisms shell{std::span(&prism, 1), std::span(&noNeighbours, 1),
-                            std::span(&noCorners, 1)};
+    const LoneShell lone;
+    const ShellPrisms shell = lone.of(prism);
     std::mt19937 random(5);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     double farthestWorld = 0.0;
@@ -189,11 +197,8 @@ TEST(CurvedShell, SelfShadowPathsComeBackToTheirWorldRayAtEverySettle) {
         ShellPrism prism = curvedPrism();
         prism.depthWorld = depthWorld;
         prism.texelsPerDepthWorld = prism.depthTexels / depthWorld;
-        const std::array<std::uint32_t, 3> noNeighbours = {
-            ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour};
-        const std::array<std::uint8_t, 3> noCorners = {0, 0, 0};
-        const ShellPrisms shell{std::span(&prism, 1), std::span(&noNeighbours, 1),
-                                std::span(&noCorners, 1)};
+        const LoneShell lone;
+        const ShellPrisms shell = lone.of(prism);
         std::mt19937 random(9);
         std::uniform_real_distribution<double> unit(0.0, 1.0);
         double farthestWorld = 0.0;
