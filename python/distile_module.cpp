@@ -9,6 +9,7 @@
 #include <pybind11/stl/filesystem.h>
 #include <tbb/global_control.h>
 
+#include <chrono>
 #include <cstdint>
 #include <cstring>
 #include <functional>
@@ -177,10 +178,14 @@ InputError underRenderKeyword(const InputError& error) {
 /// KeyboardInterrupt); the Python error is set.
 struct PythonSignalRaised {};
 
-/// A progress callback that lets Python handle pending signals. Called on the thread that
-/// started the work (with the GIL released); a handler that raises ends the work.
+/// A progress callback that lets Python handle pending signals, at most every 50 ms (taking
+/// the GIL may wait for another Python thread). Called on the thread that started the work
+/// (with the GIL released); a handler that raises ends the work.
 ProgressCallback handlingPythonSignals() {
-    return [](double) {
+    return [last = std::chrono::steady_clock::now()](double) mutable {
+        const auto now = std::chrono::steady_clock::now();
+        if (now - last < std::chrono::milliseconds(50)) return;
+        last = now;
         py::gil_scoped_acquire acquired;
         if (PyErr_CheckSignals() != 0) throw PythonSignalRaised{};
     };
