@@ -1,5 +1,8 @@
 #include "sampler/tile_error.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -51,13 +54,22 @@ TileErrorReport measureTileError(const Tile& tile,
             tileValues[i] = filter.distanceTexels(glm::vec3(points[i]));
     });
 
+    // The truth at every point in parallel (the costly part: an exact mesh distance is
+    // microseconds); the report then takes the points in order.
+    std::vector<double> truths(points.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 256),
+                      [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t i = range.begin(); i != range.end(); ++i)
+                              truths[i] = truth(points[i]);
+                      });
+
     TileErrorReport report;
     report.samples = options.samples;
     double sumSquares = 0.0;
     double nearSumSquares = 0.0;
     std::vector<double> nearErrors;
     for (std::size_t i = 0; i < points.size(); ++i) {
-        const double exactDistance = truth(points[i]);
+        const double exactDistance = truths[i];
         if (std::isnan(exactDistance)) {
             throw std::runtime_error("the truth distance at (" + std::to_string(points[i].x) +
                                      ", " + std::to_string(points[i].y) + ", " +

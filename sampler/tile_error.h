@@ -56,10 +56,10 @@ struct TileErrorReport {
 };
 
 /// Samples `tile` with options.filter and `truth` (signed distance in texels at a texel-space
-/// point; called on this thread only, in the order of the points) at options.samples uniform
-/// random points. Deterministic for a seed. Throws InputError (naming the
-/// TileErrorOptions member) when samples < 1 or a tolerance or margin is negative or not finite;
-/// std::runtime_error when the truth returns NaN.
+/// point; called from several threads at once, so it must be safe to call concurrently) at
+/// options.samples uniform random points. Deterministic for a seed, on any thread count. Throws
+/// InputError (naming the TileErrorOptions member) when samples < 1 or a tolerance or margin is
+/// negative or not finite; std::runtime_error when the truth returns NaN.
 TileErrorReport measureTileError(const Tile& tile,
                                  const std::function<double(const glm::dvec3&)>& truth,
                                  const TileErrorOptions& options = {});

@@ -1,6 +1,7 @@
 // Tests of sampler/: the trilinear filter's exactness and periodicity, and the baked chain-mail
 // tile against the analytic distance it was made from.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <bit>
@@ -10,6 +11,8 @@
 #include <glm/mat3x3.hpp>
 #include <limits>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "bake/bake.h"
@@ -534,6 +537,52 @@ TEST(TileErrorReport, TellsTheOverestimatesATracerCanStepOverFromTheOthers) {
         measureTileError(tile, [](const glm::dvec3& p) { return p.z - 8.0; });
     EXPECT_EQ(lowered.overestimates, 0);
     EXPECT_EQ(lowered.tracerOverestimates, 0);
+}
+
+TEST(TileErrorReport, IsTheSameOnOneThreadAndOnSeveral) {
+    // The truth is taken at the points in parallel; the report walks them in order, so every
+    // figure is the same bit for bit on any thread count (a NaN truth is reported at its first
+    // point either way).
+    const ProceduralOptions chainmail;
+    BakeOptions small;
+    small.size = {64, 64, 16};
+    const Tile tile = bakeProcedural(chainmail, small).tile;
+    const ProceduralDistance truth = proceduralDistance(chainmail, tile.size());
+    TileErrorOptions options;
+    options.samples = 20000;
+    TileErrorReport one, several;
+    {
+        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+        one = measureTileError(tile, truth.signedDistanceTexels, options);
+    }
+    {
+        tbb::global_control pair(tbb::global_control::max_allowed_parallelism, 2);
+        several = measureTileError(tile, truth.signedDistanceTexels, options);
+    }
+    EXPECT_EQ(one.rmsTexels, several.rmsTexels);
+    EXPECT_EQ(one.maxAbsTexels, several.maxAbsTexels);
+    EXPECT_EQ(one.maxAbsAt, several.maxAbsAt);
+    EXPECT_EQ(one.overestimates, several.overestimates);
+    EXPECT_EQ(one.tracerOverestimates, several.tracerOverestimates);
+    EXPECT_EQ(one.nearP999Texels, several.nearP999Texels);
+    EXPECT_GT(one.nearSamples, 100);
+    const auto nanBeyondHalf = [](const glm::dvec3& p) {
+        return p.x > 32.0 ? std::numeric_limits<double>::quiet_NaN() : p.z - 8.0;
+    };
+    std::string first;
+    try {
+        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
+        measureTileError(tile, nanBeyondHalf, options);
+    } catch (const std::runtime_error& error) {
+        first = error.what();
+    }
+    EXPECT_NE(first, "");
+    try {
+        measureTileError(tile, nanBeyondHalf, options);
+        ADD_FAILURE() << "a NaN truth was not reported";
+    } catch (const std::runtime_error& error) {
+        EXPECT_EQ(std::string(error.what()), first);
+    }
 }
 
 TEST(ConservativeResampling, EveryProceduralTileMeetsTheOverestimateAndRmsTargets) {
