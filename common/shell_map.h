@@ -135,6 +135,13 @@ struct ShellPrism {
                 -texelsPerDepthWorld * gradient.z};
     }
 
+    /// A chord step toward world offset `offset` (world - P_0) from `point`: the map's residual
+    /// there solved with `jacobian`, kept from a Newton step nearby (subtract it from `point`).
+    glm::dvec3 chordChange(const glm::dvec3& offset, const PrismPoint& point,
+                           const Jacobian& jacobian) const {
+        return jacobian.solve(offsetAt(point) - offset);
+    }
+
     /// The prism point at world offset `offset` (world - P_0) by Newton's method from `guess`
     /// (the map is nearly affine: one step from a nearby guess). Converged when a step moves
     /// the barycentrics and the depth (relative to depthWorld) by less than 1e-3: the error left
@@ -171,7 +178,7 @@ inline bool ShellPrism::invert(const glm::dvec3& offset, PrismPoint& point, Jaco
         at.determinant = glm::dot(at.column[0], at.cofactor[0]);
         if (!(at.determinant != 0.0)) break;
         at.inverseDeterminant = 1.0 / at.determinant;
-        glm::dvec3 residual = b1 * edge1 + b2 * edge2 - depth * normal - offset;
+        const glm::dvec3 residual = b1 * edge1 + b2 * edge2 - depth * normal - offset;
         glm::dvec3 change = at.solve(residual);
         b1 -= change.x;
         b2 -= change.y;
@@ -191,8 +198,7 @@ inline bool ShellPrism::invert(const glm::dvec3& offset, PrismPoint& point, Jaco
         // 1e-3 and that product below 1e-6 (what a converged Newton step leaves), else Newton
         // goes on from the better point.
         const double newtonMove = std::max(moved, movedTexelsZ / depthTexels);
-        residual = b1 * edge1 + b2 * edge2 - depth * normalAt(b1, b2) - offset;
-        change = at.solve(residual);
+        change = chordChange(offset, {b1, b2, depth}, at);
         b1 -= change.x;
         b2 -= change.y;
         depth -= change.z;

@@ -66,9 +66,8 @@ Chord chordStep(const ShellPrisms& shell, const glm::dvec3& origin, const glm::d
                 double distanceWorld, CurvedCursor& cursor) {
     const ShellPrism& prism = shell.prisms[cursor.prism];
     PrismPoint point = cursor.point;
-    const glm::dvec3 residual =
-        prism.offsetAt(point) - (cursor.originOffset + distanceWorld * direction);
-    const glm::dvec3 change = cursor.jacobian.solve(residual);
+    const glm::dvec3 change =
+        prism.chordChange(cursor.originOffset + distanceWorld * direction, point, cursor.jacobian);
     point.b1 -= change.x;
     point.b2 -= change.y;
     point.depthWorld -= change.z;
@@ -250,9 +249,7 @@ bool CurvedMarchRay::prepareSample(double stepTexels) {
             return needsSample_ = true;
         }
         const double shorter = stepTexels / meanSpeed;
-        cursor_.point.b1 -= prismVelocity_.x * (stepWorld - shorter);
-        cursor_.point.b2 -= prismVelocity_.y * (stepWorld - shorter);
-        cursor_.point.depthWorld -= prismVelocity_.z * (stepWorld - shorter);
+        detail::moveAlong(cursor_.point, prismVelocity_, -(stepWorld - shorter));
         distanceWorld_ = outsideWorld_ + shorter;
     }
 }
@@ -330,9 +327,7 @@ bool CurvedMarchRay::toEstimate() {
     // ends at the current point.
     detail::CurvedCursor at = cursor_;
     const double stepWorld = estimate - distanceWorld_;
-    at.point.b1 += prismVelocity_.x * stepWorld;
-    at.point.b2 += prismVelocity_.y * stepWorld;
-    at.point.depthWorld += prismVelocity_.z * stepWorld;
+    detail::moveAlong(at.point, prismVelocity_, stepWorld);
     const double pathTexels = std::abs(stepWorld) * speed_;
     const bool chord =
         pathSinceNewtonTexels_ + pathTexels <= detail::kChordPathTexels &&
@@ -400,9 +395,7 @@ bool CurvedMarchRay::advance(float distance) {
     const double stepWorld = stepTexels / speed_;
     distanceWorld_ += stepWorld;
     // The next point's guess: the current one moved along the ray's prism-space velocity.
-    cursor_.point.b1 += prismVelocity_.x * stepWorld;
-    cursor_.point.b2 += prismVelocity_.y * stepWorld;
-    cursor_.point.depthWorld += prismVelocity_.z * stepWorld;
+    detail::moveAlong(cursor_.point, prismVelocity_, stepWorld);
     return prepareSample(stepTexels);
 }
 
@@ -425,9 +418,7 @@ bool ShellRayPath::advance(double texels) {
     distanceWorld_ += stepWorld;
     pathSinceNewtonTexels_ += texels;
     PrismPoint& point = cursor_.point;
-    point.b1 += prismVelocity_.x * stepWorld;
-    point.b2 += prismVelocity_.y * stepWorld;
-    point.depthWorld += prismVelocity_.z * stepWorld;
+    detail::moveAlong(point, prismVelocity_, stepWorld);
     // Between corrections the point moves along the path's tangent in the prism; a correction
     // (Newton, a new velocity) every kStepsPerSettle steps, and wherever the point may have left
     // the prism.

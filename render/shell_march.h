@@ -106,6 +106,14 @@ SideWalk walkAcrossSide(const ShellPrisms& shell, const glm::dvec3& origin, Curv
 Located locate(const ShellPrisms& shell, const glm::dvec3& origin, const glm::dvec3& direction,
                double distanceWorld, CurvedCursor& cursor);
 
+/// Moves `point` `world` units along a ray whose prism-space velocity is `velocity`
+/// (d(b1, b2, h) / dt): the linear prediction of where the ray is in the prism.
+inline void moveAlong(PrismPoint& point, const glm::dvec3& velocity, double world) {
+    point.b1 += velocity.x * world;
+    point.b2 += velocity.y * world;
+    point.depthWorld += velocity.z * world;
+}
+
 /// A march takes its samples by chordStep() while its path since the last Newton step is at
 /// most this long, texels (the velocity and stretch it keeps change little over it).
 inline constexpr double kChordPathTexels = 4.0;
