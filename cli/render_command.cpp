@@ -382,7 +382,8 @@ void addRenderCommand(CLI::App& app) {
                 "world-space mesh traced with Embree, each hit refined along the ray onto the "
                 "exact detail (1e-4 texel; normals from its gradient through the shell), back "
                 "faces of base meshes stopping rays, shaded as the renderer shades (sky, "
-                "ambient, Blinn-Phong, 16 soft-shadow rays per light); world-levelset: the same "
+                "ambient, Blinn-Phong, 16 soft-shadow rays per light; the meshes and BVH of a "
+                "scene estimated to need more than 8 GiB are refused); world-levelset: the same "
                 "mesh as an OpenVDB level set (--reference-voxels) for its hits, refined the "
                 "same way, much slower: the check of the world reference")
             ->expected(0, 1)

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <glm/geometric.hpp>
 #include <limits>
 #include <memory>
@@ -832,6 +833,9 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     std::vector<DisplacedMesh> meshes(scene.objects.size());
     std::vector<std::size_t> vertexCounts(scene.objects.size(), 0);
     std::vector<std::optional<DisplacedLevelSet>> levelSets(scene.objects.size());
+    // The meshes and the BVH over them share the mesh options' memory budget.
+    DisplacedMeshOptions meshOptions = options.levelSet.mesh;
+    double earlierBytes = 0.0;
     for (std::size_t index = 0; index < scene.objects.size(); ++index) {
         const SceneObject& object = scene.objects[index];
         const Material& material = object.material;
@@ -844,14 +848,22 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                                       double(material.depthWorld),
                                       material.floor == Floor::Solid};
         try {
+            meshOptions.memoryBudgetBytes = options.levelSet.mesh.memoryBudgetBytes - earlierBytes;
             meshes[index] = buildDisplacedMesh(detailDistance(material), material.tile->size(),
-                                               shell, options.levelSet.mesh);
+                                               shell, meshOptions);
+            earlierBytes += meshes[index].stats.estimatedBytes;
             result.meshes.push_back(meshes[index].stats);
             // Every level set's budget is checked before the first takes its minutes.
             if (options.method == WorldReferenceMethod::LevelSet)
                 DisplacedLevelSet::voxelsPerTexel(meshes[index], options.levelSet);
         } catch (const InputError& error) {
-            throw InputError("objects[" + std::to_string(index) + "]: " + error.what());
+            char earlier[120] = "";
+            if (earlierBytes > 0.0) {
+                std::snprintf(earlier, sizeof earlier,
+                              " (of %.1f GB for all objects, the objects before it take %.1f GB)",
+                              options.levelSet.mesh.memoryBudgetBytes / 1e9, earlierBytes / 1e9);
+            }
+            throw InputError("objects[" + std::to_string(index) + "]: " + error.what() + earlier);
         }
         if (progress) progress(meshShare * double(index + 1) / scene.objects.size());
     }

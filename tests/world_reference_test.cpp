@@ -211,6 +211,76 @@ TEST(DisplacedMesh, AnEdgeWhoseCornersDifferByRoundingNoiseIsNotABorder) {
     EXPECT_EQ(mesh.stats.borderEdges, 4u);
 }
 
+TEST(DisplacedMesh, ItsMemoryIsEstimatedBeforeMappingAndRefusedOverTheBudget) {
+    // A flat detail on a unit plane of 3 x 3 tiles: the base triangles cover 9 tiles' texels,
+    // so the estimate is 9 x the tile's polygons x 300 bytes (the peak per polygon the covered
+    // area predicts, with the BVH). The mesh made has at least those polygons (clipping to the
+    // triangles and walling the plane's edges only add: 1.51 times here) and at most the 1.7
+    // times the 300 bytes allow for.
+    const BaseMesh plane = makePlane(1.0f, 1);
+    DisplacementShell shell{plane.positions, plane.normals, plane.uvs, plane.triangles,
+                            glm::dvec2(3.0), 0.125,         true};
+    const auto flat = [](const glm::dvec3& texel) { return texel.z - 4.0; };
+    const DisplacedMesh mesh = buildDisplacedMesh(flat, {32, 32, 8}, shell);
+    const double estimatedPolygons = 9.0 * double(mesh.stats.tilePolygons);
+    EXPECT_NEAR(mesh.stats.estimatedBytes, estimatedPolygons * 300.0, 1e-6);
+    EXPECT_GE(double(mesh.stats.meshPolygons), estimatedPolygons);
+    EXPECT_LE(double(mesh.stats.meshPolygons), 1.7 * estimatedPolygons);
+
+    DisplacedMeshOptions options;
+    options.memoryBudgetBytes = mesh.stats.estimatedBytes;
+    EXPECT_EQ(buildDisplacedMesh(flat, {32, 32, 8}, shell, options).stats.meshPolygons,
+              mesh.stats.meshPolygons);
+    options.memoryBudgetBytes = std::nextafter(mesh.stats.estimatedBytes, 0.0);
+    try {
+        buildDisplacedMesh(flat, {32, 32, 8}, shell, options);
+        ADD_FAILURE() << "a mesh over its memory budget was built";
+    } catch (const InputError& error) {
+        EXPECT_NE(std::string(error.what())
+                      .find("uv scale: the detail over the base triangles (9 "
+                            "tile repeats"),
+                  std::string::npos)
+            << error.what();
+    }
+    // 16 times the uv scale, 256 times the memory: refused at the default 8 GiB.
+    shell.uvScale = glm::dvec2(3.0 * 16.0);
+    const double bigBytes = 256.0 * mesh.stats.estimatedBytes;
+    ASSERT_LT(bigBytes, DisplacedMeshOptions{}.memoryBudgetBytes);
+    options.memoryBudgetBytes = bigBytes / 2.0;
+    EXPECT_THROW(buildDisplacedMesh(flat, {32, 32, 8}, shell, options), InputError);
+    options.memoryBudgetBytes = 0.0;
+    EXPECT_THROW(buildDisplacedMesh(flat, {32, 32, 8}, shell, options), InputError);
+}
+
+TEST(WorldReference, AllObjectsMeshesShareOneMemoryBudget) {
+    // Two planes with the same tiles: each mesh alone fits in 1.5 times one's estimate, both do
+    // not; the second is refused, naming it and what the first takes.
+    Scene scene;
+    scene.camera = {{0.0f, -0.15f, 0.15f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
+    for (float x : {0.0f, 2.0f}) {
+        SceneObject plane;
+        plane.mesh = makePlane(1.0f, 1);
+        for (glm::vec3& position : plane.mesh.positions) position.x += x;
+        plane.material = chainmailMaterial({2.0f, 2.0f}, 16.0f / 128.0f);
+        scene.objects.push_back(std::move(plane));
+    }
+    WorldReferenceOptions options;
+    options.width = 8;
+    options.height = 8;
+    const WorldReferenceResult both = renderWorldReference(scene, options);
+    ASSERT_EQ(both.meshes.size(), 2u);
+    EXPECT_EQ(both.meshes[0].estimatedBytes, both.meshes[1].estimatedBytes);
+    options.levelSet.mesh.memoryBudgetBytes = 1.5 * both.meshes[0].estimatedBytes;
+    try {
+        renderWorldReference(scene, options);
+        ADD_FAILURE() << "two meshes over their shared budget were built";
+    } catch (const InputError& error) {
+        const std::string message = error.what();
+        EXPECT_TRUE(message.starts_with("objects[1]: ")) << message;
+        EXPECT_NE(message.find("the objects before it take"), std::string::npos) << message;
+    }
+}
+
 TEST(DisplacedLevelSet, OnATorusTheFloorIsATubeAtTheShellDepth) {
     // No detail (distance 100 texels everywhere): only the solid floor, z = 0 of the shell, a tube
     // of radius r - depth around the torus's centre circle. 4 x 2 tiles of 32 x 32 x 8 on a torus

@@ -53,6 +53,9 @@ struct DisplacementShell {
 struct DisplacedMeshOptions {
     /// Samples per texel of the texel-space lattice the isosurface is extracted from.
     int samplesPerTexel = 1;
+    /// The most memory the mesh may take at its peak with a BVH over it, bytes, as estimated
+    /// from the base triangles' texel area and the tile's polygons before the mesh is mapped.
+    double memoryBudgetBytes = double(std::uint64_t(8) << 30);
 };
 
 /// Figures of a mesh build, for reports (wall times in seconds).
@@ -62,6 +65,7 @@ struct DisplacedMeshStats {
     std::size_t borderEdges = 0;   ///< base-mesh edges closed by a wall
     std::size_t meshVertices = 0;
     std::size_t meshPolygons = 0;  ///< triangles and quads of the world-space mesh
+    double estimatedBytes = 0.0;   ///< the estimate checked against memoryBudgetBytes
     double latticeSeconds = 0.0;   ///< sampling the detail on the tile lattice
     double extractSeconds = 0.0;   ///< the tile's isosurface (OpenVDB volumeToMesh)
     double mapSeconds = 0.0;       ///< clipping to the base triangles, walls, mapping
@@ -107,8 +111,9 @@ inline double clippedDetailTexels(double detailTexels, double zTexels, double de
 /// @throws InputError an invalid tile size, an empty or inconsistent shell (array sizes,
 ///         indices), non-finite data, uvScale or depthWorld not > 0, samplesPerTexel not in
 ///         [1, 8], a uv chart whose triangles all have zero uv or world area, a tile lattice of
-///         more than 2^31 samples, a chart holding more than 65536 tile repeats, or a detail
-///         with no surface inside the shell.
+///         more than 2^31 samples, a chart holding more than 65536 tile repeats, a mesh
+///         estimated to need more than options.memoryBudgetBytes (refused before it is mapped),
+///         or a detail with no surface inside the shell.
 DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Size3& tile,
                                  const DisplacementShell& shell,
                                  const DisplacedMeshOptions& options = {});

@@ -69,6 +69,7 @@ void validateInput(const Size3& tile, const DisplacementShell& shell,
     if (options.samplesPerTexel < 1 || options.samplesPerTexel > 8) {
         reject("samples per texel", std::to_string(options.samplesPerTexel) + " is not in [1, 8]");
     }
+    if (!(options.memoryBudgetBytes > 0.0)) reject("memory budget", "it must be > 0 bytes");
 }
 
 double cross2(const glm::dvec2& a, const glm::dvec2& b) {
@@ -353,6 +354,8 @@ class ShellTriangleMap {
             glm::length(corner_[1] - corner_[0]) * glm::length(corner_[2] - corner_[0]);
         return std::abs(area_) > 1e-9 * scale && scale > 0.0;
     }
+    /// The triangle's area in texel space, texels squared.
+    double texelArea() const { return 0.5 * std::abs(area_); }
     glm::dvec2 low() const { return glm::min(corner_[0], glm::min(corner_[1], corner_[2])); }
     glm::dvec2 high() const { return glm::max(corner_[0], glm::max(corner_[1], corner_[2])); }
     glm::dvec2 corner(int c) const { return corner_[c]; }
@@ -623,6 +626,13 @@ void mapTriangle(const ShellTriangleMap& map, const std::array<bool, 3>& border,
 
 }  // namespace
 
+/// Memory a world-space detail mesh takes at its peak, per polygon the covered tile area
+/// predicts, bytes. The mesh (vertex positions in world and texel space, polygons, their base
+/// triangles), the per-triangle pieces it is joined from and Embree's BVH over it peaked at
+/// 150-170 bytes per polygon in the world reference of the example scenes and the demo; clipping
+/// to the base triangles makes 1.0-1.7 times the polygons the covered area predicts.
+constexpr double kBytesPerEstimatedPolygon = 300.0;
+
 DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Size3& tile,
                                  const DisplacementShell& shell,
                                  const DisplacedMeshOptions& options) {
@@ -649,11 +659,12 @@ DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Siz
     const double depthTexels = double(tile.depth);
     const std::size_t triangleCount = shell.triangles.size();
     std::vector<bool> hasArea(triangleCount);
-    double repeats = 0.0;
+    double repeats = 0.0, coveredTexels = 0.0;
     for (std::size_t index = 0; index < triangleCount; ++index) {
         const ShellTriangleMap map(shell, std::uint32_t(index), texelsPerUv, depthTexels);
         hasArea[index] = map.hasArea();
         if (!hasArea[index]) continue;
+        coveredTexels += map.texelArea();
         const glm::dvec2 copies =
             glm::floor(map.high() / tileTexels) - glm::floor(map.low() / tileTexels) + 1.0;
         repeats += copies.x * copies.y;
@@ -662,6 +673,18 @@ DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Siz
     if (repeats > kMaxRepeats) {
         reject("uv scale", "the base triangles hold " + std::to_string((long long)repeats) +
                                " tile repeats; at most 65536 are accepted");
+    }
+    const double estimatedPolygons =
+        coveredTexels / (tileTexels.x * tileTexels.y) * double(stats.tilePolygons);
+    stats.estimatedBytes = estimatedPolygons * kBytesPerEstimatedPolygon;
+    if (!(stats.estimatedBytes <= options.memoryBudgetBytes)) {
+        char message[300];
+        std::snprintf(message, sizeof message,
+                      "the detail over the base triangles (%.4g tile repeats of %zu polygons) "
+                      "needs about %.1f GB with its BVH; %.1f GB is accepted",
+                      coveredTexels / (tileTexels.x * tileTexels.y), stats.tilePolygons,
+                      stats.estimatedBytes / 1e9, options.memoryBudgetBytes / 1e9);
+        reject("uv scale", message);
     }
     const std::vector<std::array<bool, 3>> border = findBorderEdges(shell, hasArea);
     for (const auto& edges : border) {
