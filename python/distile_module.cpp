@@ -138,6 +138,58 @@ struct PyRenderArguments {
     std::optional<std::string> shadows;
 };
 
+/// A member of T that fromKeywords sets from the keyword `name`.
+template <class T>
+struct KeywordMember {
+    const char* name;
+    std::function<void(T&, py::handle)> set;
+};
+
+template <class T, class M>
+KeywordMember<T> member(const char* name, M T::*field) {
+    return {name, [field](T& target, py::handle value) { target.*field = value.cast<M>(); }};
+}
+
+/// A T with its defaults, each member of `members` named in `keywords` set from it (checked by
+/// the package's _keyword before). The option structs are not Python classes: an instance of one
+/// made by __new__ alone would read memory no constructor wrote.
+template <class T>
+T fromKeywords(const py::dict& keywords, std::initializer_list<KeywordMember<T>> members) {
+    T target{};
+    for (const auto& [key, value] : keywords) {
+        const std::string name = py::str(key);
+        const auto found = std::find_if(members.begin(), members.end(),
+                                        [&](const KeywordMember<T>& m) { return name == m.name; });
+        if (found == members.end()) throw py::type_error("unexpected keyword '" + name + "'");
+        found->set(target, value);
+    }
+    return target;
+}
+
+PyRenderArguments renderArguments(const py::dict& keywords) {
+    using A = PyRenderArguments;
+    return fromKeywords<A>(
+        keywords, {member("width", &A::width), member("height", &A::height), member("spp", &A::spp),
+                   member("aovs", &A::aovs), member("reference", &A::reference),
+                   member("iterations", &A::iterations), member("epsilon", &A::epsilon),
+                   member("march", &A::march), member("relaxation", &A::relaxation),
+                   member("filter", &A::filter), member("normal_filter", &A::normalFilter),
+                   member("shell", &A::shell), member("shadows", &A::shadows)});
+}
+
+TileCheckOptions checkOptions(const py::dict& keywords) {
+    using O = TileCheckOptions;
+    return fromKeywords<O>(
+        keywords, {member("against", &O::against), member("samples", &O::samples),
+                   member("seed", &O::seed), member("max_overestimate", &O::maxOverestimateTexels),
+                   member("max_overestimate_share", &O::maxOverestimateShare),
+                   member("max_rms", &O::maxRmsTexels),
+                   member("max_tracer_overestimate", &O::maxTracerOverestimateTexels),
+                   member("max_near_error", &O::maxNearErrorTexels),
+                   member("allow_sign_errors", &O::allowSignErrors), member("scale", &O::meshScale),
+                   member("offset", &O::meshOffsetTexels)});
+}
+
 RenderOptions renderOptions(const PyRenderArguments& arguments, const ImageSettings& image) {
     RenderOptions options;
     options.width = arguments.width.value_or(image.width);
@@ -378,22 +430,6 @@ PYBIND11_MODULE(_distile, module) {
         py::arg("file"), "Read a tile file (.exr) written by distile");
     module.def("bake_recipe", &bakeRecipe, py::arg("recipe_json"), py::arg("name"));
 
-    py::class_<PyRenderArguments>(module, "RenderArguments")
-        .def(py::init<>())
-        .def_readwrite("width", &PyRenderArguments::width)
-        .def_readwrite("height", &PyRenderArguments::height)
-        .def_readwrite("spp", &PyRenderArguments::spp)
-        .def_readwrite("aovs", &PyRenderArguments::aovs)
-        .def_readwrite("reference", &PyRenderArguments::reference)
-        .def_readwrite("iterations", &PyRenderArguments::iterations)
-        .def_readwrite("epsilon", &PyRenderArguments::epsilon)
-        .def_readwrite("march", &PyRenderArguments::march)
-        .def_readwrite("relaxation", &PyRenderArguments::relaxation)
-        .def_readwrite("filter", &PyRenderArguments::filter)
-        .def_readwrite("normal_filter", &PyRenderArguments::normalFilter)
-        .def_readwrite("shell", &PyRenderArguments::shell)
-        .def_readwrite("shadows", &PyRenderArguments::shadows);
-
     py::class_<PyRender>(module, "Render", "A rendered image with its statistics and AOVs")
         .def_property_readonly(
             "image", [](py::object self) { return imageView(renderOf(self).image, self); },
@@ -431,23 +467,23 @@ PYBIND11_MODULE(_distile, module) {
             "render --aovs` does");
     module.def(
         "render_scene_file",
-        [](const fs::path& file, const PyRenderArguments& arguments) {
+        [](const fs::path& file, const py::dict& arguments) {
             return renderLoaded(
                 [&](TileCache& tiles, const SceneWarningCallback& warn) {
                     return loadSceneFile(file, tiles, warn);
                 },
-                arguments);
+                renderArguments(arguments));
         },
         py::arg("file"), py::arg("arguments"));
     module.def(
         "render_scene_json",
         [](const std::string& sceneJson, const fs::path& folder, const std::string& name,
-           const PyRenderArguments& arguments) {
+           const py::dict& arguments) {
             return renderLoaded(
                 [&](TileCache& tiles, const SceneWarningCallback& warn) {
                     return loadSceneJson(sceneJson, folder, name, tiles, warn);
                 },
-                arguments);
+                renderArguments(arguments));
         },
         py::arg("scene_json"), py::arg("folder"), py::arg("name"), py::arg("arguments"));
     module.def("compare", &compareAny, py::arg("a"), py::arg("b"));
@@ -455,14 +491,15 @@ PYBIND11_MODULE(_distile, module) {
     module.def(
         "check_tile",
         [](py::handle tile, const std::string& tileName, const fs::path& tileFile,
-           const TileCheckOptions& options) {
+           const py::dict& keywords) {
             const Tile& checked = tileOf(tile);
+            const TileCheckOptions options = checkOptions(keywords);
             TileCheck check;
             try {
                 py::gil_scoped_release released;
                 check = checkTile(checked, tileName, tileFile, options);
             } catch (const InputError& error) {
-                // Under check()'s keywords (the CheckOptions attributes), not the C++ members.
+                // Under check()'s keywords, not the C++ members.
                 throw shownUnder(error, {{"maxOverestimateTexels", "max_overestimate"},
                                          {"maxOverestimateShare", "max_overestimate_share"},
                                          {"maxRmsTexels", "max_rms"},
@@ -474,19 +511,6 @@ PYBIND11_MODULE(_distile, module) {
             return jsonValue(reportText(tileCheckJson(check, options, tileName)));
         },
         py::arg("tile"), py::arg("tile_name"), py::arg("tile_file"), py::arg("options"));
-    py::class_<TileCheckOptions>(module, "CheckOptions")
-        .def(py::init<>())
-        .def_readwrite("against", &TileCheckOptions::against)
-        .def_readwrite("samples", &TileCheckOptions::samples)
-        .def_readwrite("seed", &TileCheckOptions::seed)
-        .def_readwrite("max_overestimate", &TileCheckOptions::maxOverestimateTexels)
-        .def_readwrite("max_overestimate_share", &TileCheckOptions::maxOverestimateShare)
-        .def_readwrite("max_rms", &TileCheckOptions::maxRmsTexels)
-        .def_readwrite("max_tracer_overestimate", &TileCheckOptions::maxTracerOverestimateTexels)
-        .def_readwrite("max_near_error", &TileCheckOptions::maxNearErrorTexels)
-        .def_readwrite("allow_sign_errors", &TileCheckOptions::allowSignErrors)
-        .def_readwrite("scale", &TileCheckOptions::meshScale)
-        .def_readwrite("offset", &TileCheckOptions::meshOffsetTexels);
 
     // Tiles and renders come from the module's functions only. Python's default __new__ would
     // make an instance no constructor filled, whose accessors read freed or unwritten memory (a

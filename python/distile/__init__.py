@@ -105,13 +105,15 @@ def _keyword(function, name, value, kind):
     raise TypeError(f"{function}(): {name} must be three numbers (x, y, z), {got}")
 
 
-def _set_keywords(function, target, options, kinds):
-    """Sets each of `options` on `target` after _keyword's check; unknown keywords are a
+def _checked_keywords(function, options, kinds):
+    """`options` after _keyword's check of each, as a new dict; unknown keywords are a
     TypeError, as Python gives for a function's own."""
+    checked = {}
     for name, value in options.items():
         if name not in kinds:
             raise TypeError(f"{function}() got an unexpected keyword argument '{name}'")
-        setattr(target, name, _keyword(function, name, value, kinds[name]))
+        checked[name] = _keyword(function, name, value, kinds[name])
+    return checked
 
 
 def set_threads(threads):
@@ -204,10 +206,9 @@ def check(tile, against=None, **options):
     None (the tile's own truth), "analytic", a mesh file or a level set (.vdb). Keywords:
     samples, seed, max_overestimate, max_overestimate_share, max_rms, max_near_error,
     allow_sign_errors, scale, offset=(x, y, z)."""
-    settings = _distile.CheckOptions()
+    settings = _checked_keywords("check", options, _CHECK_KEYWORDS)
     if against is not None:
-        settings.against = _os.fsdecode(_os.fspath(against))
-    _set_keywords("check", settings, options, _CHECK_KEYWORDS)
+        settings["against"] = _os.fsdecode(_os.fspath(against))
     if isinstance(tile, Tile):
         return _distile.check_tile(tile, "tile", "", settings)
     path = _os.fsdecode(_os.fspath(tile))
@@ -223,8 +224,7 @@ def render(scene, **options):
     reference), iterations, epsilon, march, relaxation, filter, normal_filter, shell, shadows
     ("none", "full", "adaptive"). What the command prints as warnings is told as UserWarnings
     and kept in ``.warnings``."""
-    arguments = _distile.RenderArguments()
-    _set_keywords("render", arguments, options, _RENDER_KEYWORDS)
+    arguments = _checked_keywords("render", options, _RENDER_KEYWORDS)
     if isinstance(scene, dict):
         result = _distile.render_scene_json(_json_text(scene, "scene"), ".", "scene", arguments)
     else:

@@ -68,6 +68,22 @@ def test_tiles_and_renders_cannot_be_made_empty():
             cls()
 
 
+def test_the_only_classes_to_make_are_tiles_renders_and_errors():
+    # _distile.CheckOptions.__new__(CheckOptions).samples read memory no constructor wrote:
+    # options now go to the module as dicts, so no class is left whose instance could be empty
+    # but Tile and Render (refused above and below).
+    classes = {name for name in dir(distile._distile)
+               if isinstance(getattr(distile._distile, name), type)}
+    assert classes == {"Tile", "Render", "InputError", "FormatError", "InternalError"}
+    tile = distile.bake_chainmail(size="32x32x8", rings_per_row=2, rows=2)
+    with pytest.raises(TypeError, match="unexpected keyword 'sample'"):
+        distile._distile.check_tile(tile, "tile", "", {"sample": 10})
+    with pytest.raises(TypeError, match="unexpected keyword 'widht'"):
+        distile._distile.render_scene_json("{}", ".", "scene", {"widht": 10})
+    report = distile.check(tile, samples=1000, seed=7)
+    assert report["samples"] == 1000
+
+
 def test_an_instance_made_by_the_base_classes_new_is_refused_not_read():
     # pybind11_object.__new__ (which the error of object.__new__ points to) made an instance no
     # constructor filled: reading it was a segfault.
