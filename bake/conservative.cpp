@@ -130,11 +130,15 @@ struct MeasuredLowerings {
 /// dense) is corrected by lowering each of its corners by r = o - allowance; each texel takes the
 /// largest r of its 3 x 3 x 3 points. The face points (m = 0 and m = 2D) interpolate 1.5 x the
 /// edge slice - 0.5 x its inner neighbour (the filter's linear extension): their r is returned
-/// per column for raiseEdgeSlicesForFaces. Points none of whose corners is within bandTexels of
-/// the surface are not checked. With `outsideOnly` a point's target is its distance to the
-/// outside, max(exact, 0): inside the detail it must only read at most 0 (plus the allowance).
+/// per column for raiseEdgeSlicesForFaces. A point is checked when one of its corners is within
+/// bandTexels of the surface or, given `estimatedLowerings` (per texel), has an estimated lowering
+/// > 0: a kink or a curvature the estimate sees, however far from the surface. Other points are
+/// not checked (a texel's lowering then comes from its checked points only). With `outsideOnly`
+/// a point's target is its distance to the outside, max(exact, 0): inside the detail it must only
+/// read at most 0 (plus the allowance).
 MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLine& exactDistances,
-                                    float allowanceTexels, float bandTexels, bool outsideOnly) {
+                                    float allowanceTexels, float bandTexels, bool outsideOnly,
+                                    std::span<const float> estimatedLowerings) {
     const Size3 size = exact.size();
     const int pointsX = 2 * size.width, pointsY = 2 * size.height, levels = 2 * size.depth + 1;
     const int lastLevel = levels - 1;
@@ -180,7 +184,15 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
                     const float nearest =
                         std::min({std::abs(exact.at(x0, y0, z0)), std::abs(exact.at(x1, y1, z1)),
                                   std::abs(exact.at(x1, y0, z0)), std::abs(exact.at(x0, y1, z1))});
-                    if (nearest > bandTexels) continue;  // far from the surface: estimated
+                    const auto estimated = [&](int x, int y, int zIndex) {
+                        return estimatedLowerings[exact.index(x, y, zIndex)] > 0.0f;
+                    };
+                    const bool nearAnEstimate =
+                        !estimatedLowerings.empty() &&
+                        (estimated(x0, y0, z0) || estimated(x1, y0, z0) || estimated(x0, y1, z0) ||
+                         estimated(x1, y1, z0) || estimated(x0, y0, z1) || estimated(x1, y0, z1) ||
+                         estimated(x0, y1, z1) || estimated(x1, y1, z1));
+                    if (nearest > bandTexels && !nearAnEstimate) continue;
                     z.push_back(0.5 * m);
                     interpolated.push_back(weight0 * sliceMean(z0) + weight1 * sliceMean(z1));
                     level.push_back(m);
@@ -289,7 +301,7 @@ void makeConservative(Tile& tile, const ConservativeOptions& options,
         estimatedFaceRemovals(tile, lowerings, allowance);
     if (exactDistances && options.measuredOnTopOfEstimate) {
         const MeasuredLowerings measured = measuredLowerings(
-            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels, true);
+            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels, true, {});
         for (std::size_t n = 0; n < lowerings.size(); ++n)
             lowerings[n] = std::max(lowerings[n], measured.lowerings[n]);
         for (int face = 0; face < 2; ++face) {
@@ -299,13 +311,16 @@ void makeConservative(Tile& tile, const ConservativeOptions& options,
             }
         }
     } else if (exactDistances) {
-        // Within the band the measured lowering replaces the estimate.
-        const MeasuredLowerings measured = measuredLowerings(
-            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels, false);
+        // Within the band the measured lowering replaces the estimate; beyond it, where the
+        // estimate lowers, the points around are measured too and lower further if they ask.
+        const MeasuredLowerings measured =
+            measuredLowerings(tile, exactDistances, options.toleranceTexels,
+                              options.measuredBandTexels, false, lowerings);
         const std::span<const float> exact = tile.distancesTexels();
         for (std::size_t n = 0; n < lowerings.size(); ++n) {
-            if (std::abs(exact[n]) <= options.measuredBandTexels)
-                lowerings[n] = measured.lowerings[n];
+            lowerings[n] = std::abs(exact[n]) <= options.measuredBandTexels
+                               ? measured.lowerings[n]
+                               : std::max(lowerings[n], measured.lowerings[n]);
         }
         const std::size_t columns = faceRemovals[0].size();
         for (int face = 0; face < 2; ++face) {

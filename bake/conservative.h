@@ -17,7 +17,12 @@
 ///   lowering asked of it. Points on the faces z = 0 and z = D, where the filter extends the edge
 ///   cell linearly (1.5 x the edge slice - 0.5 x its inner neighbour), are corrected by lowering
 ///   the edge slice (see below). Sharp edges and corners (a cube) get lowered by what they
-///   overestimate, not more. Only points near the surface are checked (measuredBandTexels).
+///   overestimate, not more. Points are checked near the surface (measuredBandTexels) and,
+///   farther, wherever a corner texel's estimated lowering (below) is > 0: a kink or a curvature
+///   the samples show, such as the medial axis of a vase's cavity 10 texels from its wall (there
+///   the estimate alone left overestimates of 0.36 texel in 0.1% of a vase tile's samples; the
+///   measured points bring them to 0.14 texel in 0.02%, for 6% more bake time). Beyond the band
+///   a texel keeps the estimate's lowering if that is larger.
 /// - **Estimated**, otherwise: height maps (bakeHeightMap) and library callers that only have a
 ///   level set, and under the measured correction, procedural detail. The overestimate around a
 ///   texel is
@@ -66,15 +71,16 @@ using ExactDistancesOnLine = std::function<void(const glm::dvec2& xy, std::span<
 struct ConservativeOptions {
     bool enabled = true;            ///< false: keep the exact texel-centre distances
     float toleranceTexels = 0.05f;  ///< overestimate the correction aims to stay below, texels
-    /// Measured path: points are checked only where one of their interpolation corners is within
-    /// this of the surface (|value| <= it, texels); exact mesh distances are costly. Farther
-    /// points are not corrected (taking the estimate there over-lowers the cube's near field).
+    /// Measured path: points are checked where one of their interpolation corners is within this
+    /// of the surface (|value| <= it, texels), and (mesh bakes) where the estimate lowers one;
+    /// exact mesh distances are costly, so smooth far fields are not measured.
     float measuredBandTexels = 3.0f;
     /// Measured path: false (mesh bakes) replaces the estimate within the band by the measured
-    /// lowering; true (procedural bakes) keeps the estimate and lowers further wherever a point
-    /// still overestimates its distance to the outside, max(exact, 0): where a tracer samples.
-    /// A point inside the detail must only read negative: the estimate's rougher lowering of the
-    /// wires' centreline kinks stays (see the file note).
+    /// lowering and takes the larger of the two beyond it (the faces' removals beyond the band
+    /// stay estimated); true (procedural bakes) keeps the estimate and lowers further wherever
+    /// a point still overestimates its distance to the outside, max(exact, 0): where a tracer
+    /// samples. A point inside the detail must only read negative: the estimate's rougher lowering
+    /// of the wires' centreline kinks stays (see the file note).
     bool measuredOnTopOfEstimate = false;
     /// Estimated path: part of the tolerance a texel's estimated overestimate may keep (the
     /// measured path removes everything beyond the tolerance at its points).

@@ -711,6 +711,33 @@ TEST(ConservativeResampling, SeamsAgreeWithTheInteriorForEveryProceduralKind) {
     }
 }
 
+TEST(ConservativeResampling, AMeasuredBakeCorrectsAKinkFarFromTheSurface) {
+    // A solid slab between z = 2 and z = 30 (a mesh bake's measured path, its exact distance
+    // given): inside, the distance -min(z - 2, 30 - z) has its kink on the plane z = 16, 14
+    // texels deep, midway between the texel centres 15.5 and 16.5 (both -13.5). There the exact
+    // texels interpolate to -13.5 over a truth of -14: 0.5 texel too high. The kink's second
+    // difference (1) is estimated as 0.3 - 0.045 = 0.255 of lowering, which leaves 0.245; it
+    // lies far beyond the 3 texels of the surface where points are measured, so it is measured
+    // because the estimate lowers its corners, and the tolerance is all that is left. (The tile
+    // reaches 17.5 texels above the slab: its values, to which the truth is clamped, pass 14.)
+    const Size3 size{8, 8, 48};
+    const auto slab = [](double z) { return -std::min(z - 2.0, 30.0 - z); };
+    Tile tile = tileOf(size, [&](const glm::dvec3& p) { return slab(p.z); });
+    const ExactDistancesOnLine exact = [&](const glm::dvec2&, std::span<const double> z,
+                                           std::span<double> distances) {
+        for (std::size_t n = 0; n < z.size(); ++n) distances[n] = slab(z[n]);
+    };
+    makeConservative(tile, ConservativeOptions{}, exact);
+    const TrilinearFilter filter(tile);
+    double worst = -1.0;
+    for (int step = 0; step <= 480; ++step) {
+        const double z = 0.1 * step;
+        worst = std::max(worst, double(filter.distanceTexels({3.3f, 4.7f, float(z)})) - slab(z));
+    }
+    std::printf("[ figures  ] slab: largest overestimate %.4f texel\n", worst);
+    EXPECT_NEAR(worst, 0.05, 1e-5);  // the tolerance, reached at the kink
+}
+
 TEST(ConservativeResampling, LowersByTheCurvatureEstimateAndRejectsBadOptions) {
     // A paraboloid-free check of the formula: f = x^2 / 2 along x has second difference 1 at every
     // texel (a kink-free field above the threshold 0.8): lowering = 0.3 * 1 - 0.9 * 0.05 = 0.255;
