@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <sstream>
 
 #include "bake/resample.h"
@@ -213,7 +214,15 @@ BakeResult bakeHeightMap(const HeightImage& image, const HeightMapOptions& heigh
            << "\",\"height_texels\":" << heightTexels << "}";
     LevelSet levelSet =
         levelSetFromHeightField(field, options.size, halfBand, "heightmap", params.str(), progress);
-    Tile tile = tileFromLevelSet(levelSet, options.conservative);
+    // The conservative correction measures against the exact distance to the surface, as a mesh
+    // bake's does (its points lie within half a texel of the footprint).
+    const HeightFieldDistance surface(field, double(halfBand) + 2.0);
+    const ExactDistancesOnLine exactDistances = [&](const glm::dvec2& xy, std::span<const double> z,
+                                                    std::span<double> distances) {
+        for (std::size_t n = 0; n < z.size(); ++n)
+            distances[n] = surface.signedDistanceTexels({xy.x, xy.y, z[n]});
+    };
+    Tile tile = tileFromLevelSet(levelSet, options.conservative, exactDistances);
     return {std::move(levelSet), std::move(tile)};
 }
 

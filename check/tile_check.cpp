@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "bake/bake.h"
+#include "bake/height_image.h"
 #include "bake/mesh_surface.h"
 #include "bake/provenance.h"
 #include "bake/resample.h"
@@ -17,6 +18,7 @@
 #include "mesh/detail_mesh.h"
 #include "sampler/filters.h"
 #include "truth/mesh_truth.h"
+#include "vdb/height_field.h"
 #include "vdb/level_set.h"
 #include "vdb/procedural.h"
 #include "vdb/vdb_volume.h"
@@ -102,6 +104,50 @@ std::function<double(const glm::dvec3&)> meshTruth(const TriangleSoup& placed, c
     return [surface, cutoff](const glm::dvec3& p) { return surface->signedDistance(p, cutoff); };
 }
 
+/// The truth of a tile baked from a height map: the exact distance to the surface the bake
+/// triangulated through its texel columns' heights (vdb/height_field.h), from the image it
+/// records, negative below the surface.
+std::function<double(const glm::dvec3&)> heightMapTruth(const Tile& tile,
+                                                        const std::string& tileName,
+                                                        const fs::path& tileFile,
+                                                        std::shared_ptr<const void>& keepAlive,
+                                                        std::string& how) {
+    fs::path image;
+    try {
+        image = recordedSourceFile(tile, tileName, tileFile);
+    } catch (const InputError& error) {
+        throw noTruth(error);
+    }
+    const nlohmann::json params =
+        nlohmann::json::parse(tile.provenance.params, nullptr, /*allow_exceptions=*/false);
+    if (!params.is_object() || !params.contains("height_texels") ||
+        !params["height_texels"].is_number()) {
+        throw FormatError(tileName + ": distile:params '" + tile.provenance.params +
+                          "' hold no height_texels, which a height-map tile records");
+    }
+    const double heightTexels = params["height_texels"].get<double>();
+    HeightField field;
+    try {
+        field = heightFieldFromImage(readHeightImage(image), tile.size(), heightTexels);
+    } catch (const InputError& error) {
+        throw FormatError(tileName + ": its height map does not fit it (" + error.what() + ")");
+    }
+    const Size3 size = tile.size();
+    auto surface = std::make_shared<const HeightFieldDistance>(
+        std::move(field), double(size.width + size.height + size.depth));
+    keepAlive = surface;
+    std::ostringstream text;
+    text << "height map " << tile.provenance.sourceFile.string() << " (recorded source, "
+         << heightTexels << " texels high, triangulated through the texel columns)";
+    how = text.str();
+    return [surface, size](const glm::dvec3& p) {
+        // Into the footprint: the field repeats.
+        const glm::dvec3 wrapped(p.x - size.width * std::floor(p.x / size.width),
+                                 p.y - size.height * std::floor(p.y / size.height), p.z);
+        return surface->signedDistanceTexels(wrapped);
+    };
+}
+
 }  // namespace
 
 TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::path& tileFile,
@@ -165,6 +211,8 @@ TileCheck checkTile(const Tile& tile, const std::string& tileName, const fs::pat
         truth = meshTruth(placed, tile, keepAlive, how);
         against = "mesh " + tile.provenance.sourceFile.string() +
                   " (recorded source, placed as baked; " + how + ")";
+    } else if (!againstGiven && tile.provenance.source == "heightmap") {
+        truth = heightMapTruth(tile, tileName, tileFile, keepAlive, against);
     } else if (againstFile == "analytic") {
         ProceduralOptions pattern;
         try {

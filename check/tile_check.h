@@ -20,7 +20,8 @@ namespace distile {
 
 struct TileCheckOptions {
     /// The truth: empty for the tile's own (the analytic truth of procedural detail, or the
-    /// mesh or .vdb file a tile records as its source, placed as it was baked); "analytic"; a
+    /// mesh, height map or .vdb file a tile records as its source, placed or triangulated as it
+    /// was baked); "analytic"; a
     /// detail mesh file (OBJ, PLY, OFF, STL; placed as `bake mesh` places it, or by meshScale
     /// and meshOffsetTexels); or a level set (.vdb).
     std::string against;

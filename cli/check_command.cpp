@@ -136,8 +136,8 @@ void addCheckCommand(CLI::App& app) {
         "--against", arguments->options.against,
         "Truth: analytic (from the tile's distile:source/params), a mesh file "
         "(OBJ, PLY, OFF, STL; placed as `bake mesh` does) or a level set (.vdb). "
-        "Default: the analytic truth, or for a tile baked from a mesh or a .vdb file "
-        "that file (its recorded distile:source_file, placed as it was baked)");
+        "Default: the analytic truth, or for a tile baked from a mesh, a height map or a .vdb "
+        "file that file (its recorded distile:source_file, placed as it was baked)");
     // Time and memory grow linearly: 10^7 points take ~5 s and ~400 MB.
     command
         ->add_option("--samples", arguments->options.samples,

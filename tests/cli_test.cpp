@@ -788,6 +788,27 @@ TEST_F(Cli, BakesAHeightMap) {
                      "high.exr", {"--height-texels", "9"});
 }
 
+TEST_F(Cli, CheckMeasuresAHeightMapTileAgainstItsRecordedImage) {
+    // A flat image at 0.5 under 6 texels of height: the surface is the plane z = 3 (to the PNG's
+    // rounding), whose distance the trilinear filter (and its linear extension to the faces)
+    // reproduces exactly from exact texels; a wrong truth (heights, sign, the plane's place)
+    // would not.
+    writeImage(Image(8, 8, glm::vec3(0.5f)), path("flat.png"));
+    ASSERT_EQ(run({"bake", "heightmap", "flat.png", "-o", "flat.exr", "--size", "16x16x8",
+                   "--height-texels", "6", "--exact-texels"})
+                  .status,
+              0);
+    const RunResult flat = run({"check", "flat.exr", "--json", "--samples", "20000"});
+    ASSERT_EQ(flat.status, 0) << flat.out << flat.err;
+    const nlohmann::json report = nlohmann::json::parse(flat.out);
+    EXPECT_NE(report["against"].get<std::string>().find("height map"), std::string::npos);
+    EXPECT_LE(report["max_abs"].get<double>(), 1e-5) << flat.out;
+    EXPECT_EQ(report["sign_errors"].get<int>(), 0);
+    // The image edited after the bake: refused (exit 2) saying what to do.
+    writeImage(Image(8, 8, glm::vec3(0.25f)), path("flat.png"));
+    expectInputError({"check", "flat.exr"}, "none", {"--against: needed", "give the truth's file"});
+}
+
 TEST_F(Cli, RejectsBadDetailInputsWithOneLineEach) {
     const std::vector<std::string> size{"--size", "16x16x16"};
     const auto bakeMesh = [&](const std::string& file,

@@ -4,7 +4,9 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
+#include <memory>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 #include "common/error.h"
@@ -53,7 +55,8 @@ class SurfaceSearch {
     static constexpr int kBlockCells = 8;
 
     /// Blocks covering cells [-marginCells, W + marginCells) x [-marginCells, H + marginCells).
-    SurfaceSearch(const HeightField& field, int marginCells) : field_(field) {
+    SurfaceSearch(HeightField fieldNodes, int marginCells) : field_(std::move(fieldNodes)) {
+        const HeightField& field = field_;
         cellRange_.resize(field.heightsTexels.size());
         for (int j = 0; j < field.height; ++j) {
             for (int i = 0; i < field.width; ++i) {
@@ -140,6 +143,8 @@ class SurfaceSearch {
         return best;
     }
 
+    const HeightField& field() const { return field_; }
+
   private:
     static int floorDiv(int value, int divisor) {
         return value >= 0 ? value / divisor : -((-value + divisor - 1) / divisor);
@@ -160,7 +165,7 @@ class SurfaceSearch {
                           std::size_t(wrap(cj, field_.height)) * std::size_t(field_.width)];
     }
 
-    const HeightField& field_;
+    HeightField field_;
     std::vector<glm::dvec2> cellRange_;
     int blockXBegin_ = 0, blockYBegin_ = 0, blocksX_ = 0, blocksY_ = 0;
     std::vector<glm::dvec2> blockRange_;
@@ -232,6 +237,30 @@ TriangleSoup heightFieldTriangles(const HeightField& field, int marginNodes) {
     return soup;
 }
 
+struct HeightFieldDistance::Search {
+    SurfaceSearch surface;
+    double limitTexels;
+};
+
+HeightFieldDistance::HeightFieldDistance(HeightField field, double limitTexels)
+    : search_(std::make_unique<const Search>(
+          Search{SurfaceSearch(std::move(field), int(std::ceil(limitTexels)) + 2), limitTexels})) {}
+HeightFieldDistance::HeightFieldDistance(HeightFieldDistance&&) noexcept = default;
+HeightFieldDistance::~HeightFieldDistance() = default;
+
+const HeightField& HeightFieldDistance::field() const {
+    return search_->surface.field();
+}
+
+double HeightFieldDistance::signedDistanceTexels(const glm::dvec3& texel) const {
+    // The vertical distance to the surface bounds the distance (the surface point straight above
+    // or below); the exact search over the cells nearer than that finds it.
+    const double surfaceHeight = heightFieldSurfaceTexels(field(), texel.x, texel.y);
+    const double bound = std::min(std::abs(texel.z - surfaceHeight), search_->limitTexels);
+    const double unsignedDistance = search_->surface.distance(texel, bound);
+    return texel.z < surfaceHeight ? -unsignedDistance : unsignedDistance;
+}
+
 LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, float halfBandTexels,
                                  const std::string& source, const std::string& params,
                                  const ProgressCallback& progress) {
@@ -241,18 +270,12 @@ LevelSet levelSetFromHeightField(const HeightField& field, const Size3& tile, fl
                          " texels is not accepted; it must be in [1, 1024]");
     }
     validateHeightField(field, tile, "height field level set");
-    // The vertical distance to the surface bounds the distance (the surface point straight above
-    // or below); the exact search over the cells nearer than that (SurfaceSearch) finds it. The
-    // level set's band clamps it: only cells within the band plus a cell's diagonal are searched.
-    const double searchBand = double(halfBandTexels) + 2.0;
-    const SurfaceSearch search(field, int(std::ceil(searchBand)) + 2);
-    const auto distance = [&](const glm::dvec3& texel) {
-        const double surfaceHeight = heightFieldSurfaceTexels(field, texel.x, texel.y);
-        const double bound = std::min(std::abs(texel.z - surfaceHeight), searchBand);
-        const double unsignedDistance = search.distance(texel, bound);
-        return texel.z < surfaceHeight ? -unsignedDistance : unsignedDistance;
-    };
-    return LevelSet::fromDistance(distance, tile, halfBandTexels, source, params, progress);
+    // The level set's band clamps the distance: only cells within the band plus a cell's
+    // diagonal are searched.
+    const HeightFieldDistance surface(field, double(halfBandTexels) + 2.0);
+    return LevelSet::fromDistance(
+        [&](const glm::dvec3& texel) { return surface.signedDistanceTexels(texel); }, tile,
+        halfBandTexels, source, params, progress);
 }
 
 }  // namespace distile

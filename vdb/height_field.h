@@ -10,6 +10,8 @@
 /// is exact, and a flat field gives exactly z - h.
 #pragma once
 
+#include <glm/vec3.hpp>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -43,6 +45,29 @@ double heightFieldSurfaceTexels(const HeightField& field, double x, double y);
 /// of the footprint within marginNodes - 1 texels of the surface is nearest to a triangle of this
 /// soup. @pre field is valid, marginNodes >= 0.
 TriangleSoup heightFieldTriangles(const HeightField& field, int marginNodes);
+
+/// Exact signed distance to the field's triangulated surface, texels, negative below it
+/// (z < heightFieldSurfaceTexels): double precision point-to-triangle distances over the cells
+/// that can hold a nearer triangle than the vertical distance, culled by the height ranges of
+/// cells and of 8 x 8 cell blocks. Thread-safe.
+class HeightFieldDistance {
+  public:
+    /// Distances are found up to `limitTexels` (beyond it: +-limitTexels). @pre field is valid
+    /// (validateHeightField), limitTexels > 0.
+    HeightFieldDistance(HeightField field, double limitTexels);
+    HeightFieldDistance(HeightFieldDistance&&) noexcept;
+    ~HeightFieldDistance();
+
+    const HeightField& field() const;
+
+    /// @pre texel.x in [-1, W + 1], texel.y in [-1, H + 1] (the field repeats: wrap other points
+    /// into the footprint first).
+    double signedDistanceTexels(const glm::dvec3& texel) const;
+
+  private:
+    struct Search;
+    std::unique_ptr<const Search> search_;
+};
 
 /// Signed level set of the height field: exact unsigned distances to the triangulated surface
 /// (double precision point-to-triangle distances over the cells that can hold a nearer triangle
