@@ -161,7 +161,12 @@ T fromKeywords(const py::dict& keywords, std::initializer_list<KeywordMember<T>>
         const auto found = std::find_if(members.begin(), members.end(),
                                         [&](const KeywordMember<T>& m) { return name == m.name; });
         if (found == members.end()) throw py::type_error("unexpected keyword '" + name + "'");
-        found->set(target, value);
+        try {
+            found->set(target, value);
+        } catch (const py::cast_error&) {
+            throw py::type_error("keyword '" + name + "': " + std::string(py::repr(value)) +
+                                 " is not of its type");
+        }
     }
     return target;
 }

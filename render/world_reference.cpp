@@ -43,6 +43,16 @@ DetailDistanceFunction detailDistance(const Material& material) {
     };
 }
 
+/// A tiled object's base mesh and material as buildDisplacedMesh takes them (views of the
+/// object's arrays).
+DisplacementShell displacementShell(const SceneObject& object) {
+    const Material& material = object.material;
+    return {
+        object.mesh.positions,         object.mesh.normals,          object.mesh.uvs,
+        object.mesh.triangles,         glm::dvec2(material.uvScale), double(material.depthWorld),
+        material.floor == Floor::Solid};
+}
+
 /// What a hit on one Embree geometry belongs to.
 struct GeometryInfo {
     enum class Kind {
@@ -833,29 +843,20 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
     std::vector<DisplacedMesh> meshes(scene.objects.size());
     std::vector<std::size_t> vertexCounts(scene.objects.size(), 0);
     std::vector<std::optional<DisplacedLevelSet>> levelSets(scene.objects.size());
-    // The meshes and the BVH over them share the mesh options' memory budget.
+    // The meshes and the BVH over them share the mesh options' memory budget: every object's
+    // estimate is checked before the first mesh is mapped.
     DisplacedMeshOptions meshOptions = options.levelSet.mesh;
+    meshOptions.estimateOnly = true;
     double earlierBytes = 0.0;
     for (std::size_t index = 0; index < scene.objects.size(); ++index) {
         const SceneObject& object = scene.objects[index];
-        const Material& material = object.material;
-        if (!material.tile) continue;
-        const DisplacementShell shell{object.mesh.positions,
-                                      object.mesh.normals,
-                                      object.mesh.uvs,
-                                      object.mesh.triangles,
-                                      glm::dvec2(material.uvScale),
-                                      double(material.depthWorld),
-                                      material.floor == Floor::Solid};
+        if (!object.material.tile) continue;
         try {
             meshOptions.memoryBudgetBytes = options.levelSet.mesh.memoryBudgetBytes - earlierBytes;
-            meshes[index] = buildDisplacedMesh(detailDistance(material), material.tile->size(),
-                                               shell, meshOptions);
-            earlierBytes += meshes[index].stats.estimatedBytes;
-            result.meshes.push_back(meshes[index].stats);
-            // Every level set's budget is checked before the first takes its minutes.
-            if (options.method == WorldReferenceMethod::LevelSet)
-                DisplacedLevelSet::voxelsPerTexel(meshes[index], options.levelSet);
+            earlierBytes +=
+                buildDisplacedMesh(detailDistance(object.material), object.material.tile->size(),
+                                   displacementShell(object), meshOptions)
+                    .stats.estimatedBytes;
         } catch (const InputError& error) {
             char earlier[120] = "";
             if (earlierBytes > 0.0) {
@@ -864,6 +865,21 @@ WorldReferenceResult renderWorldReference(const Scene& scene, const WorldReferen
                               options.levelSet.mesh.memoryBudgetBytes / 1e9, earlierBytes / 1e9);
             }
             throw InputError("objects[" + std::to_string(index) + "]: " + error.what() + earlier);
+        }
+    }
+    for (std::size_t index = 0; index < scene.objects.size(); ++index) {
+        const SceneObject& object = scene.objects[index];
+        const Material& material = object.material;
+        if (!material.tile) continue;
+        try {
+            meshes[index] = buildDisplacedMesh(detailDistance(material), material.tile->size(),
+                                               displacementShell(object), options.levelSet.mesh);
+            result.meshes.push_back(meshes[index].stats);
+            // Every level set's budget is checked before the first takes its minutes.
+            if (options.method == WorldReferenceMethod::LevelSet)
+                DisplacedLevelSet::voxelsPerTexel(meshes[index], options.levelSet);
+        } catch (const InputError& error) {
+            throw InputError("objects[" + std::to_string(index) + "]: " + error.what());
         }
         if (progress) progress(meshShare * double(index + 1) / scene.objects.size());
     }

@@ -237,7 +237,7 @@ TEST(DisplacedMesh, ItsMemoryIsEstimatedBeforeMappingAndRefusedOverTheBudget) {
         ADD_FAILURE() << "a mesh over its memory budget was built";
     } catch (const InputError& error) {
         EXPECT_NE(std::string(error.what())
-                      .find("uv scale: the detail over the base triangles (9 "
+                      .find("uv scale and tile size: the detail over the base triangles (9 "
                             "tile repeats"),
                   std::string::npos)
             << error.what();
@@ -254,7 +254,8 @@ TEST(DisplacedMesh, ItsMemoryIsEstimatedBeforeMappingAndRefusedOverTheBudget) {
 
 TEST(WorldReference, AllObjectsMeshesShareOneMemoryBudget) {
     // Two planes with the same tiles: each mesh alone fits in 1.5 times one's estimate, both do
-    // not; the second is refused, naming it and what the first takes.
+    // not; the second is refused, naming it and what the first takes, before the first is
+    // mapped (no progress reported).
     Scene scene;
     scene.camera = {{0.0f, -0.15f, 0.15f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
     for (float x : {0.0f, 2.0f}) {
@@ -271,14 +272,16 @@ TEST(WorldReference, AllObjectsMeshesShareOneMemoryBudget) {
     ASSERT_EQ(both.meshes.size(), 2u);
     EXPECT_EQ(both.meshes[0].estimatedBytes, both.meshes[1].estimatedBytes);
     options.levelSet.mesh.memoryBudgetBytes = 1.5 * both.meshes[0].estimatedBytes;
+    int progressReports = 0;
     try {
-        renderWorldReference(scene, options);
+        renderWorldReference(scene, options, [&](double) { ++progressReports; });
         ADD_FAILURE() << "two meshes over their shared budget were built";
     } catch (const InputError& error) {
         const std::string message = error.what();
         EXPECT_TRUE(message.starts_with("objects[1]: ")) << message;
         EXPECT_NE(message.find("the objects before it take"), std::string::npos) << message;
     }
+    EXPECT_EQ(progressReports, 0);
 }
 
 TEST(DisplacedLevelSet, OnATorusTheFloorIsATubeAtTheShellDepth) {

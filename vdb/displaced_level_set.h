@@ -56,6 +56,10 @@ struct DisplacedMeshOptions {
     /// The most memory the mesh may take at its peak with a BVH over it, bytes, as estimated
     /// from the base triangles' texel area and the tile's polygons before the mesh is mapped.
     double memoryBudgetBytes = double(std::uint64_t(8) << 30);
+    /// Only the estimate: the tile's lattice and isosurface are made and the memory estimated
+    /// (stats.tilePolygons, stats.estimatedBytes) and checked, but nothing is mapped (the mesh
+    /// is empty), so a caller with several meshes can refuse them all before building one.
+    bool estimateOnly = false;
 };
 
 /// Figures of a mesh build, for reports (wall times in seconds).
@@ -113,7 +117,7 @@ inline double clippedDetailTexels(double detailTexels, double zTexels, double de
 ///         [1, 8], a uv chart whose triangles all have zero uv or world area, a tile lattice of
 ///         more than 2^31 samples, a chart holding more than 65536 tile repeats, a mesh
 ///         estimated to need more than options.memoryBudgetBytes (refused before it is mapped),
-///         or a detail with no surface inside the shell.
+///         or (unless options.estimateOnly) a detail with no surface inside the shell.
 DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Size3& tile,
                                  const DisplacementShell& shell,
                                  const DisplacedMeshOptions& options = {});

@@ -204,8 +204,8 @@ def check(tile, against=None, **options):
     """How far `tile` (a Tile or a tile file) is from its truth, as ``distile check --json``:
     the report as a dict (``passed``, ``failures``, ``rms``, ``max_abs``, ...). `against`:
     None (the tile's own truth), "analytic", a mesh file or a level set (.vdb). Keywords:
-    samples, seed, max_overestimate, max_overestimate_share, max_rms, max_near_error,
-    allow_sign_errors, scale, offset=(x, y, z)."""
+    samples, seed, max_overestimate, max_overestimate_share, max_rms, max_tracer_overestimate,
+    max_near_error, allow_sign_errors, scale, offset=(x, y, z)."""
     settings = _checked_keywords("check", options, _CHECK_KEYWORDS)
     if against is not None:
         settings["against"] = _os.fsdecode(_os.fspath(against))

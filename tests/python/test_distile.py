@@ -80,6 +80,11 @@ def test_the_only_classes_to_make_are_tiles_renders_and_errors():
         distile._distile.check_tile(tile, "tile", "", {"sample": 10})
     with pytest.raises(TypeError, match="unexpected keyword 'widht'"):
         distile._distile.render_scene_json("{}", ".", "scene", {"widht": 10})
+    with pytest.raises(TypeError, match="keyword 'samples': '5' is not of its type"):
+        distile._distile.check_tile(tile, "tile", "", {"samples": "5"})
+    # A name Python cannot encode (a lone surrogate) is refused naming its keyword.
+    with pytest.raises(TypeError, match="keyword 'march'"):
+        distile.render({"objects": [{"mesh": "plane"}]}, march="sph\udcff")
     report = distile.check(tile, samples=1000, seed=7)
     assert report["samples"] == 1000
 

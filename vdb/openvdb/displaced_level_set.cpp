@@ -684,8 +684,9 @@ DisplacedMesh buildDisplacedMesh(const DetailDistanceFunction& detail, const Siz
                       "needs about %.1f GB with its BVH; %.1f GB is accepted",
                       coveredTexels / (tileTexels.x * tileTexels.y), stats.tilePolygons,
                       stats.estimatedBytes / 1e9, options.memoryBudgetBytes / 1e9);
-        reject("uv scale", message);
+        reject("uv scale and tile size", message);
     }
+    if (options.estimateOnly) return mesh;
     const std::vector<std::array<bool, 3>> border = findBorderEdges(shell, hasArea);
     for (const auto& edges : border) {
         stats.borderEdges += std::size_t(edges[0]) + std::size_t(edges[1]) + std::size_t(edges[2]);
