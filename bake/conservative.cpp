@@ -184,15 +184,19 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
                     const float nearest =
                         std::min({std::abs(exact.at(x0, y0, z0)), std::abs(exact.at(x1, y1, z1)),
                                   std::abs(exact.at(x1, y0, z0)), std::abs(exact.at(x0, y1, z1))});
+                    // Beyond the band only next to a texel the estimate lowers (looked up only
+                    // there).
                     const auto estimated = [&](int x, int y, int zIndex) {
                         return estimatedLowerings[exact.index(x, y, zIndex)] > 0.0f;
                     };
-                    const bool nearAnEstimate =
-                        !estimatedLowerings.empty() &&
-                        (estimated(x0, y0, z0) || estimated(x1, y0, z0) || estimated(x0, y1, z0) ||
-                         estimated(x1, y1, z0) || estimated(x0, y0, z1) || estimated(x1, y0, z1) ||
-                         estimated(x0, y1, z1) || estimated(x1, y1, z1));
-                    if (nearest > bandTexels && !nearAnEstimate) continue;
+                    if (nearest > bandTexels &&
+                        (estimatedLowerings.empty() ||
+                         !(estimated(x0, y0, z0) || estimated(x1, y0, z0) ||
+                           estimated(x0, y1, z0) || estimated(x1, y1, z0) ||
+                           estimated(x0, y0, z1) || estimated(x1, y0, z1) ||
+                           estimated(x0, y1, z1) || estimated(x1, y1, z1)))) {
+                        continue;
+                    }
                     z.push_back(0.5 * m);
                     interpolated.push_back(weight0 * sliceMean(z0) + weight1 * sliceMean(z1));
                     level.push_back(m);
