@@ -9,10 +9,12 @@
 ///   sphere tracing. Same hits as SphereTracing, in fewer steps along grazing rays.
 /// - Budgeted (the default): sphere tracing whose steps are at least the path left to the floor
 ///   over the samples left, so every ray reaches the surface or the floor within the budget
-///   (plain sphere tracing creeps along grazing rays and stops short); a step that lands inside
-///   the detail is refined by regula falsi with the samples left. Where the sampled distance is
-///   larger than that minimum, steps are as safe as sphere tracing; where it is smaller, they
-///   are fixed steps and can cross a feature thinner than the step along the ray.
+///   (plain sphere tracing creeps along grazing rays and stops short), and where the distance
+///   fell over the last step, at least the secant step toward where the last two samples' line
+///   reaches zero (detail::secantStepLanes, at most kSecantReachTexels beyond the distance); a
+///   step that lands inside the detail is refined by regula falsi with the samples left. Where the
+///   sampled distance is larger than that minimum, steps are as safe as sphere tracing; where it is
+///   smaller, they are fixed steps and can cross a feature thinner than the step along the ray.
 /// - Relief (relief mapping, Policarpo et al. 2005): fixed linear steps through the slab until the
 ///   first point inside the detail, then a binary search between it and the previous point. Can
 ///   step over features thinner than a step.
@@ -74,21 +76,30 @@ struct MarchSettings {
 
 namespace detail {
 
-/// One ray as a lane of detail::adaptiveBudgetLanes.
-struct OneLane {
-    using F = float;
+/// One ray as a lane of detail::adaptiveBudgetLanes and detail::secantStepLanes, in single
+/// (float) or double precision.
+template <class Real>
+struct OneLaneOf {
+    using F = Real;
     using I = int;
     using M = bool;
     static F set1(float value) { return value; }
     static I set1(int value) { return value; }
+    static F add(F a, F b) { return a + b; }
+    static F sub(F a, F b) { return a - b; }
+    static F mul(F a, F b) { return a * b; }
     static F div(F a, F b) { return a / b; }
     static F ceil(F a) { return std::ceil(a); }
     static M less(F a, F b) { return a < b; }
-    static F onlyWhere(M m, F v) { return m ? v : 0.0f; }
+    static M greater(F a, F b) { return a > b; }
+    static M both(M a, M b) { return a && b; }
+    static F onlyWhere(M m, F v) { return m ? v : F(0); }
+    static F blend(F a, F b, M m) { return m ? b : a; }
     static I truncate(F v) { return int(v); }
     static I max(I a, I b) { return std::max(a, b); }
     static I blend(I a, I b, M m) { return m ? b : a; }
 };
+using OneLane = OneLaneOf<float>;
 
 }  // namespace detail
 
@@ -218,8 +229,12 @@ class SphereTraceRay {
             return false;
         }
         float step = factor_ * distance;
-        if (budgeted_ && lane_.iterations < lane_.maxIterations)
-            step = std::max(step, toFloor / float(lane_.maxIterations - lane_.iterations));
+        if (budgeted_) {
+            step = std::max(
+                step, secantStepLanes<OneLane>(distance, lane_.safeRadius, lane_.previousStep));
+            if (lane_.iterations < lane_.maxIterations)
+                step = std::max(step, toFloor / float(lane_.maxIterations - lane_.iterations));
+        }
         lane_.safeRadius = distance;
         lane_.previousStep = std::min(step, toFloor);
         lane_.travel += lane_.previousStep;

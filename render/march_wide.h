@@ -36,6 +36,32 @@ typename L::I adaptiveBudgetLanes(int budget, typename L::F pathTexels) {
                     L::max(L::truncate(L::onlyWhere(cut, samples)), L::set1(fewest)), cut);
 }
 
+/// How far beyond the sampled distance a budgeted step may reach toward the surface the last two
+/// samples point at (texels; detail::secantStepLanes). On the chain-mail sheet at 1280 x 1024,
+/// with the budget of 32: 0 (plain budgeted steps) takes 9.58 samples per ray at a mean hit error
+/// of 0.0840 texel, 0.5 takes 8.52 at 0.0790, 1 takes 7.98 at 0.0831, 1.5 7.69 at 0.0800, 2 7.51
+/// at 0.0860, and 3 7.28 at 0.153 (steps across wire edges).
+inline constexpr float kSecantReachTexels = 1.0f;
+
+/// The budgeted march's secant step over lanes L (as adaptiveBudgetLanes): where the distance
+/// fell from `previousDistance` to `distance` over the last step of `previousStep` texels, the
+/// path to where the line through the two samples reaches zero, but at most kSecantReachTexels
+/// beyond `distance`; 0 where it did not fall. Near a surface that is flat along the ray this is
+/// the hit in one step where sphere tracing approaches it geometrically (a ray at 30 degrees to
+/// a plane halves its distance per sphere step); along a convex surface the distance is convex
+/// along the ray and the line's zero lies short of the surface. A step that lands inside the
+/// detail starts the march's regula falsi, as a forced budgeted step does.
+template <class L>
+typename L::F secantStepLanes(typename L::F distance, typename L::F previousDistance,
+                              typename L::F previousStep) {
+    const typename L::M falls =
+        L::both(L::greater(previousStep, L::set1(0.0f)), L::less(distance, previousDistance));
+    const typename L::F toZero =
+        L::div(L::mul(distance, previousStep), L::sub(previousDistance, distance));
+    const typename L::F reach = L::add(distance, L::set1(kSecantReachTexels));
+    return L::onlyWhere(falls, L::blend(toZero, reach, L::less(reach, toZero)));
+}
+
 /// A sphere trace between two samples: the state detail::SphereTraceRay keeps (in this form, so
 /// the kernel reads and writes it in place), in world-free texel-space floats.
 struct SphereTraceLane {

@@ -378,6 +378,11 @@ bool CurvedMarchRay::advance(float distance) {
     if (end_.march.iterations >= budget_) return stop(false);
     double stepTexels = distance;
     if (budgeted_) {
+        // Toward where the last two samples point (march_wide.h): the last step's path in texels
+        // at the speed here.
+        stepTexels = std::max(
+            stepTexels, detail::secantStepLanes<detail::OneLaneOf<double>>(
+                            distance, outsideTexels_, (distanceWorld_ - outsideWorld_) * speed_));
         // The path left in the shell: to the floor while the ray descends, to the top once it
         // rises again (a ray through a convex shell turns).
         const double pathLeftTexels = directionTexels_.z > 0.0

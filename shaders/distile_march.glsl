@@ -3,8 +3,8 @@
 // after the #version and precision lines; docs/shader.md describes the inputs and conventions.
 //
 // It does what `distile render` does by default for one ray in one tile: the budgeted sphere trace
-// (steps of at least the path left to the floor over the samples left, regula falsi once a step
-// lands inside), epsilon 0.02 texel, a budget of 32 samples cut to two samples per texel of the
+// (steps of at least the path left to the floor over the samples left, and of the secant step
+// where the distance falls, regula falsi once a step lands inside), epsilon 0.02 texel, a budget of 32 samples cut to two samples per texel of the
 // path (at least a quarter of the budget), trilinear distances for the march and the gradient of
 // the tricubic B-spline for the shading normal.
 //
@@ -25,6 +25,7 @@ uniform vec2 distileDecode;
 const int kDistileBudget = 32;           // distance samples per ray at most
 const float kDistileEpsilonTexels = 0.02; // closer than this to the surface is a hit
 const float kDistileTexelsPerSample = 0.5; // adaptive budget: two samples per texel of path
+const float kDistileSecantReachTexels = 1.0; // a secant step's reach beyond the distance sampled
 
 float distileTexel(ivec3 texel) {
     return texelFetch(distileTile, texel, 0).r * distileDecode.x + distileDecode.y;
@@ -198,6 +199,12 @@ DistileMarch distileMarch(vec3 start, vec3 direction, int budget, bool solidFloo
             return result;
         }
         float step = distance;
+        if (previousStep > 0.0 && distance < safeRadius) {
+            // The secant step: toward where the line through the last two samples' distances
+            // reaches zero, at most kDistileSecantReachTexels beyond the distance sampled.
+            float toZero = distance * previousStep / (safeRadius - distance);
+            step = max(step, min(toZero, distance + kDistileSecantReachTexels));
+        }
         if (iteration < budget) step = max(step, toFloor / float(budget - iteration));
         safeRadius = distance;
         previousStep = min(step, toFloor);

@@ -14,6 +14,7 @@
 #include <random>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "common/error.h"
@@ -100,6 +101,37 @@ TEST(March, EveryMethodLandsOnAFlatDetailPlane) {
             EXPECT_NEAR(result.travelTexels, 12.0f / std::sin(elevation),
                         tolerance / std::sin(elevation))
                 << name << " " << elevationDeg;
+        }
+    }
+}
+
+TEST(March, TheBudgetedMarchsSecantStepsReachAPlaneInFewSamples) {
+    // The exact plane z = 4, 12 texels below the start. A sphere step along a ray at elevation e
+    // leaves (1 - sin e) of the distance, so sphere tracing needs 15 samples at 30 degrees (12 /
+    // 2^14 < 1e-3) and 6 at 60. The budgeted march steps toward where the last two samples' line
+    // reaches zero, at most 1 texel beyond the distance: at 30 degrees from t = 0 (distance 12)
+    // by 12, then 7, 3.5 and 1.5 onto the plane (t = 24): 5 samples; at 60 degrees by 12, then
+    // the whole 1.857 left: 3 samples.
+    const Tile tile = flatTile({32, 32, 16}, 4.0f);
+    const TrilinearFilter filter(tile);
+    for (const auto& [elevationDeg, sphereSamples, budgetedSamples] :
+         {std::tuple{30.0f, 15, 5}, std::tuple{60.0f, 6, 3}}) {
+        const float elevation = elevationDeg * kPi / 180.0f;
+        const glm::vec3 direction{std::cos(elevation) * 0.6f, std::cos(elevation) * 0.8f,
+                                  -std::sin(elevation)};
+        for (MarchMethod method : {MarchMethod::SphereTracing, MarchMethod::Budgeted}) {
+            MarchSettings settings;
+            settings.method = method;
+            settings.maxIterations = 4096;
+            settings.epsilonTexels = 1e-3f;
+            const MarchResult result =
+                march(filter, glm::vec3{7.25f, 19.5f, 16.0f}, direction, Floor::Solid, settings);
+            const char* name = marchMethodName(method);
+            ASSERT_TRUE(result.converged) << name << " " << elevationDeg;
+            EXPECT_EQ(result.iterations,
+                      method == MarchMethod::Budgeted ? budgetedSamples : sphereSamples)
+                << name << " " << elevationDeg;
+            EXPECT_NEAR(result.texelPosition.z, 4.0f, 1e-3f) << name << " " << elevationDeg;
         }
     }
 }

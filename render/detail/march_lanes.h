@@ -162,10 +162,12 @@ template <class V, bool kRelaxed>
         startsRefining = V::butNot(stepBack, startsRefining);
         step = V::mul(factor, d);
     }
-    // Budgeted: std::max(step, toFloor / samples left).
+    // Budgeted: std::max(step, the secant step), then std::max(step, toFloor / samples left).
+    const M budgeted = V::uniformMask(uniforms.budgeted);
+    const F secant = secantStepLanes<V>(d, safe, previous);
+    step = V::blend(step, secant, V::both(budgeted, V::less(step, secant)));
     const F forced = V::div(toFloor, V::toFloat(V::sub(budget, newIterations)));
-    step =
-        V::blend(step, forced, V::both(V::uniformMask(uniforms.budgeted), V::less(step, forced)));
+    step = V::blend(step, forced, V::both(budgeted, V::less(step, forced)));
     // std::min(step, toFloor)
     const F taken = V::blend(step, toFloor, V::less(toFloor, step));
     sphereStep = V::butNot(refining, V::both(sphereStep, budgetLeft));
