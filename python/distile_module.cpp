@@ -23,6 +23,7 @@
 #include "check/tile_check.h"
 #include "common/error.h"
 #include "common/fnv1a.h"
+#include "common/input_file.h"
 #include "common/size3.h"
 #include "render/compare.h"
 #include "render/render_files.h"
@@ -106,7 +107,9 @@ Value named(const std::string& name, const Value (&values)[N], const char* (*nam
         if (name == nameOf(value)) return value;
         accepted += std::string(accepted.empty() ? "" : ", ") + nameOf(value);
     }
-    throw InputError::inField(field, "'" + name + "' is not accepted; accepted: " + accepted);
+    // Quoted as the readers quote input: a NUL would end the message where Python reads it.
+    throw InputError::inField(field,
+                              "'" + quotedInput(name) + "' is not accepted; accepted: " + accepted);
 }
 
 /// The tile of a bake recipe (scene/scene_file.h bakeRecipeTile) and the warnings of its bake.

@@ -85,6 +85,10 @@ def test_the_only_classes_to_make_are_tiles_renders_and_errors():
     # A name Python cannot encode (a lone surrogate) is refused naming its keyword.
     with pytest.raises(TypeError, match="keyword 'march'"):
         distile.render({"objects": [{"mesh": "plane"}]}, march="sph\udcff")
+    # A NUL inside a name is quoted as '?', not where the message ends.
+    with pytest.raises(distile.InputError,
+                       match=r"march: 'sph\?ere' is not accepted; accepted: sphere, "):
+        distile.render({"objects": [{"mesh": "plane"}]}, march="sph\x00ere")
     report = distile.check(tile, samples=1000, seed=7)
     assert report["samples"] == 1000
 
