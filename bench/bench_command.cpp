@@ -551,12 +551,11 @@ void runStressReport(const fs::path& outputDir) {
     if (failed > 0) std::exit(kExitFailure);  // a case failed: the work failed (cli/app.h)
 }
 
-/// The skips for ch. 8's plain sphere tracing: no empty-space skipping and no adaptive budget,
-/// which would change the march whose convergence the chapter's claims are about.
+/// The skips for ch. 8's plain sphere tracing: no empty-space skipping, which would change the
+/// march whose convergence the chapter's claims are about.
 RenderSkips chapter8Skips() {
     RenderSkips skips;
     skips.emptySpace = false;
-    skips.adaptiveBudget = false;
     return skips;
 }
 

@@ -359,7 +359,7 @@ void addRenderCommand(CLI::App& app) {
         ->add_option("--no-skip", arguments->noSkips,
                      "Do work the renderer normally skips, to measure the skip (repeatable): "
                      "empty-space (march from the top face, not from the top of the occupied "
-                     "layers), adaptive-budget (every ray gets --iterations samples), "
+                     "layers), "
                      "shell-culling (trace every detail shell under a pixel; same image), "
                      "unlit-shadows (shadow work also where the detail faces away from the "
                      "light; same image), casterless-shadow-maps (shadow maps also for a scene "

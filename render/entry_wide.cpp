@@ -113,11 +113,6 @@ void enterFlatShell8(const FlatShellConstants& shell, EntryLanes& lanes) {
     L::storeUnaligned(lanes.startTexels[0], L::add(sx, L::mul(ux, skipped)));
     L::storeUnaligned(lanes.startTexels[1], L::add(sy, L::mul(uy, skipped)));
     L::storeUnaligned(lanes.startTexels[2], startZ);
-    // The budget: march.h's adaptiveBudget in lanes, over the path to the floor.
-    const L::I maxIterations = shell.adaptiveBudget
-                                   ? adaptiveBudgetLanes<L>(shell.budget, L::div(startZ, descent))
-                                   : L::set1(shell.budget);
-    L::storeIntUnaligned(lanes.maxIterations, maxIterations);
     L::leave();
 }
 

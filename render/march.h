@@ -62,11 +62,10 @@ inline const char* marchMethodName(MarchMethod method) {
 
 struct MarchSettings {
     MarchMethod method = MarchMethod::Budgeted;
-    /// Distance samples per ray. The adaptive budget gives a ray two per texel of its path, so
-    /// this cap is what grazing rays get: before the secant step, 32 took 16% more samples than
-    /// 16 on the chain-mail sheet and cut its mean hit error from 0.232 to 0.084 texel, the
-    /// silhouettes' from 0.59 to 0.20 (the forced steps of 16, 3 texels and more far away,
-    /// passed wire edges).
+    /// Distance samples per ray at most; what grazing rays need. Before the secant step, 32 took
+    /// 16% more samples than 16 on the chain-mail sheet and cut its mean hit error from 0.232 to
+    /// 0.084 texel, the silhouettes' from 0.59 to 0.20 (the forced steps of 16, 3 texels and more
+    /// far away, passed wire edges).
     int maxIterations = 32;
     float epsilonTexels = 0.02f;  ///< a point closer than this to the surface is a hit
     /// OverRelaxed: step factor while the spheres overlap, in [1, 2) (1 is plain sphere tracing).
@@ -77,40 +76,25 @@ struct MarchSettings {
 
 namespace detail {
 
-/// One ray as a lane of detail::adaptiveBudgetLanes and detail::secantStepLanes, in single
-/// (float) or double precision.
+/// One ray as a lane of detail::secantStepLanes, in single (float) or double precision.
 template <class Real>
 struct OneLaneOf {
     using F = Real;
-    using I = int;
     using M = bool;
     static F set1(float value) { return value; }
-    static I set1(int value) { return value; }
     static F add(F a, F b) { return a + b; }
     static F sub(F a, F b) { return a - b; }
     static F mul(F a, F b) { return a * b; }
     static F div(F a, F b) { return a / b; }
-    static F ceil(F a) { return std::ceil(a); }
     static M less(F a, F b) { return a < b; }
     static M greater(F a, F b) { return a > b; }
     static M both(M a, M b) { return a && b; }
     static F onlyWhere(M m, F v) { return m ? v : F(0); }
     static F blend(F a, F b, M m) { return m ? b : a; }
-    static I truncate(F v) { return int(v); }
-    static I max(I a, I b) { return std::max(a, b); }
-    static I blend(I a, I b, M m) { return m ? b : a; }
 };
 using OneLane = OneLaneOf<float>;
 
 }  // namespace detail
-
-using detail::kAdaptiveTexelsPerSample;
-
-/// The adaptive budget of a ray whose path to the floor is `pathTexels` (render/march_wide.h,
-/// detail::adaptiveBudgetLanes): at most `budget` samples, at least a quarter of it.
-inline int adaptiveBudget(int budget, float pathTexels) {
-    return detail::adaptiveBudgetLanes<detail::OneLane>(budget, pathTexels);
-}
 
 /// Where a march ended. Positions in texel space, lengths in texels.
 struct MarchResult {

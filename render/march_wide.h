@@ -13,29 +13,6 @@
 
 namespace distile::detail {
 
-/// The adaptive budget (ch. 8's future work: iterations from the viewing angle): a ray gets one
-/// sample per kAdaptiveTexelsPerSample texels of its path to the floor, within [budget / 4,
-/// budget]. Steep rays and rays starting low (after empty-space skipping) need few samples; the
-/// cut never makes the budgeted march's forced steps (path left over samples left) longer than
-/// kAdaptiveTexelsPerSample, so thin detail is not stepped over for it. Half a texel: with one
-/// sample per texel, the forced steps of grazing rays passed wire edges the whole budget's did
-/// not (budget 32: 1.7% of the chain-mail sheet's pixels changed by more than one 8-bit code,
-/// up to 174, at silhouettes); with two, no pixel of the sheet or the low height fields changes.
-inline constexpr float kAdaptiveTexelsPerSample = 0.5f;
-
-/// The adaptive budget of rays whose paths to the floor are `pathTexels` (texels; NaN gets the
-/// whole budget), written once over lanes L (render/march.h's one ray at a time, the entry
-/// kernel's eight): the operations of every lane are the scalar ones, so all agree bit for bit.
-template <class L>
-typename L::I adaptiveBudgetLanes(int budget, typename L::F pathTexels) {
-    const typename L::F samples = L::ceil(L::div(pathTexels, L::set1(kAdaptiveTexelsPerSample)));
-    const typename L::M cut = L::less(samples, L::set1(float(budget)));  // false for NaN
-    const int quarter = (budget + 3) / 4;
-    const int fewest = quarter > 1 ? quarter : 1;
-    return L::blend(L::set1(budget),
-                    L::max(L::truncate(L::onlyWhere(cut, samples)), L::set1(fewest)), cut);
-}
-
 /// How far beyond the sampled distance a budgeted step may reach toward the surface the last two
 /// samples point at (texels; detail::secantStepLanes). On the chain-mail sheet at 1280 x 1024,
 /// with the budget of 32: 0 (plain budgeted steps) takes 9.58 samples per ray at a mean hit error
@@ -43,7 +20,8 @@ typename L::I adaptiveBudgetLanes(int budget, typename L::F pathTexels) {
 /// at 0.0860, and 3 7.28 at 0.153 (steps across wire edges).
 inline constexpr float kSecantReachTexels = 1.0f;
 
-/// The budgeted march's secant step over lanes L (as adaptiveBudgetLanes): where the distance
+/// The budgeted march's secant step over lanes L (SIMD lanes, or march.h's OneLaneOf: one ray, with
+/// the same operations in the same order, so all agree bit for bit): where the distance
 /// fell from `previousDistance` to `distance` over the last step of `previousStep` texels, the
 /// path to where the line through the two samples reaches zero, but at most kSecantReachTexels
 /// beyond `distance`; 0 where it did not fall. Near a surface that is flat along the ray this is

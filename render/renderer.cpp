@@ -677,7 +677,6 @@ RenderOptions checkedOptions(const Scene& scene, const RenderOptions& requested)
         options.march.method = MarchMethod::SphereTracing;
         options.march.maxIterations = RenderOptions::kReferenceIterations;
         options.march.epsilonTexels = RenderOptions::kReferenceEpsilonTexels;
-        options.skips.adaptiveBudget = false;  // the truth gets the whole budget on every ray
     }
     return options;
 }

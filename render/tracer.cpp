@@ -412,10 +412,7 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     march.skippedTexels =
         occupancy ? occupancy->emptyTravelTexels(start, direction, walkBlocks) : 0.0f;
     march.startTexels = start + direction * march.skippedTexels;
-    int maxIterations = options_.march.maxIterations;
-    if (options_.skips.adaptiveBudget)
-        maxIterations = adaptiveBudget(maxIterations, march.startTexels.z / -direction.z);
-    beginMarch(march, maxIterations);
+    beginMarch(march, options_.march.maxIterations);
 }
 
 void SceneTracer::beginMarch(ShellMarch& march, int maxIterations) const {
@@ -491,8 +488,6 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
     const TileOccupancy* occupancy = occupancies_[shell.object].get();
     constants.highestTopTexels =
         occupancy ? occupancy->highestTopTexels() : std::numeric_limits<float>::infinity();
-    constants.budget = options_.march.maxIterations;
-    constants.adaptiveBudget = options_.skips.adaptiveBudget;
 
     for (std::size_t first = 0; first < sameShell.size(); first += 8) {
         const std::span<ShellMarch* const> eight =
@@ -524,7 +519,7 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
             march.skippedTexels = lanes.skippedTexels[lane];
             march.startTexels = {lanes.startTexels[0][lane], lanes.startTexels[1][lane],
                                  lanes.startTexels[2][lane]};
-            beginMarch(march, lanes.maxIterations[lane]);
+            beginMarch(march, options_.march.maxIterations);
         }
     }
 }
@@ -794,8 +789,7 @@ void SceneTracer::takeCurvedEntry(ShellMarch& march, CurvedMarchRay& trace) cons
     if (!isSphereTracing(settings.method)) settings.method = MarchMethod::Budgeted;
     // A ray through a curved shell may bend along it for many texels (grazing rays at
     // silhouettes), and its path is not known at the entry: it gets kCurvedBudgetScale x the
-    // budget, not cut by the adaptive budget (the budgeted march's minimum step, the path left
-    // over the samples left, is what would change with it).
+    // budget.
     if (!options_.reference) settings.maxIterations *= kCurvedBudgetScale;
     march.curvedTrace = &trace;
     trace.start(shellPrisms_, ray, baseHit.triangle, baseHit.b1, baseHit.b2, baseHit.distanceWorld,

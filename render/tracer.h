@@ -32,9 +32,6 @@ struct RenderSkips {
     /// Empty-space skipping: a ray starts its march where it first reaches the top of the
     /// occupied layers of the tile columns it crosses (sampler/occupancy.h), not at the top face.
     bool emptySpace = true;
-    /// Adaptive budget: a ray gets two march samples per texel of its path to the floor, within
-    /// [budget / 4, budget] (render/march.h adaptiveBudget).
-    bool adaptiveBudget = true;
     /// Camera rays skip detail shells whose conservative depth is not nearer than their best hit
     /// (render/coverage.h); the image is the same either way, only the work differs.
     bool shellCulling = true;
@@ -58,8 +55,6 @@ struct RenderSkipSwitch {
 inline constexpr RenderSkipSwitch kRenderSkipSwitches[] = {
     {"empty-space", &RenderSkips::emptySpace,
      "the march through the empty layers above the tile columns' occupied top"},
-    {"adaptive-budget", &RenderSkips::adaptiveBudget,
-     "march samples beyond what a ray's path through the slab needs"},
     {"shell-culling", &RenderSkips::shellCulling,
      "shells whose conservative depth is behind the pixel's best hit"},
     {"unlit-shadows", &RenderSkips::unlitShadows,
@@ -89,7 +84,7 @@ inline const char* shellMappingName(ShellMapping mapping) {
 }
 
 /// Curved shells: a ray's budget is this many times MarchSettings::maxIterations (SceneTracer: a
-/// grazing ray bends along the shell for many texels); the adaptive budget does not cut it. 64
+/// grazing ray bends along the shell for many texels). 64
 /// samples at the default budget: 128 made the demo's whole process 9% slower (medians of 7
 /// interleaved runs, 1.19 s against 1.09 s) for an interior error of 0.017 texel against 0.027 on
 /// the torus on the sheet (its world reference), both far inside what the shell map needs.

@@ -4,9 +4,9 @@
 //
 // It does what `distile render` does by default for one ray in one tile: the budgeted sphere trace
 // (steps of at least the path left to the floor over the samples left, and of the secant step
-// where the distance falls, regula falsi once a step lands inside), epsilon 0.02 texel, a budget of 32 samples cut to two samples per texel of the
-// path (at least a quarter of the budget), trilinear distances for the march and the gradient of
-// the tricubic B-spline for the shading normal.
+// where the distance falls, regula falsi once a step lands inside), epsilon 0.02 texel, a budget
+// of 32 samples, trilinear distances for the march and the gradient of the tricubic B-spline for
+// the shading normal.
 //
 // Texel space: x in [0, W), y in [0, H) across the tile (periodic), z in [0, D] from the floor
 // (z = 0) to the base surface (z = D); texel (i, j, k) has its centre at (i + 0.5, j + 0.5, k + 0.5).
@@ -24,7 +24,6 @@ uniform vec2 distileDecode;
 // The march's settings, as the command line's defaults.
 const int kDistileBudget = 32;           // distance samples per ray at most
 const float kDistileEpsilonTexels = 0.02; // closer than this to the surface is a hit
-const float kDistileTexelsPerSample = 0.5; // adaptive budget: two samples per texel of path
 const float kDistileSecantReachTexels = 1.0; // a secant step's reach beyond the distance sampled
 
 float distileTexel(ivec3 texel) {
@@ -119,14 +118,6 @@ vec3 distileGradient(vec3 position) {
         }
     }
     return gradient;
-}
-
-// The samples a ray whose path to the floor is `pathTexels` long gets: two per texel of it,
-// within [budget / 4, budget].
-int distileAdaptiveBudget(int budget, float pathTexels) {
-    float samples = ceil(pathTexels / kDistileTexelsPerSample);
-    if (!(samples < float(budget))) return budget;
-    return max(int(samples), max((budget + 3) / 4, 1));
 }
 
 struct DistileMarch {
@@ -224,16 +215,15 @@ DistileMarch distileMarch(vec3 start, vec3 direction, int budget, bool solidFloo
 
 // The whole ray in a tile: from its entry `entryTexels` on the top face (z = D) along
 // `directionTexels` (unit, z < 0), skipping the empty path down to `highestTopTexels` (the
-// highest top of the detail: no point above it is within epsilon; D when unknown) and with the
-// adaptive budget of the rest. travelTexels of the result counts from the entry.
+// highest top of the detail: no point above it is within epsilon; D when unknown), then the march
+// with the whole budget. travelTexels of the result counts from the entry.
 DistileMarch distileTrace(vec3 entryTexels, vec3 directionTexels, float highestTopTexels,
                           bool solidFloor) {
     float skipped = entryTexels.z > highestTopTexels
                         ? (entryTexels.z - highestTopTexels) / -directionTexels.z
                         : 0.0;
     vec3 start = entryTexels + directionTexels * skipped;
-    int budget = distileAdaptiveBudget(kDistileBudget, start.z / -directionTexels.z);
-    DistileMarch result = distileMarch(start, directionTexels, budget, solidFloor);
+    DistileMarch result = distileMarch(start, directionTexels, kDistileBudget, solidFloor);
     result.travelTexels += skipped;
     return result;
 }

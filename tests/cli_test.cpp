@@ -1593,8 +1593,7 @@ TEST_F(Cli, BenchSpeedWritesARowPerSkipAndSceneAndTheVerdicts) {
     for (const char* scene : {"S1", "S2", "S3", "S4", "S5", "S6"}) {
         EXPECT_TRUE(skipRows.count(std::string("shell-culling ") + scene)) << scene;
         EXPECT_TRUE(skipRows.count(std::string("empty-space, no shadows ") + scene)) << scene;
-        EXPECT_TRUE(skipRows.count(std::string("adaptive-budget, tricubic march ") + scene))
-            << scene;
+        EXPECT_TRUE(skipRows.count(std::string("unlit-shadows, tricubic march ") + scene)) << scene;
     }
     for (const char* section :
          {"error", "repetition", "memory", "skip", "cache", "threads", "curved shells"})

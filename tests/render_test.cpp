@@ -1836,25 +1836,6 @@ TEST(ReferenceRender, SheetWithAConvergedBudgetIsWithinAQuarterTexelOfTheAnalyti
     EXPECT_GT(c.meanHitErrorTexels, 0.0);
 }
 
-// The adaptive budget leaves out samples the image does not need: on the sheet's view it changes
-// no pixel by more than one 8-bit code against the whole budget (the speed report's bar for a
-// skip is 0.1% of the pixels). Two samples per texel of path: measured, no pixel. With one per
-// texel, the forced steps of rays whose paths are 16 to 32 texels long passed wire edges: 1.7%
-// of the pixels changed, by up to 174 codes, at 1280 x 1024.
-TEST(RenderSkips, AdaptiveBudgetChangesNoPixelOfTheSheetByMoreThanACode) {
-    const Scene scene = sheetScene();
-    RenderOptions options;
-    options.width = 320;
-    options.height = 256;
-    options.shadowFilter = ShadowFilter::None;
-    options.selfShadows = false;
-    const RenderResult adaptive = renderScene(scene, options);
-    options.skips.adaptiveBudget = false;
-    const RenderResult whole = renderScene(scene, options);
-    EXPECT_EQ(codeDifference(adaptive.image, whole.image).differingShare, 0.0);
-    EXPECT_LE(adaptive.stats.marchIterations, whole.stats.marchIterations);
-}
-
 // The acceptance for the DEFAULT march (budgeted, 32 samples). Plain sphere tracing (ch. 8) with
 // 16 does not meet it: 19% of the rays creep along grazing wires and stop short (measured at
 // 1280 x 1024: mean 1.51 texels); the budgeted march reaches a crossing or the floor on every ray

@@ -3,8 +3,8 @@
 /// (render/tracer.cpp, SceneTracer::takeEntry) in SIMD lanes, with the scalar operations in their
 /// order and precision (no FMA), so bit for bit as one ray at a time: the entry point and uv on the
 /// shell's top, the ray's direction in texel space, its start in the tile (the uv wrapped in double
-/// precision), the jump over the empty layers above the highest occupied top, and the adaptive
-/// budget. A flat shell's frame is the same at every point of it, so it is one set of constants.
+/// precision) and the jump over the empty layers above the highest occupied top. A flat shell's
+/// frame is the same at every point of it, so it is one set of constants.
 /// Built in its own translation unit with AVX2; plain types only, as sampler/trilinear_wide.h.
 #pragma once
 
@@ -20,8 +20,6 @@ struct FlatShellConstants {
     /// The march starts no higher than this (TileOccupancy::highestTopTexels); +infinity: it
     /// starts at the top face.
     float highestTopTexels;
-    int budget;           ///< MarchSettings::maxIterations
-    bool adaptiveBudget;  ///< RenderSkips::adaptiveBudget
 };
 
 /// Eight rays: the inputs (each ray and where it meets the shell's top), then what the entry
@@ -35,7 +33,6 @@ struct EntryLanes {
     float texelsPerWorldAlongRay[8];       ///< out
     float startTexels[3][8];               ///< out: where the march starts
     float skippedTexels[8];                ///< out: the empty path before it
-    int maxIterations[8];                  ///< out: the ray's budget
 };
 
 /// Fills the outputs of `lanes` for rays entering the flat shell `shell`. Precondition:
