@@ -12,9 +12,9 @@
 ///   (plain sphere tracing creeps along grazing rays and stops short), and where the distance
 ///   fell over the last step, at least the secant step toward where the last two samples' line
 ///   reaches zero (detail::secantStepLanes, at most kSecantReachTexels beyond the distance); a
-///   step that lands inside the detail is refined by regula falsi with the samples left. Where the
-///   sampled distance is larger than that minimum, steps are as safe as sphere tracing; where it is
-///   smaller, they are fixed steps and can cross a feature thinner than the step along the ray.
+///   step that lands inside the detail is refined by regula falsi with the samples left. A step
+///   of the sampled distance is as safe as sphere tracing; a longer one (the minimum, or the
+///   secant step) can cross a feature thinner than the step along the ray.
 /// - Relief (relief mapping, Policarpo et al. 2005): fixed linear steps through the slab until the
 ///   first point inside the detail, then a binary search between it and the previous point. Can
 ///   step over features thinner than a step.
