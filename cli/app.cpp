@@ -56,8 +56,16 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
     } catch (const CLI::Success& success) {  // --help, --version
         return app.exit(success);
     } catch (const CLI::ParseError& error) {
-        std::fprintf(stderr, "distile: error: %s (see distile --help)\n",
-                     oneLine(error.what()).c_str());
+        // The help of the command whose options were being read, if one was (option groups are
+        // unnamed apps of their own).
+        std::string help = "distile";
+        const auto named = [](const CLI::App* command) { return command->parsed(); };
+        for (CLI::App* command = &app; !command->get_subcommands(named).empty();) {
+            command = command->get_subcommands(named).front();
+            if (!command->get_name().empty()) help += " " + command->get_name();  // not a group
+        }
+        std::fprintf(stderr, "distile: error: %s (see %s --help)\n", oneLine(error.what()).c_str(),
+                     help.c_str());
         return kExitInput;
     }
     return 0;

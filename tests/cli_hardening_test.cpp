@@ -328,6 +328,23 @@ TEST_F(Hardening, BenchRefusesAnOutputThatIsNoFolder) {
               cli::kExitInput);
 }
 
+TEST_F(Hardening, AnOptionErrorPointsToItsCommandsHelp) {
+    // A bad value of a command's option sent the user to `distile --help`, which does not list
+    // the command's options.
+    EXPECT_EQ(expectInputError(
+                  {"render", "--no-skip", "adaptive-budget"}, "none",
+                  {"--no-skip", "adaptive-budget", "empty-space", "(see distile render --help)"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError({"check", "--samples", "x", "t.exr"}, "none",
+                               {"--samples", "(see distile check --help)"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(
+        expectInputError({"--threads", "0"}, "none", {"--threads", "(see distile --help)"}).status,
+        cli::kExitInput);
+}
+
 TEST_F(Hardening, CheckSeedsAreUnsigned64BitIntegers) {
     // CLI11 took -1 as 2^64 - 1 and clamped 2^64: the run then checked other points than asked.
     bakeChainmail();
