@@ -59,10 +59,10 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
         // The help of the command whose options were being read, if one was (option groups are
         // unnamed apps of their own).
         std::string help = "distile";
-        const auto named = [](const CLI::App* command) { return command->parsed(); };
-        for (CLI::App* command = &app; !command->get_subcommands(named).empty();) {
-            command = command->get_subcommands(named).front();
-            if (!command->get_name().empty()) help += " " + command->get_name();  // not a group
+        const auto parsed = [](const CLI::App* command) { return command->parsed(); };
+        for (std::vector<CLI::App*> read = app.get_subcommands(parsed); !read.empty();
+             read = read.front()->get_subcommands(parsed)) {
+            if (!read.front()->get_name().empty()) help += " " + read.front()->get_name();
         }
         std::fprintf(stderr, "distile: error: %s (see %s --help)\n", oneLine(error.what()).c_str(),
                      help.c_str());

@@ -412,12 +412,11 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     march.skippedTexels =
         occupancy ? occupancy->emptyTravelTexels(start, direction, walkBlocks) : 0.0f;
     march.startTexels = start + direction * march.skippedTexels;
-    beginMarch(march, options_.march.maxIterations);
+    beginMarch(march);
 }
 
-void SceneTracer::beginMarch(ShellMarch& march, int maxIterations) const {
+void SceneTracer::beginMarch(ShellMarch& march) const {
     march.settings = options_.march;
-    march.settings.maxIterations = maxIterations;
     if (const auto refused =
             refusedMarch(march.startTexels, march.directionTexels, march.settings)) {
         march.result = *refused;
@@ -519,7 +518,7 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
             march.skippedTexels = lanes.skippedTexels[lane];
             march.startTexels = {lanes.startTexels[0][lane], lanes.startTexels[1][lane],
                                  lanes.startTexels[2][lane]};
-            beginMarch(march, options_.march.maxIterations);
+            beginMarch(march);
         }
     }
 }

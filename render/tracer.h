@@ -356,9 +356,9 @@ class SceneTracer {
     /// The entries of rays (at least one) into the same flat shell, eight at a time
     /// (enterFlatShell8).
     void takeFlatEntries(std::span<ShellMarch* const> sameShell) const;
-    /// Sets up `march` from its start (settings with `maxIterations`): a refused march's result,
-    /// or the sphere trace's start.
-    void beginMarch(ShellMarch& march, int maxIterations) const;
+    /// Sets up `march` from its start with the march settings: a refused march's result, or the
+    /// sphere trace's start.
+    void beginMarch(ShellMarch& march) const;
     /// Whether takeFlatEntries takes the entries of rays into shell `shell`.
     bool entersFlatShell(std::uint32_t shell) const;
     /// The entry of a ray into a curved shell: its march started (render/shell_march.h) in
