@@ -56,6 +56,20 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
     } catch (const CLI::Success& success) {  // --help, --version
         return app.exit(success);
     } catch (const CLI::ParseError& error) {
+        // No command: CLI11 says only that one is required, not which word it did not take.
+        if (app.get_subcommands().empty() &&
+            (!app.remaining().empty() || dynamic_cast<const CLI::RequiredError*>(&error))) {
+            std::string commands;
+            for (const CLI::App* command : app.get_subcommands({}))
+                commands += (commands.empty() ? "" : ", ") + command->get_name();
+            const std::string word = app.remaining().empty() ? "" : app.remaining().front();
+            const std::string what = word.empty()          ? std::string("a command is required")
+                                     : word.front() == '-' ? "'" + word + "' is not an option"
+                                                           : "'" + word + "' is not a command";
+            std::fprintf(stderr, "distile: error: %s; commands: %s (see distile --help)\n",
+                         oneLine(what).c_str(), commands.c_str());
+            return kExitInput;
+        }
         // The help of the command whose options were being read, if one was (option groups are
         // unnamed apps of their own).
         std::string help = "distile";

@@ -345,6 +345,20 @@ TEST_F(Hardening, AnOptionErrorPointsToItsCommandsHelp) {
         cli::kExitInput);
 }
 
+TEST_F(Hardening, AWordThatIsNoCommandIsNamedWithTheCommands) {
+    // CLI11 said "A subcommand is required" for a misspelt command, without naming the word.
+    EXPECT_EQ(expectInputError({"rendr", "-o", "x.png"}, "none",
+                               {"'rendr' is not a command", "bake, render, check", "--help"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError({"--threads", "2", "--frob"}, "none",
+                               {"'--frob' is not an option", "render"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(expectInputError({}, "none", {"a command is required", "bake, render"}).status,
+              cli::kExitInput);
+}
+
 TEST_F(Hardening, CheckSeedsAreUnsigned64BitIntegers) {
     // CLI11 took -1 as 2^64 - 1 and clamped 2^64: the run then checked other points than asked.
     bakeChainmail();
