@@ -30,8 +30,9 @@ struct BaseMesh {
 
 /// Reads a base mesh with UVs through OpenMesh: `.obj` (texture coordinates from `vt` lines),
 /// `.off` (STOFF vertex texture coordinates) or `.ply` (per-vertex u,v properties); the
-/// extension picks the reader, case-insensitively. Polygons are fan-triangulated from their
-/// first corner (fine for convex polygons), each with the uvs the file gives its corners, also
+/// extension picks the reader, case-insensitively. Polygons are split into triangles by
+/// triangulatePolygon (convex ones as the fan from their first corner, concave ones by ear
+/// clipping in their plane), each with the uvs the file gives its corners, also
 /// where an edge has three or more faces or a face is wound against its neighbours. Vertices are
 /// split per (position, uv) pair, so a UV seam becomes duplicated vertices with the same position.
 /// Normals and tangents are computed with computeTangentFrames. Positions and UVs are returned as

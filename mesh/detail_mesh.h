@@ -16,7 +16,8 @@ inline constexpr double kMaxDetailCoordinate = 1e9;
 
 /// Reads a detail mesh through OpenMesh: `.obj`, `.ply` (ASCII or binary), `.off`, `.stl`
 /// (ASCII or binary); the extension picks the reader, case-insensitively. Polygons are
-/// fan-triangulated from their first corner. Positions are returned in file units. Corners at
+/// split into triangles by triangulatePolygon (mesh/polygon.h: convex ones as the fan from their
+/// first corner, concave ones by ear clipping in their plane). Positions are returned in file units. Corners at
 /// identical positions are welded into one vertex in every format (a soup of unwelded corners
 /// loads as the same mesh from OBJ, PLY, OFF and STL); triangles whose corners merged (no
 /// area) are dropped.

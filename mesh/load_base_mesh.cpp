@@ -2,6 +2,7 @@
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/System/omstream.hh>
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cctype>
 #include <charconv>
@@ -12,6 +13,7 @@
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -23,6 +25,7 @@
 #include "common/input_file.h"
 #include "mesh/base_mesh.h"
 #include "mesh/detail_mesh.h"
+#include "mesh/polygon.h"
 
 namespace distile {
 namespace {
@@ -301,6 +304,11 @@ class SoupImporter final : public OpenMesh::IO::BaseImporter {
     std::vector<bool> faceHasUvs;
 
     std::size_t faceCount() const { return faceStarts.size() - 1; }
+    /// Face f's vertex indices, in order.
+    std::span<const std::uint32_t> faceCorners(std::size_t face) const {
+        return std::span(corners).subspan(faceStarts[face],
+                                          faceStarts[face + 1] - faceStarts[face]);
+    }
 
     OpenMesh::VertexHandle add_vertex(const OpenMesh::Vec3f& point) override {
         points.push_back(point);
@@ -434,6 +442,43 @@ void readSoup(const std::filesystem::path& file, const std::string& extension,
                           " of its " + std::to_string(objFacts.faceCount) + " faces");
     }
 }
+
+/// Splits the faces of one mesh file into triangles (triangulatePolygon), within one budget.
+class PolygonSplitter {
+  public:
+    explicit PolygonSplitter(std::string fileName) : fileName_(std::move(fileName)) {}
+
+    /// Face `face`'s triangles as triples of its corner numbers (0 ... corners.size() - 1);
+    /// `corners` are indices into `points`. Valid until the next call.
+    /// @throws FormatError a concave polygon beyond the budget (naming the face).
+    const std::vector<std::array<std::uint32_t, 3>>& split(
+        std::size_t face, const std::vector<OpenMesh::Vec3f>& points,
+        std::span<const std::uint32_t> corners) {
+        triangles_.clear();
+        positions_.clear();
+        for (const std::uint32_t corner : corners) {
+            const OpenMesh::Vec3f& p = points[corner];
+            positions_.emplace_back(p[0], p[1], p[2]);
+        }
+        if (!triangulatePolygon(positions_, triangles_, budget_)) {
+            throw FormatError(fileName_ + ": face " + std::to_string(face) +
+                              " (counting from 0) is a concave polygon of " +
+                              std::to_string(corners.size()) +
+                              " corners; splitting it into triangles (with the concave polygons "
+                              "before it) takes more than the " +
+                              std::to_string(PolygonTriangulationBudget{}.testsLeft) +
+                              " corner tests distile spends on one file: split it into smaller "
+                              "polygons");
+        }
+        return triangles_;
+    }
+
+  private:
+    std::string fileName_;
+    PolygonTriangulationBudget budget_;
+    std::vector<glm::dvec3> positions_;
+    std::vector<std::array<std::uint32_t, 3>> triangles_;
+};
 
 /// The most corners a polygon of a mesh file may have.
 constexpr std::uint64_t kMaxPolygonCorners = 65536;
@@ -1020,14 +1065,14 @@ BaseMesh loadBaseMesh(const std::filesystem::path& file) {
         return index;
     };
     std::vector<std::uint32_t> corners;
+    PolygonSplitter splitter(name);
     for (std::size_t face = 0; face < read.faceCount(); ++face) {
         corners.clear();
         for (std::size_t corner = read.faceStarts[face]; corner < read.faceStarts[face + 1];
              ++corner)
             corners.push_back(baseVertex(face, corner));
-        for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
-            mesh.triangles.emplace_back(corners[0], corners[k], corners[k + 1]);
-        }
+        for (const auto& [a, b, c] : splitter.split(face, read.points, read.faceCorners(face)))
+            mesh.triangles.emplace_back(corners[a], corners[b], corners[c]);
     }
     removeTrianglesWithoutArea(mesh);
     if (mesh.triangles.empty()) {
@@ -1204,14 +1249,13 @@ TriangleSoup loadDetailMesh(const std::filesystem::path& file) {
     }
     if (read.corners.size() > 2 * read.faceCount())
         soup.triangles.reserve(read.corners.size() - 2 * read.faceCount());
+    PolygonSplitter splitter(name);
     for (std::size_t face = 0; face < read.faceCount(); ++face) {
-        const std::uint32_t* corners = read.corners.data() + read.faceStarts[face];
-        const std::size_t cornerCount = read.faceStarts[face + 1] - read.faceStarts[face];
-        for (std::size_t k = 1; k + 1 < cornerCount; ++k) {
-            // Fanned from the first corner. A triangle whose corners merged has no area (OpenMesh
-            // drops such STL faces too).
-            const glm::uvec3 triangle(weldedIndex[corners[0]], weldedIndex[corners[k]],
-                                      weldedIndex[corners[k + 1]]);
+        const std::span<const std::uint32_t> corners = read.faceCorners(face);
+        for (const auto& [a, b, c] : splitter.split(face, read.points, corners)) {
+            // A triangle whose corners merged has no area (OpenMesh drops such STL faces too).
+            const glm::uvec3 triangle(weldedIndex[corners[a]], weldedIndex[corners[b]],
+                                      weldedIndex[corners[c]]);
             if (triangle.x == triangle.y || triangle.y == triangle.z || triangle.z == triangle.x)
                 continue;
             soup.triangles.push_back(triangle);

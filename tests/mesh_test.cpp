@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -24,6 +26,7 @@
 #include "detail_meshes.h"
 #include "mesh/base_mesh.h"
 #include "mesh/detail_mesh.h"
+#include "mesh/polygon.h"
 
 namespace distile {
 namespace {
@@ -1125,6 +1128,246 @@ TEST(DetailMesh, RejectsBadFilesWithOneLineMessages) {
     expectFormatError("mesh.xyz", "", "unsupported mesh format");
     EXPECT_THROW(loadDetailMesh(std::filesystem::temp_directory_path() / "no_such_detail.stl"),
                  InputError);
+}
+
+// ---- polygons ------------------------------------------------------------------------------
+
+using PolygonTriangles = std::vector<std::array<std::uint32_t, 3>>;
+
+PolygonTriangles triangulated(const std::vector<glm::dvec3>& corners) {
+    PolygonTriangles triangles;
+    PolygonTriangulationBudget budget;
+    EXPECT_TRUE(triangulatePolygon(corners, triangles, budget));
+    return triangles;
+}
+
+/// Twice the signed area of the polygon `points` (x, y), positive counter-clockwise (shoelace).
+double twiceSignedArea(const std::vector<glm::dvec2>& points) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const glm::dvec2& a = points[i];
+        const glm::dvec2& b = points[(i + 1) % points.size()];
+        sum += a.x * b.y - a.y * b.x;
+    }
+    return sum;
+}
+
+/// Even-odd point-in-polygon test.
+bool insidePolygon(const glm::dvec2& p, const std::vector<glm::dvec2>& points) {
+    bool inside = false;
+    for (std::size_t i = 0, j = points.size() - 1; i < points.size(); j = i++) {
+        const glm::dvec2 &a = points[i], &b = points[j];
+        if ((a.y > p.y) != (b.y > p.y) && p.x < (b.x - a.x) * (p.y - a.y) / (b.y - a.y) + a.x)
+            inside = !inside;
+    }
+    return inside;
+}
+
+/// Checks that `triangles` tile the simple polygon `points` (in the plane): n - 2 triangles, each
+/// wound as the polygon (counter-clockwise), inside it, their areas adding up to its area.
+void expectTiling(const std::vector<glm::dvec2>& points, const PolygonTriangles& triangles) {
+    ASSERT_EQ(triangles.size(), points.size() - 2);
+    double sum = 0.0;
+    for (const auto& [a, b, c] : triangles) {
+        const double twice = twiceSignedArea({points[a], points[b], points[c]});
+        EXPECT_GT(twice, 0.0) << a << " " << b << " " << c;
+        sum += std::abs(twice);
+        const glm::dvec2 centroid = (points[a] + points[b] + points[c]) / 3.0;
+        EXPECT_TRUE(insidePolygon(centroid, points)) << a << " " << b << " " << c;
+    }
+    const double area = twiceSignedArea(points);
+    EXPECT_NEAR(sum, area, 1e-9 * area);
+}
+
+/// `points` placed in 3D: in the plane spanned by unit vectors u and v, offset by `origin`.
+std::vector<glm::dvec3> placed(const std::vector<glm::dvec2>& points, const glm::dvec3& u,
+                               const glm::dvec3& v, const glm::dvec3& origin) {
+    std::vector<glm::dvec3> corners;
+    for (const glm::dvec2& p : points) corners.push_back(origin + p.x * u + p.y * v);
+    return corners;
+}
+
+/// A comb of `teeth` teeth 1 wide and 3 high, 1 apart on a bar 1 high, counter-clockwise from
+/// the reflex corner right of the first tooth.
+std::vector<glm::dvec2> comb(int teeth) {
+    std::vector<glm::dvec2> points;
+    for (int tooth = 0; tooth < teeth; ++tooth) {
+        if (tooth > 0) {
+            points.push_back({2.0 * tooth - 1.0, 1.0});
+            points.push_back({2.0 * tooth, 1.0});
+        }
+        points.push_back({2.0 * tooth, 3.0});
+        points.push_back({2.0 * tooth + 1.0, 3.0});
+    }
+    std::reverse(points.begin(), points.end());  // right to left along the top
+    points.push_back({0.0, 0.0});
+    points.push_back({2.0 * teeth - 1.0, 0.0});
+    std::rotate(points.begin(), points.end() - 2, points.end());  // the bottom first
+    std::rotate(points.begin(), points.begin() + 4, points.end());
+    return points;
+}
+
+TEST(Polygon, ConvexPolygonsKeepTheFanFromTheirFirstCorner) {
+    // What the loaders always did for convex faces, so their meshes load as before.
+    std::vector<glm::dvec3> hexagon;
+    for (int k = 0; k < 6; ++k)
+        hexagon.push_back({std::cos(k * kPi / 3.0), std::sin(k * kPi / 3.0), 0.25 * (k % 2)});
+    const PolygonTriangles expected{{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 5}};
+    EXPECT_EQ(triangulated(hexagon), expected);
+    // Straight corners (a square with its edges' midpoints) still count as convex.
+    const std::vector<glm::dvec3> square{{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {2, 2, 0}, {0, 2, 0}};
+    EXPECT_EQ(triangulated(square), (PolygonTriangles{{0, 1, 2}, {0, 2, 3}, {0, 3, 4}}));
+}
+
+TEST(Polygon, AConcaveQuadIsSplitThroughItsReflexCorner) {
+    // A dart: the fan from corner 0 gave (0, 1, 2), wound backwards outside the dart, and
+    // (0, 2, 3), twice the dart's area.
+    const std::vector<glm::dvec2> dart{{0, 0}, {2, 1}, {4, 0}, {2, 3}};
+    const PolygonTriangles triangles = triangulated(placed(dart, {1, 0, 0}, {0, 1, 0}, {}));
+    expectTiling(dart, triangles);
+    for (const auto& triangle : triangles) {  // both sides of the diagonal 1-3
+        EXPECT_NE(std::find(triangle.begin(), triangle.end(), 1u), triangle.end());
+        EXPECT_NE(std::find(triangle.begin(), triangle.end(), 3u), triangle.end());
+    }
+}
+
+TEST(Polygon, ConcavePolygonsInAnyPlaneAndEitherWindingAreTiled) {
+    std::vector<std::vector<glm::dvec2>> shapes{
+        // An L starting at its reflex side: the fan from corner 0 crossed outside.
+        {{2, 1}, {1, 1}, {1, 2}, {0, 2}, {0, 0}, {2, 0}},
+        comb(2),
+        comb(9),
+    };
+    std::vector<glm::dvec2> star;  // starting at an inner (reflex) corner
+    for (int k = 0; k < 14; ++k) {
+        const double radius = k % 2 == 0 ? 0.35 : 1.0;
+        star.push_back({radius * std::cos(k * kPi / 7.0), radius * std::sin(k * kPi / 7.0)});
+    }
+    shapes.push_back(star);
+    // A curled band: many reflex corners in a row along its inner side.
+    std::vector<glm::dvec2> band;
+    for (int k = 0; k <= 20; ++k)
+        band.push_back({(2.0 + k * 0.1) * std::cos(k * 0.3), (2.0 + k * 0.1) * std::sin(k * 0.3)});
+    for (int k = 20; k >= 0; --k)
+        band.push_back({(1.0 + k * 0.1) * std::cos(k * 0.3), (1.0 + k * 0.1) * std::sin(k * 0.3)});
+    shapes.push_back(band);
+    // Planes in general position, seen from either side (the corners' order in the plane's
+    // coordinates is what the triangles are checked in).
+    const glm::dvec3 u = glm::normalize(glm::dvec3(0.3, -0.8, 0.5));
+    const glm::dvec3 v = glm::normalize(glm::cross(glm::dvec3(0.1, 0.7, 0.4), u));
+    for (const auto& shape : shapes) {
+        SCOPED_TRACE(shape.size());
+        ASSERT_GT(twiceSignedArea(shape), 0.0);
+        for (const auto& [first, second] : {std::pair{u, v}, std::pair{v, u},
+                                            std::pair{glm::dvec3(0, 0, 1), glm::dvec3(1, 0, 0)}}) {
+            expectTiling(shape, triangulated(placed(shape, first, second, {5.0, -3.0, 2.0})));
+        }
+    }
+}
+
+TEST(Polygon, SelfCrossingAndFlatPolygonsStillGiveTheirTriangles) {
+    // Whatever the corners, n - 2 triangles of valid corners, and an end: random polygons mostly
+    // cross themselves; some lie on a line or are one point.
+    std::mt19937 random(7);
+    std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
+    for (int polygon = 0; polygon < 2000; ++polygon) {
+        const int count = 4 + polygon % 13;
+        std::vector<glm::dvec3> corners;
+        for (int k = 0; k < count; ++k) {
+            glm::dvec3 p(coordinate(random), coordinate(random), coordinate(random));
+            if (polygon % 5 == 0) p = glm::dvec3(p.x, 2.0 * p.x, -p.x);  // on one line
+            if (polygon % 7 == 0) p = glm::dvec3(0.5);                   // one point
+            corners.push_back(p);
+        }
+        const PolygonTriangles triangles = triangulated(corners);
+        ASSERT_EQ(triangles.size(), std::size_t(count - 2)) << polygon;
+        for (const auto& triangle : triangles)
+            for (const std::uint32_t corner : triangle) ASSERT_LT(corner, std::uint32_t(count));
+    }
+}
+
+TEST(Polygon, EarClippingStopsAtItsBudget) {
+    const std::vector<glm::dvec3> corners = placed(comb(200), {1, 0, 0}, {0, 1, 0}, {});
+    PolygonTriangles triangles{{7, 8, 9}};
+    PolygonTriangulationBudget budget{1000};
+    EXPECT_FALSE(triangulatePolygon(corners, triangles, budget));
+    EXPECT_EQ(triangles, (PolygonTriangles{{7, 8, 9}}));  // unchanged
+    budget.testsLeft = std::uint64_t(1) << 28;
+    EXPECT_TRUE(triangulatePolygon(corners, triangles, budget));
+    EXPECT_EQ(triangles.size(), 1 + corners.size() - 2);
+}
+
+TEST(LoadBaseMesh, AConcaveFaceBecomesTrianglesInsideIt) {
+    // An L whose first corner sees only part of it: the fan from there put a triangle outside
+    // the L, wound against it (its detail would have shown from below).
+    const TempFile file("l.obj",
+                        "v 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\nv 2 0 0\n"
+                        "vt 1 0.5\nvt 0.5 0.5\nvt 0.5 1\nvt 0 1\nvt 0 0\nvt 1 0\n"
+                        "f 1/1 2/2 3/3 4/4 5/5 6/6\n");
+    const BaseMesh mesh = loadBaseMesh(file.path());
+    ASSERT_EQ(mesh.triangles.size(), 4u);
+    double area = 0.0;
+    for (const glm::uvec3& triangle : mesh.triangles) {
+        const glm::vec3 normal =
+            glm::cross(mesh.positions[triangle.y] - mesh.positions[triangle.x],
+                       mesh.positions[triangle.z] - mesh.positions[triangle.x]);
+        EXPECT_GT(normal.z, 0.0f);
+        area += 0.5 * normal.z;
+        // Each corner keeps its uv (here uv = position / 2).
+        for (int corner = 0; corner < 3; ++corner) {
+            EXPECT_EQ(mesh.uvs[triangle[corner]] * 2.0f,
+                      glm::vec2(mesh.positions[triangle[corner]]));
+        }
+    }
+    EXPECT_DOUBLE_EQ(area, 3.0);
+    for (const glm::vec3& normal : mesh.normals) EXPECT_EQ(normal, glm::vec3(0, 0, 1));
+}
+
+TEST(DetailMesh, AConcaveFaceBecomesTrianglesInsideIt) {
+    // The L as a prism 1 high: its caps are concave hexagons, its sides quads. Every triangle
+    // of a cap faces as the cap does.
+    const TempFile file("l_prism.obj",
+                        "v 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\nv 2 0 0\n"
+                        "v 2 1 1\nv 1 1 1\nv 1 2 1\nv 0 2 1\nv 0 0 1\nv 2 0 1\n"
+                        "f 7 8 9 10 11 12\nf 6 5 4 3 2 1\n"
+                        "f 1 2 8 7\nf 2 3 9 8\nf 3 4 10 9\nf 4 5 11 10\nf 5 6 12 11\nf 6 1 7 12\n");
+    const TriangleSoup soup = loadDetailMesh(file.path());
+    ASSERT_EQ(soup.triangles.size(), 4u + 4u + 12u);
+    double volume = 0.0;
+    for (const glm::uvec3& triangle : soup.triangles) {
+        const glm::dvec3 &a = soup.positions[triangle.x], &b = soup.positions[triangle.y],
+                         &c = soup.positions[triangle.z];
+        const glm::dvec3 normal = glm::cross(b - a, c - a);
+        if (a.z == b.z && b.z == c.z) {
+            EXPECT_EQ(normal.z > 0.0, a.z == 1.0);
+        }
+        volume += glm::dot(a, glm::cross(b, c)) / 6.0;
+    }
+    EXPECT_DOUBLE_EQ(volume, 3.0);
+}
+
+TEST(LoadBaseMesh, AConcavePolygonBeyondTheSplittingBudgetIsAFormatError) {
+    // A comb of 4000 teeth takes about 10^8 corner tests to split: refused within the budget's
+    // fraction of a second, where a file of such faces would take minutes.
+    std::string obj;
+    const std::vector<glm::dvec2> teeth = comb(4000);
+    for (const glm::dvec2& p : teeth)
+        obj += "v " + std::to_string(p.x) + " " + std::to_string(p.y) + " 0\n";
+    obj += "vt 0 0\nf";
+    for (std::size_t corner = 1; corner <= teeth.size(); ++corner)
+        obj += " " + std::to_string(corner) + "/1";
+    const TempFile file("comb.obj", obj + "\n");
+    const std::string message = messageOf<FormatError>([&] { loadBaseMesh(file.path()); });
+    EXPECT_NE(message.find("face 0 (counting from 0) is a concave polygon of 16000 corners"),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find("split it into smaller polygons"), std::string::npos) << message;
+    // A comb of 1000 teeth is well within it.
+    PolygonTriangles triangles;
+    PolygonTriangulationBudget budget;
+    EXPECT_TRUE(
+        triangulatePolygon(placed(comb(1000), {1, 0, 0}, {0, 1, 0}, {}), triangles, budget));
+    EXPECT_GT(budget.testsLeft, PolygonTriangulationBudget{}.testsLeft / 2);
 }
 
 }  // namespace
