@@ -83,19 +83,18 @@ void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUnif
                                SphereTraceLane* const* lanes, int count);
 
 /// A self-shadow ray toward a light through a flat shell (the renderer's straight visibility
-/// ray): samples from `start` along `direction`, a step of the distance sampled (at least 0.05
-/// texel) at a time, until one is nearer to the detail than blockingTexels (blocked), the budget
-/// is spent or the next point is at the tile's top, keeping the least distance / (travel x
-/// tanHalfAngle) seen. The state the ray keeps, in this form so the kernel reads and writes it in
-/// place.
+/// ray): samples from `start` along `direction`, a step of the distance sampled (its magnitude,
+/// at least 0.05 texel) at a time, through the detail too, keeping the least distance / (travel
+/// x tanHalfAngle) seen, until that is at most -1 (blocked), the budget is spent or the next
+/// point is at the tile's top. The state the ray keeps, in this form so the kernel reads and
+/// writes it in place.
 struct VisibilityLane {
     float start[3];
-    float direction[3];    ///< unit, texel space, toward the light
-    float depthTexels;     ///< z of the tile's top
-    float tanHalfAngle;    ///< of the light's angular radius
-    float blockingTexels;  ///< a sample nearer to the detail than this blocks the light
-    float visibility;      ///< the least distance / (travel x tanHalfAngle) so far
-    float travel;          ///< of the point to sample next
+    float direction[3];  ///< unit, texel space, toward the light
+    float depthTexels;   ///< z of the tile's top
+    float tanHalfAngle;  ///< of the light's angular radius
+    float visibility;    ///< the least distance / (travel x tanHalfAngle) so far
+    float travel;        ///< of the point to sample next
     int samplesLeft;
     int samples;  ///< taken
     bool blocked;

@@ -904,14 +904,17 @@ TEST(Renderer, OnlyTheDirectionOfALightAndOfTheCameraUpCounts) {
         }
         return largest;
     };
+    // Rounding: an ulp of a camera ray moves its self-shadow ray, whose estimate of the light's
+    // disk is steep in the penumbra near its start (distance / (travel x tan), travel from 0.1
+    // texel): up to 4e-4 in linear value (0.05 of an 8-bit code) on this tile.
     for (const float length : {1e-30f, 1e-20f, 2e19f, 1e30f}) {
         SCOPED_TRACE(length);
         Scene longer = scene;
         longer.lights[0].direction *= length;
-        EXPECT_LT(largestDifference(longer), 1e-4f);
+        EXPECT_LT(largestDifference(longer), 1e-3f);
         longer = scene;
         longer.camera.up *= length;
-        EXPECT_LT(largestDifference(longer), 1e-4f);
+        EXPECT_LT(largestDifference(longer), 1e-3f);
     }
     EXPECT_EQ(unitDirection(glm::vec3(0.0f)), glm::vec3(0.0f));
     EXPECT_EQ(unitDirection({0.0f, -1e30f, 0.0f}), glm::vec3(0.0f, -1.0f, 0.0f));

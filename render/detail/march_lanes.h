@@ -296,7 +296,7 @@ struct VisibilityGroup {
     static constexpr int kWidth = V::kWidth;
     alignas(64) float startX[kWidth]{}, startY[kWidth]{}, startZ[kWidth]{};
     alignas(64) float directionX[kWidth]{}, directionY[kWidth]{}, directionZ[kWidth]{};
-    alignas(64) float depthTexels[kWidth]{}, tanHalfAngle[kWidth]{}, blockingTexels[kWidth]{};
+    alignas(64) float depthTexels[kWidth]{}, tanHalfAngle[kWidth]{};
     alignas(64) float visibility[kWidth]{}, travel[kWidth]{};
     alignas(64) int samplesLeft[kWidth]{}, samples[kWidth]{};
     alignas(64) int idle[kWidth]{};  ///< -1: no ray in the lane
@@ -318,7 +318,6 @@ struct VisibilitySource {
         loadLine(group, slot, lane.start, lane.direction);
         group.depthTexels[slot] = lane.depthTexels;
         group.tanHalfAngle[slot] = lane.tanHalfAngle;
-        group.blockingTexels[slot] = lane.blockingTexels;
         group.visibility[slot] = lane.visibility;
         group.travel[slot] = lane.travel;
         group.samplesLeft[slot] = lane.samplesLeft;
@@ -363,14 +362,16 @@ template <class V>
     M unknown = idleLanes;  // idle lanes read texel 0
     const F d = trilinearColumnsLanes<V>(columns, x, y, z, unknown);
     const M known = V::butNot(unknown, V::allLanes());
-    const M blocks = V::both(V::less(d, V::load(group.blockingTexels)), known);
-    const M advances = V::butNot(blocks, known);
-    // visibility = min(visibility, d / (travel x tanHalfAngle)); travel += max(d, 0.05).
+    // visibility = min(visibility, d / (travel x tanHalfAngle)), blocked unless above -1;
+    // travel += max(|d|, 0.05).
     const F visibility = V::load(group.visibility);
     const F ratio = V::div(d, V::mul(t, V::load(group.tanHalfAngle)));
     const F least = V::blend(visibility, ratio, V::less(ratio, visibility));
+    const M blocks = V::butNot(V::greater(least, V::set1(-1.0f)), known);
+    const M advances = V::butNot(blocks, known);
     const F minStep = V::set1(0.05f);
-    const F travel = V::add(t, V::blend(d, minStep, V::less(d, minStep)));
+    const F away = V::abs(d);
+    const F travel = V::add(t, V::blend(away, minStep, V::less(away, minStep)));
     const I samplesLeft = V::loadInt(group.samplesLeft);
     const I left = V::sub(samplesLeft, V::set1(1));
     // On while samples are left and the next point is below the top (NaN: on, as the scalar).
@@ -378,7 +379,7 @@ template <class V>
         V::greaterEqual(V::add(startZ, V::mul(directionZ, travel)), V::load(group.depthTexels)),
         V::greater(left, V::set1(0)));
     V::store(group.travel, V::blend(t, travel, advances));
-    V::store(group.visibility, V::blend(visibility, least, advances));
+    V::store(group.visibility, V::blend(visibility, least, known));
     V::storeInt(group.samplesLeft, V::blend(samplesLeft, left, advances));
     const I samples = V::loadInt(group.samples);
     V::storeInt(group.samples, V::blend(samples, V::add(samples, V::set1(1)), known));
