@@ -32,8 +32,8 @@ constexpr float kPi = 3.14159265358979f;
 /// the blocker) half covers it. So the ray goes on through the detail (steps of the distance's
 /// magnitude) until r reaches -1, where the blocker covers the disk; the visible share is the
 /// smoothstep of (r + 1) / 2. Stopping at the first contact (r = 0 as no light) darkened wide
-/// lights: 6% of the mean sRGB value of the chain-mail sheet at 20 degrees and 19% at 89, against
-/// the world reference's shadow rays; this way 0.2% and +2.3% (docs/internals.md). Taken a sample
+/// lights: the chain-mail sheet's mean sRGB value was 6% low at 20 degrees and 19% at 89 against
+/// the world reference's shadow rays, and is now 0.2% low and 2.3% high. Taken a sample
 /// at a time (samplePosition, advance), so the self-shadow rays of a batch of camera rays are
 /// marched together (marchInterleaved) with the operations of a single one.
 class LightVisibilityRay {
