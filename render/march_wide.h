@@ -82,11 +82,19 @@ void sphereTraceOngoingSteps(const WideColumns& columns, const SphereTraceUnifor
 void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUniforms& uniforms,
                                SphereTraceLane* const* lanes, int count);
 
+/// The least step of a self-shadow ray, texels. Near a surface, where the distance sampled is
+/// smaller, steps of the distance would crawl along it: on the chain-mail sheet at 640 x 512,
+/// 0.2 takes 7.1 samples per detail hit against 8.3 at 0.05, and agrees better with the world
+/// reference's 16 shadow rays (mean sRGB difference 3.2, 4.3 and 10.2 codes at lights of 2, 20
+/// and 89 degrees, against 3.5, 4.6 and 10.2). Detail thinner than it can be stepped over; a
+/// trilinear tile resolves nothing that thin.
+inline constexpr float kVisibilityMinStepTexels = 0.2f;
+
 /// A self-shadow ray toward a light through a flat shell (the renderer's straight visibility
 /// ray): samples from `start` along `direction`, a step of the distance sampled (its magnitude,
-/// at least 0.05 texel) at a time, through the detail too, keeping the least distance / (travel
-/// x tanHalfAngle) seen, until that is at most -1 (blocked), the budget is spent or the next
-/// point is at the tile's top. The state the ray keeps, in this form so the kernel reads and
+/// at least kVisibilityMinStepTexels) at a time, through the detail too, keeping the least distance
+/// / (travel x tanHalfAngle) seen, until that is at most -1 (blocked), the budget is spent or the
+/// next point is at the tile's top. The state the ray keeps, in this form so the kernel reads and
 /// writes it in place.
 struct VisibilityLane {
     float start[3];

@@ -30,12 +30,13 @@ constexpr float kPi = 3.14159265358979f;
 /// (travel x tanHalfAngle) along the ray, r, estimates how far the nearest blocker's edge lies
 /// from the ray in radii of the light's disk: r >= 1 leaves the disk free, r = 0 (the ray grazes
 /// the blocker) half covers it. So the ray goes on through the detail (steps of the distance's
-/// magnitude) until r reaches -1, where the blocker covers the disk; the visible share is the
-/// smoothstep of (r + 1) / 2. Stopping at the first contact (r = 0 as no light) darkened wide
-/// lights: the chain-mail sheet's mean sRGB value was 6% low at 20 degrees and 19% at 89 against
-/// the world reference's shadow rays, and is now 0.2% low and 2.3% high. Taken a sample
-/// at a time (samplePosition, advance), so the self-shadow rays of a batch of camera rays are
-/// marched together (marchInterleaved) with the operations of a single one.
+/// magnitude, at least detail::kVisibilityMinStepTexels) until r reaches -1, where the blocker
+/// covers the disk; the visible share is the smoothstep of (r + 1) / 2. Stopping at the first
+/// contact (r = 0 as no light) darkened wide lights: the chain-mail sheet's mean sRGB value was 6%
+/// low at 20 degrees and 19% at 89 against the world reference's shadow rays, and is now 0.3% low
+/// and 2.3% high. Taken a sample at a time (samplePosition, advance), so the self-shadow rays of a
+/// batch of camera rays are marched together (marchInterleaved) with the operations of a single
+/// one.
 class LightVisibilityRay {
   public:
     /// Starts at `start` toward `toLight` (unit, texel space) with at most `maxSamples` samples.
@@ -80,7 +81,7 @@ class LightVisibilityRay {
             lane_.blocked = true;
             return lane_.needsSample = false;
         }
-        const float step = std::max(std::abs(distance), 0.05f);
+        const float step = std::max(std::abs(distance), detail::kVisibilityMinStepTexels);
         lane_.travel += step;
         --lane_.samplesLeft;
         if (curved_) return lane_.needsSample = lane_.samplesLeft > 0 && path_.advance(step);

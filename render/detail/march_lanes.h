@@ -363,13 +363,13 @@ template <class V>
     const F d = trilinearColumnsLanes<V>(columns, x, y, z, unknown);
     const M known = V::butNot(unknown, V::allLanes());
     // visibility = min(visibility, d / (travel x tanHalfAngle)), blocked unless above -1;
-    // travel += max(|d|, 0.05).
+    // travel += max(|d|, kVisibilityMinStepTexels).
     const F visibility = V::load(group.visibility);
     const F ratio = V::div(d, V::mul(t, V::load(group.tanHalfAngle)));
     const F least = V::blend(visibility, ratio, V::less(ratio, visibility));
     const M blocks = V::butNot(V::greater(least, V::set1(-1.0f)), known);
     const M advances = V::butNot(blocks, known);
-    const F minStep = V::set1(0.05f);
+    const F minStep = V::set1(kVisibilityMinStepTexels);
     const F away = V::abs(d);
     const F travel = V::add(t, V::blend(away, minStep, V::less(away, minStep)));
     const I samplesLeft = V::loadInt(group.samplesLeft);
