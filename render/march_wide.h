@@ -86,7 +86,7 @@ void sphereTraceOngoingSteps16(const WideColumns& columns, const SphereTraceUnif
 /// smaller, steps of the distance would crawl along it: on the chain-mail sheet at 640 x 512,
 /// 0.2 takes 7.1 samples per detail hit against 8.3 at 0.05, and agrees better with the world
 /// reference's 16 shadow rays (mean sRGB difference 3.2, 4.3 and 10.2 codes at lights of 2, 20
-/// and 89 degrees, against 3.5, 4.6 and 10.2). Detail thinner than it can be stepped over; a
+/// and 89 degrees, against 3.5, 4.6 and 10.2). Detail thinner than that can be stepped over; a
 /// trilinear tile resolves nothing that thin.
 inline constexpr float kVisibilityMinStepTexels = 0.2f;
 
