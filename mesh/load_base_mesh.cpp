@@ -455,6 +455,10 @@ class PolygonSplitter {
         std::size_t face, const std::vector<OpenMesh::Vec3f>& points,
         std::span<const std::uint32_t> corners) {
         triangles_.clear();
+        if (corners.size() == 3) {  // most faces: no positions to copy
+            triangles_.push_back({0, 1, 2});
+            return triangles_;
+        }
         positions_.clear();
         for (const std::uint32_t corner : corners) {
             const OpenMesh::Vec3f& p = points[corner];

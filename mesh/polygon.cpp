@@ -83,7 +83,7 @@ bool triangulatePolygon(std::span<const glm::dvec3> corners,
     }
     // Corners that cannot be an ear's tip: reflex or straight ones. They are also the only ones
     // that can lie in an ear of a simple polygon.
-    std::vector<bool> notConvex(count), clipped(count, false);
+    std::vector<bool> notConvex(count);
     std::vector<std::uint32_t> notConvexCorners;
     const auto classify = [&](std::uint32_t i) {
         notConvex[i] = turn(points[previous[i]], points[i], points[next[i]]) <= 0;
@@ -93,12 +93,13 @@ bool triangulatePolygon(std::span<const glm::dvec3> corners,
         if (notConvex[i]) notConvexCorners.push_back(i);
     }
     // An ear: a strictly convex corner whose triangle holds no other corner left that is not
-    // convex, other than copies of the triangle's own corners.
+    // convex, other than copies of the triangle's own corners. (A clipped corner was an ear's
+    // convex tip and is never classified again: the not-convex ones are all still in the ring.)
     const auto isEar = [&](std::uint32_t i) {
         if (notConvex[i]) return false;
         const glm::dvec2 &a = points[previous[i]], &b = points[i], &c = points[next[i]];
         for (const std::uint32_t j : notConvexCorners) {
-            if (clipped[j] || !notConvex[j] || j == previous[i] || j == next[i]) continue;
+            if (!notConvex[j] || j == previous[i] || j == next[i]) continue;
             const glm::dvec2& p = points[j];
             if (p == a || p == b || p == c) continue;
             if (inTriangle(p, a, b, c)) return false;
@@ -121,7 +122,6 @@ bool triangulatePolygon(std::span<const glm::dvec3> corners,
         }
         const std::uint32_t before = previous[at], after = next[at];
         triangles.push_back({before, at, after});
-        clipped[at] = true;
         next[before] = after;
         previous[after] = before;
         --left;
