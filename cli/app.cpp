@@ -71,11 +71,18 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
             return kExitInput;
         }
         // The help of the command whose options were being read, if one was (option groups are
-        // unnamed apps of their own).
+        // unnamed apps of their own), unless the error is about distile's own option (--threads,
+        // which may follow a command but is listed in distile --help).
         std::string help = "distile";
+        const std::string message = error.what();
+        bool aboutOwnOption = false;
+        for (const CLI::Option* option : app.get_options()) {
+            for (const std::string& name : option->get_lnames())
+                aboutOwnOption = aboutOwnOption || message.rfind("--" + name + ":", 0) == 0;
+        }
         const auto parsed = [](const CLI::App* command) { return command->parsed(); };
-        for (std::vector<CLI::App*> read = app.get_subcommands(parsed); !read.empty();
-             read = read.front()->get_subcommands(parsed)) {
+        for (std::vector<CLI::App*> read = app.get_subcommands(parsed);
+             !aboutOwnOption && !read.empty(); read = read.front()->get_subcommands(parsed)) {
             if (!read.front()->get_name().empty()) help += " " + read.front()->get_name();
         }
         std::fprintf(stderr, "distile: error: %s (see %s --help)\n", oneLine(error.what()).c_str(),

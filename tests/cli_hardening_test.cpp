@@ -359,6 +359,22 @@ TEST_F(Hardening, AWordThatIsNoCommandIsNamedWithTheCommands) {
               cli::kExitInput);
 }
 
+TEST_F(Hardening, ABadThreadCountPointsToTheHelpThatListsIt) {
+    // --threads is distile's own option and may follow a command; the help of that command
+    // does not list it, so the hint names distile --help, while a command's option names its own.
+    for (const std::vector<std::string>& args :
+         {std::vector<std::string>{"--threads", "0", "render", "-o", "out.png"},
+          std::vector<std::string>{"render", "--threads", "0", "-o", "out.png"}}) {
+        EXPECT_EQ(
+            expectInputError(args, "out.png", {"--threads", "'0'", "(see distile --help)"}).status,
+            cli::kExitInput);
+    }
+    EXPECT_EQ(expectInputError({"render", "--width", "0", "-o", "out.png"}, "out.png",
+                               {"--width", "(see distile render --help)"})
+                  .status,
+              cli::kExitInput);
+}
+
 TEST_F(Hardening, CheckSeedsAreUnsigned64BitIntegers) {
     // CLI11 took -1 as 2^64 - 1 and clamped 2^64: the run then checked other points than asked.
     bakeChainmail();
