@@ -23,7 +23,7 @@ namespace distile {
 
 /// Bump when the bake's output for the same recipe changes (a new conservative correction, a
 /// different resampling): cached tiles of older revisions are then never read.
-inline constexpr int kBakeRevision = 5;
+inline constexpr int kBakeRevision = 6;
 
 /// FNV-1a 64 of `bytes` as 16 hex digits: names a recipe's cached tile, and stands for the
 /// content of an input file (a detail mesh) inside a recipe.

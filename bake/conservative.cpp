@@ -133,11 +133,13 @@ struct MeasuredLowerings {
 /// per column for raiseEdgeSlicesForFaces. A point is checked when one of its corners is within
 /// bandTexels of the surface or, given `estimatedLowerings` (per texel), has an estimated lowering
 /// > 0: a kink or a curvature the estimate sees, however far from the surface. Other points are
-/// not checked (a texel's lowering then comes from its checked points only). With `outsideOnly`
-/// a point's target is its distance to the outside, max(exact, 0): inside the detail it must only
-/// read at most 0 (plus the allowance).
+/// not checked (a texel's lowering then comes from its checked points only). A point's target is
+/// max(exact, -insideFloorTexels): more than insideFloorTexels inside the detail it must only read
+/// at most -insideFloorTexels (plus the allowance); 0 makes the target the distance to the
+/// outside.
 MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLine& exactDistances,
-                                    float allowanceTexels, float bandTexels, bool outsideOnly,
+                                    float allowanceTexels, float bandTexels,
+                                    double insideFloorTexels,
                                     std::span<const float> estimatedLowerings) {
     const Size3 size = exact.size();
     const int pointsX = 2 * size.width, pointsY = 2 * size.height, levels = 2 * size.depth + 1;
@@ -207,7 +209,7 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
                 for (std::size_t n = 0; n < z.size(); ++n) {
                     const double clamped =
                         std::clamp(truth[n], -double(clampTexels), double(clampTexels));
-                    const double target = outsideOnly ? std::max(clamped, 0.0) : clamped;
+                    const double target = std::max(clamped, -insideFloorTexels);
                     pointRemovals[point(a, b, level[n])] =
                         float(std::max(0.0, interpolated[n] - target - allowanceTexels));
                 }
@@ -305,7 +307,7 @@ void makeConservative(Tile& tile, const ConservativeOptions& options,
         estimatedFaceRemovals(tile, lowerings, allowance);
     if (exactDistances && options.measuredOnTopOfEstimate) {
         const MeasuredLowerings measured = measuredLowerings(
-            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels, true, {});
+            tile, exactDistances, options.toleranceTexels, options.measuredBandTexels, 0.0, {});
         for (std::size_t n = 0; n < lowerings.size(); ++n)
             lowerings[n] = std::max(lowerings[n], measured.lowerings[n]);
         for (int face = 0; face < 2; ++face) {
@@ -317,21 +319,23 @@ void makeConservative(Tile& tile, const ConservativeOptions& options,
     } else if (exactDistances) {
         // Within the band the measured lowering replaces the estimate; beyond it, where the
         // estimate lowers, the points around are measured too and lower further if they ask.
-        const MeasuredLowerings measured =
-            measuredLowerings(tile, exactDistances, options.toleranceTexels,
-                              options.measuredBandTexels, false, lowerings);
+        // Deeper inside the detail than the band a point need only read clearly inside (at most
+        // -band): no tracer samples there, and the estimate's lowering of an inner kink (a
+        // slab's or a cube's mid-plane, across the whole tile) would cost accuracy for nothing,
+        // so the measured lowering alone holds there too.
+        const float band = options.measuredBandTexels;
+        const MeasuredLowerings measured = measuredLowerings(
+            tile, exactDistances, options.toleranceTexels, band, double(band), lowerings);
         const std::span<const float> exact = tile.distancesTexels();
         for (std::size_t n = 0; n < lowerings.size(); ++n) {
-            lowerings[n] = std::abs(exact[n]) <= options.measuredBandTexels
-                               ? measured.lowerings[n]
-                               : std::max(lowerings[n], measured.lowerings[n]);
+            lowerings[n] = exact[n] <= band ? measured.lowerings[n]
+                                            : std::max(lowerings[n], measured.lowerings[n]);
         }
         const std::size_t columns = faceRemovals[0].size();
         for (int face = 0; face < 2; ++face) {
             const std::size_t edge = face == 0 ? 0 : exact.size() - columns;
             for (std::size_t n = 0; n < columns; ++n) {
-                if (std::abs(exact[edge + n]) <= options.measuredBandTexels)
-                    faceRemovals[face][n] = measured.faceRemovals[face][n];
+                if (exact[edge + n] <= band) faceRemovals[face][n] = measured.faceRemovals[face][n];
             }
         }
     }

@@ -22,7 +22,10 @@
 ///   the samples show, such as the medial axis of a vase's cavity 10 texels from its wall (there
 ///   the estimate alone left overestimates of 0.36 texel in 0.1% of a vase tile's samples; the
 ///   measured points bring them to 0.14 texel in 0.02%, for 6% more bake time). Beyond the band
-///   a texel keeps the estimate's lowering if that is larger.
+///   outside the detail a texel keeps the estimate's lowering if that is larger. More than the
+///   band inside, a point need only read at most -band and the texel takes the measured lowering
+///   alone: no tracer samples there, and lowering an inner kink (a slab's mid-plane, midway
+///   between texel centres: 0.5 texel across the whole tile) cost a slab RMS 0.11 texel.
 /// - **Estimated**, otherwise: height maps (bakeHeightMap) and library callers that only have a
 ///   level set, and under the measured correction, procedural detail. The overestimate around a
 ///   texel is
@@ -75,9 +78,10 @@ struct ConservativeOptions {
     /// of the surface (|value| <= it, texels), and (mesh bakes) where the estimate lowers one;
     /// exact mesh distances are costly, so smooth far fields are not measured.
     float measuredBandTexels = 3.0f;
-    /// Measured path: false (mesh bakes) replaces the estimate within the band by the measured
-    /// lowering and takes the larger of the two beyond it (the faces' removals beyond the band
-    /// stay estimated); true (procedural bakes) keeps the estimate and lowers further wherever
+    /// Measured path: false (mesh bakes) replaces the estimate within the band and deeper
+    /// inside by the measured lowering and takes the larger of the two beyond it outside (the
+    /// faces' removals there stay estimated); true (procedural bakes) keeps the estimate and
+    /// lowers further wherever
     /// a point still overestimates its distance to the outside, max(exact, 0): where a tracer
     /// samples. A point inside the detail must only read negative: the estimate's rougher lowering
     /// of the wires' centreline kinks stays (see the file note).

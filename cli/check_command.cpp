@@ -163,7 +163,9 @@ void addCheckCommand(CLI::App& app) {
     command
         ->add_option(
             "--max-overestimate", arguments->options.maxOverestimateTexels,
-            "Overestimate tolerance, texels: tile - truth above it counts as an overestimate")
+            "Overestimate tolerance, texels: tile - truth above it counts as an overestimate "
+            "(more than 2 texels inside the detail, tile - (-2): there the tile need only read "
+            "that deep)")
         ->capture_default_str()
         ->check(finiteRange(0.0, 1e6));
     command

@@ -88,8 +88,11 @@ TileErrorReport measureTileError(const Tile& tile,
             report.maxAbsAt = points[i];
             report.maxAbsTruthTexels = trueDistance;
         }
-        report.maxOverestimateTexels = std::max(report.maxOverestimateTexels, error);
-        if (error > options.overestimateToleranceTexels) ++report.overestimates;
+        // Deeper inside than the near-surface margin the tile need only read that deep.
+        const double overestimate =
+            double(tileValues[i]) - std::max(trueDistance, -options.nearSurfaceTexels);
+        report.maxOverestimateTexels = std::max(report.maxOverestimateTexels, overestimate);
+        if (overestimate > options.overestimateToleranceTexels) ++report.overestimates;
         const double tracerError = double(tileValues[i]) - std::max(trueDistance, 0.0);
         report.maxTracerOverestimateTexels =
             std::max(report.maxTracerOverestimateTexels, tracerError);

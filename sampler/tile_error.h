@@ -41,10 +41,15 @@ struct TileErrorReport {
     double nearRmsTexels = 0.0;      ///< RMS over the near samples (0 if none)
     double nearMaxAbsTexels = 0.0;   ///< largest |error| over the near samples
     double nearP999Texels = 0.0;     ///< 99.9th percentile of |error| over the near samples
-    double maxOverestimateTexels =
-        0.0;                         ///< largest tile - truth (0 if the tile never overestimates)
-    int overestimates = 0;           ///< samples with tile - truth > overestimateToleranceTexels
-    double overestimateShare = 0.0;  ///< overestimates / samples
+    /// Overestimates: tile - max(truth, -nearSurfaceTexels) above overestimateToleranceTexels.
+    /// Near the surface and outside, the tile must not read above the truth (a tracer steps by
+    /// it, and refines hits between a sample outside and one just inside); deeper inside it need
+    /// only read at least that deep: a tile reading -3 where the truth is -4 misleads nothing,
+    /// and lowering an inner kink (a slab's mid-plane) to avoid it costs accuracy everywhere on
+    /// that plane.
+    double maxOverestimateTexels = 0.0;  ///< largest such excess (0 if never above)
+    int overestimates = 0;               ///< samples beyond the tolerance
+    double overestimateShare = 0.0;      ///< overestimates / samples
     /// The overestimates a sphere tracer can step over the surface by: tile - max(truth, 0) >
     /// overestimateToleranceTexels. Inside the detail a tile above the truth but still below 0
     /// (or within the tolerance of 0) stops no tracer short of the surface or past it.

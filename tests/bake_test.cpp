@@ -27,6 +27,7 @@
 #include "detail_meshes.h"
 #include "render/renderer.h"
 #include "sampler/filters.h"
+#include "sampler/tile_error.h"
 #include "sampler/tile_io.h"
 #include "scene/scene_file.h"
 #include "tests/temp_folder.h"
@@ -598,6 +599,35 @@ TEST(MeshBake, ConservativeTileNeverOverestimatesAtTexelCentres) {
     const std::span<const float> lowered = bake.result.tile.distancesTexels();
     const std::span<const float> centres = exact.result.tile.distancesTexels();
     for (std::size_t n = 0; n < lowered.size(); ++n) ASSERT_LE(lowered[n], centres[n]);
+}
+
+TEST(MeshBake, ASlabKeepsItsExactDistancesDeepInsideAndMeetsTheCheck) {
+    // A slab 8 texels thick across the whole (periodic) footprint: d = |z - 8| - 4, whose kink
+    // at z = 8 lies midway between texel centres, 4 texels inside. Trilinear overestimates there
+    // by up to 0.5 texel, yet reads -3 or less: no tracer samples there. Lowering the kink's
+    // two texel planes across the tile (as the estimate did) cost RMS 0.11 > 0.1; those texels
+    // keep their exact -3.5 now, and the tile meets both of check's targets.
+    BakeOptions options;
+    options.size = {32, 32, 16};
+    // Overlapping periodic copies: the winding number makes them one slab.
+    const TriangleSoup slab =
+        makeBoxSoup(glm::dvec3(-4.0, -4.0, 4.0), glm::dvec3(36.0, 36.0, 12.0));
+    MeshPlacement placement;
+    placement.fit = false;
+    const Tile tile = bakeSolidMesh(slab, placement, options, "slab").result.tile;
+    for (int y = 0; y < 32; ++y) {
+        for (int x = 0; x < 32; ++x) {
+            ASSERT_FLOAT_EQ(tile.at(x, y, 7), -3.5f) << x << ", " << y;
+            ASSERT_FLOAT_EQ(tile.at(x, y, 8), -3.5f) << x << ", " << y;
+        }
+    }
+    const TileErrorReport report =
+        measureTileError(tile, [](const glm::dvec3& p) { return std::abs(p.z - 8.0) - 4.0; });
+    EXPECT_LE(report.rmsTexels, 0.1);
+    EXPECT_LT(report.overestimateShare, 0.001);
+    EXPECT_EQ(report.tracerOverestimates, 0);
+    EXPECT_NEAR(report.maxAbsTexels, 0.5, 0.01);  // at the kink
+    EXPECT_NEAR(report.maxAbsTruthTexels, -4.0, 0.02);
 }
 
 TEST(HeightMapBake, EveryMeasuredPointNearTheSurfaceIsWithinTheTolerance) {

@@ -516,18 +516,21 @@ std::vector<std::pair<std::string, ProceduralOptions>> proceduralKinds() {
 }
 
 TEST(TileErrorReport, TellsTheOverestimatesATracerCanStepOverFromTheOthers) {
-    // The plane z = 8 in a 16-deep tile whose every value is 0.5 texel above the truth: every
-    // point overestimates, but a tracer can step over the surface only where the tile exceeds
+    // The plane z = 8 in a 16-deep tile whose every value is 0.5 texel above the truth. An
+    // overestimate exceeds max(truth, -2) (2 texels: the near-surface margin) by more than 0.05:
+    // everywhere above z = 5.55, where the tile reads above -1.95, up to z = 15.95 (the filter
+    // holds the last texel centre's value, 8, over the top half texel, where the truth rises to
+    // 8): the share 10.4 / 16. A tracer can step over the surface only where the tile exceeds
     // max(truth, 0) by more than 0.05: outside (truth > 0) and just inside (truth > -0.45), the
-    // share 8.45 / 16 of the volume. The trilinear filter reproduces the ramp between the first
-    // and last texel centres; beyond them it holds the end values, which changes neither count.
+    // share 8.45 / 16 of the volume (the top half texel counts here as well).
     Tile tile({8, 8, 16});
     for (int z = 0; z < 16; ++z)
         for (int y = 0; y < 8; ++y)
             for (int x = 0; x < 8; ++x) tile.at(x, y, z) = (z + 0.5f - 8.0f) + 0.5f;
     const TileErrorReport report =
         measureTileError(tile, [](const glm::dvec3& p) { return p.z - 8.0; });
-    EXPECT_GT(report.overestimateShare, 0.93);  // all but the bottom and top half texels
+    EXPECT_NEAR(report.overestimateShare, 10.4 / 16.0, 0.01);
+    EXPECT_NEAR(report.maxOverestimateTexels, 0.5, 1e-5);
     const double tracerShare = double(report.tracerOverestimates) / double(report.samples);
     EXPECT_NEAR(tracerShare, 8.45 / 16.0, 0.01);
     EXPECT_NEAR(report.maxTracerOverestimateTexels, 0.5, 1e-5);
@@ -711,31 +714,49 @@ TEST(ConservativeResampling, SeamsAgreeWithTheInteriorForEveryProceduralKind) {
     }
 }
 
-TEST(ConservativeResampling, AMeasuredBakeCorrectsAKinkFarFromTheSurface) {
-    // A solid slab between z = 2 and z = 30 (a mesh bake's measured path, its exact distance
-    // given): inside, the distance -min(z - 2, 30 - z) has its kink on the plane z = 16, 14
-    // texels deep, midway between the texel centres 15.5 and 16.5 (both -13.5). There the exact
-    // texels interpolate to -13.5 over a truth of -14: 0.5 texel too high. The kink's second
-    // difference (1) is estimated as 0.3 - 0.045 = 0.255 of lowering, which leaves 0.245; it
-    // lies far beyond the 3 texels of the surface where points are measured, so it is measured
-    // because the estimate lowers its corners, and the tolerance is all that is left. (The tile
-    // reaches 17.5 texels above the slab: its values, to which the truth is clamped, pass 14.)
+TEST(ConservativeResampling, AMeasuredBakeCorrectsAKinkAsDeepAsItsBandAndLeavesDeeperOnes) {
+    // A solid slab between z = 2 and z = top (a mesh bake's measured path, its exact distance
+    // given): inside, the distance -min(z - 2, top - z) has its kink on the mid-plane, midway
+    // between two texel centres, whose exact values interpolate there to 0.5 texel above the
+    // truth. The tile reaches 17.5 texels above the slab (its values, to which the truth is
+    // clamped, pass the slab's depths).
     const Size3 size{8, 8, 48};
-    const auto slab = [](double z) { return -std::min(z - 2.0, 30.0 - z); };
-    Tile tile = tileOf(size, [&](const glm::dvec3& p) { return slab(p.z); });
-    const ExactDistancesOnLine exact = [&](const glm::dvec2&, std::span<const double> z,
-                                           std::span<double> distances) {
-        for (std::size_t n = 0; n < z.size(); ++n) distances[n] = slab(z[n]);
+    const auto measure = [&](double top, Tile& tile) {
+        const auto slab = [top](double z) { return -std::min(z - 2.0, top - z); };
+        tile = tileOf(size, [&](const glm::dvec3& p) { return slab(p.z); });
+        const ExactDistancesOnLine exact = [&](const glm::dvec2&, std::span<const double> z,
+                                               std::span<double> distances) {
+            for (std::size_t n = 0; n < z.size(); ++n) distances[n] = slab(z[n]);
+        };
+        makeConservative(tile, ConservativeOptions{}, exact);
+        const TrilinearFilter filter(tile);
+        double worst = -1.0;
+        for (int step = 0; step <= 480; ++step) {
+            const double z = 0.1 * step;
+            worst =
+                std::max(worst, double(filter.distanceTexels({3.3f, 4.7f, float(z)})) - slab(z));
+        }
+        return worst;
     };
-    makeConservative(tile, ConservativeOptions{}, exact);
-    const TrilinearFilter filter(tile);
-    double worst = -1.0;
-    for (int step = 0; step <= 480; ++step) {
-        const double z = 0.1 * step;
-        worst = std::max(worst, double(filter.distanceTexels({3.3f, 4.7f, float(z)})) - slab(z));
-    }
-    std::printf("[ figures  ] slab: largest overestimate %.4f texel\n", worst);
-    EXPECT_NEAR(worst, 0.05, 1e-5);  // the tolerance, reached at the kink
+    // Kink 3 texels deep (z = 5, the measured band): its points are measured, and lowered to
+    // the tolerance.
+    Tile shallow(size);
+    const double shallowWorst = measure(8.0, shallow);
+    EXPECT_NEAR(shallowWorst, 0.05, 1e-5);
+    // Kink 14 texels deep (z = 16): the estimate would lower its corners and the measurement
+    // there would ask for the rest, but a point that deep need only read at most -3 (the band):
+    // the texels keep their exact values, the kink reads -13.5 over a truth of -14.
+    Tile deep(size);
+    const double deepWorst = measure(30.0, deep);
+    std::printf(
+        "[ figures  ] slab: largest overestimate %.4f texel at a kink 3 texels deep, "
+        "%.4f at one 14 texels deep\n",
+        shallowWorst, deepWorst);
+    EXPECT_NEAR(deepWorst, 0.5, 1e-5);
+    const Tile exactTexels =
+        tileOf(size, [](const glm::dvec3& p) { return -std::min(p.z - 2.0, 30.0 - p.z); });
+    for (std::size_t n = 0; n < deep.distancesTexels().size(); ++n)
+        ASSERT_EQ(deep.distancesTexels()[n], exactTexels.distancesTexels()[n]) << n;
 }
 
 TEST(ConservativeResampling, LowersByTheCurvatureEstimateAndRejectsBadOptions) {
