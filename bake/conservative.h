@@ -81,10 +81,9 @@ struct ConservativeOptions {
     /// Measured path: false (mesh bakes) replaces the estimate within the band and deeper
     /// inside by the measured lowering and takes the larger of the two beyond it outside (the
     /// faces' removals there stay estimated); true (procedural bakes) keeps the estimate and
-    /// lowers further wherever
-    /// a point still overestimates its distance to the outside, max(exact, 0): where a tracer
-    /// samples. A point inside the detail must only read negative: the estimate's rougher lowering
-    /// of the wires' centreline kinks stays (see the file note).
+    /// lowers further wherever a point still overestimates its distance to the outside,
+    /// max(exact, 0): where a tracer samples. A point inside the detail must only read negative:
+    /// the estimate's rougher lowering of the wires' centreline kinks stays (see the file note).
     bool measuredOnTopOfEstimate = false;
     /// Estimated path: part of the tolerance a texel's estimated overestimate may keep (the
     /// measured path removes everything beyond the tolerance at its points).

@@ -164,8 +164,8 @@ void addCheckCommand(CLI::App& app) {
         ->add_option(
             "--max-overestimate", arguments->options.maxOverestimateTexels,
             "Overestimate tolerance, texels: tile - truth above it counts as an overestimate "
-            "(more than 2 texels inside the detail, tile - (-2): there the tile need only read "
-            "that deep)")
+            "(more than 2 texels inside the detail the truth counts as -2: the tile need only "
+            "read that deep there)")
         ->capture_default_str()
         ->check(finiteRange(0.0, 1e6));
     command
