@@ -429,12 +429,13 @@ class Renderer {
         for (std::size_t index = 0; index < scene_.lights.size(); ++index) {
             const DirectionalLight& light = scene_.lights[index];
             const glm::vec3& toLight = toLights_[index];
-            if (glm::dot(hit.entry.normal, toLight) <= 0.0f) continue;
-            float visibility = 1.0f;
+            const float facing = glm::dot(hit.entry.normal, toLight);
+            if (facing <= 0.0f) continue;
+            float visibility = lightDiskShareAboveHorizon(facing, tanHalfAngles_[index]);
             if (shadowMaps_[index]) {
                 const ShadowReceiver receiver{hit.position, hit.entry.normal,
                                               footprintWorld(hit, toLight), hit.object};
-                visibility = castShadow(index, receiver, seed, shadowMapSamples);
+                visibility *= castShadow(index, receiver, seed, shadowMapSamples);
                 if (visibility <= 0.0f) continue;
             }
             color += directLight(hit.normal, toLight, view, albedo) * light.color * visibility;
@@ -552,6 +553,7 @@ class Renderer {
                 visibility *= castShadow(index, receiver, seed, sample.shadowMapSamples);
                 if (visibility <= 0.0f) continue;
             }
+            visibility *= lightDiskShareAboveHorizon(facing, tanHalfAngles_[index]);
             color += directLight(hit.normal, toLight, view, albedo) * light.color * visibility;
         }
         return color;

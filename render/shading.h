@@ -6,6 +6,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
@@ -41,6 +42,22 @@ inline glm::vec3 skyColor(const glm::vec3& direction) {
     const glm::vec3 halfway = glm::normalize(toLight - view);
     const float specular = shininessPower(std::max(glm::dot(normal, halfway), 0.0f));
     return albedo * diffuse + glm::vec3(kSpecularStrength * specular);
+}
+
+/// The share of a directional light's disk above the tangent plane of a surface with unit normal
+/// N, where cos(theta) = N . toLight > 0: light from below that plane enters the surface's own
+/// object, which neither a shadow map (its bias) nor the shading's cosine sees. The disk is the
+/// one the renderer's and the world reference's shadows sample: directions toward toLight +
+/// tan(half angle) (u, v), (u, v) uniform on the unit disk of the plane across toLight. Along
+/// the in-plane part of N (length sin(theta)) such a direction is above the plane where u >
+/// -h, h = cos(theta) / (tan(half angle) sin(theta)): all of the disk while h >= 1 (theta at most
+/// 90 degrees less the half angle), else the circular segment 1 - (acos(h) - h sqrt(1 - h^2)) / pi,
+/// down to half of it at theta = 90 degrees.
+inline float lightDiskShareAboveHorizon(float cosToLight, float tanHalfAngle) {
+    const float sinToLight = std::sqrt(std::max(1.0f - cosToLight * cosToLight, 0.0f));
+    if (cosToLight >= tanHalfAngle * sinToLight) return 1.0f;
+    const float h = cosToLight / (tanHalfAngle * sinToLight);
+    return 1.0f - (std::acos(h) - h * std::sqrt(1.0f - h * h)) / 3.14159265f;
 }
 
 /// How much of the sky a detail point at texel height `zTexels` (of a shell `depthTexels`

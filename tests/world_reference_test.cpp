@@ -751,5 +751,66 @@ TEST(WorldReference, SelfShadowsOfAWideLightKeepTheSheetsBrightness) {
     EXPECT_NEAR(ratio, 1.0, 0.03);
 }
 
+TEST(LightDisk, TheShareAboveTheHorizonIsTheCircularSegmentOfTheSampledDisk) {
+    // The disk of directions toLight + tan(half angle) (u, v), (u, v) on the unit disk, counted
+    // on a 600 x 600 grid of the disk against the plane of normal N at theta from the light:
+    // the closed form must agree within the grid's resolution.
+    for (const float angleDeg : {4.0f, 45.0f, 89.0f}) {
+        const float tanHalf = std::tan(0.5f * angleDeg * 3.14159265f / 180.0f);
+        for (const float thetaDeg : {10.0f, 60.0f, 80.0f, 88.0f, 89.9f}) {
+            const float theta = thetaDeg * 3.14159265f / 180.0f;
+            int inside = 0, above = 0;
+            constexpr int kGrid = 600;
+            for (int j = 0; j < kGrid; ++j) {
+                for (int i = 0; i < kGrid; ++i) {
+                    const float u = -1.0f + (2.0f * float(i) + 1.0f) / kGrid;
+                    const float v = -1.0f + (2.0f * float(j) + 1.0f) / kGrid;
+                    if (u * u + v * v > 1.0f) continue;
+                    ++inside;
+                    // N = (sin theta, 0, cos theta) with the light along z and u along x.
+                    if (std::sin(theta) * tanHalf * u + std::cos(theta) > 0.0f) ++above;
+                }
+            }
+            const float counted = float(above) / float(inside);
+            EXPECT_NEAR(lightDiskShareAboveHorizon(std::cos(theta), tanHalf), counted, 0.004f)
+                << "angle " << angleDeg << ", theta " << thetaDeg;
+        }
+    }
+    EXPECT_EQ(lightDiskShareAboveHorizon(std::cos(0.4f), std::tan(0.1f)), 1.0f);
+    EXPECT_NEAR(lightDiskShareAboveHorizon(1e-6f, 0.4f), 0.5f, 1e-4f);
+}
+
+TEST(WorldReference, ABareSphereUnderAWideLightDarkensTowardItsTerminatorAsTheReference) {
+    // A smooth sphere alone under a light 80 degrees wide, seen across its terminator: near it
+    // part of the light's disk lies below the surface's tangent plane, inside the sphere. The
+    // world reference's shadow rays find it; the renderer takes the disk's share above the plane
+    // (lightDiskShareAboveHorizon). Without it the lit side was 6% brighter than the reference.
+    Scene scene;
+    scene.camera = {{0.0f, -3.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 30.0f};
+    scene.lights = {DirectionalLight{{-1.0f, 0.25f, 0.0f}, {1.0f, 1.0f, 1.0f}, 80.0f}};
+    SceneObject sphere;
+    sphere.mesh = makeUvSphere(0.8f, 192, 96);
+    sphere.material.color = {0.8f, 0.8f, 0.8f};
+    scene.objects.push_back(std::move(sphere));
+    const RenderResult rendered = renderScene(scene, smallRender(false));
+    const RenderResult& world = worldReference(scene).render;
+    double sumRendered = 0.0, sumWorld = 0.0;
+    std::uint64_t pixels = 0;
+    for (int y = 0; y < kHeight; ++y) {
+        for (int x = 0; x < kWidth; ++x) {
+            if (!(rendered.aovs->depth.at(x, y).x > 0.0f && world.aovs->depth.at(x, y).x > 0.0f))
+                continue;
+            const glm::vec3 a = rendered.image.at(x, y), b = world.image.at(x, y);
+            sumRendered += double(a.x + a.y + a.z);
+            sumWorld += double(b.x + b.y + b.z);
+            ++pixels;
+        }
+    }
+    ASSERT_GT(pixels, std::uint64_t(kWidth * kHeight / 5));
+    const double ratio = sumRendered / sumWorld;
+    std::printf("[          ] mean linear brightness / the world reference's: %.4f\n", ratio);
+    EXPECT_NEAR(ratio, 1.0, 0.01);
+}
+
 }  // namespace
 }  // namespace distile
