@@ -2,13 +2,15 @@
 /// The shading the renderer and the world reference share (render/renderer.cpp,
 /// render/world_reference.cpp): the sky behind everything, an ambient term darkened low in the
 /// detail shell, Lambert + Blinn-Phong from directional lights, and the dim colour of back
-/// faces. Linear RGB; directions are unit world-space vectors.
+/// faces; and, for the renderer alone, the share of a light's disk above a surface's horizon
+/// (the reference's shadow rays find it). Linear RGB; directions are unit world-space vectors.
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <glm/gtc/constants.hpp>
 #include <glm/vec3.hpp>
 
 namespace distile {
@@ -57,7 +59,7 @@ inline float lightDiskShareAboveHorizon(float cosToLight, float tanHalfAngle) {
     const float sinToLight = std::sqrt(std::max(1.0f - cosToLight * cosToLight, 0.0f));
     if (cosToLight >= tanHalfAngle * sinToLight) return 1.0f;
     const float h = cosToLight / (tanHalfAngle * sinToLight);
-    return 1.0f - (std::acos(h) - h * std::sqrt(1.0f - h * h)) / 3.14159265f;
+    return 1.0f - (std::acos(h) - h * std::sqrt(1.0f - h * h)) / glm::pi<float>();
 }
 
 /// How much of the sky a detail point at texel height `zTexels` (of a shell `depthTexels`
