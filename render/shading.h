@@ -47,17 +47,19 @@ inline glm::vec3 skyColor(const glm::vec3& direction) {
 }
 
 /// The share of a directional light's disk above the tangent plane of a surface with unit normal
-/// N, where cos(theta) = N . toLight > 0: light from below that plane enters the surface's own
-/// object, which neither a shadow map (its bias) nor the shading's cosine sees. The disk is the
-/// one the renderer's and the world reference's shadows sample: directions toward toLight +
-/// tan(half angle) (u, v), (u, v) uniform on the unit disk of the plane across toLight. Along
-/// the in-plane part of N (length sin(theta)) such a direction is above the plane where u >
+/// N, where cos(theta) = N . toLight > 0 (a precondition): light from below that plane enters the
+/// surface's own object, which neither a shadow map (its bias) nor the shading's cosine sees. The
+/// disk is the one the renderer's and the world reference's shadows sample: directions toward
+/// toLight + tan(half angle) (u, v), (u, v) uniform on the unit disk of the plane across toLight.
+/// Along the in-plane part of N (length sin(theta)) such a direction is above the plane where u >
 /// -h, h = cos(theta) / (tan(half angle) sin(theta)): all of the disk while h >= 1 (theta at most
 /// 90 degrees less the half angle), else the circular segment 1 - (acos(h) - h sqrt(1 - h^2)) / pi,
 /// down to half of it at theta = 90 degrees.
 inline float lightDiskShareAboveHorizon(float cosToLight, float tanHalfAngle) {
-    const float sinToLight = std::sqrt(std::max(1.0f - cosToLight * cosToLight, 0.0f));
-    if (cosToLight >= tanHalfAngle * sinToLight) return 1.0f;
+    // h >= 1 as cos^2 (1 + tan^2) >= tan^2 (cos > 0): no root on the common path.
+    const float cos2 = cosToLight * cosToLight, tan2 = tanHalfAngle * tanHalfAngle;
+    if (cos2 * (1.0f + tan2) >= tan2) return 1.0f;
+    const float sinToLight = std::sqrt(1.0f - cos2);
     const float h = cosToLight / (tanHalfAngle * sinToLight);
     return 1.0f - (std::acos(h) - h * std::sqrt(1.0f - h * h)) / glm::pi<float>();
 }
