@@ -60,7 +60,8 @@ inline float lightDiskShareAboveHorizon(float cosToLight, float tanHalfAngle) {
     const float cos2 = cosToLight * cosToLight, tan2 = tanHalfAngle * tanHalfAngle;
     if (cos2 * (1.0f + tan2) >= tan2) return 1.0f;
     const float sinToLight = std::sqrt(1.0f - cos2);
-    const float h = cosToLight / (tanHalfAngle * sinToLight);
+    // Below 1 but for rounding, which must not take the root below of a negative number.
+    const float h = std::min(cosToLight / (tanHalfAngle * sinToLight), 1.0f);
     return 1.0f - (std::acos(h) - h * std::sqrt(1.0f - h * h)) / glm::pi<float>();
 }
 
