@@ -121,6 +121,25 @@ WorldReferenceResult worldReference(const Scene& scene,
     return renderWorldReference(scene, options);
 }
 
+/// The mean linear brightness (sum of the channels) of `rendered` over the pixels both renders
+/// hit, relative to `world`'s; `pixels` receives their count.
+double brightnessOverBothHits(const RenderResult& rendered, const RenderResult& world,
+                              std::uint64_t& pixels) {
+    double sumRendered = 0.0, sumWorld = 0.0;
+    pixels = 0;
+    for (int y = 0; y < kHeight; ++y) {
+        for (int x = 0; x < kWidth; ++x) {
+            if (!(rendered.aovs->depth.at(x, y).x > 0.0f && world.aovs->depth.at(x, y).x > 0.0f))
+                continue;
+            const glm::vec3 a = rendered.image.at(x, y), b = world.image.at(x, y);
+            sumRendered += double(a.x + a.y + a.z);
+            sumWorld += double(b.x + b.y + b.z);
+            ++pixels;
+        }
+    }
+    return sumRendered / sumWorld;
+}
+
 void printComparison(const char* what, const RenderComparison& c,
                      const WorldReferenceResult& world) {
     const DisplacedMeshStats& mesh = world.meshes.at(0);
@@ -734,20 +753,9 @@ TEST(WorldReference, SelfShadowsOfAWideLightKeepTheSheetsBrightness) {
     const RenderResult rendered = renderScene(scene, options);
     const WorldReferenceResult reference = worldReference(scene);
     const RenderResult& world = reference.render;
-    double sumRendered = 0.0, sumWorld = 0.0;
     std::uint64_t pixels = 0;
-    for (int y = 0; y < kHeight; ++y) {
-        for (int x = 0; x < kWidth; ++x) {
-            if (!(rendered.aovs->depth.at(x, y).x > 0.0f && world.aovs->depth.at(x, y).x > 0.0f))
-                continue;
-            const glm::vec3 a = rendered.image.at(x, y), b = world.image.at(x, y);
-            sumRendered += double(a.x + a.y + a.z);
-            sumWorld += double(b.x + b.y + b.z);
-            ++pixels;
-        }
-    }
+    const double ratio = brightnessOverBothHits(rendered, world, pixels);
     ASSERT_GT(pixels, std::uint64_t(kWidth * kHeight / 2));
-    const double ratio = sumRendered / sumWorld;
     std::printf("[          ] mean linear brightness / the world reference's: %.4f\n", ratio);
     EXPECT_NEAR(ratio, 1.0, 0.03);
 }
@@ -806,21 +814,11 @@ TEST(WorldReference, ABareSphereUnderAWideLightDarkensTowardItsTerminatorAsTheRe
     sphere.material.color = {0.8f, 0.8f, 0.8f};
     scene.objects.push_back(std::move(sphere));
     const RenderResult rendered = renderScene(scene, smallRender(false));
-    const RenderResult& world = worldReference(scene).render;
-    double sumRendered = 0.0, sumWorld = 0.0;
+    const WorldReferenceResult reference = worldReference(scene);
+    const RenderResult& world = reference.render;
     std::uint64_t pixels = 0;
-    for (int y = 0; y < kHeight; ++y) {
-        for (int x = 0; x < kWidth; ++x) {
-            if (!(rendered.aovs->depth.at(x, y).x > 0.0f && world.aovs->depth.at(x, y).x > 0.0f))
-                continue;
-            const glm::vec3 a = rendered.image.at(x, y), b = world.image.at(x, y);
-            sumRendered += double(a.x + a.y + a.z);
-            sumWorld += double(b.x + b.y + b.z);
-            ++pixels;
-        }
-    }
+    const double ratio = brightnessOverBothHits(rendered, world, pixels);
     ASSERT_GT(pixels, std::uint64_t(kWidth * kHeight / 5));
-    const double ratio = sumRendered / sumWorld;
     std::printf("[          ] mean linear brightness / the world reference's: %.4f\n", ratio);
     EXPECT_NEAR(ratio, 1.0, 0.01);
 }
