@@ -28,8 +28,19 @@ fs::path moduleFile(const ModuleName& module) {
                                     ? fs::absolute(loaded->l_name, error)
                                     : fs::read_symlink("/proc/self/exe", error);
         if (!error && !object.empty()) {
+            // A program in <prefix>/bin: <prefix>/lib.
             candidates.push_back(
                 (object.parent_path() / ".." / "lib" / module.fileName).lexically_normal());
+            // The Python module installed in <prefix>/lib/python3.X/(dist|site)-packages/distile,
+            // whatever prefix it was installed to: that lib.
+            const fs::path packages = object.parent_path().parent_path();
+            const fs::path python = packages.parent_path();
+            if ((packages.filename() == "dist-packages" ||
+                 packages.filename() == "site-packages") &&
+                python.filename().string().starts_with("python") &&
+                python.parent_path().filename() == "lib") {
+                candidates.push_back(python.parent_path() / module.fileName);
+            }
         }
     }
     candidates.push_back(fs::path(module.buildDir) / module.fileName);

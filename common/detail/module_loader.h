@@ -13,13 +13,14 @@ namespace distile::detail {
 /// Where a module is and what it exports.
 struct ModuleName {
     const char* fileName;  ///< e.g. libdistile_vdb_openvdb.so
-    const char* buildDir;  ///< the build's folder holding it (where it is looked for second)
+    const char* buildDir;  ///< the build's folder holding it (after those beside the code)
     const char* entry;     ///< the exported C function returning its table
     const char* target;    ///< its CMake target, named in errors (the build is incomplete)
 };
 
 /// The module's file: beside the library holding this code (../lib from a program in bin/, as
-/// the build and an installation lay them out), else in `module.buildDir`, else in the
+/// the build and an installation lay them out; <prefix>/lib from the Python module installed in
+/// <prefix>/lib/python3.X/dist-packages/distile), else in `module.buildDir`, else in the
 /// installation's lib/, where `cmake --install` puts every module (a program elsewhere linking
 /// the installed libraries). Throws InternalError if none holds it.
 std::filesystem::path moduleFile(const ModuleName& module);
