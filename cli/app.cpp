@@ -28,6 +28,43 @@ std::string oneLine(std::string message) {
     return message;
 }
 
+/// The option named `name` (e.g. "--epsilon") of `command` or of any command or option group
+/// under it, or null.
+const CLI::Option* findOption(const CLI::App& command, const std::string& name) {
+    for (const CLI::Option* option : command.get_options()) {
+        for (const std::string& longName : option->get_lnames())
+            if ("--" + longName == name) return option;
+    }
+    for (const CLI::App* under : command.get_subcommands({}))
+        if (const CLI::Option* found = findOption(*under, name)) return found;
+    return nullptr;
+}
+
+/// CLI11's message for a value it could not convert ("Could not convert: --epsilon = abc") in
+/// the form of distile's others: the option, the value and what it takes. Other messages as
+/// they are.
+std::string parseErrorMessage(const CLI::App& app, const CLI::ParseError& error) {
+    const std::string message = error.what();
+    const std::string prefix = "Could not convert: ";
+    const std::size_t equals = message.find(" = ");
+    if (!dynamic_cast<const CLI::ConversionError*>(&error) || message.rfind(prefix, 0) != 0 ||
+        equals == std::string::npos)
+        return message;
+    const std::string name = message.substr(prefix.size(), equals - prefix.size());
+    const std::string value = message.substr(equals + 3);
+    const CLI::Option* option = findOption(app, name);
+    const std::string type = option ? option->get_type_name() : "";
+    const bool several = option && option->get_items_expected_max() > 1;
+    std::string wanted = "see the accepted values";
+    if (type.starts_with("INT"))
+        wanted = several ? "give integers" : "give an integer";
+    else if (type.starts_with("UINT"))
+        wanted = several ? "give whole numbers" : "give a whole number";
+    else if (type.starts_with("FLOAT"))
+        wanted = several ? "give numbers" : "give a number";
+    return name + ": '" + value + "' is not accepted; " + wanted;
+}
+
 int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& addCommands) {
     CLI::App app{
         "distile: volumetric distance detail. Bakes detail (chain mail, ...) into exact, periodic "
@@ -85,8 +122,8 @@ int parseAndRun(int argc, char** argv, const std::function<void(CLI::App&)>& add
              !aboutOwnOption && !read.empty(); read = read.front()->get_subcommands(parsed)) {
             if (!read.front()->get_name().empty()) help += " " + read.front()->get_name();
         }
-        std::fprintf(stderr, "distile: error: %s (see %s --help)\n", oneLine(error.what()).c_str(),
-                     help.c_str());
+        std::fprintf(stderr, "distile: error: %s (see %s --help)\n",
+                     oneLine(parseErrorMessage(app, error)).c_str(), help.c_str());
         return kExitInput;
     }
     return 0;

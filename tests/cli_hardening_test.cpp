@@ -375,6 +375,27 @@ TEST_F(Hardening, ABadThreadCountPointsToTheHelpThatListsIt) {
               cli::kExitInput);
 }
 
+TEST_F(Hardening, AValueThatIsNotANumberNamesItsOptionAndWhatItTakes) {
+    // Options without a range of their own were refused in CLI11's words ("Could not convert:
+    // --epsilon = abc"): now the option, the value and the kind of number, as every other error.
+    EXPECT_EQ(expectInputError({"render", "--epsilon", "abc", "-o", "out.png"}, "out.png",
+                               {"--epsilon: 'abc' is not accepted; give a number",
+                                "(see distile render --help)"})
+                  .status,
+              cli::kExitInput);
+    EXPECT_EQ(
+        expectInputError(
+            {"bake", "chainmail", "--rings-per-row", "x", "-o", "out.exr"}, "out.exr",
+            {"--rings-per-row: 'x' is not accepted; give an integer", "(see distile bake --help)"})
+            .status,
+        cli::kExitInput);
+    EXPECT_EQ(
+        expectInputError({"bake", "mesh", "m.obj", "--offset", "a", "b", "c", "-o", "out.exr"},
+                         "out.exr", {"--offset: 'a,b,c' is not accepted; give numbers"})
+            .status,
+        cli::kExitInput);
+}
+
 TEST_F(Hardening, CheckSeedsAreUnsigned64BitIntegers) {
     // CLI11 took -1 as 2^64 - 1 and clamped 2^64: the run then checked other points than asked.
     bakeChainmail();
