@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/vec3.hpp>
+#include <limits>
 #include <optional>
 #include <span>
 #include <type_traits>
@@ -121,6 +122,15 @@ inline void endOnFloor(MarchResult& result, const glm::vec3& position, const glm
     }
 }
 
+/// Where a ray leaves its shell through an open border of the base mesh `leaveTravelTexels` along
+/// it, before the floor `toFloor` texels along it: the march ends there as at an open floor (no
+/// hit), so that border takes the floor's place.
+inline void leaveBeforeFloor(float& toFloor, Floor& floor, float leaveTravelTexels) {
+    if (!(leaveTravelTexels < toFloor)) return;
+    toFloor = std::max(leaveTravelTexels, 0.0f);
+    floor = Floor::Open;
+}
+
 /// One ray's sphere trace (SphereTracing, OverRelaxed, Budgeted; file note), taken a distance
 /// sample at a time, so that marchInterleaved() can alternate between rays whose sample chains are
 /// independent. The operations per ray are exactly those of one march, in the same order:
@@ -133,7 +143,8 @@ class SphereTraceRay {
     /// Budgeted) from `start` along `direction`, in place. Preconditions as march(), and
     /// settings.maxIterations >= 1.
     void start(const glm::vec3& start, const glm::vec3& direction, Floor floor,
-               const MarchSettings& settings) {
+               const MarchSettings& settings,
+               float leaveTravelTexels = std::numeric_limits<float>::infinity()) {
         for (int axis = 0; axis < 3; ++axis) {
             lane_.start[axis] = start[axis];
             lane_.direction[axis] = direction[axis];
@@ -145,6 +156,7 @@ class SphereTraceRay {
         budgeted_ = settings.method == MarchMethod::Budgeted;
         lane_.refining = false;
         lane_.toFloorAtStart = start.z / -direction.z;
+        leaveBeforeFloor(lane_.toFloorAtStart, floor_, leaveTravelTexels);
         lane_.travel = lane_.safeRadius = lane_.previousStep = 0.0f;
         lane_.iterations = 0;
         result_.iterations = 0;
@@ -297,8 +309,8 @@ class SphereTraceRay {
 /// linear zero crossing of the last two distances.
 template <class Filter>
 MarchResult stepThroughSlab(const Filter& filter, const glm::vec3& start,
-                            const glm::vec3& direction, Floor floor,
-                            const MarchSettings& settings) {
+                            const glm::vec3& direction, Floor floor, const MarchSettings& settings,
+                            float leaveTravelTexels) {
     MarchResult result;
     const bool relief = settings.method == MarchMethod::Relief;
     // The last linear step lands on the floor itself, which needs no sample.
@@ -306,7 +318,8 @@ MarchResult stepThroughSlab(const Filter& filter, const glm::vec3& start,
         relief ? std::clamp(int(float(settings.maxIterations) * settings.reliefLinearShare), 1,
                             settings.maxIterations)
                : settings.maxIterations;
-    const float toFloor = start.z / -direction.z;
+    float toFloor = start.z / -direction.z;
+    leaveBeforeFloor(toFloor, floor, leaveTravelTexels);
     const float step = toFloor / float(linearSteps + 1);
     float outsideTravel = 0.0f;
     float outsideDistance = -1.0f;  // none sampled yet
@@ -368,10 +381,13 @@ inline std::optional<MarchResult> refusedMarch(const glm::vec3& position,
 /// Marches from `position` along `direction` with `settings` (file note). Preconditions:
 /// `direction` unit length with direction.z < 0; `position` inside the tile's slab. A NaN/Inf
 /// position or direction (outside the preconditions) returns at once: not converged, no
-/// iterations, the position as given.
+/// iterations, the position as given. A ray that leaves the shell through an open border of its
+/// mesh `leaveTravelTexels` along it, before the floor, ends there without a hit
+/// (leaveBeforeFloor).
 template <class Filter>
 MarchResult march(const Filter& filter, const glm::vec3& position, const glm::vec3& direction,
-                  Floor floor, const MarchSettings& settings) {
+                  Floor floor, const MarchSettings& settings,
+                  float leaveTravelTexels = std::numeric_limits<float>::infinity()) {
     if (const std::optional<MarchResult> refused = refusedMarch(position, direction, settings))
         return *refused;
     switch (settings.method) {
@@ -379,14 +395,15 @@ MarchResult march(const Filter& filter, const glm::vec3& position, const glm::ve
         case MarchMethod::OverRelaxed:
         case MarchMethod::Budgeted: {
             detail::SphereTraceRay ray;
-            ray.start(position, direction, floor, settings);
+            ray.start(position, direction, floor, settings, leaveTravelTexels);
             while (ray.step(filter)) {
             }
             return ray.result();
         }
         case MarchMethod::Relief:
         case MarchMethod::FixedSteps:
-            return detail::stepThroughSlab(filter, position, direction, floor, settings);
+            return detail::stepThroughSlab(filter, position, direction, floor, settings,
+                                           leaveTravelTexels);
     }
     return {};
 }

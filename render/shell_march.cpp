@@ -124,10 +124,18 @@ void buildShellMeshInto(const BaseMesh& mesh, const glm::vec2& uvScale, const Si
         }
         prisms[t] = ShellPrism::make(positions, normals, uvs, uvScale, tileSize.width,
                                      tileSize.height, tileSize.depth, depthWorld);
-        neighbours[t] = {ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour,
-                         ShellPrisms::kNoNeighbour};
-        neighbourCorners[t] = {0, 0, 0};
     });
+    buildNeighboursInto(mesh, firstIndex, neighbours, neighbourCorners);
+}
+
+void buildNeighboursInto(const BaseMesh& mesh, std::uint32_t firstIndex,
+                         std::span<std::array<std::uint32_t, 3>> neighbours,
+                         std::span<std::array<std::uint8_t, 3>> neighbourCorners) {
+    const std::size_t count = mesh.triangles.size();
+    std::fill(neighbours.begin(), neighbours.end(),
+              std::array<std::uint32_t, 3>{ShellPrisms::kNoNeighbour, ShellPrisms::kNoNeighbour,
+                                           ShellPrisms::kNoNeighbour});
+    std::fill(neighbourCorners.begin(), neighbourCorners.end(), std::array<std::uint8_t, 3>{});
     // Vertices welded by position: the copies along a uv seam are one vertex of the surface.
     const std::vector<std::uint32_t> surfaceVertex =
         weldedPositionGroups(mesh.positions, mesh.triangles);

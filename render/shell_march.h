@@ -64,6 +64,12 @@ void buildShellMeshInto(const BaseMesh& mesh, const glm::vec2& uvScale, const Si
                         std::span<std::array<std::uint32_t, 3>> neighbours,
                         std::span<std::array<std::uint8_t, 3>> neighbourCorners);
 
+/// The neighbours of buildShellMeshInto alone (no prisms): across each side of each triangle of
+/// `mesh`, numbered from `firstIndex` (ShellPrisms::kNoNeighbour at an open border).
+void buildNeighboursInto(const BaseMesh& mesh, std::uint32_t firstIndex,
+                         std::span<std::array<std::uint32_t, 3>> neighbours,
+                         std::span<std::array<std::uint8_t, 3>> neighbourCorners);
+
 /// How a curved march ended.
 struct CurvedMarchEnd {
     MarchResult march;           ///< texel position in the end prism's texel space, iterations, ...

@@ -41,7 +41,8 @@ void requireTexelDensity(std::size_t index, float texelsPerWorld, const char* ax
 }
 
 /// The march's result taken from the material's exact first hit (reference renders,
-/// Material::exactHit) instead of marching: the hit on the path to the floor z = 0, else the
+/// Material::exactHit) instead of marching: the hit on the path to the floor z = 0 (or to where
+/// the ray leaves through an open border, `leaveTravelTexels`, if that comes first), else the
 /// floor, ended as the march ends there (solid: a hit; open: the ray leaves). One query counts as
 /// one iteration. Stores the unit texel-space normal of a detail hit in `normalTexels`. A NaN/Inf
 /// start or direction returns at once, not converged, as march() does.
@@ -49,7 +50,8 @@ void requireTexelDensity(std::size_t index, float texelsPerWorld, const char* ax
 /// the query the double values from before their rounding to float in some builds (the origin
 /// of a reference query was not a float), so reference renders changed with unrelated edits.
 [[gnu::noinline]] MarchResult exactFirstHit(const Material& material, const glm::vec3& start,
-                                            const glm::vec3& direction, glm::vec3& normalTexels) {
+                                            const glm::vec3& direction, float leaveTravelTexels,
+                                            glm::vec3& normalTexels) {
     MarchResult result;
     result.texelPosition = start;
     if (!(std::isfinite(start.x) && std::isfinite(start.y) && std::isfinite(start.z) &&
@@ -58,10 +60,15 @@ void requireTexelDensity(std::size_t index, float texelsPerWorld, const char* ax
     result.iterations = 1;
     const glm::dvec3 origin(start);
     const glm::dvec3 unitDirection = glm::normalize(glm::dvec3(direction));
-    const double toFloor = origin.z / -unitDirection.z;
+    double toFloor = origin.z / -unitDirection.z;
+    Floor floor = material.floor;
+    if (leaveTravelTexels < toFloor) {  // an open border first (detail::leaveBeforeFloor)
+        toFloor = std::max(double(leaveTravelTexels), 0.0);
+        floor = Floor::Open;
+    }
     const std::optional<DetailHit> found = material.exactHit(origin, unitDirection, toFloor);
     if (!found) {
-        detail::endOnFloor(result, start, direction, 0.0f, float(toFloor), material.floor);
+        detail::endOnFloor(result, start, direction, 0.0f, float(toFloor), floor);
         return result;
     }
     result.converged = true;
@@ -170,7 +177,8 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
         firstTriangle += count;
     }
     // Independent: the base triangles' BVH and the curved shells' prisms.
-    tbb::parallel_invoke([&] { bvh_ = TriangleBvh(std::move(corners)); }, [&] { buildShellMap(); });
+    tbb::parallel_invoke([&] { bvh_ = TriangleBvh(std::move(corners)); }, [&] { buildShellMap(); },
+                         [&] { buildFlatBorders(); });
     shellPrisms_ = {prisms_, neighbours_, neighbourCorners_};
 
     // Per tile (objects sharing one share these): its columns, and its empty space where the
@@ -396,7 +404,9 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     if (options_.reference && material.exactHit) {
         march.startTexels = start;
         march.skippedTexels = 0.0f;
-        march.result = exactFirstHit(material, start, direction, march.gradientTexels);
+        march.leaveTravelTexels = leaveTravelTexels(march);
+        march.result = exactFirstHit(material, start, direction, march.leaveTravelTexels,
+                                     march.gradientTexels);
         march.gradientKnown = true;
         march.marched = true;
         return;
@@ -417,13 +427,122 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
 
 void SceneTracer::beginMarch(ShellMarch& march) const {
     march.settings = options_.march;
+    march.leaveTravelTexels = leaveTravelTexels(march);
     if (const auto refused =
             refusedMarch(march.startTexels, march.directionTexels, march.settings)) {
         march.result = *refused;
         march.marched = true;
     } else if (isSphereTracing(march.settings.method)) {
         march.trace.start(march.startTexels, march.directionTexels,
-                          scene_.objects[march.object].material.floor, march.settings);
+                          scene_.objects[march.object].material.floor, march.settings,
+                          march.leaveTravelTexels);
+    }
+}
+
+float SceneTracer::leaveTravelTexels(const ShellMarch& march) const {
+    constexpr float kNever = std::numeric_limits<float>::infinity();
+    const ShellTriangle& shell = triangles_[march.baseHit.triangle];
+    if (!shell.flatFrame || flatSidesFirst_[shell.object] == kNoFlatBorder) return kNever;
+    // The march's path ends on the floor: from the top's entry, the skipped empty path and the
+    // path to the floor, at texelsPerWorldAlongRay texels per world unit (as finishShell maps
+    // travel back to the ray).
+    // Most rays end far from every side of their triangle: a path to the floor shorter than
+    // the entry's distance to the nearest side cannot leave it (no division: both sides of
+    // path < distance x texelsPerWorld taken times the descent).
+    const FlatSides& sides = flatSides_[flatSidesFirst_[shell.object] + shell.localTriangle];
+    const float weights[3] = {1.0f - march.baseHit.b1 - march.baseHit.b2, march.baseHit.b1,
+                              march.baseHit.b2};
+    const float nearestSideWorld = std::min({weights[0] * sides.height[0],
+                                             weights[1] * sides.height[1],
+                                             weights[2] * sides.height[2]});
+    const float descent = -march.directionTexels.z;
+    if (march.skippedTexels * descent + march.startTexels.z <
+        nearestSideWorld * march.hit->texelsPerWorldAlongRay * descent)
+        return kNever;
+    const double texelsPerWorld = march.hit->texelsPerWorldAlongRay;
+    const double entryWorld = march.baseHit.distanceWorld;
+    const double toFloorTexels = march.startTexels.z / -march.directionTexels.z;
+    const double exitWorld = borderExitWorld(
+        *march.ray, march.baseHit.triangle,
+        entryWorld + (march.skippedTexels + toFloorTexels) / texelsPerWorld);
+    if (!(exitWorld < std::numeric_limits<double>::infinity())) return kNever;
+    return float((exitWorld - entryWorld) * texelsPerWorld - march.skippedTexels);
+}
+
+double SceneTracer::borderExitWorld(const Ray& ray, std::uint32_t shell, double endWorld) const {
+    constexpr double kNever = std::numeric_limits<double>::infinity();
+    const std::uint32_t first = flatSidesFirst_[triangles_[shell].object];
+    const glm::dvec3 origin(ray.origin), direction(ray.direction);
+    std::uint32_t triangle = triangles_[shell].localTriangle;
+    constexpr int kMaxWalk = 64;
+    for (int walk = 0; walk < kMaxWalk; ++walk) {
+        const FlatSides& sides = flatSides_[first + triangle];
+        if (!sides.flat) return kNever;
+        // The ray is inside the prism until it crosses the first side it moves out through.
+        double exitWorld = kNever;
+        int exitSide = -1;
+        for (int side = 0; side < 3; ++side) {
+            const double outward = glm::dot(direction, sides.outward[side]);
+            if (!(outward > 0.0)) continue;
+            const double at =
+                (sides.offset[side] - glm::dot(origin, sides.outward[side])) / outward;
+            if (at < exitWorld) {
+                exitWorld = at;
+                exitSide = side;
+            }
+        }
+        if (exitSide < 0 || !(exitWorld < endWorld)) return kNever;
+        triangle = sides.neighbour[exitSide];
+        if (triangle == ShellPrisms::kNoNeighbour) return exitWorld;
+    }
+    return kNever;
+}
+
+void SceneTracer::buildFlatBorders() {
+    flatSidesFirst_.assign(scene_.objects.size(), kNoFlatBorder);
+    std::uint32_t firstShell = 0;
+    for (std::size_t objectIndex = 0; objectIndex < scene_.objects.size(); ++objectIndex) {
+        const BaseMesh& mesh = scene_.objects[objectIndex].mesh;
+        const auto count = std::uint32_t(mesh.triangles.size());
+        const std::span<const ShellTriangle> shells(triangles_.data() + firstShell, count);
+        firstShell += count;
+        const auto flatWithDetail = [](const ShellTriangle& shell) {
+            return shell.flatFrame && shell.hasDetail();
+        };
+        if (std::none_of(shells.begin(), shells.end(), flatWithDetail)) continue;
+        std::vector<std::array<std::uint32_t, 3>> neighbours(count);
+        std::vector<std::array<std::uint8_t, 3>> neighbourCorners(count);
+        buildNeighboursInto(mesh, 0, neighbours, neighbourCorners);
+        bool openBorder = false;
+        for (std::uint32_t t = 0; t < count; ++t) {
+            if (!flatWithDetail(shells[t])) continue;
+            for (const std::uint32_t across : neighbours[t])
+                openBorder = openBorder || across == ShellPrisms::kNoNeighbour;
+        }
+        if (!openBorder) continue;
+        flatSidesFirst_[objectIndex] = std::uint32_t(flatSides_.size());
+        flatSides_.resize(flatSides_.size() + count);
+        FlatSides* sides = flatSides_.data() + flatSidesFirst_[objectIndex];
+        for (std::uint32_t t = 0; t < count; ++t) {
+            if (!flatWithDetail(shells[t])) continue;
+            const glm::dvec3 normal(shells[t].frameNormal);
+            const glm::uvec3 corners = mesh.triangles[t];
+            for (int side = 0; side < 3; ++side) {
+                // The side opposite corner `side`: the plane through its edge along the normal,
+                // its normal turned away from that corner.
+                const glm::dvec3 opposite(mesh.positions[corners[side]]);
+                const glm::dvec3 from(mesh.positions[corners[(side + 1) % 3]]);
+                const glm::dvec3 to(mesh.positions[corners[(side + 2) % 3]]);
+                glm::dvec3 outward = glm::cross(to - from, normal);
+                if (glm::dot(outward, opposite - from) > 0.0) outward = -outward;
+                sides[t].outward[side] = outward;
+                sides[t].offset[side] = glm::dot(outward, from);
+                sides[t].height[side] =
+                    float(glm::dot(outward, from - opposite) / glm::length(outward));
+                sides[t].neighbour[side] = neighbours[t][std::size_t(side)];
+            }
+            sides[t].flat = true;
+        }
     }
 }
 
@@ -614,7 +733,8 @@ void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {
                 options_.filter, material, columns(march->object), options_.reference,
                 [&](const auto& filter) {
                     return distile::march(filter, march->startTexels, march->directionTexels,
-                                          material.floor, march->settings);
+                                          material.floor, march->settings,
+                                          march->leaveTravelTexels);
                 });
             march->marched = true;
         }

@@ -11,6 +11,7 @@
 #include <glm/mat3x3.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <limits>
 #include <memory>
 #include <span>
 #include <string>
@@ -153,6 +154,9 @@ struct ShellMarch {
     glm::vec3 startTexels{0.0f};  ///< where the march starts (after the skipped empty path)
     glm::vec3 directionTexels{0.0f, 0.0f, -1.0f};  ///< unit in texel space
     float skippedTexels = 0.0f;                    ///< empty path from the top face to startTexels
+    /// Travel from startTexels at which the ray leaves the shell through an open border of the
+    /// base mesh (+infinity: not before the floor); the march ends there without a hit.
+    float leaveTravelTexels = std::numeric_limits<float>::infinity();
     MarchSettings settings;                        ///< the tracer's, with this ray's budget
     detail::SphereTraceRay trace;                  ///< the sphere-tracing methods' state
     bool marched = false;  ///< result is final (exact reference hits are known at entry)
@@ -370,6 +374,16 @@ class SceneTracer {
     void finishCurvedMarch(ShellMarch& march) const;
     /// The prisms of every shell and their neighbours, warnings about folds.
     void buildShellMap();
+    /// flatSides_ and flatSidesFirst_ for the objects whose flat shells have an open border.
+    void buildFlatBorders();
+    /// Where a ray through flat shell `shell` leaves the shell through an open border of its
+    /// mesh before `endWorld` along it (the world distance), walking on across its sides into
+    /// neighbouring flat shells; +infinity when it does not (or the walk reaches a shell that is
+    /// not flat, or goes on past 64 of them).
+    double borderExitWorld(const Ray& ray, std::uint32_t shell, double endWorld) const;
+    /// Where the march of `march` (a flat or planar shell's) leaves its shell through an open
+    /// border, in texels of travel from its start (ShellMarch::leaveTravelTexels).
+    float leaveTravelTexels(const ShellMarch& march) const;
 
     const Scene& scene_;
     TraceOptions options_;
@@ -385,6 +399,24 @@ class SceneTracer {
     std::vector<std::array<std::uint32_t, 3>> neighbours_;
     std::vector<std::array<std::uint8_t, 3>> neighbourCorners_;
     ShellPrisms shellPrisms_;  ///< views of the three above
+    /// A flat shell's sides (planes through its base edges along its normal), each with its
+    /// outward normal, the plane's offset along it (dot(outward, point) on the plane) and the
+    /// object's triangle across it (ShellPrisms::kNoNeighbour: an open border). Not `flat`: a
+    /// triangle of the object whose shell is not flat (a march walking into it stops looking).
+    struct FlatSides {
+        glm::dvec3 outward[3];
+        double offset[3];
+        std::uint32_t neighbour[3];
+        /// The triangle's heights over its sides (from the opposite corners), world units: a
+        /// point with barycentrics b lies b[i] x height[i] from side i.
+        float height[3];
+        bool flat = false;
+    };
+    /// Per object: where its triangles' FlatSides start in flatSides_ (by local triangle), or
+    /// kNoFlatBorder when none of its flat shells has an open border.
+    std::vector<std::uint32_t> flatSidesFirst_;
+    static constexpr std::uint32_t kNoFlatBorder = 0xffffffffU;
+    std::vector<FlatSides> flatSides_;
     std::vector<std::string> warnings_;
 };
 

@@ -25,6 +25,7 @@ uniform vec2 distileDecode;
 const int kDistileBudget = 32;           // distance samples per ray at most
 const float kDistileEpsilonTexels = 0.02; // closer than this to the surface is a hit
 const float kDistileSecantReachTexels = 1.0; // a secant step's reach beyond the distance sampled
+const float kDistileNever = 1e30;         // leaveTexels of a ray that meets no open border
 
 float distileTexel(ivec3 texel) {
     return texelFetch(distileTile, texel, 0).r * distileDecode.x + distileDecode.y;
@@ -141,10 +142,17 @@ void distileEndOnFloor(inout DistileMarch result, vec3 start, vec3 direction, fl
 }
 
 // The budgeted sphere trace from `start` (texel space, z <= D) along `direction` (unit in texel
-// space, direction.z < 0) with `budget` distance samples (>= 1).
-DistileMarch distileMarch(vec3 start, vec3 direction, int budget, bool solidFloor) {
+// space, direction.z < 0) with `budget` distance samples (>= 1), ending without a hit (as at an
+// open floor) where the ray leaves the shell through an open border of the base mesh,
+// `leaveTexels` along it, if that comes before the floor.
+DistileMarch distileMarchUntil(vec3 start, vec3 direction, int budget, bool solidFloor,
+                               float leaveTexels) {
     DistileMarch result = DistileMarch(start, 0.0, 0, false, false, false);
     float toFloorAtStart = start.z / -direction.z;
+    if (leaveTexels < toFloorAtStart) {
+        toFloorAtStart = max(leaveTexels, 0.0);
+        solidFloor = false;
+    }
     float travel = 0.0, safeRadius = 0.0, previousStep = 0.0;
     bool refining = false;
     float outside = 0.0, outsideDistance = 0.0, inside = 0.0, insideDistance = 0.0, estimate = 0.0;
@@ -216,14 +224,27 @@ DistileMarch distileMarch(vec3 start, vec3 direction, int budget, bool solidFloo
 // The whole ray in a tile: from its entry `entryTexels` on the top face (z = D) along
 // `directionTexels` (unit, z < 0), skipping the empty path down to `highestTopTexels` (the
 // highest top of the detail: no point above it is within epsilon; D when unknown), then the march
-// with the whole budget. travelTexels of the result counts from the entry.
-DistileMarch distileTrace(vec3 entryTexels, vec3 directionTexels, float highestTopTexels,
-                          bool solidFloor) {
+// with the whole budget, ending where the ray leaves the shell through an open border of the base
+// mesh `leaveTexels` from the entry (as distileMarchUntil). travelTexels of the result counts
+// from the entry.
+DistileMarch distileTraceUntil(vec3 entryTexels, vec3 directionTexels, float highestTopTexels,
+                               bool solidFloor, float leaveTexels) {
     float skipped = entryTexels.z > highestTopTexels
                         ? (entryTexels.z - highestTopTexels) / -directionTexels.z
                         : 0.0;
     vec3 start = entryTexels + directionTexels * skipped;
-    DistileMarch result = distileMarch(start, directionTexels, kDistileBudget, solidFloor);
+    DistileMarch result = distileMarchUntil(start, directionTexels, kDistileBudget, solidFloor,
+                                            leaveTexels - skipped);
     result.travelTexels += skipped;
     return result;
+}
+
+// The same for a shell without open borders (a closed mesh), or whose rays never reach one.
+DistileMarch distileMarch(vec3 start, vec3 direction, int budget, bool solidFloor) {
+    return distileMarchUntil(start, direction, budget, solidFloor, kDistileNever);
+}
+DistileMarch distileTrace(vec3 entryTexels, vec3 directionTexels, float highestTopTexels,
+                          bool solidFloor) {
+    return distileTraceUntil(entryTexels, directionTexels, highestTopTexels, solidFloor,
+                             kDistileNever);
 }

@@ -86,8 +86,11 @@ TEST(MeshReference, ExactMeshHitsAgreeWithTheAnalyticTorusToTheTessellationError
         return DetailHit{hit->distance, hit->normal};
     };
     const RenderResult exact = renderReference(material);
-    // Exact hits take one query per shell entry instead of a march.
-    EXPECT_EQ(exact.stats.marchIterations, exact.stats.converged);
+    // Exact hits take one query per shell entry instead of a march: one per hit, and one per ray
+    // that left through the plane's edge (and then hit nothing).
+    EXPECT_GE(exact.stats.marchIterations, exact.stats.converged);
+    EXPECT_LE(exact.stats.marchIterations - exact.stats.converged,
+              exact.stats.rays - exact.stats.baseHits);
 
     const RenderComparison comparison = compareRenders(
         {exact.image, exact.aovs->depth, exact.aovs->normal, exact.aovs->texelScale},
@@ -112,8 +115,11 @@ TEST(MeshReference, ExactMeshHitsAgreeWithTheAnalyticTorusToTheTessellationError
     EXPECT_LT(comparison.meanHitErrorTexels, 2.0 * tessellation);
     EXPECT_LT(comparison.p99HitErrorTexels,
               tessellation / std::cos(82.0 * std::numbers::pi / 180.0));
-    // The floor is solid: every pixel on the plane is a hit in both, the sky a miss in both.
-    EXPECT_EQ(comparison.coverageMismatches, 0u);
+    // The floor is solid: every pixel on the plane is a hit in both, the sky a miss in both, but
+    // for rays that meet the torus where the plane's open edge cuts it: a hit within the
+    // tessellation error of the cut can lie inside the edge in one and beyond it (the ray left
+    // the shell) in the other. A few pixels along the visible edges, 7 measured: at most 0.1%.
+    EXPECT_LE(double(comparison.coverageMismatches), 1e-3 * 160.0 * 120.0);
     // Flat facets against the smooth surface: the facet normal is off by at most half the angle
     // between neighbouring vertex normals, 180 / 32 = 5.6 degrees across the tube, on average
     // half that. The floor (normal exact in both) pulls the mean lower still.

@@ -22,6 +22,9 @@ namespace {
 
 constexpr int kWidth = 64;
 constexpr int kHeight = 48;
+/// Pixels whose coverage may differ where the sheet's open edge cuts a ring: 0.5% of the view
+/// (measured: none at the 0.02-texel bound, 4 at 0.1).
+constexpr int kEdgePixels = kWidth * kHeight / 200;
 
 /// A small data/scenes/sheet.json: one 64 x 64 x 16 tile of chain mail (2 x 2 rings of the default
 /// proportions: spacing 32 texels, R = 22.5, r = 2.1) on a plane of side 1 with cubic texels
@@ -107,11 +110,13 @@ TEST(EmbreePeer, HitsTheReferenceSurfaceWithinTheTessellationBound) {
     EXPECT_GT(peer.memoryBytes, 0u);
     const DepthAgreement a = agreement(peer);
     // The floor is part of the Embree scene and only rays entering through the base mesh are
-    // traced, so both cover the same pixels.
-    EXPECT_EQ(a.peerHits, a.referenceHits);
-    EXPECT_EQ(a.peerOnly, 0);
-    // Faces lie within the default tessellation bound (0.02 texel) of the surface; along the ray that is
-    // 0.02 / cos(incidence); the reference converges to 1e-3 texel, float rays add ~1e-4.
+    // traced, so both cover the same pixels, but where the plane's open edge cuts a ring: a ray
+    // that meets the ring within the tessellation bound of the cut can hit inside the edge in one
+    // and leave the shell beyond it in the other (a pixel here and there along the edges).
+    EXPECT_LE(std::abs(a.peerHits - a.referenceHits), kEdgePixels);
+    EXPECT_LE(a.peerOnly, kEdgePixels);
+    // Faces lie within the default tessellation bound (0.02 texel) of the surface; along the ray
+    // that is 0.02 / cos(incidence); the reference converges to 1e-3 texel, float rays add ~1e-4.
     EXPECT_LT(a.quantile(0.5), 0.5 * EmbreePeerOptions{}.tessellationErrorTexels);
     EXPECT_LT(a.quantile(0.95), 0.1);
     // Silhouettes: a ray grazing a wire within 0.02 texel hits the true surface but passes the
@@ -128,8 +133,8 @@ TEST(EmbreePeer, PacketsOfQuadsAtACoarserBoundHitWithinThatBound) {
     const PeerRender peer = renderSheetWithEmbree(smallSheet(), kWidth, kHeight, 2, options);
     if (!peer.available) GTEST_SKIP() << peer.unavailableReason;
     const DepthAgreement a = agreement(peer);
-    EXPECT_EQ(a.peerHits, a.referenceHits);
-    EXPECT_EQ(a.peerOnly, 0);
+    EXPECT_LE(std::abs(a.peerHits - a.referenceHits), kEdgePixels);  // as above
+    EXPECT_LE(a.peerOnly, kEdgePixels);
     // The faces lie inside the rings, at most 0.1 texel from the surface (0.1 / cos(incidence)
     // along the ray); a typical hit is well inside that, as at the finer bound above.
     EXPECT_LT(a.quantile(0.5), 0.5 * options.tessellationErrorTexels);
@@ -156,8 +161,8 @@ TEST(EmbreePeer, PacketsAndQuadsHitWhatSingleRaysOnTrianglesHit) {
     constexpr int kOddHeight = 45;
     EmbreePeerOptions single;
     single.tessellationErrorTexels = 0.05;
-    const PeerRender singleRays = renderSheetWithEmbree(smallSheet(), kOddWidth, kOddHeight, 2,
-                                                        single);
+    const PeerRender singleRays =
+        renderSheetWithEmbree(smallSheet(), kOddWidth, kOddHeight, 2, single);
     if (!singleRays.available) GTEST_SKIP() << singleRays.unavailableReason;
     int hits = 0;
     for (const glm::vec3& depth : singleRays.depth.rgbLinear) hits += depth.x > 0.0f;

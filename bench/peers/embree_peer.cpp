@@ -160,34 +160,39 @@ std::vector<glm::uvec4> quadsOf(const std::vector<glm::uvec3>& triangles) {
     return quads;
 }
 
-/// The part of sheet texel space (x, y) rays can reach: distile marches a ray that entered the
-/// shell through the base mesh on in the periodic tile until it hits, also past the mesh's edge,
-/// so the rectangle is the uv rectangle grown by the farthest a camera ray sideways below the
-/// surface before it reaches the floor (largest at a corner of the rectangle).
+/// The base mesh's uv rectangle in sheet texel space (x, y): where the shell is. distile's march
+/// ends where a ray leaves it through the mesh's open border, so the rings are cut there.
 struct TexelRectangle {
     glm::dvec2 min{0.0}, max{0.0};
 };
-TexelRectangle reachableRectangle(const detail::SheetPlacement& sheet, const glm::dvec3& eye) {
+TexelRectangle footprintRectangle(const detail::SheetPlacement& sheet) {
     const glm::dvec2 tileTexels(sheet.tile.width, sheet.tile.height);
-    TexelRectangle rectangle{sheet.uvMin * sheet.uvScale * tileTexels,
-                             sheet.uvMax * sheet.uvScale * tileTexels};
-    const glm::dvec3 eyeTexel = sheet.texelFromWorld(eye);
-    const double heightTexels = eyeTexel.z - sheet.tile.depth;
-    double travelTexels = 0.0;
-    if (heightTexels <= 0.0) {
-        travelTexels = 8.0 * std::max(tileTexels.x, tileTexels.y);  // eye in or under the shell
-    } else {
-        for (const double x : {rectangle.min.x, rectangle.max.x}) {
-            for (const double y : {rectangle.min.y, rectangle.max.y}) {
-                const double sideways = glm::length(glm::dvec2(x, y) - glm::dvec2(eyeTexel));
-                travelTexels = std::max(travelTexels, sheet.tile.depth * sideways / heightTexels);
+    return {sheet.uvMin * sheet.uvScale * tileTexels, sheet.uvMax * sheet.uvScale * tileTexels};
+}
+
+/// `polygon` (texel space, convex) cut to the rectangle's x and y ranges (Sutherland-Hodgman; z
+/// interpolated along the cut edges): empty when nothing of it lies inside.
+std::vector<glm::dvec3> clippedToRectangle(std::vector<glm::dvec3> polygon,
+                                           const TexelRectangle& rectangle) {
+    for (int axis = 0; axis < 2; ++axis) {
+        for (const double sign : {1.0, -1.0}) {
+            // Inside: sign * (p[axis] - bound) >= 0, the bound the min (sign 1) or the max (-1).
+            const double bound = sign > 0.0 ? rectangle.min[axis] : rectangle.max[axis];
+            std::vector<glm::dvec3> kept;
+            for (std::size_t k = 0; k < polygon.size(); ++k) {
+                const glm::dvec3& from = polygon[k];
+                const glm::dvec3& to = polygon[(k + 1) % polygon.size()];
+                const double fromSide = sign * (from[axis] - bound);
+                const double toSide = sign * (to[axis] - bound);
+                if (fromSide >= 0.0) kept.push_back(from);
+                if ((fromSide >= 0.0) != (toSide >= 0.0))
+                    kept.push_back(from + (to - from) * (fromSide / (fromSide - toSide)));
             }
+            polygon = std::move(kept);
+            if (polygon.empty()) return polygon;
         }
-        travelTexels = std::min(travelTexels, 8.0 * std::max(tileTexels.x, tileTexels.y));
     }
-    rectangle.min -= travelTexels + 1.0;
-    rectangle.max += travelTexels + 1.0;
-    return rectangle;
+    return polygon;
 }
 
 /// True when `ray` enters the shell through the top inside the base mesh's uv rectangle: the only
@@ -200,23 +205,28 @@ bool entersThroughTheBase(const detail::SheetPlacement& sheet, const Ray& ray) {
     return distance >= 0.0 && sheet.inFootprint(origin + direction * distance);
 }
 
-/// The rings of every tile repeat that can reach into `reachable`, in world space (float), with
-/// their polygons (the tile's `tilePolygons`, triangles or quads, indexing `tilePositions`).
+/// The rings of every tile repeat over `footprint`, in world space (float): the polygons wholly
+/// inside it as they are (the tile's `tilePolygons`, triangles or quads, indexing
+/// `tilePositions`) into `positions` and `polygons`, those across its edge cut there into
+/// triangles (`cutPositions`, `cutTriangles`), those outside dropped.
 template <typename Polygon>
 void placeRings(const detail::SheetPlacement& sheet, const std::vector<glm::dvec3>& tilePositions,
                 const std::vector<Polygon>& tilePolygons, std::size_t verticesPerRing,
-                const TexelRectangle& reachable, std::vector<glm::vec3>& positions,
-                std::vector<Polygon>& polygons) {
+                const TexelRectangle& footprint, std::vector<glm::vec3>& positions,
+                std::vector<Polygon>& polygons, std::vector<glm::vec3>& cutPositions,
+                std::vector<glm::uvec3>& cutTriangles) {
     const glm::dvec2 tileTexels(sheet.tile.width, sheet.tile.height);
-    const glm::dvec2 footprintMin = reachable.min;
-    const glm::dvec2 footprintMax = reachable.max;
     const std::size_t rings = tilePositions.size() / verticesPerRing;
     const std::size_t polygonsPerRing = tilePolygons.size() / rings;
+    const auto inside = [&](const glm::dvec3& point) {
+        return point.x >= footprint.min.x && point.x <= footprint.max.x &&
+               point.y >= footprint.min.y && point.y <= footprint.max.y;
+    };
     // One repeat more on each side: rings centred in a neighbouring tile cross into this one.
-    const int firstX = int(std::floor(footprintMin.x / tileTexels.x)) - 1;
-    const int lastX = int(std::ceil(footprintMax.x / tileTexels.x));
-    const int firstY = int(std::floor(footprintMin.y / tileTexels.y)) - 1;
-    const int lastY = int(std::ceil(footprintMax.y / tileTexels.y));
+    const int firstX = int(std::floor(footprint.min.x / tileTexels.x)) - 1;
+    const int lastX = int(std::ceil(footprint.max.x / tileTexels.x));
+    const int firstY = int(std::floor(footprint.min.y / tileTexels.y)) - 1;
+    const int lastY = int(std::ceil(footprint.max.y / tileTexels.y));
     for (int repeatY = firstY; repeatY <= lastY; ++repeatY) {
         for (int repeatX = firstX; repeatX <= lastX; ++repeatX) {
             const glm::dvec3 shift(repeatX * tileTexels.x, repeatY * tileTexels.y, 0.0);
@@ -229,16 +239,31 @@ void placeRings(const detail::SheetPlacement& sheet, const std::vector<glm::dvec
                 }
                 low += shift;
                 high += shift;
-                if (high.x < footprintMin.x || low.x > footprintMax.x || high.y < footprintMin.y ||
-                    low.y > footprintMax.y) {
+                if (high.x < footprint.min.x || low.x > footprint.max.x ||
+                    high.y < footprint.min.y || low.y > footprint.max.y) {
                     continue;
                 }
                 const auto offset = unsigned(positions.size()) - unsigned(ring * verticesPerRing);
                 for (std::size_t v = 0; v < verticesPerRing; ++v)
                     positions.push_back(
                         glm::vec3(sheet.worldFromTexel(begin[std::ptrdiff_t(v)] + shift)));
-                for (std::size_t p = 0; p < polygonsPerRing; ++p)
-                    polygons.push_back(tilePolygons[ring * polygonsPerRing + p] + offset);
+                for (std::size_t p = 0; p < polygonsPerRing; ++p) {
+                    const Polygon& polygon = tilePolygons[ring * polygonsPerRing + p];
+                    std::vector<glm::dvec3> corners;
+                    for (int corner = 0; corner < Polygon::length(); ++corner)
+                        corners.push_back(tilePositions[polygon[corner]] + shift);
+                    if (std::all_of(corners.begin(), corners.end(), inside)) {
+                        polygons.push_back(polygon + offset);
+                        continue;
+                    }
+                    const std::vector<glm::dvec3> cut = clippedToRectangle(corners, footprint);
+                    if (cut.size() < 3) continue;
+                    const auto first = unsigned(cutPositions.size());
+                    for (const glm::dvec3& corner : cut)
+                        cutPositions.push_back(glm::vec3(sheet.worldFromTexel(corner)));
+                    for (unsigned k = 1; k + 1 < cut.size(); ++k)
+                        cutTriangles.emplace_back(first, first + k, first + k + 1);
+                }
             }
         }
     }
@@ -364,33 +389,32 @@ void tracePackets(RTCScene scene, const detail::SheetPlacement& sheet,
     });
 }
 
-/// The tessellated rings placed over the reachable rectangle, with their polygons, then the floor,
-/// attached to `scene` and committed.
+/// The tessellated rings placed over the footprint and cut at its edge, with their polygons,
+/// then the floor under the footprint, attached to `scene` and committed.
 template <typename Polygon>
 void buildScene(const Device& device, RTCScene scene, const detail::SheetPlacement& sheet,
                 const TriangleSoup& tileRings, const std::vector<Polygon>& tilePolygons,
-                std::size_t verticesPerRing, const TexelRectangle& reachable) {
-    std::vector<glm::vec3> ringPositions;
+                std::size_t verticesPerRing, const TexelRectangle& footprint) {
+    std::vector<glm::vec3> ringPositions, cutPositions;
     std::vector<Polygon> ringPolygons;
-    placeRings(sheet, tileRings.positions, tilePolygons, verticesPerRing, reachable, ringPositions,
-               ringPolygons);
-    if (!ringPolygons.empty()) {
-        RTCGeometry rings = meshGeometry(device, ringPositions, ringPolygons);
-        rtcCommitGeometry(rings);
-        rtcAttachGeometry(scene, rings);
-        rtcReleaseGeometry(rings);
-    }
-    // The solid floor at the bottom of the shell, as far as rays reach.
+    std::vector<glm::uvec3> cutTriangles;
+    placeRings(sheet, tileRings.positions, tilePolygons, verticesPerRing, footprint, ringPositions,
+               ringPolygons, cutPositions, cutTriangles);
+    const auto attach = [&](RTCGeometry geometry) {
+        rtcCommitGeometry(geometry);
+        rtcAttachGeometry(scene, geometry);
+        rtcReleaseGeometry(geometry);
+    };
+    if (!ringPolygons.empty()) attach(meshGeometry(device, ringPositions, ringPolygons));
+    if (!cutTriangles.empty()) attach(meshGeometry(device, cutPositions, cutTriangles));
+    // The solid floor at the bottom of the shell.
     const std::vector<glm::vec3> floorPositions{
-        glm::vec3(sheet.worldFromTexel({reachable.min.x, reachable.min.y, 0.0})),
-        glm::vec3(sheet.worldFromTexel({reachable.max.x, reachable.min.y, 0.0})),
-        glm::vec3(sheet.worldFromTexel({reachable.max.x, reachable.max.y, 0.0})),
-        glm::vec3(sheet.worldFromTexel({reachable.min.x, reachable.max.y, 0.0}))};
+        glm::vec3(sheet.worldFromTexel({footprint.min.x, footprint.min.y, 0.0})),
+        glm::vec3(sheet.worldFromTexel({footprint.max.x, footprint.min.y, 0.0})),
+        glm::vec3(sheet.worldFromTexel({footprint.max.x, footprint.max.y, 0.0})),
+        glm::vec3(sheet.worldFromTexel({footprint.min.x, footprint.max.y, 0.0}))};
     const std::vector<glm::uvec3> floorTriangles{{0, 1, 2}, {0, 2, 3}};
-    RTCGeometry floor = meshGeometry(device, floorPositions, floorTriangles);
-    rtcCommitGeometry(floor);
-    rtcAttachGeometry(scene, floor);
-    rtcReleaseGeometry(floor);
+    attach(meshGeometry(device, floorPositions, floorTriangles));
     rtcCommitScene(scene);
 }
 
@@ -432,9 +456,9 @@ PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int 
     assert(chainmailTessellationErrorTexels(chainmail, around, tube) <= errorTexels);
     const TriangleSoup tileRings = tessellateChainmail(chainmail, around, tube);
 
-    const TexelRectangle reachable = reachableRectangle(sheet, glm::dvec3(scene.camera.eye));
+    const TexelRectangle footprint = footprintRectangle(sheet);
     const glm::dvec2 tilesReached =
-        (reachable.max - reachable.min) / glm::dvec2(sheet.tile.width, sheet.tile.height) + 3.0;
+        (footprint.max - footprint.min) / glm::dvec2(sheet.tile.width, sheet.tile.height) + 3.0;
     if (tilesReached.x * tilesReached.y * double(tileRings.triangles.size()) > double(1 << 28)) {
         return detail::unavailablePeer(
             "embree", "not available: the sheet would need more than 2^28 triangles");
@@ -462,10 +486,10 @@ PeerRender renderSheetWithEmbree(const Scene& scene, int width, int height, int 
     arena.execute([&] {
         if (options.quads) {
             buildScene(device, embreeScene.get(), sheet, tileRings, quadsOf(tileRings.triangles),
-                       verticesPerRing, reachable);
+                       verticesPerRing, footprint);
         } else {
             buildScene(device, embreeScene.get(), sheet, tileRings, tileRings.triangles,
-                       verticesPerRing, reachable);
+                       verticesPerRing, footprint);
         }
     });
     device.check("building the scene");

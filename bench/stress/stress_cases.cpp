@@ -86,14 +86,22 @@ constexpr float kPlaneSize = 2.0f;
 constexpr float kUvScale = 2.0f;
 constexpr float kCubeDepth = 0.5f;
 constexpr double kTexelsPerWorldXY = 32.0;
+/// A plane wide enough that the grazing rays and the deep shells' rays reach the detail before
+/// its edge, where a ray leaves the shell: at 0.1 degree a ray crosses 4 texels of height over
+/// 2300 texels (72 world units), and a shell 100 units deep sends the camera's rays about 150
+/// units sideways.
+constexpr float kWidePlaneSize = 512.0f;
 
-Scene planeScene(std::shared_ptr<const Tile> tile, float depthWorld = kCubeDepth) {
+/// The plane scene with a plane of side `sizeWorld`, the texel density kept (32 per world unit).
+Scene planeScene(std::shared_ptr<const Tile> tile, float depthWorld = kCubeDepth,
+                 float sizeWorld = kPlaneSize) {
     Scene scene;
     scene.camera = {{0.3f, -1.6f, 1.2f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
     SceneObject plane;
-    plane.mesh = makePlane(kPlaneSize, 1);
+    plane.mesh = makePlane(sizeWorld, 1);
     plane.material.tile = std::move(tile);
-    plane.material.uvScale = {kUvScale, kUvScale};
+    const float uvScale = kUvScale * sizeWorld / kPlaneSize;
+    plane.material.uvScale = {uvScale, uvScale};
     plane.material.depthWorld = depthWorld;
     scene.objects.push_back(std::move(plane));
     return scene;
@@ -163,8 +171,8 @@ void grazingSphereTracingCases(std::vector<StressCase>& cases) {
     // filter extends the top cell linearly, so the field is exact up to z = D), so with 16
     // iterations grazing rays stop short of the plane: never below it, at the predicted height
     // above it. With a budget large enough (4096) they all converge within epsilon.
-    const Scene scene =
-        planeScene(flatTile({32, 32, kFlatDepth}, kFlatHeight), kCubeDepth * kFlatDepth / 16.0f);
+    const Scene scene = planeScene(flatTile({32, 32, kFlatDepth}, kFlatHeight),
+                                   kCubeDepth * kFlatDepth / 16.0f, kWidePlaneSize);
     const double texelsPerWorldZ = kFlatDepth / scene.objects[0].material.depthWorld;
     const double planeWorldZ = -(kFlatDepth - kFlatHeight) / texelsPerWorldZ;
     for (int budget : {16, 4096}) {
@@ -272,8 +280,8 @@ void grazingBudgetedCases(std::vector<StressCase>& cases) {
     // the floor over the samples left, so the ray crosses the plane z = h within the default
     // budget, and regula falsi on the plane's linear distance (exact up to z = D) lands on it:
     // converged, within epsilon, never further below it.
-    const Scene scene =
-        planeScene(flatTile({32, 32, kFlatDepth}, kFlatHeight), kCubeDepth * kFlatDepth / 16.0f);
+    const Scene scene = planeScene(flatTile({32, 32, kFlatDepth}, kFlatHeight),
+                                   kCubeDepth * kFlatDepth / 16.0f, kWidePlaneSize);
     const TraceOptions traceOptions;
     const SceneTracer tracer(scene, traceOptions);
     const double epsilon = traceOptions.march.epsilonTexels;
@@ -341,7 +349,7 @@ void farUvCase(std::vector<StressCase>& cases) {
     const SceneTracer nearTracer(near, TraceOptions{});
     const SceneTracer farTracer(far, TraceOptions{});
     double maxTexelError = 0.0;
-    int rays = 0, bothTraced = 0, compared = 0;
+    int rays = 0, alike = 0, bothTraced = 0, compared = 0;
     for (int i = 0; i < 200; ++i) {
         const glm::vec3 target(-0.9f + 1.8f * float(i % 20) / 19.0f,
                                -0.9f + 1.8f * float(i / 20) / 9.0f, 0.0f);
@@ -350,9 +358,11 @@ void farUvCase(std::vector<StressCase>& cases) {
         SurfaceHit nearHit, farHit;
         TraceCounters counters;
         ++rays;
-        if (!nearTracer.traceNearest(ray, 0.0f, nearHit, counters) ||
-            !farTracer.traceNearest(ray, 0.0f, farHit, counters))
-            continue;
+        // A ray that reaches the plane's edge before the detail leaves both shells there.
+        const bool nearFound = nearTracer.traceNearest(ray, 0.0f, nearHit, counters);
+        const bool farFound = farTracer.traceNearest(ray, 0.0f, farHit, counters);
+        alike += nearFound == farFound ? 1 : 0;
+        if (!nearFound || !farFound) continue;
         if (!isFiniteHit(farHit)) {
             ++record.result().nonFinitePixels;
             continue;
@@ -378,9 +388,9 @@ void farUvCase(std::vector<StressCase>& cases) {
         "hit error max %.2g texels over %d rays; image mean |diff| %.5f, max %.4f, share > 0.05: "
         "%.4f",
         maxTexelError, compared, difference.meanAbs, difference.maxAbs, difference.shareOver);
-    record.check(bothTraced == rays,
-                 formatLine("every ray hit both planes: %d of %d", bothTraced, rays));
-    record.check(compared > 150, formatLine("more than 150 detail hits compared: %d", compared));
+    record.check(alike == rays,
+                 formatLine("every ray hit both planes or left both: %d of %d", alike, rays));
+    record.check(compared > 120, formatLine("more than 120 detail hits compared: %d", compared));
     // Hits 1e-5 texel apart shade alike: no pixel may differ visibly.
     record.check(difference.meanAbs < 1e-4,
                  formatLine("image mean |diff| %.2g < 1e-4", difference.meanAbs));
@@ -702,7 +712,8 @@ void shellDepthCases(std::vector<StressCase>& cases) {
         CaseRecord record(formatLine("shell depth %g world units", double(depthWorld)),
                           "Straight-down rays (exact steps) land on the flat detail plane within "
                           "epsilon; the image is finite, no hang.");
-        const Scene scene = planeScene(flatTile({32, 32, kFlatDepth}, kFlatHeight), depthWorld);
+        const Scene scene =
+            planeScene(flatTile({32, 32, kFlatDepth}, kFlatHeight), depthWorld, kWidePlaneSize);
         const SceneTracer tracer(scene, TraceOptions{});
         const DownwardHit hit = traceDownward(tracer, 0.13f, -0.37f, kFlatHeight);
         const RenderResult render = renderScene(scene, smallOptions());
