@@ -452,9 +452,8 @@ float SceneTracer::leaveTravelTexels(const ShellMarch& march) const {
     const FlatSides& sides = flatSides_[flatSidesFirst_[shell.object] + shell.localTriangle];
     const float weights[3] = {1.0f - march.baseHit.b1 - march.baseHit.b2, march.baseHit.b1,
                               march.baseHit.b2};
-    const float nearestSideWorld = std::min({weights[0] * sides.height[0],
-                                             weights[1] * sides.height[1],
-                                             weights[2] * sides.height[2]});
+    const float nearestSideWorld = std::min(
+        {weights[0] * sides.height[0], weights[1] * sides.height[1], weights[2] * sides.height[2]});
     const float descent = -march.directionTexels.z;
     if (march.skippedTexels * descent + march.startTexels.z <
         nearestSideWorld * march.hit->texelsPerWorldAlongRay * descent)
@@ -462,9 +461,9 @@ float SceneTracer::leaveTravelTexels(const ShellMarch& march) const {
     const double texelsPerWorld = march.hit->texelsPerWorldAlongRay;
     const double entryWorld = march.baseHit.distanceWorld;
     const double toFloorTexels = march.startTexels.z / -march.directionTexels.z;
-    const double exitWorld = borderExitWorld(
-        *march.ray, march.baseHit.triangle,
-        entryWorld + (march.skippedTexels + toFloorTexels) / texelsPerWorld);
+    const double exitWorld =
+        borderExitWorld(*march.ray, march.baseHit.triangle,
+                        entryWorld + (march.skippedTexels + toFloorTexels) / texelsPerWorld);
     if (!(exitWorld < std::numeric_limits<double>::infinity())) return kNever;
     return float((exitWorld - entryWorld) * texelsPerWorld - march.skippedTexels);
 }
@@ -729,13 +728,13 @@ void SceneTracer::takeMarches(std::span<ShellMarch* const> marches) const {
         for (ShellMarch* march : marches) {
             if (march->marched) continue;
             const Material& material = scene_.objects[march->object].material;
-            march->result = withMarchFilter(
-                options_.filter, material, columns(march->object), options_.reference,
-                [&](const auto& filter) {
-                    return distile::march(filter, march->startTexels, march->directionTexels,
-                                          material.floor, march->settings,
-                                          march->leaveTravelTexels);
-                });
+            march->result =
+                withMarchFilter(options_.filter, material, columns(march->object),
+                                options_.reference, [&](const auto& filter) {
+                                    return distile::march(
+                                        filter, march->startTexels, march->directionTexels,
+                                        material.floor, march->settings, march->leaveTravelTexels);
+                                });
             march->marched = true;
         }
         return;
