@@ -443,9 +443,6 @@ float SceneTracer::leaveTravelTexels(const ShellMarch& march) const {
     constexpr float kNever = std::numeric_limits<float>::infinity();
     const ShellTriangle& shell = triangles_[march.baseHit.triangle];
     if (!shell.flatFrame || flatSidesFirst_[shell.object] == kNoFlatBorder) return kNever;
-    // The march's path ends on the floor: from the top's entry, the skipped empty path and the
-    // path to the floor, at texelsPerWorldAlongRay texels per world unit (as finishShell maps
-    // travel back to the ray).
     // Most rays end far from every side of their triangle: a path to the floor shorter than
     // the entry's distance to the nearest side cannot leave it (no division: both sides of
     // path < distance x texelsPerWorld taken times the descent).
@@ -458,6 +455,9 @@ float SceneTracer::leaveTravelTexels(const ShellMarch& march) const {
     if (march.skippedTexels * descent + march.startTexels.z <
         nearestSideWorld * march.hit->texelsPerWorldAlongRay * descent)
         return kNever;
+    // The march's path ends on the floor: from the top's entry, the skipped empty path and the
+    // path to the floor, at texelsPerWorldAlongRay texels per world unit (as finishShell maps
+    // travel back to the ray).
     const double texelsPerWorld = march.hit->texelsPerWorldAlongRay;
     const double entryWorld = march.baseHit.distanceWorld;
     const double toFloorTexels = march.startTexels.z / -march.directionTexels.z;
