@@ -125,9 +125,10 @@ inline void endOnFloor(MarchResult& result, const glm::vec3& position, const glm
 /// Where a ray leaves its shell through an open border of the base mesh `leaveTravelTexels` along
 /// it, before the floor `toFloor` texels along it: the march ends there as at an open floor (no
 /// hit), so that border takes the floor's place.
-inline void leaveBeforeFloor(float& toFloor, Floor& floor, float leaveTravelTexels) {
+template <class Real>
+void leaveBeforeFloor(Real& toFloor, Floor& floor, Real leaveTravelTexels) {
     if (!(leaveTravelTexels < toFloor)) return;
-    toFloor = std::max(leaveTravelTexels, 0.0f);
+    toFloor = std::max(leaveTravelTexels, Real(0));
     floor = Floor::Open;
 }
 

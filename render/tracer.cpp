@@ -62,10 +62,7 @@ void requireTexelDensity(std::size_t index, float texelsPerWorld, const char* ax
     const glm::dvec3 unitDirection = glm::normalize(glm::dvec3(direction));
     double toFloor = origin.z / -unitDirection.z;
     Floor floor = material.floor;
-    if (leaveTravelTexels < toFloor) {  // an open border first (detail::leaveBeforeFloor)
-        toFloor = std::max(double(leaveTravelTexels), 0.0);
-        floor = Floor::Open;
-    }
+    detail::leaveBeforeFloor(toFloor, floor, double(leaveTravelTexels));
     const std::optional<DetailHit> found = material.exactHit(origin, unitDirection, toFloor);
     if (!found) {
         detail::endOnFloor(result, start, direction, 0.0f, float(toFloor), floor);
