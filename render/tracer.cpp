@@ -93,6 +93,138 @@ void setFrame(ShellEntry& entry, const glm::vec3& normal, const glm::vec4& tange
     entry.bitangent = glm::cross(entry.normal, entry.tangent) * (tangent.w < 0.0f ? -1.0f : 1.0f);
 }
 
+/// The plane of side `side` (opposite corner `side`) of the flat shell over `mesh`'s triangle of
+/// `corners` with unit normal `normal`: through the side's edge along the normal, with its normal
+/// `outward` (not unit) turned away from that corner and `offset` = dot(outward, point) on it.
+void flatSidePlane(const BaseMesh& mesh, const glm::uvec3& corners, const glm::dvec3& normal,
+                   int side, glm::dvec3& outward, double& offset) {
+    const glm::dvec3 opposite(mesh.positions[corners[side]]);
+    const glm::dvec3 from(mesh.positions[corners[(side + 1) % 3]]);
+    const glm::dvec3 to(mesh.positions[corners[(side + 2) % 3]]);
+    outward = glm::cross(to - from, normal);
+    if (glm::dot(outward, opposite - from) > 0.0) outward = -outward;
+    offset = glm::dot(outward, from);
+}
+
+/// Lower bounds of the distance from every point of each flat triangle of `mesh` to the mesh's
+/// open border, world units, when its flat triangles lie in one plane; 0 for the other triangles,
+/// and for all when they do not. `normals[t]`: the unit normal of triangle t's flat shell with
+/// detail, zero for the others; `neighbours[t][i]`: the triangle across side i (numbered within
+/// the mesh, ShellPrisms::kNoNeighbour at an open border).
+///
+/// Walking across the sides of coplanar flat shells (SceneTracer::borderExitWorld), a ray leaves
+/// at a point whose projection onto the plane lies on a border side, so no nearer to where it
+/// entered than that side. The border sides are marked on a grid over the plane; every point of a
+/// cell k cells from the nearest marked one (chessboard distance, exact in two raster passes) is
+/// at least k - 1 cell widths from every border side, and every point of a triangle within its
+/// reach (the farthest corner) of its centroid.
+std::vector<float> planarBorderDistances(const BaseMesh& mesh, std::span<const glm::vec3> normals,
+                                         std::span<const std::array<std::uint32_t, 3>> neighbours) {
+    const std::size_t count = mesh.triangles.size();
+    std::vector<float> distances(count, 0.0f);
+    std::size_t firstFlat = 0;
+    while (firstFlat < count && normals[firstFlat] == glm::vec3(0.0f)) ++firstFlat;
+    if (firstFlat == count) return distances;
+    // The plane of the first flat triangle, and two axes in it.
+    const glm::dvec3 normal(normals[firstFlat]);
+    const glm::dvec3 origin(mesh.positions[mesh.triangles[firstFlat][0]]);
+    const glm::dvec3 helper =
+        std::abs(normal.x) < 0.6 ? glm::dvec3(1.0, 0.0, 0.0) : glm::dvec3(0.0, 1.0, 0.0);
+    const glm::dvec3 axisU = glm::normalize(glm::cross(normal, helper));
+    const glm::dvec3 axisV = glm::cross(normal, axisU);
+    const auto inPlane = [&](std::uint32_t vertex) {
+        const glm::dvec3 offset = glm::dvec3(mesh.positions[vertex]) - origin;
+        return glm::dvec2(glm::dot(offset, axisU), glm::dot(offset, axisV));
+    };
+    const auto flat = [&](std::size_t t) { return normals[t] != glm::vec3(0.0f); };
+    glm::dvec2 low(std::numeric_limits<double>::infinity());
+    glm::dvec2 high = -low;
+    double offPlane = 0.0, leastReach = std::numeric_limits<double>::infinity();
+    for (std::size_t t = 0; t < count; ++t) {
+        if (!flat(t)) continue;
+        if (!(glm::dot(glm::dvec3(normals[t]), normal) >= 1.0 - 1e-12)) return distances;
+        glm::dvec2 corners[3];
+        for (int corner = 0; corner < 3; ++corner) {
+            const std::uint32_t vertex = mesh.triangles[t][corner];
+            offPlane = std::max(
+                offPlane, std::abs(glm::dot(glm::dvec3(mesh.positions[vertex]) - origin, normal)));
+            corners[corner] = inPlane(vertex);
+            low = glm::min(low, corners[corner]);
+            high = glm::max(high, corners[corner]);
+        }
+        const glm::dvec2 centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
+        for (const glm::dvec2& corner : corners)
+            leastReach = std::min(leastReach, glm::length(corner - centroid));
+    }
+    const double extent = std::max(high.x - low.x, high.y - low.y);
+    if (!(extent > 0.0) || !(offPlane <= 1e-6 * extent)) return distances;  // not one plane
+    // Cells of about half the smallest triangle's reach, at most 1024 along the longer side.
+    const double cell = std::max(extent / 1024.0, 0.5 * leastReach);
+    const int columns = int((high.x - low.x) / cell) + 1;
+    const int rows = int((high.y - low.y) / cell) + 1;
+    const auto cellOf = [&](const glm::dvec2& point) {
+        return glm::ivec2(std::clamp(int((point.x - low.x) / cell), 0, columns - 1),
+                          std::clamp(int((point.y - low.y) / cell), 0, rows - 1));
+    };
+    constexpr int kFar = std::numeric_limits<int>::max() / 2;
+    std::vector<int> steps(std::size_t(columns) * std::size_t(rows), kFar);
+    const auto at = [&](int x, int y) -> int& { return steps[std::size_t(y) * columns + x]; };
+    bool anyBorder = false;
+    for (std::size_t t = 0; t < count; ++t) {
+        if (!flat(t)) continue;
+        for (int side = 0; side < 3; ++side) {
+            if (neighbours[t][std::size_t(side)] != ShellPrisms::kNoNeighbour) continue;
+            anyBorder = true;
+            // In pieces of at most a cell, each marking the cells its bounding box meets.
+            const glm::dvec2 from = inPlane(mesh.triangles[t][(side + 1) % 3]);
+            const glm::dvec2 to = inPlane(mesh.triangles[t][(side + 2) % 3]);
+            const int pieces = std::max(1, int(std::ceil(glm::length(to - from) / cell)));
+            for (int piece = 0; piece < pieces; ++piece) {
+                const glm::dvec2 a = from + (to - from) * (double(piece) / pieces);
+                const glm::dvec2 b = from + (to - from) * (double(piece + 1) / pieces);
+                const glm::ivec2 first = cellOf(glm::min(a, b)), last = cellOf(glm::max(a, b));
+                for (int y = first.y; y <= last.y; ++y)
+                    for (int x = first.x; x <= last.x; ++x) at(x, y) = 0;
+            }
+        }
+    }
+    if (!anyBorder) return distances;
+    for (int y = 0; y < rows; ++y) {
+        for (int x = 0; x < columns; ++x) {
+            int& value = at(x, y);
+            if (x > 0) value = std::min(value, at(x - 1, y) + 1);
+            if (y == 0) continue;
+            for (int dx = std::max(x - 1, 0); dx <= std::min(x + 1, columns - 1); ++dx)
+                value = std::min(value, at(dx, y - 1) + 1);
+        }
+    }
+    for (int y = rows - 1; y >= 0; --y) {
+        for (int x = columns - 1; x >= 0; --x) {
+            int& value = at(x, y);
+            if (x + 1 < columns) value = std::min(value, at(x + 1, y) + 1);
+            if (y + 1 == rows) continue;
+            for (int dx = std::max(x - 1, 0); dx <= std::min(x + 1, columns - 1); ++dx)
+                value = std::min(value, at(dx, y + 1) + 1);
+        }
+    }
+    // Rounding of the projections and the cells is far below this margin.
+    const double margin = 1e-5 * extent;
+    tbb::parallel_for(std::size_t(0), count, [&](std::size_t t) {
+        if (!flat(t)) return;
+        glm::dvec2 corners[3];
+        for (int corner = 0; corner < 3; ++corner)
+            corners[corner] = inPlane(mesh.triangles[t][corner]);
+        const glm::dvec2 centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
+        double reach = 0.0;
+        for (const glm::dvec2& corner : corners)
+            reach = std::max(reach, glm::length(corner - centroid));
+        const glm::ivec2 home = cellOf(centroid);
+        const double distance = (at(home.x, home.y) - 1) * cell - reach - margin;
+        if (distance > 0.0) distances[t] = float(distance) * (1.0f - 1e-6f);
+    });
+    return distances;
+}
+
 }  // namespace
 
 glm::vec3 ShellEntry::toTexel(const glm::vec3& world) const {
@@ -173,9 +305,12 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
         }
         firstTriangle += count;
     }
-    // Independent: the base triangles' BVH and the curved shells' prisms.
-    tbb::parallel_invoke([&] { bvh_ = TriangleBvh(std::move(corners)); }, [&] { buildShellMap(); },
-                         [&] { buildFlatBorders(); });
+    // Independent: the base triangles' BVH, and the curved shells' prisms and flat shells' borders.
+    tbb::parallel_invoke([&] { bvh_ = TriangleBvh(std::move(corners)); },
+                         [&] {
+                             buildShellMap();
+                             buildFlatBorders();  // takes the shell map's neighbours
+                         });
     shellPrisms_ = {prisms_, neighbours_, neighbourCorners_};
 
     // Per tile (objects sharing one share these): its columns, and its empty space where the
@@ -446,8 +581,10 @@ float SceneTracer::leaveTravelTexels(const ShellMarch& march) const {
     const FlatSides& sides = flatSides_[flatSidesFirst_[shell.object] + shell.localTriangle];
     const float weights[3] = {1.0f - march.baseHit.b1 - march.baseHit.b2, march.baseHit.b1,
                               march.baseHit.b2};
-    const float nearestSideWorld = std::min(
-        {weights[0] * sides.height[0], weights[1] * sides.height[1], weights[2] * sides.height[2]});
+    const float nearestSideWorld =
+        std::max(std::min({weights[0] * sides.height[0], weights[1] * sides.height[1],
+                           weights[2] * sides.height[2]}),
+                 sides.borderDistanceWorld);
     const float descent = -march.directionTexels.z;
     if (march.skippedTexels * descent + march.startTexels.z <
         nearestSideWorld * march.hit->texelsPerWorldAlongRay * descent)
@@ -467,21 +604,26 @@ float SceneTracer::leaveTravelTexels(const ShellMarch& march) const {
 
 double SceneTracer::borderExitWorld(const Ray& ray, std::uint32_t shell, double endWorld) const {
     constexpr double kNever = std::numeric_limits<double>::infinity();
-    const std::uint32_t first = flatSidesFirst_[triangles_[shell].object];
+    const ShellTriangle& entered = triangles_[shell];
+    const std::uint32_t firstShell = shell - entered.localTriangle;  // the object's first
+    const std::uint32_t first = flatSidesFirst_[entered.object];
+    const BaseMesh& mesh = scene_.objects[entered.object].mesh;
     const glm::dvec3 origin(ray.origin), direction(ray.direction);
-    std::uint32_t triangle = triangles_[shell].localTriangle;
-    constexpr int kMaxWalk = 64;
-    for (int walk = 0; walk < kMaxWalk; ++walk) {
+    std::uint32_t triangle = entered.localTriangle;
+    for (int walk = 0; walk < kMaxBorderWalk; ++walk) {
         const FlatSides& sides = flatSides_[first + triangle];
         if (!sides.flat) return kNever;
+        const glm::dvec3 normal(triangles_[firstShell + triangle].frameNormal);
         // The ray is inside the prism until it crosses the first side it moves out through.
         double exitWorld = kNever;
         int exitSide = -1;
         for (int side = 0; side < 3; ++side) {
-            const double outward = glm::dot(direction, sides.outward[side]);
-            if (!(outward > 0.0)) continue;
-            const double at =
-                (sides.offset[side] - glm::dot(origin, sides.outward[side])) / outward;
+            glm::dvec3 outward;
+            double offset = 0.0;
+            flatSidePlane(mesh, mesh.triangles[triangle], normal, side, outward, offset);
+            const double away = glm::dot(direction, outward);
+            if (!(away > 0.0)) continue;
+            const double at = (offset - glm::dot(origin, outward)) / away;
             if (at < exitWorld) {
                 exitWorld = at;
                 exitSide = side;
@@ -501,44 +643,62 @@ void SceneTracer::buildFlatBorders() {
         const BaseMesh& mesh = scene_.objects[objectIndex].mesh;
         const auto count = std::uint32_t(mesh.triangles.size());
         const std::span<const ShellTriangle> shells(triangles_.data() + firstShell, count);
-        firstShell += count;
         const auto flatWithDetail = [](const ShellTriangle& shell) {
             return shell.flatFrame && shell.hasDetail();
         };
-        if (std::none_of(shells.begin(), shells.end(), flatWithDetail)) continue;
+        if (std::none_of(shells.begin(), shells.end(), flatWithDetail)) {
+            firstShell += count;
+            continue;
+        }
+        // The object's neighbours, numbered within it: the shell map's when it has curved
+        // shells (buildShellMap ran), else found here.
         std::vector<std::array<std::uint32_t, 3>> neighbours(count);
-        std::vector<std::array<std::uint8_t, 3>> neighbourCorners(count);
-        buildNeighboursInto(mesh, 0, neighbours, neighbourCorners);
+        if (std::any_of(shells.begin(), shells.end(),
+                        [](const ShellTriangle& shell) { return shell.curved; })) {
+            for (std::uint32_t t = 0; t < count; ++t) {
+                for (std::size_t side = 0; side < 3; ++side) {
+                    const std::uint32_t across = neighbours_[firstShell + t][side];
+                    neighbours[t][side] =
+                        across == ShellPrisms::kNoNeighbour ? across : across - firstShell;
+                }
+            }
+        } else {
+            std::vector<std::array<std::uint8_t, 3>> neighbourCorners(count);
+            buildNeighboursInto(mesh, 0, neighbours, neighbourCorners);
+        }
         bool openBorder = false;
+        std::vector<glm::vec3> flatNormals(count, glm::vec3(0.0f));
         for (std::uint32_t t = 0; t < count; ++t) {
             if (!flatWithDetail(shells[t])) continue;
+            flatNormals[t] = shells[t].frameNormal;
             for (const std::uint32_t across : neighbours[t])
                 openBorder = openBorder || across == ShellPrisms::kNoNeighbour;
         }
-        if (!openBorder) continue;
+        if (!openBorder) {
+            firstShell += count;
+            continue;
+        }
+        const std::vector<float> borderDistances =
+            planarBorderDistances(mesh, flatNormals, neighbours);
         flatSidesFirst_[objectIndex] = std::uint32_t(flatSides_.size());
         flatSides_.resize(flatSides_.size() + count);
         FlatSides* sides = flatSides_.data() + flatSidesFirst_[objectIndex];
         for (std::uint32_t t = 0; t < count; ++t) {
             if (!flatWithDetail(shells[t])) continue;
-            const glm::dvec3 normal(shells[t].frameNormal);
-            const glm::uvec3 corners = mesh.triangles[t];
             for (int side = 0; side < 3; ++side) {
-                // The side opposite corner `side`: the plane through its edge along the normal,
-                // its normal turned away from that corner.
-                const glm::dvec3 opposite(mesh.positions[corners[side]]);
-                const glm::dvec3 from(mesh.positions[corners[(side + 1) % 3]]);
-                const glm::dvec3 to(mesh.positions[corners[(side + 2) % 3]]);
-                glm::dvec3 outward = glm::cross(to - from, normal);
-                if (glm::dot(outward, opposite - from) > 0.0) outward = -outward;
-                sides[t].outward[side] = outward;
-                sides[t].offset[side] = glm::dot(outward, from);
+                glm::dvec3 outward;
+                double offset = 0.0;
+                flatSidePlane(mesh, mesh.triangles[t], glm::dvec3(shells[t].frameNormal), side,
+                              outward, offset);
+                const glm::dvec3 opposite(mesh.positions[mesh.triangles[t][side]]);
                 sides[t].height[side] =
-                    float(glm::dot(outward, from - opposite) / glm::length(outward));
+                    float((offset - glm::dot(outward, opposite)) / glm::length(outward));
                 sides[t].neighbour[side] = neighbours[t][std::size_t(side)];
             }
+            sides[t].borderDistanceWorld = borderDistances[t];
             sides[t].flat = true;
         }
+        firstShell += count;
     }
 }
 

@@ -157,9 +157,9 @@ struct ShellMarch {
     /// Travel from startTexels at which the ray leaves the shell through an open border of the
     /// base mesh (+infinity: not before the floor); the march ends there without a hit.
     float leaveTravelTexels = std::numeric_limits<float>::infinity();
-    MarchSettings settings;                        ///< the tracer's, with this ray's budget
-    detail::SphereTraceRay trace;                  ///< the sphere-tracing methods' state
-    bool marched = false;  ///< result is final (exact reference hits are known at entry)
+    MarchSettings settings;        ///< the tracer's, with this ray's budget
+    detail::SphereTraceRay trace;  ///< the sphere-tracing methods' state
+    bool marched = false;          ///< result is final (exact reference hits are known at entry)
     MarchResult result;
     /// The texel-space gradient finishShell turns into the normal, when known before it: the
     /// unit normal of an exact reference hit, or the normal filter's gradient taken for several
@@ -375,12 +375,16 @@ class SceneTracer {
     /// The prisms of every shell and their neighbours, warnings about folds.
     void buildShellMap();
     /// flatSides_ and flatSidesFirst_ for the objects whose flat shells have an open border.
+    /// After buildShellMap, whose neighbours it takes for objects that have curved shells.
     void buildFlatBorders();
     /// Where a ray through flat shell `shell` leaves the shell through an open border of its
     /// mesh before `endWorld` along it (the world distance), walking on across its sides into
     /// neighbouring flat shells; +infinity when it does not (or the walk reaches a shell that is
-    /// not flat, or goes on past 64 of them).
+    /// not flat, or goes on past kMaxBorderWalk of them).
     double borderExitWorld(const Ray& ray, std::uint32_t shell, double endWorld) const;
+    /// A guard against walking on forever (a ray along a side, rounding): far more shells than a
+    /// ray crosses on its way to the floor of any mesh that renders in reasonable time.
+    static constexpr int kMaxBorderWalk = 1 << 14;
     /// Where the march of `march` (a flat or planar shell's) leaves its shell through an open
     /// border, in texels of travel from its start (ShellMarch::leaveTravelTexels).
     float leaveTravelTexels(const ShellMarch& march) const;
@@ -399,17 +403,19 @@ class SceneTracer {
     std::vector<std::array<std::uint32_t, 3>> neighbours_;
     std::vector<std::array<std::uint8_t, 3>> neighbourCorners_;
     ShellPrisms shellPrisms_;  ///< views of the three above
-    /// A flat shell's sides (planes through its base edges along its normal), each with its
-    /// outward normal, the plane's offset along it (dot(outward, point) on the plane) and the
-    /// object's triangle across it (ShellPrisms::kNoNeighbour: an open border). Not `flat`: a
-    /// triangle of the object whose shell is not flat (a march walking into it stops looking).
+    /// What the border walk (borderExitWorld) and its cull keep of a flat shell: the object's
+    /// triangles across its sides (ShellPrisms::kNoNeighbour: an open border), side i opposite
+    /// corner i. The sides' planes (through the base edges along the normal) are found from the
+    /// mesh as the walk crosses them (flatSidePlane). Not `flat`: a triangle of the object whose
+    /// shell is not flat (a march walking into it stops looking).
     struct FlatSides {
-        glm::dvec3 outward[3];
-        double offset[3];
         std::uint32_t neighbour[3];
         /// The triangle's heights over its sides (from the opposite corners), world units: a
         /// point with barycentrics b lies b[i] x height[i] from side i.
         float height[3];
+        /// At most the distance from any point of the triangle to the object's open border,
+        /// world units (0: not known; buildFlatBorders): a path shorter than this cannot leave.
+        float borderDistanceWorld = 0.0f;
         bool flat = false;
     };
     /// Per object: where its triangles' FlatSides start in flatSides_ (by local triangle), or

@@ -1696,53 +1696,67 @@ Scene sheetScene() {
 TEST(SceneTracer, ARayThatCrossesAnOpenBorderOfAFlatShellLeavesItThere) {
     // A plane of side 2 (x, y in [-1, 1]) with an empty tile over a solid floor 1 world unit
     // below the top (32 x 32 x 16 texels of 1/16 world unit). Rays enter the top at x = 0.95, 0.05
-    // from the border x = 1. Beyond the border the mesh has no shell: a ray that reaches it
-    // before the floor leaves (nothing else is there), where the march once ran on into the
-    // tile's next repeat and stopped on the floor beyond the edge; a ray that reaches the floor
+    // from the border x = 1, or at the centre. Beyond the border the mesh has no shell: a ray that
+    // reaches it before the floor leaves (nothing else is there), where the march once ran on into
+    // the tile's next repeat and stopped on the floor beyond the edge; a ray that reaches the floor
     // first stops on it, at the point the closed form gives. Both entry paths (the flat shells'
-    // eight-wide one, and the one-at-a-time one the tricubic march takes), and in batches.
-    Scene scene;
-    SceneObject plane;
-    plane.mesh = makePlane(2.0f, 1);
-    plane.material.tile = std::make_shared<const Tile>(flatTile({32, 32, 16}, -10.0f));
-    plane.material.uvScale = {1.0f, 1.0f};
-    plane.material.depthWorld = 1.0f;
-    scene.objects.push_back(std::move(plane));
-    const glm::vec3 entry(0.95f, 0.0f, 0.0f);
+    // eight-wide one, and the one-at-a-time one the tricubic march takes), and in batches. The
+    // plane in 2 triangles, and in 2 x 64 x 64: there rays cross up to 130 triangles on their way
+    // out (the walk once gave up after 64, the ray then ran on past the border), and rays from the
+    // centre start far from the border (the cull by the triangles' distance to it must not skip
+    // them).
     struct Case {
+        glm::vec3 entry;
         glm::vec3 direction;  ///< toward which the ray descends from `entry`
         bool hitsFloor;
         glm::vec3 floorPoint;
     };
+    const glm::vec3 nearBorder(0.95f, 0.0f, 0.0f), centre(0.0f);
     const Case cases[] = {
-        {glm::normalize(glm::vec3(1.0f, 0.0f, -1.0f)), false, {}},  // the border at 0.05 first
-        {glm::normalize(glm::vec3(-1.0f, 0.0f, -1.0f)), true, {-0.05f, 0.0f, -1.0f}},  // inward
-        {glm::normalize(glm::vec3(0.04f, 0.0f, -1.0f)), true, {0.99f, 0.0f, -1.0f}},   // steep
-        {glm::normalize(glm::vec3(0.0f, 1.0f, -0.4f)), false, {}},  // along it, out at y = 1
+        // The border at 0.05 first.
+        {nearBorder, glm::normalize(glm::vec3(1.0f, 0.0f, -1.0f)), false, {}},
+        {nearBorder, glm::normalize(glm::vec3(-1.0f, 0.0f, -1.0f)), true, {-0.05f, 0.0f, -1.0f}},
+        {nearBorder, glm::normalize(glm::vec3(0.04f, 0.0f, -1.0f)), true, {0.99f, 0.0f, -1.0f}},
+        // Along the border, out at y = 1.
+        {nearBorder, glm::normalize(glm::vec3(0.0f, 1.0f, -0.4f)), false, {}},
+        // From the centre: out at x = 1, 0.5 deep; the floor just before the border.
+        {centre, glm::normalize(glm::vec3(1.0f, 0.0f, -0.5f)), false, {}},
+        {centre, glm::normalize(glm::vec3(1.0f, 0.0f, -1.1f)), true, {1.0f / 1.1f, 0.0f, -1.0f}},
+        {centre, glm::normalize(glm::vec3(-0.7f, 0.6f, -0.5f)), false, {}},
     };
-    for (const FilterKind filter : {FilterKind::Trilinear, FilterKind::TricubicBSpline}) {
-        TraceOptions options;
-        options.filter = filter;
-        const SceneTracer tracer(scene, options);
-        std::vector<Ray> rays;
-        for (const Case& c : cases) rays.push_back({entry - c.direction * 0.5f, c.direction});
-        std::vector<SurfaceHit> batchHits(rays.size());
-        bool batchFound[8] = {};
-        TraceCounters batchCounters;
-        tracer.traceNearestBatch(rays, 0.0f, batchHits, std::span<bool>(batchFound, rays.size()),
-                                 batchCounters);
-        for (std::size_t k = 0; k < rays.size(); ++k) {
-            SCOPED_TRACE("filter " + std::to_string(int(filter)) + ", case " + std::to_string(k));
-            SurfaceHit hit;
-            TraceCounters counters;
-            const bool found = tracer.traceNearest(rays[k], 0.0f, hit, counters);
-            EXPECT_EQ(found, cases[k].hitsFloor);
-            EXPECT_EQ(batchFound[k], found);
-            if (!found || !cases[k].hitsFloor) continue;
-            EXPECT_TRUE(hit.march.onFloor);
-            EXPECT_NEAR(hit.position.x, cases[k].floorPoint.x, 1e-4f);
-            EXPECT_NEAR(hit.position.y, cases[k].floorPoint.y, 1e-4f);
-            EXPECT_NEAR(hit.position.z, cases[k].floorPoint.z, 1e-4f);
+    for (const int subdivisions : {1, 64}) {
+        Scene scene;
+        SceneObject plane;
+        plane.mesh = makePlane(2.0f, subdivisions);
+        plane.material.tile = std::make_shared<const Tile>(flatTile({32, 32, 16}, -10.0f));
+        plane.material.uvScale = {1.0f, 1.0f};
+        plane.material.depthWorld = 1.0f;
+        scene.objects.push_back(std::move(plane));
+        for (const FilterKind filter : {FilterKind::Trilinear, FilterKind::TricubicBSpline}) {
+            TraceOptions options;
+            options.filter = filter;
+            const SceneTracer tracer(scene, options);
+            std::vector<Ray> rays;
+            for (const Case& c : cases) rays.push_back({c.entry - c.direction * 0.5f, c.direction});
+            std::vector<SurfaceHit> batchHits(rays.size());
+            bool batchFound[8] = {};
+            TraceCounters batchCounters;
+            tracer.traceNearestBatch(rays, 0.0f, batchHits,
+                                     std::span<bool>(batchFound, rays.size()), batchCounters);
+            for (std::size_t k = 0; k < rays.size(); ++k) {
+                SCOPED_TRACE(std::to_string(subdivisions) + " subdivisions, filter " +
+                             std::to_string(int(filter)) + ", case " + std::to_string(k));
+                SurfaceHit hit;
+                TraceCounters counters;
+                const bool found = tracer.traceNearest(rays[k], 0.0f, hit, counters);
+                EXPECT_EQ(found, cases[k].hitsFloor);
+                EXPECT_EQ(batchFound[k], found);
+                if (!found || !cases[k].hitsFloor) continue;
+                EXPECT_TRUE(hit.march.onFloor);
+                EXPECT_NEAR(hit.position.x, cases[k].floorPoint.x, 1e-4f);
+                EXPECT_NEAR(hit.position.y, cases[k].floorPoint.y, 1e-4f);
+                EXPECT_NEAR(hit.position.z, cases[k].floorPoint.z, 1e-4f);
+            }
         }
     }
 }
