@@ -683,8 +683,8 @@ void SceneTracer::buildFlatBorders() {
         flatSidesFirst_[objectIndex] = std::uint32_t(flatSides_.size());
         flatSides_.resize(flatSides_.size() + count);
         FlatSides* sides = flatSides_.data() + flatSidesFirst_[objectIndex];
-        for (std::uint32_t t = 0; t < count; ++t) {
-            if (!flatWithDetail(shells[t])) continue;
+        tbb::parallel_for(std::uint32_t(0), count, [&](std::uint32_t t) {
+            if (!flatWithDetail(shells[t])) return;
             for (int side = 0; side < 3; ++side) {
                 glm::dvec3 outward;
                 double offset = 0.0;
@@ -697,7 +697,7 @@ void SceneTracer::buildFlatBorders() {
             }
             sides[t].borderDistanceWorld = borderDistances[t];
             sides[t].flat = true;
-        }
+        });
         firstShell += count;
     }
 }
