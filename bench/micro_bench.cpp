@@ -356,8 +356,10 @@ BENCHMARK(demoShellCulling)->Unit(benchmark::kSecond)->Iterations(1);
 /// about 35 degrees above it) as `distile bench --speed` times it against the peers: 1280 x 1024,
 /// no shadows, no AOVs, frames of the prepared scene (PreparedScene::render) on all threads.
 /// Argument 1 turns the camera around: every pixel is sky, what remains is the per-pixel cost
-/// of a frame before any shell is traced (ray set-up, screen bins, shading, the image). Counter:
-/// mean march samples per camera ray.
+/// of a frame before any shell is traced (ray set-up, screen bins, shading, the image). Argument
+/// 2 is the same sheet over a plane of 2 x 100 x 100 triangles, as a modeller exports one: the
+/// same picture (the uvs run on across the triangles), traced shell by shell, with the border
+/// walk near the edges. Counter: mean march samples per camera ray.
 void sheetFrame(benchmark::State& state) {
     static const Scene sheet = [] {
         Scene scene;
@@ -378,12 +380,20 @@ void sheetFrame(benchmark::State& state) {
         scene.camera.target = 2.0f * scene.camera.eye - scene.camera.target;  // looking away
         return scene;
     }();
+    static const Scene fine = [] {
+        Scene scene = sheet;
+        BaseMesh& mesh = scene.objects[0].mesh;
+        mesh = makePlane(2.0f, 100);
+        applyTransform(mesh, {{0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 2.0f});
+        return scene;
+    }();
     RenderOptions options;
     options.width = 1280;
     options.height = 1024;
     options.selfShadows = false;
     options.shadowFilter = ShadowFilter::None;
-    const PreparedScene prepared(state.range(0) == 0 ? sheet : sky, options);
+    const Scene* const scenes[] = {&sheet, &sky, &fine};
+    const PreparedScene prepared(*scenes[state.range(0)], options);
     double iterations = 0.0;
     for (auto _ : state) {
         const RenderResult result = prepared.render();
@@ -391,7 +401,7 @@ void sheetFrame(benchmark::State& state) {
     }
     state.counters["samples/ray"] = iterations;
 }
-BENCHMARK(sheetFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(sheetFrame)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace distile
