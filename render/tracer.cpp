@@ -137,24 +137,34 @@ std::vector<float> planarBorderDistances(const BaseMesh& mesh, std::span<const g
         return glm::dvec2(glm::dot(offset, axisU), glm::dot(offset, axisV));
     };
     const auto flat = [&](std::size_t t) { return normals[t] != glm::vec3(0.0f); };
+    // A triangle's centroid in the plane and its reach (the farthest corner from it).
+    struct Footprint {
+        glm::dvec2 centroid;
+        double reach;
+    };
+    const auto footprintOf = [&](std::size_t t) {
+        glm::dvec2 corners[3];
+        for (int corner = 0; corner < 3; ++corner)
+            corners[corner] = inPlane(mesh.triangles[t][corner]);
+        Footprint footprint{(corners[0] + corners[1] + corners[2]) / 3.0, 0.0};
+        for (const glm::dvec2& corner : corners)
+            footprint.reach = std::max(footprint.reach, glm::length(corner - footprint.centroid));
+        return footprint;
+    };
     glm::dvec2 low(std::numeric_limits<double>::infinity());
     glm::dvec2 high = -low;
     double offPlane = 0.0, leastReach = std::numeric_limits<double>::infinity();
     for (std::size_t t = 0; t < count; ++t) {
         if (!flat(t)) continue;
         if (!(glm::dot(glm::dvec3(normals[t]), normal) >= 1.0 - 1e-12)) return distances;
-        glm::dvec2 corners[3];
         for (int corner = 0; corner < 3; ++corner) {
             const std::uint32_t vertex = mesh.triangles[t][corner];
             offPlane = std::max(
                 offPlane, std::abs(glm::dot(glm::dvec3(mesh.positions[vertex]) - origin, normal)));
-            corners[corner] = inPlane(vertex);
-            low = glm::min(low, corners[corner]);
-            high = glm::max(high, corners[corner]);
+            low = glm::min(low, inPlane(vertex));
+            high = glm::max(high, inPlane(vertex));
         }
-        const glm::dvec2 centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
-        for (const glm::dvec2& corner : corners)
-            leastReach = std::min(leastReach, glm::length(corner - centroid));
+        leastReach = std::min(leastReach, footprintOf(t).reach);
     }
     const double extent = std::max(high.x - low.x, high.y - low.y);
     if (!(extent > 0.0) || !(offPlane <= 1e-6 * extent)) return distances;  // not one plane
@@ -211,15 +221,9 @@ std::vector<float> planarBorderDistances(const BaseMesh& mesh, std::span<const g
     const double margin = 1e-5 * extent;
     tbb::parallel_for(std::size_t(0), count, [&](std::size_t t) {
         if (!flat(t)) return;
-        glm::dvec2 corners[3];
-        for (int corner = 0; corner < 3; ++corner)
-            corners[corner] = inPlane(mesh.triangles[t][corner]);
-        const glm::dvec2 centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
-        double reach = 0.0;
-        for (const glm::dvec2& corner : corners)
-            reach = std::max(reach, glm::length(corner - centroid));
-        const glm::ivec2 home = cellOf(centroid);
-        const double distance = (at(home.x, home.y) - 1) * cell - reach - margin;
+        const Footprint footprint = footprintOf(t);
+        const glm::ivec2 home = cellOf(footprint.centroid);
+        const double distance = (at(home.x, home.y) - 1) * cell - footprint.reach - margin;
         if (distance > 0.0) distances[t] = float(distance) * (1.0f - 1e-6f);
     });
     return distances;
