@@ -540,7 +540,7 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     if (options_.reference && material.exactHit) {
         march.startTexels = start;
         march.skippedTexels = 0.0f;
-        march.leaveTravelTexels = leaveTravelTexels(march);
+        march.leaveTravelTexels = leaveTravelTexels(march, flatSidesOf(march.baseHit.triangle));
         march.result = exactFirstHit(material, start, direction, march.leaveTravelTexels,
                                      march.gradientTexels);
         march.gradientKnown = true;
@@ -558,12 +558,12 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     march.skippedTexels =
         occupancy ? occupancy->emptyTravelTexels(start, direction, walkBlocks) : 0.0f;
     march.startTexels = start + direction * march.skippedTexels;
-    beginMarch(march);
+    beginMarch(march, flatSidesOf(march.baseHit.triangle));
 }
 
-void SceneTracer::beginMarch(ShellMarch& march) const {
+void SceneTracer::beginMarch(ShellMarch& march, const FlatSides* sides) const {
     march.settings = options_.march;
-    march.leaveTravelTexels = leaveTravelTexels(march);
+    march.leaveTravelTexels = leaveTravelTexels(march, sides);
     if (const auto refused =
             refusedMarch(march.startTexels, march.directionTexels, march.settings)) {
         march.result = *refused;
@@ -575,20 +575,24 @@ void SceneTracer::beginMarch(ShellMarch& march) const {
     }
 }
 
-float SceneTracer::leaveTravelTexels(const ShellMarch& march) const {
+const SceneTracer::FlatSides* SceneTracer::flatSidesOf(std::uint32_t shell) const {
+    const ShellTriangle& triangle = triangles_[shell];
+    if (!triangle.flatFrame || flatSidesFirst_[triangle.object] == kNoFlatBorder) return nullptr;
+    return &flatSides_[flatSidesFirst_[triangle.object] + triangle.localTriangle];
+}
+
+float SceneTracer::leaveTravelTexels(const ShellMarch& march, const FlatSides* sides) const {
     constexpr float kNever = std::numeric_limits<float>::infinity();
-    const ShellTriangle& shell = triangles_[march.baseHit.triangle];
-    if (!shell.flatFrame || flatSidesFirst_[shell.object] == kNoFlatBorder) return kNever;
+    if (!sides) return kNever;
     // Most rays end far from every side of their triangle: a path to the floor shorter than
     // the entry's distance to the nearest side cannot leave it (no division: both sides of
     // path < distance x texelsPerWorld taken times the descent).
-    const FlatSides& sides = flatSides_[flatSidesFirst_[shell.object] + shell.localTriangle];
     const float weights[3] = {1.0f - march.baseHit.b1 - march.baseHit.b2, march.baseHit.b1,
                               march.baseHit.b2};
     const float nearestSideWorld =
-        std::max(std::min({weights[0] * sides.height[0], weights[1] * sides.height[1],
-                           weights[2] * sides.height[2]}),
-                 sides.borderDistanceWorld);
+        std::max(std::min({weights[0] * sides->height[0], weights[1] * sides->height[1],
+                           weights[2] * sides->height[2]}),
+                 sides->borderDistanceWorld);
     const float descent = -march.directionTexels.z;
     if (march.skippedTexels * descent + march.startTexels.z <
         nearestSideWorld * march.hit->texelsPerWorldAlongRay * descent)
@@ -766,6 +770,7 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
     const TileOccupancy* occupancy = occupancies_[shell.object].get();
     constants.highestTopTexels =
         occupancy ? occupancy->highestTopTexels() : std::numeric_limits<float>::infinity();
+    const FlatSides* const sides = flatSidesOf(firstHit.triangle);
 
     for (std::size_t first = 0; first < sameShell.size(); first += 8) {
         const std::span<ShellMarch* const> eight =
@@ -797,7 +802,7 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
             march.skippedTexels = lanes.skippedTexels[lane];
             march.startTexels = {lanes.startTexels[0][lane], lanes.startTexels[1][lane],
                                  lanes.startTexels[2][lane]};
-            beginMarch(march);
+            beginMarch(march, sides);
         }
     }
 }

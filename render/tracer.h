@@ -360,9 +360,10 @@ class SceneTracer {
     /// The entries of rays (at least one) into the same flat shell, eight at a time
     /// (enterFlatShell8).
     void takeFlatEntries(std::span<ShellMarch* const> sameShell) const;
+    struct FlatSides;
     /// Sets up `march` from its start with the march settings: a refused march's result, or the
-    /// sphere trace's start.
-    void beginMarch(ShellMarch& march) const;
+    /// sphere trace's start. `sides`: flatSidesOf its shell.
+    void beginMarch(ShellMarch& march, const FlatSides* sides) const;
     /// Whether takeFlatEntries takes the entries of rays into shell `shell`.
     bool entersFlatShell(std::uint32_t shell) const;
     /// The entry of a ray into a curved shell: its march started (render/shell_march.h) in
@@ -386,8 +387,12 @@ class SceneTracer {
     /// ray crosses on its way to the floor of any mesh that renders in reasonable time.
     static constexpr int kMaxBorderWalk = 1 << 14;
     /// Where the march of `march` (a flat or planar shell's) leaves its shell through an open
-    /// border, in texels of travel from its start (ShellMarch::leaveTravelTexels).
-    float leaveTravelTexels(const ShellMarch& march) const;
+    /// border, in texels of travel from its start (ShellMarch::leaveTravelTexels). `sides`:
+    /// flatSidesOf its shell, taken once for the rays of a shell.
+    float leaveTravelTexels(const ShellMarch& march, const FlatSides* sides) const;
+    /// The FlatSides of shell `shell` when it is a flat shell of an object with an open border;
+    /// null when no ray through it can leave by a border.
+    const FlatSides* flatSidesOf(std::uint32_t shell) const;
 
     const Scene& scene_;
     TraceOptions options_;
