@@ -334,6 +334,21 @@ class SceneTracer {
         /// flat).
         bool curved = false;
     };
+    /// What the border walk (borderExitWorld) and its cull keep of a flat shell: the object's
+    /// triangles across its sides (ShellPrisms::kNoNeighbour: an open border), side i opposite
+    /// corner i. The sides' planes (through the base edges along the normal) are found from the
+    /// mesh as the walk crosses them (flatSidePlane). Not `flat`: a triangle of the object whose
+    /// shell is not flat (a march walking into it stops looking).
+    struct FlatSides {
+        std::uint32_t neighbour[3];
+        /// The triangle's heights over its sides (from the opposite corners), world units: a
+        /// point with barycentrics b lies b[i] x height[i] from side i.
+        float height[3];
+        /// At most the distance from any point of the triangle to the object's open border,
+        /// world units (0: not known; buildFlatBorders): a path shorter than this cannot leave.
+        float borderDistanceWorld = 0.0f;
+        bool flat = false;
+    };
     /// Fills `entry` (in place: the hit's own, no temporary) for the ray's hit on a shell's top.
     void shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const;
     /// marchShells' three parts: the entries, the marches, then the normal gradients.
@@ -360,7 +375,6 @@ class SceneTracer {
     /// The entries of rays (at least one) into the same flat shell, eight at a time
     /// (enterFlatShell8).
     void takeFlatEntries(std::span<ShellMarch* const> sameShell) const;
-    struct FlatSides;
     /// Sets up `march` from its start with the march settings: a refused march's result, or the
     /// sphere trace's start. `sides`: flatSidesOf its shell.
     void beginMarch(ShellMarch& march, const FlatSides* sides) const;
@@ -408,21 +422,6 @@ class SceneTracer {
     std::vector<std::array<std::uint32_t, 3>> neighbours_;
     std::vector<std::array<std::uint8_t, 3>> neighbourCorners_;
     ShellPrisms shellPrisms_;  ///< views of the three above
-    /// What the border walk (borderExitWorld) and its cull keep of a flat shell: the object's
-    /// triangles across its sides (ShellPrisms::kNoNeighbour: an open border), side i opposite
-    /// corner i. The sides' planes (through the base edges along the normal) are found from the
-    /// mesh as the walk crosses them (flatSidePlane). Not `flat`: a triangle of the object whose
-    /// shell is not flat (a march walking into it stops looking).
-    struct FlatSides {
-        std::uint32_t neighbour[3];
-        /// The triangle's heights over its sides (from the opposite corners), world units: a
-        /// point with barycentrics b lies b[i] x height[i] from side i.
-        float height[3];
-        /// At most the distance from any point of the triangle to the object's open border,
-        /// world units (0: not known; buildFlatBorders): a path shorter than this cannot leave.
-        float borderDistanceWorld = 0.0f;
-        bool flat = false;
-    };
     /// Per object: where its triangles' FlatSides start in flatSides_ (by local triangle), or
     /// kNoFlatBorder when none of its flat shells has an open border.
     std::vector<std::uint32_t> flatSidesFirst_;
