@@ -40,6 +40,20 @@ glm::vec3 centroid(const std::vector<glm::vec3>& corners, std::uint32_t triangle
     return enter <= exit;
 }
 
+/// 1 / direction for hitsBox, each component at least 1e-30 in magnitude first (its sign kept):
+/// with an infinite inverse, a ray that does not move along an axis and starts exactly on a box
+/// face across it (a ray in the plane of a grid line of a mesh) made 0 x infinity = NaN and missed
+/// the box, and every triangle in it. Within the slab, 0 x 1e30 = 0 keeps it; outside, the travel
+/// is still out of reach (1e30 x the gap, or infinity).
+glm::vec3 slabInverse(const glm::vec3& direction) {
+    glm::vec3 inverse;
+    for (int axis = 0; axis < 3; ++axis) {
+        const float along = direction[axis];
+        inverse[axis] = 1.0f / (std::abs(along) < 1e-30f ? std::copysign(1e-30f, along) : along);
+    }
+    return inverse;
+}
+
 }  // namespace
 
 TriangleBvh::TriangleBvh(std::vector<glm::vec3> corners) : corners_(std::move(corners)) {
@@ -186,7 +200,7 @@ std::uint32_t TriangleBvh::build(const std::vector<TriangleBox>& boxes, std::uin
 bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance,
                             TriangleHit& hit) const {
     if (nodes_.empty()) return false;
-    const glm::vec3 inverseDirection = 1.0f / ray.direction;
+    const glm::vec3 inverseDirection = slabInverse(ray.direction);
     bool found = false;
     double nearest = maxDistance;
     // Among hits at exactly the same distance (a ray through an edge two triangles share) the

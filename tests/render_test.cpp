@@ -361,6 +361,45 @@ TEST(TriangleBvh, RaysThroughASharedEdgeDoNotSlipBetweenTriangles) {
     }
 }
 
+TEST(TriangleBvh, RaysInThePlaneOfABoxFaceHitWhatIsThere) {
+    // A grid of 4 x 4 unit quads over [0, 4]^2 (32 triangles, so boxes have faces at x, y =
+    // 0 ... 4). Rays that do not move along x (or y) and start exactly on such a face plane lie
+    // in it: the slab test once multiplied 0 by an infinite inverse direction there, got NaN and
+    // missed the box, and with it every triangle along that grid line: the ray went through the
+    // mesh. Each ray below comes down at 45 degrees onto a point of an inner grid line, between
+    // vertices, where two triangles meet, and must hit one of them (on the outer border, a ray
+    // exactly on the edge of the only triangle there may go either way).
+    std::vector<glm::vec3> corners;
+    for (int y = 0; y < 4; ++y) {
+        for (int x = 0; x < 4; ++x) {
+            const glm::vec3 p00(x, y, 0), p10(x + 1, y, 0), p11(x + 1, y + 1, 0), p01(x, y + 1, 0);
+            corners.insert(corners.end(), {p00, p10, p11, p00, p11, p01});
+        }
+    }
+    const TriangleBvh grid(std::move(corners));
+    const float diagonal = std::sqrt(0.5f);
+    int rays = 0;
+    for (int line = 1; line <= 3; ++line) {
+        for (const float along : {0.3f, 1.7f, 3.5f}) {
+            for (const float sign : {1.0f, -1.0f}) {
+                const glm::vec3 targets[2] = {{float(line), along, 0.0f},
+                                              {along, float(line), 0.0f}};
+                const glm::vec3 directions[2] = {{0.0f, sign * diagonal, -diagonal},
+                                                 {sign * diagonal, 0.0f, -diagonal}};
+                for (int axis = 0; axis < 2; ++axis) {
+                    const Ray ray{targets[axis] - directions[axis] * 2.0f, directions[axis]};
+                    TriangleHit hit;
+                    ASSERT_TRUE(grid.intersect(ray, 0.0f, 100.0f, hit))
+                        << "line " << line << " along " << along << " axis " << axis;
+                    EXPECT_NEAR(hit.distanceWorld, 2.0f, 1e-5f);
+                    ++rays;
+                }
+            }
+        }
+    }
+    EXPECT_EQ(rays, 36);
+}
+
 Scene planeScene(std::shared_ptr<const Tile> tile) {
     Scene scene;
     scene.camera = {{0.3f, -1.6f, 1.2f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
@@ -1757,6 +1796,65 @@ TEST(SceneTracer, ARayThatCrossesAnOpenBorderOfAFlatShellLeavesItThere) {
                 EXPECT_NEAR(hit.position.y, cases[k].floorPoint.y, 1e-4f);
                 EXPECT_NEAR(hit.position.z, cases[k].floorPoint.z, 1e-4f);
             }
+        }
+    }
+}
+
+TEST(SceneTracer, AHoleInAFlatMeshIsAnOpenBorderToo) {
+    // The plane of side 2 in 2 x 64 x 64 triangles less those over the square |x|, |y| < 0.25:
+    // a hole, whose sides are an open border as much as the plane's edge. An empty tile over a
+    // solid floor 0.2 world units deep. Rays enter at x = 0.4, 0.15 from the hole and 0.6 from
+    // the edge, and descend at 45 degrees: toward the hole they cross its side 0.15 deep and
+    // leave (the path to the floor, 0.28, is shorter than the distance to the plane's edge, so
+    // the cull by the triangles' distance to the border must count the hole's sides); away from
+    // it they stop on the floor 0.2 further on. Rays inside the hole's square meet nothing.
+    Scene scene;
+    SceneObject plane;
+    plane.mesh = makePlane(2.0f, 64);
+    std::vector<glm::uvec3> kept;
+    for (const glm::uvec3& triangle : plane.mesh.triangles) {
+        const glm::vec3 centroid =
+            (plane.mesh.positions[triangle[0]] + plane.mesh.positions[triangle[1]] +
+             plane.mesh.positions[triangle[2]]) /
+            3.0f;
+        if (std::abs(centroid.x) > 0.25f || std::abs(centroid.y) > 0.25f) kept.push_back(triangle);
+    }
+    ASSERT_EQ(kept.size(), plane.mesh.triangles.size() - 2 * 16 * 16);
+    plane.mesh.triangles = kept;
+    plane.material.tile = std::make_shared<const Tile>(flatTile({32, 32, 16}, -10.0f));
+    plane.material.uvScale = {1.0f, 1.0f};
+    plane.material.depthWorld = 0.2f;
+    scene.objects.push_back(std::move(plane));
+    struct Case {
+        glm::vec3 entry;
+        glm::vec3 direction;
+        bool hitsFloor;
+        glm::vec3 floorPoint;
+    };
+    const float diagonal = std::sqrt(0.5f);
+    const Case cases[] = {
+        {{0.4f, 0.0f, 0.0f}, {-diagonal, 0.0f, -diagonal}, false, {}},  // into the hole
+        {{0.4f, 0.0f, 0.0f}, {diagonal, 0.0f, -diagonal}, true, {0.6f, 0.0f, -0.2f}},
+        {{0.0f, -0.4f, 0.0f}, {0.0f, diagonal, -diagonal}, false, {}},  // into it from below
+        {{0.0f, -0.4f, 0.0f}, {0.0f, -diagonal, -diagonal}, true, {0.0f, -0.6f, -0.2f}},
+        {{0.1f, 0.1f, 0.0f}, {0.0f, 0.0f, -1.0f}, false, {}},  // through the hole
+    };
+    for (const FilterKind filter : {FilterKind::Trilinear, FilterKind::TricubicBSpline}) {
+        TraceOptions options;
+        options.filter = filter;
+        const SceneTracer tracer(scene, options);
+        for (std::size_t k = 0; k < std::size(cases); ++k) {
+            SCOPED_TRACE("filter " + std::to_string(int(filter)) + ", case " + std::to_string(k));
+            const Ray ray{cases[k].entry - cases[k].direction * 0.5f, cases[k].direction};
+            SurfaceHit hit;
+            TraceCounters counters;
+            const bool found = tracer.traceNearest(ray, 0.0f, hit, counters);
+            EXPECT_EQ(found, cases[k].hitsFloor);
+            if (!found || !cases[k].hitsFloor) continue;
+            EXPECT_TRUE(hit.march.onFloor);
+            EXPECT_NEAR(hit.position.x, cases[k].floorPoint.x, 1e-4f);
+            EXPECT_NEAR(hit.position.y, cases[k].floorPoint.y, 1e-4f);
+            EXPECT_NEAR(hit.position.z, cases[k].floorPoint.z, 1e-4f);
         }
     }
 }
