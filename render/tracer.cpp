@@ -619,9 +619,10 @@ double SceneTracer::borderExitWorld(const Ray& ray, std::uint32_t shell, double 
     const glm::dvec3 origin(ray.origin), direction(ray.direction);
     std::uint32_t triangle = entered.localTriangle;
     for (int walk = 0; walk < kMaxBorderWalk; ++walk) {
+        const ShellTriangle& crossed = triangles_[firstShell + triangle];
+        if (!crossed.flatWithDetail()) return kNever;
         const FlatSides& sides = flatSides_[first + triangle];
-        if (!sides.flat) return kNever;
-        const glm::dvec3 normal(triangles_[firstShell + triangle].frameNormal);
+        const glm::dvec3 normal(crossed.frameNormal);
         // The ray is inside the prism until it crosses the first side it moves out through.
         double exitWorld = kNever;
         int exitSide = -1;
@@ -651,10 +652,8 @@ void SceneTracer::buildFlatBorders() {
         const BaseMesh& mesh = scene_.objects[objectIndex].mesh;
         const auto count = std::uint32_t(mesh.triangles.size());
         const std::span<const ShellTriangle> shells(triangles_.data() + firstShell, count);
-        const auto flatWithDetail = [](const ShellTriangle& shell) {
-            return shell.flatFrame && shell.hasDetail();
-        };
-        if (std::none_of(shells.begin(), shells.end(), flatWithDetail)) {
+        if (std::none_of(shells.begin(), shells.end(),
+                         [](const ShellTriangle& shell) { return shell.flatWithDetail(); })) {
             firstShell += count;
             continue;
         }
@@ -677,7 +676,7 @@ void SceneTracer::buildFlatBorders() {
         bool openBorder = false;
         std::vector<glm::vec3> flatNormals(count, glm::vec3(0.0f));
         for (std::uint32_t t = 0; t < count; ++t) {
-            if (!flatWithDetail(shells[t])) continue;
+            if (!shells[t].flatWithDetail()) continue;
             flatNormals[t] = shells[t].frameNormal;
             for (const std::uint32_t across : neighbours[t])
                 openBorder = openBorder || across == ShellPrisms::kNoNeighbour;
@@ -692,7 +691,7 @@ void SceneTracer::buildFlatBorders() {
         flatSides_.resize(flatSides_.size() + count);
         FlatSides* sides = flatSides_.data() + flatSidesFirst_[objectIndex];
         tbb::parallel_for(std::uint32_t(0), count, [&](std::uint32_t t) {
-            if (!flatWithDetail(shells[t])) return;
+            if (!shells[t].flatWithDetail()) return;
             for (int side = 0; side < 3; ++side) {
                 glm::dvec3 outward;
                 double offset = 0.0;
@@ -704,7 +703,6 @@ void SceneTracer::buildFlatBorders() {
                 sides[t].neighbour[side] = neighbours[t][std::size_t(side)];
             }
             sides[t].borderDistanceWorld = borderDistances[t];
-            sides[t].flat = true;
         });
         firstShell += count;
     }

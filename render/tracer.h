@@ -333,12 +333,15 @@ class SceneTracer {
         /// Rays entering here follow the shell map (ShellMapping::Curved on a shell that is not
         /// flat).
         bool curved = false;
+        /// A flat shell a ray enters the detail of: one the border walk crosses.
+        bool flatWithDetail() const { return flatFrame && hasDetail(); }
     };
     /// What the border walk (borderExitWorld) and its cull keep of a flat shell: the object's
     /// triangles across its sides (ShellPrisms::kNoNeighbour: an open border), side i opposite
     /// corner i. The sides' planes (through the base edges along the normal) are found from the
-    /// mesh as the walk crosses them (flatSidePlane). Not `flat`: a triangle of the object whose
-    /// shell is not flat (a march walking into it stops looking).
+    /// mesh as the walk crosses them (flatSidePlane). Kept for every triangle of such an object,
+    /// set for those whose shell is flat with detail (a march walking into another stops
+    /// looking).
     struct FlatSides {
         std::uint32_t neighbour[3];
         /// The triangle's heights over its sides (from the opposite corners), world units: a
@@ -347,7 +350,6 @@ class SceneTracer {
         /// At most the distance from any point of the triangle to the object's open border,
         /// world units (0: not known; buildFlatBorders): a path shorter than this cannot leave.
         float borderDistanceWorld = 0.0f;
-        bool flat = false;
     };
     /// Fills `entry` (in place: the hit's own, no temporary) for the ray's hit on a shell's top.
     void shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const;
