@@ -1732,6 +1732,31 @@ Scene sheetScene() {
     return scene;
 }
 
+/// A ray that enters a plane's top at `entry` (it starts half a world unit before it), and what
+/// it must do there: stop on the floor at `floorPoint`, or leave the shell (no hit).
+struct BorderCase {
+    glm::vec3 entry;
+    glm::vec3 direction;  ///< unit, toward which the ray descends from `entry`
+    bool hitsFloor;
+    glm::vec3 floorPoint;
+    Ray ray() const { return {entry - direction * 0.5f, direction}; }
+};
+
+/// traceNearest of the case's ray: a hit exactly when it must stop on the floor, and then on the
+/// floor at its point within 1e-4. Returns whether it found a hit.
+bool expectBorderCase(const SceneTracer& tracer, const BorderCase& expected) {
+    SurfaceHit hit;
+    TraceCounters counters;
+    const bool found = tracer.traceNearest(expected.ray(), 0.0f, hit, counters);
+    EXPECT_EQ(found, expected.hitsFloor);
+    if (!found || !expected.hitsFloor) return found;
+    EXPECT_TRUE(hit.march.onFloor);
+    EXPECT_NEAR(hit.position.x, expected.floorPoint.x, 1e-4f);
+    EXPECT_NEAR(hit.position.y, expected.floorPoint.y, 1e-4f);
+    EXPECT_NEAR(hit.position.z, expected.floorPoint.z, 1e-4f);
+    return found;
+}
+
 TEST(SceneTracer, ARayThatCrossesAnOpenBorderOfAFlatShellLeavesItThere) {
     // A plane of side 2 (x, y in [-1, 1]) with an empty tile over a solid floor 1 world unit
     // below the top (32 x 32 x 16 texels of 1/16 world unit). Rays enter the top at x = 0.95, 0.05
@@ -1744,14 +1769,8 @@ TEST(SceneTracer, ARayThatCrossesAnOpenBorderOfAFlatShellLeavesItThere) {
     // out (the walk once gave up after 64, the ray then ran on past the border), and rays from the
     // centre start far from the border (the cull by the triangles' distance to it must not skip
     // them).
-    struct Case {
-        glm::vec3 entry;
-        glm::vec3 direction;  ///< toward which the ray descends from `entry`
-        bool hitsFloor;
-        glm::vec3 floorPoint;
-    };
     const glm::vec3 nearBorder(0.95f, 0.0f, 0.0f), centre(0.0f);
-    const Case cases[] = {
+    const BorderCase cases[] = {
         // The border at 0.05 first.
         {nearBorder, glm::normalize(glm::vec3(1.0f, 0.0f, -1.0f)), false, {}},
         {nearBorder, glm::normalize(glm::vec3(-1.0f, 0.0f, -1.0f)), true, {-0.05f, 0.0f, -1.0f}},
@@ -1776,7 +1795,7 @@ TEST(SceneTracer, ARayThatCrossesAnOpenBorderOfAFlatShellLeavesItThere) {
             options.filter = filter;
             const SceneTracer tracer(scene, options);
             std::vector<Ray> rays;
-            for (const Case& c : cases) rays.push_back({c.entry - c.direction * 0.5f, c.direction});
+            for (const BorderCase& c : cases) rays.push_back(c.ray());
             std::vector<SurfaceHit> batchHits(rays.size());
             bool batchFound[8] = {};
             TraceCounters batchCounters;
@@ -1785,16 +1804,7 @@ TEST(SceneTracer, ARayThatCrossesAnOpenBorderOfAFlatShellLeavesItThere) {
             for (std::size_t k = 0; k < rays.size(); ++k) {
                 SCOPED_TRACE(std::to_string(subdivisions) + " subdivisions, filter " +
                              std::to_string(int(filter)) + ", case " + std::to_string(k));
-                SurfaceHit hit;
-                TraceCounters counters;
-                const bool found = tracer.traceNearest(rays[k], 0.0f, hit, counters);
-                EXPECT_EQ(found, cases[k].hitsFloor);
-                EXPECT_EQ(batchFound[k], found);
-                if (!found || !cases[k].hitsFloor) continue;
-                EXPECT_TRUE(hit.march.onFloor);
-                EXPECT_NEAR(hit.position.x, cases[k].floorPoint.x, 1e-4f);
-                EXPECT_NEAR(hit.position.y, cases[k].floorPoint.y, 1e-4f);
-                EXPECT_NEAR(hit.position.z, cases[k].floorPoint.z, 1e-4f);
+                EXPECT_EQ(batchFound[k], expectBorderCase(tracer, cases[k]));
             }
         }
     }
@@ -1825,14 +1835,8 @@ TEST(SceneTracer, AHoleInAFlatMeshIsAnOpenBorderToo) {
     plane.material.uvScale = {1.0f, 1.0f};
     plane.material.depthWorld = 0.2f;
     scene.objects.push_back(std::move(plane));
-    struct Case {
-        glm::vec3 entry;
-        glm::vec3 direction;
-        bool hitsFloor;
-        glm::vec3 floorPoint;
-    };
     const float diagonal = std::sqrt(0.5f);
-    const Case cases[] = {
+    const BorderCase cases[] = {
         {{0.4f, 0.0f, 0.0f}, {-diagonal, 0.0f, -diagonal}, false, {}},  // into the hole
         {{0.4f, 0.0f, 0.0f}, {diagonal, 0.0f, -diagonal}, true, {0.6f, 0.0f, -0.2f}},
         {{0.0f, -0.4f, 0.0f}, {0.0f, diagonal, -diagonal}, false, {}},  // into it from below
@@ -1845,16 +1849,7 @@ TEST(SceneTracer, AHoleInAFlatMeshIsAnOpenBorderToo) {
         const SceneTracer tracer(scene, options);
         for (std::size_t k = 0; k < std::size(cases); ++k) {
             SCOPED_TRACE("filter " + std::to_string(int(filter)) + ", case " + std::to_string(k));
-            const Ray ray{cases[k].entry - cases[k].direction * 0.5f, cases[k].direction};
-            SurfaceHit hit;
-            TraceCounters counters;
-            const bool found = tracer.traceNearest(ray, 0.0f, hit, counters);
-            EXPECT_EQ(found, cases[k].hitsFloor);
-            if (!found || !cases[k].hitsFloor) continue;
-            EXPECT_TRUE(hit.march.onFloor);
-            EXPECT_NEAR(hit.position.x, cases[k].floorPoint.x, 1e-4f);
-            EXPECT_NEAR(hit.position.y, cases[k].floorPoint.y, 1e-4f);
-            EXPECT_NEAR(hit.position.z, cases[k].floorPoint.z, 1e-4f);
+            expectBorderCase(tracer, cases[k]);
         }
     }
 }
