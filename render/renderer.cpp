@@ -474,8 +474,10 @@ class Renderer {
             return;
         }
         const glm::vec3 toLightTexel = glm::normalize(hit.entry.toTexel(toLights_[index]));
-        ray.start(start, toLightTexel, depthTexels, tanHalfAngles_[index],
-                  options_.shadowIterations);
+        // Beyond an open border of the base mesh the tile's repeats are not there.
+        const float topTexels =
+            tracer_.selfShadowTopTexels(hit, toLights_[index], start, toLightTexel, depthTexels);
+        ray.start(start, toLightTexel, topTexels, tanHalfAngles_[index], options_.shadowIterations);
     }
 
     /// The self-shadow rays of a batch's detail hits (`rays[k][light]` for hits[k]), marched

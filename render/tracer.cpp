@@ -499,6 +499,7 @@ void SceneTracer::atEntry(const TriangleHit& baseHit, const glm::vec3& position,
     hit.normal = normal;
     hit.onDetail = false;
     hit.texelsPerWorldAlongRay = 0.0f;
+    hit.entryBorderClearanceWorld = std::numeric_limits<float>::infinity();
 }
 
 void SceneTracer::takeEntry(ShellMarch& march) const {
@@ -540,7 +541,7 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     if (options_.reference && material.exactHit) {
         march.startTexels = start;
         march.skippedTexels = 0.0f;
-        march.leaveTravelTexels = leaveTravelTexels(march, flatSidesOf(march.baseHit.triangle));
+        setBorderExit(march, flatSidesOf(march.baseHit.triangle));
         march.result = exactFirstHit(material, start, direction, march.leaveTravelTexels,
                                      march.gradientTexels);
         march.gradientKnown = true;
@@ -563,7 +564,7 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
 
 void SceneTracer::beginMarch(ShellMarch& march, const FlatSides* sides) const {
     march.settings = options_.march;
-    march.leaveTravelTexels = leaveTravelTexels(march, sides);
+    setBorderExit(march, sides);
     if (const auto refused =
             refusedMarch(march.startTexels, march.directionTexels, march.settings)) {
         march.result = *refused;
@@ -581,18 +582,30 @@ const SceneTracer::FlatSides* SceneTracer::flatSidesOf(std::uint32_t shell) cons
     return &flatSides_[flatSidesFirst_[triangle.object] + triangle.localTriangle];
 }
 
+void SceneTracer::setBorderExit(ShellMarch& march, const FlatSides* sides) const {
+    SurfaceHit& hit = *march.hit;
+    hit.entryShell = march.baseHit.triangle;
+    hit.entryBorderClearanceWorld = std::numeric_limits<float>::infinity();
+    if (sides) {
+        // The entry's distance to the nearest side of its triangle, or the triangle's to the
+        // border, whichever is larger.
+        const float weights[3] = {1.0f - march.baseHit.b1 - march.baseHit.b2, march.baseHit.b1,
+                                  march.baseHit.b2};
+        hit.entryBorderClearanceWorld =
+            std::max(std::min({weights[0] * sides->height[0], weights[1] * sides->height[1],
+                               weights[2] * sides->height[2]}),
+                     sides->borderDistanceWorld);
+    }
+    march.leaveTravelTexels = leaveTravelTexels(march, sides);
+}
+
 float SceneTracer::leaveTravelTexels(const ShellMarch& march, const FlatSides* sides) const {
     constexpr float kNever = std::numeric_limits<float>::infinity();
     if (!sides) return kNever;
     // Most rays end far from every side of their triangle: a path to the floor shorter than
-    // the entry's distance to the nearest side cannot leave it (no division: both sides of
-    // path < distance x texelsPerWorld taken times the descent).
-    const float weights[3] = {1.0f - march.baseHit.b1 - march.baseHit.b2, march.baseHit.b1,
-                              march.baseHit.b2};
-    const float nearestSideWorld =
-        std::max(std::min({weights[0] * sides->height[0], weights[1] * sides->height[1],
-                           weights[2] * sides->height[2]}),
-                 sides->borderDistanceWorld);
+    // the entry's clearance cannot leave (no division: both sides of path < clearance x
+    // texelsPerWorld taken times the descent).
+    const float nearestSideWorld = march.hit->entryBorderClearanceWorld;
     const float descent = -march.directionTexels.z;
     if (march.skippedTexels * descent + march.startTexels.z <
         nearestSideWorld * march.hit->texelsPerWorldAlongRay * descent)
@@ -604,27 +617,29 @@ float SceneTracer::leaveTravelTexels(const ShellMarch& march, const FlatSides* s
     const double entryWorld = march.baseHit.distanceWorld;
     const double toFloorTexels = march.startTexels.z / -march.directionTexels.z;
     const double exitWorld =
-        borderExitWorld(*march.ray, march.baseHit.triangle,
-                        entryWorld + (march.skippedTexels + toFloorTexels) / texelsPerWorld);
+        borderExitWorld(glm::dvec3(march.ray->origin), glm::dvec3(march.ray->direction),
+                        march.baseHit.triangle,
+                        entryWorld + (march.skippedTexels + toFloorTexels) / texelsPerWorld)
+            .exitWorld;
     if (!(exitWorld < std::numeric_limits<double>::infinity())) return kNever;
     return float((exitWorld - entryWorld) * texelsPerWorld - march.skippedTexels);
 }
 
-double SceneTracer::borderExitWorld(const Ray& ray, std::uint32_t shell, double endWorld) const {
-    constexpr double kNever = std::numeric_limits<double>::infinity();
+SceneTracer::BorderWalk SceneTracer::borderExitWorld(const glm::dvec3& origin,
+                                                     const glm::dvec3& direction,
+                                                     std::uint32_t shell, double endWorld) const {
     const ShellTriangle& entered = triangles_[shell];
     const std::uint32_t firstShell = shell - entered.localTriangle;  // the object's first
     const std::uint32_t first = flatSidesFirst_[entered.object];
     const BaseMesh& mesh = scene_.objects[entered.object].mesh;
-    const glm::dvec3 origin(ray.origin), direction(ray.direction);
     std::uint32_t triangle = entered.localTriangle;
     for (int walk = 0; walk < kMaxBorderWalk; ++walk) {
         const ShellTriangle& crossed = triangles_[firstShell + triangle];
-        if (!crossed.flatWithDetail()) return kNever;
+        if (!crossed.flatWithDetail()) return {};
         const FlatSides& sides = flatSides_[first + triangle];
         const glm::dvec3 normal(crossed.frameNormal);
         // The ray is inside the prism until it crosses the first side it moves out through.
-        double exitWorld = kNever;
+        double exitWorld = std::numeric_limits<double>::infinity();
         int exitSide = -1;
         for (int side = 0; side < 3; ++side) {
             glm::dvec3 outward;
@@ -638,11 +653,40 @@ double SceneTracer::borderExitWorld(const Ray& ray, std::uint32_t shell, double 
                 exitSide = side;
             }
         }
-        if (exitSide < 0 || !(exitWorld < endWorld)) return kNever;
+        if (exitSide < 0 || !(exitWorld < endWorld)) return {.endShell = firstShell + triangle};
         triangle = sides.neighbour[exitSide];
-        if (triangle == ShellPrisms::kNoNeighbour) return exitWorld;
+        if (triangle == ShellPrisms::kNoNeighbour) return {.exitWorld = exitWorld};
     }
-    return kNever;
+    return {};
+}
+
+float SceneTracer::selfShadowTopTexels(const SurfaceHit& hit, const glm::vec3& toLightWorld,
+                                       const glm::vec3& startTexels, const glm::vec3& toLightTexels,
+                                       float topTexels) const {
+    if (!(hit.entryBorderClearanceWorld < std::numeric_limits<float>::infinity()) ||
+        !(toLightTexels.z > 0.0f))
+        return topTexels;
+    // Both paths, the camera ray's from its entry to the hit and this ray's to the top, stay
+    // within their lengths of the entry: shorter together than its clearance, neither leaves.
+    const double texelsPerWorldToLight = glm::length(hit.entry.toTexel(toLightWorld));
+    const double toTopWorld =
+        double(topTexels - startTexels.z) / double(toLightTexels.z) / texelsPerWorldToLight;
+    const glm::dvec3 entry(hit.entry.position), at(hit.position);
+    const double cameraPathWorld = glm::length(at - entry);
+    if (cameraPathWorld + toTopWorld < double(hit.entryBorderClearanceWorld)) return topTexels;
+    // The shell under the hit, then where this ray leaves from there.
+    std::uint32_t shell = hit.entryShell;
+    if (cameraPathWorld > 0.0) {
+        shell =
+            borderExitWorld(entry, (at - entry) / cameraPathWorld, shell, cameraPathWorld).endShell;
+        if (shell == kNoShell) return topTexels;
+    }
+    const double exitWorld =
+        borderExitWorld(at, glm::dvec3(toLightWorld), shell, toTopWorld).exitWorld;
+    if (!(exitWorld < toTopWorld)) return topTexels;
+    return std::min(
+        topTexels,
+        startTexels.z + float(std::max(exitWorld, 0.0) * texelsPerWorldToLight) * toLightTexels.z);
 }
 
 void SceneTracer::buildFlatBorders() {

@@ -142,6 +142,11 @@ struct SurfaceHit {
     /// (march.texelPosition is in that prism's texel space).
     std::uint32_t shellPrism = 0;
     PrismPoint shellPoint;
+    /// A ray into a flat shell of a mesh with an open border: the shell whose top it entered,
+    /// and a lower bound of the distance from that entry to the border (world units); +infinity
+    /// for every other ray (SceneTracer::selfShadowTopTexels).
+    std::uint32_t entryShell = 0;
+    float entryBorderClearanceWorld = std::numeric_limits<float>::infinity();
 };
 
 /// A ray that entered a detail shell, between SceneTracer::enterShell and finishShell: its entry
@@ -256,6 +261,14 @@ class SceneTracer {
     /// the object first: the sign of a closed mesh wound inside out. Thread-safe.
     bool entersFrontFirst(const Ray& ray, float minDistance, std::uint32_t object,
                           float distanceWorld) const;
+
+    /// The height (texels) at which the self-shadow ray of flat-shell hit `hit` toward
+    /// `toLightWorld` (unit) must end: `topTexels`, the shell's top, unless the ray leaves the
+    /// shell through an open border of the mesh below it; there is no detail beyond that border.
+    /// `startTexels` and `toLightTexels` (unit, rising): the ray in the hit's texel space.
+    float selfShadowTopTexels(const SurfaceHit& hit, const glm::vec3& toLightWorld,
+                              const glm::vec3& startTexels, const glm::vec3& toLightTexels,
+                              float topTexels) const;
 
     /// Base triangles of all objects, in scene order: shell `s` is the detail shell of one of them.
     std::uint32_t shellCount() const { return std::uint32_t(triangles_.size()); }
@@ -394,18 +407,31 @@ class SceneTracer {
     /// flatSides_ and flatSidesFirst_ for the objects whose flat shells have an open border.
     /// After buildShellMap, whose neighbours it takes for objects that have curved shells.
     void buildFlatBorders();
-    /// Where a ray through flat shell `shell` leaves the shell through an open border of its
-    /// mesh before `endWorld` along it (the world distance), walking on across its sides into
-    /// neighbouring flat shells; +infinity when it does not (or the walk reaches a shell that is
-    /// not flat, or goes on past kMaxBorderWalk of them).
-    double borderExitWorld(const Ray& ray, std::uint32_t shell, double endWorld) const;
+    static constexpr std::uint32_t kNoShell = 0xffffffffU;
+    /// Where a straight path leaves the flat shells through an open border, or the shell it ends
+    /// over (borderExitWorld).
+    struct BorderWalk {
+        double exitWorld = std::numeric_limits<double>::infinity();  ///< +infinity: not left
+        std::uint32_t endShell = kNoShell;  ///< when not left: the shell at its end, if known
+    };
+    /// The path from `origin` along `direction` (unit) through flat shell `shell`, where it
+    /// leaves through an open border of the mesh before `endWorld` along it (world distance),
+    /// walking on across the sides into neighbouring flat shells; or, when it does not, the
+    /// shell it is over at `endWorld`. Neither when the walk reaches a shell that is not flat or
+    /// goes on past kMaxBorderWalk of them.
+    BorderWalk borderExitWorld(const glm::dvec3& origin, const glm::dvec3& direction,
+                               std::uint32_t shell, double endWorld) const;
     /// A guard against walking on forever (a ray along a side, rounding): far more shells than a
     /// ray crosses on its way to the floor of any mesh that renders in reasonable time.
     static constexpr int kMaxBorderWalk = 1 << 14;
     /// Where the march of `march` (a flat or planar shell's) leaves its shell through an open
     /// border, in texels of travel from its start (ShellMarch::leaveTravelTexels). `sides`:
     /// flatSidesOf its shell, taken once for the rays of a shell.
+    /// Precondition: setBorderExit's clearance in the march's hit.
     float leaveTravelTexels(const ShellMarch& march, const FlatSides* sides) const;
+    /// The march's leaveTravelTexels, and its hit's entryShell and entryBorderClearanceWorld (a
+    /// lower bound of the entry's distance to the open border; +infinity without `sides`).
+    void setBorderExit(ShellMarch& march, const FlatSides* sides) const;
     /// The FlatSides of shell `shell` when it is a flat shell of an object with an open border;
     /// null when no ray through it can leave by a border.
     const FlatSides* flatSidesOf(std::uint32_t shell) const;

@@ -1854,6 +1854,135 @@ TEST(SceneTracer, AHoleInAFlatMeshIsAnOpenBorderToo) {
     }
 }
 
+/// A plane of side 2 (x, y in [-1, 1]) in 2 x `subdivisions`^2 triangles, less those over the
+/// square |x|, |y| < 0.25 with `hole`, over a tile of 32 x 32 x 16 texels of 1/16 world unit (a
+/// shell 1 deep, solid floor) whose detail is a wall across the tile's middle, texels x in
+/// [14, 18]: world x in [-0.125, 0.125], and again 2 further on in the tile's repeats, where the
+/// plane has ended.
+Scene walledPlaneScene(int subdivisions, bool hole = false) {
+    Tile tile({32, 32, 16});
+    for (int z = 0; z < 16; ++z)
+        for (int y = 0; y < 32; ++y)
+            for (int x = 0; x < 32; ++x) tile.at(x, y, z) = std::abs(x + 0.5f - 16.0f) - 2.0f;
+    Scene scene;
+    SceneObject plane;
+    plane.mesh = makePlane(2.0f, subdivisions);
+    if (hole) {
+        std::erase_if(plane.mesh.triangles, [&](const glm::uvec3& triangle) {
+            const glm::vec3 centroid =
+                (plane.mesh.positions[triangle[0]] + plane.mesh.positions[triangle[1]] +
+                 plane.mesh.positions[triangle[2]]) /
+                3.0f;
+            return std::abs(centroid.x) < 0.25f && std::abs(centroid.y) < 0.25f;
+        });
+    }
+    plane.material.tile = std::make_shared<const Tile>(std::move(tile));
+    plane.material.uvScale = {1.0f, 1.0f};
+    plane.material.depthWorld = 1.0f;
+    scene.objects.push_back(std::move(plane));
+    return scene;
+}
+
+/// A camera ray that enters a plane's top at `entry` along `direction` and stops on the floor,
+/// and the height (texels) at which the self-shadow ray from there toward `toLight` must end.
+struct SelfShadowTopCase {
+    glm::vec3 entry, direction, toLight;
+    float topTexels;
+};
+
+void expectSelfShadowTop(const SceneTracer& tracer, const SelfShadowTopCase& expected) {
+    SurfaceHit hit;
+    TraceCounters counters;
+    ASSERT_TRUE(tracer.traceNearest(
+        {expected.entry - expected.direction * 0.5f, expected.direction}, 0.0f, hit, counters));
+    ASSERT_TRUE(hit.march.onFloor);
+    // The renderer's start: the hit in texel space, the light's direction there.
+    const glm::vec3 toLightTexels = glm::normalize(hit.entry.toTexel(expected.toLight));
+    EXPECT_NEAR(tracer.selfShadowTopTexels(hit, expected.toLight, hit.march.texelPosition,
+                                           toLightTexels, 16.0f),
+                expected.topTexels, 1e-3f);
+}
+
+TEST(SceneTracer, SelfShadowRaysEndWhereTheyLeaveThroughAnOpenBorder) {
+    // Floor hits of the walled plane (walledPlaneScene) and the height at which their self-shadow
+    // rays must end: where they cross the plane's edge or the hole's side, 16 texels per world
+    // unit of rise above the floor, or the top (16) when they reach it first. Beyond them the
+    // tile's wall is not there, but a march up to the top would meet it.
+    const glm::vec3 down(0.0f, 0.0f, -1.0f);
+    const float rise = std::sqrt(0.5f);
+    const glm::vec3 steep(0.5f, 0.0f, 0.5f * std::sqrt(3.0f));  // toward +x at 60 degrees
+    const SelfShadowTopCase cases[] = {
+        {{0.95f, 0.3f, 0.0f}, down, {rise, 0.0f, rise}, 0.8f},    // out at x = 1, 0.05 up
+        {{0.95f, 0.3f, 0.0f}, down, {-rise, 0.0f, rise}, 16.0f},  // away from it
+        {{-0.5f, 0.3f, 0.0f}, down, {rise, 0.0f, rise}, 16.0f},   // the top at x = 0.5
+        {{-0.3f, 0.9f, 0.0f}, down, {0.0f, rise, rise}, 1.6f},    // out at y = 1, 0.1 up
+        // From (0.9, 0, -1) toward x = 1 diagonally, out 0.1 up.
+        {{0.2f, 0.0f, 0.0f},
+         glm::normalize(glm::vec3(0.7f, 0.0f, -1.0f)),
+         glm::normalize(glm::vec3(1.0f, 1.0f, 1.0f)),
+         1.6f},
+        // From (0.9, 0.3, -1), entered 0.85 from the edge, toward it at 60 degrees: out 0.173
+        // up. The two paths, 1.25 and 1.15 long, reach no further than 2.41 from the entry, less
+        // than 3 times its distance to the edge.
+        {{0.15f, 0.3f, 0.0f},
+         glm::normalize(glm::vec3(0.75f, 0.0f, -1.0f)),
+         steep,
+         16.0f * 0.1f * std::sqrt(3.0f)},
+    };
+    for (const int subdivisions : {1, 64}) {
+        const Scene scene = walledPlaneScene(subdivisions);
+        const SceneTracer tracer(scene, TraceOptions{});
+        for (std::size_t k = 0; k < std::size(cases); ++k) {
+            SCOPED_TRACE(std::to_string(subdivisions) + " subdivisions, case " + std::to_string(k));
+            expectSelfShadowTop(tracer, cases[k]);
+        }
+    }
+    // Around the hole: from (0.35, 0, -1) toward -x, its side at x = 0.25 0.1 up. The camera ray
+    // came from below the hole, so the shell it entered is off that light ray's line, whose
+    // walk must start from the shell under the hit.
+    const SelfShadowTopCase aroundTheHole[] = {
+        {{0.35f, -0.7f, 0.0f},
+         glm::normalize(glm::vec3(0.0f, 0.7f, -1.0f)),
+         {-rise, 0.0f, rise},
+         1.6f},
+        {{0.35f, 0.0f, 0.0f}, down, {-rise, 0.0f, rise}, 1.6f},
+        {{0.35f, 0.0f, 0.0f}, down, steep, 16.0f},  // the top at x = 0.93, before the edge
+    };
+    const Scene holedScene = walledPlaneScene(64, true);
+    const SceneTracer holed(holedScene, TraceOptions{});
+    for (std::size_t k = 0; k < std::size(aroundTheHole); ++k) {
+        SCOPED_TRACE("around the hole, case " + std::to_string(k));
+        expectSelfShadowTop(holed, aroundTheHole[k]);
+    }
+}
+
+TEST(Renderer, SelfShadowsNearAnOpenBorderComeOnlyFromTheDetailThere) {
+    // The walled plane from straight above, lit from +x at 45 degrees. Its floor is in the
+    // wall's shadow from x = -1.125 to -0.125, and lit from there to the edge at x = 1: the
+    // self-shadow rays of floor points within 0.875 of that edge pass over it before the top,
+    // where the march once ran on into the tile's next wall and shaded them as dark as those
+    // behind the wall.
+    const Scene base = walledPlaneScene(1);
+    Scene scene = base;
+    scene.camera = {{0.0f, 0.0f, 8.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 20.0f};
+    scene.lights = {DirectionalLight{{-1.0f, 0.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, 1.0f}};
+    RenderOptions options;
+    options.width = options.height = 128;
+    const RenderResult result = renderScene(scene, options);
+    const PinholeProjection projection(scene.camera, options.width, options.height);
+    const auto floorLuminance = [&](float x) {
+        const glm::dvec2 pixel = projection.toPixels(projection.toView({x, 0.3f, -1.0f}));
+        const glm::vec3 color = result.image.at(int(pixel.x), int(pixel.y));
+        return (color.r + color.g + color.b) / 3.0f;
+    };
+    const float shadowed = floorLuminance(-0.4f), lit = floorLuminance(0.4f);
+    ASSERT_GT(lit, 2.0f * shadowed);
+    for (const float x : {0.6f, 0.8f, 0.9f, 0.95f}) {
+        SCOPED_TRACE("x = " + std::to_string(x));
+        EXPECT_NEAR(floorLuminance(x), lit, 0.02f * lit);
+    }
+}
+
 TEST(SceneTracer, AFlatShellBatchGivesEachRayWhatItsRoundsGiveIt) {
     // The sheet's camera rays in runs of 16 x 4 pixels: traceFlatShell (the screen path's batch
     // over the one flat shell of their pixels) must give every ray that meets the plane's first
