@@ -333,7 +333,7 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     : tracer_(tracer), projection_(projection) {
     tilesX_ = (projection.width() + kTilePixels - 1) / kTilePixels;
     tilesY_ = (projection.height() + kTilePixels - 1) / kTilePixels;
-    const std::uint32_t shellCount = tracer.shellCount();
+    const std::uint32_t shellCount = tracer.entryFaceCount();  // tops and open borders' sides
     bounds_.resize(shellCount);
     const glm::dvec2 slopePerPixel = projection.slopePerPixel();
     const glm::dvec2 slopeAtOrigin = projection.slopeAtOrigin();
@@ -341,11 +341,12 @@ ScreenShells::ScreenShells(const SceneTracer& tracer, const PinholeProjection& p
     // Each shell's projection on its own, in parallel.
     tbb::parallel_for(std::uint32_t(0), shellCount, [&](std::uint32_t shell) {
         glm::vec3 top[3], bottom[3];
-        tracer.shellCorners(shell, top, bottom);
+        tracer.entryFaceCorners(shell, top, bottom);
         // Front-facing tops are where camera rays enter shells, back-facing ones stop them (the
         // inside of a mesh) unless the ray leaves a curved shell there (traceNearestBatch): both
         // are binned, and the tracer tells them apart.
         ShellBounds& bounds = bounds_[shell];
+        if (tracer.entryFaceFacesAway(shell, projection.eye())) return;  // a side seen from inside
         bounds.top = projectTriangle(projection, top);
         if (bounds.top.empty()) return;
         double zMin = std::numeric_limits<double>::max();

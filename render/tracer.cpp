@@ -119,7 +119,8 @@ void flatSidePlane(const BaseMesh& mesh, const glm::uvec3& corners, const glm::d
 /// at least k - 1 cell widths from every border side, and every point of a triangle within its
 /// reach (the farthest corner) of its centroid.
 std::vector<float> planarBorderDistances(const BaseMesh& mesh, std::span<const glm::vec3> normals,
-                                         std::span<const std::array<std::uint32_t, 3>> neighbours) {
+                                         std::span<const std::array<std::uint32_t, 3>> neighbours,
+                                         detail::BorderGrid& grid) {
     const std::size_t count = mesh.triangles.size();
     std::vector<float> distances(count, 0.0f);
     std::size_t firstFlat = 0;
@@ -168,8 +169,9 @@ std::vector<float> planarBorderDistances(const BaseMesh& mesh, std::span<const g
     }
     const double extent = std::max(high.x - low.x, high.y - low.y);
     if (!(extent > 0.0) || !(offPlane <= 1e-6 * extent)) return distances;  // not one plane
-    // Cells of about half the smallest triangle's reach, at most 1024 along the longer side.
-    const double cell = std::max(extent / 1024.0, 0.5 * leastReach);
+    // Cells of about half the smallest triangle's reach, at least 256 and at most 1024 along the
+    // longer side (the grid also bounds points: BorderGrid::distanceWorld).
+    const double cell = std::max(extent / 1024.0, std::min(0.5 * leastReach, extent / 256.0));
     const int columns = int((high.x - low.x) / cell) + 1;
     const int rows = int((high.y - low.y) / cell) + 1;
     const auto cellOf = [&](const glm::dvec2& point) {
@@ -226,10 +228,24 @@ std::vector<float> planarBorderDistances(const BaseMesh& mesh, std::span<const g
         const double distance = (at(home.x, home.y) - 1) * cell - footprint.reach - margin;
         if (distance > 0.0) distances[t] = float(distance) * (1.0f - 1e-6f);
     });
+    grid = {origin, axisU, axisV, low, cell, margin, columns, rows, {}};
+    grid.steps.resize(steps.size());
+    for (std::size_t index = 0; index < steps.size(); ++index)  // saturated: still a lower bound
+        grid.steps[index] = std::uint16_t(std::min(steps[index], 0xffff));
     return distances;
 }
 
 }  // namespace
+
+float detail::BorderGrid::distanceWorld(const glm::vec3& point) const {
+    if (steps.empty()) return 0.0f;
+    const glm::dvec3 offset = glm::dvec3(point) - origin;
+    const double u = (glm::dot(offset, axisU) - low.x) / cellWorld;
+    const double v = (glm::dot(offset, axisV) - low.y) / cellWorld;
+    if (!(u >= 0.0 && v >= 0.0 && u < double(columns) && v < double(rows))) return 0.0f;
+    const int k = steps[std::size_t(v) * std::size_t(columns) + std::size_t(u)];
+    return float(std::max((k - 1) * cellWorld - marginWorld, 0.0)) * (1.0f - 1e-6f);
+}
 
 glm::vec3 ShellEntry::toTexel(const glm::vec3& world) const {
     if (curved) return texelFromWorld * world;
@@ -426,22 +442,27 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
         std::size_t pendingCount = 0;
         for (std::size_t r = 0; r < count; ++r) {
             if (!active[r]) continue;
+            constexpr float kFar = std::numeric_limits<float>::max();
             TriangleHit baseHit;
-            if (passes[r]++ == maxPasses ||
-                !bvh_.intersect(rays[r], from[r], std::numeric_limits<float>::max(), baseHit)) {
+            bool onTop =
+                passes[r]++ != maxPasses && bvh_.intersect(rays[r], from[r], kFar, baseHit);
+            while (onTop && baseHit.distanceWorld < skipBackFacesBefore[r] &&
+                   !triangles_[baseHit.triangle].frontFacing(rays[r].direction)) {
+                onTop = passes[r]++ != maxPasses &&
+                        bvh_.intersect(rays[r], baseHit.distanceWorld, kFar, baseHit);
+            }
+            // A side on an open border before the top the ray meets: it enters there.
+            if (passes[r] <= maxPasses &&
+                enterNearestSide(rays[r], from[r], onTop ? baseHit.distanceWorld : kFar, hits[r],
+                                 marches[r])) {
+                pending[pendingCount] = &marches[r];
+                pendingRay[pendingCount++] = r;
+                continue;
+            }
+            if (!onTop) {
                 active[r] = false;
                 continue;
             }
-            while (baseHit.distanceWorld < skipBackFacesBefore[r] &&
-                   !triangles_[baseHit.triangle].frontFacing(rays[r].direction)) {
-                if (passes[r]++ == maxPasses ||
-                    !bvh_.intersect(rays[r], baseHit.distanceWorld,
-                                    std::numeric_limits<float>::max(), baseHit)) {
-                    active[r] = false;
-                    break;
-                }
-            }
-            if (!active[r]) continue;
             if (!enterAt(rays[r], baseHit, hits[r], marches[r])) {  // stops on the base surface
                 found[r] = true;
                 active[r] = false;
@@ -536,7 +557,8 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     const double u = interpolateUv(0) * material.uvScale.x;
     const double v = interpolateUv(1) * material.uvScale.y;
     const glm::vec3 start(float((u - std::floor(u)) * size.width),
-                          float((v - std::floor(v)) * size.height), float(size.depth));
+                          float((v - std::floor(v)) * size.height),
+                          float(size.depth) - march.entryDepthWorld * hit.entry.texelsPerWorld.z);
     // Reference renders of detail with an exact first hit (mesh truth) take it instead of marching.
     if (options_.reference && material.exactHit) {
         march.startTexels = start;
@@ -616,6 +638,10 @@ float SceneTracer::leaveTravelTexels(const ShellMarch& march, const FlatSides* s
     const double texelsPerWorld = march.hit->texelsPerWorldAlongRay;
     const double entryWorld = march.baseHit.distanceWorld;
     const double toFloorTexels = march.startTexels.z / -march.directionTexels.z;
+    // Then the entry's own distance to the border, from the plane's grid.
+    if ((march.skippedTexels + toFloorTexels) / texelsPerWorld <
+        borderGrids_[march.object].distanceWorld(march.hit->entry.position))
+        return kNever;
     const double exitWorld =
         borderExitWorld(glm::dvec3(march.ray->origin), glm::dvec3(march.ray->direction),
                         march.baseHit.triangle,
@@ -668,13 +694,22 @@ float SceneTracer::selfShadowTopTexels(const SurfaceHit& hit, const glm::vec3& t
         return topTexels;
     // Both paths, the camera ray's from its entry to the hit and this ray's to the top, stay
     // within their lengths of the entry: shorter together than its clearance, neither leaves.
-    const double texelsPerWorldToLight = glm::length(hit.entry.toTexel(toLightWorld));
-    const double toTopWorld =
-        double(topTexels - startTexels.z) / double(toLightTexels.z) / texelsPerWorldToLight;
+    // Most hits stop here, so no root and no division: the light's rise in texels per world unit
+    // is the flat frame's z of its direction, and both sides are taken times the two scales.
+    const float risePerWorld =
+        glm::dot(toLightWorld, hit.entry.normal) * hit.entry.texelsPerWorld.z;
+    const float alongRay = hit.texelsPerWorldAlongRay;
+    if ((hit.march.travelTexels * risePerWorld + (topTexels - startTexels.z) * alongRay) *
+            (1.0f + 1e-5f) <
+        hit.entryBorderClearanceWorld * alongRay * risePerWorld)
+        return topTexels;
+    // Then the hit's own distance to the border, from the plane's grid.
+    const double toTopWorld = double(topTexels - startTexels.z) / double(risePerWorld);
+    if (toTopWorld < borderGrids_[hit.object].distanceWorld(hit.position)) return topTexels;
+    // The shell under the hit, then where this ray leaves from there.
+    const double texelsPerWorldToLight = double(risePerWorld) / double(toLightTexels.z);
     const glm::dvec3 entry(hit.entry.position), at(hit.position);
     const double cameraPathWorld = glm::length(at - entry);
-    if (cameraPathWorld + toTopWorld < double(hit.entryBorderClearanceWorld)) return topTexels;
-    // The shell under the hit, then where this ray leaves from there.
     std::uint32_t shell = hit.entryShell;
     if (cameraPathWorld > 0.0) {
         shell =
@@ -691,6 +726,7 @@ float SceneTracer::selfShadowTopTexels(const SurfaceHit& hit, const glm::vec3& t
 
 void SceneTracer::buildFlatBorders() {
     flatSidesFirst_.assign(scene_.objects.size(), kNoFlatBorder);
+    borderGrids_.resize(scene_.objects.size());
     std::uint32_t firstShell = 0;
     for (std::size_t objectIndex = 0; objectIndex < scene_.objects.size(); ++objectIndex) {
         const BaseMesh& mesh = scene_.objects[objectIndex].mesh;
@@ -730,7 +766,7 @@ void SceneTracer::buildFlatBorders() {
             continue;
         }
         const std::vector<float> borderDistances =
-            planarBorderDistances(mesh, flatNormals, neighbours);
+            planarBorderDistances(mesh, flatNormals, neighbours, borderGrids_[objectIndex]);
         flatSidesFirst_[objectIndex] = std::uint32_t(flatSides_.size());
         flatSides_.resize(flatSides_.size() + count);
         FlatSides* sides = flatSides_.data() + flatSidesFirst_[objectIndex];
@@ -748,8 +784,90 @@ void SceneTracer::buildFlatBorders() {
             }
             sides[t].borderDistanceWorld = borderDistances[t];
         });
+        // The prisms' sides on the open border, where rays from outside enter.
+        const float depthWorld = scene_.objects[objectIndex].material.depthWorld;
+        for (std::uint32_t t = 0; t < count; ++t) {
+            if (!shells[t].flatWithDetail()) continue;
+            const glm::vec3 normal = shells[t].frameNormal;
+            for (int side = 0; side < 3; ++side) {
+                if (sides[t].neighbour[side] != ShellPrisms::kNoNeighbour) continue;
+                glm::dvec3 outward;
+                double offset = 0.0;
+                flatSidePlane(mesh, mesh.triangles[t], glm::dvec3(normal), side, outward, offset);
+                const glm::vec3 from = mesh.positions[mesh.triangles[t][(side + 1) % 3]];
+                const glm::vec3 to = mesh.positions[mesh.triangles[t][(side + 2) % 3]];
+                const glm::vec3 fromBelow = from - normal * depthWorld;
+                const glm::vec3 toBelow = to - normal * depthWorld;
+                const glm::vec3 unitOutward(glm::normalize(outward));
+                for (const std::array<glm::vec3, 3>& corners :
+                     {std::array{from, to, toBelow}, std::array{from, toBelow, fromBelow}}) {
+                    borderFaces_.push_back({DoubleTriangle(corners[0], corners[1], corners[2]),
+                                            {corners[0], corners[1], corners[2]},
+                                            unitOutward,
+                                            firstShell + t,
+                                            std::uint8_t(side)});
+                }
+            }
+        }
         firstShell += count;
     }
+    if (borderFaces_.empty()) return;
+    std::vector<glm::vec3> corners;
+    corners.reserve(borderFaces_.size() * 3);
+    for (const BorderFace& face : borderFaces_)
+        corners.insert(corners.end(), std::begin(face.corners), std::end(face.corners));
+    borderBvh_ = TriangleBvh(std::move(corners));
+}
+
+void SceneTracer::entryFaceCorners(std::uint32_t face, glm::vec3 top[3],
+                                   glm::vec3 bottom[3]) const {
+    if (face < shellCount()) {
+        shellCorners(face, top, bottom);
+        return;
+    }
+    for (int corner = 0; corner < 3; ++corner)
+        top[corner] = bottom[corner] = borderFaces_[face - shellCount()].corners[corner];
+}
+
+bool SceneTracer::enterSide(const Ray& ray, std::uint32_t face, float distanceWorld,
+                            SurfaceHit& hit, ShellMarch& march) const {
+    const BorderFace& border = borderFaces_[face];
+    const ShellTriangle& shell = triangles_[border.shell];
+    // In from outside, and down into the shell (the march descends from where it enters).
+    if (!(glm::dot(ray.direction, border.outward) < 0.0f) || !shell.frontFacing(ray.direction))
+        return false;
+    const SceneObject& object = scene_.objects[shell.object];
+    const glm::uvec3 corners = object.mesh.triangles[shell.localTriangle];
+    const int from = (border.side + 1) % 3, to = (border.side + 2) % 3;
+    const glm::dvec3 a(object.mesh.positions[corners[from]]);
+    const glm::dvec3 b(object.mesh.positions[corners[to]]);
+    const glm::dvec3 point =
+        glm::dvec3(ray.origin) + glm::dvec3(ray.direction) * double(distanceWorld);
+    // The point over the top's edge where the ray enters, and how far below it.
+    const double along = std::clamp(glm::dot(point - a, b - a) / glm::dot(b - a, b - a), 0.0, 1.0);
+    float weights[3] = {};
+    weights[from] = float(1.0 - along);
+    weights[to] = float(along);
+    if (!enterAt(ray, {border.shell, distanceWorld, weights[1], weights[2]}, hit, march))
+        return false;
+    march.entryDepthWorld = float(std::clamp(glm::dot(a - point, glm::dvec3(shell.frameNormal)),
+                                             0.0, double(object.material.depthWorld)));
+    return true;
+}
+
+bool SceneTracer::enterNearestSide(const Ray& ray, float minDistance, float maxDistance,
+                                   SurfaceHit& hit, ShellMarch& march) const {
+    if (borderFaces_.empty()) return false;
+    // Past sides seen from inside (a ray leaving a prism there), a bounded number of them.
+    constexpr int kMaxPassed = 8;
+    float from = minDistance;
+    TriangleHit faceHit;
+    for (int passed = 0; passed <= kMaxPassed; ++passed) {
+        if (!borderBvh_.intersect(ray, from, maxDistance, faceHit)) return false;
+        if (enterSide(ray, faceHit.triangle, faceHit.distanceWorld, hit, march)) return true;
+        from = faceHit.distanceWorld;
+    }
+    return false;
 }
 
 bool SceneTracer::entersFlatShell(std::uint32_t shell) const {
@@ -769,7 +887,7 @@ void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
     for (ShellMarch* march : marches) {
         if (triangles_[march->baseHit.triangle].curved) {
             takeCurvedEntry(*march, curvedTraces[curvedCount++]);
-        } else if (entersFlatShell(march->baseHit.triangle)) {
+        } else if (march->entryDepthWorld == 0.0f && entersFlatShell(march->baseHit.triangle)) {
             shells[flatCount] = march->baseHit.triangle;
             flat[flatCount++] = march;
         } else {
@@ -852,6 +970,7 @@ void SceneTracer::takeFlatEntries(std::span<ShellMarch* const> sameShell) const 
 bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const> rays,
                                  std::span<SurfaceHit> hits, std::span<bool> found,
                                  std::span<TraceCounters> counters) const {
+    if (shell >= shellCount()) return false;  // a side on an open border
     const ShellTriangle& triangle = triangles_[shell];
     if (triangle.curved || !triangle.hasDetail() || !entersFlatShell(shell) ||
         !isSphereTracing(options_.march.method) ||

@@ -159,6 +159,9 @@ struct ShellMarch {
     glm::vec3 startTexels{0.0f};  ///< where the march starts (after the skipped empty path)
     glm::vec3 directionTexels{0.0f, 0.0f, -1.0f};  ///< unit in texel space
     float skippedTexels = 0.0f;                    ///< empty path from the top face to startTexels
+    /// How far below the top the ray entered (world units): 0 through the top, more through a
+    /// side of the prism on an open border of the mesh (SceneTracer::entryFaceCount).
+    float entryDepthWorld = 0.0f;
     /// Travel from startTexels at which the ray leaves the shell through an open border of the
     /// base mesh (+infinity: not before the floor); the march ends there without a hit.
     float leaveTravelTexels = std::numeric_limits<float>::infinity();
@@ -234,6 +237,24 @@ struct TraceCounters {
     std::uint64_t marchIterations = 0;  ///< sphere-tracing steps
 };
 
+namespace detail {
+
+/// Lower bounds of the distance to the open border of an object whose flat shells lie in one
+/// plane, per cell of a grid over that plane (render/tracer.cpp): the second cull of the
+/// border walks, for the rays the bounds per triangle do not settle.
+struct BorderGrid {
+    glm::dvec3 origin{0.0}, axisU{0.0}, axisV{0.0};  ///< the plane
+    glm::dvec2 low{0.0};                             ///< the grid's corner in the plane
+    double cellWorld = 0.0, marginWorld = 0.0;
+    int columns = 0, rows = 0;
+    std::vector<std::uint16_t> steps;  ///< chessboard cells to the nearest border cell
+    /// At most the distance from `point`'s projection onto the plane to the open border; 0
+    /// without a grid, or outside it.
+    float distanceWorld(const glm::vec3& point) const;
+};
+
+}  // namespace detail
+
 class SceneTracer {
   public:
     /// Preconditions: validateScene(scene) passed; `scene` outlives the tracer.
@@ -272,6 +293,22 @@ class SceneTracer {
 
     /// Base triangles of all objects, in scene order: shell `s` is the detail shell of one of them.
     std::uint32_t shellCount() const { return std::uint32_t(triangles_.size()); }
+    /// Where camera rays enter the detail: face f < shellCount() is shell f's top; the faces
+    /// after them are the sides of flat shells on an open border of their mesh (the edge of a
+    /// floor plane, a hole), two triangles each from the top's edge down to the floor's, through
+    /// which rays from outside enter below the top.
+    std::uint32_t entryFaceCount() const {
+        return shellCount() + std::uint32_t(borderFaces_.size());
+    }
+    /// The corners of entry face `face`: a shell's top and bottom (shellCorners), or a side's
+    /// triangle as both. Precondition: face < entryFaceCount().
+    void entryFaceCorners(std::uint32_t face, glm::vec3 top[3], glm::vec3 bottom[3]) const;
+    /// True for a side face (not a top) that no ray from `eye` enters: it faces away from it.
+    bool entryFaceFacesAway(std::uint32_t face, const glm::vec3& eye) const {
+        if (face < shellCount()) return false;
+        const BorderFace& border = borderFaces_[face - shellCount()];
+        return !(glm::dot(eye - border.corners[0], border.outward) > 0.0f);
+    }
     /// World corners of shell `shell`: its top (the base triangle) and its bottom, the top moved
     /// by -N * depthWorld along the vertex normals (equal to the top without a tile).
     /// Precondition: shell < shellCount().
@@ -279,15 +316,15 @@ class SceneTracer {
     /// The scene object whose base triangle shell `shell` is. Precondition: shell < shellCount().
     std::uint32_t shellObject(std::uint32_t shell) const { return triangles_[shell].object; }
 
-    /// A ray against one shell only, in three parts so that several rays' marches can be taken
-    /// together (render/coverage.h): enterShell, marchShells, finishShell do for that shell what
-    /// traceNearest does for the shell it enters.
-    /// enterShell: the shell's top (intersectTriangle, as the BVH tests it): true when the top is
-    /// hit in (minDistance, maxDistance) and the ray enters the tile, with `march` holding where
-    /// (`ray` and `hit` must outlive marchShells, which fills `hit` with the entry); false with
-    /// `stopped` set when the ray stops on the bare base surface (a back face, no tile; `hit`
-    /// filled) or cleared for a miss. Thread-safe.
-    bool enterShell(std::uint32_t shell, const Ray& ray, float minDistance, float maxDistance,
+    /// A ray against one entry face only (entryFaceCount), in three parts so that several rays'
+    /// marches can be taken together (render/coverage.h): enterShell, marchShells, finishShell do
+    /// for that face what traceNearest does for the shell it enters.
+    /// enterShell: the face (intersectTriangle, as the BVH tests it): true when it is hit in
+    /// (minDistance, maxDistance) and the ray enters the tile, with `march` holding where (`ray`
+    /// and `hit` must outlive marchShells, which fills `hit` with the entry); false with
+    /// `stopped` set when the ray stops on the bare base surface (a top's back face, no tile;
+    /// `hit` filled) or cleared for a miss (a side seen from inside is one). Thread-safe.
+    bool enterShell(std::uint32_t face, const Ray& ray, float minDistance, float maxDistance,
                     SurfaceHit& hit, ShellMarch& march, bool& stopped) const;
     /// Takes the entries and the marches of `marches` (from enterShell; at most kMaxBatchRays):
     /// the entries of rays into the same flat shell eight at a time where AVX2 allows
@@ -364,6 +401,23 @@ class SceneTracer {
         /// world units (0: not known; buildFlatBorders): a path shorter than this cannot leave.
         float borderDistanceWorld = 0.0f;
     };
+    /// A side of a flat shell's prism on an open border, one of its two triangles: the top's
+    /// edge (corners 0, 1 of the first, 0 of the second) and the floor's below it.
+    struct BorderFace {
+        DoubleTriangle triangle;
+        glm::vec3 corners[3];
+        glm::vec3 outward;    ///< unit, away from the prism
+        std::uint32_t shell;  ///< the flat shell whose side it is
+        std::uint8_t side;    ///< opposite corner `side` of the shell's triangle
+    };
+    /// The ray's entry through border face `face` (an index into borderFaces_) at `distanceWorld`
+    /// along it: false (a miss) when it comes from inside or does not descend into the shell.
+    bool enterSide(const Ray& ray, std::uint32_t face, float distanceWorld, SurfaceHit& hit,
+                   ShellMarch& march) const;
+    /// The nearest entry of `ray` through a border face in (minDistance, maxDistance), its march
+    /// set up as enterSide's; false when there is none.
+    bool enterNearestSide(const Ray& ray, float minDistance, float maxDistance, SurfaceHit& hit,
+                          ShellMarch& march) const;
     /// Fills `entry` (in place: the hit's own, no temporary) for the ray's hit on a shell's top.
     void shellEntry(const TriangleHit& hit, const Ray& ray, ShellEntry& entry) const;
     /// marchShells' three parts: the entries, the marches, then the normal gradients.
@@ -455,6 +509,9 @@ class SceneTracer {
     std::vector<std::uint32_t> flatSidesFirst_;
     static constexpr std::uint32_t kNoFlatBorder = 0xffffffffU;
     std::vector<FlatSides> flatSides_;
+    std::vector<detail::BorderGrid> borderGrids_;  ///< per object (empty for most)
+    std::vector<BorderFace> borderFaces_;          ///< of every flat shell, in shell and side order
+    TriangleBvh borderBvh_;  ///< over borderFaces_, for the rays of the BVH path
     std::vector<std::string> warnings_;
 };
 
@@ -465,6 +522,12 @@ inline bool SceneTracer::enterShell(std::uint32_t shell, const Ray& ray, float m
                                     bool& stopped) const {
     stopped = false;
     double distance = 0.0, b1 = 0.0, b2 = 0.0;
+    if (shell >= shellCount()) {
+        const std::uint32_t side = shell - shellCount();
+        return intersectTriangle(ray, borderFaces_[side].triangle, minDistance, maxDistance,
+                                 distance, b1, b2) &&
+               enterSide(ray, side, float(distance), hit, march);
+    }
     if (!intersectTriangle(ray, triangles_[shell].top, minDistance, maxDistance, distance, b1, b2))
         return false;
     if (enterAt(ray, {shell, float(distance), float(b1), float(b2)}, hit, march)) return true;
@@ -493,6 +556,7 @@ inline bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, Sur
     march.marched = false;
     march.gradientKnown = false;
     march.curved = false;
+    march.entryDepthWorld = 0.0f;
     return true;
 }
 

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
@@ -1953,6 +1954,96 @@ TEST(SceneTracer, SelfShadowRaysEndWhereTheyLeaveThroughAnOpenBorder) {
     for (std::size_t k = 0; k < std::size(aroundTheHole); ++k) {
         SCOPED_TRACE("around the hole, case " + std::to_string(k));
         expectSelfShadowTop(holed, aroundTheHole[k]);
+    }
+}
+
+/// Where `ray` first meets the box [low, high] (slab test), if it does: the distance.
+std::optional<float> boxEntryDistance(const Ray& ray, const glm::vec3& low, const glm::vec3& high) {
+    float enter = 0.0f, leave = std::numeric_limits<float>::max();
+    for (int axis = 0; axis < 3; ++axis) {
+        if (ray.direction[axis] == 0.0f) {
+            if (ray.origin[axis] < low[axis] || ray.origin[axis] > high[axis]) return std::nullopt;
+            continue;
+        }
+        float near = (low[axis] - ray.origin[axis]) / ray.direction[axis];
+        float far = (high[axis] - ray.origin[axis]) / ray.direction[axis];
+        if (near > far) std::swap(near, far);
+        enter = std::max(enter, near);
+        leave = std::min(leave, far);
+    }
+    if (!(enter <= leave)) return std::nullopt;
+    return enter;
+}
+
+TEST(SceneTracer, RaysEnterAFlatShellThroughItsSidesOnAnOpenBorder) {
+    // A plane of side 2 over a tile whose detail is the plane 4 texels above a solid floor 1
+    // world unit deep: the detail is the box [-1, 1]^2 x [-1, -0.75], and a ray's hit is where it
+    // meets that box, also when it comes in through a side of the shell (the border of the plane)
+    // below the top, where the shell was once entered only through its top and the box's sides
+    // were not seen at all; and no hit where the ray leaves by the far side before reaching it.
+    // Camera rays through the screen bins (each pixel of a view from the front, with and without
+    // culling) and the same rays through the BVH; the plane in 2 triangles and in 2 x 16 x 16.
+    for (const int subdivisions : {1, 16}) {
+        Scene scene;
+        scene.camera = {{0.3f, -3.0f, 0.5f}, {0.0f, 0.0f, -0.6f}, {0.0f, 0.0f, 1.0f}, 50.0f};
+        SceneObject plane;
+        plane.mesh = makePlane(2.0f, subdivisions);
+        plane.material.tile = std::make_shared<const Tile>(flatTile({32, 32, 16}, 4.0f));
+        plane.material.uvScale = {1.0f, 1.0f};
+        plane.material.depthWorld = 1.0f;
+        scene.objects.push_back(std::move(plane));
+        const SceneTracer tracer(scene, TraceOptions{});
+        constexpr int kWidth = 64, kHeight = 48;
+        const PinholeProjection projection(scene.camera, kWidth, kHeight);
+        const ScreenShells shells(tracer, projection);
+        int throughSides = 0, leaving = 0;
+        for (int y = 0; y < kHeight; ++y) {
+            for (int x = 0; x < kWidth; ++x) {
+                SCOPED_TRACE(std::to_string(subdivisions) + " subdivisions, pixel " +
+                             std::to_string(x) + ", " + std::to_string(y));
+                const Ray ray = projection.ray(x + 0.5f, y + 0.5f);
+                const std::optional<float> box =
+                    boxEntryDistance(ray, {-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, -0.75f});
+                const std::optional<float> shell =
+                    boxEntryDistance(ray, {-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 0.0f});
+                const glm::vec3 atShell = shell ? ray.origin + ray.direction * *shell : glm::vec3();
+                const bool side = shell && atShell.z < -1e-3f;
+                throughSides += side && box;
+                leaving += side && !box;
+                // Rays passing within the march's reach of the box's edges (a few hundredths of a
+                // texel) may go either way: those that meet a box grown by 0.005 and miss one
+                // shrunk by as much, or meet both on different faces.
+                constexpr float kNear = 0.005f;
+                const std::optional<float> grown =
+                    boxEntryDistance(ray, {-1.0f - kNear, -1.0f - kNear, -1.0f - kNear},
+                                     {1.0f + kNear, 1.0f + kNear, -0.75f + kNear});
+                const std::optional<float> shrunk =
+                    boxEntryDistance(ray, {-1.0f + kNear, -1.0f + kNear, -1.0f + kNear},
+                                     {1.0f - kNear, 1.0f - kNear, -0.75f - kNear});
+                if (grown.has_value() != shrunk.has_value() ||
+                    (grown && std::abs(*grown - *shrunk) > 0.1f))
+                    continue;
+                for (const bool culling : {true, false}) {
+                    SurfaceHit hit;
+                    TraceCounters counters;
+                    ShellCounters shellCounters;
+                    ASSERT_EQ(shells.traceNearest(x, y, ray, culling, hit, counters, shellCounters),
+                              box.has_value());
+                    if (box) {
+                        EXPECT_NEAR(hit.distanceWorld, *box, 2e-3f);
+                    }
+                }
+                SurfaceHit hit;
+                TraceCounters counters;
+                ASSERT_EQ(tracer.traceNearest(ray, 0.0f, hit, counters), box.has_value());
+                if (box) {
+                    EXPECT_NEAR(hit.distanceWorld, *box, 2e-3f);
+                }
+            }
+        }
+        // The view must hold both kinds of side entry.
+        EXPECT_GT(throughSides, 100);
+        EXPECT_GT(leaving, 20);
     }
 }
 
