@@ -1,11 +1,13 @@
 /// @file
 /// Conservative rasterization (GPU Gems 2, ch. 42) of the detail shells for camera rays.
 ///
-/// Every base triangle of the scene is projected with the renderer's pinhole camera and binned
-/// into screen tiles with *overestimated* coverage: a triangle goes into every tile, and passes
-/// the test of every pixel, whose square it touches (thin slivers and sub-pixel triangles
-/// included). Its shell also gets conservative depth bounds, so a camera ray can skip a shell
-/// that cannot be nearer than the hit it already has (shell culling).
+/// Every entry face of the scene (SceneTracer::entryFaceCount: each base triangle, the top of its
+/// shell, and the sides of flat shells on an open border that face the camera; "shell" below) is
+/// projected with the renderer's pinhole camera and binned into screen tiles with
+/// *overestimated* coverage: a triangle goes into every tile, and passes the test of every pixel,
+/// whose square it touches (thin slivers and sub-pixel triangles included). Its shell also gets
+/// conservative depth bounds, so a camera ray can skip a shell that cannot be nearer than the hit
+/// it already has (shell culling).
 ///
 /// Pixel coordinates: x to the right in [0, width], y down in [0, height]; pixel (i, j) is the
 /// square [i, i+1] x [j, j+1], its centre (i + 0.5, j + 0.5). Depths are distances from the eye

@@ -142,9 +142,9 @@ struct SurfaceHit {
     /// (march.texelPosition is in that prism's texel space).
     std::uint32_t shellPrism = 0;
     PrismPoint shellPoint;
-    /// A ray into a flat shell of a mesh with an open border: the shell whose top it entered,
-    /// and a lower bound of the distance from that entry to the border (world units); +infinity
-    /// for every other ray (SceneTracer::selfShadowTopTexels).
+    /// A ray into a flat shell of a mesh with an open border: the shell it entered (through its
+    /// top or a side), and a lower bound of the distance from that entry to the border (world
+    /// units); +infinity for every other ray (SceneTracer::selfShadowTopTexels).
     std::uint32_t entryShell = 0;
     float entryBorderClearanceWorld = std::numeric_limits<float>::infinity();
 };
@@ -517,20 +517,20 @@ class SceneTracer {
 
 // enterShell and enterAt inline: they run for every camera ray's shell, most of them a plain hit.
 
-inline bool SceneTracer::enterShell(std::uint32_t shell, const Ray& ray, float minDistance,
+inline bool SceneTracer::enterShell(std::uint32_t face, const Ray& ray, float minDistance,
                                     float maxDistance, SurfaceHit& hit, ShellMarch& march,
                                     bool& stopped) const {
     stopped = false;
     double distance = 0.0, b1 = 0.0, b2 = 0.0;
-    if (shell >= shellCount()) {
-        const std::uint32_t side = shell - shellCount();
+    if (face >= shellCount()) {
+        const std::uint32_t side = face - shellCount();
         return intersectTriangle(ray, borderFaces_[side].triangle, minDistance, maxDistance,
                                  distance, b1, b2) &&
                enterSide(ray, side, float(distance), hit, march);
     }
-    if (!intersectTriangle(ray, triangles_[shell].top, minDistance, maxDistance, distance, b1, b2))
+    if (!intersectTriangle(ray, triangles_[face].top, minDistance, maxDistance, distance, b1, b2))
         return false;
-    if (enterAt(ray, {shell, float(distance), float(b1), float(b2)}, hit, march)) return true;
+    if (enterAt(ray, {face, float(distance), float(b1), float(b2)}, hit, march)) return true;
     stopped = true;
     return false;
 }
