@@ -2,7 +2,7 @@
 /// Conservative rasterization (GPU Gems 2, ch. 42) of the detail shells for camera rays.
 ///
 /// Every entry face of the scene (SceneTracer::entryFaceCount: each base triangle, the top of its
-/// shell, and the sides of flat shells on an open border that face the camera; "shell" below) is
+/// shell, and the sides of shells on an open border that face the camera; "shell" below) is
 /// projected with the renderer's pinhole camera and binned into screen tiles with
 /// *overestimated* coverage: a triangle goes into every tile, and passes the test of every pixel,
 /// whose square it touches (thin slivers and sub-pixel triangles included). Its shell also gets

@@ -724,6 +724,25 @@ float SceneTracer::selfShadowTopTexels(const SurfaceHit& hit, const glm::vec3& t
         startTexels.z + float(std::max(exitWorld, 0.0) * texelsPerWorldToLight) * toLightTexels.z);
 }
 
+void SceneTracer::addBorderFaces(std::uint32_t shell, int side) {
+    glm::vec3 top[3], bottom[3];
+    shellCorners(shell, top, bottom);
+    const int from = (side + 1) % 3, to = (side + 2) % 3;
+    for (const std::array<glm::vec3, 3>& face : {std::array{top[from], top[to], bottom[to]},
+                                                 std::array{top[from], bottom[to], bottom[from]}}) {
+        // Away from the prism: from the opposite corner, whose top lies inside.
+        glm::vec3 outward = glm::cross(face[1] - face[0], face[2] - face[0]);
+        if (glm::dot(outward, top[side] - face[0]) > 0.0f) outward = -outward;
+        const float length = glm::length(outward);
+        if (!(length > 0.0f)) continue;  // no area: no ray enters there
+        borderFaces_.push_back({DoubleTriangle(face[0], face[1], face[2]),
+                                {face[0], face[1], face[2]},
+                                outward / length,
+                                shell,
+                                std::uint8_t(side)});
+    }
+}
+
 void SceneTracer::buildFlatBorders() {
     flatSidesFirst_.assign(scene_.objects.size(), kNoFlatBorder);
     borderGrids_.resize(scene_.objects.size());
@@ -784,32 +803,20 @@ void SceneTracer::buildFlatBorders() {
             }
             sides[t].borderDistanceWorld = borderDistances[t];
         });
-        // The prisms' sides on the open border, where rays from outside enter.
-        const float depthWorld = scene_.objects[objectIndex].material.depthWorld;
         for (std::uint32_t t = 0; t < count; ++t) {
             if (!shells[t].flatWithDetail()) continue;
-            const glm::vec3 normal = shells[t].frameNormal;
-            for (int side = 0; side < 3; ++side) {
-                if (sides[t].neighbour[side] != ShellPrisms::kNoNeighbour) continue;
-                glm::dvec3 outward;
-                double offset = 0.0;
-                flatSidePlane(mesh, mesh.triangles[t], glm::dvec3(normal), side, outward, offset);
-                const glm::vec3 from = mesh.positions[mesh.triangles[t][(side + 1) % 3]];
-                const glm::vec3 to = mesh.positions[mesh.triangles[t][(side + 2) % 3]];
-                const glm::vec3 fromBelow = from - normal * depthWorld;
-                const glm::vec3 toBelow = to - normal * depthWorld;
-                const glm::vec3 unitOutward(glm::normalize(outward));
-                for (const std::array<glm::vec3, 3>& corners :
-                     {std::array{from, to, toBelow}, std::array{from, toBelow, fromBelow}}) {
-                    borderFaces_.push_back({DoubleTriangle(corners[0], corners[1], corners[2]),
-                                            {corners[0], corners[1], corners[2]},
-                                            unitOutward,
-                                            firstShell + t,
-                                            std::uint8_t(side)});
-                }
-            }
+            for (int side = 0; side < 3; ++side)
+                if (sides[t].neighbour[side] == ShellPrisms::kNoNeighbour)
+                    addBorderFaces(firstShell + t, side);
         }
         firstShell += count;
+    }
+    // The curved shells' sides on an open border: the shell map's neighbours.
+    for (std::uint32_t shell = 0; shell < shellCount(); ++shell) {
+        if (!triangles_[shell].curved || !triangles_[shell].hasDetail()) continue;
+        for (int side = 0; side < 3; ++side)
+            if (neighbours_[shell][std::size_t(side)] == ShellPrisms::kNoNeighbour)
+                addBorderFaces(shell, side);
     }
     if (borderFaces_.empty()) return;
     std::vector<glm::vec3> corners;
@@ -833,8 +840,10 @@ bool SceneTracer::enterSide(const Ray& ray, std::uint32_t face, float distanceWo
                             SurfaceHit& hit, ShellMarch& march) const {
     const BorderFace& border = borderFaces_[face];
     const ShellTriangle& shell = triangles_[border.shell];
-    // In from outside, and down into the shell (the march descends from where it enters).
-    if (!(glm::dot(ray.direction, border.outward) < 0.0f) || !shell.frontFacing(ray.direction))
+    // In from outside; into a flat shell also down (its straight march descends from there; the
+    // curved march follows the ray wherever it goes).
+    if (!(glm::dot(ray.direction, border.outward) < 0.0f) ||
+        (!shell.curved && !shell.frontFacing(ray.direction)))
         return false;
     const SceneObject& object = scene_.objects[shell.object];
     const glm::uvec3 corners = object.mesh.triangles[shell.localTriangle];
@@ -848,10 +857,13 @@ bool SceneTracer::enterSide(const Ray& ray, std::uint32_t face, float distanceWo
     float weights[3] = {};
     weights[from] = float(1.0 - along);
     weights[to] = float(along);
-    if (!enterAt(ray, {border.shell, distanceWorld, weights[1], weights[2]}, hit, march))
-        return false;
-    march.entryDepthWorld = float(std::clamp(glm::dot(a - point, glm::dvec3(shell.frameNormal)),
-                                             0.0, double(object.material.depthWorld)));
+    startMarch(ray, {border.shell, distanceWorld, weights[1], weights[2]}, hit, march);
+    // Below the top along the flat frame's normal; a curved shell's march finds its depth itself
+    // (any depth above 0 marks the side).
+    march.entryDepthWorld =
+        shell.curved ? object.material.depthWorld
+                     : float(std::clamp(glm::dot(a - point, glm::dvec3(shell.frameNormal)), 0.0,
+                                        double(object.material.depthWorld)));
     return true;
 }
 
@@ -1237,7 +1249,12 @@ void SceneTracer::takeCurvedEntry(ShellMarch& march, CurvedMarchRay& trace) cons
     // budget.
     if (!options_.reference) settings.maxIterations *= kCurvedBudgetScale;
     march.curvedTrace = &trace;
-    trace.start(shellPrisms_, ray, baseHit.triangle, baseHit.b1, baseHit.b2, baseHit.distanceWorld,
+    // Through a side: a hair further on, inside the prism, whose bilinear side the two
+    // triangles of the entry face only approximate.
+    const double entryWorld = double(baseHit.distanceWorld) +
+                              (march.entryDepthWorld > 0.0f ? 1e-3 * material.depthWorld : 0.0);
+    hit.entry.frontFacing = true;  // the top's front, or a side from outside
+    trace.start(shellPrisms_, ray, baseHit.triangle, baseHit.b1, baseHit.b2, entryWorld,
                 material.floor, settings);
     if (!trace.needsSample()) finishCurvedMarch(march);
 }

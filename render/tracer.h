@@ -294,9 +294,10 @@ class SceneTracer {
     /// Base triangles of all objects, in scene order: shell `s` is the detail shell of one of them.
     std::uint32_t shellCount() const { return std::uint32_t(triangles_.size()); }
     /// Where camera rays enter the detail: face f < shellCount() is shell f's top; the faces
-    /// after them are the sides of flat shells on an open border of their mesh (the edge of a
-    /// floor plane, a hole), two triangles each from the top's edge down to the floor's, through
-    /// which rays from outside enter below the top.
+    /// after them are the sides of the shells with detail (flat, or followed by the shell map)
+    /// on an open border of their mesh (the edge of a floor plane, a hole, a vase's rim), two
+    /// triangles each from the top's edge down to the floor's, through which rays from outside
+    /// enter below the top.
     std::uint32_t entryFaceCount() const {
         return shellCount() + std::uint32_t(borderFaces_.size());
     }
@@ -401,8 +402,9 @@ class SceneTracer {
         /// world units (0: not known; buildFlatBorders): a path shorter than this cannot leave.
         float borderDistanceWorld = 0.0f;
     };
-    /// A side of a flat shell's prism on an open border, one of its two triangles: the top's
-    /// edge (corners 0, 1 of the first, 0 of the second) and the floor's below it.
+    /// A side of a shell's prism on an open border, one of its two triangles: the top's edge
+    /// (corners 0, 1 of the first, 0 of the second) and the floor's below it (a curved shell's
+    /// bilinear side, approximately).
     struct BorderFace {
         DoubleTriangle triangle;
         glm::vec3 corners[3];
@@ -410,8 +412,11 @@ class SceneTracer {
         std::uint32_t shell;  ///< the flat shell whose side it is
         std::uint8_t side;    ///< opposite corner `side` of the shell's triangle
     };
+    /// Appends the two triangles of side `side` (opposite that corner) of shell `shell` to
+    /// borderFaces_ (those with area).
+    void addBorderFaces(std::uint32_t shell, int side);
     /// The ray's entry through border face `face` (an index into borderFaces_) at `distanceWorld`
-    /// along it: false (a miss) when it comes from inside or does not descend into the shell.
+    /// along it: false (a miss) when it comes from inside, or does not descend into a flat shell.
     bool enterSide(const Ray& ray, std::uint32_t face, float distanceWorld, SurfaceHit& hit,
                    ShellMarch& march) const;
     /// The nearest entry of `ray` through a border face in (minDistance, maxDistance), its march
@@ -433,6 +438,9 @@ class SceneTracer {
     /// filled), true with `march` holding the ray, its hit and `baseHit` for takeEntries.
     bool enterAt(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
                  ShellMarch& march) const;
+    /// enterAt's set-up of `march` for a ray entering the shell of `baseHit`, without its checks.
+    void startMarch(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
+                    ShellMarch& march) const;
     /// `hit` as the ray's stop on the base surface at `baseHit` (no march).
     void baseSurfaceHit(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit) const;
     /// baseSurfaceHit for a hit whose entry is already set: the rest from it, its `position` and
@@ -544,7 +552,13 @@ inline bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, Sur
         hit.march = MarchResult{};  // not marched (the hit may be working memory of a batch)
         return false;
     }
-    march.object = shell.object;
+    startMarch(ray, baseHit, hit, march);
+    return true;
+}
+
+inline void SceneTracer::startMarch(const Ray& ray, const TriangleHit& baseHit, SurfaceHit& hit,
+                                    ShellMarch& march) const {
+    march.object = triangles_[baseHit.triangle].object;
     // Field by field: `baseHit` is often a temporary whose fields were just stored one by one, and
     // a copy of the whole would load them as one, waiting for those stores.
     march.baseHit.triangle = baseHit.triangle;
@@ -557,7 +571,6 @@ inline bool SceneTracer::enterAt(const Ray& ray, const TriangleHit& baseHit, Sur
     march.gradientKnown = false;
     march.curved = false;
     march.entryDepthWorld = 0.0f;
-    return true;
 }
 
 }  // namespace distile

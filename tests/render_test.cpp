@@ -2047,6 +2047,54 @@ TEST(SceneTracer, RaysEnterAFlatShellThroughItsSidesOnAnOpenBorder) {
     }
 }
 
+TEST(SceneTracer, RaysEnterACurvedShellThroughItsSidesOnAnOpenBorder) {
+    // The upper half of a sphere of radius 1 (its radial normals kept), a shell 0.2 deep whose
+    // detail fills it: the rim's sides, from the equator in to radius 0.8, lie in the plane z = 0,
+    // and a ray from below that crosses that annulus stops where it does (the march starts a
+    // thousandth of the depth further on). It once passed by, into the dome. Rays through the
+    // screen bins and through the BVH, each pixel of a view from below; those within 0.01 of the
+    // annulus' circles are left out.
+    Scene scene;
+    scene.camera = {{0.4f, -2.5f, -1.5f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f};
+    SceneObject dome;
+    dome.mesh = makeUvSphere(1.0f, 48, 24);
+    std::erase_if(dome.mesh.triangles, [&](const glm::uvec3& triangle) {
+        return dome.mesh.positions[triangle[0]].z + dome.mesh.positions[triangle[1]].z +
+                   dome.mesh.positions[triangle[2]].z <
+               0.0f;
+    });
+    dome.material.tile = std::make_shared<const Tile>(flatTile({32, 32, 16}, 16.0f));
+    dome.material.uvScale = {4.0f, 2.0f};
+    dome.material.depthWorld = 0.2f;
+    scene.objects.push_back(std::move(dome));
+    const SceneTracer tracer(scene, TraceOptions{});
+    constexpr int kWidth = 64, kHeight = 48;
+    const PinholeProjection projection(scene.camera, kWidth, kHeight);
+    const ScreenShells shells(tracer, projection);
+    int throughSides = 0;
+    for (int y = 0; y < kHeight; ++y) {
+        for (int x = 0; x < kWidth; ++x) {
+            const Ray ray = projection.ray(x + 0.5f, y + 0.5f);
+            const float toRim = -ray.origin.z / ray.direction.z;
+            const glm::vec3 atRim = ray.origin + ray.direction * toRim;
+            const float radius = std::hypot(atRim.x, atRim.y);
+            if (!(radius > 0.81f && radius < 0.99f)) continue;
+            SCOPED_TRACE("pixel " + std::to_string(x) + ", " + std::to_string(y));
+            ++throughSides;
+            SurfaceHit hit;
+            TraceCounters counters;
+            ASSERT_TRUE(tracer.traceNearest(ray, 0.0f, hit, counters));
+            EXPECT_NEAR(hit.distanceWorld, toRim, 5e-4f);
+            for (const bool culling : {true, false}) {
+                ShellCounters shellCounters;
+                ASSERT_TRUE(shells.traceNearest(x, y, ray, culling, hit, counters, shellCounters));
+                EXPECT_NEAR(hit.distanceWorld, toRim, 5e-4f);
+            }
+        }
+    }
+    EXPECT_GT(throughSides, 100);
+}
+
 TEST(Renderer, SelfShadowsNearAnOpenBorderComeOnlyFromTheDetailThere) {
     // The walled plane from straight above, lit from +x at 45 degrees. Its floor is in the
     // wall's shadow from x = -1.125 to -0.125, and lit from there to the edge at x = 1: the
