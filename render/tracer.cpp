@@ -329,7 +329,7 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     tbb::parallel_invoke([&] { bvh_ = TriangleBvh(std::move(corners)); },
                          [&] {
                              buildShellMap();
-                             buildFlatBorders();  // takes the shell map's neighbours
+                             buildBorders();  // takes the shell map's neighbours
                          });
     shellPrisms_ = {prisms_, neighbours_, neighbourCorners_};
 
@@ -743,7 +743,7 @@ void SceneTracer::addBorderFaces(std::uint32_t shell, int side) {
     }
 }
 
-void SceneTracer::buildFlatBorders() {
+void SceneTracer::buildBorders() {
     flatSidesFirst_.assign(scene_.objects.size(), kNoFlatBorder);
     borderGrids_.resize(scene_.objects.size());
     std::uint32_t firstShell = 0;

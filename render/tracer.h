@@ -399,7 +399,7 @@ class SceneTracer {
         /// point with barycentrics b lies b[i] x height[i] from side i.
         float height[3];
         /// At most the distance from any point of the triangle to the object's open border,
-        /// world units (0: not known; buildFlatBorders): a path shorter than this cannot leave.
+        /// world units (0: not known; buildBorders): a path shorter than this cannot leave.
         float borderDistanceWorld = 0.0f;
     };
     /// A side of a shell's prism on an open border, one of its two triangles: the top's edge
@@ -466,9 +466,10 @@ class SceneTracer {
     void finishCurvedMarch(ShellMarch& march) const;
     /// The prisms of every shell and their neighbours, warnings about folds.
     void buildShellMap();
-    /// flatSides_ and flatSidesFirst_ for the objects whose flat shells have an open border.
-    /// After buildShellMap, whose neighbours it takes for objects that have curved shells.
-    void buildFlatBorders();
+    /// The open borders: flatSides_, flatSidesFirst_ and borderGrids_ for the objects whose flat
+    /// shells have one, borderFaces_ and borderBvh_ for every shell with detail on one. After
+    /// buildShellMap, whose neighbours it takes for objects that have curved shells.
+    void buildBorders();
     static constexpr std::uint32_t kNoShell = 0xffffffffU;
     /// Where a straight path leaves the flat shells through an open border, or the shell it ends
     /// over (borderExitWorld).
