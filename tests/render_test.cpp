@@ -1975,6 +1975,39 @@ std::optional<float> boxEntryDistance(const Ray& ray, const glm::vec3& low, cons
     return enter;
 }
 
+/// A scene's tracer and its screen bins at 64 x 48 pixels.
+struct TracedView {
+    static constexpr int kWidth = 64, kHeight = 48;
+    explicit TracedView(const Scene& scene)
+        : tracer(scene, TraceOptions{}),
+          projection(scene.camera, kWidth, kHeight),
+          shells(tracer, projection) {}
+    SceneTracer tracer;
+    PinholeProjection projection;
+    ScreenShells shells;
+
+    /// The camera ray through pixel (x, y) hits at `expected` (world distance, within
+    /// `tolerance`), or misses without one, through the BVH and through the screen bins with and
+    /// without culling.
+    void expectHit(int x, int y, std::optional<float> expected, float tolerance) const {
+        const Ray ray = projection.ray(x + 0.5f, y + 0.5f);
+        SurfaceHit hit;
+        TraceCounters counters;
+        ASSERT_EQ(tracer.traceNearest(ray, 0.0f, hit, counters), expected.has_value());
+        if (expected) {
+            EXPECT_NEAR(hit.distanceWorld, *expected, tolerance);
+        }
+        for (const bool culling : {true, false}) {
+            ShellCounters shellCounters;
+            ASSERT_EQ(shells.traceNearest(x, y, ray, culling, hit, counters, shellCounters),
+                      expected.has_value());
+            if (expected) {
+                EXPECT_NEAR(hit.distanceWorld, *expected, tolerance);
+            }
+        }
+    }
+};
+
 TEST(SceneTracer, RaysEnterAFlatShellThroughItsSidesOnAnOpenBorder) {
     // A plane of side 2 over a tile whose detail is the plane 4 texels above a solid floor 1
     // world unit deep: the detail is the box [-1, 1]^2 x [-1, -0.75], and a ray's hit is where it
@@ -1992,16 +2025,13 @@ TEST(SceneTracer, RaysEnterAFlatShellThroughItsSidesOnAnOpenBorder) {
         plane.material.uvScale = {1.0f, 1.0f};
         plane.material.depthWorld = 1.0f;
         scene.objects.push_back(std::move(plane));
-        const SceneTracer tracer(scene, TraceOptions{});
-        constexpr int kWidth = 64, kHeight = 48;
-        const PinholeProjection projection(scene.camera, kWidth, kHeight);
-        const ScreenShells shells(tracer, projection);
+        const TracedView view(scene);
         int throughSides = 0, leaving = 0;
-        for (int y = 0; y < kHeight; ++y) {
-            for (int x = 0; x < kWidth; ++x) {
+        for (int y = 0; y < TracedView::kHeight; ++y) {
+            for (int x = 0; x < TracedView::kWidth; ++x) {
                 SCOPED_TRACE(std::to_string(subdivisions) + " subdivisions, pixel " +
                              std::to_string(x) + ", " + std::to_string(y));
-                const Ray ray = projection.ray(x + 0.5f, y + 0.5f);
+                const Ray ray = view.projection.ray(x + 0.5f, y + 0.5f);
                 const std::optional<float> box =
                     boxEntryDistance(ray, {-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, -0.75f});
                 const std::optional<float> shell =
@@ -2023,22 +2053,7 @@ TEST(SceneTracer, RaysEnterAFlatShellThroughItsSidesOnAnOpenBorder) {
                 if (grown.has_value() != shrunk.has_value() ||
                     (grown && std::abs(*grown - *shrunk) > 0.1f))
                     continue;
-                for (const bool culling : {true, false}) {
-                    SurfaceHit hit;
-                    TraceCounters counters;
-                    ShellCounters shellCounters;
-                    ASSERT_EQ(shells.traceNearest(x, y, ray, culling, hit, counters, shellCounters),
-                              box.has_value());
-                    if (box) {
-                        EXPECT_NEAR(hit.distanceWorld, *box, 2e-3f);
-                    }
-                }
-                SurfaceHit hit;
-                TraceCounters counters;
-                ASSERT_EQ(tracer.traceNearest(ray, 0.0f, hit, counters), box.has_value());
-                if (box) {
-                    EXPECT_NEAR(hit.distanceWorld, *box, 2e-3f);
-                }
+                view.expectHit(x, y, box, 2e-3f);
             }
         }
         // The view must hold both kinds of side entry.
@@ -2067,29 +2082,18 @@ TEST(SceneTracer, RaysEnterACurvedShellThroughItsSidesOnAnOpenBorder) {
     dome.material.uvScale = {4.0f, 2.0f};
     dome.material.depthWorld = 0.2f;
     scene.objects.push_back(std::move(dome));
-    const SceneTracer tracer(scene, TraceOptions{});
-    constexpr int kWidth = 64, kHeight = 48;
-    const PinholeProjection projection(scene.camera, kWidth, kHeight);
-    const ScreenShells shells(tracer, projection);
+    const TracedView view(scene);
     int throughSides = 0;
-    for (int y = 0; y < kHeight; ++y) {
-        for (int x = 0; x < kWidth; ++x) {
-            const Ray ray = projection.ray(x + 0.5f, y + 0.5f);
+    for (int y = 0; y < TracedView::kHeight; ++y) {
+        for (int x = 0; x < TracedView::kWidth; ++x) {
+            const Ray ray = view.projection.ray(x + 0.5f, y + 0.5f);
             const float toRim = -ray.origin.z / ray.direction.z;
             const glm::vec3 atRim = ray.origin + ray.direction * toRim;
             const float radius = std::hypot(atRim.x, atRim.y);
             if (!(radius > 0.81f && radius < 0.99f)) continue;
             SCOPED_TRACE("pixel " + std::to_string(x) + ", " + std::to_string(y));
             ++throughSides;
-            SurfaceHit hit;
-            TraceCounters counters;
-            ASSERT_TRUE(tracer.traceNearest(ray, 0.0f, hit, counters));
-            EXPECT_NEAR(hit.distanceWorld, toRim, 5e-4f);
-            for (const bool culling : {true, false}) {
-                ShellCounters shellCounters;
-                ASSERT_TRUE(shells.traceNearest(x, y, ray, culling, hit, counters, shellCounters));
-                EXPECT_NEAR(hit.distanceWorld, toRim, 5e-4f);
-            }
+            view.expectHit(x, y, toRim, 5e-4f);
         }
     }
     EXPECT_GT(throughSides, 100);
