@@ -605,12 +605,11 @@ const SceneTracer::FlatSides* SceneTracer::flatSidesOf(std::uint32_t shell) cons
 }
 
 void SceneTracer::setBorderExit(ShellMarch& march, const FlatSides* sides) const {
+    // The entry's distance to the nearest side of its triangle, or the triangle's to the border,
+    // whichever is larger (atEntry left +infinity for a shell without sides).
     SurfaceHit& hit = *march.hit;
     hit.entryShell = march.baseHit.triangle;
-    hit.entryBorderClearanceWorld = std::numeric_limits<float>::infinity();
     if (sides) {
-        // The entry's distance to the nearest side of its triangle, or the triangle's to the
-        // border, whichever is larger.
         const float weights[3] = {1.0f - march.baseHit.b1 - march.baseHit.b2, march.baseHit.b1,
                                   march.baseHit.b2};
         hit.entryBorderClearanceWorld =

@@ -493,7 +493,8 @@ class SceneTracer {
     /// Precondition: setBorderExit's clearance in the march's hit.
     float leaveTravelTexels(const ShellMarch& march, const FlatSides* sides) const;
     /// The march's leaveTravelTexels, and its hit's entryShell and entryBorderClearanceWorld (a
-    /// lower bound of the entry's distance to the open border; +infinity without `sides`).
+    /// lower bound of the entry's distance to the open border; +infinity without `sides`, as
+    /// atEntry, which must have filled the hit, left it).
     void setBorderExit(ShellMarch& march, const FlatSides* sides) const;
     /// The FlatSides of shell `shell` when it is a flat shell of an object with an open border;
     /// null when no ray through it can leave by a border.

@@ -1733,6 +1733,24 @@ Scene sheetScene() {
     return scene;
 }
 
+/// Removes the triangles of `mesh` whose centroid `drop` holds for; returns how many.
+template <class Predicate>
+std::size_t eraseTrianglesByCentroid(BaseMesh& mesh, Predicate drop) {
+    return std::erase_if(mesh.triangles, [&](const glm::uvec3& triangle) {
+        return drop((mesh.positions[triangle[0]] + mesh.positions[triangle[1]] +
+                     mesh.positions[triangle[2]]) /
+                    3.0f);
+    });
+}
+
+/// Cuts the square |x|, |y| < 0.25 out of a plane (the triangles whose centroid lies in it): a
+/// hole, an open border inside the mesh. Returns how many triangles it removed.
+std::size_t cutSquareHole(BaseMesh& plane) {
+    return eraseTrianglesByCentroid(plane, [](const glm::vec3& centroid) {
+        return std::abs(centroid.x) < 0.25f && std::abs(centroid.y) < 0.25f;
+    });
+}
+
 /// A ray that enters a plane's top at `entry` (it starts half a world unit before it), and what
 /// it must do there: stop on the floor at `floorPoint`, or leave the shell (no hit).
 struct BorderCase {
@@ -1822,16 +1840,7 @@ TEST(SceneTracer, AHoleInAFlatMeshIsAnOpenBorderToo) {
     Scene scene;
     SceneObject plane;
     plane.mesh = makePlane(2.0f, 64);
-    std::vector<glm::uvec3> kept;
-    for (const glm::uvec3& triangle : plane.mesh.triangles) {
-        const glm::vec3 centroid =
-            (plane.mesh.positions[triangle[0]] + plane.mesh.positions[triangle[1]] +
-             plane.mesh.positions[triangle[2]]) /
-            3.0f;
-        if (std::abs(centroid.x) > 0.25f || std::abs(centroid.y) > 0.25f) kept.push_back(triangle);
-    }
-    ASSERT_EQ(kept.size(), plane.mesh.triangles.size() - 2 * 16 * 16);
-    plane.mesh.triangles = kept;
+    ASSERT_EQ(cutSquareHole(plane.mesh), std::size_t(2 * 16 * 16));
     plane.material.tile = std::make_shared<const Tile>(flatTile({32, 32, 16}, -10.0f));
     plane.material.uvScale = {1.0f, 1.0f};
     plane.material.depthWorld = 0.2f;
@@ -1869,13 +1878,7 @@ Scene walledPlaneScene(int subdivisions, bool hole = false) {
     SceneObject plane;
     plane.mesh = makePlane(2.0f, subdivisions);
     if (hole) {
-        std::erase_if(plane.mesh.triangles, [&](const glm::uvec3& triangle) {
-            const glm::vec3 centroid =
-                (plane.mesh.positions[triangle[0]] + plane.mesh.positions[triangle[1]] +
-                 plane.mesh.positions[triangle[2]]) /
-                3.0f;
-            return std::abs(centroid.x) < 0.25f && std::abs(centroid.y) < 0.25f;
-        });
+        cutSquareHole(plane.mesh);
     }
     plane.material.tile = std::make_shared<const Tile>(std::move(tile));
     plane.material.uvScale = {1.0f, 1.0f};
@@ -2073,11 +2076,8 @@ TEST(SceneTracer, RaysEnterACurvedShellThroughItsSidesOnAnOpenBorder) {
     scene.camera = {{0.4f, -2.5f, -1.5f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 45.0f};
     SceneObject dome;
     dome.mesh = makeUvSphere(1.0f, 48, 24);
-    std::erase_if(dome.mesh.triangles, [&](const glm::uvec3& triangle) {
-        return dome.mesh.positions[triangle[0]].z + dome.mesh.positions[triangle[1]].z +
-                   dome.mesh.positions[triangle[2]].z <
-               0.0f;
-    });
+    eraseTrianglesByCentroid(dome.mesh,
+                             [](const glm::vec3& centroid) { return centroid.z < 0.0f; });
     dome.material.tile = std::make_shared<const Tile>(flatTile({32, 32, 16}, 16.0f));
     dome.material.uvScale = {4.0f, 2.0f};
     dome.material.depthWorld = 0.2f;
