@@ -36,6 +36,13 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+/// Whether `path` names something that exists; false also where it cannot be looked up (a name
+/// too long for the system): the throwing fs::exists ended the process on such a name.
+bool fileExists(const fs::path& path) {
+    std::error_code status;
+    return fs::exists(path, status);
+}
+
 /// A JSON value with the path that leads to it, for error messages.
 class Field {
   public:
@@ -120,6 +127,12 @@ class Field {
         if (name.empty()) fail("is empty; give a file name");
         return folder / name;
     }
+    /// file(folder), which must exist: else "<what> '<path>' does not exist".
+    fs::path existingFile(const fs::path& folder, const std::string& what) const {
+        const fs::path path = file(folder);
+        if (!fileExists(path)) fail(what + " '" + path.string() + "' does not exist");
+        return path;
+    }
     /// A colour: three numbers, none negative (light and albedo add up, they do not subtract)
     /// nor above kMaxColorComponent (their products over the lights stay finite).
     glm::vec3 colour() const {
@@ -159,13 +172,6 @@ class Field {
     std::string path_;
     const std::string& file_;
 };
-
-/// Whether `path` names something that exists; false also where it cannot be looked up (a name
-/// too long for the system): the throwing fs::exists ended the process on such a name.
-bool fileExists(const fs::path& path) {
-    std::error_code status;
-    return fs::exists(path, status);
-}
 
 /// A tile size written "WxHxD" or [W, H, D].
 Size3 parseSize(const Field& field) {
@@ -377,8 +383,7 @@ struct RecipeFile {
 RecipeFile recipeFile(const Field& spec, const fs::path& folder, const std::string& what) {
     if (!spec.has("file")) spec.fail("missing field 'file' (" + what + ")");
     const Field file = spec["file"];
-    const fs::path path = file.file(folder);
-    if (!fileExists(path)) file.fail("file '" + path.string() + "' does not exist");
+    const fs::path path = file.existingFile(folder, "file");
     std::uint64_t bytesInFile = 0;
     try {
         bytesInFile = requireRegularFile(path, "the recipe's input file");
@@ -682,8 +687,7 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
 
 std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder, TileCache& tiles,
                                      const SceneWarningCallback& warn) {
-    const fs::path path = field.file(folder);
-    if (!fileExists(path)) field.fail("tile file '" + path.string() + "' does not exist");
+    const fs::path path = field.existingFile(folder, "tile file");
     std::error_code status;  // weakly_canonical only fails where fileExists did not
     const std::string key = "file:" + fs::weakly_canonical(path, status).string();
     if (auto found = tiles.find(key); found != tiles.end()) return found->second;
@@ -695,6 +699,22 @@ std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder,
     } catch (const FormatError& error) {
         field.failFormat(error);
     }
+}
+
+/// Whether `name` is one of the built-in meshes (plane, sphere, torus) rather than a file.
+bool isBuiltInMesh(const std::string& name) {
+    return name == "plane" || name == "sphere" || name == "torus";
+}
+
+/// The mesh file `field` names (not a built-in mesh), which must exist.
+fs::path meshFile(const Field& field, const fs::path& folder) {
+    const fs::path path = field.file(folder);
+    if (!fileExists(path)) {
+        field.fail("'" + field.string() +
+                   "' is neither a built-in mesh (plane, sphere, torus) nor an existing file (" +
+                   path.string() + ")");
+    }
+    return path;
 }
 
 BaseMesh loadMesh(const Field& field, const fs::path& folder) {
@@ -713,13 +733,28 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
         static const BaseMesh torus = makeTorus(1.0f, 0.4f, 128, 48);
         return torus;
     }
-    const fs::path path = field.file(folder);
-    if (!fileExists(path)) {
-        field.fail("'" + name +
-                   "' is neither a built-in mesh (plane, sphere, torus) nor an existing file (" +
-                   path.string() + ")");
+    return loadBaseMesh(meshFile(field, folder));
+}
+
+/// Fails at the first mesh, tile or colour texture file of `objects` that does not exist, as
+/// loading it would, but before any is loaded or baked: a misspelt name is not reported only
+/// after seconds of loading a large mesh or baking a tile. (A recipe's input file is looked for
+/// with the rest of its recipe, whose own fields are checked first.)
+void requireInputFilesExist(const Field& objects, const fs::path& folder) {
+    if (!objects.value().is_array()) return;  // refused where the objects are read
+    const auto named = [](const Field& field, const std::string& key) {
+        return field.has(key) && field[key].value().is_string();
+    };
+    for (std::size_t i = 0; i < objects.value().size(); ++i) {
+        const Field object = objects[i];
+        if (!object.value().is_object()) continue;
+        if (named(object, "mesh") && !isBuiltInMesh(object["mesh"].string()))
+            meshFile(object["mesh"], folder);
+        if (!object.has("material") || !object["material"].value().is_object()) continue;
+        const Field material = object["material"];
+        if (named(material, "tile")) material["tile"].existingFile(folder, "tile file");
+        if (named(material, "color")) material["color"].existingFile(folder, "colour texture");
     }
-    return loadBaseMesh(path);
 }
 
 /// The material of `field`; stores the placed mesh of a `"bake": "mesh"` tile in `placedMesh`
@@ -764,9 +799,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
     if (field.has("color")) {
         const Field color = field["color"];
         if (color.value().is_string()) {
-            const fs::path path = color.file(folder);
-            if (!fileExists(path))
-                color.fail("colour texture '" + path.string() + "' does not exist");
+            const fs::path path = color.existingFile(folder, "colour texture");
             try {
                 material.colorTexture = std::make_shared<const Image>(readImage(path));
             } catch (const FormatError& error) {
@@ -956,6 +989,7 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
     const Field objects = root["objects"];
     if (!objects.value().is_array() || objects.value().empty())
         objects.fail("must be a non-empty array");
+    requireInputFilesExist(objects, folder);
     std::size_t triangles = 0;
     for (std::size_t i = 0; i < objects.value().size(); ++i) {
         const Field object = objects[i];

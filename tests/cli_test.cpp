@@ -259,6 +259,27 @@ TEST_F(Cli, RejectsMissingTileFile) {
                          {"objects[0].material.tile", "nope.exr", "does not exist"}));
 }
 
+TEST_F(Cli, AMissingInputFileIsReportedBeforeAnyFileIsLoaded) {
+    // The first object's mesh is there but no OBJ: loading it would fail first. Every mesh, tile
+    // and texture file a scene names is looked for before any is read, so the missing one is what
+    // the error names.
+    writeText(path("broken.obj"), "v 0 0 0\nv 1 0 nope\n");
+    const std::string broken = R"({"mesh": "broken.obj", "material": {"color": [0.5, 0.5, 0.5]}})";
+    const std::string scene = R"({"objects": [)" + broken + R"(, {"mesh": "plane", "material": )";
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(scene + chainmailMaterial(R"("nope.exr")") + "}]}",
+                         {"objects[1].material.tile", "nope.exr", "does not exist"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(scene + R"({"color": "nope.png"}}]})",
+                         {"objects[1].material.color", "nope.png", "does not exist"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"objects": [)" + broken + R"(, {"mesh": "nope.obj"}]})",
+                         {"objects[1].mesh", "nope.obj", "neither a built-in mesh"}));
+    // With the names right, the broken mesh is what is refused.
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"objects": [)" + broken + "]}", {"broken.obj", "line 2", "nope"}));
+}
+
 TEST_F(Cli, RejectsExrThatIsNotADistileTile) {
     Image plain(8, 8, glm::vec3(0.5f));
     writeImage(plain, path("plain.exr"));
