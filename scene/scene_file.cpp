@@ -701,9 +701,23 @@ std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder,
     }
 }
 
-/// Whether `name` is one of the built-in meshes (plane, sphere, torus) rather than a file.
-bool isBuiltInMesh(const std::string& name) {
-    return name == "plane" || name == "sphere" || name == "torus";
+/// The built-in mesh `name` (plane, sphere, torus), or null for any other name (a file). Each is
+/// made once per process and copied where it is used: a scene of many spheres spent most of its
+/// loading on the same tangent frames and welds again (1000 spheres: 3.3 s).
+const BaseMesh* builtInMesh(const std::string& name) {
+    if (name == "plane") {
+        static const BaseMesh plane = makePlane(2.0f, 1);
+        return &plane;
+    }
+    if (name == "sphere") {
+        static const BaseMesh sphere = makeUvSphere(1.0f, 96, 48);
+        return &sphere;
+    }
+    if (name == "torus") {
+        static const BaseMesh torus = makeTorus(1.0f, 0.4f, 128, 48);
+        return &torus;
+    }
+    return nullptr;
 }
 
 /// The mesh file `field` names (not a built-in mesh), which must exist.
@@ -718,21 +732,7 @@ fs::path meshFile(const Field& field, const fs::path& folder) {
 }
 
 BaseMesh loadMesh(const Field& field, const fs::path& folder) {
-    const std::string name = field.string();
-    // The built-in meshes are made once per process and copied: a scene of many spheres spent
-    // most of its loading on the same tangent frames and welds again (1000 spheres: 3.3 s).
-    if (name == "plane") {
-        static const BaseMesh plane = makePlane(2.0f, 1);
-        return plane;
-    }
-    if (name == "sphere") {
-        static const BaseMesh sphere = makeUvSphere(1.0f, 96, 48);
-        return sphere;
-    }
-    if (name == "torus") {
-        static const BaseMesh torus = makeTorus(1.0f, 0.4f, 128, 48);
-        return torus;
-    }
+    if (const BaseMesh* builtIn = builtInMesh(field.string())) return *builtIn;
     return loadBaseMesh(meshFile(field, folder));
 }
 
@@ -748,7 +748,7 @@ void requireInputFilesExist(const Field& objects, const fs::path& folder) {
     for (std::size_t i = 0; i < objects.value().size(); ++i) {
         const Field object = objects[i];
         if (!object.value().is_object()) continue;
-        if (named(object, "mesh") && !isBuiltInMesh(object["mesh"].string()))
+        if (named(object, "mesh") && !builtInMesh(object["mesh"].string()))
             meshFile(object["mesh"], folder);
         if (!object.has("material") || !object["material"].value().is_object()) continue;
         const Field material = object["material"];
