@@ -301,7 +301,8 @@ void OutputFiles::commit() {
         releaseTemporary(entry.backupSlot);
     };
     for (const File& file : files_) {
-        Replaced entry{file.target};
+        Replaced entry;
+        entry.target = file.target;
         std::error_code status;
         entry.existed = fs::exists(fs::symlink_status(file.target, status));
         if (entry.existed) {

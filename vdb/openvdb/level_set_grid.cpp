@@ -45,7 +45,7 @@ constexpr const char* kParamsKey = "distile:params";
 /// disk left a truncated file that seemed written.
 class VdbFileWriter final : public openvdb::io::Archive {
   public:
-    void write(std::ostream& stream, const openvdb::GridCPtrVec& grids) const {
+    void writeTo(std::ostream& stream, const openvdb::GridCPtrVec& grids) const {
         Archive::write(stream, grids, /*seekable=*/true);
     }
 };
@@ -198,7 +198,7 @@ class OpenVdbLevelSetGrid final : public LevelSetGrid {
             throw std::runtime_error(file.string() + ": cannot be opened for writing (" +
                                      std::strerror(errno) + ")");
         }
-        VdbFileWriter().write(stream, {grid_});
+        VdbFileWriter().writeTo(stream, {grid_});
         stream.close();
         if (!stream) {
             throw std::runtime_error(file.string() + ": writing failed (" + std::strerror(errno) +
