@@ -6,11 +6,14 @@
 
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <optional>
 #include <span>
+#include <string_view>
 #include <system_error>
 
 #include "common/error.h"
@@ -21,19 +24,34 @@ namespace distile {
 
 namespace fs = std::filesystem;
 
+const std::string& detail::temporaryScope() {
+    static const std::string scope = [] {
+        std::string identity;
+        std::ifstream bootId("/proc/sys/kernel/random/boot_id");
+        std::getline(bootId, identity);
+        std::error_code error;
+        identity += " " + fs::read_symlink("/proc/self/ns/pid", error).string();
+        Fnv1a64 hash;
+        hash.update(std::as_bytes(std::span(identity.data(), identity.size())));
+        return hexDigits(hash.value()).substr(0, kScopeDigits);
+    }();
+    return scope;
+}
+
 namespace {
 
 fs::path folderOf(const fs::path& target) {
     return target.has_parent_path() ? target.parent_path() : fs::path(".");
 }
 
-/// The stem that names the temporaries of `target` (".STEM.partial-PID-N.EXT"): its own, or
-/// where such a name would not fit in a file name (255 bytes), its start (whole UTF-8
+/// The stem that names the temporaries of `target` (".STEM.partial-SCOPE-PID-N.EXT"): its own,
+/// or where such a name would not fit in a file name (255 bytes), its start (whole UTF-8
 /// characters), "~" and the FNV-1a 64 of the whole stem.
 std::string temporaryStem(const fs::path& target) {
     constexpr std::size_t kNameMax = 255;
-    constexpr std::size_t kHashed = 1 + 16;               // "~" and the hash
-    constexpr std::size_t kAround = 1 + 9 + 10 + 1 + 10;  // ".", ".partial-", PID, "-", N
+    constexpr std::size_t kHashed = 1 + 16;  // "~" and the hash
+    // ".", ".partial-", SCOPE, "-", PID, "-", N
+    constexpr std::size_t kAround = 1 + 9 + detail::kScopeDigits + 1 + 10 + 1 + 10;
     const std::string stem = target.stem().string();
     const std::size_t extension = target.extension().string().size();
     if (kAround + extension + stem.size() <= kNameMax) return stem;
@@ -48,21 +66,29 @@ std::string temporaryStem(const fs::path& target) {
 /// A name beside `target` no other write of this process or another uses, with its extension.
 fs::path temporaryBeside(const fs::path& target) {
     static std::atomic<int> counter{0};
-    return folderOf(target) /
-           ("." + temporaryStem(target) + ".partial-" + std::to_string(::getpid()) + "-" +
-            std::to_string(counter++) + target.extension().string());
+    return folderOf(target) / ("." + temporaryStem(target) + ".partial-" +
+                               detail::temporaryScope() + "-" + std::to_string(::getpid()) + "-" +
+                               std::to_string(counter++) + target.extension().string());
 }
 
-/// Removes the temporaries of `target` that killed runs left behind: ".STEM.partial-PID-N.EXT"
-/// files whose process PID no longer exists (a live run's temporaries, ours included, stay). A
-/// killed run cannot clean up after itself, so the next write of the same target does.
+/// How old a temporary of another scope (another machine or PID namespace sharing the folder)
+/// must be before a write of its target removes it: its process cannot be asked whether it is
+/// alive, and a command reserves its outputs when it starts, so a live one may be hours old.
+constexpr auto kForeignTemporaryAge = std::chrono::hours(24 * 7);
+
+/// Removes the temporaries of `target` that killed runs left behind:
+/// ".STEM.partial-SCOPE-PID-N.EXT" files of this scope whose process PID no longer exists (a live
+/// run's temporaries, ours included, stay), and those of another scope unchanged for
+/// kForeignTemporaryAge. A killed run cannot clean up after itself, so the next write of the same
+/// target does.
 void removeStaleTemporaries(const fs::path& target) {
     const std::string prefix = "." + temporaryStem(target) + ".partial-";
     const std::string extension = target.extension().string();
-    const auto digits = [](const std::string& text) {
+    const auto digits = [](std::string_view text) {
         return !text.empty() && text.size() <= 9 &&
                text.find_first_not_of("0123456789") == std::string::npos;
     };
+    const std::string& scope = detail::temporaryScope();
     std::error_code status;
     for (auto entry = fs::directory_iterator(folderOf(target), status);
          !status && entry != fs::directory_iterator(); entry.increment(status)) {
@@ -70,14 +96,27 @@ void removeStaleTemporaries(const fs::path& target) {
         if (name.size() <= prefix.size() + extension.size() || !name.starts_with(prefix) ||
             !name.ends_with(extension))
             continue;
-        const std::string middle =
-            name.substr(prefix.size(), name.size() - prefix.size() - extension.size());
-        const std::size_t dash = middle.find('-');
-        if (dash == std::string::npos || !digits(middle.substr(0, dash)) ||
-            !digits(middle.substr(dash + 1)))
+        // SCOPE-PID-N
+        const std::string_view middle = std::string_view(name).substr(
+            prefix.size(), name.size() - prefix.size() - extension.size());
+        const std::size_t first = middle.find('-');
+        const std::size_t second =
+            first == std::string_view::npos ? first : middle.find('-', first + 1);
+        if (second == std::string_view::npos || first != detail::kScopeDigits ||
+            middle.substr(0, first).find_first_not_of("0123456789abcdef") !=
+                std::string_view::npos ||
+            !digits(middle.substr(first + 1, second - first - 1)) ||
+            !digits(middle.substr(second + 1)))
             continue;
-        const auto pid = ::pid_t(std::stol(middle.substr(0, dash)));
-        if (pid <= 0 || pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;
+        if (middle.substr(0, first) == scope) {
+            const auto pid = ::pid_t(std::stol(std::string(middle.substr(first + 1))));
+            if (pid <= 0 || pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) continue;
+        } else {
+            std::error_code timeError;
+            const auto written = fs::last_write_time(entry->path(), timeError);
+            if (timeError || fs::file_time_type::clock::now() - written < kForeignTemporaryAge)
+                continue;
+        }
         std::error_code ignored;
         fs::remove(entry->path(), ignored);
     }

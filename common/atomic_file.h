@@ -2,17 +2,28 @@
 /// The one way distile writes output files: into a temporary file beside the target, renamed
 /// over the target only once the write succeeded. A failed run never leaves a half-written file
 /// where a good one was, and a command with several outputs writes all of them or none. A run
-/// interrupted by a signal removes its temporaries (".NAME.partial-PID-N.EXT") if the program
-/// asked for it (removeTemporariesOnSignal); one killed outright leaves them, and the next write
-/// of the same target removes those of processes that no longer exist.
+/// interrupted by a signal removes its temporaries (".NAME.partial-SCOPE-PID-N.EXT") if the
+/// program asked for it (removeTemporariesOnSignal); one killed outright leaves them, and the
+/// next write of the same target removes those of processes that no longer exist.
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <functional>
 #include <string>
 #include <vector>
 
 namespace distile {
+
+namespace detail {
+/// Hex digits of temporaryScope().
+inline constexpr std::size_t kScopeDigits = 8;
+/// Where the PIDs in temporary names mean processes: kScopeDigits hex digits of a hash of this
+/// boot of the machine and this process's PID namespace. Containers sharing a folder (a bake
+/// cache on a volume) each have their own process 7: their temporaries have different names,
+/// and a run neither takes another scope's live temporary for a dead one nor writes into it.
+const std::string& temporaryScope();
+}  // namespace detail
 
 /// From now on, the signals that end a process by default (SIGINT, SIGTERM, SIGHUP, SIGQUIT,
 /// SIGALRM, SIGUSR1, SIGUSR2, SIGXCPU; those not ignored) remove the temporary files being written

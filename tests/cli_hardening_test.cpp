@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -618,8 +619,8 @@ TEST_F(Hardening, AnOutputThatCannotBeReplacedPutsBackTheOutputsReplacedBeforeIt
 }
 
 TEST_F(Hardening, AnOutputNameNearTheLongestAFileMayHaveIsWritten) {
-    // A temporary ".NAME.partial-PID-N.EXT" is about 30 bytes longer than its target: names of
-    // 226 to 255 bytes were refused ("refuses a new file (File name too long)"), though the
+    // A temporary ".NAME.partial-SCOPE-PID-N.EXT" is about 40 bytes longer than its target: names
+    // of 226 to 255 bytes were refused ("refuses a new file (File name too long)"), though the
     // system takes them. Such a temporary now shortens the name and adds its hash.
     for (const std::size_t length : {250u, 255u}) {
         const std::string name = std::string(length - 4, 'a') + ".exr";
@@ -647,18 +648,45 @@ TEST_F(Hardening, AClosedPipeDoesNotEndARunHalfway) {
 }
 
 TEST_F(Hardening, AKilledRunsReservedOutputsAreRemovedByTheNextRun) {
-    // A killed run leaves its reservations ".NAME.partial-PID-N.EXT". PIDs above 2^22 (Linux's
-    // largest pid_max) belong to no process; this process is alive. The next write of o.exr
-    // removes the dead run's reservation only, and leaves other targets' alone.
-    const std::string dead = ".o.partial-4194399-0.exr";
-    const std::string alive = ".o.partial-" + std::to_string(::getpid()) + "-7.exr";
-    const std::string other = ".p.partial-4194399-0.exr";
+    // A killed run leaves its reservations ".NAME.partial-SCOPE-PID-N.EXT". PIDs above 2^22
+    // (Linux's largest pid_max) belong to no process; this process is alive. The next write of
+    // o.exr removes the dead run's reservation only, and leaves other targets' alone.
+    const std::string scope = detail::temporaryScope();
+    const std::string dead = ".o.partial-" + scope + "-4194399-0.exr";
+    const std::string alive = ".o.partial-" + scope + "-" + std::to_string(::getpid()) + "-7.exr";
+    const std::string other = ".p.partial-" + scope + "-4194399-0.exr";
     for (const std::string& name : {dead, alive, other}) writeText(path(name), "x");
     const RunResult bake = run({"bake", "chainmail", "--size", "64x64x8", "-o", "o.exr"});
     ASSERT_EQ(bake.status, 0) << bake.err;
     EXPECT_FALSE(fs::exists(path(dead)));
     EXPECT_TRUE(fs::exists(path(alive)));
     EXPECT_TRUE(fs::exists(path(other)));
+    EXPECT_TRUE(fs::exists(path("o.exr")));
+}
+
+TEST_F(Hardening, AnotherContainersTemporaryIsLeftUntilAWeekOld) {
+    // Two containers sharing a folder each have their own process 7. A temporary of another
+    // scope (machine boot and PID namespace) with a PID that is dead here was removed as stale
+    // while its run was still writing it; now it stays until unchanged for a week. The
+    // reservation this run makes names its own scope.
+    const std::string scope = detail::temporaryScope();
+    ASSERT_EQ(scope.size(), detail::kScopeDigits);
+    const std::string foreignScope = scope == "00000000" ? "00000001" : "00000000";
+    const std::string live = ".o.partial-" + foreignScope + "-4194399-0.exr";
+    const std::string weekOld = ".o.partial-" + foreignScope + "-4194399-1.exr";
+    for (const std::string& name : {live, weekOld}) writeText(path(name), "x");
+    fs::last_write_time(path(weekOld),
+                        fs::file_time_type::clock::now() - std::chrono::hours(24 * 7 + 1));
+    {
+        OutputFiles outputs;
+        const std::string reserved = outputs.add(path("q.exr"), "-o").filename().string();
+        const std::string ours = ".q.partial-" + scope + "-" + std::to_string(::getpid()) + "-";
+        EXPECT_EQ(reserved.substr(0, ours.size()), ours);
+    }
+    const RunResult bake = run({"bake", "chainmail", "--size", "64x64x8", "-o", "o.exr"});
+    ASSERT_EQ(bake.status, 0) << bake.err;
+    EXPECT_TRUE(fs::exists(path(live)));
+    EXPECT_FALSE(fs::exists(path(weekOld)));
     EXPECT_TRUE(fs::exists(path("o.exr")));
 }
 
