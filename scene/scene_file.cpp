@@ -373,6 +373,10 @@ std::optional<Field> aliased(const Field& spec, const char* name, const char* ol
     return std::nullopt;
 }
 
+/// How far a scene is read. Check: every field, and that the files named exist, with nothing
+/// loaded or baked; Load: all of it.
+enum class Pass { Check, Load };
+
 /// A recipe's input file (`"file"`, relative to the scene's folder).
 struct RecipeFile {
     fs::path path;
@@ -380,7 +384,8 @@ struct RecipeFile {
 };
 
 /// The recipe's input file, read; `what` says what it must be.
-RecipeFile recipeFile(const Field& spec, const fs::path& folder, const std::string& what) {
+RecipeFile recipeFile(const Field& spec, const fs::path& folder, const std::string& what,
+                      Pass pass) {
     if (!spec.has("file")) spec.fail("missing field 'file' (" + what + ")");
     const Field file = spec["file"];
     const fs::path path = file.existingFile(folder, "file");
@@ -391,6 +396,7 @@ RecipeFile recipeFile(const Field& spec, const fs::path& folder, const std::stri
         file.fail(error.what());
     }
     requireWithinMemoryBudget(path, "the recipe's input file", bytesInFile);
+    if (pass == Pass::Check) return {path, {}};
     std::ifstream in(path, std::ios::binary);
     std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     if (!in.good() && !in.eof()) file.fail("cannot read '" + path.string() + "'");
@@ -469,7 +475,7 @@ MeshPlacement meshPlacementOf(const Field& spec) {
 /// `"tile": {"bake": "vdb", "file": ..., "grid": ..., "iso": ..., "fit" | "scale"/"offset" |
 /// "window": [X0, Y0, Z0, X1, Y1, Z1]}`: the level set baked as `distile bake vdb` does
 /// (bake/vdb_bake.h).
-BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& tiles) {
+BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& tiles, Pass pass) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "grid", "iso", "fit",
                         "scale", "offset", "window"});
     const BakeOptions options = bakeOptionsOf(spec);
@@ -496,7 +502,8 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
             "level set");
     std::optional<double> iso;
     if (spec.has("iso")) iso = spec["iso"].number();
-    const RecipeFile source = recipeFile(spec, folder, "an OpenVDB .vdb file");
+    const RecipeFile source = recipeFile(spec, folder, "an OpenVDB .vdb file", pass);
+    if (pass == Pass::Check) return {};
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const std::string recipe = vdbRecipe(bytes, gridName, iso, placement, options);
@@ -510,7 +517,7 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
 /// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
 /// scale or offset is given. The mesh's warnings go to `warn`.
 BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                        const SceneWarningCallback& warn) {
+                        const SceneWarningCallback& warn, Pass pass) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "fit", "scale", "offset",
                         "unsigned", "thickness"});
     BakeOptions options = bakeOptionsOf(spec);
@@ -525,7 +532,8 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
                 "surface)");
         sign.thicknessTexels = spec["thickness"].number(0.0, 65536.0);
     }
-    const RecipeFile source = recipeFile(spec, folder, "a detail mesh: OBJ, PLY, OFF or STL");
+    const RecipeFile source = recipeFile(spec, folder, "a detail mesh: OBJ, PLY, OFF or STL", pass);
+    if (pass == Pass::Check) return {};
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const Field file = spec["file"];
@@ -566,12 +574,14 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
 
 /// `"tile": {"bake": "heightmap", "file": ..., "height_texels": ...}`: the image baked as
 /// `distile bake heightmap` does.
-BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCache& tiles) {
+BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCache& tiles,
+                             Pass pass) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "height_texels"});
     const BakeOptions options = bakeOptionsOf(spec);
     HeightMapOptions heightMap;
     spec.numberInto("height_texels", heightMap.heightTexels, 0.0, 65536.0);
-    const RecipeFile source = recipeFile(spec, folder, "a grey image: PNG or EXR");
+    const RecipeFile source = recipeFile(spec, folder, "a grey image: PNG or EXR", pass);
+    if (pass == Pass::Check) return {};
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
@@ -648,15 +658,15 @@ void warnOfRecordedCheck(const Tile& tile, const Field& field, const SceneWarnin
 }
 
 BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                    const SceneWarningCallback& warn) {
+                    const SceneWarningCallback& warn, Pass pass) {
     if (!spec.has("bake")) {
         spec.fail(
             "missing field 'bake' (the detail to bake: chainmail, grating, heightmap, mesh, vdb)");
     }
     const std::string kind = spec["bake"].string();
-    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn);
-    if (kind == "heightmap") return bakedHeightMapTile(spec, folder, tiles);
-    if (kind == "vdb") return bakedVdbTile(spec, folder, tiles);
+    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn, pass);
+    if (kind == "heightmap") return bakedHeightMapTile(spec, folder, tiles, pass);
+    if (kind == "vdb") return bakedVdbTile(spec, folder, tiles, pass);
     ProceduralOptions procedural;
     std::string recipe;
     if (kind == "chainmail") {
@@ -672,6 +682,7 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
                           "' is not a known detail; accepted: chainmail, grating, heightmap, mesh, "
                           "vdb");
     }
+    if (pass == Pass::Check) return {};
     const BakeOptions options = bakeOptionsOf(spec);
     const std::string key = "bake:" + recipe;
     if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
@@ -686,8 +697,9 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
 }
 
 std::shared_ptr<const Tile> tileFile(const Field& field, const fs::path& folder, TileCache& tiles,
-                                     const SceneWarningCallback& warn) {
+                                     const SceneWarningCallback& warn, Pass pass) {
     const fs::path path = field.existingFile(folder, "tile file");
+    if (pass == Pass::Check) return nullptr;
     std::error_code status;  // weakly_canonical only fails where fileExists did not
     const std::string key = "file:" + fs::weakly_canonical(path, status).string();
     if (auto found = tiles.find(key); found != tiles.end()) return found->second;
@@ -736,42 +748,22 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
     return loadBaseMesh(meshFile(field, folder));
 }
 
-/// Fails at the first mesh, tile or colour texture file of `objects` that does not exist, as
-/// loading it would, but before any is loaded or baked: a misspelt name is not reported only
-/// after seconds of loading a large mesh or baking a tile. (A recipe's input file is looked for
-/// with the rest of its recipe, whose own fields are checked first.)
-void requireInputFilesExist(const Field& objects, const fs::path& folder) {
-    if (!objects.value().is_array()) return;  // refused where the objects are read
-    const auto named = [](const Field& field, const std::string& key) {
-        return field.has(key) && field[key].value().is_string();
-    };
-    for (std::size_t i = 0; i < objects.value().size(); ++i) {
-        const Field object = objects[i];
-        if (!object.value().is_object()) continue;
-        if (named(object, "mesh") && !builtInMesh(object["mesh"].string()))
-            meshFile(object["mesh"], folder);
-        if (!object.has("material") || !object["material"].value().is_object()) continue;
-        const Field material = object["material"];
-        if (named(material, "tile")) material["tile"].existingFile(folder, "tile file");
-        if (named(material, "color")) material["color"].existingFile(folder, "colour texture");
-    }
-}
-
 /// The material of `field`; stores the placed mesh of a `"bake": "mesh"` tile in `placedMesh`
-/// and gives the warnings of its bake to `warn`.
+/// and gives the warnings of its bake to `warn`. Pass::Check reads the fields and looks for the
+/// files only: the material has no tile or colour texture.
 Material loadMaterial(const Field& field, const fs::path& folder, TileCache& tiles,
                       std::shared_ptr<const TriangleSoup>& placedMesh,
-                      const SceneWarningCallback& warn) {
+                      const SceneWarningCallback& warn, Pass pass) {
     field.requireObject({"tile", "uv_scale", "depth", "floor", "color"});
     Material material;
     if (field.has("tile")) {
         const Field tile = field["tile"];
         if (tile.value().is_object()) {
-            BakedTile baked = bakedTile(tile, folder, tiles, warn);
+            BakedTile baked = bakedTile(tile, folder, tiles, warn, pass);
             material.tile = std::move(baked.tile);
             placedMesh = std::move(baked.placedMesh);
         } else {
-            material.tile = tileFile(tile, folder, tiles, warn);
+            material.tile = tileFile(tile, folder, tiles, warn, pass);
         }
     }
     if (field.has("uv_scale")) material.uvScale = field["uv_scale"].vector<2>();
@@ -800,6 +792,7 @@ Material loadMaterial(const Field& field, const fs::path& folder, TileCache& til
         const Field color = field["color"];
         if (color.value().is_string()) {
             const fs::path path = color.existingFile(folder, "colour texture");
+            if (pass == Pass::Check) return material;
             try {
                 material.colorTexture = std::make_shared<const Image>(readImage(path));
             } catch (const FormatError& error) {
@@ -919,7 +912,7 @@ std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson, const 
                                            const std::string& name, TileCache& tiles,
                                            const SceneWarningCallback& warn) {
     const json document = parseJson(recipeJson, name);
-    return bakedTile(Field(document, "", name), folder, tiles, warn).tile;
+    return bakedTile(Field(document, "", name), folder, tiles, warn, Pass::Load).tile;
 }
 
 /// The grid of the origin a scene is moved to (loadSceneJson): world units.
@@ -989,42 +982,55 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
     const Field objects = root["objects"];
     if (!objects.value().is_array() || objects.value().empty())
         objects.fail("must be a non-empty array");
-    requireInputFilesExist(objects, folder);
-    std::size_t triangles = 0;
-    for (std::size_t i = 0; i < objects.value().size(); ++i) {
-        const Field object = objects[i];
-        object.requireObject({"mesh", "transform", "material"});
-        if (!object.has("mesh"))
-            object.fail("missing field 'mesh' (plane, sphere, torus or a mesh file)");
-        SceneObject parsed;
-        parsed.mesh = loadMesh(object["mesh"], folder);
-        triangles += parsed.mesh.triangles.size();
-        try {
-            requireSceneTriangleBudget(i, triangles);
-        } catch (const InputError& error) {
-            object["mesh"].fail(error.problem());
+    // The objects are read twice: first every field, and that the files named exist, with
+    // nothing loaded or baked, so that a mistake anywhere in the scene is reported at once (a
+    // misspelt key after a tile to bake took the bake's seconds, a missing file after a large
+    // mesh its loading); then loaded.
+    for (const Pass pass : {Pass::Check, Pass::Load}) {
+        std::size_t triangles = 0;
+        for (std::size_t i = 0; i < objects.value().size(); ++i) {
+            const Field object = objects[i];
+            object.requireObject({"mesh", "transform", "material"});
+            if (!object.has("mesh"))
+                object.fail("missing field 'mesh' (plane, sphere, torus or a mesh file)");
+            SceneObject parsed;
+            if (pass == Pass::Check) {
+                if (!builtInMesh(object["mesh"].string())) meshFile(object["mesh"], folder);
+            } else {
+                parsed.mesh = loadMesh(object["mesh"], folder);
+                triangles += parsed.mesh.triangles.size();
+                try {
+                    requireSceneTriangleBudget(i, triangles);
+                } catch (const InputError& error) {
+                    object["mesh"].fail(error.problem());
+                }
+            }
+            Transform placement;
+            glm::dvec3 translate(0.0);
+            if (object.has("transform")) {
+                const Field transform = object["transform"];
+                transform.requireObject({"translate", "rotate_deg", "scale"});
+                if (transform.has("translate"))
+                    translate = transform["translate"].vectorInDouble<3>();
+                if (transform.has("rotate_deg"))
+                    placement.rotateDeg = transform["rotate_deg"].vector<3>();
+                if (transform.has("scale"))
+                    placement.scale = float(transform["scale"].number(1e-12, 1e12));
+            }
+            placement.translate = glm::vec3(translate - origin);
+            // A mesh neither transformed nor moved is left as read (applyTransform would normalise
+            // its normals again, changing their last bits).
+            if (pass == Pass::Load && (object.has("transform") || origin != glm::dvec3(0.0)))
+                applyTransform(parsed.mesh, placement);
+            std::shared_ptr<const TriangleSoup> placedMesh;
+            if (object.has("material")) {
+                parsed.material =
+                    loadMaterial(object["material"], folder, tiles, placedMesh, warn, pass);
+            }
+            if (pass == Pass::Check) continue;
+            scene.objects.push_back(std::move(parsed));
+            result.placedDetailMeshes.push_back(std::move(placedMesh));
         }
-        Transform placement;
-        glm::dvec3 translate(0.0);
-        if (object.has("transform")) {
-            const Field transform = object["transform"];
-            transform.requireObject({"translate", "rotate_deg", "scale"});
-            if (transform.has("translate")) translate = transform["translate"].vectorInDouble<3>();
-            if (transform.has("rotate_deg"))
-                placement.rotateDeg = transform["rotate_deg"].vector<3>();
-            if (transform.has("scale"))
-                placement.scale = float(transform["scale"].number(1e-12, 1e12));
-        }
-        placement.translate = glm::vec3(translate - origin);
-        // A mesh neither transformed nor moved is left as read (applyTransform would normalise
-        // its normals again, changing their last bits).
-        if (object.has("transform") || origin != glm::dvec3(0.0))
-            applyTransform(parsed.mesh, placement);
-        std::shared_ptr<const TriangleSoup> placedMesh;
-        if (object.has("material"))
-            parsed.material = loadMaterial(object["material"], folder, tiles, placedMesh, warn);
-        scene.objects.push_back(std::move(parsed));
-        result.placedDetailMeshes.push_back(std::move(placedMesh));
     }
     try {
         validateScene(scene);
