@@ -312,6 +312,41 @@ TEST_F(SamplerIo, TruncatedFileIsAFormatError) {
     EXPECT_THROW(readTileExr(path("tile.exr")), FormatError);
 }
 
+TEST_F(SamplerIo, ADamagedChunkIsAFormatErrorThatNothingElsePrints) {
+    // The chunks are decoded side by side with OpenEXR's core library, whose default error
+    // handler prints each error on stderr: the reader keeps the first and reports it once.
+    writeTileExr(patternTile({64, 64, 4}), path("tile.exr"));
+    std::string bytes;
+    {
+        std::ifstream in(path("tile.exr"), std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    // Inside the last chunks' compressed data, after the header and the offset table.
+    std::fill_n(bytes.end() - 400, 200, char(0xff));
+    std::ofstream(path("tile.exr"), std::ios::binary) << bytes;
+    testing::internal::CaptureStderr();
+    const std::string message = formatErrorMessage(path("tile.exr"));
+    EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+    EXPECT_NE(message.find("tile.exr: cannot read the pixels ("), std::string::npos) << message;
+    EXPECT_NE(message.find("); the file is truncated or corrupted"), std::string::npos) << message;
+}
+
+TEST_F(SamplerIo, ATileSavedInTilesByAnotherToolReadsTheSame) {
+    // distile writes scanlines; a tile re-saved as a tiled OpenEXR (OpenImageIO here) is read
+    // through OpenEXR's tiled path and gives the same distances.
+    const Tile tile = patternTile({64, 64, 4});
+    writeTileExr(tile, path("tile.exr"));
+    rewriteRaw(path("tile.exr"), [](RawImage& raw) {
+        raw.spec.tile_width = 32;
+        raw.spec.tile_height = 32;
+    });
+    ASSERT_GT(readRaw(path("tile.exr")).spec.tile_width, 0);
+    const Tile read = readTileExr(path("tile.exr"));
+    ASSERT_EQ(read.size(), tile.size());
+    EXPECT_TRUE(std::equal(read.distancesTexels().begin(), read.distancesTexels().end(),
+                           tile.distancesTexels().begin()));
+}
+
 TEST_F(SamplerIo, GarbageFileIsAFormatError) {
     std::ofstream(path("garbage.exr")) << "this is not an image";
     EXPECT_THROW(readTileExr(path("garbage.exr")), FormatError);
