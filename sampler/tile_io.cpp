@@ -273,7 +273,7 @@ std::vector<float> decodeAtlasPixels(const fs::path& file, int width, int height
         throw std::runtime_error("the data window is not the header's");
     std::vector<float> pixels(std::size_t(width) * std::size_t(height));
     struct Decoder {
-        exr_decode_pipeline_t pipeline = EXR_DECODE_PIPELINE_INITIALIZER;
+        exr_decode_pipeline_t pipeline{};  // all zero, as EXR_DECODE_PIPELINE_INITIALIZER
         bool started = false;
     };
     tbb::enumerable_thread_specific<Decoder> decoders;
