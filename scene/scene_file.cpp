@@ -28,6 +28,7 @@
 #include "render/image.h"
 #include "sampler/tile_io.h"
 #include "truth/mesh_truth.h"
+#include "vdb/procedural.h"
 
 namespace distile {
 
@@ -377,6 +378,15 @@ std::optional<Field> aliased(const Field& spec, const char* name, const char* ol
 /// loaded or baked; Load: all of it.
 enum class Pass { Check, Load };
 
+/// The Check pass's look at a recipe's bake options (size, band), as its bake would refuse them.
+void checkBakeOptions(const Field& spec, const BakeOptions& options) {
+    try {
+        validateBakeOptions(options);
+    } catch (const InputError& error) {
+        failInSpec(spec, spec, error);
+    }
+}
+
 /// A recipe's input file (`"file"`, relative to the scene's folder).
 struct RecipeFile {
     fs::path path;
@@ -503,7 +513,10 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
     std::optional<double> iso;
     if (spec.has("iso")) iso = spec["iso"].number();
     const RecipeFile source = recipeFile(spec, folder, "an OpenVDB .vdb file", pass);
-    if (pass == Pass::Check) return {};
+    if (pass == Pass::Check) {
+        checkBakeOptions(spec, options);
+        return {};
+    }
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const std::string recipe = vdbRecipe(bytes, gridName, iso, placement, options);
@@ -533,7 +546,10 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
         sign.thicknessTexels = spec["thickness"].number(0.0, 65536.0);
     }
     const RecipeFile source = recipeFile(spec, folder, "a detail mesh: OBJ, PLY, OFF or STL", pass);
-    if (pass == Pass::Check) return {};
+    if (pass == Pass::Check) {
+        checkBakeOptions(spec, options);
+        return {};
+    }
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const Field file = spec["file"];
@@ -581,7 +597,10 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     HeightMapOptions heightMap;
     spec.numberInto("height_texels", heightMap.heightTexels, 0.0, 65536.0);
     const RecipeFile source = recipeFile(spec, folder, "a grey image: PNG or EXR", pass);
-    if (pass == Pass::Check) return {};
+    if (pass == Pass::Check) {
+        checkBakeOptions(spec, options);
+        return {};
+    }
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
@@ -682,8 +701,16 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
                           "' is not a known detail; accepted: chainmail, grating, heightmap, mesh, "
                           "vdb");
     }
-    if (pass == Pass::Check) return {};
     const BakeOptions options = bakeOptionsOf(spec);
+    if (pass == Pass::Check) {
+        checkBakeOptions(spec, options);
+        try {
+            proceduralDistance(procedural, options.size);  // the pattern's own checks
+        } catch (const InputError& error) {
+            failInSpec(spec, spec, error);
+        }
+        return {};
+    }
     const std::string key = "bake:" + recipe;
     if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
     try {

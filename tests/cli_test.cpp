@@ -281,9 +281,10 @@ TEST_F(Cli, AMissingInputFileIsReportedBeforeAnyFileIsLoaded) {
 }
 
 TEST_F(Cli, AMistakeAnywhereInASceneIsReportedBeforeAnyTileIsBaked) {
-    // Every field of every object is read before anything is loaded or baked: a misspelt key or
-    // a bad value after a tile to bake was reported after the bake (2-3 s, caching off; over 30 s
-    // under the sanitizers). The error names the field, and the bake cache stays empty.
+    // Every field of every object is read, and the values a bake would refuse are asked of it,
+    // before anything is loaded or baked: a misspelt key or a bad value after a tile to bake was
+    // reported after the bake (2-3 s, caching off; over 30 s under the sanitizers). The error
+    // names the field, and the bake cache stays empty.
     const fs::path cache = work().parent_path() / "cache";
     fs::remove_all(cache);
     fs::create_directories(cache);
@@ -291,9 +292,9 @@ TEST_F(Cli, AMistakeAnywhereInASceneIsReportedBeforeAnyTileIsBaked) {
         R"({"mesh": "plane", "material": {"tile": {"bake": "chainmail", "size": [32, 32, 8]})";
     const std::string bakes = baked + "}}";
     setenv("DISTILE_CACHE", cache.c_str(), 1);
-    ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [)" + bakes +
-                                                 R"(, {"mesh": "plane", "miterial": {}}]})",
-                                             {"objects[1].miterial", "unknown field"}));
+    ASSERT_NO_FATAL_FAILURE(
+        expectSceneError(R"({"objects": [)" + bakes + R"(, {"mesh": "plane", "miterial": {}}]})",
+                         {"objects[1].miterial", "unknown field"}));
     ASSERT_NO_FATAL_FAILURE(expectSceneError(
         R"({"objects": [)" + bakes +
             R"(, {"mesh": "plane", "material": {"tile": {"bake": "grating", "bars": 0}}}]})",
@@ -301,6 +302,16 @@ TEST_F(Cli, AMistakeAnywhereInASceneIsReportedBeforeAnyTileIsBaked) {
     ASSERT_NO_FATAL_FAILURE(
         expectSceneError(R"({"objects": [)" + baked + R"(, "uv_scale": [8]}}]})",
                          {"objects[0].material.uv_scale", "2 numbers"}));
+    // Values the bake itself refuses (the chain mail's, the band's) are asked of it first too.
+    const std::string tile = R"({"bake": "chainmail", "size": [32, 32, 8], )";
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(
+        R"({"objects": [)" + bakes + R"(, {"mesh": "plane", "material": {"tile": )" + tile +
+            R"("rings_per_row": 100}}}]})",
+        {"objects[1].material.tile.rings_per_row", "100", "[1, width/4]"}));
+    ASSERT_NO_FATAL_FAILURE(expectSceneError(R"({"objects": [)" + bakes +
+                                                 R"(, {"mesh": "plane", "material": {"tile": )" +
+                                                 tile + R"("band": 1000}}}]})",
+                                             {"objects[1].material.tile.band", "1000", "[1, 16]"}));
     unsetenv("DISTILE_CACHE");
     EXPECT_TRUE(fs::is_empty(cache));
 }
