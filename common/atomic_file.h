@@ -4,7 +4,8 @@
 /// where a good one was, and a command with several outputs writes all of them or none. A run
 /// interrupted by a signal removes its temporaries (".NAME.partial-SCOPE-PID-N.EXT") if the
 /// program asked for it (removeTemporariesOnSignal); one killed outright leaves them, and the
-/// next write of the same target removes those of processes that no longer exist.
+/// next write of the same target removes those of processes that no longer exist (those of
+/// another machine or PID namespace once a week old: detail::temporaryScope).
 #pragma once
 
 #include <cstddef>
