@@ -276,37 +276,41 @@ std::vector<float> decodeAtlasPixels(const fs::path& file, int width, int height
         exr_decode_pipeline_t pipeline{};  // all zero, as EXR_DECODE_PIPELINE_INITIALIZER
         bool started = false;
     };
+    // Chunk `chunk` into its rows of `pixels` with `decoder` (this thread's).
+    const auto decodeChunk = [&](int chunk, Decoder& decoder) -> exr_result_t {
+        exr_chunk_info_t info{};
+        if (const exr_result_t code = exr_read_scanline_chunk_info(
+                context, 0, window.min.y + chunk * rowsPerChunk, &info);
+            code != EXR_ERR_SUCCESS)
+            return code;
+        const exr_result_t code =
+            decoder.started ? exr_decoding_update(context, 0, &info, &decoder.pipeline)
+                            : exr_decoding_initialize(context, 0, &info, &decoder.pipeline);
+        if (code != EXR_ERR_SUCCESS) return code;
+        decoder.started = true;
+        exr_coding_channel_info_t& channel = decoder.pipeline.channels[0];
+        if (decoder.pipeline.channel_count != 1 || channel.width != width ||
+            channel.height != info.height || info.start_y < window.min.y ||
+            std::int64_t(info.start_y) + info.height - 1 > window.max.y)
+            return EXR_ERR_BAD_CHUNK_LEADER;
+        channel.decode_to_ptr = reinterpret_cast<std::uint8_t*>(
+            pixels.data() + std::size_t(info.start_y - window.min.y) * std::size_t(width));
+        channel.user_pixel_stride = sizeof(float);
+        channel.user_line_stride = int32_t(sizeof(float)) * width;
+        channel.user_bytes_per_element = sizeof(float);
+        channel.user_data_type = EXR_PIXEL_FLOAT;
+        if (const exr_result_t chosen =
+                exr_decoding_choose_default_routines(context, 0, &decoder.pipeline);
+            chosen != EXR_ERR_SUCCESS)
+            return chosen;
+        return exr_decoding_run(context, 0, &decoder.pipeline);
+    };
     tbb::enumerable_thread_specific<Decoder> decoders;
     std::atomic<exr_result_t> failure{EXR_ERR_SUCCESS};
     tbb::parallel_for(0, chunks, [&](int chunk) {
         if (failure.load(std::memory_order_relaxed) != EXR_ERR_SUCCESS) return;
-        Decoder& decoder = decoders.local();
-        exr_chunk_info_t info{};
-        exr_result_t code =
-            exr_read_scanline_chunk_info(context, 0, window.min.y + chunk * rowsPerChunk, &info);
-        if (code == EXR_ERR_SUCCESS) {
-            code = decoder.started ? exr_decoding_update(context, 0, &info, &decoder.pipeline)
-                                   : exr_decoding_initialize(context, 0, &info, &decoder.pipeline);
-            decoder.started = decoder.started || code == EXR_ERR_SUCCESS;
-        }
-        if (code == EXR_ERR_SUCCESS) {
-            exr_coding_channel_info_t& channel = decoder.pipeline.channels[0];
-            if (decoder.pipeline.channel_count != 1 || channel.width != width ||
-                channel.height != info.height || info.start_y < window.min.y ||
-                std::int64_t(info.start_y) + info.height - 1 > window.max.y) {
-                code = EXR_ERR_BAD_CHUNK_LEADER;
-            } else {
-                channel.decode_to_ptr = reinterpret_cast<std::uint8_t*>(
-                    pixels.data() + std::size_t(info.start_y - window.min.y) * std::size_t(width));
-                channel.user_pixel_stride = sizeof(float);
-                channel.user_line_stride = int32_t(sizeof(float)) * width;
-                channel.user_bytes_per_element = sizeof(float);
-                channel.user_data_type = EXR_PIXEL_FLOAT;
-                code = exr_decoding_choose_default_routines(context, 0, &decoder.pipeline);
-                if (code == EXR_ERR_SUCCESS) code = exr_decoding_run(context, 0, &decoder.pipeline);
-            }
-        }
-        if (code != EXR_ERR_SUCCESS) {
+        if (const exr_result_t code = decodeChunk(chunk, decoders.local());
+            code != EXR_ERR_SUCCESS) {
             exr_result_t none = EXR_ERR_SUCCESS;
             failure.compare_exchange_strong(none, code);
         }
