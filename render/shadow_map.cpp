@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
@@ -35,6 +36,10 @@ constexpr float kMinFacing = 0.1f;
 /// allowing 0.1 r keeps receivers of radius R >= 5 r clear of their own shadow. Real blockers sit
 /// at the receiver-blocker distance d = r / tan(angle / 2) >> 0.1 r, far beyond this slack.
 constexpr float kCurvatureSlack = 0.1f;
+/// The line test's step along a line of the disk: this share of the offset (at least a texel of
+/// the level read, whose texels are this share of the offset too).
+constexpr float kLineStepShare = 0.35f;
+constexpr float kEdgeStepShare = 0.1f;
 
 }  // namespace
 
@@ -51,6 +56,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     axisX_ = glm::normalize(glm::cross(helper, toLight_));
     axisY_ = glm::cross(toLight_, axisX_);
     tanHalfAngle_ = std::tan(0.5f * glm::radians(light.angleDeg));
+    lineTest_ = light.angleDeg >= kLineTestMinAngleDeg;
 
     // World bounds of the base meshes, grown by the deepest shell (detail lies below the surface).
     glm::vec3 low(std::numeric_limits<float>::max());
@@ -85,6 +91,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
         Level& level = levels_[std::size_t(index)];
         const int resolution = std::max(resolutionTexels >> index, 1);
         level.texelWorld = longer / float(resolutionTexels) * float(1 << index);
+        level.texelsPerWorld = 1.0f / level.texelWorld;
         level.width = std::clamp(int(std::ceil(extent.x / level.texelWorld)), 1, resolution);
         level.height = std::clamp(int(std::ceil(extent.y / level.texelWorld)), 1, resolution);
         level.tilesX = (level.width + kTileTexels - 1) / kTileTexels;
@@ -92,6 +99,9 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
         const std::size_t tiles = std::size_t(level.tilesX) * std::size_t(level.tilesY);
         level.depths =
             std::make_unique_for_overwrite<float[]>(tiles * std::size_t(kTileTexels * kTileTexels));
+        if (lineTest_)
+            level.backDepths = std::make_unique_for_overwrite<float[]>(
+                tiles * std::size_t(kTileTexels * kTileTexels));
         level.tileOnce = std::make_unique<std::once_flag[]>(tiles);
         level.tileDone = std::make_unique<std::atomic<bool>[]>(tiles);
         for (std::size_t tile = 0; tile < tiles; ++tile) level.tileDone[tile].store(false);
@@ -99,6 +109,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     // Rays start a little in front of everything.
     startDepth_ = depthLow - std::max(levels_[0].texelWorld, 1e-3f * longer);
     nearestDepth_ = boundDepths();
+    if (lineTest_) buildBoundLevels();
 }
 
 float ShadowMap::boundDepths() {
@@ -253,6 +264,21 @@ void ShadowMap::traceTile(const Level& level, int tile) const {
         for (int k = 0; k < batch; ++k) {
             level.depths[texels[k]] = found[k] ? startDepth_ + hits[k].distanceWorld
                                                : std::numeric_limits<float>::infinity();
+            if (!lineTest_) continue;
+            // Where the light ray leaves the object it met: the back face of a closed base mesh
+            // (its detail lies inside), else (an open mesh) the depth of the detail's shell.
+            float back = std::numeric_limits<float>::infinity();
+            if (found[k]) {
+                const std::uint32_t object = hits[k].object;
+                const float exit = tracer_.exitDistance(
+                    rays[k], hits[k].distanceWorld + 1e-4f * level.texelWorld, object);
+                const Material& material = tracer_.scene().objects[object].material;
+                back = startDepth_ +
+                       (std::isinf(exit)
+                            ? hits[k].distanceWorld + (material.tile ? material.depthWorld : 0.0f)
+                            : exit);
+            }
+            level.backDepths[texels[k]] = back;
         }
     }
     tracedTexels_.fetch_add(std::uint64_t(count), std::memory_order_relaxed);
@@ -306,6 +332,68 @@ bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, flo
     return true;
 }
 
+void ShadowMap::buildBoundLevels() {
+    const Level& finest = levels_[0];
+    boundLevels_.push_back({finest.tilesX, finest.tilesY, 1, casterBounds_});
+    while (boundLevels_.back().width > 1 || boundLevels_.back().height > 1) {
+        const BoundLevel& parts = boundLevels_.back();
+        BoundLevel blocks;
+        blocks.width = (parts.width + kBoundBlock - 1) / kBoundBlock;
+        blocks.height = (parts.height + kBoundBlock - 1) / kBoundBlock;
+        blocks.tiles = parts.tiles * kBoundBlock;
+        blocks.bounds.assign(std::size_t(blocks.width) * std::size_t(blocks.height), {});
+        for (int y = 0; y < parts.height; ++y) {
+            for (int x = 0; x < parts.width; ++x) {
+                const CasterBounds& part = parts.bounds[std::size_t(x + parts.width * y)];
+                CasterBounds& block =
+                    blocks.bounds[std::size_t(x / kBoundBlock + blocks.width * (y / kBoundBlock))];
+                block.others = std::min(block.others, part.others);
+                block.flat = std::min(block.flat, part.flat);
+                block.flatObject =
+                    CasterBounds::mergedFlatObject(block.flatObject, part.flatObject);
+            }
+        }
+        boundLevels_.push_back(std::move(blocks));
+    }
+}
+
+bool ShadowMap::blockMayBlock(const LineReceiver& receiver, std::size_t level, int x, int y) const {
+    const BoundLevel& blocks = boundLevels_[level];
+    const CasterBounds& block = blocks.bounds[std::size_t(x + blocks.width * y)];
+    const float bound = casterBound(block, receiver.object);
+    if (bound >= receiver.depth) return false;
+    // A surface at offset s from the receiver blocks a ray toward the disk only if it lies in
+    // front of the lowest of them there: depth below receiver.depth - s / tan(angle / 2).
+    const float blockWorld = levels_[0].texelWorld * float(kTileTexels * blocks.tiles);
+    const glm::vec2 low = originPlane_ + glm::vec2(float(x), float(y)) * blockWorld;
+    const glm::vec2 nearest = glm::clamp(receiver.centre, low, low + blockWorld);
+    if (bound >= receiver.depth - glm::length(nearest - receiver.centre) / tanHalfAngle_)
+        return false;
+    if (level == 0) return true;
+    const BoundLevel& parts = boundLevels_[level - 1];
+    for (int partY = y * kBoundBlock; partY < std::min((y + 1) * kBoundBlock, parts.height);
+         ++partY)
+        for (int partX = x * kBoundBlock; partX < std::min((x + 1) * kBoundBlock, parts.width);
+             ++partX)
+            if (blockMayBlock(receiver, level - 1, partX, partY)) return true;
+    return false;
+}
+
+bool ShadowMap::nothingCanBlockLines(const LineReceiver& receiver) const {
+    // From the level whose blocks are about the size of the reach.
+    const glm::ivec4 tiles = finestTiles(receiver.centre - receiver.reachWorld,
+                                         receiver.centre + receiver.reachWorld, 0);
+    std::size_t level = 0;
+    while (level + 1 < boundLevels_.size() &&
+           boundLevels_[level].tiles * 2 < std::max(tiles.z - tiles.x, tiles.w - tiles.y))
+        ++level;
+    const int side = boundLevels_[level].tiles;
+    for (int y = tiles.y / side; y <= tiles.w / side; ++y)
+        for (int x = tiles.x / side; x <= tiles.z / side; ++x)
+            if (blockMayBlock(receiver, level, x, y)) return false;
+    return true;
+}
+
 const ShadowMap::Level& ShadowMap::levelFor(float texelWorld) const {
     std::size_t index = 0;
     while (index + 1 < levels_.size() && levels_[index + 1].texelWorld <= texelWorld) ++index;
@@ -340,6 +428,17 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     };
     const float finestTexelWorld = levels_[0].texelWorld;
     const float footprint = receiver.footprintWorld;
+    if (lineTest_) {
+        LineReceiver line{centre,
+                          receiverDepth,
+                          slope,
+                          slopeLength,
+                          footprint,
+                          facing >= kMinFacing ? receiver.object : ShadowReceiver::kNoObject,
+                          tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f)};
+        if (nothingCanBlockLines(line)) return 1.0f;
+        return lineVisibility(line, filter, seed, samples);
+    }
 
     // The widest penumbra possible here: from the surface nearest to the light anywhere.
     const float searchRadius =
@@ -397,6 +496,145 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     }
     samples += kShadowDiskSamples;
     return float(lit) / float(kShadowDiskSamples);
+}
+
+int ShadowMap::finestTileAt(const glm::vec2& planeWorld) const {
+    const Level& finest = levels_[0];
+    const glm::ivec2 texel = texelOf(finest, planeWorld);
+    return texel.x < 0 ? -1 : texel.x / kTileTexels + finest.tilesX * (texel.y / kTileTexels);
+}
+
+float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filter,
+                                std::uint32_t seed, std::uint64_t& samples) const {
+    const std::uint32_t pixelSeed = mixBits(seed);
+    const DiskPattern disk(pixelSeed, kTwoPi * unitFloat(mixBits(pixelSeed ^ 0x68bc21ebU)));
+    // The disk's samples along each angular stratum's middle: radii stratified by area, one jitter
+    // for the lookup. The ray toward the disk point at radius rho rises 1 / (rho tan(angle / 2))
+    // of depth toward the light per unit of light-plane offset.
+    const float radialJitter = unitFloat(mixBits(pixelSeed ^ 0x2c1b3c6dU));
+    LineRises rises;
+    for (int radial = 0; radial < kLineRadii; ++radial)
+        rises[std::size_t(radial)] =
+            1.0f / (tanHalfAngle_ * std::sqrt((float(radial) + radialJitter) / float(kLineRadii)));
+    // Every ray starts at the receiver: behind a blocker over it (an object above it as the light
+    // sees it) or not; inside one it sees nothing.
+    std::uint64_t reads = 0;
+    unsigned startsBehind = 0;
+    const Level& own = levelFor(receiver.footprintWorld);
+    const glm::ivec2 texel = texelOf(own, receiver.centre);
+    const int tile = finestTileAt(receiver.centre);
+    if (texel.x >= 0 && tile >= 0 &&
+        casterBound(casterBounds_[std::size_t(tile)], receiver.object) < receiver.depth) {
+        ++reads;
+        if (depthAt(own, texel.x, texel.y) <
+            receiver.depth - own.texelWorld * (1.0f + receiver.slopeLength)) {
+            if (!(receiver.depth > own.backDepths[own.index(texel.x, texel.y)])) {
+                samples += reads;
+                return 0.0f;
+            }
+            startsBehind = kAllLineRays;
+        }
+    }
+    // Every other angular stratum first: where their lines agree (all lit or all blocked), the
+    // adaptive filter takes that as the answer, as visibility() does its ring.
+    int blockedRays = 0;
+    for (int line = 0; line < kStrata; ++line) {
+        if (line == kStrata / 2 && filter == ShadowFilter::Adaptive &&
+            (blockedRays == 0 || blockedRays == kStrata / 2 * kLineRadii)) {
+            samples += reads;
+            return blockedRays == 0 ? 1.0f : 0.0f;
+        }
+        const int angular = 2 * line % kStrata + 2 * line / kStrata;
+        blockedRays += std::popcount(
+            blockedOnLine(receiver, disk.direction(angular), rises, startsBehind, reads));
+    }
+    samples += reads;
+    return 1.0f - float(blockedRays) / float(kStrata * kLineRadii);
+}
+
+unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2& along,
+                                  const LineRises& rises, unsigned startsBehind,
+                                  std::uint64_t& reads) const {
+    const float lowestRise = rises[kLineRadii - 1];
+    unsigned blocked = 0;  // a bit per ray: it met a blocker
+    // Per ray, where it passed the blocker at the previous offset: in front of it (nearer to the
+    // light) or behind it (under it, as the light sees it).
+    unsigned wasInFront = 0, wasBehind = startsBehind;
+    // The caster bound of the finest tile under the offset (consecutive offsets share tiles).
+    int boundTile = -2;
+    float bound = std::numeric_limits<float>::infinity();
+    // Steps are kLineStepShare of the offset over open ground and kEdgeStepShare where a ray may
+    // meet a blocker's edge: while a ray is behind a blocker (where it comes out, under its edge
+    // or in front of it), and over the step from the last open offset to the first with a blocker
+    // (a ray that rose in front of it there may have passed under its edge first). Past the reach
+    // every ray is in front of all there is: the first offset beyond it is the last one that can
+    // show a ray coming out in front of a blocker it was behind.
+    float fineUntil = 0.0f;
+    for (float offset = std::max(0.5f * levels_[0].texelWorld, receiver.footprintWorld),
+               previous = 0.0f;
+         previous <= receiver.reachWorld && blocked != kAllLineRays;) {
+        const bool fine = wasBehind != 0 || offset < fineUntil;
+        const float share = fine ? kEdgeStepShare : kLineStepShare;
+        const Level& level = levelFor(std::max(receiver.footprintWorld, share * offset));
+        const glm::vec2 at = receiver.centre + offset * along;
+        const int tile = finestTileAt(at);
+        if (tile != boundTile) {
+            boundTile = tile;
+            bound = tile < 0 ? std::numeric_limits<float>::infinity()
+                             : casterBound(casterBounds_[std::size_t(tile)], receiver.object);
+        }
+        // A texel is read where a surface may lie in front of the lowest ray (after open ground:
+        // of the lowest ray at the open offset, which may have passed under a blocker beginning
+        // here), or where a ray was behind a blocker. Elsewhere every ray is in front of all there
+        // is, and the tile need not be traced.
+        const float lowestRay =
+            receiver.depth - ((wasInFront | wasBehind) == 0 ? previous : offset) * lowestRise;
+        float front = std::numeric_limits<float>::infinity(), back = front;
+        if (wasBehind != 0 || !(bound >= lowestRay)) {
+            const glm::ivec2 texel = texelOf(level, at);
+            if (texel.x >= 0) {
+                front = depthAt(level, texel.x, texel.y);
+                back = level.backDepths[level.index(texel.x, texel.y)];
+                ++reads;
+            }
+        }
+        // Only what lies in front of the receiver's tangent plane blocks (as in visibility()).
+        const float plane = receiver.depth + glm::dot(receiver.slope, offset * along);
+        const float bias =
+            level.texelWorld * (1.0f + receiver.slopeLength) + kCurvatureSlack * offset;
+        unsigned inFront = 0, behind = 0;
+        if (front < plane - bias) {
+            const float fineStep = std::max(
+                levelFor(std::max(receiver.footprintWorld, kEdgeStepShare * previous)).texelWorld,
+                kEdgeStepShare * previous);
+            if (!fine && previous > 0.0f && (wasInFront | wasBehind) == 0 &&
+                previous + fineStep < offset) {
+                // The first blocker after open ground, a coarse step on: that step again, finely
+                // (the open offset's state stands).
+                fineUntil = offset;
+                offset = previous + fineStep;
+                continue;
+            }
+            for (int radial = 0; radial < kLineRadii; ++radial) {
+                const float ray = receiver.depth - offset * rises[std::size_t(radial)];
+                if (ray < front) {
+                    inFront |= 1U << radial;
+                } else if (ray > back) {
+                    behind |= 1U << radial;
+                } else {
+                    blocked |= 1U << radial;  // inside the blocker
+                }
+            }
+            // From in front of a blocker to behind one, or back, between two offsets: the ray
+            // crossed its surface.
+            blocked |= (inFront & wasBehind) | (behind & wasInFront);
+        }
+        wasInFront = inFront;
+        wasBehind = behind;
+        previous = offset;
+        offset += std::max(level.texelWorld, share * offset);
+    }
+    return blocked;
 }
 
 bool lightReachesVisibleSurface(const Scene& scene, const DirectionalLight& light) {

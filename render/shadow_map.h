@@ -15,6 +15,13 @@
 /// r blur the shadow over r: texels much finer than that change little). Lookups filter with 64
 /// jittered samples warped to a disk (an 8 x 8 stratified grid, polar warp); the adaptive filter
 /// first takes the 8 samples of the outer ring and stops when they agree.
+///
+/// Lights at least kLineTestMinAngleDeg wide take the *line test* instead: each of 64 directions
+/// toward the light's disk (8 angular strata, 8 radii) is followed through the map, on the line
+/// of light-plane offsets its ray passes over, against the blocker stored there, so a blocker
+/// shadows a direction only where the ray really meets it (near a contact, a blocker overhead
+/// covers the directions that rise into it, not those that leave under it). For that the map also
+/// keeps where each light ray leaves the object it met (the back face of a closed mesh).
 #pragma once
 
 #include <array>
@@ -50,6 +57,16 @@ inline const char* shadowFilterName(ShadowFilter filter) {
 /// Samples per lookup: the outer ring (blocker search and penumbra test) and the full disk.
 constexpr int kShadowRingSamples = 8;
 constexpr int kShadowDiskSamples = 64;
+
+/// Lights at least this wide (angle_deg) take the line test (file note). Percentage-closer
+/// filtering tests each disk sample at one light-plane offset whatever the blocker's depth, and
+/// searches at most 32 finest texels: near a contact it lights what a blocker overhead covers and
+/// darkens what rays leave from under. Against the world reference's 16 shadow rays (a sphere
+/// resting on a plane, 320 x 256, 16 samples per pixel, mean absolute sRGB difference over the
+/// image), filtering and the line test differ by 0.110 and 0.107 codes at 3 degrees, 0.145 and
+/// 0.105 at 6, 0.223 and 0.107 at 10, 0.412 and 0.136 at 20, 0.652 and 0.233 at 45; the line test
+/// takes 2.4 times the render of that scene at 45 degrees, where shadows are most of the work.
+constexpr float kLineTestMinAngleDeg = 5.0f;
 
 /// A surface point asking how much of a light it sees. Positions in world units.
 struct ShadowReceiver {
@@ -102,7 +119,8 @@ class ShadowMap {
     /// seed gives the same answer). The level read follows receiver.footprintWorld and the disks'
     /// radii (kTexelsPerFilterRadius). Adds the samples taken to `samples`: none when the receiver
     /// faces away from the light (it returns 0), 1 for a light of angle 0 (hard shadow), 8 or 72
-    /// for Adaptive, 72 for Full. Precondition: filter is not None.
+    /// for Adaptive, 72 for Full; for a light that takes the line test, the texels it read.
+    /// Precondition: filter is not None.
     float visibility(const ShadowReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
                      std::uint64_t& samples) const;
 
@@ -125,6 +143,7 @@ class ShadowMap {
     /// One level: a grid of light rays over the map's bounds, traced a tile at a time.
     struct Level {
         float texelWorld = 1.0f;
+        float texelsPerWorld = 1.0f;  ///< 1 / texelWorld
         int width = 0;
         int height = 0;
         int tilesX = 0;
@@ -134,6 +153,9 @@ class ShadowMap {
         /// uninitialised: a tile's texels are written once, by traceTile, so the memory of tiles
         /// no lookup reaches is never touched.
         std::unique_ptr<float[]> depths;
+        /// The line test's (else null): per texel as `depths`, the depth at which the light ray
+        /// leaves the object it met (+infinity where it met none).
+        std::unique_ptr<float[]> backDepths;
         /// Where texel (x, y) is stored in depths.
         std::size_t index(int x, int y) const {
             const auto column = unsigned(x), row = unsigned(y);  // >= 0: unsigned / and % shift
@@ -181,6 +203,45 @@ class ShadowMap {
     glm::vec3 axisY_{0.0f, 1.0f, 0.0f};    ///< unit, across the map
     glm::vec2 originPlane_{0.0f};  ///< light-plane coordinates of the map's corner, world units
     float tanHalfAngle_ = 0.0f;
+    bool lineTest_ = false;  ///< a light at least kLineTestMinAngleDeg wide (file note)
+    /// A receiver as the line test sees it (visibility's terms).
+    struct LineReceiver {
+        glm::vec2 centre;  ///< light-plane point
+        float depth;       ///< along the light
+        glm::vec2 slope;   ///< of its tangent plane: depth per unit of light-plane offset
+        float slopeLength;
+        float footprintWorld;
+        std::uint32_t object;  ///< whose flat slab lies behind it, or ShadowReceiver::kNoObject
+        float reachWorld;      ///< the farthest offset a blocker can be at
+    };
+    /// The line test's rays per line (angular stratum): radii of equal area.
+    static constexpr int kLineRadii = 8;
+    static constexpr unsigned kAllLineRays = (1U << kLineRadii) - 1;
+    /// Per ray of a line: the depth it rises toward the light per unit of light-plane offset.
+    using LineRises = std::array<float, kLineRadii>;
+    /// visibility() by the line test (file note): the share of the 64 directions whose rays meet
+    /// no blocker. Adaptive: every other angular stratum first, the rest only where those
+    /// disagree.
+    float lineVisibility(const LineReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
+                         std::uint64_t& samples) const;
+    /// The rays of one line (unit light-plane direction `along`) that meet a blocker, a bit each;
+    /// `startsBehind`: those that start behind one. Adds the texels read to `reads`.
+    unsigned blockedOnLine(const LineReceiver& receiver, const glm::vec2& along,
+                           const LineRises& rises, unsigned startsBehind,
+                           std::uint64_t& reads) const;
+    /// The finest level's tile (row-major) holding light-plane point `planeWorld`; -1 outside.
+    int finestTileAt(const glm::vec2& planeWorld) const;
+    /// Whether no surface over the receiver's reach can lie in front of a ray of its disk (the
+    /// caster bounds, coarse blocks first): then it is lit, with no texel read.
+    bool nothingCanBlockLines(const LineReceiver& receiver) const;
+    /// The texel of `level` holding light-plane point `planeWorld`; x = -1 outside the level.
+    glm::ivec2 texelOf(const Level& level, const glm::vec2& planeWorld) const {
+        const float x = (planeWorld.x - originPlane_.x) * level.texelsPerWorld;
+        const float y = (planeWorld.y - originPlane_.y) * level.texelsPerWorld;
+        if (!(x >= 0.0f && y >= 0.0f && x < float(level.width) && y < float(level.height)))
+            return {-1, -1};
+        return {int(x), int(y)};
+    }
     float nearestDepth_ = 0.0f;          ///< smallest stored depth (the blocker nearest the light)
     float startDepth_ = 0.0f;            ///< where the light rays start: in front of everything
     std::array<Level, kLevels> levels_;  ///< the finest first
@@ -200,7 +261,26 @@ class ShadowMap {
             return b == ShadowReceiver::kNoObject ? a : kSeveral;
         }
     };
+    /// The least depth of a surface over `bounds`' square that may shadow a receiver on
+    /// `receiverObject` (its own flat slab left out).
+    static float casterBound(const CasterBounds& bounds, std::uint32_t receiverObject) {
+        return bounds.flatObject == receiverObject ? bounds.others
+                                                   : std::min(bounds.others, bounds.flat);
+    }
     std::vector<CasterBounds> casterBounds_;
+    /// The caster bounds of blocks of kBoundBlock x kBoundBlock tiles, then of blocks of those,
+    /// and so on (the line test's cull reads a disk of many tiles): each the least of its parts.
+    struct BoundLevel {
+        int width = 0, height = 0;  ///< in blocks
+        int tiles = 1;              ///< a block's side, in finest tiles
+        std::vector<CasterBounds> bounds;
+    };
+    static constexpr int kBoundBlock = 4;
+    std::vector<BoundLevel> boundLevels_;  ///< the finest tiles first
+    void buildBoundLevels();
+    /// Whether a surface in block (x, y) of bound level `level` may lie in front of a ray of the
+    /// line test (nothingCanBlockLines).
+    bool blockMayBlock(const LineReceiver& receiver, std::size_t level, int x, int y) const;
     mutable std::atomic<std::uint64_t> tracedTexels_{0};
 };
 

@@ -407,6 +407,21 @@ bool SceneTracer::entersFrontFirst(const Ray& ray, float minDistance, std::uint3
     return false;
 }
 
+float SceneTracer::exitDistance(const Ray& ray, float fromDistance, std::uint32_t object) const {
+    constexpr int kMaxTriangles = 16;
+    TriangleHit baseHit;
+    float from = fromDistance;
+    for (int passed = 0; passed <= kMaxTriangles; ++passed) {
+        if (!bvh_.intersect(ray, from, std::numeric_limits<float>::max(), baseHit))
+            return std::numeric_limits<float>::infinity();
+        const ShellTriangle& triangle = triangles_[baseHit.triangle];
+        if (triangle.object == object && !triangle.frontFacing(ray.direction))
+            return baseHit.distanceWorld;
+        from = baseHit.distanceWorld;
+    }
+    return std::numeric_limits<float>::infinity();
+}
+
 bool SceneTracer::traceNearest(const Ray& ray, float minDistance, SurfaceHit& hit,
                                TraceCounters& counters) const {
     bool found = false;

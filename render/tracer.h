@@ -275,6 +275,11 @@ class SceneTracer {
                            std::span<bool> found, TraceCounters& counters,
                            bool withNormals = true) const;
 
+    /// Where `ray`, inside `object` from `fromDistance`, leaves its base mesh: the nearest back
+    /// face of `object` beyond `fromDistance` (past at most 16 other triangles), or +infinity
+    /// when there is none (an open mesh). Thread-safe.
+    float exitDistance(const Ray& ray, float fromDistance, std::uint32_t object) const;
+
     /// Whether `ray`, from `minDistance`, meets `object`'s base surface first on a front face
     /// nearer than `distanceWorld`. A ray stopped by a back face of `object` at `distanceWorld`
     /// then looks through an opening of its detail (an open floor, between the exits of a curved

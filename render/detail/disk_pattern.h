@@ -71,6 +71,9 @@ class DiskPattern {
         return radius * turned(strataMiddles_[std::size_t(angular)], smallAngleCosSin(jitterAngle));
     }
 
+    /// The unit direction of the middle of angular stratum `angular`, turned by the rotation.
+    glm::vec2 direction(int angular) const { return strataMiddles_[std::size_t(angular)]; }
+
   private:
     /// Per cell, the key its jitter is hashed from with the seed.
     static constexpr std::array<std::uint32_t, kStrata* kStrata> kCellKeys = [] {
