@@ -270,6 +270,7 @@ void ShadowMap::traceTile(const Level& level, int tile) const {
             float back = std::numeric_limits<float>::infinity();
             if (found[k]) {
                 const std::uint32_t object = hits[k].object;
+                // From a hair past the hit: a bare surface's own triangle is not met again.
                 const float exit = tracer_.exitDistance(
                     rays[k], hits[k].distanceWorld + 1e-4f * level.texelWorld, object);
                 const Material& material = tracer_.scene().objects[object].material;
