@@ -60,11 +60,13 @@ struct RenderStats {
     /// Camera rays whose nearest hit is a tile's (its detail or its floor, marched to): base hits
     /// less those on bare surfaces (no tile) and back faces.
     std::uint64_t detailHits = 0;
-    std::uint64_t marchIterations = 0;   ///< sphere-tracing steps over all camera rays
-    std::uint64_t converged = 0;         ///< of detailHits, those that converged within the budget
-    std::uint64_t shadowSteps = 0;       ///< steps of self-shadow rays
-    std::uint64_t shadowMapSamples = 0;  ///< shadow-map depth comparisons (PCF samples), all lights
-    std::uint64_t shadowMapTexels = 0;   ///< shadow-map texels traced (tiles lookups reached)
+    std::uint64_t marchIterations = 0;  ///< sphere-tracing steps over all camera rays
+    std::uint64_t converged = 0;        ///< of detailHits, those that converged within the budget
+    std::uint64_t shadowSteps = 0;      ///< steps of self-shadow rays
+    /// Shadow-map lookups' work, all lights: depth comparisons (PCF samples) of filtered lights,
+    /// texels read by the line test of wide ones (render/shadow_map.h).
+    std::uint64_t shadowMapSamples = 0;
+    std::uint64_t shadowMapTexels = 0;     ///< shadow-map texels traced (tiles lookups reached)
     std::uint64_t shadowMapTexelsAll = 0;  ///< texels of the shadow maps' levels, traced or not
     std::uint64_t shellsTested =
         0;  ///< camera rays x binned shells whose pixel coverage was tested
@@ -83,9 +85,10 @@ struct RenderStats {
 struct RenderAovs {
     Image depth;   ///< distance from the eye along the ray, world units (0: miss), in all channels
     Image normal;  ///< shading normal * 0.5 + 0.5 (0: miss)
-    Image iterations;        ///< march iterations as a heat map (blue 0 .. red = budget)
-    Image shadowSamples;     ///< self-shadow steps as a heat map (blue 0 .. red = budget x lights)
-    Image shadowMapSamples;  ///< shadow-map samples as a heat map (blue 0 .. red = 72 x lights)
+    Image iterations;     ///< march iterations as a heat map (blue 0 .. red = budget)
+    Image shadowSamples;  ///< self-shadow steps as a heat map (blue 0 .. red = budget x lights)
+    /// RenderStats::shadowMapSamples per pixel as a heat map (blue 0 .. red = 72 x lights and more)
+    Image shadowMapSamples;
     /// Mean curvature of the detail at the hit, 1/texel in texel space, from the tricubic
     /// B-spline's gradient and Hessian, as a heat map: blue -0.5 (concave) .. green 0 (flat) ..
     /// red +0.5 (convex, a wire of radius 2 texels is 0.25); black where no detail was hit.
