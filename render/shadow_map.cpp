@@ -94,7 +94,6 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
         Level& level = levels_[std::size_t(index)];
         const int resolution = std::max(resolutionTexels >> index, 1);
         level.texelWorld = longer / float(resolutionTexels) * float(1 << index);
-        level.texelsPerWorld = 1.0f / level.texelWorld;
         level.width = std::clamp(int(std::ceil(extent.x / level.texelWorld)), 1, resolution);
         level.height = std::clamp(int(std::ceil(extent.y / level.texelWorld)), 1, resolution);
         level.tilesX = (level.width + kTileTexels - 1) / kTileTexels;
@@ -297,14 +296,8 @@ std::uint64_t ShadowMap::texelCount() const {
 }
 
 float ShadowMap::lookup(const Level& level, const glm::vec2& planeWorld) const {
-    // In texels; inside the level the texel is the integer part (no floor needed: x >= 0, and
-    // floor(x) < width exactly when x < width).
-    const float x = (planeWorld.x - originPlane_.x) / level.texelWorld;
-    const float y = (planeWorld.y - originPlane_.y) / level.texelWorld;
-    if (!(x >= 0.0f && y >= 0.0f && x < float(level.width) && y < float(level.height))) {
-        return std::numeric_limits<float>::infinity();
-    }
-    return depthAt(level, int(x), int(y));
+    const glm::ivec2 texel = texelOf(level, planeWorld);
+    return texel.x < 0 ? std::numeric_limits<float>::infinity() : depthAt(level, texel.x, texel.y);
 }
 
 glm::ivec4 ShadowMap::finestTiles(const glm::vec2& low, const glm::vec2& high,
@@ -329,9 +322,7 @@ bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, flo
                 casterBounds_[std::size_t(x) + std::size_t(levels_[0].tilesX) * std::size_t(y)];
             // The receiver's own flat slab lies behind its plane: only other slabs count (the
             // flat bound is +infinity where no slab is).
-            const float bound =
-                tile.flatObject == receiverObject ? tile.others : std::min(tile.others, tile.flat);
-            if (!(bound >= depth)) return false;
+            if (!(casterBound(tile, receiverObject) >= depth)) return false;
         }
     return true;
 }
@@ -608,16 +599,18 @@ unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2&
             level.texelWorld * (1.0f + receiver.slopeLength) + kCurvatureSlack * offset;
         unsigned inFront = 0, behind = 0;
         if (front < plane - bias) {
-            const float fineStep = std::max(
-                levelFor(std::max(receiver.footprintWorld, kEdgeStepShare * previous)).texelWorld,
-                kEdgeStepShare * previous);
-            if (!fine && previous > 0.0f && (wasInFront | wasBehind) == 0 &&
-                previous + fineStep < offset) {
+            if (!fine && previous > 0.0f && (wasInFront | wasBehind) == 0) {
                 // The first blocker after open ground, a coarse step on: that step again, finely
                 // (the open offset's state stands).
-                fineUntil = offset;
-                offset = previous + fineStep;
-                continue;
+                const float fineStep =
+                    std::max(levelFor(std::max(receiver.footprintWorld, kEdgeStepShare * previous))
+                                 .texelWorld,
+                             kEdgeStepShare * previous);
+                if (previous + fineStep < offset) {
+                    fineUntil = offset;
+                    offset = previous + fineStep;
+                    continue;
+                }
             }
             for (int radial = 0; radial < kLineRadii; ++radial) {
                 const float ray = receiver.depth - offset * rises[std::size_t(radial)];

@@ -143,7 +143,6 @@ class ShadowMap {
     /// One level: a grid of light rays over the map's bounds, traced a tile at a time.
     struct Level {
         float texelWorld = 1.0f;
-        float texelsPerWorld = 1.0f;  ///< 1 / texelWorld
         int width = 0;
         int height = 0;
         int tilesX = 0;
@@ -235,9 +234,11 @@ class ShadowMap {
     /// caster bounds, coarse blocks first): then it is lit, with no texel read.
     bool nothingCanBlockLines(const LineReceiver& receiver) const;
     /// The texel of `level` holding light-plane point `planeWorld`; x = -1 outside the level.
+    /// Inside it the texel is the integer part (no floor needed: x >= 0, and floor(x) < width
+    /// exactly when x < width).
     glm::ivec2 texelOf(const Level& level, const glm::vec2& planeWorld) const {
-        const float x = (planeWorld.x - originPlane_.x) * level.texelsPerWorld;
-        const float y = (planeWorld.y - originPlane_.y) * level.texelsPerWorld;
+        const float x = (planeWorld.x - originPlane_.x) / level.texelWorld;
+        const float y = (planeWorld.y - originPlane_.y) / level.texelWorld;
         if (!(x >= 0.0f && y >= 0.0f && x < float(level.width) && y < float(level.height)))
             return {-1, -1};
         return {int(x), int(y)};
