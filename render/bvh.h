@@ -33,25 +33,44 @@ struct DoubleTriangle {
         : corner0(p0), edge1(glm::dvec3(p1) - corner0), edge2(glm::dvec3(p2) - corner0) {}
 };
 
+/// A triangle and a ray origin: what Moeller-Trumbore computes from those two alone, once for
+/// every ray from that origin (camera rays share the eye).
+struct TriangleFromOrigin {
+    DoubleTriangle triangle;
+    glm::dvec3 tvec;        ///< origin - corner0
+    glm::dvec3 qvec;        ///< tvec x edge1
+    double edge2DotQvec;    ///< the hit distance times the determinant
+
+    TriangleFromOrigin(const glm::vec3& origin, const DoubleTriangle& of)
+        : triangle(of),
+          tvec(glm::dvec3(origin) - of.corner0),
+          qvec(glm::cross(tvec, of.edge1)),
+          edge2DotQvec(glm::dot(of.edge2, qvec)) {}
+
+    /// intersectTriangle for the ray from the origin along unit `direction`.
+    bool intersect(const glm::vec3& direction, double minDistance, double maxDistance,
+                   double& distanceWorld, double& b1, double& b2) const {
+        const glm::dvec3 along(direction);
+        const glm::dvec3 pvec = glm::cross(along, triangle.edge2);
+        const double determinant = glm::dot(triangle.edge1, pvec);
+        if (determinant == 0.0 || !std::isfinite(determinant)) return false;
+        const double inverse = 1.0 / determinant;
+        b1 = glm::dot(tvec, pvec) * inverse;
+        if (b1 < 0.0 || b1 > 1.0) return false;
+        b2 = glm::dot(along, qvec) * inverse;
+        if (b2 < 0.0 || b1 + b2 > 1.0) return false;
+        distanceWorld = edge2DotQvec * inverse;
+        return distanceWorld > minDistance && distanceWorld < maxDistance;
+    }
+};
+
 /// The ray against one triangle (Moeller-Trumbore in double precision, the test TriangleBvh uses):
 /// true when it hits at a distance in (minDistance, maxDistance) world units, with the
 /// barycentric weights b1, b2 of p1, p2. Degenerate triangles and rays in their plane miss.
 inline bool intersectTriangle(const Ray& ray, const DoubleTriangle& triangle, double minDistance,
                               double maxDistance, double& distanceWorld, double& b1, double& b2) {
-    const glm::dvec3 origin(ray.origin);
-    const glm::dvec3 direction(ray.direction);
-    const glm::dvec3 pvec = glm::cross(direction, triangle.edge2);
-    const double determinant = glm::dot(triangle.edge1, pvec);
-    if (determinant == 0.0 || !std::isfinite(determinant)) return false;
-    const double inverse = 1.0 / determinant;
-    const glm::dvec3 tvec = origin - triangle.corner0;
-    b1 = glm::dot(tvec, pvec) * inverse;
-    if (b1 < 0.0 || b1 > 1.0) return false;
-    const glm::dvec3 qvec = glm::cross(tvec, triangle.edge1);
-    b2 = glm::dot(direction, qvec) * inverse;
-    if (b2 < 0.0 || b1 + b2 > 1.0) return false;
-    distanceWorld = glm::dot(triangle.edge2, qvec) * inverse;
-    return distanceWorld > minDistance && distanceWorld < maxDistance;
+    return TriangleFromOrigin(ray.origin, triangle)
+        .intersect(ray.direction, minDistance, maxDistance, distanceWorld, b1, b2);
 }
 
 inline bool intersectTriangle(const Ray& ray, const glm::vec3& p0, const glm::vec3& p1,

@@ -1009,13 +1009,21 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
     ShellMarch* entered[kMaxBatchRays];
     std::size_t rayOf[kMaxBatchRays];
     std::size_t count = 0;
+    // What the test of the top takes from the origin alone, once when the rays share it (camera
+    // rays from the eye).
+    bool oneOrigin = true;
+    for (const Ray* ray : rays) oneOrigin = oneOrigin && ray->origin == rays[0]->origin;
+    const TriangleFromOrigin shared(rays[0]->origin, triangle.top);
     for (std::size_t r = 0; r < rays.size(); ++r) {
         found[r] = false;
         double distance = 0.0, b1 = 0.0, b2 = 0.0;
-        if (!intersectTriangle(*rays[r], triangle.top, 0.0f, std::numeric_limits<float>::max(),
-                               distance, b1, b2))
+        constexpr double kFar = std::numeric_limits<float>::max();
+        if (!(oneOrigin ? shared : TriangleFromOrigin(rays[r]->origin, triangle.top))
+                 .intersect(rays[r]->direction, 0.0, kFar, distance, b1, b2))
             continue;
-        enterAt(*rays[r], {shell, float(distance), float(b1), float(b2)}, hits[r], marches[count]);
+        // Front-facing, with detail (above): the march starts.
+        startMarch(*rays[r], {shell, float(distance), float(b1), float(b2)}, hits[r],
+                   marches[count]);
         rayOf[count] = r;
         entered[count] = &marches[count];
         ++count;
