@@ -37,9 +37,9 @@ struct DoubleTriangle {
 /// every ray from that origin (camera rays share the eye).
 struct TriangleFromOrigin {
     DoubleTriangle triangle;
-    glm::dvec3 tvec;        ///< origin - corner0
-    glm::dvec3 qvec;        ///< tvec x edge1
-    double edge2DotQvec;    ///< the hit distance times the determinant
+    glm::dvec3 tvec;      ///< origin - corner0
+    glm::dvec3 qvec;      ///< tvec x edge1
+    double edge2DotQvec;  ///< the hit distance times the determinant
 
     TriangleFromOrigin(const glm::vec3& origin, const DoubleTriangle& of)
         : triangle(of),

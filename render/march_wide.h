@@ -92,10 +92,11 @@ inline constexpr float kVisibilityMinStepTexels = 0.2f;
 
 /// A self-shadow ray toward a light through a flat shell (the renderer's straight visibility
 /// ray): samples from `start` along `direction`, a step of the distance sampled (its magnitude,
-/// at least kVisibilityMinStepTexels) at a time, through the detail too, keeping the least distance
-/// / (travel x tanHalfAngle) seen, until that is at most -1 (blocked), the budget is spent or the
-/// next point is at the tile's top. The state the ray keeps, in this form so the kernel reads and
-/// writes it in place.
+/// at least kVisibilityMinStepTexels, and at least the path left to the tile's top over the
+/// samples left after this one, so the budget takes the ray to the top) at a time, through the
+/// detail too, keeping the least distance / (travel x tanHalfAngle) seen, until that is at most -1
+/// (blocked), the budget is spent or the next point is at the tile's top. The state the ray keeps,
+/// in this form so the kernel reads and writes it in place.
 struct VisibilityLane {
     float start[3];
     float direction[3];  ///< unit, texel space, toward the light

@@ -31,8 +31,10 @@ struct RenderOptions {
     MarchSettings march;      ///< method, budget per ray (ch. 8 uses 8 to 16) and hit threshold
     FilterKind filter = FilterKind::Trilinear;  ///< the march's (and self-shadows') distances
     FilterKind normalFilter = FilterKind::TricubicBSpline;  ///< the shading normal's gradient
-    bool selfShadows = true;    ///< trace shadow rays through the tile toward each light
-    int shadowIterations = 24;  ///< budget of each shadow ray
+    bool selfShadows = true;  ///< trace shadow rays through the tile toward each light
+    /// Budget of each self-shadow ray: its least, as a ray toward a low light takes a sample per
+    /// 2 texels of its path to the tile's top, up to 4 x this.
+    int shadowIterations = 24;
     /// Shadows cast between surfaces, from a shadow map per light; None builds no map.
     ShadowFilter shadowFilter = ShadowFilter::Adaptive;
     /// Texels along the longer side of each shadow map's finest level (ShadowMap::kLevels); 0

@@ -363,7 +363,8 @@ template <class V>
     const F d = trilinearColumnsLanes<V>(columns, x, y, z, unknown);
     const M known = V::butNot(unknown, V::allLanes());
     // visibility = min(visibility, d / (travel x tanHalfAngle)), blocked unless above -1;
-    // travel += max(|d|, kVisibilityMinStepTexels).
+    // travel += max(|d|, kVisibilityMinStepTexels, the path left to the top over the samples
+    // left after this one, where any are left).
     const F visibility = V::load(group.visibility);
     const F ratio = V::div(d, V::mul(t, V::load(group.tanHalfAngle)));
     const F least = V::blend(visibility, ratio, V::less(ratio, visibility));
@@ -371,9 +372,15 @@ template <class V>
     const M advances = V::butNot(blocks, known);
     const F minStep = V::set1(kVisibilityMinStepTexels);
     const F away = V::abs(d);
-    const F travel = V::add(t, V::blend(away, minStep, V::less(away, minStep)));
+    const F step = V::blend(away, minStep, V::less(away, minStep));
     const I samplesLeft = V::loadInt(group.samplesLeft);
     const I left = V::sub(samplesLeft, V::set1(1));
+    const F forced =
+        V::div(V::div(V::sub(V::load(group.depthTexels), z), directionZ), V::toFloat(left));
+    const M forces =
+        V::both(V::both(V::greater(left, V::set1(0)), V::greater(directionZ, V::set1(0.0f))),
+                V::less(step, forced));
+    const F travel = V::add(t, V::blend(step, forced, forces));
     // On while samples are left and the next point is below the top (NaN: on, as the scalar).
     const M below = V::butNot(
         V::greaterEqual(V::add(startZ, V::mul(directionZ, travel)), V::load(group.depthTexels)),
