@@ -361,9 +361,10 @@ bool ShadowMap::blockMayBlock(const LineReceiver& receiver, std::size_t level, i
     // front of the lowest of them there: depth below receiver.depth - s / tan(angle / 2).
     const float blockWorld = levels_[0].texelWorld * float(kTileTexels * blocks.tiles);
     const glm::vec2 low = originPlane_ + glm::vec2(float(x), float(y)) * blockWorld;
-    const glm::vec2 nearest = glm::clamp(receiver.centre, low, low + blockWorld);
-    if (bound >= receiver.depth - glm::length(nearest - receiver.centre) / tanHalfAngle_)
-        return false;
+    const glm::vec2 nearest = glm::clamp(receiver.centre, low, low + blockWorld) - receiver.centre;
+    // bound >= receiver.depth - |nearest| / tan(angle / 2), squared: no root, no division.
+    const float reach = (receiver.depth - bound) * tanHalfAngle_;
+    if (glm::dot(nearest, nearest) >= reach * reach) return false;
     if (level == 0) return true;
     const BoundLevel& parts = boundLevels_[level - 1];
     for (int partY = y * kBoundBlock; partY < std::min((y + 1) * kBoundBlock, parts.height);
@@ -491,12 +492,6 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     }
     samples += kShadowDiskSamples;
     return float(lit) / float(kShadowDiskSamples);
-}
-
-int ShadowMap::finestTileAt(const glm::vec2& planeWorld) const {
-    const Level& finest = levels_[0];
-    const glm::ivec2 texel = texelOf(finest, planeWorld);
-    return texel.x < 0 ? -1 : texel.x / kTileTexels + finest.tilesX * (texel.y / kTileTexels);
 }
 
 float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filter,

@@ -229,7 +229,12 @@ class ShadowMap {
                            const LineRises& rises, unsigned startsBehind,
                            std::uint64_t& reads) const;
     /// The finest level's tile (row-major) holding light-plane point `planeWorld`; -1 outside.
-    int finestTileAt(const glm::vec2& planeWorld) const;
+    /// Inline: the line test asks at every step.
+    int finestTileAt(const glm::vec2& planeWorld) const {
+        const Level& finest = levels_[0];
+        const glm::ivec2 texel = texelOf(finest, planeWorld);
+        return texel.x < 0 ? -1 : texel.x / kTileTexels + finest.tilesX * (texel.y / kTileTexels);
+    }
     /// Whether no surface over the receiver's reach can lie in front of a ray of its disk (the
     /// caster bounds, coarse blocks first): then it is lit, with no texel read.
     bool nothingCanBlockLines(const LineReceiver& receiver) const;
