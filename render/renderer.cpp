@@ -24,19 +24,6 @@ namespace {
 
 constexpr float kPi = 3.14159265358979f;
 
-/// Visibility in [0, 1] of a light of angular radius atan(tanHalfAngle) from a texel-space
-/// point, by sphere tracing toward it until the ray leaves the top of the tile (in a curved
-/// shell: along the world ray toward the light, through the shell map). The least of distance /
-/// (travel x tanHalfAngle) along the ray, r, estimates how far the nearest blocker's edge lies
-/// from the ray in radii of the light's disk: r >= 1 leaves the disk free, r = 0 (the ray grazes
-/// the blocker) half covers it. So the ray goes on through the detail (steps of the distance's
-/// magnitude, at least detail::kVisibilityMinStepTexels) until r reaches -1, where the blocker
-/// covers the disk; the visible share is the smoothstep of (r + 1) / 2. Stopping at the first
-/// contact (r = 0 as no light) darkened wide lights: the chain-mail sheet's mean sRGB value was 6%
-/// low at 20 degrees and 19% at 89 against the world reference's shadow rays, and is now 0.3% low
-/// and 2.3% high. Taken a sample at a time (samplePosition, advance), so the self-shadow rays of a
-/// batch of camera rays are marched together (marchInterleaved) with the operations of a single
-/// one.
 /// A self-shadow ray takes a sample per this many texels of its path to the tile's top, so that
 /// toward a low light (from the floor of a 16-texel tile 15 degrees under the light, 62 texels
 /// through the rings) it steps no farther than about this (its steps are at least the path left
@@ -46,13 +33,28 @@ constexpr float kPi = 3.14159265358979f;
 /// space). Against the world reference, on the chain-mail sheet under a 2-degree light 15 degrees
 /// high (320 x 256, mean signed sRGB codes over the image), 1 texel per sample was +0.41 codes
 /// off, 2 texels +0.53, 4 +0.61 (the budget alone: those paths are at most 62 texels long), and
-/// 256 samples for every ray +0.27; without the steps' floor +4.64.
+/// 256 samples for every ray +0.27; 24 samples and no floor on the steps (the rule before) +4.64.
 constexpr float kSelfShadowPathTexelsPerSample = 2.0f;
 constexpr int kSelfShadowBudgetFactor = 4;
 
+/// Visibility in [0, 1] of a light of angular radius atan(tanHalfAngle) from a texel-space
+/// point, by sphere tracing toward it until the ray leaves the top of the tile (in a curved
+/// shell: along the world ray toward the light, through the shell map). The least of distance /
+/// (travel x tanHalfAngle) along the ray, r, estimates how far the nearest blocker's edge lies
+/// from the ray in radii of the light's disk: r >= 1 leaves the disk free, r = 0 (the ray grazes
+/// the blocker) half covers it. So the ray goes on through the detail (steps of the distance's
+/// magnitude, at least detail::kVisibilityMinStepTexels and the path left to the top over the
+/// samples left, with a budget that grows with that path) until r reaches -1, where the blocker
+/// covers the disk; the visible share is the smoothstep of (r + 1) / 2. Stopping at the first
+/// contact (r = 0 as no light) darkened wide lights: the chain-mail sheet's mean sRGB value was 6%
+/// low at 20 degrees and 19% at 89 against the world reference's shadow rays, and is now 0.3% low
+/// and 2.3% high. Taken a sample at a time (samplePosition, advance), so the self-shadow rays of a
+/// batch of camera rays are marched together (marchInterleaved) with the operations of a single
+/// one.
 class LightVisibilityRay {
   public:
-    /// Starts at `start` toward `toLight` (unit, texel space) with at most `maxSamples` samples.
+    /// Starts at `start` toward `toLight` (unit, texel space) with a budget of `maxSamples`
+    /// samples, more for a long path to the top (budgetForPath).
     void start(const glm::vec3& start, const glm::vec3& toLight, float depthTexels,
                float tanHalfAngle, int maxSamples) {
         begin(tanHalfAngle, maxSamples);

@@ -1009,6 +1009,7 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
     ShellMarch* entered[kMaxBatchRays];
     std::size_t rayOf[kMaxBatchRays];
     std::size_t count = 0;
+    if (rays.empty()) return true;
     // What the test of the top takes from the origin alone, once when the rays share it (camera
     // rays from the eye).
     bool oneOrigin = true;
