@@ -25,9 +25,9 @@ namespace {
 constexpr float kPi = 3.14159265358979f;
 
 /// A self-shadow ray takes a sample per this many texels of its path to the tile's top, so that
-/// toward a low light (from the floor of a 16-texel tile 15 degrees under the light, 62 texels
-/// through the rings) it steps no farther than about this (its steps are at least the path left
-/// over the samples left): half the thickness of a default chain-mail wire. Not below the
+/// toward a low light (from the floor of a 16-texel tile toward a light 15 degrees above it, 62
+/// texels through the rings) it steps no farther than about this (its steps are at least the path
+/// left over the samples left): half the thickness of a default chain-mail wire. Not below the
 /// options' budget, and not above kSelfShadowBudgetFactor times it, which paths longer than 192
 /// texels take (from the floor of a 16-texel tile, a light less than 5 degrees above it in texel
 /// space). Against the world reference, on the chain-mail sheet under a 2-degree light 15 degrees
