@@ -25,6 +25,7 @@
 /// 0.75 texels of margin at the top and bottom; with non-intersecting rings the distance is exact.
 #pragma once
 
+#include <algorithm>
 #include <glm/vec3.hpp>
 #include <string>
 
@@ -63,11 +64,18 @@ class Chainmail {
     Chainmail(const ChainmailOptions& options, const Size3& tile);
 
     /// Exact signed distance in texels (negative inside the wire) at a point in texel space.
-    /// Any x, y: the pattern is periodic with period W, H. Finite for finite input.
+    /// Any x, y: the pattern is periodic with period W, H. Finite for finite input. Farther than
+    /// farSlabTexels() above or below the rings' slab, the distance to the slab: a lower bound.
     double signedDistanceTexels(const glm::dvec3& texelPosition) const;
 
     /// Height of the rings' bounding slab, texels (centred at z = D/2).
     double heightTexels() const;
+
+    /// How far above or below the rings' slab signedDistanceTexels is exact, texels: eight ring
+    /// or row spacings, and at least the tile's depth (every point of the tile is within it).
+    double farSlabTexels() const {
+        return std::max(8.0 * std::max(ringSpacingTexels_, rowSpacingTexels_), double(tile_.depth));
+    }
 
     /// The options as one-line JSON, for tile provenance.
     std::string paramsJson() const;
