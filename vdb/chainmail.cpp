@@ -128,11 +128,12 @@ double Chainmail::signedDistanceTexels(const glm::dvec3& texelPosition) const {
     const double y = wrap(texelPosition.y, tile_.height);
     const double z = texelPosition.z - 0.5 * tile_.depth;
     // Every ring lies in the slab |z| <= heightTexels() / 2. Far above or below it the searches
-    // below would visit every ring within the point's distance, a disk growing with it (a point
-    // 1e13 texels away, as a reference render's ray through a shell 3e-14 units deep reaches, never
-    // returned). Beyond farSlabTexels() the distance to the slab is returned instead: a lower
-    // bound, so steps stay safe, short of the exact distance by at most the slab's thickness
-    // plus (ring spacing)^2 / that distance. No tile or check samples that far from the rings.
+    // below would visit every ring within the point's distance, a disk growing with it (points
+    // 1e13 texels away, where a reference render's rays through a shell 3e-14 units deep sample,
+    // kept a render of 8 pixels busy for over 5 minutes). Beyond farSlabTexels() the distance to
+    // the slab is returned instead: a lower bound, so steps stay safe, short of the exact distance
+    // by at most the slab's thickness plus about (ring spacing)^2 / that distance. No tile or
+    // check samples that far from the rings.
     const double aboveSlab = std::abs(z) - 0.5 * heightTexels();
     if (aboveSlab > farSlabTexels()) return aboveSlab;
     if (options_.weave == ChainmailWeave::Japanese4in1) return japaneseDistanceTexels(x, y, z);
