@@ -57,12 +57,11 @@ class LightVisibilityRay {
     /// samples, more for a long path to the top (budgetForPath).
     void start(const glm::vec3& start, const glm::vec3& toLight, float depthTexels,
                float tanHalfAngle, int maxSamples) {
-        begin(tanHalfAngle, maxSamples);
+        begin(depthTexels, tanHalfAngle, maxSamples);
         for (int axis = 0; axis < 3; ++axis) {
             lane_.start[axis] = start[axis];
             lane_.direction[axis] = toLight[axis];
         }
-        lane_.depthTexels = depthTexels;
         lane_.blocked = toLight.z <= 0.0f;  // the light is below the base surface
         curved_ = false;
         budgetForPath((depthTexels - start.z) / toLight.z, maxSamples);
@@ -74,9 +73,8 @@ class LightVisibilityRay {
     void startCurved(const ShellPrisms& shell, std::uint32_t prism, const PrismPoint& guess,
                      const glm::dvec3& startWorld, const glm::dvec3& toLightWorld,
                      float depthTexels, float tanHalfAngle, int maxSamples) {
-        begin(tanHalfAngle, maxSamples);
+        begin(depthTexels, tanHalfAngle, maxSamples);
         curved_ = true;
-        lane_.depthTexels = depthTexels;
         lane_.blocked = false;
         lane_.needsSample = false;
         if (!path_.start(shell, startWorld, toLightWorld, prism, guess)) return;  // above it
@@ -139,7 +137,8 @@ class LightVisibilityRay {
                 : maxSamples;
     }
     /// What start() and startCurved() set alike.
-    void begin(float tanHalfAngle, int maxSamples) {
+    void begin(float depthTexels, float tanHalfAngle, int maxSamples) {
+        lane_.depthTexels = depthTexels;
         lane_.tanHalfAngle = tanHalfAngle;
         lane_.samplesLeft = maxSamples;
         lane_.visibility = 1.0f;
