@@ -33,7 +33,10 @@ void forEachImageBlock(int width, int height, int blockPixels, const ProgressCal
             const std::int64_t done = pixelsDone.fetch_add(size, std::memory_order_relaxed) + size;
             if (std::this_thread::get_id() == caller)
                 progress(from + (to - from) * double(done) / pixels);
-        });
+        },
+        // Blocks of the size asked for: the automatic partitioner hands out larger ranges, and
+        // the calling thread then reported (and Python's Ctrl-C was seen) a second apart.
+        tbb::simple_partitioner());
     if (progress) progress(to);
 }
 
