@@ -257,7 +257,7 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
             }
             nearest = distance;
             nearestTriangle = triangle;
-            hit = {triangle, float(distance), float(b1), float(b2)};
+            hit = {triangle, float(distance), b1, b2};
             found = true;
         }
     }

@@ -19,8 +19,12 @@ struct Ray {
 struct TriangleHit {
     std::uint32_t triangle = 0;  ///< index into the triangle list the BVH was built from
     float distanceWorld = 0.0f;  ///< along the ray
-    float b1 = 0.0f;             ///< barycentric weight of the triangle's second vertex
-    float b2 = 0.0f;             ///< barycentric weight of the third vertex
+    /// Barycentric weights of the triangle's second and third vertices, in double: a triangle may
+    /// span many repeats of its tile (a ground plane of two triangles), and the tracer wraps the
+    /// entry's uv into the tile from them; a float's rounding there (6e-8) times the texels the
+    /// triangle spans would move the entry by texels (a texel at 1.6e7 texels across).
+    double b1 = 0.0;
+    double b2 = 0.0;
 };
 
 /// A triangle as Moeller-Trumbore takes it, in double precision: corner p0 and the edges p1 - p0,

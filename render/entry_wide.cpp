@@ -33,28 +33,32 @@ L::M finite(L::F value) {
 /// Four lanes of the uv wrapped into the tile, in double: corner 0 plus the weighted edge deltas,
 /// times the scale, its fraction times the extent, as float. Double lanes are this kernel's alone,
 /// so they stay AVX intrinsics rather than lanes operations.
-__m128 wrappedTexels(__m128 b1, __m128 b2, float corner0, float corner1, float corner2,
+__m128 wrappedTexels(__m256d b1, __m256d b2, float corner0, float corner1, float corner2,
                      double scale, int extent) {
     const double first = corner0;
     const __m256d value = _mm256_mul_pd(
         _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(first),
-                                    _mm256_mul_pd(_mm256_cvtps_pd(b1),
-                                                  _mm256_set1_pd(double(corner1) - first))),
-                      _mm256_mul_pd(_mm256_cvtps_pd(b2), _mm256_set1_pd(double(corner2) - first))),
+                                    _mm256_mul_pd(b1, _mm256_set1_pd(double(corner1) - first))),
+                      _mm256_mul_pd(b2, _mm256_set1_pd(double(corner2) - first))),
         _mm256_set1_pd(scale));
     const __m256d fraction = _mm256_sub_pd(value, _mm256_floor_pd(value));
     return _mm256_cvtpd_ps(_mm256_mul_pd(fraction, _mm256_set1_pd(double(extent))));
 }
 
-L::F wrappedTexels8(L::F b1, L::F b2, const float (&corners)[3][2], int axis, double scale,
-                    int extent) {
-    const __m128 low =
-        wrappedTexels(_mm256_castps256_ps128(b1), _mm256_castps256_ps128(b2), corners[0][axis],
-                      corners[1][axis], corners[2][axis], scale, extent);
+L::F wrappedTexels8(const double (&b1)[8], const double (&b2)[8], const float (&corners)[3][2],
+                    int axis, double scale, int extent) {
+    const __m128 low = wrappedTexels(_mm256_loadu_pd(b1), _mm256_loadu_pd(b2), corners[0][axis],
+                                     corners[1][axis], corners[2][axis], scale, extent);
     const __m128 high =
-        wrappedTexels(_mm256_extractf128_ps(b1, 1), _mm256_extractf128_ps(b2, 1), corners[0][axis],
+        wrappedTexels(_mm256_loadu_pd(b1 + 4), _mm256_loadu_pd(b2 + 4), corners[0][axis],
                       corners[1][axis], corners[2][axis], scale, extent);
     return _mm256_insertf128_ps(_mm256_castps128_ps256(low), high, 1);
+}
+
+/// Eight doubles rounded to float lanes.
+L::F toFloat8(const double (&values)[8]) {
+    return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm256_cvtpd_ps(_mm256_loadu_pd(values))),
+                                _mm256_cvtpd_ps(_mm256_loadu_pd(values + 4)), 1);
 }
 
 }  // namespace
@@ -65,7 +69,7 @@ void enterFlatShell8(const FlatShellConstants& shell, EntryLanes& lanes) {
     const L::F dx = L::loadUnaligned(lanes.direction[0]), dy = L::loadUnaligned(lanes.direction[1]),
                dz = L::loadUnaligned(lanes.direction[2]);
     const L::F t = L::loadUnaligned(lanes.distanceWorld);
-    const L::F b1 = L::loadUnaligned(lanes.b1), b2 = L::loadUnaligned(lanes.b2);
+    const L::F b1 = toFloat8(lanes.b1), b2 = toFloat8(lanes.b2);
     // The entry point and its uv (SceneTracer::shellEntry).
     L::storeUnaligned(lanes.position[0], L::add(ox, L::mul(dx, t)));
     L::storeUnaligned(lanes.position[1], L::add(oy, L::mul(dy, t)));
@@ -96,8 +100,10 @@ void enterFlatShell8(const FlatShellConstants& shell, EntryLanes& lanes) {
     L::storeUnaligned(lanes.directionTexels[2], uz);
     L::storeUnaligned(lanes.texelsPerWorldAlongRay, length);
     // The start: the uv wrapped into the tile in double precision, on the top face.
-    const L::F sx = wrappedTexels8(b1, b2, shell.uvCorners, 0, shell.uvScale[0], shell.tileWidth);
-    const L::F sy = wrappedTexels8(b1, b2, shell.uvCorners, 1, shell.uvScale[1], shell.tileHeight);
+    const L::F sx =
+        wrappedTexels8(lanes.b1, lanes.b2, shell.uvCorners, 0, shell.uvScale[0], shell.tileWidth);
+    const L::F sy =
+        wrappedTexels8(lanes.b1, lanes.b2, shell.uvCorners, 1, shell.uvScale[1], shell.tileHeight);
     const L::F sz = L::set1(float(shell.tileDepth));
     // TileOccupancy::emptyTravelTexels without the block walk: down to the highest top, for a
     // finite start and a finite, descending direction.

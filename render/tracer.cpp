@@ -370,10 +370,11 @@ SceneTracer::SceneTracer(const Scene& scene, const TraceOptions& options)
     const SceneObject& object = scene_.objects[shell.object];
     const BaseMesh& mesh = object.mesh;
     const glm::uvec3 triangle = mesh.triangles[shell.localTriangle];
-    const float b0 = 1.0f - hit.b1 - hit.b2;
+    // Frames and uvs for shading take the weights in float; the march's start, the double ones.
+    const float b1 = float(hit.b1), b2 = float(hit.b2);
+    const float b0 = 1.0f - b1 - b2;
     auto interpolate = [&](const auto& values) {
-        return values[triangle[0]] * b0 + values[triangle[1]] * hit.b1 +
-               values[triangle[2]] * hit.b2;
+        return values[triangle[0]] * b0 + values[triangle[1]] * b1 + values[triangle[2]] * b2;
     };
     entry.position = ray.origin + ray.direction * hit.distanceWorld;
     entry.curved = false;
@@ -566,8 +567,8 @@ void SceneTracer::takeEntry(ShellMarch& march) const {
     const glm::uvec3 corners = baseMesh.triangles[shell.localTriangle];
     auto interpolateUv = [&](int axis) {
         const double first = baseMesh.uvs[corners[0]][axis];
-        return first + double(baseHit.b1) * (double(baseMesh.uvs[corners[1]][axis]) - first) +
-               double(baseHit.b2) * (double(baseMesh.uvs[corners[2]][axis]) - first);
+        return first + baseHit.b1 * (double(baseMesh.uvs[corners[1]][axis]) - first) +
+               baseHit.b2 * (double(baseMesh.uvs[corners[2]][axis]) - first);
     };
     const double u = interpolateUv(0) * material.uvScale.x;
     const double v = interpolateUv(1) * material.uvScale.y;
@@ -625,8 +626,8 @@ void SceneTracer::setBorderExit(ShellMarch& march, const FlatSides* sides) const
     SurfaceHit& hit = *march.hit;
     hit.entryShell = march.baseHit.triangle;
     if (sides) {
-        const float weights[3] = {1.0f - march.baseHit.b1 - march.baseHit.b2, march.baseHit.b1,
-                                  march.baseHit.b2};
+        const float b1 = float(march.baseHit.b1), b2 = float(march.baseHit.b2);
+        const float weights[3] = {1.0f - b1 - b2, b1, b2};
         hit.entryBorderClearanceWorld =
             std::max(std::min({weights[0] * sides->height[0], weights[1] * sides->height[1],
                                weights[2] * sides->height[2]}),
@@ -868,9 +869,9 @@ bool SceneTracer::enterSide(const Ray& ray, std::uint32_t face, float distanceWo
         glm::dvec3(ray.origin) + glm::dvec3(ray.direction) * double(distanceWorld);
     // The point over the top's edge where the ray enters, and how far below it.
     const double along = std::clamp(glm::dot(point - a, b - a) / glm::dot(b - a, b - a), 0.0, 1.0);
-    float weights[3] = {};
-    weights[from] = float(1.0 - along);
-    weights[to] = float(along);
+    double weights[3] = {};
+    weights[from] = 1.0 - along;
+    weights[to] = along;
     startMarch(ray, {border.shell, distanceWorld, weights[1], weights[2]}, hit, march);
     // Below the top along the flat frame's normal; a curved shell's march finds its depth itself
     // (any depth above 0 marks the side).
@@ -1023,8 +1024,7 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
                  .intersect(rays[r]->direction, 0.0, kFar, distance, b1, b2))
             continue;
         // Front-facing, with detail (above): the march starts.
-        startMarch(*rays[r], {shell, float(distance), float(b1), float(b2)}, hits[r],
-                   marches[count]);
+        startMarch(*rays[r], {shell, float(distance), b1, b2}, hits[r], marches[count]);
         rayOf[count] = r;
         entered[count] = &marches[count];
         ++count;

@@ -545,7 +545,7 @@ inline bool SceneTracer::enterShell(std::uint32_t face, const Ray& ray, float mi
     }
     if (!intersectTriangle(ray, triangles_[face].top, minDistance, maxDistance, distance, b1, b2))
         return false;
-    if (enterAt(ray, {face, float(distance), float(b1), float(b2)}, hit, march)) return true;
+    if (enterAt(ray, {face, float(distance), b1, b2}, hit, march)) return true;
     stopped = true;
     return false;
 }

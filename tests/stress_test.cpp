@@ -54,9 +54,9 @@ void expectCases(const std::string& prefix, const std::string& part, std::size_t
 const double kEpsilonTexels = TraceOptions{}.march.epsilonTexels;
 
 TEST(Stress, EveryCaseIsReportedOnceWithAFiniteErrorAndAVerdict) {
-    // 10 grazing sphere-tracing, 6 budgeted grazing, far uvs, far mesh, mirrored, degenerate,
-    // camera inside, wires, 4 shell depths, NaN/Inf rays.
-    ASSERT_EQ(allCases().size(), 27u);
+    // 10 grazing sphere-tracing, 6 budgeted grazing, far uvs, a triangle across many repeats, far
+    // mesh, mirrored, degenerate, camera inside, wires, 4 shell depths, NaN/Inf rays.
+    ASSERT_EQ(allCases().size(), 28u);
     std::set<std::string> names;
     for (const StressCase& c : allCases()) {
         EXPECT_TRUE(names.insert(c.name).second) << "duplicate case " << c.name;
@@ -85,7 +85,13 @@ TEST(Stress, BudgetedMarchReachesAFlatDetailPlaneOnGrazingRaysWithinTheDefaultBu
 TEST(Stress, UvsFarFromTheOriginRenderLikeSmallOnes) {
     // 1e-3 texel: well above the double-precision uv's rounding (1e-5), well below the 0.13 texel
     // of a float interpolation at 1e4.
-    ASSERT_NO_FATAL_FAILURE(expectCases("uvs far from the origin", "", 1, 1e-3));
+    ASSERT_NO_FATAL_FAILURE(expectCases("uvs far from the origin (", "", 1, 1e-3));
+}
+
+TEST(Stress, ATriangleAcrossAMillionRepeatsRendersLikeASmallOne) {
+    // The same bound: the entry's uv is wrapped from double barycentric weights.
+    ASSERT_NO_FATAL_FAILURE(
+        expectCases("uvs far from the origin across one triangle", "", 1, 1e-3));
 }
 
 TEST(Stress, BaseMeshFarFromTheWorldOriginRendersLikeNearIt) {

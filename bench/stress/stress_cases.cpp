@@ -330,26 +330,14 @@ void grazingBudgetedCases(std::vector<StressCase>& cases) {
     }
 }
 
-void farUvCase(std::vector<StressCase>& cases) {
-    // The same plane with every uv moved by a whole 1e4 (2e4 tile repeats at uv scale 2): the
-    // tile is periodic, so the truth is the same image. Float uvs near 1e4 have an ulp of 2^-10
-    // (0.06 texel at 64 texels per uv unit): interpolated in float, the entry point moved by up to
-    // 0.13 texel; the tracer interpolates and wraps the uv in double, so the hits agree to float
-    // rounding of the wrapped texel position (about 1e-5 texel).
-    CaseRecord record("uvs far from the origin (+1e4)",
-                      "Renders like the same uvs near the origin (the tile is periodic): the same "
-                      "hits to float rounding, no visible pixel change.");
-    const std::shared_ptr<const Tile> tile = wavyTile();
-    const Scene near = planeScene(tile);
-    Scene far = planeScene(tile);
-    for (glm::vec2& uv : far.objects[0].mesh.uvs) uv += glm::vec2(1e4f, 1e4f);
-    computeTangentFrames(far.objects[0].mesh);
-
-    // Hit positions of the same rays, texel space (wrapped), against the small-uv truth.
+/// Traces 200 rays from the plane scene's eye at both scenes and renders both: `far` is `near`
+/// with its uvs placed so that the tile's repeats fall on the same world points, so the truth is
+/// the same image. The error is the largest distance between the two hits of a ray, texels.
+void expectSameAsNearPlane(CaseRecord& record, const Scene& near, const Scene& far) {
     const SceneTracer nearTracer(near, TraceOptions{});
     const SceneTracer farTracer(far, TraceOptions{});
     double maxTexelError = 0.0;
-    int rays = 0, alike = 0, bothTraced = 0, compared = 0;
+    int rays = 0, alike = 0, compared = 0;
     for (int i = 0; i < 200; ++i) {
         const glm::vec3 target(-0.9f + 1.8f * float(i % 20) / 19.0f,
                                -0.9f + 1.8f * float(i / 20) / 9.0f, 0.0f);
@@ -367,7 +355,6 @@ void farUvCase(std::vector<StressCase>& cases) {
             ++record.result().nonFinitePixels;
             continue;
         }
-        ++bothTraced;
         if (!nearHit.onDetail || !farHit.onDetail || nearHit.march.onFloor != farHit.march.onFloor)
             continue;
         maxTexelError =
@@ -382,7 +369,8 @@ void farUvCase(std::vector<StressCase>& cases) {
     StressCase& result = record.result();
     result.nonFinitePixels += nonFinitePixels(farImage.image);
     result.errorTexels = maxTexelError;
-    // 1e-3 texel: well above the rounding, well below the 0.13 texel of a float interpolation.
+    // 1e-3 texel: well above the rounding of the wrapped texel position (about 1e-5), well below
+    // the 0.13 texel of a float interpolation at 1e4.
     result.toleranceTexels = 1e-3;
     result.measured = formatLine(
         "hit error max %.2g texels over %d rays; image mean |diff| %.5f, max %.4f, share > 0.05: "
@@ -397,6 +385,38 @@ void farUvCase(std::vector<StressCase>& cases) {
     record.check(
         difference.shareOver == 0.0,
         formatLine("no pixel differs by more than 0.05: share %.4f", difference.shareOver));
+}
+
+void farUvCase(std::vector<StressCase>& cases) {
+    // The same plane with every uv moved by a whole 1e4 (2e4 tile repeats at uv scale 2): the
+    // tile is periodic, so the truth is the same image. Float uvs near 1e4 have an ulp of 2^-10
+    // (0.06 texel at 64 texels per uv unit): interpolated in float, the entry point moved by up to
+    // 0.13 texel; the tracer interpolates and wraps the uv in double, so the hits agree to float
+    // rounding of the wrapped texel position (about 1e-5 texel).
+    CaseRecord record("uvs far from the origin (+1e4)",
+                      "Renders like the same uvs near the origin (the tile is periodic): the same "
+                      "hits to float rounding, no visible pixel change.");
+    const std::shared_ptr<const Tile> tile = wavyTile();
+    Scene far = planeScene(tile);
+    for (glm::vec2& uv : far.objects[0].mesh.uvs) uv += glm::vec2(1e4f, 1e4f);
+    computeTangentFrames(far.objects[0].mesh);
+    expectSameAsNearPlane(record, planeScene(tile), far);
+    cases.push_back(record.finish());
+}
+
+void wideTriangleCase(std::vector<StressCase>& cases) {
+    // A plane of two triangles 2^20 world units wide against one 16 units wide (wider than the
+    // view, so no ray reaches either's edge), at the same texel density (one 32-texel repeat per
+    // world unit): each large triangle spans 2^20 repeats (3.4e7 texels), and as both planes'
+    // half sides are whole numbers of repeats, the repeats fall on the same world points. A float
+    // barycentric weight (ulp 6e-8 near 0.5) times 3.4e7 texels moved the entry by up to 2
+    // texels; the tracer keeps the weights in double.
+    CaseRecord record("uvs far from the origin across one triangle (2^20 repeats)",
+                      "Renders like the small plane: the same hits to float rounding, no visible "
+                      "pixel change.");
+    const std::shared_ptr<const Tile> tile = wavyTile();
+    expectSameAsNearPlane(record, planeScene(tile, kCubeDepth, 16.0f),
+                          planeScene(tile, kCubeDepth, float(1 << 20)));
     cases.push_back(record.finish());
 }
 
@@ -805,6 +825,7 @@ std::vector<StressCase> runStressCases() {
         families = {{"grazing rays, sphere tracing", grazingSphereTracingCases},
                     {"grazing rays, budgeted march", grazingBudgetedCases},
                     {"uvs far from the origin", farUvCase},
+                    {"uvs far from the origin across one triangle", wideTriangleCase},
                     {"base mesh far from the world origin", farBaseMeshCase},
                     {"mirrored and degenerate uvs", brokenUvCases},
                     {"camera inside the shell", cameraInsideShellCase},

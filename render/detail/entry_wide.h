@@ -25,14 +25,15 @@ struct FlatShellConstants {
 /// Eight rays: the inputs (each ray and where it meets the shell's top), then what the entry
 /// computes for each. Lanes a call does not use may hold anything finite.
 struct EntryLanes {
-    float origin[3][8], direction[3][8];   ///< world, the direction unit
-    float distanceWorld[8], b1[8], b2[8];  ///< the top's hit (TriangleHit)
-    float position[3][8];                  ///< out: the entry point, world
-    float uv[2][8];                        ///< out: its uv (float interpolation)
-    float directionTexels[3][8];           ///< out: unit, descending
-    float texelsPerWorldAlongRay[8];       ///< out
-    float startTexels[3][8];               ///< out: where the march starts
-    float skippedTexels[8];                ///< out: the empty path before it
+    float origin[3][8], direction[3][8];  ///< world, the direction unit
+    float distanceWorld[8];               ///< the top's hit (TriangleHit)
+    double b1[8], b2[8];                  ///< its barycentric weights
+    float position[3][8];                 ///< out: the entry point, world
+    float uv[2][8];                       ///< out: its uv (float interpolation)
+    float directionTexels[3][8];          ///< out: unit, descending
+    float texelsPerWorldAlongRay[8];      ///< out
+    float startTexels[3][8];              ///< out: where the march starts
+    float skippedTexels[8];               ///< out: the empty path before it
 };
 
 /// Fills the outputs of `lanes` for rays entering the flat shell `shell`. Precondition:
