@@ -833,6 +833,13 @@ RenderResult PreparedScene::render(const ProgressCallback& progress) const {
     result.stats.shadowMapTexels = renderer.shadowMapTexels(false);
     result.stats.shadowMapTexelsAll = renderer.shadowMapTexels(true);
     result.warnings = renderer.warnings();
+    if (result.stats.rays > 0 && result.stats.baseHits == 0) {
+        // Sky alone: a camera that looks past the scene, or one exactly on a base surface.
+        result.warnings.push_back(
+            "no camera ray meets any object, so the image is sky alone: check camera.eye, "
+            "camera.target and camera.fov_deg against the objects' transforms (a camera exactly "
+            "on a base surface sees neither it nor its detail)");
+    }
     return result;
 }
 

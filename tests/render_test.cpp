@@ -525,6 +525,34 @@ TEST(Renderer, TheConvergedShareCountsOnlyHitsOnATile) {
     EXPECT_EQ(stats.convergedShare(), 1.0);
 }
 
+TEST(Renderer, AnImageOfSkyAloneIsWarnedOf) {
+    // The tiled plane at z = 0 seen from an eye at its level: the rays that descend start on its
+    // top (distance 0, not a hit) and pass under it, so nothing is hit. Looking away from it, the
+    // same. An eye a little above it sees the plane below the horizon: no warning.
+    Scene scene = planeScene(std::make_shared<const Tile>(flatTile({32, 32, 16}, 8.0f)));
+    RenderOptions options;
+    options.width = 32;
+    options.height = 24;
+    options.shadowFilter = ShadowFilter::None;
+    const auto skyWarnings = [&](const Camera& camera) {
+        scene.camera = camera;
+        const RenderResult result = renderScene(scene, options);
+        std::size_t count = 0;
+        for (const std::string& warning : result.warnings)
+            count += warning.find("no camera ray meets any object") != std::string::npos;
+        return std::pair(count, result.stats.baseHits);
+    };
+    const glm::vec3 up(0.0f, 0.0f, 1.0f);
+    EXPECT_EQ(skyWarnings({{0.0f, -0.5f, 0.0f}, {0.0f, 0.5f, 0.0f}, up, 40.0f}),
+              std::pair(std::size_t(1), std::uint64_t(0)));
+    EXPECT_EQ(skyWarnings({{0.3f, -1.6f, 1.2f}, {0.3f, -3.2f, 2.4f}, up, 40.0f}),
+              std::pair(std::size_t(1), std::uint64_t(0)));
+    const auto [warnings, hits] =
+        skyWarnings({{0.0f, -0.5f, 0.01f}, {0.0f, 0.5f, 0.01f}, up, 40.0f});
+    EXPECT_EQ(warnings, 0u);
+    EXPECT_GT(hits, std::uint64_t(32 * 24 / 4));
+}
+
 /// Ground (2 x 2 at z = 0) under a 0.5 x 0.5 occluder at z = 0.5, lit straight down by a light
 /// of 2 degrees: the shadow is the occluder's square, with penumbrae tan(1 deg) * 0.5 = 8.7 mm
 /// (4.5 map texels at 1024 texels over 2 units) to either side of its edges.
