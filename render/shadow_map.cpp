@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -44,6 +45,149 @@ constexpr float kLineStepShare = 0.35f;
 /// 0.07 (render_test's exact shares).
 constexpr float kEdgeStepShare = 0.1f;
 
+/// A rectangle of the light's plane (light coordinates along axisX and axisY) and the least depth
+/// along the light of any surface over it.
+struct LightPlaneRegion {
+    glm::vec2 low{std::numeric_limits<float>::max()}, high{-std::numeric_limits<float>::max()};
+    float depthLow = std::numeric_limits<float>::max();
+    /// The side the map's resolution spans, world units: the longer side of the rectangle, or
+    /// more (shadowableRegion).
+    float longer = 0.0f;
+
+    bool empty() const { return !(low.x <= high.x && low.y <= high.y); }
+    void add(const LightPlaneRegion& other) {
+        low = glm::min(low, other.low);
+        high = glm::max(high, other.high);
+        depthLow = std::min(depthLow, other.depthLow);
+    }
+    LightPlaneRegion intersection(const LightPlaneRegion& other) const {
+        LightPlaneRegion both;
+        both.low = glm::max(low, other.low);
+        both.high = glm::min(high, other.high);
+        return both;
+    }
+};
+
+/// A map over a region of the scene spans at least 1 / kMaxMapOverRegion of its resolution.
+constexpr float kMaxMapOverRegion = 4.0f;
+
+/// The rectangle of the light's plane the map covers, the least depth of the surfaces over it
+/// and the side its resolution spans: every object's footprint (its base mesh grown by the
+/// deepest shell, detail lying below the surface). Unless that is more than kMaxMapOverRegion
+/// times as wide as the region where a receiver can be shadowed at all: there, the region,
+/// spanning kMaxMapOverRegion times its side. The region is every footprint but that of a flat
+/// slab (isFlatSlab), which counts only over the footprints of the other objects reaching behind
+/// it as the light sees it: a slab shadows nothing in front of it, nor itself in the map (its
+/// own detail shadows itself by rays). So a ground plane far wider than the objects on it does
+/// not spread the map's texels over all of it (a 2e5-unit plane held a sphere of radius 0.8 in
+/// less than a texel: no shadow).
+LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
+                                  const glm::vec3& axisX, const glm::vec3& axisY) {
+    float shellDepth = 0.0f;
+    for (const SceneObject& object : scene.objects)
+        if (object.material.tile) shellDepth = std::max(shellDepth, object.material.depthWorld);
+    const std::size_t count = scene.objects.size();
+    std::vector<LightPlaneRegion> footprints(count);
+    std::vector<std::array<glm::vec3, 8>> corners(count);
+    std::vector<bool> flat(count);
+    for (std::size_t object = 0; object < count; ++object) {
+        glm::vec3 low(std::numeric_limits<float>::max());
+        glm::vec3 high(-std::numeric_limits<float>::max());
+        for (const glm::vec3& position : scene.objects[object].mesh.positions) {
+            low = glm::min(low, position);
+            high = glm::max(high, position);
+        }
+        low -= glm::vec3(shellDepth);
+        high += glm::vec3(shellDepth);
+        for (int corner = 0; corner < 8; ++corner) {
+            const glm::vec3 p(corner & 1 ? high.x : low.x, corner & 2 ? high.y : low.y,
+                              corner & 4 ? high.z : low.z);
+            corners[object][std::size_t(corner)] = p;
+            LightPlaneRegion& footprint = footprints[object];
+            const glm::vec2 plane(glm::dot(p, axisX), glm::dot(p, axisY));
+            footprint.low = glm::min(footprint.low, plane);
+            footprint.high = glm::max(footprint.high, plane);
+            footprint.depthLow = std::min(footprint.depthLow, -glm::dot(p, toLight));
+        }
+        flat[object] = isFlatSlab(scene.objects[object]);
+    }
+    // Whether `object` has a corner of its footprint's box behind slab `slab`'s side that faces
+    // the light (its top, or its floor when the light comes from below).
+    const auto behindSlab = [&](std::size_t object, std::size_t slab) {
+        const BaseMesh& mesh = scene.objects[slab].mesh;
+        glm::vec3 facing = mesh.normals[0];
+        glm::vec3 origin = mesh.positions[0];
+        if (glm::dot(facing, toLight) < 0.0f) {
+            origin -= facing * scene.objects[slab].material.depthWorld;
+            facing = -facing;
+        }
+        for (const glm::vec3& corner : corners[object])
+            if (glm::dot(corner - origin, facing) < 0.0f) return true;
+        return false;
+    };
+    // The least depth of slab `slab` (its top and floor planes) over the corners of `over`: a
+    // slab much wider than the region would put the rays' start, and so the rounding of the depths
+    // they store, as far away as its own far corners. Its footprint's where the light grazes it.
+    const auto slabDepthLow = [&](std::size_t slab, const LightPlaneRegion& over) {
+        const BaseMesh& mesh = scene.objects[slab].mesh;
+        const glm::vec3 normal = mesh.normals[0];
+        const float facing = glm::dot(toLight, normal);
+        if (!(std::abs(facing) > 1e-3f)) return footprints[slab].depthLow;
+        float least = std::numeric_limits<float>::max();
+        for (const float offset : {0.0f, shellDepth}) {
+            const float planeOffset = glm::dot(mesh.positions[0] - normal * offset, normal);
+            for (int corner = 0; corner < 4; ++corner) {
+                const glm::vec2 q(corner & 1 ? over.high.x : over.low.x,
+                                  corner & 2 ? over.high.y : over.low.y);
+                // The point q.x axisX + q.y axisY - depth toLight on the plane.
+                const float depth =
+                    (q.x * glm::dot(axisX, normal) + q.y * glm::dot(axisY, normal) - planeOffset) /
+                    facing;
+                least = std::min(least, depth);
+            }
+        }
+        return std::max(least, footprints[slab].depthLow);
+    };
+    LightPlaneRegion region;
+    for (std::size_t object = 0; object < count; ++object) {
+        if (!flat[object]) {
+            region.add(footprints[object]);
+            continue;
+        }
+        for (std::size_t other = 0; other < count; ++other) {
+            if (other == object || !behindSlab(other, object)) continue;
+            LightPlaneRegion over = footprints[object].intersection(footprints[other]);
+            if (over.empty()) continue;
+            over.depthLow = slabDepthLow(object, over);
+            region.add(over);
+        }
+    }
+    // The whole scene's box (not the union of the objects' footprints, which can be smaller).
+    LightPlaneRegion all;
+    glm::vec3 low(std::numeric_limits<float>::max());
+    glm::vec3 high(-std::numeric_limits<float>::max());
+    for (const std::array<glm::vec3, 8>& box : corners) {
+        low = glm::min(low, box[0]);
+        high = glm::max(high, box[7]);
+    }
+    for (int corner = 0; corner < 8; ++corner) {
+        const glm::vec3 p(corner & 1 ? high.x : low.x, corner & 2 ? high.y : low.y,
+                          corner & 4 ? high.z : low.z);
+        all.low = glm::min(all.low, glm::vec2(glm::dot(p, axisX), glm::dot(p, axisY)));
+        all.high = glm::max(all.high, glm::vec2(glm::dot(p, axisX), glm::dot(p, axisY)));
+        all.depthLow = std::min(all.depthLow, -glm::dot(p, toLight));
+    }
+    // Texels for the whole scene while they are at most kMaxMapOverRegion times as large as the
+    // region's would be (so the maps of most scenes are what they were before the region), else
+    // the region.
+    const auto longer = [](const LightPlaneRegion& r) {
+        return std::max({r.high.x - r.low.x, r.high.y - r.low.y, 1e-6f});
+    };
+    if (region.empty() || longer(all) <= kMaxMapOverRegion * longer(region)) return all;
+    region.longer = kMaxMapOverRegion * longer(region);
+    return region;
+}
+
 }  // namespace
 
 ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels)
@@ -61,34 +205,12 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     tanHalfAngle_ = std::tan(0.5f * glm::radians(light.angleDeg));
     lineTest_ = light.angleDeg >= kLineTestMinAngleDeg;
 
-    // World bounds of the base meshes, grown by the deepest shell (detail lies below the surface).
-    glm::vec3 low(std::numeric_limits<float>::max());
-    glm::vec3 high(-std::numeric_limits<float>::max());
-    float shellDepth = 0.0f;
-    for (const SceneObject& object : scene.objects) {
-        for (const glm::vec3& position : object.mesh.positions) {
-            low = glm::min(low, position);
-            high = glm::max(high, position);
-        }
-        if (object.material.tile) shellDepth = std::max(shellDepth, object.material.depthWorld);
-    }
-    low -= glm::vec3(shellDepth);
-    high += glm::vec3(shellDepth);
-
-    // The bounds' corners in light coordinates: (across x, across y) and depth along the light.
-    glm::vec2 planeLow(std::numeric_limits<float>::max()),
-        planeHigh(-std::numeric_limits<float>::max());
-    float depthLow = std::numeric_limits<float>::max();
-    for (int corner = 0; corner < 8; ++corner) {
-        const glm::vec3 p(corner & 1 ? high.x : low.x, corner & 2 ? high.y : low.y,
-                          corner & 4 ? high.z : low.z);
-        const glm::vec2 plane(glm::dot(p, axisX_), glm::dot(p, axisY_));
-        planeLow = glm::min(planeLow, plane);
-        planeHigh = glm::max(planeHigh, plane);
-        depthLow = std::min(depthLow, -glm::dot(p, toLight_));
-    }
+    const LightPlaneRegion region = shadowableRegion(scene, toLight_, axisX_, axisY_);
+    const glm::vec2 planeLow = region.low, planeHigh = region.high;
+    const float depthLow = region.depthLow;
     const glm::vec2 extent = planeHigh - planeLow;
-    const float longer = std::max({extent.x, extent.y, 1e-6f});
+    const float longer =
+        region.longer > 0.0f ? region.longer : std::max({extent.x, extent.y, 1e-6f});
     originPlane_ = planeLow;
     for (int index = 0; index < kLevels; ++index) {
         Level& level = levels_[std::size_t(index)];

@@ -3,7 +3,8 @@
 /// ch. 17), so objects shadow each other; the detail's shadows on itself stay with the in-tile
 /// shadow rays of the renderer.
 ///
-/// A map is an orthographic grid of rays along the light direction over the scene's bounds,
+/// A map is an orthographic grid of rays along the light direction over the scene's bounds (or,
+/// where those are far wider, over the part of the light's view where a receiver can be shadowed),
 /// each traced with SceneTracer::traceNearest, so the displaced detail (not only the base mesh)
 /// casts the shadow. A texel stores the depth of the nearest hit along the light direction, in
 /// world units. The map is traced in square tiles of kTileTexels, each the first time a lookup
@@ -102,7 +103,9 @@ class ShadowMap {
 
     /// The map of `light` over the scene of `tracer`: bounds of every base mesh grown by the
     /// deepest detail shell, `resolutionTexels` texels along the longer side of the finest level,
-    /// square texels.
+    /// square texels. Where those bounds are more than 4 times as wide as the region a receiver
+    /// can be shadowed in (a flat ground far wider than the objects on it), that region, with
+    /// texels 4 times its side over `resolutionTexels` (shadow_map.cpp, shadowableRegion).
     /// Nothing is traced yet but the finest level's tiles that may hold the nearest depth: a tile
     /// is traced by the thread whose lookup first reaches it (others wait for it), so every texel
     /// holds what a full build gives, whatever the thread count and order. Preconditions:

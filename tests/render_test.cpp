@@ -609,9 +609,13 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     tiled.objects[0].material.tile = std::make_shared<const Tile>(flatTile({32, 32, 16}, 8.0f));
     tiled.objects[0].material.uvScale = {8.0f, 8.0f};
     tiled.objects[0].material.depthWorld = 0.125f;
-    // A small occluder off the tested line (its shadow lands near (0.52, -0.58)), so the blocker
-    // search radius is several texels and the test exercises the full disk, not one sample.
-    tiled.objects.push_back(bareSquare(0.1f, 0.0f));
+    // An occluder off the tested line (its shadow lands around (0.52, -0.58), 0.6 wide), so the
+    // blocker search radius is several texels and the test exercises the full disk, not one
+    // sample. It is wide enough that the map covers the whole plane: a square of 0.1 makes the
+    // scene's bounds more than 4 times as wide as the region anything can be shadowed in (its
+    // footprint), and the map covers that alone; the lookups on the line outside it are lit
+    // without a sample (AGroundFarWiderThanTheObjectsOnItKeepsTheirShadows).
+    tiled.objects.push_back(bareSquare(0.6f, 0.0f));
     applyTransform(tiled.objects[1].mesh, {{0.7f, -0.7f, 0.6f}, {0.0f, 0.0f, 0.0f}, 1.0f});
     const SceneTracer tiledTracer(tiled, TraceOptions{});
     const ShadowMap tiledMap(tiledTracer, tiled.lights[0], 512);
@@ -946,6 +950,42 @@ RendersByShadowFilter rendersByShadowFilter(float angleDeg) {
     options.shadowFilter = ShadowFilter::None;
     renders.none = renderScene(scene, options);
     return renders;
+}
+
+TEST(ShadowMap, AGroundFarWiderThanTheObjectsOnItKeepsTheirShadows) {
+    // The sphere above its 3 x 3 square, and above a square 3e5 wide, seen from above where the
+    // view holds the small square alone (and the sphere's shadow): the same picture. Over the
+    // whole ground, the map's texels were 1.5e5 / 512 = 290 units wide, and the shadow was lost;
+    // over the region a receiver can be shadowed in (the sphere's footprint, the ground counting
+    // only where something reaches behind it), they are 4 x 0.6 / 512 units. The ground's
+    // shadows read the finest level both ways, so the maps differ only in their texels' size and
+    // place: a few pixels of the penumbra.
+    const Camera above{{0.2f, -0.1f, 3.0f}, {0.2f, -0.1f, 0.0f}, {0.0f, 1.0f, 0.0f}, 40.0f};
+    const Scene small = sphereAbovePlane(above);
+    Scene wide = small;
+    wide.objects[0] = bareSquare(3e5f, 0.0f);
+    RenderOptions options;
+    options.width = 96;
+    options.height = 96;
+    options.shadowMapResolution = 512;
+    const RenderResult smallRender = renderScene(small, options);
+    const RenderResult wideRender = renderScene(wide, options);
+    // The shadow is there: as many pixels darker than half the lit ground as over the small square
+    // (its shadow, and the sphere's side away from the light), within a tenth.
+    const float litGround = smallRender.image.at(2, 2).x;
+    const auto darkPixels = [&](const Image& image) {
+        return std::count_if(image.rgbLinear.begin(), image.rgbLinear.end(),
+                             [&](const glm::vec3& pixel) { return pixel.x < 0.5f * litGround; });
+    };
+    const auto smallDark = darkPixels(smallRender.image), wideDark = darkPixels(wideRender.image);
+    const double close = shareWithin2Codes(smallRender.image, wideRender.image);
+    std::printf(
+        "[          ] ground 3e5 wide: %td dark pixels (over the 3 x 3 square %td), %.2f%% "
+        "of pixels within 2 codes\n",
+        wideDark, smallDark, 100.0 * close);
+    EXPECT_GT(smallDark, 96 * 96 / 40);
+    EXPECT_NEAR(double(wideDark), double(smallDark), 0.1 * double(smallDark));
+    EXPECT_GT(close, 0.97);
 }
 
 TEST(Renderer, AdaptiveLineTestsMatchFullOnesWithFewerReads) {
