@@ -5,7 +5,6 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <array>
 #include <bit>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -50,11 +49,12 @@ constexpr float kEdgeStepShare = 0.1f;
 struct LightPlaneRegion {
     glm::vec2 low{std::numeric_limits<float>::max()}, high{-std::numeric_limits<float>::max()};
     float depthLow = std::numeric_limits<float>::max();
-    /// The side the map's resolution spans, world units: the longer side of the rectangle, or
-    /// more (shadowableRegion).
+    /// The side the map's resolution spans, world units: side(), or more (shadowableRegion).
     float longer = 0.0f;
 
     bool empty() const { return !(low.x <= high.x && low.y <= high.y); }
+    /// The longer side of the rectangle (at least 1e-6).
+    float side() const { return std::max({high.x - low.x, high.y - low.y, 1e-6f}); }
     void add(const LightPlaneRegion& other) {
         low = glm::min(low, other.low);
         high = glm::max(high, other.high);
@@ -86,29 +86,37 @@ LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
     float shellDepth = 0.0f;
     for (const SceneObject& object : scene.objects)
         if (object.material.tile) shellDepth = std::max(shellDepth, object.material.depthWorld);
-    const std::size_t count = scene.objects.size();
-    std::vector<LightPlaneRegion> footprints(count);
-    std::vector<std::array<glm::vec3, 8>> corners(count);
-    std::vector<bool> flat(count);
-    for (std::size_t object = 0; object < count; ++object) {
-        glm::vec3 low(std::numeric_limits<float>::max());
-        glm::vec3 high(-std::numeric_limits<float>::max());
-        for (const glm::vec3& position : scene.objects[object].mesh.positions) {
-            low = glm::min(low, position);
-            high = glm::max(high, position);
-        }
-        low -= glm::vec3(shellDepth);
-        high += glm::vec3(shellDepth);
+    // Corner `index` (bits x, y, z) of the box [low, high].
+    const auto boxCorner = [](const glm::vec3& low, const glm::vec3& high, int index) {
+        return glm::vec3(index & 1 ? high.x : low.x, index & 2 ? high.y : low.y,
+                         index & 4 ? high.z : low.z);
+    };
+    // The light's view of the box [low, high]: its corners' light coordinates and least depth.
+    const auto footprintOf = [&](const glm::vec3& low, const glm::vec3& high) {
+        LightPlaneRegion footprint;
         for (int corner = 0; corner < 8; ++corner) {
-            const glm::vec3 p(corner & 1 ? high.x : low.x, corner & 2 ? high.y : low.y,
-                              corner & 4 ? high.z : low.z);
-            corners[object][std::size_t(corner)] = p;
-            LightPlaneRegion& footprint = footprints[object];
+            const glm::vec3 p = boxCorner(low, high, corner);
             const glm::vec2 plane(glm::dot(p, axisX), glm::dot(p, axisY));
             footprint.low = glm::min(footprint.low, plane);
             footprint.high = glm::max(footprint.high, plane);
             footprint.depthLow = std::min(footprint.depthLow, -glm::dot(p, toLight));
         }
+        return footprint;
+    };
+    const std::size_t count = scene.objects.size();
+    // Per object: its base mesh's box grown by the deepest shell, and that box's footprint.
+    std::vector<glm::vec3> lows(count, glm::vec3(std::numeric_limits<float>::max()));
+    std::vector<glm::vec3> highs(count, glm::vec3(-std::numeric_limits<float>::max()));
+    std::vector<LightPlaneRegion> footprints(count);
+    std::vector<bool> flat(count);
+    for (std::size_t object = 0; object < count; ++object) {
+        for (const glm::vec3& position : scene.objects[object].mesh.positions) {
+            lows[object] = glm::min(lows[object], position);
+            highs[object] = glm::max(highs[object], position);
+        }
+        lows[object] -= glm::vec3(shellDepth);
+        highs[object] += glm::vec3(shellDepth);
+        footprints[object] = footprintOf(lows[object], highs[object]);
         flat[object] = isFlatSlab(scene.objects[object]);
     }
     // Whether `object` has a corner of its footprint's box behind slab `slab`'s side that faces
@@ -121,8 +129,10 @@ LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
             origin -= facing * scene.objects[slab].material.depthWorld;
             facing = -facing;
         }
-        for (const glm::vec3& corner : corners[object])
-            if (glm::dot(corner - origin, facing) < 0.0f) return true;
+        for (int corner = 0; corner < 8; ++corner) {
+            if (glm::dot(boxCorner(lows[object], highs[object], corner) - origin, facing) < 0.0f)
+                return true;
+        }
         return false;
     };
     // The least depth of slab `slab` (its top and floor planes) over the corners of `over`: a
@@ -163,28 +173,19 @@ LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
         }
     }
     // The whole scene's box (not the union of the objects' footprints, which can be smaller).
-    LightPlaneRegion all;
     glm::vec3 low(std::numeric_limits<float>::max());
     glm::vec3 high(-std::numeric_limits<float>::max());
-    for (const std::array<glm::vec3, 8>& box : corners) {
-        low = glm::min(low, box[0]);
-        high = glm::max(high, box[7]);
+    for (std::size_t object = 0; object < count; ++object) {
+        low = glm::min(low, lows[object]);
+        high = glm::max(high, highs[object]);
     }
-    for (int corner = 0; corner < 8; ++corner) {
-        const glm::vec3 p(corner & 1 ? high.x : low.x, corner & 2 ? high.y : low.y,
-                          corner & 4 ? high.z : low.z);
-        all.low = glm::min(all.low, glm::vec2(glm::dot(p, axisX), glm::dot(p, axisY)));
-        all.high = glm::max(all.high, glm::vec2(glm::dot(p, axisX), glm::dot(p, axisY)));
-        all.depthLow = std::min(all.depthLow, -glm::dot(p, toLight));
-    }
+    LightPlaneRegion all = footprintOf(low, high);
+    all.longer = all.side();
     // Texels for the whole scene while they are at most kMaxMapOverRegion times as large as the
     // region's would be (so the maps of most scenes are what they were before the region), else
     // the region.
-    const auto longer = [](const LightPlaneRegion& r) {
-        return std::max({r.high.x - r.low.x, r.high.y - r.low.y, 1e-6f});
-    };
-    if (region.empty() || longer(all) <= kMaxMapOverRegion * longer(region)) return all;
-    region.longer = kMaxMapOverRegion * longer(region);
+    if (region.empty() || all.longer <= kMaxMapOverRegion * region.side()) return all;
+    region.longer = kMaxMapOverRegion * region.side();
     return region;
 }
 
@@ -209,8 +210,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     const glm::vec2 planeLow = region.low, planeHigh = region.high;
     const float depthLow = region.depthLow;
     const glm::vec2 extent = planeHigh - planeLow;
-    const float longer =
-        region.longer > 0.0f ? region.longer : std::max({extent.x, extent.y, 1e-6f});
+    const float longer = region.longer;
     originPlane_ = planeLow;
     for (int index = 0; index < kLevels; ++index) {
         Level& level = levels_[std::size_t(index)];
