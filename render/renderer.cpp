@@ -237,7 +237,7 @@ class Renderer {
                     ? options.shadowMapResolution
                     : std::clamp(3 * std::max(options.width, options.height) / 2, 256, 4096);
             shadowMaps_[light] =
-                std::make_unique<ShadowMap>(tracer_, scene.lights[light], resolution);
+                std::make_unique<LightShadowMaps>(tracer_, scene.lights[light], resolution);
         }
     }
 
@@ -359,7 +359,7 @@ class Renderer {
     /// Texels of the shadow maps: traced so far, or `all` of them.
     std::uint64_t shadowMapTexels(bool all) const {
         std::uint64_t texels = 0;
-        for (const std::unique_ptr<ShadowMap>& map : shadowMaps_) {
+        for (const std::unique_ptr<LightShadowMaps>& map : shadowMaps_) {
             if (!map) continue;
             texels += all ? map->texelCount() : map->tracedTexels();
         }
@@ -602,7 +602,7 @@ class Renderer {
     const Scene& scene_;
     const RenderOptions& options_;
     const SceneTracer& tracer_;
-    std::vector<std::unique_ptr<ShadowMap>>
+    std::vector<std::unique_ptr<LightShadowMaps>>
         shadowMaps_;  ///< per light; null: no map needed or wanted
     PinholeProjection projection_;
     std::vector<glm::vec3> toLights_;   ///< per light: unit direction toward it

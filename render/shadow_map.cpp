@@ -12,6 +12,8 @@
 #include <glm/vec4.hpp>
 #include <limits>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "common/error.h"
@@ -44,13 +46,12 @@ constexpr float kLineStepShare = 0.35f;
 /// 0.07 (render_test's exact shares).
 constexpr float kEdgeStepShare = 0.1f;
 
-/// A rectangle of the light's plane (light coordinates along axisX and axisY) and the least depth
-/// along the light of any surface over it.
+/// A rectangle of the light's plane (light coordinates along axisX and axisY) and the depths
+/// along the light of the surfaces over it.
 struct LightPlaneRegion {
     glm::vec2 low{std::numeric_limits<float>::max()}, high{-std::numeric_limits<float>::max()};
     float depthLow = std::numeric_limits<float>::max();
-    /// The side the map's resolution spans, world units: side(), or more (shadowableRegion).
-    float longer = 0.0f;
+    float depthHigh = -std::numeric_limits<float>::max();
 
     bool empty() const { return !(low.x <= high.x && low.y <= high.y); }
     /// The longer side of the rectangle (at least 1e-6).
@@ -59,6 +60,7 @@ struct LightPlaneRegion {
         low = glm::min(low, other.low);
         high = glm::max(high, other.high);
         depthLow = std::min(depthLow, other.depthLow);
+        depthHigh = std::max(depthHigh, other.depthHigh);
     }
     LightPlaneRegion intersection(const LightPlaneRegion& other) const {
         LightPlaneRegion both;
@@ -66,23 +68,47 @@ struct LightPlaneRegion {
         both.high = glm::min(high, other.high);
         return both;
     }
+    /// The distance between the two rectangles (0 where they overlap).
+    float gapTo(const LightPlaneRegion& other) const {
+        return glm::length(glm::max(glm::max(other.low - high, low - other.high), glm::vec2(0.0f)));
+    }
 };
 
 /// A map over a region of the scene spans at least 1 / kMaxMapOverRegion of its resolution.
 constexpr float kMaxMapOverRegion = 4.0f;
+/// Groups of receivers this close, as a share of the wider one's side, share a map: a lookup
+/// near a map's edge reads texels up to a coarse texel beyond it (kLevels, kMaxMapOverRegion).
+constexpr float kGroupMarginShare = 0.05f;
+/// Scenes whose shadowable region has more parts than this take one map over all of them (the
+/// grouping compares every pair of parts).
+constexpr std::size_t kMaxGroupedParts = 512;
 
-/// The rectangle of the light's plane the map covers, the least depth of the surfaces over it
-/// and the side its resolution spans: every object's footprint (its base mesh grown by the
-/// deepest shell, detail lying below the surface). Unless that is more than kMaxMapOverRegion
-/// times as wide as the region where a receiver can be shadowed at all: there, the region,
-/// spanning kMaxMapOverRegion times its side. The region is every footprint but that of a flat
-/// slab (isFlatSlab), which counts only over the footprints of the other objects reaching behind
-/// it as the light sees it: a slab shadows nothing in front of it, nor itself in the map (its
-/// own detail shadows itself by rays). So a ground plane far wider than the objects on it does
-/// not spread the map's texels over all of it (a 2e5-unit plane held a sphere of radius 0.8 in
-/// less than a texel: no shadow).
-LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
-                                  const glm::vec3& axisX, const glm::vec3& axisY) {
+/// Light-plane axes of the light toward `toLight` (unit): across and along its maps.
+std::pair<glm::vec3, glm::vec3> lightPlaneAxes(const glm::vec3& toLight) {
+    const glm::vec3 helper = std::abs(toLight.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
+    const glm::vec3 axisX = glm::normalize(glm::cross(helper, toLight));
+    return {axisX, glm::cross(toLight, axisX)};
+}
+
+}  // namespace
+
+/// The areas of the light's maps: one per group of receivers that can be shadowed, their
+/// footprints as the light sees them (base meshes grown by the deepest shell, detail lying
+/// below the surface). A flat slab (isFlatSlab) is a receiver's blocker only over the footprints
+/// of the other objects reaching behind its lit side: it shadows nothing in front of it, nor
+/// itself in the map (its own detail shadows itself by rays). Parts whose rectangles come closer
+/// than the widest penumbra between them (the light's tan(angle / 2) times their depths' span)
+/// or kGroupMarginShare of their side form one group: no blocker of one group can shadow a
+/// receiver of another, so each has a map of its own, at most kMaxShadowMapsPerLight of them
+/// (the nearest groups merged first). A map spans the whole scene's box, as one map over the
+/// scene did, unless that is more than kMaxMapOverRegion times as wide as its group: there,
+/// the group, spanning kMaxMapOverRegion times its side. So a ground plane far wider than the
+/// objects on it, or two groups of objects far apart, do not spread the map's texels over all
+/// of it (a 2e5-unit plane held a sphere of radius 0.8 in less than a texel: no shadow).
+std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalLight& light) {
+    const glm::vec3 toLight = -unitDirection(light.direction);
+    const auto [axisX, axisY] = lightPlaneAxes(toLight);
+    const float tanHalfAngle = std::tan(0.5f * glm::radians(light.angleDeg));
     float shellDepth = 0.0f;
     for (const SceneObject& object : scene.objects)
         if (object.material.tile) shellDepth = std::max(shellDepth, object.material.depthWorld);
@@ -91,7 +117,7 @@ LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
         return glm::vec3(index & 1 ? high.x : low.x, index & 2 ? high.y : low.y,
                          index & 4 ? high.z : low.z);
     };
-    // The light's view of the box [low, high]: its corners' light coordinates and least depth.
+    // The light's view of the box [low, high]: its corners' light coordinates and depths.
     const auto footprintOf = [&](const glm::vec3& low, const glm::vec3& high) {
         LightPlaneRegion footprint;
         for (int corner = 0; corner < 8; ++corner) {
@@ -100,6 +126,7 @@ LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
             footprint.low = glm::min(footprint.low, plane);
             footprint.high = glm::max(footprint.high, plane);
             footprint.depthLow = std::min(footprint.depthLow, -glm::dot(p, toLight));
+            footprint.depthHigh = std::max(footprint.depthHigh, -glm::dot(p, toLight));
         }
         return footprint;
     };
@@ -135,15 +162,19 @@ LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
         }
         return false;
     };
-    // The least depth of slab `slab` (its top and floor planes) over the corners of `over`: a
-    // slab much wider than the region would put the rays' start, and so the rounding of the depths
-    // they store, as far away as its own far corners. Its footprint's where the light grazes it.
-    const auto slabDepthLow = [&](std::size_t slab, const LightPlaneRegion& over) {
-        const BaseMesh& mesh = scene.objects[slab].mesh;
+    // The least and greatest depths of object `object` over the corners of `over`: a flat slab's
+    // from its top and floor planes (a slab much wider than the region would put the rays' start,
+    // and so the rounding of the depths they store, as far away as its own far corners), within
+    // its footprint's (where the light grazes it); any other object's, its footprint's.
+    const auto depthsOver = [&](std::size_t object, const LightPlaneRegion& over) {
+        const LightPlaneRegion& footprint = footprints[object];
+        if (!flat[object]) return std::pair(footprint.depthLow, footprint.depthHigh);
+        const BaseMesh& mesh = scene.objects[object].mesh;
         const glm::vec3 normal = mesh.normals[0];
         const float facing = glm::dot(toLight, normal);
-        if (!(std::abs(facing) > 1e-3f)) return footprints[slab].depthLow;
+        if (!(std::abs(facing) > 1e-3f)) return std::pair(footprint.depthLow, footprint.depthHigh);
         float least = std::numeric_limits<float>::max();
+        float greatest = -std::numeric_limits<float>::max();
         for (const float offset : {0.0f, shellDepth}) {
             const float planeOffset = glm::dot(mesh.positions[0] - normal * offset, normal);
             for (int corner = 0; corner < 4; ++corner) {
@@ -154,23 +185,75 @@ LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
                     (q.x * glm::dot(axisX, normal) + q.y * glm::dot(axisY, normal) - planeOffset) /
                     facing;
                 least = std::min(least, depth);
+                greatest = std::max(greatest, depth);
             }
         }
-        return std::max(least, footprints[slab].depthLow);
+        return std::pair(std::max(least, footprint.depthLow),
+                         std::min(greatest, footprint.depthHigh));
     };
-    LightPlaneRegion region;
+    // The parts of the region a receiver can be shadowed in.
+    std::vector<LightPlaneRegion> parts;
     for (std::size_t object = 0; object < count; ++object) {
         if (!flat[object]) {
-            region.add(footprints[object]);
+            parts.push_back(footprints[object]);
             continue;
         }
         for (std::size_t other = 0; other < count; ++other) {
             if (other == object || !behindSlab(other, object)) continue;
             LightPlaneRegion over = footprints[object].intersection(footprints[other]);
             if (over.empty()) continue;
-            over.depthLow = slabDepthLow(object, over);
-            region.add(over);
+            over.depthLow = depthsOver(object, over).first;
+            over.depthHigh =
+                std::max(depthsOver(object, over).second, depthsOver(other, over).second);
+            parts.push_back(over);
         }
+    }
+    // Groups: each absorbs every group near it, again after each merge (a larger group may reach
+    // more), so no two groups left are near.
+    const auto near = [&](const LightPlaneRegion& a, const LightPlaneRegion& b) {
+        const float depthSpan =
+            std::max(a.depthHigh, b.depthHigh) - std::min(a.depthLow, b.depthLow);
+        return a.gapTo(b) <= tanHalfAngle * std::max(depthSpan, 0.0f) +
+                                 kGroupMarginShare * std::max(a.side(), b.side());
+    };
+    std::vector<LightPlaneRegion> groups;
+    const auto addGroup = [&](LightPlaneRegion group) {
+        for (std::size_t index = 0; index < groups.size();) {
+            if (!near(group, groups[index])) {
+                ++index;
+                continue;
+            }
+            group.add(groups[index]);
+            groups.erase(groups.begin() + std::ptrdiff_t(index));
+            index = 0;
+        }
+        groups.push_back(group);
+    };
+    if (parts.size() > kMaxGroupedParts) {
+        LightPlaneRegion all;
+        for (const LightPlaneRegion& part : parts) all.add(part);
+        parts.assign(1, all);
+    }
+    for (const LightPlaneRegion& part : parts) addGroup(part);
+    while (groups.size() > std::size_t(kMaxShadowMapsPerLight)) {
+        // The two groups whose union is smallest.
+        std::size_t first = 0, second = 1;
+        float smallest = std::numeric_limits<float>::max();
+        for (std::size_t a = 0; a < groups.size(); ++a)
+            for (std::size_t b = a + 1; b < groups.size(); ++b) {
+                LightPlaneRegion both = groups[a];
+                both.add(groups[b]);
+                if (both.side() < smallest) {
+                    smallest = both.side();
+                    first = a;
+                    second = b;
+                }
+            }
+        LightPlaneRegion both = groups[first];
+        both.add(groups[second]);
+        groups.erase(groups.begin() + std::ptrdiff_t(second));
+        groups.erase(groups.begin() + std::ptrdiff_t(first));
+        addGroup(both);
     }
     // The whole scene's box (not the union of the objects' footprints, which can be smaller).
     glm::vec3 low(std::numeric_limits<float>::max());
@@ -179,38 +262,46 @@ LightPlaneRegion shadowableRegion(const Scene& scene, const glm::vec3& toLight,
         low = glm::min(low, lows[object]);
         high = glm::max(high, highs[object]);
     }
-    LightPlaneRegion all = footprintOf(low, high);
-    all.longer = all.side();
+    const LightPlaneRegion all = footprintOf(low, high);
+    if (groups.empty()) return {{all.low, all.high, all.depthLow, all.side(), all.low, all.high}};
     // Texels for the whole scene while they are at most kMaxMapOverRegion times as large as the
-    // region's would be (so the maps of most scenes are what they were before the region), else
-    // the region.
-    if (region.empty() || all.longer <= kMaxMapOverRegion * region.side()) return all;
-    region.longer = kMaxMapOverRegion * region.side();
-    return region;
+    // group's would be (so the maps of most scenes are what they were before the groups), else
+    // the group. The groups that take the whole scene share one map, after the others: a receiver
+    // in one of those others' rectangles takes its finer map (LightShadowMaps::mapFor).
+    std::vector<ShadowMapArea> areas;
+    LightPlaneRegion wholeSceneReceivers;
+    for (const LightPlaneRegion& group : groups) {
+        if (all.side() <= kMaxMapOverRegion * group.side())
+            wholeSceneReceivers.add(group);
+        else
+            areas.push_back({group.low, group.high, group.depthLow,
+                             kMaxMapOverRegion * group.side(), group.low, group.high});
+    }
+    if (!wholeSceneReceivers.empty())
+        areas.push_back({all.low, all.high, all.depthLow, all.side(), wholeSceneReceivers.low,
+                         wholeSceneReceivers.high});
+    return areas;
 }
 
-}  // namespace
-
-ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels)
+ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels,
+                     const ShadowMapArea& area)
     : tracer_(tracer) {
     if (resolutionTexels < 16 || resolutionTexels > 16384) {
         throw InputError::inField("resolutionTexels", std::to_string(resolutionTexels) +
                                                           " is not accepted; it must be in [16, "
                                                           "16384] texels");
     }
-    const Scene& scene = tracer.scene();
     toLight_ = -unitDirection(light.direction);
-    const glm::vec3 helper = std::abs(toLight_.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0);
-    axisX_ = glm::normalize(glm::cross(helper, toLight_));
-    axisY_ = glm::cross(toLight_, axisX_);
+    std::tie(axisX_, axisY_) = lightPlaneAxes(toLight_);
     tanHalfAngle_ = std::tan(0.5f * glm::radians(light.angleDeg));
     lineTest_ = light.angleDeg >= kLineTestMinAngleDeg;
+    receiversLow_ = area.receiversLowPlane;
+    receiversHigh_ = area.receiversHighPlane;
 
-    const LightPlaneRegion region = shadowableRegion(scene, toLight_, axisX_, axisY_);
-    const glm::vec2 planeLow = region.low, planeHigh = region.high;
-    const float depthLow = region.depthLow;
+    const glm::vec2 planeLow = area.lowPlane, planeHigh = area.highPlane;
+    const float depthLow = area.depthLowWorld;
     const glm::vec2 extent = planeHigh - planeLow;
-    const float longer = region.longer;
+    const float longer = area.sideWorld;
     originPlane_ = planeLow;
     for (int index = 0; index < kLevels; ++index) {
         Level& level = levels_[std::size_t(index)];
@@ -234,6 +325,43 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     startDepth_ = depthLow - std::max(levels_[0].texelWorld, 1e-3f * longer);
     nearestDepth_ = boundDepths();
     if (lineTest_) buildBoundLevels();
+}
+
+float ShadowMap::distanceToReceivers(const glm::vec3& world) const {
+    const glm::vec2 plane(glm::dot(world, axisX_), glm::dot(world, axisY_));
+    return glm::length(plane - glm::clamp(plane, receiversLow_, receiversHigh_));
+}
+
+LightShadowMaps::LightShadowMaps(const SceneTracer& tracer, const DirectionalLight& light,
+                                 int resolutionTexels) {
+    for (const ShadowMapArea& area : shadowMapAreas(tracer.scene(), light))
+        maps_.push_back(std::make_unique<ShadowMap>(tracer, light, resolutionTexels, area));
+}
+
+const ShadowMap& LightShadowMaps::mapFor(const glm::vec3& world) const {
+    const ShadowMap* nearest = maps_.front().get();
+    if (maps_.size() == 1) return *nearest;
+    float least = nearest->distanceToReceivers(world);
+    for (std::size_t index = 1; index < maps_.size() && least > 0.0f; ++index) {
+        const float distance = maps_[index]->distanceToReceivers(world);
+        if (distance < least) {
+            least = distance;
+            nearest = maps_[index].get();
+        }
+    }
+    return *nearest;
+}
+
+std::uint64_t LightShadowMaps::tracedTexels() const {
+    std::uint64_t texels = 0;
+    for (const std::unique_ptr<ShadowMap>& map : maps_) texels += map->tracedTexels();
+    return texels;
+}
+
+std::uint64_t LightShadowMaps::texelCount() const {
+    std::uint64_t texels = 0;
+    for (const std::unique_ptr<ShadowMap>& map : maps_) texels += map->texelCount();
+    return texels;
 }
 
 float ShadowMap::boundDepths() {

@@ -4,7 +4,8 @@
 /// shadow rays of the renderer.
 ///
 /// A map is an orthographic grid of rays along the light direction over the scene's bounds (or,
-/// where those are far wider, over the part of the light's view where a receiver can be shadowed),
+/// where those are far wider, over the part of the light's view where a receiver can be shadowed;
+/// groups of receivers that cannot shadow each other get a map each: shadowMapAreas),
 /// each traced with SceneTracer::traceNearest, so the displaced detail (not only the base mesh)
 /// casts the shadow. A texel stores the depth of the nearest hit along the light direction, in
 /// world units. The map is traced in square tiles of kTileTexels, each the first time a lookup
@@ -83,6 +84,27 @@ struct ShadowReceiver {
     static constexpr std::uint32_t kNoObject = 0xffffffffU;
 };
 
+/// Most maps one light has (shadowMapAreas).
+constexpr int kMaxShadowMapsPerLight = 8;
+
+/// Where one of a light's shadow maps lies, in light-plane coordinates (world units along the
+/// map's axes) and depths along the light (world units, increasing away from it).
+struct ShadowMapArea {
+    glm::vec2 lowPlane{0.0f}, highPlane{0.0f};  ///< the rectangle its texels cover
+    float depthLowWorld = 0.0f;  ///< no surface over the rectangle is nearer to the light
+    float sideWorld = 0.0f;      ///< the side its resolution spans (at least the rectangle's)
+    /// The rectangle of the receivers it serves: a receiver takes the map whose rectangle is
+    /// nearest (LightShadowMaps).
+    glm::vec2 receiversLowPlane{0.0f}, receiversHighPlane{0.0f};
+};
+
+/// The areas of the shadow maps of `light` over `scene` (validateScene passed): one per group of
+/// receivers that no blocker of another group can shadow, at most kMaxShadowMapsPerLight, each
+/// covering the whole scene as the light sees it unless that is more than 4 times as wide as its
+/// group (a ground plane far wider than the objects standing on it, groups of objects far
+/// apart): there its group, with texels 4 times its side over the resolution (shadow_map.cpp).
+std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalLight& light);
+
 class ShadowMap {
   public:
     /// The default resolution: the longer side of the map, in texels. 2048 over the demo scene
@@ -101,18 +123,15 @@ class ShadowMap {
     /// this (unless the receiver's footprint allows larger ones).
     static constexpr float kTexelsPerFilterRadius = 2.0f;
 
-    /// The map of `light` over the scene of `tracer`: bounds of every base mesh grown by the
-    /// deepest detail shell, `resolutionTexels` texels along the longer side of the finest level,
-    /// square texels. Where those bounds are more than 4 times as wide as the region a receiver
-    /// can be shadowed in (a flat ground far wider than the objects on it), that region, with
-    /// texels 4 times its side over `resolutionTexels` (shadow_map.cpp, shadowableRegion).
+    /// The map of `light` over `area` (one of shadowMapAreas(tracer.scene(), light)),
+    /// `resolutionTexels` texels along area.sideWorld at the finest level, square texels.
     /// Nothing is traced yet but the finest level's tiles that may hold the nearest depth: a tile
     /// is traced by the thread whose lookup first reaches it (others wait for it), so every texel
     /// holds what a full build gives, whatever the thread count and order. Preconditions:
     /// validateScene passed for tracer.scene(); `tracer` outlives the map. Throws InputError unless
     /// resolutionTexels is in [16, 16384].
-    ShadowMap(const SceneTracer& tracer, const DirectionalLight& light,
-              int resolutionTexels = kDefaultResolution);
+    ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels,
+              const ShadowMapArea& area);
 
     /// Fraction in [0, 1] of the light that reaches `receiver` past other surfaces, by
     /// percentage-closer filtering over a disk whose radius is tan(angle/2) times the receiver-
@@ -126,6 +145,10 @@ class ShadowMap {
     /// Precondition: filter is not None.
     float visibility(const ShadowReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
                      std::uint64_t& samples) const;
+
+    /// The distance on the light's plane from `world` to the rectangle of the receivers this
+    /// map serves (0 inside it), world units.
+    float distanceToReceivers(const glm::vec3& world) const;
 
     /// The finest level's size, texels, and texel side, world units.
     int width() const { return levels_[0].width; }
@@ -204,6 +227,7 @@ class ShadowMap {
     glm::vec3 axisX_{1.0f, 0.0f, 0.0f};    ///< unit, across the map
     glm::vec3 axisY_{0.0f, 1.0f, 0.0f};    ///< unit, across the map
     glm::vec2 originPlane_{0.0f};  ///< light-plane coordinates of the map's corner, world units
+    glm::vec2 receiversLow_{0.0f}, receiversHigh_{0.0f};  ///< ShadowMapArea's
     float tanHalfAngle_ = 0.0f;
     bool lineTest_ = false;  ///< a light at least kLineTestMinAngleDeg wide (file note)
     /// A receiver as the line test sees it (visibility's terms).
@@ -291,6 +315,33 @@ class ShadowMap {
     /// line test (nothingCanBlockLines).
     bool blockMayBlock(const LineReceiver& receiver, std::size_t level, int x, int y) const;
     mutable std::atomic<std::uint64_t> tracedTexels_{0};
+};
+
+/// The shadow maps of one light, one per area of shadowMapAreas: a receiver takes the map that
+/// serves the receivers nearest to it.
+class LightShadowMaps {
+  public:
+    /// Preconditions and throws: ShadowMap's.
+    LightShadowMaps(const SceneTracer& tracer, const DirectionalLight& light,
+                    int resolutionTexels = ShadowMap::kDefaultResolution);
+
+    /// ShadowMap::visibility of the map serving receiver.surfaceWorld.
+    float visibility(const ShadowReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
+                     std::uint64_t& samples) const {
+        return mapFor(receiver.surfaceWorld).visibility(receiver, filter, seed, samples);
+    }
+    /// The map whose receivers' rectangle is nearest to `world` on the light's plane (the first
+    /// of equally near ones).
+    const ShadowMap& mapFor(const glm::vec3& world) const;
+
+    std::size_t size() const { return maps_.size(); }
+    const ShadowMap& operator[](std::size_t index) const { return *maps_[index]; }
+    /// Sums of ShadowMap's over the maps.
+    std::uint64_t tracedTexels() const;
+    std::uint64_t texelCount() const;
+
+  private:
+    std::vector<std::unique_ptr<ShadowMap>> maps_;
 };
 
 /// Whether `light` reaches any base surface the camera of `scene` sees the front of: a triangle

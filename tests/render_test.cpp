@@ -35,6 +35,12 @@ namespace {
 
 constexpr float kPi = 3.14159265f;
 
+/// The one map of a light over a scene whose receivers form one group (shadowMapAreas).
+const ShadowMap& onlyMap(const LightShadowMaps& maps) {
+    EXPECT_EQ(maps.size(), 1u);
+    return maps[0];
+}
+
 /// A tile whose detail is the horizontal plane z = heightTexels (solid below).
 Tile flatTile(const Size3& size, float heightTexels) {
     Tile tile(size);
@@ -567,7 +573,8 @@ Scene occluderScene() {
 TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     const Scene scene = occluderScene();
     const SceneTracer tracer(scene, TraceOptions{});
-    const ShadowMap map(tracer, scene.lights[0], 1024);
+    const LightShadowMaps maps(tracer, scene.lights[0], 1024);
+    const ShadowMap& map = onlyMap(maps);
     EXPECT_EQ(std::max(map.width(), map.height()), 1024);
     const glm::vec3 up(0.0f, 0.0f, 1.0f);
     for (ShadowFilter filter : {ShadowFilter::Full, ShadowFilter::Adaptive}) {
@@ -618,7 +625,8 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     tiled.objects.push_back(bareSquare(0.6f, 0.0f));
     applyTransform(tiled.objects[1].mesh, {{0.7f, -0.7f, 0.6f}, {0.0f, 0.0f, 0.0f}, 1.0f});
     const SceneTracer tiledTracer(tiled, TraceOptions{});
-    const ShadowMap tiledMap(tiledTracer, tiled.lights[0], 512);
+    const LightShadowMaps tiledMaps(tiledTracer, tiled.lights[0], 512);
+    const ShadowMap& tiledMap = onlyMap(tiledMaps);
     std::uint64_t samples = 0;
     int lookups = 0;
     for (float x = -0.9f; x < 0.9f; x += 0.0137f, ++lookups) {
@@ -636,7 +644,8 @@ TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
     bent.mesh.positions[0].z += 0.1f;  // one corner raised: no longer planar
     EXPECT_FALSE(isFlatSlab(bent));
     const SceneTracer tracer(scene, TraceOptions{});
-    const ShadowMap map(tracer, scene.lights[0], 1024);
+    const LightShadowMaps maps(tracer, scene.lights[0], 1024);
+    const ShadowMap& map = onlyMap(maps);
     const glm::vec3 up(0.0f, 0.0f, 1.0f);
     for (ShadowFilter filter : {ShadowFilter::Full, ShadowFilter::Adaptive}) {
         const std::uint64_t traced = map.tracedTexels();
@@ -659,7 +668,8 @@ TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
         Scene lit = scene;
         lit.lights[0].direction = direction;
         const SceneTracer litTracer(lit, TraceOptions{});
-        const ShadowMap litMap(litTracer, lit.lights[0], 1024);
+        const LightShadowMaps litMaps(litTracer, lit.lights[0], 1024);
+        const ShadowMap& litMap = onlyMap(litMaps);
         std::uint64_t onGround = 0, unknown = 0;
         for (float y = -0.6f; y < 0.6f; y += 0.0173f)
             for (float x = -0.6f; x < 0.6f; x += 0.0173f) {
@@ -679,8 +689,10 @@ TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
 TEST(ShadowMap, TracesOnlyWhereLookupsReachAndAgreesWithEveryTileTraced) {
     const Scene scene = occluderScene();
     const SceneTracer tracer(scene, TraceOptions{});
-    const ShadowMap lazy(tracer, scene.lights[0], 1024);
-    const ShadowMap whole(tracer, scene.lights[0], 1024);
+    const LightShadowMaps lazyMaps(tracer, scene.lights[0], 1024);
+    const ShadowMap& lazy = onlyMap(lazyMaps);
+    const LightShadowMaps wholeMaps(tracer, scene.lights[0], 1024);
+    const ShadowMap& whole = onlyMap(wholeMaps);
     const std::uint64_t allTexels = std::uint64_t(whole.width()) * std::uint64_t(whole.height());
     for (int y = 0; y < whole.height(); y += ShadowMap::kTileTexels)
         for (int x = 0; x < whole.width(); x += ShadowMap::kTileTexels) whole.depthAt(x, y);
@@ -718,8 +730,10 @@ TEST(ShadowMap, TracesOnlyWhereLookupsReachAndAgreesWithEveryTileTraced) {
 TEST(ShadowMap, ReceiversWithLargeFootprintsReadCoarserLevels) {
     const Scene scene = occluderScene();
     const SceneTracer tracer(scene, TraceOptions{});
-    const ShadowMap fine(tracer, scene.lights[0], 1024);
-    const ShadowMap coarse(tracer, scene.lights[0], 1024);
+    const LightShadowMaps fineMaps(tracer, scene.lights[0], 1024);
+    const ShadowMap& fine = onlyMap(fineMaps);
+    const LightShadowMaps coarseMaps(tracer, scene.lights[0], 1024);
+    const ShadowMap& coarse = onlyMap(coarseMaps);
     ASSERT_EQ(fine.tracedTexels(), coarse.tracedTexels());  // the nearest depth's tiles
     const std::uint64_t searched = fine.tracedTexels();
     const glm::vec3 up(0.0f, 0.0f, 1.0f);
@@ -795,10 +809,15 @@ TEST(ShadowMap, WideLightsFollowEachRayOfTheDiskThroughTheMap) {
         return std::abs(at.x - 1.0) <= 0.2 && std::abs(at.y) <= 0.2;
     };
     const SceneTracer tracer(scene, TraceOptions{});
-    const ShadowMap map(tracer, scene.lights[0], 1024);
-    const ShadowMap whole(tracer, scene.lights[0], 1024);  // every tile traced first
-    for (int y = 0; y < whole.height(); y += ShadowMap::kTileTexels)
-        for (int x = 0; x < whole.width(); x += ShadowMap::kTileTexels) whole.depthAt(x, y);
+    // No blocker over one of the ball and the squares reaches under another (their footprints
+    // lie 0.55 apart, the widest penumbra between them 0.5 tan 22.5 = 0.21): a map each.
+    const LightShadowMaps maps(tracer, scene.lights[0], 1024);
+    ASSERT_EQ(maps.size(), 3u);
+    const LightShadowMaps whole(tracer, scene.lights[0], 1024);  // every tile traced first
+    for (std::size_t index = 0; index < whole.size(); ++index)
+        for (int y = 0; y < whole[index].height(); y += ShadowMap::kTileTexels)
+            for (int x = 0; x < whole[index].width(); x += ShadowMap::kTileTexels)
+                whole[index].depthAt(x, y);
     const glm::vec3 up(0.0f, 0.0f, 1.0f);
     struct Case {
         glm::dvec3 at;
@@ -823,7 +842,7 @@ TEST(ShadowMap, WideLightsFollowEachRayOfTheDiskThroughTheMap) {
         for (std::uint32_t seed = 0; seed < kSeeds; ++seed) {
             std::uint64_t samples = 0, wholeSamples = 0;
             const ShadowReceiver receiver{glm::vec3(c.at), up, 0.0f, 0};
-            const float visibility = map.visibility(receiver, ShadowFilter::Full, seed, samples);
+            const float visibility = maps.visibility(receiver, ShadowFilter::Full, seed, samples);
             sum += visibility;
             // Lazily traced tiles give what a whole map gives, bit for bit.
             ASSERT_EQ(visibility,
@@ -831,7 +850,7 @@ TEST(ShadowMap, WideLightsFollowEachRayOfTheDiskThroughTheMap) {
             // Adaptive: the first half of the lines, or all of them where those disagree.
             std::uint64_t adaptiveSamples = 0;
             const float adaptive =
-                map.visibility(receiver, ShadowFilter::Adaptive, seed, adaptiveSamples);
+                maps.visibility(receiver, ShadowFilter::Adaptive, seed, adaptiveSamples);
             if (adaptive != 0.0f && adaptive != 1.0f) {
                 ASSERT_EQ(adaptive, visibility);
             }
@@ -845,8 +864,8 @@ TEST(ShadowMap, WideLightsFollowEachRayOfTheDiskThroughTheMap) {
     // behind it.
     for (std::uint32_t seed = 0; seed < 8; ++seed) {
         std::uint64_t samples = 0;
-        EXPECT_EQ(map.visibility({{-1.02f, 0.01f, 0.0f}, up, 0.05f, 0}, ShadowFilter::Full, seed,
-                                 samples),
+        EXPECT_EQ(maps.visibility({{-1.02f, 0.01f, 0.0f}, up, 0.05f, 0}, ShadowFilter::Full, seed,
+                                  samples),
                   0.0f);
     }
 }
@@ -854,8 +873,8 @@ TEST(ShadowMap, WideLightsFollowEachRayOfTheDiskThroughTheMap) {
 TEST(ShadowMap, RejectsBadResolutions) {
     const Scene scene = occluderScene();
     const SceneTracer tracer(scene, TraceOptions{});
-    EXPECT_THROW(ShadowMap(tracer, scene.lights[0], 8), InputError);
-    EXPECT_THROW(ShadowMap(tracer, scene.lights[0], 20000), InputError);
+    EXPECT_THROW(LightShadowMaps(tracer, scene.lights[0], 8), InputError);
+    EXPECT_THROW(LightShadowMaps(tracer, scene.lights[0], 20000), InputError);
     RenderOptions options;
     options.shadowMapResolution = 8;  // 0 is automatic; below 16 is refused
     EXPECT_THROW(renderScene(scene, options), InputError);
@@ -986,6 +1005,67 @@ TEST(ShadowMap, AGroundFarWiderThanTheObjectsOnItKeepsTheirShadows) {
     EXPECT_GT(smallDark, 96 * 96 / 40);
     EXPECT_NEAR(double(wideDark), double(smallDark), 0.1 * double(smallDark));
     EXPECT_GT(close, 0.97);
+}
+
+TEST(ShadowMap, GroupsOfObjectsFarApartHaveAMapEach) {
+    // The sphere above its square, and a copy of both 1e4 units away, out of view: the same
+    // picture. With one map over both groups its texels were 1e4 / 512 = 20 units wide and the
+    // shadow was lost; no blocker of one group can shadow the other, so each has a map of its own.
+    const Camera above{{0.2f, -0.1f, 3.0f}, {0.2f, -0.1f, 0.0f}, {0.0f, 1.0f, 0.0f}, 40.0f};
+    const Scene alone = sphereAbovePlane(above);
+    Scene apart = alone;
+    for (std::size_t object = 0; object < alone.objects.size(); ++object) {
+        SceneObject copy = alone.objects[object];
+        applyTransform(copy.mesh, {{1e4f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+        apart.objects.push_back(std::move(copy));
+    }
+    const SceneTracer tracer(apart, TraceOptions{});
+    const LightShadowMaps maps(tracer, apart.lights[0], 512);
+    ASSERT_EQ(maps.size(), 2u);
+    const ShadowMap& nearMap = maps.mapFor({0.0f, 0.0f, 0.0f});
+    EXPECT_NE(&nearMap, &maps.mapFor({1e4f, 0.0f, 0.0f}));
+    EXPECT_LT(nearMap.texelWorld(), 4.0f * 3.0f / 512.0f);
+    RenderOptions options;
+    options.width = 96;
+    options.height = 96;
+    options.shadowMapResolution = 512;
+    const RenderResult aloneRender = renderScene(alone, options);
+    const RenderResult apartRender = renderScene(apart, options);
+    const float litGround = aloneRender.image.at(2, 2).x;
+    const auto darkPixels = [&](const Image& image) {
+        return std::count_if(image.rgbLinear.begin(), image.rgbLinear.end(),
+                             [&](const glm::vec3& pixel) { return pixel.x < 0.5f * litGround; });
+    };
+    const auto aloneDark = darkPixels(aloneRender.image);
+    const auto apartDark = darkPixels(apartRender.image);
+    const double close = shareWithin2Codes(aloneRender.image, apartRender.image);
+    std::printf(
+        "[          ] a copy 1e4 away: %td dark pixels (alone %td), %.2f%% of pixels within 2 "
+        "codes\n",
+        apartDark, aloneDark, 100.0 * close);
+    EXPECT_GT(aloneDark, 96 * 96 / 40);
+    EXPECT_NEAR(double(apartDark), double(aloneDark), 0.1 * double(aloneDark));
+    EXPECT_GT(close, 0.97);
+}
+
+TEST(ShadowMap, ObjectsWithinAPenumbraOfEachOtherShareAMap) {
+    // Two spheres 0.6 apart on the light's plane, one 1.5 above the other: a light 60 degrees
+    // wide spreads the upper one's penumbra over tan(30) x 1.5 = 0.87 around its shadow, onto
+    // the lower one, so they need one map; a light half a degree wide does not. A third sphere,
+    // 100 units away, has a map of its own either way (and makes the scene too wide for any map
+    // to cover all of it).
+    Scene scene;
+    scene.lights = {DirectionalLight{{0.0f, 0.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, 60.0f}};
+    for (const glm::vec3 centre : {glm::vec3(0.0f), glm::vec3(0.6f + 2.0f * 0.3f, 0.0f, 1.5f),
+                                   glm::vec3(100.0f, 0.0f, 0.0f)}) {
+        SceneObject sphere;
+        sphere.mesh = makeUvSphere(0.3f, 16, 8);
+        applyTransform(sphere.mesh, {centre, {0.0f, 0.0f, 0.0f}, 1.0f});
+        scene.objects.push_back(std::move(sphere));
+    }
+    EXPECT_EQ(shadowMapAreas(scene, scene.lights[0]).size(), 2u);
+    scene.lights[0].angleDeg = 0.5f;
+    EXPECT_EQ(shadowMapAreas(scene, scene.lights[0]).size(), 3u);
 }
 
 TEST(Renderer, AdaptiveLineTestsMatchFullOnesWithFewerReads) {
