@@ -143,6 +143,21 @@ glm::dvec2 PinholeProjection::toPixels(const glm::dvec3& view) const {
     return (glm::dvec2(view.x, view.y) / view.z - slopeAtOrigin_) / slopePerPixel_;
 }
 
+bool PinholeProjection::seesNoneOf(std::span<const glm::vec3> worldPoints) const {
+    // The frustum is the four half-spaces |x| <= tanX z and |y| <= tanY z of view space (z > 0
+    // follows from them).
+    const glm::dvec2 tanHalf = 1.01 * glm::abs(slopeAtOrigin_);
+    bool beyond[4] = {true, true, true, true};
+    for (const glm::vec3& world : worldPoints) {
+        const glm::dvec3 view = toView(world);
+        beyond[0] = beyond[0] && view.x > tanHalf.x * view.z;
+        beyond[1] = beyond[1] && -view.x > tanHalf.x * view.z;
+        beyond[2] = beyond[2] && view.y > tanHalf.y * view.z;
+        beyond[3] = beyond[3] && -view.y > tanHalf.y * view.z;
+    }
+    return beyond[0] || beyond[1] || beyond[2] || beyond[3];
+}
+
 ScreenTriangle screenTriangle(const glm::dvec2 cornersPixels[3], double marginPixels) {
     ScreenTriangle triangle;
     triangle.marginPixels = marginPixels;

@@ -51,6 +51,9 @@ class PinholeProjection {
     glm::dvec2 slopeAtOrigin() const { return slopeAtOrigin_; }
     /// Pixel position of a view-space point; precondition: view.z > 0.
     glm::dvec2 toPixels(const glm::dvec3& view) const;
+    /// True when all of `worldPoints` lie beyond one side of the view frustum (grown by 1% of
+    /// its slopes), so no camera ray meets their convex hull.
+    bool seesNoneOf(std::span<const glm::vec3> worldPoints) const;
 
     glm::vec3 eye() const { return eye_; }
     int width() const { return width_; }

@@ -236,8 +236,8 @@ class Renderer {
                 options.shadowMapResolution > 0
                     ? options.shadowMapResolution
                     : std::clamp(3 * std::max(options.width, options.height) / 2, 256, 4096);
-            shadowMaps_[light] =
-                std::make_unique<LightShadowMaps>(tracer_, scene.lights[light], resolution);
+            shadowMaps_[light] = std::make_unique<LightShadowMaps>(tracer_, scene.lights[light],
+                                                                   resolution, &projection_);
         }
     }
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "render/coverage.h"
 #include "render/detail/disk_pattern.h"
 
 namespace distile {
@@ -105,7 +106,8 @@ std::pair<glm::vec3, glm::vec3> lightPlaneAxes(const glm::vec3& toLight) {
 /// the group, spanning kMaxMapOverRegion times its side. So a ground plane far wider than the
 /// objects on it, or two groups of objects far apart, do not spread the map's texels over all
 /// of it (a 2e5-unit plane held a sphere of radius 0.8 in less than a texel: no shadow).
-std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalLight& light) {
+std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalLight& light,
+                                          const PinholeProjection* view) {
     const glm::vec3 toLight = -unitDirection(light.direction);
     const auto [axisX, axisY] = lightPlaneAxes(toLight);
     const float tanHalfAngle = std::tan(0.5f * glm::radians(light.angleDeg));
@@ -191,6 +193,14 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         return std::pair(std::max(least, footprint.depthLow),
                          std::min(greatest, footprint.depthHigh));
     };
+    // The whole scene's box (not the union of the objects' footprints, which can be smaller).
+    glm::vec3 low(std::numeric_limits<float>::max());
+    glm::vec3 high(-std::numeric_limits<float>::max());
+    for (std::size_t object = 0; object < count; ++object) {
+        low = glm::min(low, lows[object]);
+        high = glm::max(high, highs[object]);
+    }
+    const LightPlaneRegion all = footprintOf(low, high);
     // The parts of the region a receiver can be shadowed in.
     std::vector<LightPlaneRegion> parts;
     for (std::size_t object = 0; object < count; ++object) {
@@ -207,6 +217,36 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
                 std::max(depthsOver(object, over).second, depthsOver(other, over).second);
             parts.push_back(over);
         }
+    }
+    if (parts.size() > kMaxGroupedParts) {
+        LightPlaneRegion union_;
+        for (const LightPlaneRegion& part : parts) union_.add(part);
+        parts.assign(1, union_);
+    }
+    // The parts none of whose receivers a camera ray meets: they all lie, as the light sees
+    // them, over the part's rectangle grown by the widest penumbra from it, behind its surface
+    // nearest to the light, and in front of the deepest object's surface over that rectangle.
+    if (view) {
+        std::erase_if(parts, [&](const LightPlaneRegion& part) {
+            LightPlaneRegion reached = part;
+            const float widest = tanHalfAngle * std::max(all.depthHigh - part.depthLow, 0.0f);
+            reached.low -= widest;
+            reached.high += widest;
+            float deepest = part.depthHigh;
+            for (std::size_t object = 0; object < count; ++object) {
+                const LightPlaneRegion over = reached.intersection(footprints[object]);
+                if (!over.empty()) deepest = std::max(deepest, depthsOver(object, over).second);
+            }
+            const float reach = tanHalfAngle * std::max(deepest - part.depthLow, 0.0f);
+            glm::vec3 corners[8];
+            for (int corner = 0; corner < 8; ++corner) {
+                const float across = corner & 1 ? part.high.x + reach : part.low.x - reach;
+                const float along = corner & 2 ? part.high.y + reach : part.low.y - reach;
+                const float depth = corner & 4 ? deepest : part.depthLow;
+                corners[corner] = axisX * across + axisY * along - toLight * depth;
+            }
+            return view->seesNoneOf(corners);
+        });
     }
     // Groups: each absorbs every group near it, again after each merge (a larger group may reach
     // more), so no two groups left are near.
@@ -229,11 +269,6 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         }
         groups.push_back(group);
     };
-    if (parts.size() > kMaxGroupedParts) {
-        LightPlaneRegion all;
-        for (const LightPlaneRegion& part : parts) all.add(part);
-        parts.assign(1, all);
-    }
     for (const LightPlaneRegion& part : parts) addGroup(part);
     while (groups.size() > std::size_t(kMaxShadowMapsPerLight)) {
         // The two groups whose union is smallest.
@@ -255,14 +290,6 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         groups.erase(groups.begin() + std::ptrdiff_t(first));
         addGroup(both);
     }
-    // The whole scene's box (not the union of the objects' footprints, which can be smaller).
-    glm::vec3 low(std::numeric_limits<float>::max());
-    glm::vec3 high(-std::numeric_limits<float>::max());
-    for (std::size_t object = 0; object < count; ++object) {
-        low = glm::min(low, lows[object]);
-        high = glm::max(high, highs[object]);
-    }
-    const LightPlaneRegion all = footprintOf(low, high);
     if (groups.empty()) return {{all.low, all.high, all.depthLow, all.side(), all.low, all.high}};
     // Texels for the whole scene while they are at most kMaxMapOverRegion times as large as the
     // group's would be (so the maps of most scenes are what they were before the groups), else
@@ -333,8 +360,8 @@ float ShadowMap::distanceToReceivers(const glm::vec3& world) const {
 }
 
 LightShadowMaps::LightShadowMaps(const SceneTracer& tracer, const DirectionalLight& light,
-                                 int resolutionTexels) {
-    for (const ShadowMapArea& area : shadowMapAreas(tracer.scene(), light))
+                                 int resolutionTexels, const PinholeProjection* view) {
+    for (const ShadowMapArea& area : shadowMapAreas(tracer.scene(), light, view))
         maps_.push_back(std::make_unique<ShadowMap>(tracer, light, resolutionTexels, area));
 }
 

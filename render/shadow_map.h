@@ -42,6 +42,8 @@
 
 namespace distile {
 
+class PinholeProjection;
+
 /// How shadow maps are filtered. None: no shadow map (objects do not shadow each other).
 /// Full: every lookup takes the 8 blocker-search samples and the 64 filter samples.
 /// Adaptive (ch. 17): the 8 outer-ring samples first; the 64 only where they disagree.
@@ -103,7 +105,9 @@ struct ShadowMapArea {
 /// covering the whole scene as the light sees it unless that is more than 4 times as wide as its
 /// group (a ground plane far wider than the objects standing on it, groups of objects far
 /// apart): there its group, with texels 4 times its side over the resolution (shadow_map.cpp).
-std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalLight& light);
+/// With `view`, only receivers its camera rays may meet count.
+std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalLight& light,
+                                          const PinholeProjection* view = nullptr);
 
 class ShadowMap {
   public:
@@ -321,9 +325,12 @@ class ShadowMap {
 /// serves the receivers nearest to it.
 class LightShadowMaps {
   public:
-    /// Preconditions and throws: ShadowMap's.
+    /// The maps of shadowMapAreas(tracer.scene(), light, view): with `view`, for the receivers
+    /// its camera rays may meet (others take the nearest map, which may not hold their
+    /// blockers). Preconditions and throws: ShadowMap's; `view` is read only here.
     LightShadowMaps(const SceneTracer& tracer, const DirectionalLight& light,
-                    int resolutionTexels = ShadowMap::kDefaultResolution);
+                    int resolutionTexels = ShadowMap::kDefaultResolution,
+                    const PinholeProjection* view = nullptr);
 
     /// ShadowMap::visibility of the map serving receiver.surfaceWorld.
     float visibility(const ShadowReceiver& receiver, ShadowFilter filter, std::uint32_t seed,

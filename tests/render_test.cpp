@@ -1048,6 +1048,45 @@ TEST(ShadowMap, GroupsOfObjectsFarApartHaveAMapEach) {
     EXPECT_GT(close, 0.97);
 }
 
+TEST(ShadowMap, OnlyReceiversInViewGetMaps) {
+    // The sphere above its square, copied onto a 5 x 5 grid 1e3 units apart: 25 groups, more
+    // than a light's maps, of which the camera sees one. Merged into 8 maps, groups shared maps
+    // hundreds of units wide, and the shadow was lost; the maps serve the groups in view alone.
+    const Camera above{{0.2f, -0.1f, 3.0f}, {0.2f, -0.1f, 0.0f}, {0.0f, 1.0f, 0.0f}, 40.0f};
+    const Scene alone = sphereAbovePlane(above);
+    Scene grid;
+    grid.camera = alone.camera;
+    grid.lights = alone.lights;
+    for (int row = 0; row < 5; ++row)
+        for (int column = 0; column < 5; ++column)
+            for (const SceneObject& object : alone.objects) {
+                SceneObject copy = object;
+                applyTransform(copy.mesh, {{1e3f * float(column - 2), 1e3f * float(row - 2), 0.0f},
+                                           {0.0f, 0.0f, 0.0f},
+                                           1.0f});
+                grid.objects.push_back(std::move(copy));
+            }
+    RenderOptions options;
+    options.width = 96;
+    options.height = 96;
+    options.shadowMapResolution = 512;
+    const SceneTracer tracer(grid, TraceOptions{});
+    const PinholeProjection view(grid.camera, options.width, options.height);
+    EXPECT_EQ(LightShadowMaps(tracer, grid.lights[0], 512).size(),
+              std::size_t(kMaxShadowMapsPerLight));
+    const LightShadowMaps inView(tracer, grid.lights[0], 512, &view);
+    ASSERT_EQ(inView.size(), 1u);
+    EXPECT_LT(inView[0].texelWorld(), 4.0f * 3.0f / 512.0f);
+    const RenderResult aloneRender = renderScene(alone, options);
+    const RenderResult gridRender = renderScene(grid, options);
+    EXPECT_GT(shareWithin2Codes(aloneRender.image, gridRender.image), 0.97);
+    // A view from 1500 above, between two groups, 60 degrees wide (866 units either way): those
+    // two.
+    const Camera wide{{500.0f, 0.0f, 1500.0f}, {500.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 60.0f};
+    const PinholeProjection wideView(wide, options.width, options.height);
+    EXPECT_EQ(LightShadowMaps(tracer, grid.lights[0], 512, &wideView).size(), 2u);
+}
+
 TEST(ShadowMap, ObjectsWithinAPenumbraOfEachOtherShareAMap) {
     // Two spheres 0.6 apart on the light's plane, one 1.5 above the other: a light 60 degrees
     // wide spreads the upper one's penumbra over tan(30) x 1.5 = 0.87 around its shadow, onto
