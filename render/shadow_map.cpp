@@ -81,8 +81,11 @@ constexpr float kMaxMapOverRegion = 4.0f;
 /// near a map's edge reads texels up to a coarse texel beyond it (kLevels, kMaxMapOverRegion).
 constexpr float kGroupMarginShare = 0.05f;
 /// Scenes whose shadowable region has more parts than this take one map over all of them (the
-/// grouping compares every pair of parts).
-constexpr std::size_t kMaxGroupedParts = 512;
+/// grouping compares every part with every group).
+constexpr std::size_t kMaxGroupedParts = 2048;
+/// Groups beyond this many are merged into one before the pairwise merging, which compares every
+/// pair at each step.
+constexpr std::size_t kMaxMergedGroups = 64;
 
 /// Light-plane axes of the light toward `toLight` (unit): across and along its maps.
 std::pair<glm::vec3, glm::vec3> lightPlaneAxes(const glm::vec3& toLight) {
@@ -270,16 +273,49 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         groups.push_back(group);
     };
     for (const LightPlaneRegion& part : parts) addGroup(part);
+    // Too many groups: merge the pair whose union's texels are the smallest beside those the
+    // camera needs in the nearer of the two (its pixels' width grows with the distance), so the
+    // groups far from the eye share maps first. Without a view, the pair whose union is smallest.
+    const auto viewDistance = [&](const LightPlaneRegion& group) {
+        if (!view) return 1.0f;
+        const glm::vec3 eye = view->eye();
+        const glm::vec3 eyeLight(glm::dot(eye, axisX), glm::dot(eye, axisY),
+                                 -glm::dot(eye, toLight));
+        const glm::vec3 low(group.low, group.depthLow), high(group.high, group.depthHigh);
+        return std::max(glm::length(eyeLight - glm::clamp(eyeLight, low, high)),
+                        1e-3f * group.side());
+    };
+    // More groups than the pairwise merging takes in good time: the nearest to the eye keep
+    // theirs, the others merge into one.
+    if (groups.size() > kMaxMergedGroups) {
+        std::vector<std::pair<float, std::size_t>> byDistance;
+        for (std::size_t index = 0; index < groups.size(); ++index)
+            byDistance.emplace_back(viewDistance(groups[index]), index);
+        std::sort(byDistance.begin(), byDistance.end());
+        std::vector<LightPlaneRegion> nearest;
+        LightPlaneRegion others;
+        for (std::size_t rank = 0; rank < byDistance.size(); ++rank) {
+            const LightPlaneRegion& group = groups[byDistance[rank].second];
+            if (rank + 1 < kMaxMergedGroups)
+                nearest.push_back(group);
+            else
+                others.add(group);
+        }
+        groups = std::move(nearest);
+        addGroup(others);
+    }
     while (groups.size() > std::size_t(kMaxShadowMapsPerLight)) {
-        // The two groups whose union is smallest.
+        std::vector<float> distances;
+        for (const LightPlaneRegion& group : groups) distances.push_back(viewDistance(group));
         std::size_t first = 0, second = 1;
-        float smallest = std::numeric_limits<float>::max();
+        float cheapest = std::numeric_limits<float>::max();
         for (std::size_t a = 0; a < groups.size(); ++a)
             for (std::size_t b = a + 1; b < groups.size(); ++b) {
                 LightPlaneRegion both = groups[a];
                 both.add(groups[b]);
-                if (both.side() < smallest) {
-                    smallest = both.side();
+                const float cost = both.side() / std::min(distances[a], distances[b]);
+                if (cost < cheapest) {
+                    cheapest = cost;
                     first = a;
                     second = b;
                 }

@@ -1087,6 +1087,31 @@ TEST(ShadowMap, OnlyReceiversInViewGetMaps) {
     EXPECT_EQ(LightShadowMaps(tracer, grid.lights[0], 512, &wideView).size(), 2u);
 }
 
+TEST(ShadowMap, GroupsFarFromTheEyeShareMapsFirst) {
+    // Twelve copies of the sphere above its square in a row receding from the camera, 20, 40,
+    // 60, ... units apart, all in view: more groups than a light's maps. Merging the pair whose
+    // union is smallest took the nearest two into one map 20 units wide; the pair whose union's
+    // texels are smallest beside the pixels at its distance leaves the nearest a map of its own.
+    const Camera along{{0.0f, -4.0f, 2.0f}, {0.0f, 10.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
+    const Scene alone = sphereAbovePlane(along);
+    Scene row;
+    row.camera = alone.camera;
+    row.lights = alone.lights;
+    for (int copy = 0; copy < 12; ++copy)
+        for (const SceneObject& object : alone.objects) {
+            SceneObject moved = object;
+            applyTransform(
+                moved.mesh,
+                {{0.0f, 10.0f * float(copy * (copy + 1)), 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+            row.objects.push_back(std::move(moved));
+        }
+    const SceneTracer tracer(row, TraceOptions{});
+    const PinholeProjection view(row.camera, 96, 96);
+    const LightShadowMaps maps(tracer, row.lights[0], 512, &view);
+    EXPECT_EQ(maps.size(), std::size_t(kMaxShadowMapsPerLight));
+    EXPECT_LT(maps.mapFor({0.0f, 0.0f, 0.6f}).texelWorld(), 4.0f * 3.0f / 512.0f);
+}
+
 TEST(ShadowMap, ObjectsWithinAPenumbraOfEachOtherShareAMap) {
     // Two spheres 0.6 apart on the light's plane, one 1.5 above the other: a light 60 degrees
     // wide spreads the upper one's penumbra over tan(30) x 1.5 = 0.87 around its shadow, onto
