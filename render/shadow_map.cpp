@@ -326,7 +326,19 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         groups.erase(groups.begin() + std::ptrdiff_t(first));
         addGroup(both);
     }
-    if (groups.empty()) return {{all.low, all.high, all.depthLow, all.side(), all.low, all.high}};
+    // The area over `covered` spanning `side`, serving the receivers over `receivers`.
+    const auto areaOf = [&](const LightPlaneRegion& covered, float side,
+                            const LightPlaneRegion& receivers) {
+        ShadowMapArea area{
+            covered.low, covered.high, covered.depthLow, side, receivers.low, receivers.high, {}};
+        LightPlaneRegion near = covered;
+        near.low -= side;
+        near.high += side;
+        for (std::size_t object = 0; object < count; ++object)
+            area.objectsNear.push_back(!near.intersection(footprints[object]).empty());
+        return area;
+    };
+    if (groups.empty()) return {areaOf(all, all.side(), all)};
     // Texels for the whole scene while they are at most kMaxMapOverRegion times as large as the
     // group's would be (so the maps of most scenes are what they were before the groups), else
     // the group. The groups that take the whole scene share one map, after the others: a receiver
@@ -337,12 +349,9 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         if (all.side() <= kMaxMapOverRegion * group.side())
             wholeSceneReceivers.add(group);
         else
-            areas.push_back({group.low, group.high, group.depthLow,
-                             kMaxMapOverRegion * group.side(), group.low, group.high});
+            areas.push_back(areaOf(group, kMaxMapOverRegion * group.side(), group));
     }
-    if (!wholeSceneReceivers.empty())
-        areas.push_back({all.low, all.high, all.depthLow, all.side(), wholeSceneReceivers.low,
-                         wholeSceneReceivers.high});
+    if (!wholeSceneReceivers.empty()) areas.push_back(areaOf(all, all.side(), wholeSceneReceivers));
     return areas;
 }
 
@@ -360,6 +369,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     lineTest_ = light.angleDeg >= kLineTestMinAngleDeg;
     receiversLow_ = area.receiversLowPlane;
     receiversHigh_ = area.receiversHighPlane;
+    objectsNear_ = area.objectsNear;
 
     const glm::vec2 planeLow = area.lowPlane, planeHigh = area.highPlane;
     const float depthLow = area.depthLowWorld;
@@ -442,11 +452,12 @@ float ShadowMap::boundDepths() {
     const Scene& scene = tracer_.scene();
     std::vector<bool> flatSlab(scene.objects.size());
     for (std::size_t object = 0; object < scene.objects.size(); ++object)
-        flatSlab[object] = isFlatSlab(scene.objects[object]);
+        flatSlab[object] = objectsNear_[object] && isFlatSlab(scene.objects[object]);
     const float tileWorld = finest.texelWorld * float(kTileTexels);
     // Lowers `bounds` over the tiles under shell `shell`.
     auto boundShell = [&](std::uint32_t shell, std::vector<CasterBounds>& bounds) {
         const std::uint32_t object = tracer_.shellObject(shell);
+        if (!objectsNear_[object]) return;  // no tile under it
         glm::vec3 corners[6];
         tracer_.shellCorners(shell, corners, corners + 3);
         glm::vec2 plane[6];

@@ -98,6 +98,9 @@ struct ShadowMapArea {
     /// The rectangle of the receivers it serves: a receiver takes the map whose rectangle is
     /// nearest (LightShadowMaps).
     glm::vec2 receiversLowPlane{0.0f}, receiversHighPlane{0.0f};
+    /// Per scene object: whether it may lie over the rectangle (its footprint comes within
+    /// sideWorld of it). The map's depth bounds skip the shells of the others.
+    std::vector<bool> objectsNear;
 };
 
 /// The areas of the shadow maps of `light` over `scene` (validateScene passed): one per group of
@@ -232,6 +235,7 @@ class ShadowMap {
     glm::vec3 axisY_{0.0f, 1.0f, 0.0f};    ///< unit, across the map
     glm::vec2 originPlane_{0.0f};  ///< light-plane coordinates of the map's corner, world units
     glm::vec2 receiversLow_{0.0f}, receiversHigh_{0.0f};  ///< ShadowMapArea's
+    std::vector<bool> objectsNear_;                       ///< ShadowMapArea's
     float tanHalfAngle_ = 0.0f;
     bool lineTest_ = false;  ///< a light at least kLineTestMinAngleDeg wide (file note)
     /// A receiver as the line test sees it (visibility's terms).
