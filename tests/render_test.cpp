@@ -949,6 +949,32 @@ double shareWithin2Codes(const Image& a, const Image& b) {
     return double(close) / double(a.rgbLinear.size());
 }
 
+/// Renders `alone` (a sphere above its square, seen from above) and `other` at 96 x 96 with
+/// 512-texel shadow maps, and expects the same shadow in both: as many pixels darker than half
+/// the lit ground (the shadow, and the sphere's side away from the light) within a tenth, and
+/// 97% of the pixels within 2 codes. `what` names `other` in the printed figures.
+void expectTheShadowOfTheSphereAlone(const Scene& alone, const Scene& other, const char* what) {
+    RenderOptions options;
+    options.width = 96;
+    options.height = 96;
+    options.shadowMapResolution = 512;
+    const RenderResult aloneRender = renderScene(alone, options);
+    const RenderResult otherRender = renderScene(other, options);
+    const float litGround = aloneRender.image.at(2, 2).x;
+    const auto darkPixels = [&](const Image& image) {
+        return std::count_if(image.rgbLinear.begin(), image.rgbLinear.end(),
+                             [&](const glm::vec3& pixel) { return pixel.x < 0.5f * litGround; });
+    };
+    const auto aloneDark = darkPixels(aloneRender.image);
+    const auto otherDark = darkPixels(otherRender.image);
+    const double close = shareWithin2Codes(aloneRender.image, otherRender.image);
+    std::printf("[          ] %s: %td dark pixels (alone %td), %.2f%% of pixels within 2 codes\n",
+                what, otherDark, aloneDark, 100.0 * close);
+    EXPECT_GT(aloneDark, 96 * 96 / 40);
+    EXPECT_NEAR(double(otherDark), double(aloneDark), 0.1 * double(aloneDark));
+    EXPECT_GT(close, 0.97);
+}
+
 /// The sphere above the plane and its shadow seen from above, under a light `angleDeg` wide, at
 /// 160 x 128 with each shadow filter.
 struct RendersByShadowFilter {
@@ -983,28 +1009,7 @@ TEST(ShadowMap, AGroundFarWiderThanTheObjectsOnItKeepsTheirShadows) {
     const Scene small = sphereAbovePlane(above);
     Scene wide = small;
     wide.objects[0] = bareSquare(3e5f, 0.0f);
-    RenderOptions options;
-    options.width = 96;
-    options.height = 96;
-    options.shadowMapResolution = 512;
-    const RenderResult smallRender = renderScene(small, options);
-    const RenderResult wideRender = renderScene(wide, options);
-    // The shadow is there: as many pixels darker than half the lit ground as over the small square
-    // (its shadow, and the sphere's side away from the light), within a tenth.
-    const float litGround = smallRender.image.at(2, 2).x;
-    const auto darkPixels = [&](const Image& image) {
-        return std::count_if(image.rgbLinear.begin(), image.rgbLinear.end(),
-                             [&](const glm::vec3& pixel) { return pixel.x < 0.5f * litGround; });
-    };
-    const auto smallDark = darkPixels(smallRender.image), wideDark = darkPixels(wideRender.image);
-    const double close = shareWithin2Codes(smallRender.image, wideRender.image);
-    std::printf(
-        "[          ] ground 3e5 wide: %td dark pixels (over the 3 x 3 square %td), %.2f%% "
-        "of pixels within 2 codes\n",
-        wideDark, smallDark, 100.0 * close);
-    EXPECT_GT(smallDark, 96 * 96 / 40);
-    EXPECT_NEAR(double(wideDark), double(smallDark), 0.1 * double(smallDark));
-    EXPECT_GT(close, 0.97);
+    expectTheShadowOfTheSphereAlone(small, wide, "ground 3e5 wide");
 }
 
 TEST(ShadowMap, GroupsOfObjectsFarApartHaveAMapEach) {
@@ -1025,27 +1030,7 @@ TEST(ShadowMap, GroupsOfObjectsFarApartHaveAMapEach) {
     const ShadowMap& nearMap = maps.mapFor({0.0f, 0.0f, 0.0f});
     EXPECT_NE(&nearMap, &maps.mapFor({1e4f, 0.0f, 0.0f}));
     EXPECT_LT(nearMap.texelWorld(), 4.0f * 3.0f / 512.0f);
-    RenderOptions options;
-    options.width = 96;
-    options.height = 96;
-    options.shadowMapResolution = 512;
-    const RenderResult aloneRender = renderScene(alone, options);
-    const RenderResult apartRender = renderScene(apart, options);
-    const float litGround = aloneRender.image.at(2, 2).x;
-    const auto darkPixels = [&](const Image& image) {
-        return std::count_if(image.rgbLinear.begin(), image.rgbLinear.end(),
-                             [&](const glm::vec3& pixel) { return pixel.x < 0.5f * litGround; });
-    };
-    const auto aloneDark = darkPixels(aloneRender.image);
-    const auto apartDark = darkPixels(apartRender.image);
-    const double close = shareWithin2Codes(aloneRender.image, apartRender.image);
-    std::printf(
-        "[          ] a copy 1e4 away: %td dark pixels (alone %td), %.2f%% of pixels within 2 "
-        "codes\n",
-        apartDark, aloneDark, 100.0 * close);
-    EXPECT_GT(aloneDark, 96 * 96 / 40);
-    EXPECT_NEAR(double(apartDark), double(aloneDark), 0.1 * double(aloneDark));
-    EXPECT_GT(close, 0.97);
+    expectTheShadowOfTheSphereAlone(alone, apart, "a copy 1e4 away");
 }
 
 TEST(ShadowMap, OnlyReceiversInViewGetMaps) {
@@ -1066,24 +1051,18 @@ TEST(ShadowMap, OnlyReceiversInViewGetMaps) {
                                            1.0f});
                 grid.objects.push_back(std::move(copy));
             }
-    RenderOptions options;
-    options.width = 96;
-    options.height = 96;
-    options.shadowMapResolution = 512;
     const SceneTracer tracer(grid, TraceOptions{});
-    const PinholeProjection view(grid.camera, options.width, options.height);
+    const PinholeProjection view(grid.camera, 96, 96);
     EXPECT_EQ(LightShadowMaps(tracer, grid.lights[0], 512).size(),
               std::size_t(kMaxShadowMapsPerLight));
     const LightShadowMaps inView(tracer, grid.lights[0], 512, &view);
     ASSERT_EQ(inView.size(), 1u);
     EXPECT_LT(inView[0].texelWorld(), 4.0f * 3.0f / 512.0f);
-    const RenderResult aloneRender = renderScene(alone, options);
-    const RenderResult gridRender = renderScene(grid, options);
-    EXPECT_GT(shareWithin2Codes(aloneRender.image, gridRender.image), 0.97);
+    expectTheShadowOfTheSphereAlone(alone, grid, "25 copies 1e3 apart");
     // A view from 1500 above, between two groups, 60 degrees wide (866 units either way): those
     // two.
     const Camera wide{{500.0f, 0.0f, 1500.0f}, {500.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}, 60.0f};
-    const PinholeProjection wideView(wide, options.width, options.height);
+    const PinholeProjection wideView(wide, 96, 96);
     EXPECT_EQ(LightShadowMaps(tracer, grid.lights[0], 512, &wideView).size(), 2u);
 }
 
