@@ -222,9 +222,9 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         }
     }
     if (parts.size() > kMaxGroupedParts) {
-        LightPlaneRegion union_;
-        for (const LightPlaneRegion& part : parts) union_.add(part);
-        parts.assign(1, union_);
+        LightPlaneRegion merged;
+        for (const LightPlaneRegion& part : parts) merged.add(part);
+        parts.assign(1, merged);
     }
     // The parts none of whose receivers a camera ray meets: they all lie, as the light sees
     // them, over the part's rectangle grown by the widest penumbra from it, behind its surface
@@ -273,9 +273,8 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         groups.push_back(group);
     };
     for (const LightPlaneRegion& part : parts) addGroup(part);
-    // Too many groups: merge the pair whose union's texels are the smallest beside those the
-    // camera needs in the nearer of the two (its pixels' width grows with the distance), so the
-    // groups far from the eye share maps first. Without a view, the pair whose union is smallest.
+    // The distance from the eye to a group's box (1 without a view): the width of the camera's
+    // pixels there, and so of the texels its receivers need, grows with it.
     const auto viewDistance = [&](const LightPlaneRegion& group) {
         if (!view) return 1.0f;
         const glm::vec3 eye = view->eye();
@@ -304,6 +303,9 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         groups = std::move(nearest);
         addGroup(others);
     }
+    // Too many groups: merge the pair whose union is smallest beside the distance to the nearer
+    // of the two, so the groups far from the eye share maps first (without a view, the pair whose
+    // union is smallest).
     while (groups.size() > std::size_t(kMaxShadowMapsPerLight)) {
         std::vector<float> distances;
         for (const LightPlaneRegion& group : groups) distances.push_back(viewDistance(group));
