@@ -101,10 +101,10 @@ std::pair<glm::vec3, glm::vec3> lightPlaneAxes(const glm::vec3& toLight) {
 /// below the surface). A flat slab (isFlatSlab) is a receiver's blocker only over the footprints
 /// of the other objects reaching behind its lit side: it shadows nothing in front of it, nor
 /// itself in the map (its own detail shadows itself by rays). Parts whose rectangles come closer
-/// than the widest penumbra between them (the light's tan(angle / 2) times their depths' span)
-/// or kGroupMarginShare of their side form one group: no blocker of one group can shadow a
-/// receiver of another, so each has a map of its own, at most kMaxShadowMapsPerLight of them
-/// (the nearest groups merged first). A map spans the whole scene's box, as one map over the
+/// than twice the widest penumbra between them (the light's tan(angle / 2) times their depths'
+/// span, down to the deepest surface under them) plus kGroupMarginShare of their side form one
+/// group: no blocker of one group can shadow a receiver that takes another's map, so each has a
+/// map of its own, at most kMaxShadowMapsPerLight of them (far groups merged first). A map spans the whole scene's box, as one map over the
 /// scene did, unless that is more than kMaxMapOverRegion times as wide as its group: there,
 /// the group, spanning kMaxMapOverRegion times its side. So a ground plane far wider than the
 /// objects on it, or two groups of objects far apart, do not spread the map's texels over all
@@ -226,37 +226,42 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         for (const LightPlaneRegion& part : parts) merged.add(part);
         parts.assign(1, merged);
     }
-    // The parts none of whose receivers a camera ray meets: they all lie, as the light sees
-    // them, over the part's rectangle grown by the widest penumbra from it, behind its surface
-    // nearest to the light, and in front of the deepest object's surface over that rectangle.
+    // A part's receivers lie, as the light sees them, over its rectangle grown by the widest
+    // penumbra from it, from its surface nearest to the light to the deepest surface of any
+    // object over that rectangle: its depths reach down to there.
+    for (LightPlaneRegion& part : parts) {
+        LightPlaneRegion reached = part;
+        const float widest = tanHalfAngle * std::max(all.depthHigh - part.depthLow, 0.0f);
+        reached.low -= widest;
+        reached.high += widest;
+        for (std::size_t object = 0; object < count; ++object) {
+            const LightPlaneRegion over = reached.intersection(footprints[object]);
+            if (!over.empty())
+                part.depthHigh = std::max(part.depthHigh, depthsOver(object, over).second);
+        }
+    }
+    // The parts none of whose receivers a camera ray meets.
     if (view) {
         std::erase_if(parts, [&](const LightPlaneRegion& part) {
-            LightPlaneRegion reached = part;
-            const float widest = tanHalfAngle * std::max(all.depthHigh - part.depthLow, 0.0f);
-            reached.low -= widest;
-            reached.high += widest;
-            float deepest = part.depthHigh;
-            for (std::size_t object = 0; object < count; ++object) {
-                const LightPlaneRegion over = reached.intersection(footprints[object]);
-                if (!over.empty()) deepest = std::max(deepest, depthsOver(object, over).second);
-            }
-            const float reach = tanHalfAngle * std::max(deepest - part.depthLow, 0.0f);
+            const float reach = tanHalfAngle * std::max(part.depthHigh - part.depthLow, 0.0f);
             glm::vec3 corners[8];
             for (int corner = 0; corner < 8; ++corner) {
                 const float across = corner & 1 ? part.high.x + reach : part.low.x - reach;
                 const float along = corner & 2 ? part.high.y + reach : part.low.y - reach;
-                const float depth = corner & 4 ? deepest : part.depthLow;
+                const float depth = corner & 4 ? part.depthHigh : part.depthLow;
                 corners[corner] = axisX * across + axisY * along - toLight * depth;
             }
             return view->seesNoneOf(corners);
         });
     }
     // Groups: each absorbs every group near it, again after each merge (a larger group may reach
-    // more), so no two groups left are near.
+    // more), so no two groups left are near. Two are near where a receiver may lie in the
+    // penumbra of one (within tan(angle / 2) times their span of depths of it) and as near to
+    // the other, whose map it would take: a gap up to twice that.
     const auto near = [&](const LightPlaneRegion& a, const LightPlaneRegion& b) {
         const float depthSpan =
             std::max(a.depthHigh, b.depthHigh) - std::min(a.depthLow, b.depthLow);
-        return a.gapTo(b) <= tanHalfAngle * std::max(depthSpan, 0.0f) +
+        return a.gapTo(b) <= 2.0f * tanHalfAngle * std::max(depthSpan, 0.0f) +
                                  kGroupMarginShare * std::max(a.side(), b.side());
     };
     std::vector<LightPlaneRegion> groups;

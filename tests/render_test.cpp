@@ -870,6 +870,51 @@ TEST(ShadowMap, WideLightsFollowEachRayOfTheDiskThroughTheMap) {
     }
 }
 
+TEST(ShadowMap, PenumbraeOfObjectsApartOverlappingOnTheGroundShareAMap) {
+    // Two balls of radius 2 floating 20 above the ground, their footprints 5 apart, under a
+    // light 20 degrees wide straight down: each one's penumbra spreads tan(10) x 20 = 3.5 around
+    // it on the ground, over the points between them. With a map each, such a point took one of
+    // them and saw the other's blocker nowhere. They are one group: their depths reach the
+    // ground under their penumbrae, and a point may lie in the penumbra of one yet nearer the
+    // other (a gap up to twice the penumbra's reach).
+    Scene scene;
+    scene.lights = {DirectionalLight{{0.0f, 0.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, 20.0f}};
+    scene.objects.push_back(bareSquare(40.0f, 0.0f));  // too wide for the whole scene's map
+    const glm::dvec3 centres[2] = {{4.5, 0.0, 20.0}, {-4.5, 0.0, 20.0}};
+    for (const glm::dvec3& centre : centres) {
+        SceneObject ball;
+        ball.mesh = makeUvSphere(2.0f, 128, 64);
+        applyTransform(ball.mesh, {glm::vec3(centre), {0.0f, 0.0f, 0.0f}, 1.0f});
+        scene.objects.push_back(std::move(ball));
+    }
+    const SceneTracer tracer(scene, TraceOptions{});
+    const LightShadowMaps maps(tracer, scene.lights[0], 1024);
+    EXPECT_EQ(maps.size(), 1u);
+    const auto meetsABall = [&](const glm::dvec3& from, const glm::dvec3& direction) {
+        for (const glm::dvec3& centre : centres) {
+            const glm::dvec3 offset = from - centre;
+            const double b = glm::dot(offset, direction), a = glm::dot(direction, direction);
+            if (b < 0.0 && b * b - a * (glm::dot(offset, offset) - 4.0) >= 0.0) return true;
+        }
+        return false;
+    };
+    const double tanHalf = std::tan(10.0 * 3.141592653589793 / 180.0);
+    const glm::vec3 up(0.0f, 0.0f, 1.0f);
+    for (const double x : {-0.3, 0.0, 0.2}) {
+        const glm::dvec3 at(x, 0.1, 0.0);
+        const double exact = exactLitShare(at, tanHalf, meetsABall);
+        double sum = 0.0;
+        constexpr int kSeeds = 64;
+        for (std::uint32_t seed = 0; seed < kSeeds; ++seed) {
+            std::uint64_t samples = 0;
+            sum += maps.visibility({glm::vec3(at), up, 0.0f, 0}, ShadowFilter::Full, seed, samples);
+        }
+        std::printf("[          ] x %.1f: lit share %.3f, exact %.3f\n", x, sum / kSeeds, exact);
+        EXPECT_LT(exact, 0.9) << x;  // both balls' penumbrae are over the point
+        EXPECT_NEAR(sum / kSeeds, exact, 0.04) << x;
+    }
+}
+
 TEST(ShadowMap, RejectsBadResolutions) {
     const Scene scene = occluderScene();
     const SceneTracer tracer(scene, TraceOptions{});
@@ -1053,8 +1098,9 @@ TEST(ShadowMap, OnlyReceiversInViewGetMaps) {
             }
     const SceneTracer tracer(grid, TraceOptions{});
     const PinholeProjection view(grid.camera, 96, 96);
-    EXPECT_EQ(LightShadowMaps(tracer, grid.lights[0], 512).size(),
-              std::size_t(kMaxShadowMapsPerLight));
+    // Without the view, the group in view shares a map with others far away.
+    EXPECT_GT(LightShadowMaps(tracer, grid.lights[0], 512).mapFor({0.0f, 0.0f, 0.6f}).texelWorld(),
+              4.0f * 3.0f / 512.0f);
     const LightShadowMaps inView(tracer, grid.lights[0], 512, &view);
     ASSERT_EQ(inView.size(), 1u);
     EXPECT_LT(inView[0].texelWorld(), 4.0f * 3.0f / 512.0f);
