@@ -112,7 +112,8 @@ std::pair<glm::vec3, glm::vec3> lightPlaneAxes(const glm::vec3& toLight) {
 std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalLight& light,
                                           const PinholeProjection* view) {
     const glm::vec3 toLight = -unitDirection(light.direction);
-    const auto [axisX, axisY] = lightPlaneAxes(toLight);
+    glm::vec3 axisX, axisY;  // not a structured binding: lambdas below capture them
+    std::tie(axisX, axisY) = lightPlaneAxes(toLight);
     const float tanHalfAngle = std::tan(0.5f * glm::radians(light.angleDeg));
     float shellDepth = 0.0f;
     for (const SceneObject& object : scene.objects)
