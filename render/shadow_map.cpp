@@ -104,11 +104,12 @@ std::pair<glm::vec3, glm::vec3> lightPlaneAxes(const glm::vec3& toLight) {
 /// than twice the widest penumbra between them (the light's tan(angle / 2) times their depths'
 /// span, down to the deepest surface under them) plus kGroupMarginShare of their side form one
 /// group: no blocker of one group can shadow a receiver that takes another's map, so each has a
-/// map of its own, at most kMaxShadowMapsPerLight of them (far groups merged first). A map spans the whole scene's box, as one map over the
-/// scene did, unless that is more than kMaxMapOverRegion times as wide as its group: there,
-/// the group, spanning kMaxMapOverRegion times its side. So a ground plane far wider than the
-/// objects on it, or two groups of objects far apart, do not spread the map's texels over all
-/// of it (a 2e5-unit plane held a sphere of radius 0.8 in less than a texel: no shadow).
+/// map of its own, at most kMaxShadowMapsPerLight of them (far groups merged first). A map spans
+/// the whole scene's box, as one map over the scene did, unless that is more than kMaxMapOverRegion
+/// times as wide as its group: there, the group, spanning kMaxMapOverRegion times its side. So a
+/// ground plane far wider than the objects on it, or two groups of objects far apart, do not spread
+/// the map's texels over all of it (a 2e5-unit plane held a sphere of radius 0.8 in less than a
+/// texel: no shadow).
 std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalLight& light,
                                           const PinholeProjection* view) {
     const glm::vec3 toLight = -unitDirection(light.direction);
@@ -216,9 +217,9 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
             if (other == object || !behindSlab(other, object)) continue;
             LightPlaneRegion over = footprints[object].intersection(footprints[other]);
             if (over.empty()) continue;
-            over.depthLow = depthsOver(object, over).first;
-            over.depthHigh =
-                std::max(depthsOver(object, over).second, depthsOver(other, over).second);
+            const auto [slabLow, slabHigh] = depthsOver(object, over);
+            over.depthLow = slabLow;
+            over.depthHigh = std::max(slabHigh, depthsOver(other, over).second);
             parts.push_back(over);
         }
     }
@@ -281,11 +282,10 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
     for (const LightPlaneRegion& part : parts) addGroup(part);
     // The distance from the eye to a group's box (1 without a view): the width of the camera's
     // pixels there, and so of the texels its receivers need, grows with it.
+    const glm::vec3 eye = view ? view->eye() : glm::vec3(0.0f);
+    const glm::vec3 eyeLight(glm::dot(eye, axisX), glm::dot(eye, axisY), -glm::dot(eye, toLight));
     const auto viewDistance = [&](const LightPlaneRegion& group) {
         if (!view) return 1.0f;
-        const glm::vec3 eye = view->eye();
-        const glm::vec3 eyeLight(glm::dot(eye, axisX), glm::dot(eye, axisY),
-                                 -glm::dot(eye, toLight));
         const glm::vec3 low(group.low, group.depthLow), high(group.high, group.depthHigh);
         return std::max(glm::length(eyeLight - glm::clamp(eyeLight, low, high)),
                         1e-3f * group.side());
