@@ -228,19 +228,41 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         for (const LightPlaneRegion& part : parts) merged.add(part);
         parts.assign(1, merged);
     }
-    // A part's receivers lie, as the light sees them, over its rectangle grown by the widest
-    // penumbra from it, from its surface nearest to the light to the deepest surface of any
-    // object over that rectangle: its depths reach down to there.
+    // A part's receivers lie, as the light sees them, in the penumbrae of its blockers: at a
+    // light-plane distance x from its rectangle, a receiver is at least x / tan(angle / 2) deeper
+    // than the part's surface nearest to the light. Its depths reach down to the deepest surface
+    // of any object with such a receiver. An object's footprint box qualifies when its gap to the
+    // part is within the penumbra of its deepest corner. A flat slab's planes deepen linearly
+    // away from the part (by `slope` per unit of x at most), so where the light does not graze
+    // it, the x it qualifies out to is bounded in closed form. (Bounding every object by the
+    // scene's deepest point instead let a wide ground plane, seen obliquely, join every part into
+    // one group, with a map too coarse for any of them.)
     for (LightPlaneRegion& part : parts) {
-        LightPlaneRegion reached = part;
-        const float widest = tanHalfAngle * std::max(all.depthHigh - part.depthLow, 0.0f);
-        reached.low -= widest;
-        reached.high += widest;
+        float depthHigh = part.depthHigh;
         for (std::size_t object = 0; object < count; ++object) {
-            const LightPlaneRegion over = reached.intersection(footprints[object]);
-            if (!over.empty())
-                part.depthHigh = std::max(part.depthHigh, depthsOver(object, over).second);
+            const LightPlaneRegion& footprint = footprints[object];
+            if (!flat[object]) {
+                const float reach = tanHalfAngle * (footprint.depthHigh - part.depthLow);
+                if (part.gapTo(footprint) <= reach)
+                    depthHigh = std::max(depthHigh, footprint.depthHigh);
+                continue;
+            }
+            const glm::vec3 normal = scene.objects[object].mesh.normals[0];
+            const float facing = std::abs(glm::dot(toLight, normal));
+            const float slope =
+                (std::abs(glm::dot(axisX, normal)) + std::abs(glm::dot(axisY, normal))) /
+                std::max(facing, 1e-30f);
+            const float below = std::max(depthsOver(object, part).second - part.depthLow, 0.0f);
+            const float grazing = 1.0f - tanHalfAngle * slope;
+            float reach = tanHalfAngle * std::max(footprint.depthHigh - part.depthLow, 0.0f);
+            if (grazing > 0.0f) reach = std::min(reach, tanHalfAngle * below / grazing);
+            LightPlaneRegion reached = part;
+            reached.low -= reach;
+            reached.high += reach;
+            const LightPlaneRegion over = reached.intersection(footprint);
+            if (!over.empty()) depthHigh = std::max(depthHigh, depthsOver(object, over).second);
         }
+        part.depthHigh = depthHigh;
     }
     // The parts none of whose receivers a camera ray meets.
     if (view) {

@@ -1145,6 +1145,24 @@ TEST(ShadowMap, GroupsFarFromTheEyeShareMapsFirst) {
     EXPECT_LT(maps.mapFor({0.0f, 0.0f, 0.6f}).texelWorld(), 4.0f * 3.0f / 512.0f);
 }
 
+TEST(ShadowMap, AGroundSeenAtAnAngleLeavesObjectsFarApartInMapsOfTheirOwn) {
+    // The sphere above its square, and a copy of the sphere 500 units away, over a ground 3e5
+    // wide. The light falls at about 60 degrees, so the ground's depth along it spans 1.5e5
+    // units. Bounding every receiver's depth by the deepest point of the scene spread each
+    // sphere's possible penumbra (tan 3 degrees of that: 8000 units) over the other: one group,
+    // whose map's texels (4 x 500 / 512 units) lost the shadow. The ground under a sphere's
+    // penumbra lies about 0.3 to 0.9 below it: two groups.
+    const Camera above{{0.2f, -0.1f, 3.0f}, {0.2f, -0.1f, 0.0f}, {0.0f, 1.0f, 0.0f}, 40.0f};
+    const Scene alone = sphereAbovePlane(above);
+    Scene apart = alone;
+    apart.objects[0] = bareSquare(3e5f, 0.0f);
+    SceneObject copy = alone.objects[1];
+    applyTransform(copy.mesh, {{500.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+    apart.objects.push_back(std::move(copy));
+    EXPECT_EQ(shadowMapAreas(apart, apart.lights[0]).size(), 2u);
+    EXPECT_TRUE(castsTheShadowOfTheSphereAlone(alone, apart, "a copy 500 away, ground 3e5 wide"));
+}
+
 TEST(ShadowMap, ObjectsWithinAPenumbraOfEachOtherShareAMap) {
     // Two spheres 0.6 apart on the light's plane, one 1.5 above the other: a light 60 degrees
     // wide spreads the upper one's penumbra over tan(30) x 1.5 = 0.87 around its shadow, onto
