@@ -67,6 +67,17 @@ PinholeProjection::PinholeProjection(const Camera& camera, int widthPixels, int 
     // basis vectors included); in pixels that is the slope error over the slope per pixel.
     const double slopeRange = 1.0 + tanX + double(tanHalfFov_);
     marginPixels_ = 1e-4 + 1e-6 * slopeRange / std::min(slopePerPixel_.x, -slopePerPixel_.y);
+    // The angle a pixel spans is its slope step divided by 1 + slope^2 (the derivative of atan)
+    // across the radius, so at least the step over 1 + the corners' slope^2.
+    double cornerSlopeSquared = 0.0;
+    for (int corner = 0; corner < 4; ++corner) {
+        const glm::dvec2 slope =
+            slopePerPixel_ * glm::dvec2(corner & 1 ? width_ : 0, corner & 2 ? height_ : 0) +
+            slopeAtOrigin_;
+        cornerSlopeSquared = std::max(cornerSlopeSquared, glm::dot(slope, slope));
+    }
+    const glm::dvec2 step = glm::abs(slopePerPixel_);
+    pixelAngleRadians_ = float(std::min(step.x, step.y) / (1.0 + cornerSlopeSquared));
 }
 
 void PinholeProjection::directions(const float* xPixels, const float* yPixels, std::size_t count,

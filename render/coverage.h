@@ -56,6 +56,9 @@ class PinholeProjection {
     bool seesNoneOf(std::span<const glm::vec3> worldPoints) const;
 
     glm::vec3 eye() const { return eye_; }
+    /// The least angle a pixel spans seen from the eye, radians: a pixel at distance d is at
+    /// least d times this wide in every direction across its ray.
+    float pixelAngleRadians() const { return pixelAngleRadians_; }
     int width() const { return width_; }
     int height() const { return height_; }
     /// How far (pixels) a camera ray computed in single precision may stray from the pixel
@@ -69,6 +72,7 @@ class PinholeProjection {
     glm::dvec2 slopePerPixel_, slopeAtOrigin_;
     glm::vec2 slopePerPixelFloat_, slopeAtOriginFloat_;  ///< the same, for ray()
     double marginPixels_;
+    float pixelAngleRadians_;
 };
 
 /// A triangle on the screen, ready for conservative pixel tests: the pixel bounds of its

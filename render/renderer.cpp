@@ -214,18 +214,6 @@ class Renderer {
                 std::max(std::tan(0.5f * light.angleDeg * kPi / 180.0f), 1e-3f));
         }
         facingHits_ = std::make_unique<std::atomic<std::uint64_t>[]>(2 * scene.objects.size());
-        // The angle a pixel spans is its slope step divided by 1 + slope^2 (the derivative of
-        // atan) across the radius, so at least the step over 1 + the corners' slope^2.
-        double cornerSlopeSquared = 0.0;
-        for (int corner = 0; corner < 4; ++corner) {
-            const glm::dvec2 slope =
-                projection_.slopePerPixel() *
-                    glm::dvec2(corner & 1 ? options.width : 0, corner & 2 ? options.height : 0) +
-                projection_.slopeAtOrigin();
-            cornerSlopeSquared = std::max(cornerSlopeSquared, glm::dot(slope, slope));
-        }
-        const glm::dvec2 step = glm::abs(projection_.slopePerPixel());
-        pixelAngleRadians_ = float(std::min(step.x, step.y) / (1.0 + cornerSlopeSquared));
         shadowMaps_.resize(scene.lights.size());
         if (options.shadowFilter == ShadowFilter::None) return;
         if (options.skips.casterlessShadowMaps && !sceneCastsShadowsBetweenSurfaces(scene)) return;
@@ -456,7 +444,7 @@ class Renderer {
     /// at least distance x pixel angle on the surface in every direction, and the light's view
     /// shortens that by at most the cosine between the base normal and the light.
     float footprintWorld(const SurfaceHit& hit, const glm::vec3& toLight) const {
-        return hit.distanceWorld * pixelAngleRadians_ *
+        return hit.distanceWorld * projection_.pixelAngleRadians() *
                std::max(glm::dot(hit.entry.normal, toLight), 0.0f);
     }
 
@@ -608,7 +596,6 @@ class Renderer {
     std::vector<glm::vec3> toLights_;   ///< per light: unit direction toward it
     std::vector<float> tanHalfAngles_;  ///< per light: tan of its angular radius (at least 1e-3)
     std::vector<glm::vec2> sampleOffsets_;  ///< per sample of a pixel: sampleOffset()
-    float pixelAngleRadians_ = 0.0f;        ///< the least angle a pixel spans seen from the eye
     ScreenShells shells_;  ///< camera rays' shells per screen tile (the BVH serves the other rays)
     /// Per object: camera rays that hit a front face (2 i), a back face (2 i + 1).
     std::unique_ptr<std::atomic<std::uint64_t>[]> facingHits_;

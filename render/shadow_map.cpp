@@ -30,7 +30,7 @@ using detail::mixBits;
 using detail::unitFloat;
 constexpr int kStrata = DiskPattern::kStrata;
 
-/// Largest blocker-search radius, in map texels: bounds the work and the blur of one lookup.
+/// Largest blocker-search radius, in base-level texels: bounds the work and the blur of a lookup.
 constexpr float kMaxSearchTexels = 32.0f;
 /// Receivers seen this close to edge-on by the light (cosine) use this cosine for their plane's
 /// slope, so the depth reference stays finite at the terminator.
@@ -308,8 +308,8 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
     const glm::vec3 eyeLight(glm::dot(eye, axisX), glm::dot(eye, axisY), -glm::dot(eye, toLight));
     const auto viewDistance = [&](const LightPlaneRegion& group) {
         if (!view) return 1.0f;
-        const glm::vec3 low(group.low, group.depthLow), high(group.high, group.depthHigh);
-        return std::max(glm::length(eyeLight - glm::clamp(eyeLight, low, high)),
+        const glm::vec3 boxLow(group.low, group.depthLow), boxHigh(group.high, group.depthHigh);
+        return std::max(glm::length(eyeLight - glm::clamp(eyeLight, boxLow, boxHigh)),
                         1e-3f * group.side());
     };
     // More groups than the pairwise merging takes in good time: the nearest to the eye keep
@@ -356,39 +356,51 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         groups.erase(groups.begin() + std::ptrdiff_t(first));
         addGroup(both);
     }
-    // The area over `covered` spanning `side`, serving the receivers over `receivers`.
+    // The area over `covered` spanning `side`, serving the receivers over `receivers`, the
+    // nearest of them `distance` from the eye (unused without a view).
     const auto areaOf = [&](const LightPlaneRegion& covered, float side,
-                            const LightPlaneRegion& receivers) {
-        ShadowMapArea area{
-            covered.low, covered.high, covered.depthLow, side, receivers.low, receivers.high, {}};
-        LightPlaneRegion near = covered;
-        near.low -= side;
-        near.high += side;
+                            const LightPlaneRegion& receivers, float distance) {
+        ShadowMapArea area{covered.low,
+                           covered.high,
+                           covered.depthLow,
+                           side,
+                           receivers.low,
+                           receivers.high,
+                           view ? distance * view->pixelAngleRadians() : 0.0f,
+                           {}};
+        LightPlaneRegion nearby = covered;
+        nearby.low -= side;
+        nearby.high += side;
         for (std::size_t object = 0; object < count; ++object)
-            area.objectsNear.push_back(!near.intersection(footprints[object]).empty());
+            area.objectsNear.push_back(!nearby.intersection(footprints[object]).empty());
         return area;
     };
-    if (groups.empty()) return {areaOf(all, all.side(), all)};
+    if (groups.empty()) return {areaOf(all, all.side(), all, 0.0f)};
     // Texels for the whole scene while they are at most kMaxMapOverRegion times as large as the
     // group's would be (so the maps of most scenes are what they were before the groups), else
     // the group. The groups that take the whole scene share one map, after the others: a receiver
     // in one of those others' rectangles takes its finer map (LightShadowMaps::mapFor).
     std::vector<ShadowMapArea> areas;
     LightPlaneRegion wholeSceneReceivers;
+    float wholeSceneDistance = std::numeric_limits<float>::max();
     for (const LightPlaneRegion& group : groups) {
-        if (all.side() <= kMaxMapOverRegion * group.side())
+        if (all.side() <= kMaxMapOverRegion * group.side()) {
             wholeSceneReceivers.add(group);
-        else
-            areas.push_back(areaOf(group, kMaxMapOverRegion * group.side(), group));
+            wholeSceneDistance = std::min(wholeSceneDistance, viewDistance(group));
+        } else {
+            areas.push_back(
+                areaOf(group, kMaxMapOverRegion * group.side(), group, viewDistance(group)));
+        }
     }
-    if (!wholeSceneReceivers.empty()) areas.push_back(areaOf(all, all.side(), wholeSceneReceivers));
+    if (!wholeSceneReceivers.empty())
+        areas.push_back(areaOf(all, all.side(), wholeSceneReceivers, wholeSceneDistance));
     return areas;
 }
 
 ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels,
                      const ShadowMapArea& area)
     : tracer_(tracer) {
-    if (resolutionTexels < 16 || resolutionTexels > 16384) {
+    if (resolutionTexels < 16 || resolutionTexels > kMaxResolution) {
         throw InputError::inField("resolutionTexels", std::to_string(resolutionTexels) +
                                                           " is not accepted; it must be in [16, "
                                                           "16384] texels");
@@ -406,10 +418,23 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     const glm::vec2 extent = planeHigh - planeLow;
     const float longer = area.sideWorld;
     originPlane_ = planeLow;
-    for (int index = 0; index < kLevels; ++index) {
+    // Finer levels below the base while its texels are wider than the nearest receivers' pixels
+    // allow (kMaxTexelOverPixel); a lookup reads the coarsest level its receiver needs, so they
+    // are traced only near the eye. Not for the line test's wide lights: their penumbrae, not
+    // the texels, set how sharp their shadows are (on vase.json finer levels doubled the render
+    // and changed 0.7% of the pixels by 0.03 codes on average).
+    const float baseTexelWorld = longer / float(resolutionTexels);
+    int finer = 0;
+    while (!lineTest_ && area.pixelWorld > 0.0f && finer < kMaxFinerLevels &&
+           (resolutionTexels << (finer + 1)) <= kMaxResolution &&
+           baseTexelWorld / float(1 << finer) > kMaxTexelOverPixel * area.pixelWorld)
+        ++finer;
+    levels_.resize(std::size_t(finer + kLevels));
+    for (int index = 0; index < finer + kLevels; ++index) {
         Level& level = levels_[std::size_t(index)];
-        const int resolution = std::max(resolutionTexels >> index, 1);
-        level.texelWorld = longer / float(resolutionTexels) * float(1 << index);
+        const int resolution = std::max((resolutionTexels << finer) >> index, 1);
+        // Powers of two: the base level's texels are those of a map without finer levels.
+        level.texelWorld = baseTexelWorld * float(1 << index) / float(1 << finer);
         level.width = std::clamp(int(std::ceil(extent.x / level.texelWorld)), 1, resolution);
         level.height = std::clamp(int(std::ceil(extent.y / level.texelWorld)), 1, resolution);
         level.tilesX = (level.width + kTileTexels - 1) / kTileTexels;
@@ -425,7 +450,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
         for (std::size_t tile = 0; tile < tiles; ++tile) level.tileDone[tile].store(false);
     }
     // Rays start a little in front of everything.
-    startDepth_ = depthLow - std::max(levels_[0].texelWorld, 1e-3f * longer);
+    startDepth_ = depthLow - std::max(boundLevel().texelWorld, 1e-3f * longer);
     nearestDepth_ = boundDepths();
     if (lineTest_) buildBoundLevels();
 }
@@ -468,7 +493,7 @@ std::uint64_t LightShadowMaps::texelCount() const {
 }
 
 float ShadowMap::boundDepths() {
-    const Level& finest = levels_[0];
+    const Level& base = boundLevel();
     // A lower bound of the depths of each tile from every shell over it. A shell's points are
     // bilinear in its six corners, so they project into the corners' bounds on the light plane and
     // lie no nearer than the nearest corner. A flat shell (its bottom the top moved by one vector)
@@ -476,14 +501,14 @@ float ShadowMap::boundDepths() {
     // top's plane, or the bottom's, whichever is nearer, least at a corner of the tile's square.
     // Rounding of a stored depth (start + distance along the ray) is allowed for.
     const float rounding =
-        1e-5f * (std::abs(startDepth_) + finest.texelWorld * float(finest.width + finest.height)) +
-        1e-3f * finest.texelWorld;
-    const std::size_t tileCount = std::size_t(finest.tilesX) * std::size_t(finest.tilesY);
+        1e-5f * (std::abs(startDepth_) + base.texelWorld * float(base.width + base.height)) +
+        1e-3f * base.texelWorld;
+    const std::size_t tileCount = std::size_t(base.tilesX) * std::size_t(base.tilesY);
     const Scene& scene = tracer_.scene();
     std::vector<bool> flatSlab(scene.objects.size());
     for (std::size_t object = 0; object < scene.objects.size(); ++object)
         flatSlab[object] = objectsNear_[object] && isFlatSlab(scene.objects[object]);
-    const float tileWorld = finest.texelWorld * float(kTileTexels);
+    const float tileWorld = base.texelWorld * float(kTileTexels);
     // Lowers `bounds` over the tiles under shell `shell`.
     auto boundShell = [&](std::uint32_t shell, std::vector<CasterBounds>& bounds) {
         const std::uint32_t object = tracer_.shellObject(shell);
@@ -517,7 +542,7 @@ float ShadowMap::boundDepths() {
         }
         const float bottomShift = std::min(depth[3] - depth[0], 0.0f);
         // Tiles whose square touches the bounds, one tile of margin for rounding.
-        const glm::ivec4 tiles = finestTiles(low, high, 1);
+        const glm::ivec4 tiles = boundTiles(low, high, 1);
         for (int y = tiles.y; y <= tiles.w; ++y)
             for (int x = tiles.x; x <= tiles.z; ++x) {
                 float least = nearestCorner;
@@ -533,7 +558,7 @@ float ShadowMap::boundDepths() {
                     least = std::max(least, float(top) + bottomShift);
                 }
                 CasterBounds& tile =
-                    bounds[std::size_t(x) + std::size_t(finest.tilesX) * std::size_t(y)];
+                    bounds[std::size_t(x) + std::size_t(base.tilesX) * std::size_t(y)];
                 if (!flatSlab[object]) {
                     tile.others = std::min(tile.others, least - rounding);
                     continue;
@@ -577,12 +602,11 @@ float ShadowMap::boundDepths() {
     float nearest = std::numeric_limits<float>::infinity();
     for (int tile : order) {
         if (bound[std::size_t(tile)] >= nearest) break;
-        traceTileOnce(finest, tile);
-        const int x0 = (tile % finest.tilesX) * kTileTexels,
-                  y0 = (tile / finest.tilesX) * kTileTexels;
-        for (int y = y0; y < std::min(y0 + kTileTexels, finest.height); ++y)
-            for (int x = x0; x < std::min(x0 + kTileTexels, finest.width); ++x)
-                nearest = std::min(nearest, finest.depths[finest.index(x, y)]);
+        traceTileOnce(base, tile);
+        const int x0 = (tile % base.tilesX) * kTileTexels, y0 = (tile / base.tilesX) * kTileTexels;
+        for (int y = y0; y < std::min(y0 + kTileTexels, base.height); ++y)
+            for (int x = x0; x < std::min(x0 + kTileTexels, base.width); ++x)
+                nearest = std::min(nearest, base.depths[base.index(x, y)]);
     }
     return nearest;
 }
@@ -654,26 +678,26 @@ float ShadowMap::lookup(const Level& level, const glm::vec2& planeWorld) const {
     return texel.x < 0 ? std::numeric_limits<float>::infinity() : depthAt(level, texel.x, texel.y);
 }
 
-glm::ivec4 ShadowMap::finestTiles(const glm::vec2& low, const glm::vec2& high,
-                                  int marginTiles) const {
-    const Level& finest = levels_[0];
-    const float tileWorld = finest.texelWorld * float(kTileTexels);
+glm::ivec4 ShadowMap::boundTiles(const glm::vec2& low, const glm::vec2& high,
+                                 int marginTiles) const {
+    const Level& level = boundLevel();
+    const float tileWorld = level.texelWorld * float(kTileTexels);
     const glm::vec2 first = (low - originPlane_) / tileWorld;
     const glm::vec2 last = (high - originPlane_) / tileWorld;
     return {std::max(int(std::floor(first.x)) - marginTiles, 0),
             std::max(int(std::floor(first.y)) - marginTiles, 0),
-            std::min(int(std::floor(last.x)) + marginTiles, finest.tilesX - 1),
-            std::min(int(std::floor(last.y)) + marginTiles, finest.tilesY - 1)};
+            std::min(int(std::floor(last.x)) + marginTiles, level.tilesX - 1),
+            std::min(int(std::floor(last.y)) + marginTiles, level.tilesY - 1)};
 }
 
 bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, float depth,
                                   std::uint32_t receiverObject) const {
     // Outside the map every lookup reads +infinity, no blocker: only the tiles inside count.
-    const glm::ivec4 tiles = finestTiles(centre - reachWorld, centre + reachWorld, 0);
+    const glm::ivec4 tiles = boundTiles(centre - reachWorld, centre + reachWorld, 0);
     for (int y = tiles.y; y <= tiles.w; ++y)
         for (int x = tiles.x; x <= tiles.z; ++x) {
             const CasterBounds& tile =
-                casterBounds_[std::size_t(x) + std::size_t(levels_[0].tilesX) * std::size_t(y)];
+                casterBounds_[std::size_t(x) + std::size_t(boundLevel().tilesX) * std::size_t(y)];
             // The receiver's own flat slab lies behind its plane: only other slabs count (the
             // flat bound is +infinity where no slab is).
             if (!(casterBound(tile, receiverObject) >= depth)) return false;
@@ -682,8 +706,8 @@ bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, flo
 }
 
 void ShadowMap::buildBoundLevels() {
-    const Level& finest = levels_[0];
-    boundLevels_.push_back({finest.tilesX, finest.tilesY, 1, casterBounds_});
+    const Level& base = boundLevel();
+    boundLevels_.push_back({base.tilesX, base.tilesY, 1, casterBounds_});
     while (boundLevels_.back().width > 1 || boundLevels_.back().height > 1) {
         const BoundLevel& parts = boundLevels_.back();
         BoundLevel blocks;
@@ -713,7 +737,7 @@ bool ShadowMap::blockMayBlock(const LineReceiver& receiver, std::size_t level, i
     if (bound >= receiver.depth) return false;
     // A surface at offset s from the receiver blocks a ray toward the disk only if it lies in
     // front of the lowest of them there: depth below receiver.depth - s / tan(angle / 2).
-    const float blockWorld = levels_[0].texelWorld * float(kTileTexels * blocks.tiles);
+    const float blockWorld = boundLevel().texelWorld * float(kTileTexels * blocks.tiles);
     const glm::vec2 low = originPlane_ + glm::vec2(float(x), float(y)) * blockWorld;
     const glm::vec2 nearest = glm::clamp(receiver.centre, low, low + blockWorld) - receiver.centre;
     // bound >= receiver.depth - |nearest| / tan(angle / 2), squared: no root, no division.
@@ -731,8 +755,8 @@ bool ShadowMap::blockMayBlock(const LineReceiver& receiver, std::size_t level, i
 
 bool ShadowMap::nothingCanBlockLines(const LineReceiver& receiver) const {
     // From the level whose blocks are about the size of the reach.
-    const glm::ivec4 tiles = finestTiles(receiver.centre - receiver.reachWorld,
-                                         receiver.centre + receiver.reachWorld, 0);
+    const glm::ivec4 tiles =
+        boundTiles(receiver.centre - receiver.reachWorld, receiver.centre + receiver.reachWorld, 0);
     std::size_t level = 0;
     while (level + 1 < boundLevels_.size() &&
            boundLevels_[level].tiles * 2 < std::max(tiles.z - tiles.x, tiles.w - tiles.y))
@@ -777,6 +801,7 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
         return stored < reference - bias ? stored : std::numeric_limits<float>::infinity();
     };
     const float finestTexelWorld = levels_[0].texelWorld;
+    const float baseTexelWorld = boundLevel().texelWorld;
     const float footprint = receiver.footprintWorld;
     if (lineTest_) {
         LineReceiver line{centre,
@@ -793,7 +818,7 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     // The widest penumbra possible here: from the surface nearest to the light anywhere.
     const float searchRadius =
         std::min(tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f),
-                 kMaxSearchTexels * finestTexelWorld);
+                 kMaxSearchTexels * baseTexelWorld);
     // A sample blocks where the stored depth is below the receiver's plane there (less a bias):
     // nowhere if no surface over the texels the samples may read (their centres are within one
     // texel of the level read of the disk) can be nearer than the plane's nearest point on it.
@@ -866,7 +891,7 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
     unsigned startsBehind = 0;
     const Level& own = levelFor(receiver.footprintWorld);
     const glm::ivec2 texel = texelOf(own, receiver.centre);
-    const int tile = finestTileAt(receiver.centre);
+    const int tile = boundTileAt(receiver.centre);
     if (texel.x >= 0 && tile >= 0 &&
         casterBound(casterBounds_[std::size_t(tile)], receiver.object) < receiver.depth) {
         ++reads;
@@ -904,7 +929,8 @@ unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2&
     // Per ray, where it passed the blocker at the previous offset: in front of it (nearer to the
     // light) or behind it (under it, as the light sees it).
     unsigned wasInFront = 0, wasBehind = startsBehind;
-    // The caster bound of the finest tile under the offset (consecutive offsets share tiles).
+    // The caster bound of the bound level's tile under the offset (consecutive offsets share
+    // tiles).
     int boundTile = -2;
     float bound = std::numeric_limits<float>::infinity();
     // Steps are kLineStepShare of the offset over open ground and kEdgeStepShare where a ray may
@@ -921,7 +947,7 @@ unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2&
         const float share = fine ? kEdgeStepShare : kLineStepShare;
         const Level& level = levelFor(std::max(receiver.footprintWorld, share * offset));
         const glm::vec2 at = receiver.centre + offset * along;
-        const int tile = finestTileAt(at);
+        const int tile = boundTileAt(at);
         if (tile != boundTile) {
             boundTile = tile;
             bound = tile < 0 ? std::numeric_limits<float>::infinity()

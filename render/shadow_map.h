@@ -14,7 +14,9 @@
 /// doubling texel size, each traced the same lazy way, and a lookup reads the coarsest level its
 /// receiver needs: texels no larger than the receiver's pixel footprint, or than half the radius
 /// of the disk the samples spread over, whichever is larger (the 64 samples of a disk of radius
-/// r blur the shadow over r: texels much finer than that change little). Lookups filter with 64
+/// r blur the shadow over r: texels much finer than that change little). Where the camera's
+/// nearest receivers have pixels much finer than the map's texels (a close view of a wide scene),
+/// the map adds finer levels below them (kMaxFinerLevels). Lookups filter with 64
 /// jittered samples warped to a disk (an 8 x 8 stratified grid, polar warp); the adaptive filter
 /// first takes the 8 samples of the outer ring and stops when they agree.
 ///
@@ -64,7 +66,7 @@ constexpr int kShadowDiskSamples = 64;
 
 /// Lights at least this wide (angle_deg) take the line test (file note). Percentage-closer
 /// filtering tests each disk sample at one light-plane offset whatever the blocker's depth, and
-/// searches at most 32 finest texels: near a contact it lights what a blocker overhead covers and
+/// searches at most 32 base texels: near a contact it lights what a blocker overhead covers and
 /// darkens what rays leave from under. Against the world reference's 16 shadow rays (a sphere
 /// resting on a plane, 320 x 256, 16 samples per pixel, mean absolute sRGB difference over the
 /// image), filtering and the line test differ by 0.110 and 0.107 codes at 3 degrees, 0.145 and
@@ -98,6 +100,9 @@ struct ShadowMapArea {
     /// The rectangle of the receivers it serves: a receiver takes the map whose rectangle is
     /// nearest (LightShadowMaps).
     glm::vec2 receiversLowPlane{0.0f}, receiversHighPlane{0.0f};
+    /// The width of a camera pixel at the nearest of those receivers, world units: the finest
+    /// texels they can resolve (0: no view given).
+    float pixelWorld = 0.0f;
     /// Per scene object: whether it may lie over the rectangle (its footprint comes within
     /// sideWorld of it). The map's depth bounds skip the shells of the others.
     std::vector<bool> objectsNear;
@@ -124,19 +129,28 @@ class ShadowMap {
     /// little a receiver does not ask for, large enough for whole batches of light rays.
     static constexpr int kTileTexels = 16;
 
-    /// Levels of the map: level k has texels 2^k times the finest level's.
+    /// Levels of the map at the resolution asked for: the base level, then three of doubling
+    /// texel size.
     static constexpr int kLevels = 4;
+    /// Levels finer than the base, halving its texels each, a map may add where the camera's
+    /// nearest receivers need them (ShadowMapArea::pixelWorld): while the base's texels are wider
+    /// than kMaxTexelOverPixel pixels there, and the finest level has at most kMaxResolution
+    /// texels a side. Level k has texels 2^k times the finest level's.
+    static constexpr int kMaxFinerLevels = 3;
+    static constexpr float kMaxTexelOverPixel = 2.0f;
+    static constexpr int kMaxResolution = 16384;
     /// Samples spread over a disk of radius r read a level whose texels are at most r divided by
     /// this (unless the receiver's footprint allows larger ones).
     static constexpr float kTexelsPerFilterRadius = 2.0f;
 
     /// The map of `light` over `area` (one of shadowMapAreas(tracer.scene(), light)),
-    /// `resolutionTexels` texels along area.sideWorld at the finest level, square texels.
-    /// Nothing is traced yet but the finest level's tiles that may hold the nearest depth: a tile
+    /// `resolutionTexels` texels along area.sideWorld at the base level, square texels, and the
+    /// finer levels area.pixelWorld asks for (kMaxFinerLevels).
+    /// Nothing is traced yet but the base level's tiles that may hold the nearest depth: a tile
     /// is traced by the thread whose lookup first reaches it (others wait for it), so every texel
     /// holds what a full build gives, whatever the thread count and order. Preconditions:
     /// validateScene passed for tracer.scene(); `tracer` outlives the map. Throws InputError unless
-    /// resolutionTexels is in [16, 16384].
+    /// resolutionTexels is in [16, kMaxResolution].
     ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, int resolutionTexels,
               const ShadowMapArea& area);
 
@@ -163,10 +177,12 @@ class ShadowMap {
     float texelWorld() const { return levels_[0].texelWorld; }
     /// Stored depth of texel (x, y) of level `level` along the light direction, world units;
     /// +infinity where the light ray hit nothing. Traces the texel's tile if no lookup has.
-    /// Preconditions: 0 <= level < kLevels, (x, y) inside the level. Thread-safe.
+    /// Preconditions: 0 <= level < levelCount(), (x, y) inside the level. Thread-safe.
     float depthAt(int x, int y, int level = 0) const {
         return depthAt(levels_[std::size_t(level)], x, y);
     }
+    /// Levels: kLevels and the finer ones the map added below them.
+    int levelCount() const { return int(levels_.size()); }
     /// Texels traced so far (whole tiles, clipped to their level), all levels.
     std::uint64_t tracedTexels() const { return tracedTexels_.load(std::memory_order_relaxed); }
     /// Texels of all levels, traced or not.
@@ -217,12 +233,15 @@ class ShadowMap {
         std::call_once(level.tileOnce[std::size_t(tile)], [&] { traceTile(level, tile); });
     }
     void traceTile(const Level& level, int tile) const;
-    /// Fills casterBounds_ and returns the smallest depth of the finest level, from only the
+    /// Fills casterBounds_ and returns the smallest depth of the base level, from only the
     /// tiles that may hold it.
     float boundDepths();
-    /// The finest level's tiles (first x, first y, last x, last y) whose squares touch the
+    /// The level whose tiles the caster bounds are kept on: the base (finer levels would only
+    /// multiply the bounds' tiles and the work of reading them).
+    const Level& boundLevel() const { return levels_[std::size_t(levels_.size() - kLevels)]; }
+    /// The bound level's tiles (first x, first y, last x, last y) whose squares touch the
     /// light-plane box [low, high], grown by `marginTiles`, clipped to the level.
-    glm::ivec4 finestTiles(const glm::vec2& low, const glm::vec2& high, int marginTiles) const;
+    glm::ivec4 boundTiles(const glm::vec2& low, const glm::vec2& high, int marginTiles) const;
     /// Whether no sample of a lookup can find a blocker: every texel it may read, those with
     /// centres within `reachWorld` of light-plane point `centre`, lies where the depth bounds of
     /// the shells other than the receiver's own flat slab are at least `depth`.
@@ -263,12 +282,12 @@ class ShadowMap {
     unsigned blockedOnLine(const LineReceiver& receiver, const glm::vec2& along,
                            const LineRises& rises, unsigned startsBehind,
                            std::uint64_t& reads) const;
-    /// The finest level's tile (row-major) holding light-plane point `planeWorld`; -1 outside.
+    /// The bound level's tile (row-major) holding light-plane point `planeWorld`; -1 outside.
     /// Inline: the line test asks at every step.
-    int finestTileAt(const glm::vec2& planeWorld) const {
-        const Level& finest = levels_[0];
-        const glm::ivec2 texel = texelOf(finest, planeWorld);
-        return texel.x < 0 ? -1 : texel.x / kTileTexels + finest.tilesX * (texel.y / kTileTexels);
+    int boundTileAt(const glm::vec2& planeWorld) const {
+        const Level& level = boundLevel();
+        const glm::ivec2 texel = texelOf(level, planeWorld);
+        return texel.x < 0 ? -1 : texel.x / kTileTexels + level.tilesX * (texel.y / kTileTexels);
     }
     /// Whether no surface over the receiver's reach can lie in front of a ray of its disk (the
     /// caster bounds, coarse blocks first): then it is lit, with no texel read.
@@ -283,10 +302,10 @@ class ShadowMap {
             return {-1, -1};
         return {int(x), int(y)};
     }
-    float nearestDepth_ = 0.0f;          ///< smallest stored depth (the blocker nearest the light)
-    float startDepth_ = 0.0f;            ///< where the light rays start: in front of everything
-    std::array<Level, kLevels> levels_;  ///< the finest first
-    /// Per tile of the finest level: lower bounds of the depth of any surface there, from the
+    float nearestDepth_ = 0.0f;  ///< smallest stored depth (the blocker nearest the light)
+    float startDepth_ = 0.0f;    ///< where the light rays start: in front of everything
+    std::vector<Level> levels_;  ///< the finest first
+    /// Per tile of the bound level: lower bounds of the depth of any surface there, from the
     /// shells over the tile's square.
     struct CasterBounds {
         float others = std::numeric_limits<float>::infinity();  ///< shells of curved objects
@@ -313,11 +332,11 @@ class ShadowMap {
     /// and so on (the line test's cull reads a disk of many tiles): each the least of its parts.
     struct BoundLevel {
         int width = 0, height = 0;  ///< in blocks
-        int tiles = 1;              ///< a block's side, in finest tiles
+        int tiles = 1;              ///< a block's side, in the bound level's tiles
         std::vector<CasterBounds> bounds;
     };
     static constexpr int kBoundBlock = 4;
-    std::vector<BoundLevel> boundLevels_;  ///< the finest tiles first
+    std::vector<BoundLevel> boundLevels_;  ///< the bound level's tiles first
     void buildBoundLevels();
     /// Whether a surface in block (x, y) of bound level `level` may lie in front of a ray of the
     /// line test (nothingCanBlockLines).

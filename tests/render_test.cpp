@@ -1163,6 +1163,38 @@ TEST(ShadowMap, AGroundSeenAtAnAngleLeavesObjectsFarApartInMapsOfTheirOwn) {
     EXPECT_TRUE(castsTheShadowOfTheSphereAlone(alone, apart, "a copy 500 away, ground 3e5 wide"));
 }
 
+TEST(ShadowMap, NearReceiversOfACoarseMapReadFinerLevels) {
+    // The sphere's hard shadow (a light of angle 0) seen from 1.5 units at 96 x 96: pixels of
+    // about 1.5 x tan(20 deg) / 48 = 11 mm where the shadow falls. A map of 64 texels over the
+    // scene's 4.2 units has texels of 66 mm: its shadow's edge is a staircase. With the view,
+    // the map adds finer levels until its texels are at most kMaxTexelOverPixel pixels of the
+    // nearest receiver: the edge follows the shadow of a map of 4096 texels (1 mm).
+    const Camera nearby{{0.5f, -0.9f, 1.2f}, {0.3f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 40.0f};
+    const Scene scene = sphereAbovePlane(nearby, 0.0f);
+    const SceneTracer tracer(scene, TraceOptions{});
+    const PinholeProjection view(scene.camera, 96, 96);
+    const LightShadowMaps withoutView(tracer, scene.lights[0], 64);
+    const LightShadowMaps withView(tracer, scene.lights[0], 64, &view);
+    ASSERT_EQ(withView.size(), 1u);
+    EXPECT_EQ(withoutView[0].levelCount(), ShadowMap::kLevels);
+    EXPECT_EQ(withView[0].levelCount(), ShadowMap::kLevels + ShadowMap::kMaxFinerLevels);
+    EXPECT_FLOAT_EQ(withView[0].texelWorld(),
+                    withoutView[0].texelWorld() / float(1 << ShadowMap::kMaxFinerLevels));
+    RenderOptions options;
+    options.width = 96;
+    options.height = 96;
+    options.shadowMapResolution = 4096;
+    const RenderResult fine = renderScene(scene, options);
+    options.shadowMapResolution = 64;
+    const RenderResult coarse = renderScene(scene, options);
+    // Texels under a pixel leave differences of a few pixels at most where texel centres fall
+    // beside the edge (measured: none); the 64-texel map alone, 46 pixels (0.5%).
+    const double close = shareWithin2Codes(fine.image, coarse.image);
+    std::printf("[          ] 64 texels with finer levels: %.2f%% of pixels within 2 codes\n",
+                100.0 * close);
+    EXPECT_GT(close, 0.999);
+}
+
 TEST(ShadowMap, ObjectsWithinAPenumbraOfEachOtherShareAMap) {
     // Two spheres 0.6 apart on the light's plane, one 1.5 above the other: a light 60 degrees
     // wide spreads the upper one's penumbra over tan(30) x 1.5 = 0.87 around its shadow, onto
