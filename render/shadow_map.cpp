@@ -426,7 +426,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     const float baseTexelWorld = longer / float(resolutionTexels);
     int finer = 0;
     while (!lineTest_ && area.pixelWorld > 0.0f && finer < kMaxFinerLevels &&
-           (resolutionTexels << (finer + 1)) <= kMaxResolution &&
+           (resolutionTexels << (finer + 1)) <= kMaxFinerResolution &&
            baseTexelWorld / float(1 << finer) > kMaxTexelOverPixel * area.pixelWorld)
         ++finer;
     levels_.resize(std::size_t(finer + kLevels));

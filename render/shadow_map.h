@@ -134,11 +134,13 @@ class ShadowMap {
     static constexpr int kLevels = 4;
     /// Levels finer than the base, halving its texels each, a map may add where the camera's
     /// nearest receivers need them (ShadowMapArea::pixelWorld): while the base's texels are wider
-    /// than kMaxTexelOverPixel pixels there, and the finest level has at most kMaxResolution
-    /// texels a side. Level k has texels 2^k times the finest level's.
+    /// than kMaxTexelOverPixel pixels there, and the finest level has at most kMaxFinerResolution
+    /// texels a side (256 MiB of address space, of which only the tiles traced are touched).
+    /// Level k has texels 2^k times the finest level's.
     static constexpr int kMaxFinerLevels = 3;
     static constexpr float kMaxTexelOverPixel = 2.0f;
-    static constexpr int kMaxResolution = 16384;
+    static constexpr int kMaxFinerResolution = 8192;
+    static constexpr int kMaxResolution = 16384;  ///< the most texels a side asked for
     /// Samples spread over a disk of radius r read a level whose texels are at most r divided by
     /// this (unless the receiver's footprint allows larger ones).
     static constexpr float kTexelsPerFilterRadius = 2.0f;
