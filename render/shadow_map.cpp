@@ -367,7 +367,15 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
                            receivers.low,
                            receivers.high,
                            view ? distance * view->pixelAngleRadians() : 0.0f,
+                           0.0f,
                            {}};
+        for (std::size_t object = 0; object < count; ++object) {
+            const LightPlaneRegion& footprint = footprints[object];
+            if (flat[object] || receivers.intersection(footprint).empty()) continue;
+            const glm::vec2 extent = footprint.high - footprint.low;
+            const float width = std::min(extent.x, extent.y);
+            if (area.blockerWorld == 0.0f || width < area.blockerWorld) area.blockerWorld = width;
+        }
         LightPlaneRegion nearby = covered;
         nearby.low -= side;
         nearby.high += side;
@@ -420,14 +428,20 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     originPlane_ = planeLow;
     // Finer levels below the base while its texels are wider than the nearest receivers' pixels
     // allow (kMaxTexelOverPixel); a lookup reads the coarsest level its receiver needs, so they
-    // are traced only near the eye. Not for the line test's wide lights: their penumbrae, not
-    // the texels, set how sharp their shadows are (on vase.json finer levels doubled the render
-    // and changed 0.7% of the pixels by 0.03 codes on average).
+    // are traced only near the eye. For the line test's wide lights, only while they are also
+    // coarse beside the smallest blocker: their penumbrae, not the texels, set how sharp their
+    // shadows are (on vase.json finer levels doubled the render and changed 0.7% of the pixels by
+    // 0.03 codes), but a blocker a few texels wide casts none (a torus 56 units wide under a sun
+    // 30 degrees wide and 11 above the horizon, whose penumbra spread over 6000 units).
     const float baseTexelWorld = longer / float(resolutionTexels);
+    const float coarsestWanted =
+        std::max(kMaxTexelOverPixel * area.pixelWorld,
+                 lineTest_ ? area.blockerWorld / kMinTexelsPerBlocker : 0.0f);
+    const bool wanted = area.pixelWorld > 0.0f && (!lineTest_ || area.blockerWorld > 0.0f);
     int finer = 0;
-    while (!lineTest_ && area.pixelWorld > 0.0f && finer < kMaxFinerLevels &&
+    while (wanted && finer < kMaxFinerLevels &&
            (resolutionTexels << (finer + 1)) <= kMaxFinerResolution &&
-           baseTexelWorld / float(1 << finer) > kMaxTexelOverPixel * area.pixelWorld)
+           baseTexelWorld / float(1 << finer) > coarsestWanted)
         ++finer;
     levels_.resize(std::size_t(finer + kLevels));
     for (int index = 0; index < finer + kLevels; ++index) {

@@ -103,6 +103,9 @@ struct ShadowMapArea {
     /// The width of a camera pixel at the nearest of those receivers, world units: the finest
     /// texels they can resolve (0: no view given).
     float pixelWorld = 0.0f;
+    /// The narrowest footprint, as the light sees it, of the objects over those receivers other
+    /// than flat slabs: the smallest blocker whose shadow the map must hold (0: none).
+    float blockerWorld = 0.0f;
     /// Per scene object: whether it may lie over the rectangle (its footprint comes within
     /// sideWorld of it). The map's depth bounds skip the shells of the others.
     std::vector<bool> objectsNear;
@@ -134,11 +137,13 @@ class ShadowMap {
     static constexpr int kLevels = 4;
     /// Levels finer than the base, halving its texels each, a map may add where the camera's
     /// nearest receivers need them (ShadowMapArea::pixelWorld): while the base's texels are wider
-    /// than kMaxTexelOverPixel pixels there, and the finest level has at most kMaxFinerResolution
-    /// texels a side (256 MiB of address space, of which only the tiles traced are touched).
-    /// Level k has texels 2^k times the finest level's.
+    /// than kMaxTexelOverPixel pixels there (and, for the line test's wide lights, than
+    /// 1 / kMinTexelsPerBlocker of the smallest blocker, ShadowMapArea::blockerWorld), and the
+    /// finest level has at most kMaxFinerResolution texels a side (256 MiB of address space, of
+    /// which only the tiles traced are touched). Level k has texels 2^k times the finest level's.
     static constexpr int kMaxFinerLevels = 3;
     static constexpr float kMaxTexelOverPixel = 2.0f;
+    static constexpr float kMinTexelsPerBlocker = 16.0f;
     static constexpr int kMaxFinerResolution = 8192;
     static constexpr int kMaxResolution = 16384;  ///< the most texels a side asked for
     /// Samples spread over a disk of radius r read a level whose texels are at most r divided by
