@@ -143,6 +143,9 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
     std::vector<glm::vec3> highs(count, glm::vec3(-std::numeric_limits<float>::max()));
     std::vector<LightPlaneRegion> footprints(count);
     std::vector<bool> flat(count);
+    // Per flat slab: how fast its planes' depth along the light grows per unit of light-plane
+    // offset, at most (the L1 norm of the gradient; infinity where the light grazes it).
+    std::vector<float> slabSlopes(count, 0.0f);
     for (std::size_t object = 0; object < count; ++object) {
         for (const glm::vec3& position : scene.objects[object].mesh.positions) {
             lows[object] = glm::min(lows[object], position);
@@ -152,6 +155,12 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
         highs[object] += glm::vec3(shellDepth);
         footprints[object] = footprintOf(lows[object], highs[object]);
         flat[object] = isFlatSlab(scene.objects[object]);
+        if (flat[object]) {
+            const glm::vec3 normal = scene.objects[object].mesh.normals[0];
+            slabSlopes[object] =
+                (std::abs(glm::dot(axisX, normal)) + std::abs(glm::dot(axisY, normal))) /
+                std::abs(glm::dot(toLight, normal));
+        }
     }
     // Whether `object` has a corner of its footprint's box behind slab `slab`'s side that faces
     // the light (its top, or its floor when the light comes from below).
@@ -233,7 +242,7 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
     // than the part's surface nearest to the light. Its depths reach down to the deepest surface
     // of any object with such a receiver. An object's footprint box qualifies when its gap to the
     // part is within the penumbra of its deepest corner. A flat slab's planes deepen linearly
-    // away from the part (by `slope` per unit of x at most), so where the light does not graze
+    // away from the part (by slabSlopes per unit of x at most), so where the light does not graze
     // it, the x it qualifies out to is bounded in closed form. (Bounding every object by the
     // scene's deepest point instead let a wide ground plane, seen obliquely, join every part into
     // one group, with a map too coarse for any of them.)
@@ -247,13 +256,8 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
                     depthHigh = std::max(depthHigh, footprint.depthHigh);
                 continue;
             }
-            const glm::vec3 normal = scene.objects[object].mesh.normals[0];
-            const float facing = std::abs(glm::dot(toLight, normal));
-            const float slope =
-                (std::abs(glm::dot(axisX, normal)) + std::abs(glm::dot(axisY, normal))) /
-                std::max(facing, 1e-30f);
             const float below = std::max(depthsOver(object, part).second - part.depthLow, 0.0f);
-            const float grazing = 1.0f - tanHalfAngle * slope;
+            const float grazing = 1.0f - tanHalfAngle * slabSlopes[object];
             float reach = tanHalfAngle * std::max(footprint.depthHigh - part.depthLow, 0.0f);
             if (grazing > 0.0f) reach = std::min(reach, tanHalfAngle * below / grazing);
             LightPlaneRegion reached = part;
@@ -369,18 +373,17 @@ std::vector<ShadowMapArea> shadowMapAreas(const Scene& scene, const DirectionalL
                            view ? distance * view->pixelAngleRadians() : 0.0f,
                            0.0f,
                            {}};
+        LightPlaneRegion nearby = covered;
+        nearby.low -= side;
+        nearby.high += side;
         for (std::size_t object = 0; object < count; ++object) {
             const LightPlaneRegion& footprint = footprints[object];
+            area.objectsNear.push_back(!nearby.intersection(footprint).empty());
             if (flat[object] || receivers.intersection(footprint).empty()) continue;
             const glm::vec2 extent = footprint.high - footprint.low;
             const float width = std::min(extent.x, extent.y);
             if (area.blockerWorld == 0.0f || width < area.blockerWorld) area.blockerWorld = width;
         }
-        LightPlaneRegion nearby = covered;
-        nearby.low -= side;
-        nearby.high += side;
-        for (std::size_t object = 0; object < count; ++object)
-            area.objectsNear.push_back(!nearby.intersection(footprints[object]).empty());
         return area;
     };
     if (groups.empty()) return {areaOf(all, all.side(), all, 0.0f)};
@@ -434,16 +437,18 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     // 0.03 codes), but a blocker a few texels wide casts none (a torus 56 units wide under a sun
     // 30 degrees wide and 11 above the horizon, whose penumbra spread over 6000 units).
     const float baseTexelWorld = longer / float(resolutionTexels);
-    const float coarsestWanted =
-        std::max(kMaxTexelOverPixel * area.pixelWorld,
-                 lineTest_ ? area.blockerWorld / kMinTexelsPerBlocker : 0.0f);
-    const bool wanted = area.pixelWorld > 0.0f && (!lineTest_ || area.blockerWorld > 0.0f);
+    constexpr float kNone = std::numeric_limits<float>::infinity();
+    float coarsestWanted = area.pixelWorld > 0.0f ? kMaxTexelOverPixel * area.pixelWorld : kNone;
+    if (lineTest_)
+        coarsestWanted = area.blockerWorld > 0.0f
+                             ? std::max(coarsestWanted, area.blockerWorld / kMinTexelsPerBlocker)
+                             : kNone;
     int finer = 0;
-    while (wanted && finer < kMaxFinerLevels &&
-           (resolutionTexels << (finer + 1)) <= kMaxFinerResolution &&
+    while (finer < kMaxFinerLevels && (resolutionTexels << (finer + 1)) <= kMaxFinerResolution &&
            baseTexelWorld / float(1 << finer) > coarsestWanted)
         ++finer;
     levels_.resize(std::size_t(finer + kLevels));
+    boundLevel_ = std::size_t(finer);
     for (int index = 0; index < finer + kLevels; ++index) {
         Level& level = levels_[std::size_t(index)];
         const int resolution = std::max((resolutionTexels << finer) >> index, 1);

@@ -245,7 +245,7 @@ class ShadowMap {
     float boundDepths();
     /// The level whose tiles the caster bounds are kept on: the base (finer levels would only
     /// multiply the bounds' tiles and the work of reading them).
-    const Level& boundLevel() const { return levels_[std::size_t(levels_.size() - kLevels)]; }
+    const Level& boundLevel() const { return levels_[boundLevel_]; }
     /// The bound level's tiles (first x, first y, last x, last y) whose squares touch the
     /// light-plane box [low, high], grown by `marginTiles`, clipped to the level.
     glm::ivec4 boundTiles(const glm::vec2& low, const glm::vec2& high, int marginTiles) const;
@@ -309,9 +309,10 @@ class ShadowMap {
             return {-1, -1};
         return {int(x), int(y)};
     }
-    float nearestDepth_ = 0.0f;  ///< smallest stored depth (the blocker nearest the light)
-    float startDepth_ = 0.0f;    ///< where the light rays start: in front of everything
-    std::vector<Level> levels_;  ///< the finest first
+    float nearestDepth_ = 0.0f;   ///< smallest stored depth (the blocker nearest the light)
+    float startDepth_ = 0.0f;     ///< where the light rays start: in front of everything
+    std::vector<Level> levels_;   ///< the finest first
+    std::size_t boundLevel_ = 0;  ///< the base level's index: the finer levels' count
     /// Per tile of the bound level: lower bounds of the depth of any surface there, from the
     /// shells over the tile's square.
     struct CasterBounds {
