@@ -348,7 +348,7 @@ void addRenderCommand(CLI::App& app) {
             ->add_option(
                 "--shadows", arguments->options.shadowFilter,
                 "Shadows: none (no shadow maps, no self-shadow rays), full (64-sample soft shadow "
-                "maps everywhere) or adaptive (8 test samples first, 64 only in penumbrae)")
+                "maps everywhere) or adaptive (9 test samples first, 64 only in penumbrae)")
             ->transform(CLI::CheckedTransformer(shadowFilters, CLI::ignore_case))
             ->default_str("adaptive");
     command->add_flag("--no-shadows", arguments->noShadows, "Same as --shadows none")

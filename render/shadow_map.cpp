@@ -859,11 +859,15 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
 
     const std::uint32_t pixelSeed = mixBits(seed);
     const DiskPattern disk(pixelSeed, kTwoPi * unitFloat(mixBits(pixelSeed ^ 0x68bc21ebU)));
-    // The outer ring: penumbra test and blocker search in one.
+    // The outer ring and its centre: penumbra test and blocker search in one. The radius reaches
+    // the penumbra of the surface nearest to the light anywhere in the map, and a low blocker's
+    // shadow may lie inside the ring, beside all of its samples: the centre finds it.
     int blocked = 0;
     float blockerDepthSum = 0.0f;
-    for (int angular = 0; angular < kStrata; ++angular) {
-        const float depth = blocker(ringLevel, disk.offset(angular, kStrata - 1) * searchRadius);
+    for (int angular = 0; angular <= kStrata; ++angular) {
+        const glm::vec2 offset =
+            angular < kStrata ? disk.offset(angular, kStrata - 1) * searchRadius : glm::vec2(0.0f);
+        const float depth = blocker(ringLevel, offset);
         if (!std::isinf(depth)) {
             ++blocked;
             blockerDepthSum += depth;

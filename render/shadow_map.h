@@ -18,7 +18,7 @@
 /// nearest receivers have pixels much finer than the map's texels (a close view of a wide scene),
 /// the map adds finer levels below them (kMaxFinerLevels). Lookups filter with 64
 /// jittered samples warped to a disk (an 8 x 8 stratified grid, polar warp); the adaptive filter
-/// first takes the 8 samples of the outer ring and stops when they agree.
+/// first takes the 8 samples of the outer ring and its centre, and stops when they agree.
 ///
 /// Lights at least kLineTestMinAngleDeg wide take the *line test* instead: each of 64 directions
 /// toward the light's disk (8 angular strata, 8 radii) is followed through the map, on the line
@@ -60,8 +60,9 @@ inline const char* shadowFilterName(ShadowFilter filter) {
                                           : "adaptive";
 }
 
-/// Samples per lookup: the outer ring (blocker search and penumbra test) and the full disk.
-constexpr int kShadowRingSamples = 8;
+/// Samples per lookup: the outer ring and its centre (blocker search and penumbra test), and
+/// the full disk.
+constexpr int kShadowRingSamples = 9;
 constexpr int kShadowDiskSamples = 64;
 
 /// Lights at least this wide (angle_deg) take the line test (file note). Percentage-closer
@@ -168,8 +169,8 @@ class ShadowMap {
     /// shadows it here. `seed` fixes the per-pixel rotation and jitter of the samples (the same
     /// seed gives the same answer). The level read follows receiver.footprintWorld and the disks'
     /// radii (kTexelsPerFilterRadius). Adds the samples taken to `samples`: none when the receiver
-    /// faces away from the light (it returns 0), 1 for a light of angle 0 (hard shadow), 8 or 72
-    /// for Adaptive, 72 for Full; for a light that takes the line test, the texels it read.
+    /// faces away from the light (it returns 0), 1 for a light of angle 0 (hard shadow), 9 or 73
+    /// for Adaptive, 73 for Full; for a light that takes the line test, the texels it read.
     /// Precondition: filter is not None.
     float visibility(const ShadowReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
                      std::uint64_t& samples) const;

@@ -578,7 +578,9 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     EXPECT_EQ(std::max(map.width(), map.height()), 1024);
     const glm::vec3 up(0.0f, 0.0f, 1.0f);
     for (ShadowFilter filter : {ShadowFilter::Full, ShadowFilter::Adaptive}) {
-        const std::uint64_t perLookup = filter == ShadowFilter::Full ? 72 : 8;
+        const std::uint64_t perLookup = filter == ShadowFilter::Full
+                                            ? kShadowRingSamples + kShadowDiskSamples
+                                            : kShadowRingSamples;
         for (std::uint32_t seed = 0; seed < 16; ++seed) {
             std::uint64_t samples = 0;
             // Under the occluder's middle: every sample of the disk (radius 8.7 mm) is blocked.
@@ -634,7 +636,7 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
                   1.0f)
             << x;
     }
-    EXPECT_EQ(samples, std::uint64_t(72 * lookups));
+    EXPECT_EQ(samples, std::uint64_t((kShadowRingSamples + kShadowDiskSamples) * lookups));
 }
 
 TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
@@ -657,7 +659,9 @@ TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
         EXPECT_EQ(map.tracedTexels(), traced);
         // Under the occluder the other slab is over the disk: sampled, in shadow.
         EXPECT_EQ(map.visibility({{0.05f, -0.03f, 0.0f}, up, 0.0f, 0}, filter, 3, samples), 0.0f);
-        EXPECT_EQ(samples, filter == ShadowFilter::Full ? 72u : 8u);
+        EXPECT_EQ(samples, filter == ShadowFilter::Full
+                               ? std::uint64_t(kShadowRingSamples + kShadowDiskSamples)
+                               : std::uint64_t(kShadowRingSamples));
     }
     // Across the occluder's edges and beyond, a receiver known to lie on the ground gets what one
     // of unknown object (whose disk is always sampled) gets, bit for bit, with fewer samples; also
@@ -1228,6 +1232,50 @@ TEST(ShadowMap, SmallBlockersUnderALowWideSunKeepTheirShadows) {
     EXPECT_GT(close, 0.97);
 }
 
+TEST(ShadowMap, ALowBlockerKeepsItsShadowBesideATallOne) {
+    // A small sphere just above a 3 x 3 square (radius 0.1, 0.05 above it) under a light 3
+    // degrees wide and 21 degrees above the horizon, and a tall sphere 5 units up whose shadow
+    // falls on the square's far corner. A lookup searches for blockers as far as the surface
+    // nearest to the light anywhere in its map can cast a penumbra: 32 texels (0.2 units) here,
+    // about as wide as the small sphere's shadow (0.2 across). The 8 samples of that ring fell
+    // beside the shadow, and the adaptive filter called the middle of the umbra lit; the ring's
+    // centre is now sampled too.
+    Scene scene;
+    scene.lights = {DirectionalLight{{0.93f, 0.0f, -0.36f}, {1.0f, 1.0f, 1.0f}, 3.0f}};
+    scene.objects.push_back(bareSquare(3.0f, 0.0f));
+    for (const auto& [radius, centre] : {std::pair(0.1f, glm::vec3(0.0f, 0.0f, 0.15f)),
+                                         std::pair(0.2f, glm::vec3(-12.0f, 1.0f, 5.0f))}) {
+        SceneObject sphere;
+        sphere.mesh = makeUvSphere(radius, 64, 32);
+        applyTransform(sphere.mesh, {centre, {0.0f, 0.0f, 0.0f}, 1.0f});
+        scene.objects.push_back(std::move(sphere));
+    }
+    const SceneTracer tracer(scene, TraceOptions{});
+    const LightShadowMaps maps(tracer, scene.lights[0], 512);
+    ASSERT_EQ(maps.size(), 1u);
+    // The middle of the small sphere's umbra on the ground: its centre's shadow is at x = 0.15 /
+    // tan(21.2 deg) = 0.387, and the light ray from every point within 0.11 of that along x and
+    // 0.04 across passes within 0.09 of the centre (the penumbra is tan(1.5 deg) x 0.4 = 0.01
+    // wide). 0.3 to the side of it the ground is lit. Measured: before, all 60 receivers of the
+    // umbra's middle were called lit.
+    std::uint64_t samples = 0;
+    std::uint32_t seed = 1;
+    int litInUmbra = 0, darkBeside = 0, receivers = 0;
+    for (float x = 0.28f; x <= 0.501f; x += 0.02f) {
+        for (float y = -0.04f; y <= 0.041f; y += 0.02f) {
+            const ShadowReceiver inUmbra{{x, y, 0.0f}, {0.0f, 0.0f, 1.0f}, 0.0f, 0};
+            litInUmbra += maps.visibility(inUmbra, ShadowFilter::Adaptive, seed++, samples) > 0.0f;
+            const ShadowReceiver beside{{x, y + 0.3f, 0.0f}, {0.0f, 0.0f, 1.0f}, 0.0f, 0};
+            darkBeside += maps.visibility(beside, ShadowFilter::Adaptive, seed++, samples) < 1.0f;
+            ++receivers;
+        }
+    }
+    std::printf("[          ] of %d receivers in the umbra %d see light; beside it %d do not\n",
+                receivers, litInUmbra, darkBeside);
+    EXPECT_EQ(litInUmbra, 0);
+    EXPECT_EQ(darkBeside, 0);
+}
+
 TEST(ShadowMap, ObjectsWithinAPenumbraOfEachOtherShareAMap) {
     // Two spheres 0.6 apart on the light's plane, one 1.5 above the other: a light 60 degrees
     // wide spreads the upper one's penumbra over tan(30) x 1.5 = 0.87 around its shadow, onto
@@ -1269,13 +1317,16 @@ TEST(Renderer, AdaptiveShadowsMatchFullOnesWithAtMostHalfTheSamples) {
     const auto [full, adaptive, none] = rendersByShadowFilter(0.8f * kLineTestMinAngleDeg);
     const int width = full.image.width, height = full.image.height;
 
-    // Full takes 72 samples per lookup; adaptive 8, or 72 in a penumbra. Lookups on the plane
-    // whose disk holds nothing but the plane take none (the sampled ones are counted here).
-    const std::uint64_t lookups = full.stats.shadowMapSamples / 72;
-    ASSERT_EQ(full.stats.shadowMapSamples % 72, 0u);
+    // Full takes the ring's 9 samples and the disk's 64 per lookup; adaptive the 9, and the 64
+    // in a penumbra. Lookups on the plane whose disk holds nothing but the plane take none (the
+    // sampled ones are counted here).
+    constexpr std::uint64_t kFullLookup = kShadowRingSamples + kShadowDiskSamples;
+    const std::uint64_t lookups = full.stats.shadowMapSamples / kFullLookup;
+    ASSERT_EQ(full.stats.shadowMapSamples % kFullLookup, 0u);
     ASSERT_GT(lookups, 1000u);
     EXPECT_LT(lookups, std::uint64_t(width * height / 2));
-    const std::uint64_t penumbraLookups = (adaptive.stats.shadowMapSamples - 8 * lookups) / 64;
+    const std::uint64_t penumbraLookups =
+        (adaptive.stats.shadowMapSamples - kShadowRingSamples * lookups) / kShadowDiskSamples;
     EXPECT_GT(penumbraLookups, 100u);  // the scene does have penumbrae
     EXPECT_LE(double(adaptive.stats.shadowMapSamples), 0.5 * double(full.stats.shadowMapSamples));
     EXPECT_EQ(none.stats.shadowMapSamples, 0u);
