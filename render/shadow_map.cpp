@@ -864,15 +864,15 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     // shadow may lie inside the ring, beside all of its samples: the centre finds it.
     int blocked = 0;
     float blockerDepthSum = 0.0f;
-    for (int angular = 0; angular <= kStrata; ++angular) {
-        const glm::vec2 offset =
-            angular < kStrata ? disk.offset(angular, kStrata - 1) * searchRadius : glm::vec2(0.0f);
+    const auto search = [&](const glm::vec2& offset) {
         const float depth = blocker(ringLevel, offset);
-        if (!std::isinf(depth)) {
-            ++blocked;
-            blockerDepthSum += depth;
-        }
-    }
+        if (std::isinf(depth)) return;
+        ++blocked;
+        blockerDepthSum += depth;
+    };
+    for (int angular = 0; angular < kStrata; ++angular)
+        search(disk.offset(angular, kStrata - 1) * searchRadius);
+    search(glm::vec2(0.0f));
     samples += kShadowRingSamples;
     if (filter == ShadowFilter::Adaptive && (blocked == 0 || blocked == kShadowRingSamples)) {
         return blocked == 0 ? 1.0f : 0.0f;
