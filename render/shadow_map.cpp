@@ -462,7 +462,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
         level.depths =
             std::make_unique_for_overwrite<float[]>(tiles * std::size_t(kTileTexels * kTileTexels));
         if (lineTest_)
-            level.backDepths = std::make_unique_for_overwrite<float[]>(
+            level.layers = std::make_unique_for_overwrite<LineLayers[]>(
                 tiles * std::size_t(kTileTexels * kTileTexels));
         level.tileOnce = std::make_unique<std::once_flag[]>(tiles);
         level.tileDone = std::make_unique<std::atomic<bool>[]>(tiles);
@@ -663,26 +663,59 @@ void ShadowMap::traceTile(const Level& level, int tile) const {
         for (int k = 0; k < batch; ++k) {
             level.depths[texels[k]] = found[k] ? startDepth_ + hits[k].distanceWorld
                                                : std::numeric_limits<float>::infinity();
-            if (!lineTest_) continue;
-            // Where the light ray leaves the object it met: the back face of a closed base mesh
-            // (its detail lies inside), else (an open mesh) the depth of the detail's shell.
-            float back = std::numeric_limits<float>::infinity();
-            if (found[k]) {
-                const std::uint32_t object = hits[k].object;
-                // From a hair past the hit: a bare surface's own triangle is not met again.
-                const float exit = tracer_.exitDistance(
-                    rays[k], hits[k].distanceWorld + 1e-4f * level.texelWorld, object);
-                const Material& material = tracer_.scene().objects[object].material;
-                back = startDepth_ +
-                       (std::isinf(exit)
-                            ? hits[k].distanceWorld + (material.tile ? material.depthWorld : 0.0f)
-                            : exit);
-            }
-            level.backDepths[texels[k]] = back;
         }
+        if (lineTest_)
+            traceLayers(level, std::span(rays, std::size_t(batch)),
+                        std::span(hits, std::size_t(batch)), std::span(found, std::size_t(batch)),
+                        std::span(texels, std::size_t(batch)), counters);
     }
     tracedTexels_.fetch_add(std::uint64_t(count), std::memory_order_relaxed);
     level.tileDone[std::size_t(tile)].store(true, std::memory_order_release);
+}
+
+void ShadowMap::traceLayers(const Level& level, std::span<Ray> rays, std::span<SurfaceHit> hits,
+                            std::span<bool> found, std::span<const std::size_t> texels,
+                            TraceCounters& counters) const {
+    constexpr float kInfinity = std::numeric_limits<float>::infinity();
+    // Where `ray`, which met `hit` (its object) `startDepth` along the light from its origin,
+    // leaves that object: the back face of a closed base mesh (its detail lies inside), else (an
+    // open mesh) the depth of the detail's shell below the hit.
+    const auto backDepth = [&](const Ray& ray, const SurfaceHit& hit, float startDepth) {
+        // From a hair past the hit: a bare surface's own triangle is not met again.
+        const float exit =
+            tracer_.exitDistance(ray, hit.distanceWorld + 1e-4f * level.texelWorld, hit.object);
+        const Material& material = tracer_.scene().objects[hit.object].material;
+        return startDepth + (std::isinf(exit)
+                                 ? hit.distanceWorld + (material.tile ? material.depthWorld : 0.0f)
+                                 : exit);
+    };
+    // The first object's exits, then the same light rays on from a hair past them (packed to the
+    // front of `rays`) to the second object.
+    std::size_t next = 0;
+    std::array<std::size_t, SceneTracer::kMaxBatchRays> nextTexel;
+    std::array<float, SceneTracer::kMaxBatchRays> nextStart;
+    for (std::size_t k = 0; k < rays.size(); ++k) {
+        LineLayers& layers = level.layers[texels[k]];
+        layers = {kInfinity, kInfinity, kInfinity, ShadowReceiver::kNoObject,
+                  ShadowReceiver::kNoObject};
+        if (!found[k]) continue;
+        layers.firstObject = hits[k].object;
+        layers.firstBack = backDepth(rays[k], hits[k], startDepth_);
+        nextStart[next] = layers.firstBack + 1e-3f * level.texelWorld;
+        rays[next] = {rays[k].origin + rays[k].direction * (nextStart[next] - startDepth_),
+                      rays[k].direction};
+        nextTexel[next++] = texels[k];
+    }
+    if (next == 0) return;
+    tracer_.traceNearestBatch(rays.first(next), 0.0f, hits.first(next), found.first(next), counters,
+                              /*withNormals=*/false);
+    for (std::size_t k = 0; k < next; ++k) {
+        if (!found[k]) continue;
+        LineLayers& layers = level.layers[nextTexel[k]];
+        layers.secondObject = hits[k].object;
+        layers.secondFront = nextStart[k] + hits[k].distanceWorld;
+        layers.secondBack = backDepth(rays[k], hits[k], nextStart[k]);
+    }
 }
 
 std::uint64_t ShadowMap::texelCount() const {
@@ -908,23 +941,29 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
     for (int radial = 0; radial < kLineRadii; ++radial)
         rises[std::size_t(radial)] =
             1.0f / (tanHalfAngle_ * std::sqrt((float(radial) + radialJitter) / float(kLineRadii)));
-    // Every ray starts at the receiver: behind a blocker over it (an object above it as the light
-    // sees it) or not; inside one it sees nothing.
+    // Every ray starts at the receiver: below the first or the second object over it (as the
+    // light sees it) or below none; inside one it sees nothing.
     std::uint64_t reads = 0;
-    unsigned startsBehind = 0;
+    std::uint32_t startObject = ShadowReceiver::kNoObject;
+    float startRim = std::numeric_limits<float>::infinity();
     const Level& own = levelFor(receiver.footprintWorld);
     const glm::ivec2 texel = texelOf(own, receiver.centre);
     const int tile = boundTileAt(receiver.centre);
     if (texel.x >= 0 && tile >= 0 &&
         casterBound(casterBounds_[std::size_t(tile)], receiver.object) < receiver.depth) {
         ++reads;
-        if (depthAt(own, texel.x, texel.y) <
-            receiver.depth - own.texelWorld * (1.0f + receiver.slopeLength)) {
-            if (!(receiver.depth > own.backDepths[own.index(texel.x, texel.y)])) {
+        const float above = receiver.depth - own.texelWorld * (1.0f + receiver.slopeLength);
+        if (depthAt(own, texel.x, texel.y) < above) {
+            const LineLayers& layers = own.layers[own.index(texel.x, texel.y)];
+            const bool underSecond = layers.secondFront < above;
+            const float back = underSecond ? layers.secondBack : layers.firstBack;
+            if (!(receiver.depth > back)) {
                 samples += reads;
                 return 0.0f;
             }
-            startsBehind = kAllLineRays;
+            startObject = underSecond ? layers.secondObject : layers.firstObject;
+            startRim =
+                0.5f * ((underSecond ? layers.secondFront : depthAt(own, texel.x, texel.y)) + back);
         }
     }
     // Every other angular stratum first: where their lines agree (all lit or all blocked), the
@@ -938,56 +977,64 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
         }
         const int angular = 2 * line % kStrata + 2 * line / kStrata;
         blockedRays += std::popcount(
-            blockedOnLine(receiver, disk.direction(angular), rises, startsBehind, reads));
+            blockedOnLine(receiver, disk.direction(angular), rises, startObject, startRim, reads));
     }
     samples += reads;
     return 1.0f - float(blockedRays) / float(kStrata * kLineRadii);
 }
 
 unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2& along,
-                                  const LineRises& rises, unsigned startsBehind,
+                                  const LineRises& rises, std::uint32_t startObject, float startRim,
                                   std::uint64_t& reads) const {
+    constexpr std::uint32_t kNone = ShadowReceiver::kNoObject;
+    constexpr float kInfinity = std::numeric_limits<float>::infinity();
     const float lowestRise = rises[kLineRadii - 1];
     unsigned blocked = 0;  // a bit per ray: it met a blocker
-    // Per ray, where it passed the blocker at the previous offset: in front of it (nearer to the
-    // light) or behind it (under it, as the light sees it).
-    unsigned wasInFront = 0, wasBehind = startsBehind;
+    // Where the rays were at the previous offset.
+    LineGaps was;
+    if (startObject != kNone) {
+        was.between = kAllLineRays;
+        was.first = startObject;
+        was.firstRim = startRim;
+    }
     // The caster bound of the bound level's tile under the offset (consecutive offsets share
     // tiles).
     int boundTile = -2;
-    float bound = std::numeric_limits<float>::infinity();
+    float bound = kInfinity;
     // Steps are kLineStepShare of the offset over open ground and kEdgeStepShare where a ray may
-    // meet a blocker's edge: while a ray is behind a blocker (where it comes out, under its edge
+    // meet a blocker's edge: while a ray is under a blocker (where it comes out, under its edge
     // or in front of it), and over the step from the last open offset to the first with a blocker
     // (a ray that rose in front of it there may have passed under its edge first). Past the reach
     // every ray is in front of all there is: the first offset beyond it is the last one that can
-    // show a ray coming out in front of a blocker it was behind.
+    // show a ray coming out in front of a blocker it was under.
     float fineUntil = 0.0f;
     for (float offset = std::max(0.5f * levels_[0].texelWorld, receiver.footprintWorld),
                previous = 0.0f;
          previous <= receiver.reachWorld && blocked != kAllLineRays;) {
-        const bool fine = wasBehind != 0 || offset < fineUntil;
+        const unsigned wasUnder = was.between | was.behind;
+        const bool open = (was.front | wasUnder) == 0;
+        const bool fine = wasUnder != 0 || offset < fineUntil;
         const float share = fine ? kEdgeStepShare : kLineStepShare;
         const Level& level = levelFor(std::max(receiver.footprintWorld, share * offset));
         const glm::vec2 at = receiver.centre + offset * along;
         const int tile = boundTileAt(at);
         if (tile != boundTile) {
             boundTile = tile;
-            bound = tile < 0 ? std::numeric_limits<float>::infinity()
+            bound = tile < 0 ? kInfinity
                              : casterBound(casterBounds_[std::size_t(tile)], receiver.object);
         }
         // A texel is read where a surface may lie in front of the lowest ray (after open ground:
         // of the lowest ray at the open offset, which may have passed under a blocker beginning
-        // here), or where a ray was behind a blocker. Elsewhere every ray is in front of all there
+        // here), or where a ray was under a blocker. Elsewhere every ray is in front of all there
         // is, and the tile need not be traced.
-        const float lowestRay =
-            receiver.depth - ((wasInFront | wasBehind) == 0 ? previous : offset) * lowestRise;
-        float front = std::numeric_limits<float>::infinity(), back = front;
-        if (wasBehind != 0 || !(bound >= lowestRay)) {
+        const float lowestRay = receiver.depth - (open ? previous : offset) * lowestRise;
+        float front = kInfinity;
+        LineLayers layers{kInfinity, kInfinity, kInfinity, kNone, kNone};
+        if (wasUnder != 0 || !(bound >= lowestRay)) {
             const glm::ivec2 texel = texelOf(level, at);
             if (texel.x >= 0) {
                 front = depthAt(level, texel.x, texel.y);
-                back = level.backDepths[level.index(texel.x, texel.y)];
+                layers = level.layers[level.index(texel.x, texel.y)];
                 ++reads;
             }
         }
@@ -995,37 +1042,91 @@ unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2&
         const float plane = receiver.depth + glm::dot(receiver.slope, offset * along);
         const float bias =
             level.texelWorld * (1.0f + receiver.slopeLength) + kCurvatureSlack * offset;
-        unsigned inFront = 0, behind = 0;
-        if (front < plane - bias) {
-            if (!fine && previous > 0.0f && (wasInFront | wasBehind) == 0) {
-                // The first blocker after open ground, a coarse step on: that step again, finely
-                // (the open offset's state stands).
-                const float fineStep =
-                    std::max(levelFor(std::max(receiver.footprintWorld, kEdgeStepShare * previous))
-                                 .texelWorld,
-                             kEdgeStepShare * previous);
-                if (previous + fineStep < offset) {
-                    fineUntil = offset;
-                    offset = previous + fineStep;
-                    continue;
-                }
+        const bool blocker = front < plane - bias;
+        if (blocker && !fine && previous > 0.0f && open) {
+            // The first blocker after open ground, a coarse step on: that step again, finely
+            // (the open offset's state stands).
+            const float fineStep = std::max(
+                levelFor(std::max(receiver.footprintWorld, kEdgeStepShare * previous)).texelWorld,
+                kEdgeStepShare * previous);
+            if (previous + fineStep < offset) {
+                fineUntil = offset;
+                offset = previous + fineStep;
+                continue;
             }
-            for (int radial = 0; radial < kLineRadii; ++radial) {
-                const float ray = receiver.depth - offset * rises[std::size_t(radial)];
-                if (ray < front) {
-                    inFront |= 1U << radial;
-                } else if (ray > back) {
-                    behind |= 1U << radial;
-                } else {
-                    blocked |= 1U << radial;  // inside the blocker
-                }
-            }
-            // From in front of a blocker to behind one, or back, between two offsets: the ray
-            // crossed its surface.
-            blocked |= (inFront & wasBehind) | (behind & wasInFront);
         }
-        wasInFront = inFront;
-        wasBehind = behind;
+        LineGaps now;
+        if (blocker || wasUnder != 0) {
+            const bool second = blocker && layers.secondFront < plane - bias;
+            if (blocker) {
+                now.first = layers.firstObject;
+                now.firstRim = 0.5f * (front + layers.firstBack);
+            }
+            if (second) {
+                now.second = layers.secondObject;
+                now.secondRim = 0.5f * (layers.secondFront + layers.secondBack);
+            }
+            // Each ray's depth here, and a bit per ray where it is nearer to the light than `depth`
+            // or farther.
+            std::array<float, kLineRadii> rayDepths;
+            for (int radial = 0; radial < kLineRadii; ++radial)
+                rayDepths[std::size_t(radial)] =
+                    receiver.depth - offset * rises[std::size_t(radial)];
+            const auto nearer = [&](float depth) {
+                unsigned mask = 0;
+                for (int radial = 0; radial < kLineRadii; ++radial)
+                    mask |= unsigned(rayDepths[std::size_t(radial)] < depth) << radial;
+                return mask;
+            };
+            const auto farther = [&](float depth) {
+                unsigned mask = 0;
+                for (int radial = 0; radial < kLineRadii; ++radial)
+                    mask |= unsigned(rayDepths[std::size_t(radial)] > depth) << radial;
+                return mask;
+            };
+            unsigned inside = 0;
+            if (blocker) {
+                now.front = nearer(front);
+                const unsigned pastFirst = farther(layers.firstBack);
+                inside = kAllLineRays & ~now.front & ~pastFirst;
+                now.between = pastFirst;
+                if (second) {
+                    const unsigned nearSecond = nearer(layers.secondFront);
+                    now.between &= nearSecond;
+                    now.behind = farther(layers.secondBack);
+                    inside |= pastFirst & ~nearSecond & ~now.behind;
+                }
+            }
+            // The rays that rose past `rim` in the first half of the step.
+            const auto pastRim = [&](float rim) {
+                unsigned mask = 0;
+                for (int radial = 0; radial < kLineRadii; ++radial) {
+                    const float ray = rayDepths[std::size_t(radial)];
+                    const float before = receiver.depth - previous * rises[std::size_t(radial)];
+                    mask |= unsigned(ray < rim && 2.0f * (before - rim) < before - ray) << radial;
+                }
+                return mask;
+            };
+            // Between two offsets a ray crossed a blocker's surface where the object it was under
+            // is now below it, or the object it was over is now above it. An object it was under
+            // that is now in neither layer ended between the two (as the light sees it): the ray
+            // came out under its edge unless it rose past the object's rim in the first half of
+            // the step (where in the step the edge lies is not known).
+            const auto rose = [&](std::uint32_t object, unsigned under, float rim) {
+                if (object == kNone || under == 0) return 0U;
+                if (object != now.first && object != now.second) return under & pastRim(rim);
+                return under & (now.front | (object == now.second ? now.between : 0U));
+            };
+            const auto sank = [&](std::uint32_t object, unsigned over) {
+                if (object == kNone) return 0U;
+                return over & ((object == now.first ? now.between | now.behind : 0U) |
+                               (object == now.second ? now.behind : 0U));
+            };
+            blocked |= inside | rose(was.first, was.between, was.firstRim) |
+                       rose(was.second, was.behind, was.secondRim) | sank(was.first, was.front) |
+                       sank(was.second, was.between);
+        }
+        was = now;
         previous = offset;
         offset += std::max(level.texelWorld, share * offset);
     }

@@ -25,7 +25,8 @@
 /// of light-plane offsets its ray passes over, against the blocker stored there, so a blocker
 /// shadows a direction only where the ray really meets it (near a contact, a blocker overhead
 /// covers the directions that rise into it, not those that leave under it). For that the map also
-/// keeps where each light ray leaves the object it met (the back face of a closed mesh).
+/// keeps two layers per texel: the object each light ray meets first, where it leaves it (the back
+/// face of a closed mesh), and the next object it meets, front and back (LineLayers).
 #pragma once
 
 #include <array>
@@ -37,6 +38,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <vector>
 
 #include "render/scene.h"
@@ -197,6 +199,17 @@ class ShadowMap {
     std::uint64_t texelCount() const;
 
   private:
+    /// What the line test keeps of a light ray besides its first depth (Level::depths): where it
+    /// leaves the object it met first (the back face of a closed mesh), and the next object it
+    /// meets after that, which may be a blocker hidden behind the first. Depths along the light,
+    /// world units; +infinity and ShadowReceiver::kNoObject where there is none.
+    struct LineLayers {
+        float firstBack;
+        float secondFront;
+        float secondBack;
+        std::uint32_t firstObject;
+        std::uint32_t secondObject;
+    };
     /// One level: a grid of light rays over the map's bounds, traced a tile at a time.
     struct Level {
         float texelWorld = 1.0f;
@@ -209,9 +222,8 @@ class ShadowMap {
         /// uninitialised: a tile's texels are written once, by traceTile, so the memory of tiles
         /// no lookup reaches is never touched.
         std::unique_ptr<float[]> depths;
-        /// The line test's (else null): per texel as `depths`, the depth at which the light ray
-        /// leaves the object it met (+infinity where it met none).
-        std::unique_ptr<float[]> backDepths;
+        /// The line test's (else null): per texel as `depths`, the objects its light ray meets.
+        std::unique_ptr<LineLayers[]> layers;
         /// Where texel (x, y) is stored in depths.
         std::size_t index(int x, int y) const {
             const auto column = unsigned(x), row = unsigned(y);  // >= 0: unsigned / and % shift
@@ -241,6 +253,11 @@ class ShadowMap {
         std::call_once(level.tileOnce[std::size_t(tile)], [&] { traceTile(level, tile); });
     }
     void traceTile(const Level& level, int tile) const;
+    /// The line test's layers (LineLayers) of light rays `rays` of `level`, which met `hits`
+    /// where `found`, into texels `texels`. Overwrites all three spans (the second layer's rays).
+    void traceLayers(const Level& level, std::span<Ray> rays, std::span<SurfaceHit> hits,
+                     std::span<bool> found, std::span<const std::size_t> texels,
+                     TraceCounters& counters) const;
     /// Fills casterBounds_ and returns the smallest depth of the base level, from only the
     /// tiles that may hold it.
     float boundDepths();
@@ -285,10 +302,20 @@ class ShadowMap {
     /// disagree.
     float lineVisibility(const LineReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
                          std::uint64_t& samples) const;
+    /// The rays of one line at one offset, a bit each, by where they pass the blockers there (as
+    /// the light sees them): in front of the first, between the first and the second (under the
+    /// first), behind both; with the two objects and their rims, taken half way between their
+    /// fronts and backs (where the rim of a ball lies; a thin slab's is both).
+    struct LineGaps {
+        unsigned front = 0, between = 0, behind = 0;
+        std::uint32_t first = ShadowReceiver::kNoObject, second = ShadowReceiver::kNoObject;
+        float firstRim = std::numeric_limits<float>::infinity(), secondRim = firstRim;
+    };
     /// The rays of one line (unit light-plane direction `along`) that meet a blocker, a bit each;
-    /// `startsBehind`: those that start behind one. Adds the texels read to `reads`.
+    /// every ray starts under `startObject` (kNoObject: none) whose rim is at depth `startRim`.
+    /// Adds the texels read to `reads`.
     unsigned blockedOnLine(const LineReceiver& receiver, const glm::vec2& along,
-                           const LineRises& rises, unsigned startsBehind,
+                           const LineRises& rises, std::uint32_t startObject, float startRim,
                            std::uint64_t& reads) const;
     /// The bound level's tile (row-major) holding light-plane point `planeWorld`; -1 outside.
     /// Inline: the line test asks at every step.

@@ -785,6 +785,19 @@ double exactLitShare(const glm::dvec3& from, double tanHalf, const Meets& meets)
     return double(lit) / double(kRings * kAngles);
 }
 
+/// The mean over 64 seeds (64 x 64 directions) of the share of the light `maps` lets reach an
+/// upward-facing receiver at `at`, filtered in full.
+double meanLitShare(const LightShadowMaps& maps, const glm::dvec3& at) {
+    constexpr int kSeeds = 64;
+    double sum = 0.0;
+    for (std::uint32_t seed = 0; seed < kSeeds; ++seed) {
+        std::uint64_t samples = 0;
+        sum += maps.visibility({glm::vec3(at), {0.0f, 0.0f, 1.0f}, 0.0f, 0}, ShadowFilter::Full,
+                               seed, samples);
+    }
+    return sum / kSeeds;
+}
+
 TEST(ShadowMap, WideLightsFollowEachRayOfTheDiskThroughTheMap) {
     // Under a 45-degree light straight down: a ball of radius 0.25 resting on the ground, and a
     // square of 0.4 floating 0.5 above it. Filtering (ShadowMap's file note) would count any
@@ -874,6 +887,78 @@ TEST(ShadowMap, WideLightsFollowEachRayOfTheDiskThroughTheMap) {
     }
 }
 
+TEST(ShadowMap, RaysComingOutUnderABlockersEdgeAreNotBlockedByWhatLiesBeyondIt) {
+    // Under a 45-degree light straight down: a square of 0.4 floating 0.5 above the ground, and
+    // beyond its edge x = 1.2 a low slab 0.05 high. From a receiver 0.1 inside the edge, the rays
+    // toward the far side of the disk pass under the edge, at a height of at least 0.24, and over
+    // the slab: only the square shadows it. The line test saw those rays behind the square, then
+    // in front of the slab, and took that for a ray rising through the square: every ray that
+    // came out under the edge was counted blocked. (A receiver under a blocker near a surface
+    // in front of its plane: the inner wall of a torus beside its hole, speckled dark under a
+    // wide light where a tall object lengthened the lines.)
+    Scene scene;
+    scene.lights = {DirectionalLight{{0.0f, 0.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, 45.0f}};
+    scene.objects.push_back(bareSquare(4.0f, 0.0f));
+    scene.objects.push_back(bareSquare(0.4f, 0.5f));
+    applyTransform(scene.objects[1].mesh, {{1.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+    scene.objects.push_back(bareSquare(0.4f, 0.05f));
+    applyTransform(scene.objects[2].mesh, {{1.4f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+    const double tanHalf = std::tan(22.5 * 3.141592653589793 / 180.0);
+    const auto meetsSquare = [](const glm::dvec3& from, const glm::dvec3& direction) {
+        const glm::dvec3 at = from + direction * ((0.5 - from.z) / direction.z);
+        return std::abs(at.x - 1.0) <= 0.2 && std::abs(at.y) <= 0.2;
+    };
+    const SceneTracer tracer(scene, TraceOptions{});
+    const LightShadowMaps maps(tracer, scene.lights[0], 1024);
+    const glm::dvec3 at(1.1, 0.02, 0.0);
+    const double exact = exactLitShare(at, tanHalf, meetsSquare);
+    const double lit = meanLitShare(maps, at);
+    std::printf("[          ] lit share %.4f, exact %.4f\n", lit, exact);
+    // The tolerance of WideLightsFollowEachRayOfTheDiskThroughTheMap, whose square this is.
+    EXPECT_GT(exact, 0.1);
+    EXPECT_NEAR(lit, exact, 0.04);
+}
+
+TEST(ShadowMap, ABlockerHiddenBehindAHigherOneStillShadowsTheRaysThatMeetIt) {
+    // Under a 45-degree light straight down: a square of 0.3 floating 0.5 above the ground and a
+    // wider one of 0.8 at a height of 2 over it, both centred over the receiver. The light sees
+    // only the high square there: the low one is the map's second layer. Every ray that meets
+    // the high square meets the low one first, and the low one also stops rays that pass beside
+    // the high one, so the lit share is that of the low square alone. With one layer the low
+    // square was invisible and its rays lit (a receiver under a stack of tori came out lit: 0.73
+    // here). The rays that rise past the low square just before its edge are blocked only where
+    // the step that passes the edge counts them (else 0.40).
+    Scene scene;
+    scene.lights = {DirectionalLight{{0.0f, 0.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, 45.0f}};
+    scene.objects.push_back(bareSquare(4.0f, 0.0f));
+    for (const auto& [size, height] : {std::pair{0.3f, 0.5f}, std::pair{0.8f, 2.0f}}) {
+        scene.objects.push_back(bareSquare(size, height));
+        applyTransform(scene.objects.back().mesh, {{1.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f});
+    }
+    const double tanHalf = std::tan(22.5 * 3.141592653589793 / 180.0);
+    const auto meetsSquares = [](const glm::dvec3& from, const glm::dvec3& direction) {
+        for (const auto& [half, height] : {std::pair{0.15, 0.5}, std::pair{0.4, 2.0}}) {
+            const glm::dvec3 at = from + direction * ((height - from.z) / direction.z);
+            if (std::abs(at.x - 1.0) <= half && std::abs(at.y) <= half) return true;
+        }
+        return false;
+    };
+    const auto meetsLowSquare = [](const glm::dvec3& from, const glm::dvec3& direction) {
+        const glm::dvec3 at = from + direction * ((0.5 - from.z) / direction.z);
+        return std::abs(at.x - 1.0) <= 0.15 && std::abs(at.y) <= 0.15;
+    };
+    const SceneTracer tracer(scene, TraceOptions{});
+    const LightShadowMaps maps(tracer, scene.lights[0], 1024);
+    const glm::dvec3 at(1.0, 0.02, 0.0);
+    const double exact = exactLitShare(at, tanHalf, meetsSquares);
+    ASSERT_EQ(exact, exactLitShare(at, tanHalf, meetsLowSquare));
+    const double lit = meanLitShare(maps, at);
+    std::printf("[          ] lit share %.4f, exact %.4f\n", lit, exact);
+    // The tolerance of WideLightsFollowEachRayOfTheDiskThroughTheMap.
+    EXPECT_GT(exact, 0.1);
+    EXPECT_NEAR(lit, exact, 0.04);
+}
+
 TEST(ShadowMap, PenumbraeOfObjectsApartOverlappingOnTheGroundShareAMap) {
     // Two balls of radius 2 floating 20 above the ground, their footprints 5 apart, under a
     // light 20 degrees wide straight down: each one's penumbra spreads tan(10) x 20 = 3.5 around
@@ -903,19 +988,13 @@ TEST(ShadowMap, PenumbraeOfObjectsApartOverlappingOnTheGroundShareAMap) {
         return false;
     };
     const double tanHalf = std::tan(10.0 * 3.141592653589793 / 180.0);
-    const glm::vec3 up(0.0f, 0.0f, 1.0f);
     for (const double x : {-0.3, 0.0, 0.2}) {
         const glm::dvec3 at(x, 0.1, 0.0);
         const double exact = exactLitShare(at, tanHalf, meetsABall);
-        double sum = 0.0;
-        constexpr int kSeeds = 64;
-        for (std::uint32_t seed = 0; seed < kSeeds; ++seed) {
-            std::uint64_t samples = 0;
-            sum += maps.visibility({glm::vec3(at), up, 0.0f, 0}, ShadowFilter::Full, seed, samples);
-        }
-        std::printf("[          ] x %.1f: lit share %.3f, exact %.3f\n", x, sum / kSeeds, exact);
+        const double lit = meanLitShare(maps, at);
+        std::printf("[          ] x %.1f: lit share %.3f, exact %.3f\n", x, lit, exact);
         EXPECT_LT(exact, 0.9) << x;  // both balls' penumbrae are over the point
-        EXPECT_NEAR(sum / kSeeds, exact, 0.04) << x;
+        EXPECT_NEAR(lit, exact, 0.04) << x;
     }
 }
 
