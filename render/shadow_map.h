@@ -142,8 +142,9 @@ class ShadowMap {
     /// nearest receivers need them (ShadowMapArea::pixelWorld): while the base's texels are wider
     /// than kMaxTexelOverPixel pixels there (and, for the line test's wide lights, than
     /// 1 / kMinTexelsPerBlocker of the smallest blocker, ShadowMapArea::blockerWorld), and the
-    /// finest level has at most kMaxFinerResolution texels a side (256 MiB of address space, of
-    /// which only the tiles traced are touched). Level k has texels 2^k times the finest level's.
+    /// finest level has at most kMaxFinerResolution texels a side (256 MiB of address space, 1.5
+    /// GiB with the line test's layers, of which only the tiles traced are touched). Level k has
+    /// texels 2^k times the finest level's.
     static constexpr int kMaxFinerLevels = 3;
     static constexpr float kMaxTexelOverPixel = 2.0f;
     static constexpr float kMinTexelsPerBlocker = 16.0f;
