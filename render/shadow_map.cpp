@@ -953,7 +953,8 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
         casterBound(casterBounds_[std::size_t(tile)], receiver.object) < receiver.depth) {
         ++reads;
         const float above = receiver.depth - own.texelWorld * (1.0f + receiver.slopeLength);
-        if (depthAt(own, texel.x, texel.y) < above) {
+        const float front = depthAt(own, texel.x, texel.y);
+        if (front < above) {
             const LineLayers& layers = own.layers[own.index(texel.x, texel.y)];
             const bool underSecond = layers.secondFront < above;
             const float back = underSecond ? layers.secondBack : layers.firstBack;
@@ -962,8 +963,7 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
                 return 0.0f;
             }
             startObject = underSecond ? layers.secondObject : layers.firstObject;
-            startRim =
-                0.5f * ((underSecond ? layers.secondFront : depthAt(own, texel.x, texel.y)) + back);
+            startRim = 0.5f * ((underSecond ? layers.secondFront : front) + back);
         }
     }
     // Every other angular stratum first: where their lines agree (all lit or all blocked), the

@@ -203,7 +203,8 @@ class ShadowMap {
     /// What the line test keeps of a light ray besides its first depth (Level::depths): where it
     /// leaves the object it met first (the back face of a closed mesh), and the next object it
     /// meets after that, which may be a blocker hidden behind the first. Depths along the light,
-    /// world units; +infinity and ShadowReceiver::kNoObject where there is none.
+    /// world units; +infinity and ShadowReceiver::kNoObject where there is none. No initialisers,
+    /// so the memory of tiles no lookup reaches is never touched (Level::depths).
     struct LineLayers {
         float firstBack;
         float secondFront;
@@ -305,8 +306,9 @@ class ShadowMap {
                          std::uint64_t& samples) const;
     /// The rays of one line at one offset, a bit each, by where they pass the blockers there (as
     /// the light sees them): in front of the first, between the first and the second (under the
-    /// first), behind both; with the two objects and their rims, taken half way between their
-    /// fronts and backs (where the rim of a ball lies; a thin slab's is both).
+    /// first), behind both; with the two objects (kNoObject where a layer holds none in front of
+    /// the receiver's plane) and their rims, taken half way between their fronts and backs (where
+    /// the rim of a ball lies; a thin slab's is both).
     struct LineGaps {
         unsigned front = 0, between = 0, behind = 0;
         std::uint32_t first = ShadowReceiver::kNoObject, second = ShadowReceiver::kNoObject;
