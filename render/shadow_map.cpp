@@ -46,6 +46,11 @@ constexpr float kLineStepShare = 0.35f;
 /// rays that cross a floating square near its edge came out under it: 0.22 of a disk lit against
 /// 0.07 (render_test's exact shares).
 constexpr float kEdgeStepShare = 0.1f;
+/// The depth the line test takes for the rim of an object the light meets between `front` and
+/// `back`: half way, where a ball's rim lies (a thin slab's is both).
+float rimDepth(float front, float back) {
+    return 0.5f * (front + back);
+}
 
 /// A rectangle of the light's plane (light coordinates along axisX and axisY) and the depths
 /// along the light of the surfaces over it.
@@ -944,8 +949,7 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
     // Every ray starts at the receiver: below the first or the second object over it (as the
     // light sees it) or below none; inside one it sees nothing.
     std::uint64_t reads = 0;
-    std::uint32_t startObject = ShadowReceiver::kNoObject;
-    float startRim = std::numeric_limits<float>::infinity();
+    LineGaps start;
     const Level& own = levelFor(receiver.footprintWorld);
     const glm::ivec2 texel = texelOf(own, receiver.centre);
     const int tile = boundTileAt(receiver.centre);
@@ -962,8 +966,9 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
                 samples += reads;
                 return 0.0f;
             }
-            startObject = underSecond ? layers.secondObject : layers.firstObject;
-            startRim = 0.5f * ((underSecond ? layers.secondFront : front) + back);
+            start.between = kAllLineRays;
+            start.first = underSecond ? layers.secondObject : layers.firstObject;
+            start.firstRim = rimDepth(underSecond ? layers.secondFront : front, back);
         }
     }
     // Every other angular stratum first: where their lines agree (all lit or all blocked), the
@@ -976,27 +981,21 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
             return blockedRays == 0 ? 1.0f : 0.0f;
         }
         const int angular = 2 * line % kStrata + 2 * line / kStrata;
-        blockedRays += std::popcount(
-            blockedOnLine(receiver, disk.direction(angular), rises, startObject, startRim, reads));
+        blockedRays +=
+            std::popcount(blockedOnLine(receiver, disk.direction(angular), rises, start, reads));
     }
     samples += reads;
     return 1.0f - float(blockedRays) / float(kStrata * kLineRadii);
 }
 
 unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2& along,
-                                  const LineRises& rises, std::uint32_t startObject, float startRim,
+                                  const LineRises& rises, const LineGaps& start,
                                   std::uint64_t& reads) const {
     constexpr std::uint32_t kNone = ShadowReceiver::kNoObject;
     constexpr float kInfinity = std::numeric_limits<float>::infinity();
     const float lowestRise = rises[kLineRadii - 1];
     unsigned blocked = 0;  // a bit per ray: it met a blocker
-    // Where the rays were at the previous offset.
-    LineGaps was;
-    if (startObject != kNone) {
-        was.between = kAllLineRays;
-        was.first = startObject;
-        was.firstRim = startRim;
-    }
+    LineGaps was = start;  // where the rays were at the previous offset
     // The caster bound of the bound level's tile under the offset (consecutive offsets share
     // tiles).
     int boundTile = -2;
@@ -1029,12 +1028,11 @@ unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2&
         // is, and the tile need not be traced.
         const float lowestRay = receiver.depth - (open ? previous : offset) * lowestRise;
         float front = kInfinity;
-        LineLayers layers{kInfinity, kInfinity, kInfinity, kNone, kNone};
+        glm::ivec2 texel(-1);
         if (wasUnder != 0 || !(bound >= lowestRay)) {
-            const glm::ivec2 texel = texelOf(level, at);
+            texel = texelOf(level, at);
             if (texel.x >= 0) {
                 front = depthAt(level, texel.x, texel.y);
-                layers = level.layers[level.index(texel.x, texel.y)];
                 ++reads;
             }
         }
@@ -1057,14 +1055,18 @@ unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2&
         }
         LineGaps now;
         if (blocker || wasUnder != 0) {
+            // The layers behind the front matter only where it is a blocker.
+            const LineLayers layers =
+                blocker ? level.layers[level.index(texel.x, texel.y)]
+                        : LineLayers{kInfinity, kInfinity, kInfinity, kNone, kNone};
             const bool second = blocker && layers.secondFront < plane - bias;
             if (blocker) {
                 now.first = layers.firstObject;
-                now.firstRim = 0.5f * (front + layers.firstBack);
+                now.firstRim = rimDepth(front, layers.firstBack);
             }
             if (second) {
                 now.second = layers.secondObject;
-                now.secondRim = 0.5f * (layers.secondFront + layers.secondBack);
+                now.secondRim = rimDepth(layers.secondFront, layers.secondBack);
             }
             // Each ray's depth here, and a bit per ray where it is nearer to the light than `depth`
             // or farther.

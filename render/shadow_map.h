@@ -307,18 +307,17 @@ class ShadowMap {
     /// The rays of one line at one offset, a bit each, by where they pass the blockers there (as
     /// the light sees them): in front of the first, between the first and the second (under the
     /// first), behind both; with the two objects (kNoObject where a layer holds none in front of
-    /// the receiver's plane) and their rims, taken half way between their fronts and backs (where
-    /// the rim of a ball lies; a thin slab's is both).
+    /// the receiver's plane) and the depths of their rims (rimDepth in shadow_map.cpp).
     struct LineGaps {
         unsigned front = 0, between = 0, behind = 0;
         std::uint32_t first = ShadowReceiver::kNoObject, second = ShadowReceiver::kNoObject;
         float firstRim = std::numeric_limits<float>::infinity(), secondRim = firstRim;
     };
     /// The rays of one line (unit light-plane direction `along`) that meet a blocker, a bit each;
-    /// every ray starts under `startObject` (kNoObject: none) whose rim is at depth `startRim`.
-    /// Adds the texels read to `reads`.
+    /// every ray starts where `start` says (the receiver's texel: under an object over it or
+    /// nowhere). Adds the texels read to `reads`.
     unsigned blockedOnLine(const LineReceiver& receiver, const glm::vec2& along,
-                           const LineRises& rises, std::uint32_t startObject, float startRim,
+                           const LineRises& rises, const LineGaps& start,
                            std::uint64_t& reads) const;
     /// The bound level's tile (row-major) holding light-plane point `planeWorld`; -1 outside.
     /// Inline: the line test asks at every step.
