@@ -16,6 +16,10 @@
 #include <utility>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "common/error.h"
 #include "render/coverage.h"
 #include "render/detail/disk_pattern.h"
@@ -51,6 +55,78 @@ constexpr float kEdgeStepShare = 0.1f;
 float rimDepth(float front, float back) {
     return 0.5f * (front + back);
 }
+
+/// The depths of the line test's 8 rays of one line at one offset along it, and bit masks of
+/// them (bit r for ray r): with SSE2 four rays at a time, the same floats as one at a time.
+class LineRayDepths {
+  public:
+    static constexpr int kRays = 8;
+    /// receiverDepth - offset x rises[r].
+    LineRayDepths(float receiverDepth, float offset, const std::array<float, kRays>& rises) {
+#if defined(__SSE2__)
+        for (int half = 0; half < 2; ++half)
+            depths_[half] =
+                _mm_sub_ps(_mm_set1_ps(receiverDepth),
+                           _mm_mul_ps(_mm_set1_ps(offset), _mm_loadu_ps(&rises[4 * half])));
+#else
+        for (int ray = 0; ray < kRays; ++ray) depths_[ray] = receiverDepth - offset * rises[ray];
+#endif
+    }
+    /// The rays nearer to the light than `depth`.
+    unsigned nearer(float depth) const {
+#if defined(__SSE2__)
+        return mask([&](__m128 rays) { return _mm_cmplt_ps(rays, _mm_set1_ps(depth)); });
+#else
+        return mask([&](float ray) { return ray < depth; });
+#endif
+    }
+    /// The rays farther from the light than `depth`.
+    unsigned farther(float depth) const {
+#if defined(__SSE2__)
+        return mask([&](__m128 rays) { return _mm_cmpgt_ps(rays, _mm_set1_ps(depth)); });
+#else
+        return mask([&](float ray) { return ray > depth; });
+#endif
+    }
+    /// The rays that rose past `rim` (are nearer to the light than it here) in the first half of
+    /// the step from `before`: 2 (before - rim) < before - here.
+    unsigned rosePast(float rim, const LineRayDepths& before) const {
+#if defined(__SSE2__)
+        int half = 0;
+        return mask([&](__m128 rays) {
+            const __m128 was = before.depths_[half++];
+            const __m128 rimDepth = _mm_set1_ps(rim);
+            return _mm_and_ps(_mm_cmplt_ps(rays, rimDepth),
+                              _mm_cmplt_ps(_mm_mul_ps(_mm_set1_ps(2.0f), _mm_sub_ps(was, rimDepth)),
+                                           _mm_sub_ps(was, rays)));
+        });
+#else
+        int ray = 0;
+        return mask([&](float here) {
+            const float was = before.depths_[ray++];
+            return here < rim && 2.0f * (was - rim) < was - here;
+        });
+#endif
+    }
+
+  private:
+#if defined(__SSE2__)
+    template <class Compare>
+    unsigned mask(Compare&& compare) const {
+        const unsigned low = unsigned(_mm_movemask_ps(compare(depths_[0])));
+        return low | unsigned(_mm_movemask_ps(compare(depths_[1]))) << 4;
+    }
+    __m128 depths_[2];
+#else
+    template <class Compare>
+    unsigned mask(Compare&& compare) const {
+        unsigned bits = 0;
+        for (int ray = 0; ray < kRays; ++ray) bits |= unsigned(compare(depths_[ray])) << ray;
+        return bits;
+    }
+    float depths_[kRays];
+#endif
+};
 
 /// A rectangle of the light's plane (light coordinates along axisX and axisY) and the depths
 /// along the light of the surfaces over it.
@@ -694,32 +770,40 @@ void ShadowMap::traceLayers(const Level& level, std::span<Ray> rays, std::span<S
                                  ? hit.distanceWorld + (material.tile ? material.depthWorld : 0.0f)
                                  : exit);
     };
-    // The first object's exits, then the same light rays on from a hair past them (packed to the
-    // front of `rays`) to the second object.
-    std::size_t next = 0;
-    std::array<std::size_t, SceneTracer::kMaxBatchRays> nextTexel;
-    std::array<float, SceneTracer::kMaxBatchRays> nextStart;
+    // Each layer's objects, then the same light rays on from a hair past where they leave them
+    // (packed to the front of `rays`) to the next layer's.
+    std::array<std::size_t, SceneTracer::kMaxBatchRays> rayTexels;
+    std::array<float, SceneTracer::kMaxBatchRays> rayStarts;  // depth of each ray's origin
     for (std::size_t k = 0; k < rays.size(); ++k) {
         LineLayers& layers = level.layers[texels[k]];
-        layers = {kInfinity, kInfinity, kInfinity, ShadowReceiver::kNoObject,
-                  ShadowReceiver::kNoObject};
-        if (!found[k]) continue;
-        layers.firstObject = hits[k].object;
-        layers.firstBack = backDepth(rays[k], hits[k], startDepth_);
-        nextStart[next] = layers.firstBack + 1e-3f * level.texelWorld;
-        rays[next] = {rays[k].origin + rays[k].direction * (nextStart[next] - startDepth_),
-                      rays[k].direction};
-        nextTexel[next++] = texels[k];
+        for (int layer = 0; layer < kLineLayers; ++layer) {
+            layers.front[layer] = layers.back[layer] = kInfinity;
+            layers.object[layer] = ShadowReceiver::kNoObject;
+        }
+        rayTexels[k] = texels[k];
+        rayStarts[k] = startDepth_;
     }
-    if (next == 0) return;
-    tracer_.traceNearestBatch(rays.first(next), 0.0f, hits.first(next), found.first(next), counters,
-                              /*withNormals=*/false);
-    for (std::size_t k = 0; k < next; ++k) {
-        if (!found[k]) continue;
-        LineLayers& layers = level.layers[nextTexel[k]];
-        layers.secondObject = hits[k].object;
-        layers.secondFront = nextStart[k] + hits[k].distanceWorld;
-        layers.secondBack = backDepth(rays[k], hits[k], nextStart[k]);
+    std::size_t count = rays.size();
+    for (int layer = 0; layer < kLineLayers; ++layer) {
+        if (layer > 0)
+            tracer_.traceNearestBatch(rays.first(count), 0.0f, hits.first(count),
+                                      found.first(count), counters, /*withNormals=*/false);
+        std::size_t next = 0;
+        for (std::size_t k = 0; k < count; ++k) {
+            if (!found[k]) continue;
+            LineLayers& layers = level.layers[rayTexels[k]];
+            layers.object[layer] = hits[k].object;
+            layers.front[layer] = rayStarts[k] + hits[k].distanceWorld;
+            layers.back[layer] = backDepth(rays[k], hits[k], rayStarts[k]);
+            if (layer + 1 == kLineLayers) continue;  // no layer after the last to trace
+            const float from = layers.back[layer] + 1e-3f * level.texelWorld;
+            rays[next] = {rays[k].origin + rays[k].direction * (from - rayStarts[k]),
+                          rays[k].direction};
+            rayStarts[next] = from;
+            rayTexels[next++] = rayTexels[k];
+        }
+        count = next;
+        if (count == 0) return;
     }
 }
 
@@ -959,16 +1043,18 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
         const float above = receiver.depth - own.texelWorld * (1.0f + receiver.slopeLength);
         const float front = depthAt(own, texel.x, texel.y);
         if (front < above) {
+            // The receiver lies under the deepest layer in front of it, or inside it.
             const LineLayers& layers = own.layers[own.index(texel.x, texel.y)];
-            const bool underSecond = layers.secondFront < above;
-            const float back = underSecond ? layers.secondBack : layers.firstBack;
-            if (!(receiver.depth > back)) {
+            int under = 0;
+            while (under + 1 < kLineLayers && layers.front[under + 1] < above) ++under;
+            if (!(receiver.depth > layers.back[under])) {
                 samples += reads;
                 return 0.0f;
             }
-            start.between = kAllLineRays;
-            start.first = underSecond ? layers.secondObject : layers.firstObject;
-            start.firstRim = rimDepth(underSecond ? layers.secondFront : front, back);
+            start.count = 1;
+            start.gaps[1] = kAllLineRays;
+            start.objects[0] = layers.object[under];
+            start.rims[0] = rimDepth(layers.front[under], layers.back[under]);
         }
     }
     // Every other angular stratum first: where their lines agree (all lit or all blocked), the
@@ -991,11 +1077,14 @@ float ShadowMap::lineVisibility(const LineReceiver& receiver, ShadowFilter filte
 unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2& along,
                                   const LineRises& rises, const LineGaps& start,
                                   std::uint64_t& reads) const {
-    constexpr std::uint32_t kNone = ShadowReceiver::kNoObject;
     constexpr float kInfinity = std::numeric_limits<float>::infinity();
     const float lowestRise = rises[kLineRadii - 1];
     unsigned blocked = 0;  // a bit per ray: it met a blocker
-    LineGaps was = start;  // where the rays were at the previous offset
+    // Where the rays were at the previous offset and are at this one: two buffers taking turns
+    // (copying one into the other at every step stalled on the stores of its last writes).
+    LineGaps buffers[2] = {start, {}};
+    LineGaps* wasGaps = &buffers[0];
+    LineGaps* nowGaps = &buffers[1];
     // The caster bound of the bound level's tile under the offset (consecutive offsets share
     // tiles).
     int boundTile = -2;
@@ -1010,8 +1099,10 @@ unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2&
     for (float offset = std::max(0.5f * levels_[0].texelWorld, receiver.footprintWorld),
                previous = 0.0f;
          previous <= receiver.reachWorld && blocked != kAllLineRays;) {
-        const unsigned wasUnder = was.between | was.behind;
-        const bool open = (was.front | wasUnder) == 0;
+        unsigned wasUnder = 0;
+        const LineGaps& was = *wasGaps;
+        for (int gap = 1; gap <= was.count; ++gap) wasUnder |= was.gaps[std::size_t(gap)];
+        const bool open = (was.gaps[0] | wasUnder) == 0;
         const bool fine = wasUnder != 0 || offset < fineUntil;
         const float share = fine ? kEdgeStepShare : kLineStepShare;
         const Level& level = levelFor(std::max(receiver.footprintWorld, share * offset));
@@ -1053,82 +1144,71 @@ unsigned ShadowMap::blockedOnLine(const LineReceiver& receiver, const glm::vec2&
                 continue;
             }
         }
-        LineGaps now;
+        LineGaps& now = *nowGaps;
+        now.count = 0;
+        now.gaps[0] = 0;
         if (blocker || wasUnder != 0) {
-            // The layers behind the front matter only where it is a blocker.
-            const LineLayers layers =
-                blocker ? level.layers[level.index(texel.x, texel.y)]
-                        : LineLayers{kInfinity, kInfinity, kInfinity, kNone, kNone};
-            const bool second = blocker && layers.secondFront < plane - bias;
+            // The layers in front of the receiver's plane (the first one's front is `front`),
+            // read only where it is a blocker.
+            const LineLayers* layers =
+                blocker ? &level.layers[level.index(texel.x, texel.y)] : nullptr;
+            int layerCount = 0;
             if (blocker) {
-                now.first = layers.firstObject;
-                now.firstRim = rimDepth(front, layers.firstBack);
+                while (layerCount < kLineLayers && layers->front[layerCount] < plane - bias) {
+                    now.objects[std::size_t(layerCount)] = layers->object[layerCount];
+                    now.rims[std::size_t(layerCount)] =
+                        rimDepth(layers->front[layerCount], layers->back[layerCount]);
+                    ++layerCount;
+                }
             }
-            if (second) {
-                now.second = layers.secondObject;
-                now.secondRim = rimDepth(layers.secondFront, layers.secondBack);
-            }
-            // Each ray's depth here, and a bit per ray where it is nearer to the light than `depth`
-            // or farther.
-            std::array<float, kLineRadii> rayDepths;
-            for (int radial = 0; radial < kLineRadii; ++radial)
-                rayDepths[std::size_t(radial)] =
-                    receiver.depth - offset * rises[std::size_t(radial)];
-            const auto nearer = [&](float depth) {
-                unsigned mask = 0;
-                for (int radial = 0; radial < kLineRadii; ++radial)
-                    mask |= unsigned(rayDepths[std::size_t(radial)] < depth) << radial;
-                return mask;
-            };
-            const auto farther = [&](float depth) {
-                unsigned mask = 0;
-                for (int radial = 0; radial < kLineRadii; ++radial)
-                    mask |= unsigned(rayDepths[std::size_t(radial)] > depth) << radial;
-                return mask;
-            };
+            now.count = layerCount;
+            // Each ray's depth here, and a bit per ray where it is nearer to the light than a
+            // depth or farther.
+            const LineRayDepths rays(receiver.depth, offset, rises);
+            // The gaps between the layers, the rays inside one, and per layer the rays in front
+            // of it and behind it (with those inside another layer, which are blocked anyway).
             unsigned inside = 0;
-            if (blocker) {
-                now.front = nearer(front);
-                const unsigned pastFirst = farther(layers.firstBack);
-                inside = kAllLineRays & ~now.front & ~pastFirst;
-                now.between = pastFirst;
-                if (second) {
-                    const unsigned nearSecond = nearer(layers.secondFront);
-                    now.between &= nearSecond;
-                    now.behind = farther(layers.secondBack);
-                    inside |= pastFirst & ~nearSecond & ~now.behind;
+            std::array<unsigned, kLineLayers> inFrontOf{}, behind{};
+            if (layerCount > 0) {
+                unsigned pastAbove = kAllLineRays;  // behind the layer above (all: none above)
+                for (int layer = 0; layer < layerCount; ++layer) {
+                    const unsigned inFront = rays.nearer(layers->front[layer]);
+                    const unsigned past = rays.farther(layers->back[layer]);
+                    now.gaps[std::size_t(layer)] = pastAbove & inFront;
+                    inside |= pastAbove & ~inFront & ~past;
+                    pastAbove = past;
+                    inFrontOf[std::size_t(layer)] = inFront;
+                    behind[std::size_t(layer)] = past;
                 }
+                now.gaps[std::size_t(layerCount)] = pastAbove;
             }
-            // The rays that rose past `rim` in the first half of the step.
-            const auto pastRim = [&](float rim) {
-                unsigned mask = 0;
-                for (int radial = 0; radial < kLineRadii; ++radial) {
-                    const float ray = rayDepths[std::size_t(radial)];
-                    const float before = receiver.depth - previous * rises[std::size_t(radial)];
-                    mask |= unsigned(ray < rim && 2.0f * (before - rim) < before - ray) << radial;
-                }
-                return mask;
-            };
             // Between two offsets a ray crossed a blocker's surface where the object it was under
-            // is now below it, or the object it was over is now above it. An object it was under
-            // that is now in neither layer ended between the two (as the light sees it): the ray
-            // came out under its edge unless it rose past the object's rim in the first half of
-            // the step (where in the step the edge lies is not known).
+            // is now below it (in front of its deepest layer here), or the object it was over is
+            // now above it (behind its nearest layer here). An object it was under that is now in
+            // no layer ended between the two (as the light sees it): the ray came out under its
+            // edge unless it rose past the object's rim in the first half of the step (where in
+            // the step the edge lies is not known).
             const auto rose = [&](std::uint32_t object, unsigned under, float rim) {
-                if (object == kNone || under == 0) return 0U;
-                if (object != now.first && object != now.second) return under & pastRim(rim);
-                return under & (now.front | (object == now.second ? now.between : 0U));
+                if (under == 0) return 0U;
+                for (int layer = layerCount - 1; layer >= 0; --layer)
+                    if (now.objects[std::size_t(layer)] == object)
+                        return under & inFrontOf[std::size_t(layer)];
+                return under & rays.rosePast(rim, LineRayDepths(receiver.depth, previous, rises));
             };
             const auto sank = [&](std::uint32_t object, unsigned over) {
-                if (object == kNone) return 0U;
-                return over & ((object == now.first ? now.between | now.behind : 0U) |
-                               (object == now.second ? now.behind : 0U));
+                if (over == 0) return 0U;
+                for (int layer = 0; layer < layerCount; ++layer)
+                    if (now.objects[std::size_t(layer)] == object)
+                        return over & behind[std::size_t(layer)];
+                return 0U;
             };
-            blocked |= inside | rose(was.first, was.between, was.firstRim) |
-                       rose(was.second, was.behind, was.secondRim) | sank(was.first, was.front) |
-                       sank(was.second, was.between);
+            blocked |= inside;
+            for (std::size_t layer = 0; layer < std::size_t(was.count); ++layer) {
+                blocked |= rose(was.objects[layer], was.gaps[layer + 1], was.rims[layer]) |
+                           sank(was.objects[layer], was.gaps[layer]);
+            }
         }
-        was = now;
+        std::swap(wasGaps, nowGaps);
         previous = offset;
         offset += std::max(level.texelWorld, share * offset);
     }

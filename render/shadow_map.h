@@ -25,8 +25,8 @@
 /// of light-plane offsets its ray passes over, against the blocker stored there, so a blocker
 /// shadows a direction only where the ray really meets it (near a contact, a blocker overhead
 /// covers the directions that rise into it, not those that leave under it). For that the map also
-/// keeps two layers per texel: the object each light ray meets first, where it leaves it (the back
-/// face of a closed mesh), and the next object it meets, front and back (LineLayers).
+/// keeps kLineLayers layers per texel: the first objects each light ray meets, nearest first,
+/// where it enters and where it leaves each (the back face of a closed mesh; LineLayers).
 #pragma once
 
 #include <array>
@@ -142,7 +142,7 @@ class ShadowMap {
     /// nearest receivers need them (ShadowMapArea::pixelWorld): while the base's texels are wider
     /// than kMaxTexelOverPixel pixels there (and, for the line test's wide lights, than
     /// 1 / kMinTexelsPerBlocker of the smallest blocker, ShadowMapArea::blockerWorld), and the
-    /// finest level has at most kMaxFinerResolution texels a side (256 MiB of address space, 1.5
+    /// finest level has at most kMaxFinerResolution texels a side (256 MiB of address space, 2.5
     /// GiB with the line test's layers, of which only the tiles traced are touched). Level k has
     /// texels 2^k times the finest level's.
     static constexpr int kMaxFinerLevels = 3;
@@ -200,17 +200,18 @@ class ShadowMap {
     std::uint64_t texelCount() const;
 
   private:
-    /// What the line test keeps of a light ray besides its first depth (Level::depths): where it
-    /// leaves the object it met first (the back face of a closed mesh), and the next object it
-    /// meets after that, which may be a blocker hidden behind the first. Depths along the light,
-    /// world units; +infinity and ShadowReceiver::kNoObject where there is none. No initialisers,
-    /// so the memory of tiles no lookup reaches is never touched (Level::depths).
+    /// The objects the line test keeps per light ray: a lower one may be a blocker hidden behind
+    /// those above it (a receiver under a stack of tori).
+    static constexpr int kLineLayers = 3;
+    /// What the line test keeps of a light ray: the first kLineLayers objects it meets, nearest
+    /// first, with the depths where it enters each (front[0] is Level::depths' depth, repeated so
+    /// the layers read alike) and leaves it (the back face of a closed mesh). Depths along the
+    /// light, world units; +infinity and ShadowReceiver::kNoObject past the last object. No
+    /// initialisers, so the memory of tiles no lookup reaches is never touched (Level::depths).
     struct LineLayers {
-        float firstBack;
-        float secondFront;
-        float secondBack;
-        std::uint32_t firstObject;
-        std::uint32_t secondObject;
+        float front[kLineLayers];
+        float back[kLineLayers];
+        std::uint32_t object[kLineLayers];
     };
     /// One level: a grid of light rays over the map's bounds, traced a tile at a time.
     struct Level {
@@ -256,7 +257,7 @@ class ShadowMap {
     }
     void traceTile(const Level& level, int tile) const;
     /// The line test's layers (LineLayers) of light rays `rays` of `level`, which met `hits`
-    /// where `found`, into texels `texels`. Overwrites all three spans (the second layer's rays).
+    /// where `found`, into texels `texels`. Overwrites all three spans (the further layers' rays).
     void traceLayers(const Level& level, std::span<Ray> rays, std::span<SurfaceHit> hits,
                      std::span<bool> found, std::span<const std::size_t> texels,
                      TraceCounters& counters) const;
@@ -305,13 +306,15 @@ class ShadowMap {
     float lineVisibility(const LineReceiver& receiver, ShadowFilter filter, std::uint32_t seed,
                          std::uint64_t& samples) const;
     /// The rays of one line at one offset, a bit each, by where they pass the blockers there (as
-    /// the light sees them): in front of the first, between the first and the second (under the
-    /// first), behind both; with the two objects (kNoObject where a layer holds none in front of
-    /// the receiver's plane) and the depths of their rims (rimDepth in shadow_map.cpp).
+    /// the light sees them): of the `count` layers in front of the receiver's plane, gaps[k] holds
+    /// the rays behind the first k and in front of the rest (gaps[0]: in front of all, under
+    /// none); with the layers' objects and the depths of their rims (rimDepth in shadow_map.cpp).
+    /// Past `count` nothing is read.
     struct LineGaps {
-        unsigned front = 0, between = 0, behind = 0;
-        std::uint32_t first = ShadowReceiver::kNoObject, second = ShadowReceiver::kNoObject;
-        float firstRim = std::numeric_limits<float>::infinity(), secondRim = firstRim;
+        int count = 0;
+        std::array<unsigned, kLineLayers + 1> gaps{};
+        std::array<std::uint32_t, kLineLayers> objects{};
+        std::array<float, kLineLayers> rims{};
     };
     /// The rays of one line (unit light-plane direction `along`) that meet a blocker, a bit each;
     /// every ray starts where `start` says (the receiver's texel: under an object over it or

@@ -919,44 +919,67 @@ TEST(ShadowMap, RaysComingOutUnderABlockersEdgeAreNotBlockedByWhatLiesBeyondIt) 
     EXPECT_NEAR(lit, exact, 0.04);
 }
 
-TEST(ShadowMap, ABlockerHiddenBehindAHigherOneStillShadowsTheRaysThatMeetIt) {
-    // Under a 45-degree light straight down: a square of 0.3 floating 0.5 above the ground and a
-    // wider one of 0.8 at a height of 2 over it, both centred over the receiver. The light sees
-    // only the high square there: the low one is the map's second layer. Every ray that meets
-    // the high square meets the low one first, and the low one also stops rays that pass beside
-    // the high one, so the lit share is that of the low square alone. With one layer the low
-    // square was invisible and its rays lit (a receiver under a stack of tori came out lit: 0.73
-    // here). The rays that rise past the low square just before its edge are blocked only where
-    // the step that passes the edge counts them (else 0.40).
+/// A stack of bare squares over the ground, centred over (1, 0), each (side, height) narrower in
+/// angle from the receiver than the one below it (side / height shrinking upward), under a
+/// 45-degree light straight down: a receiver at `at` near (1, 0, 0) sees only the top square from
+/// the light, the lower ones hidden behind it as the map's further layers. Every ray that meets
+/// a higher square meets the lowest first, and a ray beside the lowest passes beside them all,
+/// so the lit share is the lowest square's alone. Gives the mean lit share of the maps and the
+/// exact one, after checking that.
+struct StackedShares {
+    double lit = 0.0;
+    double exact = 0.0;
+};
+StackedShares litShareUnderStackedSquares(std::span<const std::pair<double, double>> squares,
+                                          const glm::dvec3& at) {
     Scene scene;
     scene.lights = {DirectionalLight{{0.0f, 0.0f, -1.0f}, {1.0f, 1.0f, 1.0f}, 45.0f}};
     scene.objects.push_back(bareSquare(4.0f, 0.0f));
-    for (const auto& [size, height] : {std::pair{0.3f, 0.5f}, std::pair{0.8f, 2.0f}}) {
-        scene.objects.push_back(bareSquare(size, height));
+    for (const auto& [side, height] : squares) {
+        scene.objects.push_back(bareSquare(float(side), float(height)));
         applyTransform(scene.objects.back().mesh, {{1.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f}, 1.0f});
     }
+    const auto meets = [](std::span<const std::pair<double, double>> stack) {
+        return [stack](const glm::dvec3& from, const glm::dvec3& direction) {
+            for (const auto& [side, height] : stack) {
+                const glm::dvec3 hit = from + direction * ((height - from.z) / direction.z);
+                if (std::abs(hit.x - 1.0) <= 0.5 * side && std::abs(hit.y) <= 0.5 * side)
+                    return true;
+            }
+            return false;
+        };
+    };
     const double tanHalf = std::tan(22.5 * 3.141592653589793 / 180.0);
-    const auto meetsSquares = [](const glm::dvec3& from, const glm::dvec3& direction) {
-        for (const auto& [half, height] : {std::pair{0.15, 0.5}, std::pair{0.4, 2.0}}) {
-            const glm::dvec3 at = from + direction * ((height - from.z) / direction.z);
-            if (std::abs(at.x - 1.0) <= half && std::abs(at.y) <= half) return true;
-        }
-        return false;
-    };
-    const auto meetsLowSquare = [](const glm::dvec3& from, const glm::dvec3& direction) {
-        const glm::dvec3 at = from + direction * ((0.5 - from.z) / direction.z);
-        return std::abs(at.x - 1.0) <= 0.15 && std::abs(at.y) <= 0.15;
-    };
     const SceneTracer tracer(scene, TraceOptions{});
     const LightShadowMaps maps(tracer, scene.lights[0], 1024);
-    const glm::dvec3 at(1.0, 0.02, 0.0);
-    const double exact = exactLitShare(at, tanHalf, meetsSquares);
-    ASSERT_EQ(exact, exactLitShare(at, tanHalf, meetsLowSquare));
-    const double lit = meanLitShare(maps, at);
-    std::printf("[          ] lit share %.4f, exact %.4f\n", lit, exact);
+    StackedShares shares;
+    shares.exact = exactLitShare(at, tanHalf, meets(squares));
+    EXPECT_EQ(shares.exact, exactLitShare(at, tanHalf, meets(squares.first(1))));
+    shares.lit = meanLitShare(maps, at);
+    std::printf("[          ] lit share %.4f, exact %.4f\n", shares.lit, shares.exact);
+    return shares;
+}
+
+TEST(ShadowMap, ABlockerHiddenBehindAHigherOneStillShadowsTheRaysThatMeetIt) {
+    // A square of 0.3 floating 0.5 above the ground and a wider one of 0.8 at a height of 2 over
+    // it: the low one is the map's second layer. With one layer it was invisible and its rays
+    // lit (a receiver under a stack of tori came out lit: 0.73 here). The rays that rise past the
+    // low square just before its edge are blocked only where the step that passes the edge
+    // counts them (else 0.40).
+    const std::pair<double, double> squares[] = {{0.3, 0.5}, {0.8, 2.0}};
+    const StackedShares shares = litShareUnderStackedSquares(squares, {1.0, 0.02, 0.0});
     // The tolerance of WideLightsFollowEachRayOfTheDiskThroughTheMap.
-    EXPECT_GT(exact, 0.1);
-    EXPECT_NEAR(lit, exact, 0.04);
+    EXPECT_GT(shares.exact, 0.1);
+    EXPECT_NEAR(shares.lit, shares.exact, 0.04);
+}
+
+TEST(ShadowMap, ABlockerHiddenBehindTwoHigherOnesStillShadowsTheRaysThatMeetIt) {
+    // The same with a third square between the two (0.6 at a height of 1.2): the low one is the
+    // map's third layer, which two layers per texel did not keep.
+    const std::pair<double, double> squares[] = {{0.3, 0.5}, {0.6, 1.2}, {0.8, 2.0}};
+    const StackedShares shares = litShareUnderStackedSquares(squares, {1.0, 0.02, 0.0});
+    EXPECT_GT(shares.exact, 0.1);
+    EXPECT_NEAR(shares.lit, shares.exact, 0.04);
 }
 
 TEST(ShadowMap, PenumbraeOfObjectsApartOverlappingOnTheGroundShareAMap) {
