@@ -919,13 +919,13 @@ TEST(ShadowMap, RaysComingOutUnderABlockersEdgeAreNotBlockedByWhatLiesBeyondIt) 
     EXPECT_NEAR(lit, exact, 0.04);
 }
 
-/// A stack of bare squares over the ground, centred over (1, 0), each (side, height) narrower in
-/// angle from the receiver than the one below it (side / height shrinking upward), under a
-/// 45-degree light straight down: a receiver at `at` near (1, 0, 0) sees only the top square from
-/// the light, the lower ones hidden behind it as the map's further layers. Every ray that meets
-/// a higher square meets the lowest first, and a ray beside the lowest passes beside them all,
-/// so the lit share is the lowest square's alone. Gives the mean lit share of the maps and the
-/// exact one, after checking that.
+/// A stack of bare squares over the ground, centred over (1, 0), `squares` (side, height) from
+/// the lowest up, each narrower in angle from the receiver than the one below it (side / height
+/// shrinking upward), under a 45-degree light straight down: a receiver at `at` near (1, 0, 0)
+/// sees only the top square from the light, the lower ones hidden behind it as the map's further
+/// layers. Every ray that meets a higher square meets the lowest first, and a ray beside the
+/// lowest passes beside them all, so the lit share is the lowest square's alone. Gives the mean
+/// lit share of the maps and the exact one, after checking that.
 struct StackedShares {
     double lit = 0.0;
     double exact = 0.0;
