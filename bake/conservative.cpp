@@ -153,6 +153,25 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
                std::size_t(pointsX) * (std::size_t(b) + std::size_t(pointsY) * std::size_t(m));
     };
     std::vector<float> pointRemovals(std::size_t(pointsX) * pointsY * levels, 0.0f);
+    // The two slices level m interpolates, and their weights: one slice (weights 1/2 each) when
+    // the level is a texel plane, two midway; on the faces the edge cell's two slices, weights
+    // 1.5 on the edge slice and -0.5 on its inner neighbour.
+    struct LevelSlices {
+        int z0, z1;
+        double weight0, weight1;
+    };
+    std::vector<LevelSlices> levelSlices(static_cast<std::size_t>(levels));
+    for (int m = 0; m < levels; ++m) {
+        LevelSlices& slices = levelSlices[std::size_t(m)];
+        slices = m % 2 == 1 ? LevelSlices{(m - 1) / 2, (m - 1) / 2, 0.5, 0.5}
+                            : LevelSlices{m / 2 - 1, m / 2, 0.5, 0.5};
+        if (m == 0) slices = {0, 1, 1.5, -0.5};
+        if (m == lastLevel) slices = {size.depth - 2, size.depth - 1, -0.5, 1.5};
+    }
+    // Raw pointers into the tile and the estimate: the loops below run for every point.
+    const float* distances = exact.distancesTexels().data();
+    const float* estimatedLowering = estimatedLowerings.data();
+    const std::size_t sliceStride = std::size_t(size.width) * std::size_t(size.height);
     // A column of points (a, b) at a time: its points that need the truth, one line for
     // exactDistances.
     tbb::parallel_for(
@@ -162,43 +181,41 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
             for (int column = columns.begin(); column != columns.end(); ++column) {
                 const int a = column % pointsX, b = column / pointsX;
                 // Corner texels along each axis: one when the point is on a texel plane, two
-                // (weight 1/2 each) midway; on the faces the edge cell's two slices, weights
-                // 1.5 on the edge slice and -0.5 on its inner neighbour.
+                // midway. Texel (x, y, k) of a corner column is its element k * sliceStride.
                 const int x0 = a / 2, x1 = a % 2 == 0 ? x0 : wrapped(x0 + 1, size.width);
                 const int y0 = b / 2, y1 = b % 2 == 0 ? y0 : wrapped(y0 + 1, size.height);
+                const std::size_t c00 = exact.index(x0, y0, 0), c10 = exact.index(x1, y0, 0),
+                                  c01 = exact.index(x0, y1, 0), c11 = exact.index(x1, y1, 0);
+                const auto corner = [&](std::size_t columnStart, int zIndex) {
+                    return distances[columnStart + std::size_t(zIndex) * sliceStride];
+                };
+                const bool texelCentreColumn = a % 2 == 0 && b % 2 == 0;
                 z.clear();
                 interpolated.clear();
                 level.clear();
                 for (int m = 0; m < levels; ++m) {
-                    if (a % 2 == 0 && b % 2 == 0 && m % 2 == 1) continue;  // a texel centre
-                    int z0 = m % 2 == 1 ? (m - 1) / 2 : m / 2 - 1;
-                    int z1 = m % 2 == 1 ? z0 : m / 2;
-                    double weight0 = 0.5, weight1 = 0.5;
-                    if (m == 0) {
-                        z0 = 0, z1 = 1, weight0 = 1.5, weight1 = -0.5;
-                    } else if (m == lastLevel) {
-                        z0 = size.depth - 2, z1 = size.depth - 1, weight0 = -0.5, weight1 = 1.5;
-                    }
-                    const auto sliceMean = [&](int zIndex) {
-                        return 0.25 * (double(exact.at(x0, y0, zIndex)) + exact.at(x1, y0, zIndex) +
-                                       exact.at(x0, y1, zIndex) + exact.at(x1, y1, zIndex));
-                    };
+                    if (texelCentreColumn && m % 2 == 1) continue;  // a texel centre
+                    const auto [z0, z1, weight0, weight1] = levelSlices[std::size_t(m)];
                     const float nearest =
-                        std::min({std::abs(exact.at(x0, y0, z0)), std::abs(exact.at(x1, y1, z1)),
-                                  std::abs(exact.at(x1, y0, z0)), std::abs(exact.at(x0, y1, z1))});
+                        std::min(std::min(std::abs(corner(c00, z0)), std::abs(corner(c11, z1))),
+                                 std::min(std::abs(corner(c10, z0)), std::abs(corner(c01, z1))));
                     // Beyond the band only next to a texel the estimate lowers (looked up only
                     // there).
-                    const auto estimated = [&](int x, int y, int zIndex) {
-                        return estimatedLowerings[exact.index(x, y, zIndex)] > 0.0f;
+                    const auto estimated = [&](std::size_t columnStart, int zIndex) {
+                        return estimatedLowering[columnStart + std::size_t(zIndex) * sliceStride] >
+                               0.0f;
                     };
                     if (nearest > bandTexels &&
                         (estimatedLowerings.empty() ||
-                         !(estimated(x0, y0, z0) || estimated(x1, y0, z0) ||
-                           estimated(x0, y1, z0) || estimated(x1, y1, z0) ||
-                           estimated(x0, y0, z1) || estimated(x1, y0, z1) ||
-                           estimated(x0, y1, z1) || estimated(x1, y1, z1)))) {
+                         !(estimated(c00, z0) || estimated(c10, z0) || estimated(c01, z0) ||
+                           estimated(c11, z0) || estimated(c00, z1) || estimated(c10, z1) ||
+                           estimated(c01, z1) || estimated(c11, z1)))) {
                         continue;
                     }
+                    const auto sliceMean = [&](int zIndex) {
+                        return 0.25 * (double(corner(c00, zIndex)) + corner(c10, zIndex) +
+                                       corner(c01, zIndex) + corner(c11, zIndex));
+                    };
                     z.push_back(0.5 * m);
                     interpolated.push_back(weight0 * sliceMean(z0) + weight1 * sliceMean(z1));
                     level.push_back(m);
@@ -216,12 +233,13 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
             }
         });
     // The largest removal of the 3 x 3 points around column (i, j) at level m.
+    const float* removals = pointRemovals.data();
     const auto largestAround = [&](int i, int j, int m) {
         float largest = 0.0f;
         for (int b = 2 * j - 1; b <= 2 * j + 1; ++b) {
             for (int a = 2 * i - 1; a <= 2 * i + 1; ++a) {
-                largest = std::max(
-                    largest, pointRemovals[point(wrapped(a, pointsX), wrapped(b, pointsY), m)]);
+                largest =
+                    std::max(largest, removals[point(wrapped(a, pointsX), wrapped(b, pointsY), m)]);
             }
         }
         return largest;

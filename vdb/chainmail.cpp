@@ -14,10 +14,12 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-/// Signed distance to a torus around the local z axis: centreline radius R, tube radius r.
+/// Signed distance to a torus around the local z axis: centreline radius R, tube radius r. Plain
+/// square roots, not std::hypot: the coordinates are texels, far from overflow, and glibc's
+/// hypot was half of a chain-mail bake's time.
 double torusDistance(const glm::dvec3& local, double centrelineRadius, double tubeRadius) {
-    const double radial = std::hypot(local.x, local.y) - centrelineRadius;
-    return std::hypot(radial, local.z) - tubeRadius;
+    const double radial = std::sqrt(local.x * local.x + local.y * local.y) - centrelineRadius;
+    return std::sqrt(radial * radial + local.z * local.z) - tubeRadius;
 }
 
 double wrap(double value, double period) {
