@@ -170,7 +170,7 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
     }
     // Raw pointers into the tile and the estimate: the loops below run for every point.
     const float* distances = exact.distancesTexels().data();
-    const float* estimatedLowering = estimatedLowerings.data();
+    const float* estimates = estimatedLowerings.data();
     const std::size_t sliceStride = std::size_t(size.width) * std::size_t(size.height);
     // A column of points (a, b) at a time: its points that need the truth, one line for
     // exactDistances.
@@ -189,6 +189,13 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
                 const auto corner = [&](std::size_t columnStart, int zIndex) {
                     return distances[columnStart + std::size_t(zIndex) * sliceStride];
                 };
+                const auto estimated = [&](std::size_t columnStart, int zIndex) {
+                    return estimates[columnStart + std::size_t(zIndex) * sliceStride] > 0.0f;
+                };
+                const auto sliceMean = [&](int zIndex) {
+                    return 0.25 * (double(corner(c00, zIndex)) + corner(c10, zIndex) +
+                                   corner(c01, zIndex) + corner(c11, zIndex));
+                };
                 const bool texelCentreColumn = a % 2 == 0 && b % 2 == 0;
                 z.clear();
                 interpolated.clear();
@@ -201,10 +208,6 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
                                  std::min(std::abs(corner(c10, z0)), std::abs(corner(c01, z1))));
                     // Beyond the band only next to a texel the estimate lowers (looked up only
                     // there).
-                    const auto estimated = [&](std::size_t columnStart, int zIndex) {
-                        return estimatedLowering[columnStart + std::size_t(zIndex) * sliceStride] >
-                               0.0f;
-                    };
                     if (nearest > bandTexels &&
                         (estimatedLowerings.empty() ||
                          !(estimated(c00, z0) || estimated(c10, z0) || estimated(c01, z0) ||
@@ -212,10 +215,6 @@ MeasuredLowerings measuredLowerings(const Tile& exact, const ExactDistancesOnLin
                            estimated(c01, z1) || estimated(c11, z1)))) {
                         continue;
                     }
-                    const auto sliceMean = [&](int zIndex) {
-                        return 0.25 * (double(corner(c00, zIndex)) + corner(c10, zIndex) +
-                                       corner(c01, zIndex) + corner(c11, zIndex));
-                    };
                     z.push_back(0.5 * m);
                     interpolated.push_back(weight0 * sliceMean(z0) + weight1 * sliceMean(z1));
                     level.push_back(m);
