@@ -823,12 +823,16 @@ glm::ivec4 ShadowMap::boundTiles(const glm::vec2& low, const glm::vec2& high,
                                  int marginTiles) const {
     const Level& level = boundLevel();
     const float tileWorld = level.texelWorld * float(kTileTexels);
-    const glm::vec2 first = (low - originPlane_) / tileWorld;
-    const glm::vec2 last = (high - originPlane_) / tileWorld;
-    return {std::max(int(std::floor(first.x)) - marginTiles, 0),
-            std::max(int(std::floor(first.y)) - marginTiles, 0),
-            std::min(int(std::floor(last.x)) + marginTiles, level.tilesX - 1),
-            std::min(int(std::floor(last.y)) + marginTiles, level.tilesY - 1)};
+    const glm::vec2 first = glm::floor((low - originPlane_) / tileWorld) - float(marginTiles);
+    const glm::vec2 last = glm::floor((high - originPlane_) / tileWorld) + float(marginTiles);
+    // Clipped while still floats: a float beyond int's range (a box far off the map) has no int
+    // conversion. A box that is not a number has no tiles.
+    if (std::isnan(first.x) || std::isnan(first.y) || std::isnan(last.x) || std::isnan(last.y))
+        return {0, 0, -1, -1};
+    constexpr float kFar = float(1 << 30);  // past any level's tiles, either way
+    return {int(std::clamp(first.x, 0.0f, kFar)), int(std::clamp(first.y, 0.0f, kFar)),
+            int(std::clamp(last.x, -kFar, float(level.tilesX - 1))),
+            int(std::clamp(last.y, -kFar, float(level.tilesY - 1)))};
 }
 
 bool ShadowMap::nothingNearerThan(const glm::vec2& centre, float reachWorld, float depth,
@@ -924,6 +928,11 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     const glm::vec2 centre(glm::dot(receiver.surfaceWorld, axisX_),
                            glm::dot(receiver.surfaceWorld, axisY_));
     const float receiverDepth = -glm::dot(receiver.surfaceWorld, toLight_);
+    // A point at infinity is off every map: nothing in it shadows the point. (The renderer asks
+    // where the light ray leaves the shell above the shaded point, the shell's depth over the
+    // light's facing away along it: infinite for a light grazing the base at a denormal angle.)
+    if (!std::isfinite(centre.x) || !std::isfinite(centre.y) || !std::isfinite(receiverDepth))
+        return 1.0f;
     // The receiver's tangent plane, as depth along the light per unit of light-plane offset.
     const glm::vec2 slope =
         glm::vec2(glm::dot(receiver.normal, axisX_), glm::dot(receiver.normal, axisY_)) /

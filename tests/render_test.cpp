@@ -639,6 +639,36 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
     EXPECT_EQ(samples, std::uint64_t((kShadowRingSamples + kShadowDiskSamples) * lookups));
 }
 
+TEST(ShadowMap, ReceiversFarOffTheMapOrAtInfinityAreLitWithoutSamples) {
+    // The renderer looks a detail hit up where the light ray from it leaves its shell: the
+    // shell's depth over the light's facing away along the light. A light grazing the base at a
+    // denormal angle (a fuzz input: direction (-1e-30, 1e12, -1e-30)) puts that point at
+    // infinity, and a nearly grazing one so far off the map that its tile index is beyond int's
+    // range. Nothing in the map lies there: lit, without a sample, under a narrow light (the
+    // blocker search) and a wide one (the line test).
+    constexpr float kInfinity = std::numeric_limits<float>::infinity();
+    const glm::vec3 up(0.0f, 0.0f, 1.0f);
+    for (const float angleDeg : {2.0f, 30.0f}) {
+        Scene scene = occluderScene();
+        scene.lights[0].angleDeg = angleDeg;
+        const SceneTracer tracer(scene, TraceOptions{});
+        const LightShadowMaps maps(tracer, scene.lights[0], 1024);
+        const ShadowMap& map = onlyMap(maps);
+        for (const glm::vec3& far :
+             {glm::vec3(1e30f, 0.0f, 0.0f), glm::vec3(-3e29f, 1e30f, 0.0f),
+              glm::vec3(5e9f, 0.0f, -1e12f), glm::vec3(kInfinity, 0.0f, 0.0f),
+              glm::vec3(0.0f, -kInfinity, 0.0f), glm::vec3(0.0f, 0.0f, kInfinity),
+              glm::vec3(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f)}) {
+            for (ShadowFilter filter : {ShadowFilter::Full, ShadowFilter::Adaptive}) {
+                std::uint64_t samples = 0;
+                EXPECT_EQ(map.visibility({far, up}, filter, 5, samples), 1.0f)
+                    << angleDeg << " degrees, at " << far.x << ", " << far.y << ", " << far.z;
+                EXPECT_EQ(samples, 0u);
+            }
+        }
+    }
+}
+
 TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
     const Scene scene = occluderScene();
     ASSERT_TRUE(isFlatSlab(scene.objects[0]));
