@@ -928,9 +928,10 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
     const glm::vec2 centre(glm::dot(receiver.surfaceWorld, axisX_),
                            glm::dot(receiver.surfaceWorld, axisY_));
     const float receiverDepth = -glm::dot(receiver.surfaceWorld, toLight_);
-    // A point at infinity is off every map: nothing in it shadows the point. (The renderer asks
-    // where the light ray leaves the shell above the shaded point, the shell's depth over the
-    // light's facing away along it: infinite for a light grazing the base at a denormal angle.)
+    // A point at infinity is off every map: nothing in it shadows the point. (The renderer looks
+    // a detail hit up where the light ray from it leaves its shell: the hit's depth below the top
+    // over the light's facing, along the light; infinite for a light grazing the base at a
+    // denormal angle.)
     if (!std::isfinite(centre.x) || !std::isfinite(centre.y) || !std::isfinite(receiverDepth))
         return 1.0f;
     // The receiver's tangent plane, as depth along the light per unit of light-plane offset.
