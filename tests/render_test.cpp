@@ -640,10 +640,10 @@ TEST(ShadowMap, ShadowsUnderAnOccluderLightsBesideItAndSkipsBackFaces) {
 }
 
 TEST(ShadowMap, ReceiversFarOffTheMapOrAtInfinityAreLitWithoutSamples) {
-    // The renderer looks a detail hit up where the light ray from it leaves its shell: the
-    // shell's depth over the light's facing away along the light. A light grazing the base at a
+    // The renderer looks a detail hit up where the light ray from it leaves its shell: the hit's
+    // depth below the top over the light's facing, along the light. A light grazing the base at a
     // denormal angle (a fuzz input: direction (-1e-30, 1e12, -1e-30)) puts that point at
-    // infinity, and a nearly grazing one so far off the map that its tile index is beyond int's
+    // infinity; a nearly grazing one, so far off the map that its tile index is beyond int's
     // range. Nothing in the map lies there: lit, without a sample, under a narrow light (the
     // blocker search) and a wide one (the line test).
     constexpr float kInfinity = std::numeric_limits<float>::infinity();
