@@ -6,10 +6,12 @@
 #include <cstdint>
 #include <ctime>
 #include <glm/geometric.hpp>
+#include <limits>
 #include <random>
 #include <vector>
 
 #include "bake/bake.h"
+#include "render/bvh.h"
 #include "render/coverage.h"
 #include "render/demo_scene.h"
 #include "render/image.h"
@@ -352,6 +354,64 @@ void demoShellCulling(benchmark::State& state) {
     state.counters["identical"] = identical ? 1.0 : 0.0;
 }
 BENCHMARK(demoShellCulling)->Unit(benchmark::kSecond)->Iterations(1);
+
+/// The base-triangle BVH (TriangleBvh) on the rays a shadow map of the demo traces: parallel
+/// rays along its light, one per texel of a 512 x 512 grid over the torus and the floor around
+/// it (texels of 0.005 world units, about a shadow map's finest), each asked for its nearest
+/// base triangle as the shadow map's light rays are. Counter: the share of rays that hit.
+void demoLightRaysBvh(benchmark::State& state) {
+    static const DemoMeshes meshes = demoMeshes();
+    static const TriangleBvh bvh = [] {
+        std::vector<glm::vec3> corners;
+        for (const BaseMesh* mesh : {&meshes.torus, &meshes.floor})
+            for (const glm::uvec3& triangle : mesh->triangles)
+                for (int corner = 0; corner < 3; ++corner)
+                    corners.push_back(mesh->positions[triangle[corner]]);
+        return TriangleBvh(std::move(corners));
+    }();
+    const glm::vec3 direction = glm::normalize(glm::vec3(-0.45f, 0.35f, -1.0f));
+    // A plane across the light above the scene, its axes as a shadow map's.
+    const glm::vec3 axisX = glm::normalize(glm::cross(direction, glm::vec3(0.0f, 1.0f, 0.0f)));
+    const glm::vec3 axisY = glm::cross(axisX, direction);
+    const glm::vec3 centre = glm::vec3(0.0f, 0.2f, 0.3f) - 4.0f * direction;
+    constexpr int kTexels = 512;
+    constexpr float kTexelWorld = 2.56f / float(kTexels);
+    std::vector<Ray> rays;
+    for (int y = 0; y < kTexels; ++y)
+        for (int x = 0; x < kTexels; ++x)
+            rays.push_back({centre + axisX * ((float(x) + 0.5f - 0.5f * kTexels) * kTexelWorld) +
+                                axisY * ((float(y) + 0.5f - 0.5f * kTexels) * kTexelWorld),
+                            direction});
+    std::size_t hits = 0;
+    const bool packets = state.range(0) == 1;
+    std::vector<Ray> packet(16);
+    const std::vector<float> from(16, 0.0f);
+    TriangleHit packetHits[16];
+    bool found[16];
+    for (auto _ : state) {
+        hits = 0;
+        if (!packets) {
+            for (const Ray& ray : rays) {
+                TriangleHit hit;
+                hits += bvh.intersect(ray, 0.0f, std::numeric_limits<float>::max(), hit) ? 1 : 0;
+                benchmark::DoNotOptimize(hit);
+            }
+            continue;
+        }
+        for (int y = 0; y < kTexels; y += 4)
+            for (int x = 0; x < kTexels; x += 4) {
+                for (int k = 0; k < 16; ++k)
+                    packet[std::size_t(k)] = rays[std::size_t((y + k / 4) * kTexels + x + k % 4)];
+                bvh.intersectParallel(packet, from, std::numeric_limits<float>::max(), packetHits,
+                                      found);
+                for (int k = 0; k < 16; ++k) hits += found[k] ? 1 : 0;
+                benchmark::DoNotOptimize(packetHits);
+            }
+    }
+    state.counters["hit share"] = double(hits) / double(rays.size());
+    state.SetItemsProcessed(std::int64_t(state.iterations()) * std::int64_t(rays.size()));
+}
+BENCHMARK(demoLightRaysBvh)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 /// The flat chain-mail sheet of data/scenes/sheet.json (a plane of 4 x 4 default tiles, camera
 /// about 35 degrees above it) as `distile bench --speed` times it against the peers: 1280 x 1024,

@@ -1,5 +1,6 @@
 #include "render/bvh.h"
 
+#include <immintrin.h>
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
@@ -75,6 +76,14 @@ TriangleBvh::TriangleBvh(std::vector<glm::vec3> corners) : corners_(std::move(co
         nodes_.reserve(2 * count);
         build(boxes, 0, count, 0, nodes_);
     }
+    // The triangles in leaf order, as the ray test takes them: a leaf's are side by side.
+    leafTriangles_.resize(count);
+    for (std::uint32_t i = 0; i < count; ++i) {
+        const std::uint32_t triangle = order_[i];
+        leafTriangles_[i] = DoubleTriangle(corners_[3 * triangle], corners_[3 * triangle + 1],
+                                           corners_[3 * triangle + 2]);
+    }
+    corners_ = {};
 }
 
 std::uint32_t TriangleBvh::build(const std::vector<TriangleBox>& boxes, std::uint32_t first,
@@ -250,9 +259,7 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
                     ? std::nextafter(nearest, std::numeric_limits<double>::infinity())
                     : nearest;
             double distance = 0.0, b1 = 0.0, b2 = 0.0;
-            if (!intersectTriangle(ray, corners_[3 * triangle], corners_[3 * triangle + 1],
-                                   corners_[3 * triangle + 2], minDistance, limit, distance, b1,
-                                   b2)) {
+            if (!intersectTriangle(ray, leafTriangles_[i], minDistance, limit, distance, b1, b2)) {
                 continue;
             }
             nearest = distance;
@@ -262,6 +269,127 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
         }
     }
     return found;
+}
+
+void TriangleBvh::intersectParallel(std::span<const Ray> rays,
+                                    std::span<const float> minDistances, float maxDistance,
+                                    std::span<TriangleHit> hits, std::span<bool> found) const {
+    constexpr int kLanes = int(kPacketRays);
+    const int count = int(rays.size());
+    for (int k = 0; k < count; ++k) found[std::size_t(k)] = false;
+    if (nodes_.empty() || count == 0) return;
+    const glm::vec3 inverseDirection = slabInverse(rays[0].direction);
+    // The lanes' state, one array per quantity (the box tests run across lanes). Lanes past
+    // `count` start with an empty interval and never hit.
+    alignas(64) float originX[kLanes], originY[kLanes], originZ[kLanes];
+    alignas(64) float lowest[kLanes], highest[kLanes];
+    double nearest[kLanes];
+    std::uint32_t nearestTriangle[kLanes];
+    for (int k = 0; k < kLanes; ++k) {
+        const Ray& ray = rays[std::size_t(std::min(k, count - 1))];
+        originX[k] = ray.origin.x;
+        originY[k] = ray.origin.y;
+        originZ[k] = ray.origin.z;
+        lowest[k] = k < count ? minDistances[std::size_t(k)] : 1.0f;
+        highest[k] = k < count ? maxDistance : 0.0f;
+        nearest[k] = maxDistance;
+        nearestTriangle[k] = 0;
+    }
+    // hitsBox for every lane: the lanes whose ray enters the box before its nearest hit, and
+    // where each enters.
+    // Four lanes per SSE register; std::min(a, b) is _mm_min_ps(b, a), std::max(a, b)
+    // _mm_max_ps(b, a), so every lane computes what hitsBox does.
+    const auto boxLanes = [&](const Node& node, float enter[kLanes]) {
+        const auto min = [](__m128 a, __m128 b) { return _mm_min_ps(b, a); };
+        const auto max = [](__m128 a, __m128 b) { return _mm_max_ps(b, a); };
+        const __m128 lowX = _mm_set1_ps(node.boundsMin.x), highX = _mm_set1_ps(node.boundsMax.x);
+        const __m128 lowY = _mm_set1_ps(node.boundsMin.y), highY = _mm_set1_ps(node.boundsMax.y);
+        const __m128 lowZ = _mm_set1_ps(node.boundsMin.z), highZ = _mm_set1_ps(node.boundsMax.z);
+        const __m128 inverseX = _mm_set1_ps(inverseDirection.x);
+        const __m128 inverseY = _mm_set1_ps(inverseDirection.y);
+        const __m128 inverseZ = _mm_set1_ps(inverseDirection.z);
+        std::uint32_t mask = 0;
+        for (int k = 0; k < kLanes; k += 4) {
+            const __m128 x = _mm_load_ps(originX + k), y = _mm_load_ps(originY + k),
+                         z = _mm_load_ps(originZ + k);
+            const __m128 x0 = _mm_mul_ps(_mm_sub_ps(lowX, x), inverseX);
+            const __m128 x1 = _mm_mul_ps(_mm_sub_ps(highX, x), inverseX);
+            const __m128 y0 = _mm_mul_ps(_mm_sub_ps(lowY, y), inverseY);
+            const __m128 y1 = _mm_mul_ps(_mm_sub_ps(highY, y), inverseY);
+            const __m128 z0 = _mm_mul_ps(_mm_sub_ps(lowZ, z), inverseZ);
+            const __m128 z1 = _mm_mul_ps(_mm_sub_ps(highZ, z), inverseZ);
+            const __m128 in = max(max(max(min(x0, x1), min(y0, y1)), min(z0, z1)),
+                                  _mm_load_ps(lowest + k));
+            const __m128 out = _mm_add_ps(
+                _mm_mul_ps(min(min(min(max(x0, x1), max(y0, y1)), max(z0, z1)),
+                               _mm_load_ps(highest + k)),
+                           _mm_set1_ps(1.00001f)),
+                _mm_set1_ps(1e-7f));
+            _mm_store_ps(enter + k, in);
+            mask |= std::uint32_t(_mm_movemask_ps(_mm_cmple_ps(in, out))) << k;
+        }
+        return mask;
+    };
+    alignas(16) float enter[kLanes], enterLeft[kLanes], enterRight[kLanes];
+    std::uint32_t rootLanes = boxLanes(nodes_[0], enter);
+    if (rootLanes == 0) return;
+    struct Entry {
+        std::uint32_t node, lanes;
+    };
+    Entry stack[2 * kMaxDepth + 2];
+    int stackSize = 0;
+    stack[stackSize++] = {0, rootLanes};
+    std::uint32_t foundLanes = 0;
+    while (stackSize > 0) {
+        const Entry entry = stack[--stackSize];
+        const Node& node = nodes_[entry.node];
+        if (node.count == 0) {
+            const std::uint32_t left = entry.node + 1, right = node.first;
+            const std::uint32_t leftLanes = boxLanes(nodes_[left], enterLeft) & entry.lanes;
+            const std::uint32_t rightLanes = boxLanes(nodes_[right], enterRight) & entry.lanes;
+            if (leftLanes && rightLanes) {
+                // Nearer child first for most of the lanes that enter both.
+                float lead = 0.0f;
+                for (int k = 0; k < kLanes; ++k)
+                    if ((leftLanes & rightLanes) >> k & 1u) lead += enterLeft[k] - enterRight[k];
+                const bool leftFirst = lead <= 0.0f;
+                stack[stackSize++] = leftFirst ? Entry{right, rightLanes} : Entry{left, leftLanes};
+                stack[stackSize++] = leftFirst ? Entry{left, leftLanes} : Entry{right, rightLanes};
+            } else if (leftLanes) {
+                stack[stackSize++] = {left, leftLanes};
+            } else if (rightLanes) {
+                stack[stackSize++] = {right, rightLanes};
+            }
+            continue;
+        }
+        std::uint32_t lanes = entry.lanes;
+        // Lanes that found a nearer hit since the leaf was pushed: its box may lie beyond it.
+        if (lanes & foundLanes) lanes &= boxLanes(node, enter) | ~foundLanes;
+        if (lanes == 0) continue;
+        // Triangle by triangle, each lane's in the order intersect takes them.
+        for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
+            const std::uint32_t triangle = order_[i];
+            const TriangleAlong along(rays[0].direction, leafTriangles_[i]);
+            for (std::uint32_t left = lanes; left != 0; left &= left - 1) {
+                const int k = __builtin_ctz(left);
+                const double limit =
+                    (foundLanes >> k & 1u) && triangle < nearestTriangle[k]
+                        ? std::nextafter(nearest[k], std::numeric_limits<double>::infinity())
+                        : nearest[k];
+                double distance = 0.0, b1 = 0.0, b2 = 0.0;
+                if (!along.intersect(rays[std::size_t(k)].origin, lowest[k], limit, distance, b1,
+                                     b2)) {
+                    continue;
+                }
+                nearest[k] = distance;
+                nearestTriangle[k] = triangle;
+                highest[k] = float(distance);
+                hits[std::size_t(k)] = {triangle, float(distance), b1, b2};
+                foundLanes |= 1u << k;
+            }
+        }
+    }
+    for (int k = 0; k < count; ++k) found[std::size_t(k)] = foundLanes >> k & 1u;
 }
 
 }  // namespace distile

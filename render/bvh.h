@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
+#include <span>
 #include <vector>
 
 namespace distile {
@@ -68,6 +69,35 @@ struct TriangleFromOrigin {
     }
 };
 
+/// A triangle and a ray direction: what Moeller-Trumbore computes from those two alone, once for
+/// every ray along that direction (a shadow map's light rays). Its test gives what
+/// TriangleFromOrigin's does, bit for bit: the same operations on the same values.
+struct TriangleAlong {
+    const DoubleTriangle& triangle;
+    glm::dvec3 along;   ///< the direction
+    glm::dvec3 pvec;    ///< along x edge2
+    double inverse;     ///< 1 / (edge1 . pvec)
+    bool parallel;      ///< the direction lies in the triangle's plane (or is not finite): no hit
+    TriangleAlong(const glm::vec3& direction, const DoubleTriangle& of)
+        : triangle(of), along(direction), pvec(glm::cross(along, of.edge2)) {
+        const double determinant = glm::dot(of.edge1, pvec);
+        parallel = determinant == 0.0 || !std::isfinite(determinant);
+        inverse = 1.0 / determinant;
+    }
+    /// intersectTriangle for the ray from `origin` along the direction.
+    bool intersect(const glm::vec3& origin, double minDistance, double maxDistance,
+                   double& distanceWorld, double& b1, double& b2) const {
+        if (parallel) return false;
+        const glm::dvec3 tvec = glm::dvec3(origin) - triangle.corner0;
+        b1 = glm::dot(tvec, pvec) * inverse;
+        if (b1 < 0.0 || b1 > 1.0) return false;
+        const glm::dvec3 qvec = glm::cross(tvec, triangle.edge1);
+        b2 = glm::dot(along, qvec) * inverse;
+        if (b2 < 0.0 || b1 + b2 > 1.0) return false;
+        distanceWorld = glm::dot(triangle.edge2, qvec) * inverse;
+        return distanceWorld > minDistance && distanceWorld < maxDistance;
+    }
+};
 /// The ray against one triangle (Moeller-Trumbore in double precision, the test TriangleBvh uses):
 /// true when it hits at a distance in (minDistance, maxDistance) world units, with the
 /// barycentric weights b1, b2 of p1, p2. Degenerate triangles and rays in their plane miss.
@@ -95,7 +125,16 @@ class TriangleBvh {
     /// computed in double precision, so rays through shared edges do not slip between triangles.
     bool intersect(const Ray& ray, float minDistance, float maxDistance, TriangleHit& hit) const;
 
-    std::size_t triangleCount() const { return corners_.size() / 3; }
+    /// intersect for each of up to kPacketRays rays that share one direction (a shadow map's
+    /// light rays): the rays traverse the tree together, each box tested for all of them at
+    /// once. Each ray's hit (`found[k]`, `hits[k]`) is the one intersect gives it, from
+    /// `minDistances[k]`.
+    static constexpr std::size_t kPacketRays = 16;
+    void intersectParallel(std::span<const Ray> rays, std::span<const float> minDistances,
+                           float maxDistance, std::span<TriangleHit> hits,
+                           std::span<bool> found) const;
+
+    std::size_t triangleCount() const { return order_.size(); }
 
   private:
     struct Node {
@@ -114,8 +153,9 @@ class TriangleBvh {
     std::uint32_t build(const std::vector<TriangleBox>& boxes, std::uint32_t first,
                         std::uint32_t count, int depth, std::vector<Node>& nodes);
 
-    std::vector<glm::vec3> corners_;
-    std::vector<std::uint32_t> order_;
+    std::vector<glm::vec3> corners_;  ///< while building: three per triangle
+    std::vector<std::uint32_t> order_;  ///< the triangles in leaf order
+    std::vector<DoubleTriangle> leafTriangles_;  ///< per entry of order_: its triangle
     std::vector<Node> nodes_;
 };
 

@@ -454,14 +454,51 @@ void SceneTracer::traceNearestBatch(std::span<const Ray> rays, float minDistance
     ShellMarch marches[kMaxBatchRays];
     ShellMarch* pending[kMaxBatchRays];
     std::size_t pendingRay[kMaxBatchRays];
+    // Rays along one direction (a shadow map's light rays) meet the base triangles together.
+    const bool parallel = count > 1 && std::all_of(rays.begin(), rays.end(), [&](const Ray& ray) {
+                              return ray.direction == rays[0].direction;
+                          });
+    constexpr float kFar = std::numeric_limits<float>::max();
+    TriangleHit baseHits[kMaxBatchRays];
+    bool onTops[kMaxBatchRays];
     for (;;) {
+        // Each active ray's first base triangle on from where it is (none past its passes).
+        std::size_t tracing[kMaxBatchRays];
+        std::size_t tracingCount = 0;
+        for (std::size_t r = 0; r < count; ++r) {
+            if (!active[r]) continue;
+            onTops[r] = false;
+            if (passes[r]++ != maxPasses) tracing[tracingCount++] = r;
+        }
+        if (parallel) {
+            for (std::size_t first = 0; first < tracingCount; first += TriangleBvh::kPacketRays) {
+                const std::size_t size = std::min(TriangleBvh::kPacketRays, tracingCount - first);
+                Ray packet[TriangleBvh::kPacketRays];
+                float packetFrom[TriangleBvh::kPacketRays];
+                TriangleHit packetHits[TriangleBvh::kPacketRays];
+                bool packetFound[TriangleBvh::kPacketRays];
+                for (std::size_t k = 0; k < size; ++k) {
+                    packet[k] = rays[tracing[first + k]];
+                    packetFrom[k] = from[tracing[first + k]];
+                }
+                bvh_.intersectParallel(std::span(packet, size), std::span(packetFrom, size), kFar,
+                                       std::span(packetHits, size), std::span(packetFound, size));
+                for (std::size_t k = 0; k < size; ++k) {
+                    onTops[tracing[first + k]] = packetFound[k];
+                    baseHits[tracing[first + k]] = packetHits[k];
+                }
+            }
+        } else {
+            for (std::size_t t = 0; t < tracingCount; ++t) {
+                const std::size_t r = tracing[t];
+                onTops[r] = bvh_.intersect(rays[r], from[r], kFar, baseHits[r]);
+            }
+        }
         std::size_t pendingCount = 0;
         for (std::size_t r = 0; r < count; ++r) {
             if (!active[r]) continue;
-            constexpr float kFar = std::numeric_limits<float>::max();
-            TriangleHit baseHit;
-            bool onTop =
-                passes[r]++ != maxPasses && bvh_.intersect(rays[r], from[r], kFar, baseHit);
+            TriangleHit& baseHit = baseHits[r];
+            bool onTop = onTops[r];
             while (onTop && baseHit.distanceWorld < skipBackFacesBefore[r] &&
                    !triangles_[baseHit.triangle].frontFacing(rays[r].direction)) {
                 onTop = passes[r]++ != maxPasses &&

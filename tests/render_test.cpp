@@ -11,8 +11,10 @@
 #include <filesystem>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <random>
+#include <span>
 #include <string>
 #include <thread>
 #include <tuple>
@@ -405,6 +407,80 @@ TEST(TriangleBvh, RaysInThePlaneOfABoxFaceHitWhatIsThere) {
         }
     }
     EXPECT_EQ(rays, 36);
+}
+
+TEST(TriangleBvh, ParallelRaysTracedTogetherHitWhatEachHitsAlone) {
+    // intersectParallel must give each ray exactly intersect's hit: the same triangle (ties to
+    // the lowest index included), distance and weights. The scene: 400 random triangles, their
+    // copies in reverse order (hit at exactly their originals' distances, so they must lose), a
+    // floor, and a grid of unit quads at z = -0.5 whose box faces lie on grid lines. Rays in
+    // packets of 1 to 16 along one direction (oblique, along the grid's lines, straight down),
+    // from coherent 4 x 4 blocks and from scattered origins, each from its own minimum
+    // distance.
+    std::mt19937 random(29);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    std::vector<glm::vec3> corners;
+    for (int i = 0; i < 3 * 400; ++i)
+        corners.emplace_back(unit(random), unit(random), 0.5f * unit(random));
+    const std::size_t originals = corners.size() / 3;
+    for (std::size_t t = originals; t-- > 0;)
+        corners.insert(corners.end(), {corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]});
+    corners.insert(corners.end(), {{-9, -9, -1}, {9, -9, -1}, {0, 9, -1}});
+    for (int y = -2; y < 2; ++y)
+        for (int x = -2; x < 2; ++x) {
+            const glm::vec3 p00(x, y, -0.5f), p10(x + 1, y, -0.5f), p11(x + 1, y + 1, -0.5f),
+                p01(x, y + 1, -0.5f);
+            corners.insert(corners.end(), {p00, p10, p11, p00, p11, p01});
+        }
+    const TriangleBvh bvh(corners);
+    const float diagonal = std::sqrt(0.5f);
+    const glm::vec3 directions[] = {glm::normalize(glm::vec3(-0.45f, 0.35f, -1.0f)),
+                                    {0.0f, diagonal, -diagonal},
+                                    {-diagonal, 0.0f, -diagonal},
+                                    {0.0f, 0.0f, -1.0f}};
+    constexpr float kFar = std::numeric_limits<float>::max();
+    int rays = 0, hits = 0, lateStarts = 0;
+    for (const glm::vec3& direction : directions) {
+        for (int packet = 0; packet < 400; ++packet) {
+            const int count = 1 + packet % int(TriangleBvh::kPacketRays);
+            const bool coherent = packet % 2 == 0;
+            const glm::vec3 corner(unit(random), unit(random), 0.0f);
+            std::vector<Ray> packetRays;
+            std::vector<float> from;
+            for (int k = 0; k < count; ++k) {
+                // On the grid's lines (whole coordinates) for a quarter of the coherent packets.
+                const float spacing = packet % 8 == 0 ? 1.0f : 0.01f;
+                const glm::vec3 target =
+                    coherent ? corner * (packet % 8 == 0 ? 0.0f : 1.0f) +
+                                   spacing * glm::vec3(float(k % 4 - 2), float(k / 4 - 2), 0.0f)
+                             : glm::vec3(unit(random), unit(random), 0.0f);
+                packetRays.push_back({target - 3.0f * direction, direction});
+                from.push_back(k % 3 == 0 ? 2.5f + 0.5f * unit(random) : 0.0f);
+            }
+            std::vector<TriangleHit> together(std::size_t(count), TriangleHit{});
+            std::unique_ptr<bool[]> found(new bool[std::size_t(count)]);
+            bvh.intersectParallel(packetRays, from, kFar, together,
+                                  std::span<bool>(found.get(), std::size_t(count)));
+            for (int k = 0; k < count; ++k) {
+                TriangleHit alone;
+                const bool foundAlone =
+                    bvh.intersect(packetRays[std::size_t(k)], from[std::size_t(k)], kFar, alone);
+                ++rays;
+                ASSERT_EQ(found[std::size_t(k)], foundAlone) << packet << " " << k;
+                if (!foundAlone) continue;
+                ++hits;
+                lateStarts += from[std::size_t(k)] > 0.0f ? 1 : 0;
+                const TriangleHit& hit = together[std::size_t(k)];
+                EXPECT_EQ(hit.triangle, alone.triangle) << packet << " " << k;
+                EXPECT_EQ(hit.distanceWorld, alone.distanceWorld) << packet << " " << k;
+                EXPECT_EQ(hit.b1, alone.b1) << packet << " " << k;
+                EXPECT_EQ(hit.b2, alone.b2) << packet << " " << k;
+            }
+        }
+    }
+    EXPECT_EQ(rays, 4 * 25 * 136);  // 4 directions, 25 times packets of 1 to 16 rays
+    EXPECT_GT(hits, rays * 9 / 10);  // the floor and the grid catch most rays: hits are tested
+    EXPECT_GT(lateStarts, rays / 5);
 }
 
 Scene planeScene(std::shared_ptr<const Tile> tile) {
