@@ -76,14 +76,12 @@ TriangleBvh::TriangleBvh(std::vector<glm::vec3> corners) : corners_(std::move(co
         nodes_.reserve(2 * count);
         build(boxes, 0, count, 0, nodes_);
     }
-    // The triangles in leaf order, as the ray test takes them: a leaf's are side by side.
-    leafTriangles_.resize(count);
-    for (std::uint32_t i = 0; i < count; ++i) {
-        const std::uint32_t triangle = order_[i];
-        leafTriangles_[i] = DoubleTriangle(corners_[3 * triangle], corners_[3 * triangle + 1],
-                                           corners_[3 * triangle + 2]);
-    }
-    corners_ = {};
+    // The corners in leaf order, as the ray tests take them: a leaf's triangles side by side.
+    std::vector<glm::vec3> leafCorners(corners_.size());
+    for (std::uint32_t i = 0; i < count; ++i)
+        for (int corner = 0; corner < 3; ++corner)
+            leafCorners[3 * i + corner] = corners_[3 * order_[i] + corner];
+    corners_ = std::move(leafCorners);
 }
 
 std::uint32_t TriangleBvh::build(const std::vector<TriangleBox>& boxes, std::uint32_t first,
@@ -259,7 +257,8 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
                     ? std::nextafter(nearest, std::numeric_limits<double>::infinity())
                     : nearest;
             double distance = 0.0, b1 = 0.0, b2 = 0.0;
-            if (!intersectTriangle(ray, leafTriangles_[i], minDistance, limit, distance, b1, b2)) {
+            if (!intersectTriangle(ray, corners_[3 * i], corners_[3 * i + 1], corners_[3 * i + 2],
+                                   minDistance, limit, distance, b1, b2)) {
                 continue;
             }
             nearest = distance;
@@ -369,7 +368,8 @@ void TriangleBvh::intersectParallel(std::span<const Ray> rays,
         // Triangle by triangle, each lane's in the order intersect takes them.
         for (std::uint32_t i = node.first; i < node.first + node.count; ++i) {
             const std::uint32_t triangle = order_[i];
-            const TriangleAlong along(rays[0].direction, leafTriangles_[i]);
+            const DoubleTriangle corners(corners_[3 * i], corners_[3 * i + 1], corners_[3 * i + 2]);
+            const TriangleAlong along(rays[0].direction, corners);
             for (std::uint32_t left = lanes; left != 0; left &= left - 1) {
                 const int k = __builtin_ctz(left);
                 const double limit =

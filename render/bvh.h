@@ -153,9 +153,10 @@ class TriangleBvh {
     std::uint32_t build(const std::vector<TriangleBox>& boxes, std::uint32_t first,
                         std::uint32_t count, int depth, std::vector<Node>& nodes);
 
-    std::vector<glm::vec3> corners_;  ///< while building: three per triangle
-    std::vector<std::uint32_t> order_;  ///< the triangles in leaf order
-    std::vector<DoubleTriangle> leafTriangles_;  ///< per entry of order_: its triangle
+    /// Three per triangle: in the order given while the tree is built, then in leaf order
+    /// (entry i of order_ has corners 3 i to 3 i + 2).
+    std::vector<glm::vec3> corners_;
+    std::vector<std::uint32_t> order_;  ///< the triangles' indices in leaf order
     std::vector<Node> nodes_;
 };
 
