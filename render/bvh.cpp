@@ -4,6 +4,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
@@ -295,9 +296,8 @@ void TriangleBvh::intersectParallel(std::span<const Ray> rays,
         nearestTriangle[k] = 0;
     }
     // hitsBox for every lane: the lanes whose ray enters the box before its nearest hit, and
-    // where each enters.
-    // Four lanes per SSE register; std::min(a, b) is _mm_min_ps(b, a), std::max(a, b)
-    // _mm_max_ps(b, a), so every lane computes what hitsBox does.
+    // where each enters. Four lanes per SSE register; std::min(a, b) is _mm_min_ps(b, a) and
+    // std::max(a, b) _mm_max_ps(b, a), so every lane computes exactly what hitsBox does.
     const auto boxLanes = [&](const Node& node, float enter[kLanes]) {
         const auto min = [](__m128 a, __m128 b) { return _mm_min_ps(b, a); };
         const auto max = [](__m128 a, __m128 b) { return _mm_max_ps(b, a); };
@@ -370,8 +370,8 @@ void TriangleBvh::intersectParallel(std::span<const Ray> rays,
             const std::uint32_t triangle = order_[i];
             const DoubleTriangle corners(corners_[3 * i], corners_[3 * i + 1], corners_[3 * i + 2]);
             const TriangleAlong along(rays[0].direction, corners);
-            for (std::uint32_t left = lanes; left != 0; left &= left - 1) {
-                const int k = __builtin_ctz(left);
+            for (std::uint32_t pending = lanes; pending != 0; pending &= pending - 1) {
+                const int k = std::countr_zero(pending);
                 const double limit =
                     (foundLanes >> k & 1u) && triangle < nearestTriangle[k]
                         ? std::nextafter(nearest[k], std::numeric_limits<double>::infinity())

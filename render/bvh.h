@@ -125,10 +125,10 @@ class TriangleBvh {
     /// computed in double precision, so rays through shared edges do not slip between triangles.
     bool intersect(const Ray& ray, float minDistance, float maxDistance, TriangleHit& hit) const;
 
-    /// intersect for each of up to kPacketRays rays that share one direction (a shadow map's
-    /// light rays): the rays traverse the tree together, each box tested for all of them at
-    /// once. Each ray's hit (`found[k]`, `hits[k]`) is the one intersect gives it, from
-    /// `minDistances[k]`.
+    /// intersect for each of `rays` from `minDistances[k]`: the rays traverse the tree
+    /// together, each box tested for all of them at once. Each ray's hit (`found[k]`,
+    /// `hits[k]`) is bit for bit the one intersect gives it. Preconditions: at most kPacketRays
+    /// rays, all with one direction (a shadow map's light rays); the spans of one size.
     static constexpr std::size_t kPacketRays = 16;
     void intersectParallel(std::span<const Ray> rays, std::span<const float> minDistances,
                            float maxDistance, std::span<TriangleHit> hits,
