@@ -330,20 +330,26 @@ TEST(TriangleBvh, ALargeTreeBuiltInParallelHasTheBruteForceHitsOnAnyThreadCount)
     EXPECT_GT(hits, 200);  // most rays hit: the test is about hits, not misses
 }
 
-TEST(TriangleBvh, EquallyNearTrianglesGoToTheLowestIndexWhateverTheTree) {
-    // 300 random triangles, a floor much larger than all of them (split off at the root by the
-    // surface area heuristic), then every triangle again in reverse order: each copy lies in
-    // another part of the tree, is hit at exactly the distance of its original, and must lose.
-    std::mt19937 random(11);
+/// The corners of `count` random triangles in [-1, 1]^2 x [-0.5, 0.5], a floor much larger than
+/// all of them (split off at the root by the surface area heuristic), then every triangle again
+/// in reverse order: each copy lies in another part of a tree over them, is hit at exactly the
+/// distance of its original, and must lose to it. The originals are the first count + 1.
+std::vector<glm::vec3> trianglesAndTheirCopies(std::mt19937& random, int count) {
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
     std::vector<glm::vec3> corners;
-    for (int i = 0; i < 3 * 300; ++i)
+    for (int i = 0; i < 3 * count; ++i)
         corners.emplace_back(unit(random), unit(random), 0.5f * unit(random));
     corners.insert(corners.end(), {{-9, -9, -1}, {9, -9, -1}, {0, 9, -1}});
-    const std::size_t originals = corners.size() / 3;
-    for (std::size_t t = originals; t-- > 0;)
+    for (std::size_t t = std::size_t(count) + 1; t-- > 0;)
         corners.insert(corners.end(), {corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]});
-    const TriangleBvh bvh(corners);
+    return corners;
+}
+
+TEST(TriangleBvh, EquallyNearTrianglesGoToTheLowestIndexWhateverTheTree) {
+    std::mt19937 random(11);
+    std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
+    const std::size_t originals = 300 + 1;
+    const TriangleBvh bvh(trianglesAndTheirCopies(random, 300));
     int hits = 0;
     for (int i = 0; i < 2000; ++i) {
         const Ray ray{glm::vec3(unit(random), unit(random), 3.0f),
@@ -411,21 +417,14 @@ TEST(TriangleBvh, RaysInThePlaneOfABoxFaceHitWhatIsThere) {
 
 TEST(TriangleBvh, ParallelRaysTracedTogetherHitWhatEachHitsAlone) {
     // intersectParallel must give each ray exactly intersect's hit: the same triangle (ties to
-    // the lowest index included), distance and weights. The scene: 400 random triangles, their
-    // copies in reverse order (hit at exactly their originals' distances, so they must lose), a
-    // floor, and a grid of unit quads at z = -0.5 whose box faces lie on grid lines. Rays in
+    // the lowest index included), distance and weights. The scene: trianglesAndTheirCopies of
+    // 400, and a grid of unit quads at z = -0.5 whose box faces lie on grid lines. Rays in
     // packets of 1 to 16 along one direction (oblique, along the grid's lines, straight down),
     // from coherent 4 x 4 blocks and from scattered origins, each from its own minimum
     // distance.
     std::mt19937 random(29);
     std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
-    std::vector<glm::vec3> corners;
-    for (int i = 0; i < 3 * 400; ++i)
-        corners.emplace_back(unit(random), unit(random), 0.5f * unit(random));
-    const std::size_t originals = corners.size() / 3;
-    for (std::size_t t = originals; t-- > 0;)
-        corners.insert(corners.end(), {corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]});
-    corners.insert(corners.end(), {{-9, -9, -1}, {9, -9, -1}, {0, 9, -1}});
+    std::vector<glm::vec3> corners = trianglesAndTheirCopies(random, 400);
     for (int y = -2; y < 2; ++y)
         for (int x = -2; x < 2; ++x) {
             const glm::vec3 p00(x, y, -0.5f), p10(x + 1, y, -0.5f), p11(x + 1, y + 1, -0.5f),
