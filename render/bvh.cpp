@@ -271,9 +271,9 @@ bool TriangleBvh::intersect(const Ray& ray, float minDistance, float maxDistance
     return found;
 }
 
-void TriangleBvh::intersectParallel(std::span<const Ray> rays,
-                                    std::span<const float> minDistances, float maxDistance,
-                                    std::span<TriangleHit> hits, std::span<bool> found) const {
+void TriangleBvh::intersectParallel(std::span<const Ray> rays, std::span<const float> minDistances,
+                                    float maxDistance, std::span<TriangleHit> hits,
+                                    std::span<bool> found) const {
     constexpr int kLanes = int(kPacketRays);
     const int count = int(rays.size());
     for (int k = 0; k < count; ++k) found[std::size_t(k)] = false;
@@ -317,12 +317,12 @@ void TriangleBvh::intersectParallel(std::span<const Ray> rays,
             const __m128 y1 = _mm_mul_ps(_mm_sub_ps(highY, y), inverseY);
             const __m128 z0 = _mm_mul_ps(_mm_sub_ps(lowZ, z), inverseZ);
             const __m128 z1 = _mm_mul_ps(_mm_sub_ps(highZ, z), inverseZ);
-            const __m128 in = max(max(max(min(x0, x1), min(y0, y1)), min(z0, z1)),
-                                  _mm_load_ps(lowest + k));
+            const __m128 in =
+                max(max(max(min(x0, x1), min(y0, y1)), min(z0, z1)), _mm_load_ps(lowest + k));
             const __m128 out = _mm_add_ps(
-                _mm_mul_ps(min(min(min(max(x0, x1), max(y0, y1)), max(z0, z1)),
-                               _mm_load_ps(highest + k)),
-                           _mm_set1_ps(1.00001f)),
+                _mm_mul_ps(
+                    min(min(min(max(x0, x1), max(y0, y1)), max(z0, z1)), _mm_load_ps(highest + k)),
+                    _mm_set1_ps(1.00001f)),
                 _mm_set1_ps(1e-7f));
             _mm_store_ps(enter + k, in);
             mask |= std::uint32_t(_mm_movemask_ps(_mm_cmple_ps(in, out))) << k;

@@ -74,10 +74,10 @@ struct TriangleFromOrigin {
 /// TriangleFromOrigin's does, bit for bit: the same operations on the same values.
 struct TriangleAlong {
     const DoubleTriangle& triangle;
-    glm::dvec3 along;   ///< the direction
-    glm::dvec3 pvec;    ///< along x edge2
-    double inverse;     ///< 1 / (edge1 . pvec)
-    bool parallel;      ///< the direction lies in the triangle's plane (or is not finite): no hit
+    glm::dvec3 along;  ///< the direction
+    glm::dvec3 pvec;   ///< along x edge2
+    double inverse;    ///< 1 / (edge1 . pvec)
+    bool parallel;     ///< the direction lies in the triangle's plane (or is not finite): no hit
     TriangleAlong(const glm::vec3& direction, const DoubleTriangle& of)
         : triangle(of), along(direction), pvec(glm::cross(along, of.edge2)) {
         const double determinant = glm::dot(of.edge1, pvec);

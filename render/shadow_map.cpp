@@ -732,7 +732,8 @@ void ShadowMap::traceTile(const Level& level, int tile) const {
     for (int blockY = y0; blockY < y1; blockY += kBlock)
         for (int blockX = x0; blockX < x1; blockX += kBlock)
             for (int y = blockY; y < std::min(blockY + kBlock, y1); ++y)
-                for (int x = blockX; x < std::min(blockX + kBlock, x1); ++x) order[count++] = {x, y};
+                for (int x = blockX; x < std::min(blockX + kBlock, x1); ++x)
+                    order[count++] = {x, y};
     for (int first = 0; first < count; first += kBatch) {
         const int batch = std::min(kBatch, count - first);
         for (int k = 0; k < batch; ++k) {

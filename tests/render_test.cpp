@@ -477,7 +477,7 @@ TEST(TriangleBvh, ParallelRaysTracedTogetherHitWhatEachHitsAlone) {
             }
         }
     }
-    EXPECT_EQ(rays, 4 * 25 * 136);  // 4 directions, 25 times packets of 1 to 16 rays
+    EXPECT_EQ(rays, 4 * 25 * 136);   // 4 directions, 25 times packets of 1 to 16 rays
     EXPECT_GT(hits, rays * 9 / 10);  // the floor and the grid catch most rays: hits are tested
     EXPECT_GT(lateStarts, rays / 5);
 }
