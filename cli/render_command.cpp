@@ -183,11 +183,9 @@ InputError underRenderNames(const InputError& error, const RenderArguments& argu
 
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
-    // The image is written at the end. A PNG is written with libpng; any other file (an EXR, a
-    // TIFF, the AOVs' depth EXR) needs OpenImageIO, which loads meanwhile, while the scene is
-    // read and rendered, instead of after the last pixel.
-    if (!image_files::writesWithoutModule(arguments.output) || arguments.options.outputAovs)
-        image_files::loadInBackground();
+    // The image is written at the end. A PNG is written with libpng and an EXR (the AOVs are
+    // both) with OpenEXR; a TIFF needs OpenImageIO, which starts loading meanwhile.
+    if (!image_files::writesWithoutModule(arguments.output)) image_files::loadInBackground();
     // The outputs are checked (and reserved) before the scene is read and its tiles baked.
     const bool worldReference =
         arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset";
@@ -197,6 +195,7 @@ void runRender(RenderArguments arguments) {
                                 : RenderOutputs(arguments.output, arguments.options.outputAovs,
                                                 {"depth", "normal", "iterations", "shadow_samples",
                                                  "shadow_map_samples", "curvature", "texel_scale"});
+    const auto commandStart = std::chrono::steady_clock::now();
     TileCache tiles;
     const auto warn = [](const std::string& warning) {
         std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());
@@ -222,22 +221,29 @@ void runRender(RenderArguments arguments) {
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
     if (options.reference) attachTruth(sceneFile);
 
+    const auto secondsSince = [](std::chrono::steady_clock::time_point from) {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - from).count();
+    };
+    const double sceneSeconds = secondsSince(commandStart);
     const auto start = std::chrono::steady_clock::now();
     RenderResult result;
+    double preparationSeconds = 0.0;
     {
         ProgressBar progress("render " + std::to_string(options.width) + "x" +
                              std::to_string(options.height));
-        result = renderScene(
-            sceneFile.scene, options,
-            progress.enabled() ? ProgressCallback(std::ref(progress)) : ProgressCallback());
+        const PreparedScene prepared(sceneFile.scene, options);
+        preparationSeconds = secondsSince(start);
+        result = prepared.render(progress.enabled() ? ProgressCallback(std::ref(progress))
+                                                    : ProgressCallback());
     }
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds = secondsSince(start);
     for (const std::string& warning : result.warnings)
         std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    const auto writeStart = std::chrono::steady_clock::now();
     writeImage(result.image, outputs.image());
     if (result.aovs) outputs.writeAovs(*result.aovs);
     outputs.commit();
+    const double writeSeconds = secondsSince(writeStart);
     const RenderStats& stats = result.stats;
     std::printf(
         "rendered %s (%dx%d, %d spp) in %.2f s: %llu rays, %.1f%% hit a surface (%.1f%% a "
@@ -274,6 +280,10 @@ void runRender(RenderArguments arguments) {
         std::printf("  and %s (texels per world unit along the ray, for distile compare)\n",
                     aovPath(arguments.output, "texel_scale", ".exr").c_str());
     }
+    std::printf(
+        "time: scene %.3f s (read, tiles baked or from the cache), preparation %.3f s, frame "
+        "%.3f s, image files %.3f s\n",
+        sceneSeconds, preparationSeconds, seconds - preparationSeconds, writeSeconds);
     std::printf("image written to %s\n", fs::absolute(arguments.output).c_str());
 }
 

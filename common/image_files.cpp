@@ -5,6 +5,7 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "common/detail/exr_file.h"
 #include "common/detail/image_files_module.h"
 #include "common/detail/module_loader.h"
 #include "common/detail/png_file.h"
@@ -84,17 +85,27 @@ std::unique_ptr<Input> open(const fs::path& file, std::string_view acceptedNote)
     return input;
 }
 
-bool writesWithoutModule(const fs::path& file) {
+namespace {
+
+std::string lowerExtension(const fs::path& file) {
     std::string extension = file.extension().string();
     for (char& c : extension) c = char(std::tolower((unsigned char)c));
-    return extension == ".png";
+    return extension;
+}
+
+}  // namespace
+
+bool writesWithoutModule(const fs::path& file) {
+    const std::string extension = lowerExtension(file);
+    return extension == ".png" || extension == ".exr";
 }
 
 void write(const fs::path& file, const fs::path& target, const Spec& spec, PixelType given,
            const void* pixels) {
-    const std::string problem = writesWithoutModule(file)
-                                    ? detail::writePng(file, spec, given, pixels)
-                                    : module().write(file, spec, given, pixels);
+    const std::string extension = lowerExtension(file);
+    const std::string problem = extension == ".png"   ? detail::writePng(file, spec, given, pixels)
+                                : extension == ".exr" ? detail::writeExr(file, spec, given, pixels)
+                                                      : module().write(file, spec, given, pixels);
     if (!problem.empty()) throw std::runtime_error(target.string() + ": " + problem);
 }
 

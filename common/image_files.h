@@ -64,7 +64,8 @@ class Input {
 ///         `acceptedNote` (e.g. "; a height map must be ..."), or the checks' errors.
 std::unique_ptr<Input> open(const std::filesystem::path& file, std::string_view acceptedNote = "");
 
-/// True when writing `file` does not load the module: a PNG (by its extension).
+/// True when writing `file` does not load the module: a PNG or an OpenEXR file (by its
+/// extension), written with libpng or OpenEXR itself.
 bool writesWithoutModule(const std::filesystem::path& file);
 
 /// Writes `pixels` (spec.width * spec.height pixels of spec.channels values of type `given`, row

@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "common/atomic_file.h"
+#include "common/detail/exr_file.h"
 #include "common/error.h"
 #include "common/exr_header.h"
 #include "common/fnv1a.h"
@@ -322,59 +323,6 @@ std::vector<float> decodeAtlasPixels(const fs::path& file, int width, int height
     return pixels;
 }
 
-/// OpenEXR compresses a file's chunks on its own pool of threads, none unless told: as many as
-/// TBB may use at the first tile write (the --threads limit), or read of a tiled file. Two threads
-/// write the default tile in 41 ms instead of 63. The bytes and pixels do not depend on it.
-void useExrThreads() {
-    static std::once_flag once;
-    std::call_once(once, [] {
-        const int threads =
-            int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
-        if (threads > 1) Imf::setGlobalThreadCount(threads);
-    });
-}
-
-/// Writes `pixels` (one float per atlas pixel, row-major) into `temporary` as the zip-compressed
-/// OpenEXR atlas `spec` describes, with OpenEXR itself: reading and writing tiles needs none of
-/// OpenImageIO's plugins, so a render's tiles are read while OpenImageIO is still loading.
-void writeExrAtlas(const fs::path& temporary, const image_files::Spec& spec,
-                   const std::vector<float>& pixels, const fs::path& target) {
-    try {
-        Imf::Header header(spec.width, spec.height);
-        header.compression() = Imf::ZIP_COMPRESSION;
-        header.channels().insert(
-            kChannelName, Imf::Channel(spec.pixelType == PixelType::Half ? Imf::HALF : Imf::FLOAT));
-        for (const image_files::Attribute& attribute : spec.attributes) {
-            if (const auto* text = std::get_if<std::string>(&attribute.value))
-                header.insert(attribute.name, Imf::StringAttribute(*text));
-            else if (const auto* number = std::get_if<float>(&attribute.value))
-                header.insert(attribute.name, Imf::FloatAttribute(*number));
-            else
-                header.insert(attribute.name, Imf::IntAttribute(std::get<int>(attribute.value)));
-        }
-        // OpenEXR converts pixel types when reading only: half files are written from halves.
-        std::vector<Imath::half> halves;
-        Imf::FrameBuffer frame;
-        if (spec.pixelType == PixelType::Half) {
-            halves.assign(pixels.begin(), pixels.end());
-            frame.insert(kChannelName, Imf::Slice(Imf::HALF, reinterpret_cast<char*>(halves.data()),
-                                                  sizeof(Imath::half),
-                                                  sizeof(Imath::half) * std::size_t(spec.width)));
-        } else {
-            char* base = const_cast<char*>(reinterpret_cast<const char*>(pixels.data()));
-            frame.insert(kChannelName, Imf::Slice(Imf::FLOAT, base, sizeof(float),
-                                                  sizeof(float) * std::size_t(spec.width)));
-        }
-        useExrThreads();
-        Imf::OutputFile output(temporary.c_str(), header);
-        output.setFrameBuffer(frame);
-        output.writePixels(spec.height);
-    } catch (const std::exception& error) {
-        throw std::runtime_error(target.string() + ": writing failed (" +
-                                 firstLine(error.what(), "unknown OpenEXR error") + ")");
-    }
-}
-
 /// The header of an OpenEXR file as an image_files::Spec: its data window's extent, channel names
 /// and the string, float and integer attributes (readers take every channel as float).
 image_files::Spec specOfExr(const Imf::Header& header) {
@@ -495,8 +443,13 @@ void writeTileExr(const Tile& tile, const fs::path& file, TileStorage storage) {
     const std::vector<float> pixels = toAtlas(size, stored, maxDistance);
     const image_files::Spec spec =
         tileSpec(size, fileType, tile.provenance, hashDistances(size, stored), file);
-    writeAtomically(
-        file, [&](const fs::path& temporary) { writeExrAtlas(temporary, spec, pixels, file); });
+    // With OpenEXR itself, whatever the file's extension: reading and writing tiles needs none
+    // of OpenImageIO's plugins, so a render's tiles are read while OpenImageIO is still loading.
+    writeAtomically(file, [&](const fs::path& temporary) {
+        const std::string problem =
+            image_files::detail::writeExr(temporary, spec, PixelType::Float, pixels.data());
+        if (!problem.empty()) throw std::runtime_error(file.string() + ": " + problem);
+    });
 }
 
 Tile readTileExr(const fs::path& file) {
@@ -553,7 +506,7 @@ Tile readTileExr(const fs::path& file) {
             // Tiled by another tool. The slice's origin is the data window's corner, as OpenEXR
             // addresses pixels; computed as an address so that a window far from (0, 0) is not
             // pointer arithmetic out of range.
-            useExrThreads();
+            image_files::detail::useExrThreads();
             pixels.resize(atlasPixelCount);
             const Imath::Box2i window = input->header().dataWindow();
             const std::uintptr_t origin =

@@ -4,7 +4,7 @@
 # GENERATOR are the build's compiler and CMake generator. With PYTHON (the interpreter the Python
 # module is built for) and PYTHON_PACKAGE_DIR (where cmake --install puts the package, relative to
 # the prefix), the installed package too renders SCENE, from outside the build tree, to the same
-# PNG, and writes an EXR with the image module, which it must load from the prefix's lib.
+# PNG, and writes a TIFF with the image module, which it must load from the prefix's lib.
 file(REMOVE_RECURSE ${WORK})
 file(MAKE_DIRECTORY ${WORK})
 function(run what)
@@ -43,7 +43,7 @@ loaded = [line.split()[-1] for line in open('/proc/self/maps') if 'image_files_o
 prefix = os.path.realpath(sys.argv[5])
 if not loaded or not all(os.path.realpath(path).startswith(prefix + os.sep) for path in loaded):
     sys.exit('the image module was loaded from ' + repr(loaded) + ', not from ' + prefix)
-" ${package} ${SCENE} ${WORK}/python.png ${WORK}/python.exr ${WORK}/prefix/lib
+" ${package} ${SCENE} ${WORK}/python.png ${WORK}/python.tif ${WORK}/prefix/lib
                     WORKING_DIRECTORY ${WORK}
                     RESULT_VARIABLE status OUTPUT_VARIABLE out ERROR_VARIABLE err)
     if(NOT status EQUAL 0)
@@ -51,8 +51,8 @@ if not loaded or not all(os.path.realpath(path).startswith(prefix + os.sep) for 
     endif()
     execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files ${WORK}/python.png ${WORK}/cli.png
                     RESULT_VARIABLE differ)
-    if(NOT differ EQUAL 0 OR NOT EXISTS ${WORK}/python.exr)
+    if(NOT differ EQUAL 0 OR NOT EXISTS ${WORK}/python.tif)
         message(FATAL_ERROR "the installed Python package and distile render wrote different "
-                            "images of ${SCENE}, or no EXR")
+                            "images of ${SCENE}, or no TIFF")
     endif()
 endif()

@@ -1,6 +1,7 @@
 // Tests of the tile files (sampler/tile_io.h) and the image files (render/image.h): exact round
 // trips, the atlas layout pixel by pixel, the header metadata, and every rejection path.
 
+#include <Imath/half.h>
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
@@ -14,6 +15,7 @@
 #include <functional>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/detail/png_file.h"
@@ -693,7 +695,67 @@ TEST_F(SamplerIo, PngsAreWrittenWithLibpngAndReadBackByOpenImageIo) {
     for (int i = 0; i < 4; ++i)
         EXPECT_EQ(std::lround(greyRead.pixels[std::size_t(i)] * 65535.0f), codes[std::size_t(i)]);
     EXPECT_TRUE(image_files::writesWithoutModule("a/B.PNG"));
-    EXPECT_FALSE(image_files::writesWithoutModule("a/b.exr"));
+    EXPECT_FALSE(image_files::writesWithoutModule("a/b.tif"));
+}
+
+TEST_F(SamplerIo, ExrsAreWrittenWithOpenExrAndReadBackByOpenImageIo) {
+    // RGB floats stored as float (exactly) and as half (rounded as OpenEXR's half does), with
+    // the compression named as OpenImageIO names it; string, integer and float attributes come
+    // back, OpenImageIO's "oiio:" hints are not stored. What OpenEXR cannot store is refused.
+    EXPECT_TRUE(image_files::writesWithoutModule("a/b.EXR"));
+    const std::vector<float> floats = {0.0f, 1.0f, -2.5f,  1e-3f, 65504.0f, 3.1415926f,
+                                       0.1f, 7.0f, 1e-30f, -0.0f, 123.456f, 0.5f};
+    for (const auto& [stored, compression] : {std::pair{image_files::PixelType::Float, "zip"},
+                                              std::pair{image_files::PixelType::Half, "piz"}}) {
+        image_files::Spec rgb = imageSpec(2, 2, 3, stored);
+        rgb.set("oiio:ColorSpace", std::string("Linear"));
+        rgb.set("compression", std::string(compression));
+        rgb.set("distile:note", std::string("a note"));
+        rgb.set("distile:count", 7);
+        rgb.set("distile:scale", 0.25f);
+        const fs::path file = path(std::string("rgb_") + compression + ".exr");
+        image_files::write(file, file, rgb, image_files::PixelType::Float, floats.data());
+        const RawImage read = readRaw(file);
+        ASSERT_EQ(read.spec.nchannels, 3);
+        EXPECT_EQ(read.spec.channelnames, (std::vector<std::string>{"R", "G", "B"}));
+        EXPECT_EQ(read.spec.format, stored == image_files::PixelType::Half ? OIIO::TypeDesc::HALF
+                                                                           : OIIO::TypeDesc::FLOAT);
+        EXPECT_EQ(read.spec.get_string_attribute("compression"), compression);
+        EXPECT_EQ(read.spec.get_string_attribute("distile:note"), "a note");
+        EXPECT_EQ(read.spec.get_int_attribute("distile:count"), 7);
+        EXPECT_EQ(read.spec.get_float_attribute("distile:scale"), 0.25f);
+        for (std::size_t i = 0; i < floats.size(); ++i) {
+            const float expected =
+                stored == image_files::PixelType::Half ? float(Imath::half(floats[i])) : floats[i];
+            EXPECT_EQ(read.pixels[i], expected) << i;
+        }
+    }
+    image_files::Spec grey = imageSpec(2, 2, 1, image_files::PixelType::Float);
+    const fs::path greyFile = path("grey.exr");
+    image_files::write(greyFile, greyFile, grey, image_files::PixelType::Float, floats.data());
+    EXPECT_EQ(readRaw(greyFile).spec.channelnames, std::vector<std::string>{"Y"});
+
+    const auto refusal = [&](image_files::Spec spec, image_files::PixelType given) {
+        const fs::path file = path("refused.exr");
+        try {
+            image_files::write(file, path("named.exr"), spec, given, floats.data());
+        } catch (const std::runtime_error& error) {
+            return std::string(error.what());
+        }
+        return std::string("written");
+    };
+    image_files::Spec unknown = imageSpec(2, 2, 3, image_files::PixelType::Float);
+    unknown.set("compression", std::string("jpeg"));
+    EXPECT_EQ(refusal(unknown, image_files::PixelType::Float),
+              path("named.exr").string() + ": compression 'jpeg' is not one OpenEXR has");
+    EXPECT_NE(
+        refusal(imageSpec(2, 2, 3, image_files::PixelType::UInt8), image_files::PixelType::Float)
+            .find("from floats, stored as half or float"),
+        std::string::npos);
+    EXPECT_NE(
+        refusal(imageSpec(1, 2, 2, image_files::PixelType::Float), image_files::PixelType::Float)
+            .find("2 channels without a name each"),
+        std::string::npos);
 }
 
 TEST_F(SamplerIo, PngsWithoutRowFiltersAreDeflatedInBandsTheSameOnAnyThreadCount) {
