@@ -11,6 +11,7 @@
 #include <OpenEXR/ImfThreading.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <mutex>
@@ -72,13 +73,12 @@ std::string writeExr(const std::filesystem::path& file, const Spec& spec, PixelT
             if (attribute.name.starts_with("oiio:")) continue;
             const auto* text = std::get_if<std::string>(&attribute.value);
             if (attribute.name == "compression" && text) {
-                bool known = false;
-                for (const auto& [name, compression] : kCompressions) {
-                    if (name != *text) continue;
-                    header.compression() = compression;
-                    known = true;
-                }
-                if (!known) return "compression '" + *text + "' is not one OpenEXR has";
+                const auto* known =
+                    std::find_if(kCompressions.begin(), kCompressions.end(),
+                                 [&](const auto& named) { return named.first == *text; });
+                if (known == kCompressions.end())
+                    return "compression '" + *text + "' is not one OpenEXR has";
+                header.compression() = known->second;
             } else if (text) {
                 header.insert(attribute.name, Imf::StringAttribute(*text));
             } else if (const auto* number = std::get_if<float>(&attribute.value)) {
