@@ -1,5 +1,8 @@
 #include "common/image_files.h"
 
+#include <tbb/cache_aligned_allocator.h>
+#include <tbb/parallel_for.h>
+
 #include <cctype>
 #include <future>
 #include <mutex>
@@ -118,6 +121,13 @@ bool drawText(std::span<float> rgb, int width, int height, int x, int baseline,
 void loadInBackground() {
     // A missing module is reported now, not after the work needing it.
     distile::detail::moduleFile(kModule);
+    // The dynamic loader holds its lock for the whole load, and work beside it that asks for
+    // the lock waits as long: TBB opens a library on its first allocation and starts its
+    // workers on its first parallel loop, so both happen here first. (The work must not
+    // register thread_local objects with destructors either: that takes the lock too.)
+    tbb::cache_aligned_allocator<char> allocator;
+    allocator.deallocate(allocator.allocate(1), 1);
+    tbb::parallel_for(0, 2, [](int) {});
     startLoading(std::launch::async);
 }
 

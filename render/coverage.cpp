@@ -11,7 +11,9 @@
 #include <glm/geometric.hpp>
 #include <limits>
 #include <numeric>
+#include <type_traits>
 #include <utility>
+#include <vector>
 
 namespace distile {
 
@@ -497,16 +499,23 @@ struct Candidate {
     std::uint32_t shell;
 };
 
-/// A pixel's candidates, nearest depth bound first: few per pixel, so a small buffer inline, the
-/// heap beyond it.
+/// A pixel's candidates, nearest depth bound first: few per pixel, so a small buffer inline, and
+/// beyond it a vector of `overflow`, the caller's (so that a Candidates is trivially destructible,
+/// kept in thread_local working memory: see traceNearestBatch).
 class Candidates {
   public:
-    void push(const Candidate& candidate) {
+    /// `overflow` holds the vectors of a batch's pixels with more than kInline candidates; it
+    /// outlives the batch's use of the candidates.
+    void push(const Candidate& candidate, std::vector<std::vector<Candidate>>& overflow) {
         if (count_ < kInline) {
             inline_[count_] = candidate;
         } else {
-            if (count_ == kInline) heap_.assign(inline_, inline_ + kInline);
-            heap_.push_back(candidate);
+            if (count_ == kInline) {
+                // One vector per pixel of the batch at most: reserved, so none moves.
+                if (overflow.empty()) overflow.reserve(ScreenShells::kMaxBatchRays);
+                heap_ = &overflow.emplace_back(inline_, inline_ + kInline);
+            }
+            heap_->push_back(candidate);
         }
         ++count_;
     }
@@ -533,10 +542,10 @@ class Candidates {
 
   private:
     static constexpr std::size_t kInline = 64;
-    Candidate* data() { return count_ <= kInline ? inline_ : heap_.data(); }
-    const Candidate* data() const { return count_ <= kInline ? inline_ : heap_.data(); }
+    Candidate* data() { return count_ <= kInline ? inline_ : heap_->data(); }
+    const Candidate* data() const { return count_ <= kInline ? inline_ : heap_->data(); }
     Candidate inline_[kInline];
-    std::vector<Candidate> heap_;
+    std::vector<Candidate>* heap_ = nullptr;  ///< beyond kInline: in the caller's overflow
     std::size_t count_ = 0;
 };
 
@@ -601,7 +610,12 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
         std::array<std::pair<float, float>, 4> exits[kMaxBatchRays];
     };
     constexpr std::size_t kExits = 4;
+    // Trivially destructible: a thread's first use of a thread_local with a destructor registers
+    // it under the dynamic loader's lock, and waits there while a module loads (OpenImageIO's,
+    // beside a render to a TIFF).
+    static_assert(std::is_trivially_destructible_v<Arrays>);
     thread_local Arrays arrays;
+    std::vector<std::vector<Candidate>> overflow;  // pixels with many candidates (rare)
     Candidates* candidates = arrays.candidates;
     SurfaceHit* shellHits = arrays.shellHits;
     SurfaceHit* backHits = arrays.backHits;
@@ -620,7 +634,8 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
         shellCounters.tested += tileStart_[tile + 1] - tileStart_[tile];
         for (std::uint32_t entry = tileStart_[tile]; entry < tileStart_[tile + 1]; ++entry) {
             if ((pixelMasks_[entry] >> bit & 1) == 0) continue;
-            candidates[r].push({-std::numeric_limits<float>::infinity(), shellsByTile_[entry]});
+            candidates[r].push({-std::numeric_limits<float>::infinity(), shellsByTile_[entry]},
+                               overflow);
         }
         // Depth bounds order several candidates and cull the later ones; a lone candidate is
         // traced whatever its bound.

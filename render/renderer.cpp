@@ -10,6 +10,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "common/error.h"
@@ -273,6 +274,7 @@ class Renderer {
             bool found[kBatch];
             TraceCounters counters[kBatch];
         };
+        static_assert(std::is_trivially_destructible_v<Arrays>);  // ScreenShells' reason
         thread_local Arrays arrays;
         auto& [selfShadows, rays, sampleIndices, hits, found, counters] = arrays;
         const int samplesPerPixel = options_.samplesPerPixel;
@@ -765,8 +767,9 @@ RenderResult PreparedScene::render(const ProgressCallback& progress) const {
         options.width, options.height, kBlock, progress, 0.0, 1.0,
         [&](const tbb::blocked_range2d<int>& block) {
             RenderStats local;
-            thread_local std::vector<std::uint64_t> facingHits;
-            facingHits.assign(renderer.facingSlots(), 0);
+            // Not thread_local (see ScreenShells::traceNearestBatch): one small allocation a
+            // block.
+            std::vector<std::uint64_t> facingHits(renderer.facingSlots(), 0);
             constexpr int kRows = Renderer::kRunRows;
             Sample run[kRows * kBlock];
             for (int y0 = block.rows().begin(); y0 < block.rows().end(); y0 += kRows) {

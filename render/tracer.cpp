@@ -13,6 +13,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <utility>
 
 #include "common/error.h"
@@ -946,6 +947,7 @@ void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
     std::size_t flatCount = 0;
     // The curved marches' state, once per thread (most marches are not curved: a ShellMarch
     // does not carry it).
+    static_assert(std::is_trivially_destructible_v<CurvedMarchRay>);  // see ScreenShells
     thread_local CurvedMarchRay curvedTraces[kMaxBatchRays];
     std::size_t curvedCount = 0;
     for (ShellMarch* march : marches) {
@@ -1043,6 +1045,7 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
     for (const Ray* ray : rays)
         if (!triangle.frontFacing(ray->direction)) return false;
     // enterShell's test of the top (nothing nearer yet: no upper bound), then the entry.
+    static_assert(std::is_trivially_destructible_v<ShellMarch>);  // see ScreenShells
     thread_local ShellMarch marches[kMaxBatchRays];
     ShellMarch* entered[kMaxBatchRays];
     std::size_t rayOf[kMaxBatchRays];

@@ -2278,6 +2278,74 @@ TEST(ShellCulling, BatchesTraceEveryRayAsItsOwnTrace) {
     EXPECT_GT(multiRound, 1000);  // rays that marched through the open top layer into the next
 }
 
+TEST(ShellCulling, PixelsUnderMoreShellsThanKeptInlineFindTheBvhsHits) {
+    // 72 planes stacked apart from one another under a camera looking straight down, each
+    // filling the view: every pixel takes more candidate shells than a pixel keeps inline (64),
+    // the rest in the batch's overflow vectors. The 70 upper planes hold empty tiles over open
+    // floors, so every ray passes through them and hits one of the two deepest, whose shells
+    // come last in the pixels' nearest-first candidates, in the overflow. Each ray's hit must be
+    // the one the BVH's path finds for it (no candidates there; the shells do not overlap, so
+    // the two paths run the same marches), with culling and without.
+    const Scene stacked = stackedPlanesScene();
+    const auto empty = std::make_shared<const Tile>(Size3{32, 32, 16}, 4.0f);
+    Scene scene;
+    scene.camera = {{0.1f, 0.05f, 3.0f}, {0.1f, 0.05f, 0.0f}, {0.0f, 1.0f, 0.0f}, 4.0f};
+    for (int layer = 0; layer < 72; ++layer) {
+        SceneObject plane = stacked.objects[1];
+        applyTransform(plane.mesh,
+                       {{0.0f, 0.0f, -1.05f * 0.25f * float(layer)}, {0.0f, 0.0f, 0.0f}, 1.0f});
+        if (layer < 70) {
+            plane.material.tile = empty;
+            plane.material.floor = Floor::Open;
+        }
+        scene.objects.push_back(std::move(plane));
+    }
+    const SceneTracer tracer(scene, TraceOptions{});
+    constexpr int kWidth = 32, kHeight = 24;
+    const PinholeProjection projection(scene.camera, kWidth, kHeight);
+    const ScreenShells shells(tracer, projection);
+    int overflowing = 0, deepHits = 0;
+    for (int y = 0; y < kHeight; ++y) {
+        for (int x = 0; x < kWidth; ++x) {
+            const auto bin =
+                shells.tileShells(x / ScreenShells::kTilePixels, y / ScreenShells::kTilePixels);
+            const auto taken = std::count_if(bin.begin(), bin.end(), [&](std::uint32_t shell) {
+                return shells.pixelTakes(shell, x, y);
+            });
+            overflowing += taken > 64 ? 1 : 0;
+        }
+    }
+    for (const bool culling : {true, false}) {
+        for (int y = 0; y < kHeight; ++y) {
+            std::vector<ScreenShells::PixelRay> rays;
+            for (int x = 0; x < kWidth; ++x)
+                rays.push_back({x, y, projection.ray(x + 0.5f, y + 0.5f)});
+            std::vector<SurfaceHit> batchHits(rays.size());
+            bool batchFound[ScreenShells::kMaxBatchRays] = {};
+            std::vector<TraceCounters> batchCounters(rays.size());
+            ShellCounters shellCounters;
+            shells.traceNearestBatch(rays, culling, batchHits,
+                                     std::span<bool>(batchFound, rays.size()), batchCounters,
+                                     shellCounters);
+            for (std::size_t k = 0; k < rays.size(); ++k) {
+                SurfaceHit hit;
+                TraceCounters counters;
+                const bool found = tracer.traceNearest(rays[k].ray, 0.0f, hit, counters);
+                const std::string where = std::to_string(rays[k].x) + "," + std::to_string(y);
+                ASSERT_EQ(found, batchFound[k]) << where;
+                if (!found) continue;
+                deepHits += hit.object >= 70 ? 1 : 0;
+                EXPECT_EQ(hit.object, batchHits[k].object) << where;
+                // As where one plane is traced both ways: a ray through a shared edge may enter
+                // either triangle, frames a few ulps apart.
+                EXPECT_NEAR(hit.distanceWorld, batchHits[k].distanceWorld, 1e-5f) << where;
+            }
+        }
+    }
+    EXPECT_EQ(overflowing, kWidth * kHeight);
+    EXPECT_GT(deepHits, kWidth * kHeight);  // most rays hit there, with culling and without
+}
+
 TEST(SceneTracer, BatchesTraceEveryRayAsItsOwnTrace) {
     // The BVH path (shadow-map rays) in batches: six overlapping layers, the top one with an open
     // floor, so rays leave a shell and go on (several passes per ray). Each ray's hit must be
