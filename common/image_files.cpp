@@ -124,7 +124,7 @@ void loadInBackground() {
     // The dynamic loader holds its lock for the whole load, and work beside it that asks for
     // the lock waits as long: TBB opens a library on its first allocation and starts its
     // workers on its first parallel loop, so both happen here first. (The work must not
-    // register thread_local objects with destructors either: that takes the lock too.)
+    // register thread_local objects with destructors either: common/thread_scratch.h.)
     tbb::cache_aligned_allocator<char> allocator;
     allocator.deallocate(allocator.allocate(1), 1);
     tbb::parallel_for(0, 2, [](int) {});

@@ -11,9 +11,10 @@
 #include <glm/geometric.hpp>
 #include <limits>
 #include <numeric>
-#include <type_traits>
 #include <utility>
 #include <vector>
+
+#include "common/thread_scratch.h"
 
 namespace distile {
 
@@ -501,7 +502,7 @@ struct Candidate {
 
 /// A pixel's candidates, nearest depth bound first: few per pixel, so a small buffer inline, and
 /// beyond it a vector of `overflow`, the caller's (so that a Candidates is trivially destructible,
-/// kept in thread_local working memory: see traceNearestBatch).
+/// as threadScratch needs).
 class Candidates {
   public:
     /// `overflow` holds the vectors of a batch's pixels with more than kInline candidates; it
@@ -610,11 +611,7 @@ void ScreenShells::traceNearestBatch(std::span<const PixelRay> rays, bool shellC
         std::array<std::pair<float, float>, 4> exits[kMaxBatchRays];
     };
     constexpr std::size_t kExits = 4;
-    // Trivially destructible: a thread's first use of a thread_local with a destructor registers
-    // it under the dynamic loader's lock, and waits there while a module loads (OpenImageIO's,
-    // beside a render to a TIFF).
-    static_assert(std::is_trivially_destructible_v<Arrays>);
-    thread_local Arrays arrays;
+    Arrays& arrays = threadScratch<Arrays>();
     std::vector<std::vector<Candidate>> overflow;  // pixels with many candidates (rare)
     Candidates* candidates = arrays.candidates;
     SurfaceHit* shellHits = arrays.shellHits;

@@ -10,11 +10,11 @@
 #include <memory>
 #include <sstream>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 #include "common/error.h"
 #include "common/image_blocks.h"
+#include "common/thread_scratch.h"
 #include "render/analytic_filter.h"
 #include "render/coverage.h"
 #include "render/shading.h"
@@ -274,8 +274,7 @@ class Renderer {
             bool found[kBatch];
             TraceCounters counters[kBatch];
         };
-        static_assert(std::is_trivially_destructible_v<Arrays>);  // ScreenShells' reason
-        thread_local Arrays arrays;
+        Arrays& arrays = threadScratch<Arrays>();
         auto& [selfShadows, rays, sampleIndices, hits, found, counters] = arrays;
         const int samplesPerPixel = options_.samplesPerPixel;
         const int runWidth = x1 - x0;
@@ -767,8 +766,8 @@ RenderResult PreparedScene::render(const ProgressCallback& progress) const {
         options.width, options.height, kBlock, progress, 0.0, 1.0,
         [&](const tbb::blocked_range2d<int>& block) {
             RenderStats local;
-            // Not thread_local (see ScreenShells::traceNearestBatch): one small allocation a
-            // block.
+            // Not threadScratch (a vector is not trivially destructible): one small allocation
+            // a block.
             std::vector<std::uint64_t> facingHits(renderer.facingSlots(), 0);
             constexpr int kRows = Renderer::kRunRows;
             Sample run[kRows * kBlock];

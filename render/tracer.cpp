@@ -13,11 +13,11 @@
 #include <map>
 #include <optional>
 #include <string>
-#include <type_traits>
 #include <utility>
 
 #include "common/error.h"
 #include "common/simd.h"
+#include "common/thread_scratch.h"
 #include "render/analytic_filter.h"
 #include "render/detail/entry_wide.h"
 
@@ -947,8 +947,10 @@ void SceneTracer::takeEntries(std::span<ShellMarch* const> marches) const {
     std::size_t flatCount = 0;
     // The curved marches' state, once per thread (most marches are not curved: a ShellMarch
     // does not carry it).
-    static_assert(std::is_trivially_destructible_v<CurvedMarchRay>);  // see ScreenShells
-    thread_local CurvedMarchRay curvedTraces[kMaxBatchRays];
+    struct CurvedTraces {
+        CurvedMarchRay rays[kMaxBatchRays];
+    };
+    CurvedMarchRay* curvedTraces = threadScratch<CurvedTraces>().rays;
     std::size_t curvedCount = 0;
     for (ShellMarch* march : marches) {
         if (triangles_[march->baseHit.triangle].curved) {
@@ -1045,8 +1047,10 @@ bool SceneTracer::traceFlatShell(std::uint32_t shell, std::span<const Ray* const
     for (const Ray* ray : rays)
         if (!triangle.frontFacing(ray->direction)) return false;
     // enterShell's test of the top (nothing nearer yet: no upper bound), then the entry.
-    static_assert(std::is_trivially_destructible_v<ShellMarch>);  // see ScreenShells
-    thread_local ShellMarch marches[kMaxBatchRays];
+    struct FlatMarches {
+        ShellMarch marches[kMaxBatchRays];
+    };
+    ShellMarch* marches = threadScratch<FlatMarches>().marches;
     ShellMarch* entered[kMaxBatchRays];
     std::size_t rayOf[kMaxBatchRays];
     std::size_t count = 0;
