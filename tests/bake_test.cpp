@@ -3,7 +3,6 @@
 #include "bake/bake.h"
 
 #include <gtest/gtest.h>
-#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <array>
@@ -30,6 +29,7 @@
 #include "sampler/tile_error.h"
 #include "sampler/tile_io.h"
 #include "scene/scene_file.h"
+#include "tests/on_threads.h"
 #include "tests/temp_folder.h"
 #include "truth/mesh_truth.h"
 #include "vdb/height_field.h"
@@ -315,15 +315,9 @@ TEST(SoupDistanceGrid, EveryVoxelIsTheExactDistanceSignedByItsWindingNumber) {
     ASSERT_TRUE(distance.windingChangesOnlyAcrossTheSurface());
     const MeshDistance truth(soup, MeshDistance::Periodic{tile});
     const double cutoff = 6.0;
-    std::vector<double> single, dual;
-    {
-        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
-        single = soupDistanceGrid(distance, -3, 19, cutoff, true).distancesTexels;
-    }
-    const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
-    const SoupDistanceGrid grid = soupDistanceGrid(distance, -3, 19, cutoff, true);
-    dual = grid.distancesTexels;
-    EXPECT_EQ(single, dual);
+    const auto bakeGrid = [&] { return soupDistanceGrid(distance, -3, 19, cutoff, true); };
+    const SoupDistanceGrid grid = onThreads(2, bakeGrid);
+    EXPECT_EQ(onThreads(1, bakeGrid).distancesTexels, grid.distancesTexels);
     int inside = 0, checkedSigns = 0;
     for (int k = -3; k < 19; ++k) {
         for (int j = 0; j < tile.height; ++j) {
@@ -534,21 +528,12 @@ TEST(MeshBake, SphereTileIsTheAnalyticDistanceForAnyThreadCount) {
     const glm::dvec3 centre(30.0, 16.5, 8.0);  // across the x wrap
     const double tolerance = inscribedTessellationError(makeIcosphereSoup(glm::dvec3(0.0), 6.0, 4),
                                                         glm::dvec3(0.0), 6.0);
-    std::vector<float> single, dual;
-    {
-        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
-        const SolidMeshBake bake = bakeSphere(options, centre);
-        single.assign(bake.result.tile.distancesTexels().begin(),
-                      bake.result.tile.distancesTexels().end());
-    }
-    {
-        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
-        const SolidMeshBake bake = bakeSphere(options, centre);
-        dual.assign(bake.result.tile.distancesTexels().begin(),
-                    bake.result.tile.distancesTexels().end());
-        EXPECT_GT(bake.insideTexels, 800u);  // 4/3 pi 6^3 = 905
-    }
-    EXPECT_EQ(single, dual);
+    const auto bake = [&] { return bakeSphere(options, centre); };
+    const SolidMeshBake single = onThreads(1, bake);
+    const SolidMeshBake dual = onThreads(2, bake);
+    EXPECT_GT(dual.insideTexels, 800u);  // 4/3 pi 6^3 = 905
+    const std::span<const float> distances = dual.result.tile.distancesTexels();
+    EXPECT_TRUE(std::ranges::equal(single.result.tile.distancesTexels(), distances));
     const Size3& size = options.size;
     double maxError = 0.0;
     for (int z = 0; z < size.depth; ++z) {
@@ -558,7 +543,7 @@ TEST(MeshBake, SphereTileIsTheAnalyticDistanceForAnyThreadCount) {
                 offset.x -= size.width * std::round(offset.x / size.width);  // nearest copy
                 const double analytic =
                     std::clamp(glm::length(offset) - 6.0, -double(size.depth), double(size.depth));
-                const float baked = dual[(std::size_t(z) * size.height + y) * size.width + x];
+                const float baked = distances[(std::size_t(z) * size.height + y) * size.width + x];
                 maxError = std::max(maxError, std::abs(baked - analytic));
             }
         }
@@ -856,18 +841,11 @@ TEST(MeshSurface, OpenBoxBakesAsTheClosedBoxForAnyThreadCount) {
     placement.fit = false;
     const TriangleSoup open = makeOpenBoxSoup(kBoxLow, kBoxHigh);
     const TriangleSoup closed = makeBoxSoup(kBoxLow, kBoxHigh);
-    std::vector<float> single, dual;
-    {
-        const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 1);
-        const SolidMeshBake bake = bakeSolidMesh(open, placement, options, "open");
-        single.assign(bake.result.tile.distancesTexels().begin(),
-                      bake.result.tile.distancesTexels().end());
-    }
-    const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
-    const SolidMeshBake bake = bakeSolidMesh(open, placement, options, "open");
-    dual.assign(bake.result.tile.distancesTexels().begin(),
-                bake.result.tile.distancesTexels().end());
-    EXPECT_EQ(single, dual);
+    const auto bake = [&] { return bakeSolidMesh(open, placement, options, "open"); };
+    const SolidMeshBake single = onThreads(1, bake);
+    const SolidMeshBake dualBake = onThreads(2, bake);
+    const std::span<const float> dual = dualBake.result.tile.distancesTexels();
+    EXPECT_TRUE(std::ranges::equal(single.result.tile.distancesTexels(), dual));
     const SolidMeshBake reference = bakeSolidMesh(closed, placement, options, "closed");
     const std::span<const float> expected = reference.result.tile.distancesTexels();
     double maxDifference = 0.0;

@@ -31,6 +31,7 @@
 #include "render/shadow_map.h"
 #include "sampler/filters.h"
 #include "sampler/tile_columns.h"
+#include "tests/on_threads.h"
 
 namespace distile {
 namespace {
@@ -513,16 +514,8 @@ TEST(Renderer, ImageIsFiniteAndIndependentOfTheThreadCount) {
     options.width = 96;
     options.height = 64;
     options.outputAovs = true;
-    RenderResult first;
-    {
-        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
-        first = renderScene(scene, options);
-    }
-    RenderResult second;
-    {
-        tbb::global_control pair(tbb::global_control::max_allowed_parallelism, 2);
-        second = renderScene(scene, options);
-    }
+    const RenderResult first = onThreads(1, [&] { return renderScene(scene, options); });
+    const RenderResult second = onThreads(2, [&] { return renderScene(scene, options); });
     const Image& one = first.image;
     const Image& two = second.image;
     const RenderStats& stats = first.stats;
@@ -1565,15 +1558,8 @@ TEST(Renderer, ShadowMapsTraceWhatTheViewNeedsAndDoNotDependOnTheThreadCount) {
     options.width = 160;
     options.height = 128;
     options.shadowMapResolution = 512;
-    RenderResult one, two;
-    {
-        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
-        one = renderScene(scene, options);
-    }
-    {
-        tbb::global_control pair(tbb::global_control::max_allowed_parallelism, 2);
-        two = renderScene(scene, options);
-    }
+    const RenderResult one = onThreads(1, [&] { return renderScene(scene, options); });
+    const RenderResult two = onThreads(2, [&] { return renderScene(scene, options); });
     EXPECT_EQ(one.image.rgbLinear, two.image.rgbLinear);
     EXPECT_EQ(one.stats.shadowMapSamples, two.stats.shadowMapSamples);
     EXPECT_EQ(one.stats.shadowMapTexels, two.stats.shadowMapTexels);

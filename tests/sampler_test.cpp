@@ -23,6 +23,7 @@
 #include "sampler/tile_columns.h"
 #include "sampler/tile_error.h"
 #include "sampler/tricubic.h"
+#include "tests/on_threads.h"
 #include "vdb/chainmail.h"
 #include "vdb/procedural.h"
 
@@ -553,15 +554,11 @@ TEST(TileErrorReport, IsTheSameOnOneThreadAndOnSeveral) {
     const ProceduralDistance truth = proceduralDistance(chainmail, tile.size());
     TileErrorOptions options;
     options.samples = 20000;
-    TileErrorReport one, several;
-    {
-        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
-        one = measureTileError(tile, truth.signedDistanceTexels, options);
-    }
-    {
-        tbb::global_control pair(tbb::global_control::max_allowed_parallelism, 2);
-        several = measureTileError(tile, truth.signedDistanceTexels, options);
-    }
+    const auto measure = [&] {
+        return measureTileError(tile, truth.signedDistanceTexels, options);
+    };
+    const TileErrorReport one = onThreads(1, measure);
+    const TileErrorReport several = onThreads(2, measure);
     EXPECT_EQ(one.rmsTexels, several.rmsTexels);
     EXPECT_EQ(one.maxAbsTexels, several.maxAbsTexels);
     EXPECT_EQ(one.maxAbsAt, several.maxAbsAt);

@@ -4,7 +4,6 @@
 // triangles moved by -h N_i at their corners (flat triangles at every h), so a ray's hit on it is
 // a ray/triangle intersection computed here in double precision, independently of the march.
 #include <gtest/gtest.h>
-#include <tbb/global_control.h>
 
 #include <array>
 #include <cmath>
@@ -24,6 +23,7 @@
 #include "render/shading.h"
 #include "render/shell_march.h"
 #include "render/tracer.h"
+#include "tests/on_threads.h"
 
 namespace distile {
 namespace {
@@ -720,15 +720,8 @@ TEST(CurvedShell, RenderIsTheSameForOneAndTwoThreadsAndBatched) {
     options.width = 80;
     options.height = 60;
     options.outputAovs = true;
-    RenderResult one, two;
-    {
-        tbb::global_control single(tbb::global_control::max_allowed_parallelism, 1);
-        one = renderScene(scene, options);
-    }
-    {
-        tbb::global_control pair(tbb::global_control::max_allowed_parallelism, 2);
-        two = renderScene(scene, options);
-    }
+    const RenderResult one = onThreads(1, [&] { return renderScene(scene, options); });
+    const RenderResult two = onThreads(2, [&] { return renderScene(scene, options); });
     EXPECT_EQ(one.image.rgbLinear, two.image.rgbLinear);
     EXPECT_EQ(one.aovs->depth.rgbLinear, two.aovs->depth.rgbLinear);
     EXPECT_GT(one.stats.baseHits, 1000u);
