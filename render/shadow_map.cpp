@@ -552,7 +552,7 @@ ShadowMap::ShadowMap(const SceneTracer& tracer, const DirectionalLight& light, i
     }
     // Rays start a little in front of everything.
     startDepth_ = depthLow - std::max(boundLevel().texelWorld, 1e-3f * longer);
-    nearestDepth_ = boundDepths();
+    boundDepths();
     if (lineTest_) buildBoundLevels();
 }
 
@@ -593,7 +593,7 @@ std::uint64_t LightShadowMaps::texelCount() const {
     return texels;
 }
 
-float ShadowMap::boundDepths() {
+void ShadowMap::boundDepths() {
     const Level& base = boundLevel();
     // A lower bound of the depths of each tile from every shell over it. A shell's points are
     // bilinear in its six corners, so they project into the corners' bounds on the light plane and
@@ -688,28 +688,33 @@ float ShadowMap::boundDepths() {
                 CasterBounds::mergedFlatObject(merged.flatObject, bounds[tile].flatObject);
         }
     });
-    std::vector<float> bound(casterBounds_.size());
-    for (std::size_t tile = 0; tile < bound.size(); ++tile)
-        bound[tile] = std::min(casterBounds_[tile].others, casterBounds_[tile].flat);
-    // Tiles by increasing bound, traced until the nearest depth found is below every bound left:
-    // the least depth of the whole map, from the few tiles near the surface nearest the light.
-    std::vector<int> order;
-    for (std::size_t tile = 0; tile < bound.size(); ++tile)
-        if (!std::isinf(bound[tile])) order.push_back(int(tile));
-    std::sort(order.begin(), order.end(), [&](int a, int b) {
-        return bound[std::size_t(a)] < bound[std::size_t(b)] ||
-               (bound[std::size_t(a)] == bound[std::size_t(b)] && a < b);
-    });
-    float nearest = std::numeric_limits<float>::infinity();
-    for (int tile : order) {
-        if (bound[std::size_t(tile)] >= nearest) break;
-        traceTileOnce(base, tile);
-        const int x0 = (tile % base.tilesX) * kTileTexels, y0 = (tile / base.tilesX) * kTileTexels;
-        for (int y = y0; y < std::min(y0 + kTileTexels, base.height); ++y)
-            for (int x = x0; x < std::min(x0 + kTileTexels, base.width); ++x)
-                nearest = std::min(nearest, base.depths[base.index(x, y)]);
+    // Tiles by increasing bound (ties by index): the order of nearestDepth()'s search.
+    nearestSearch_.clear();
+    for (std::size_t tile = 0; tile < casterBounds_.size(); ++tile) {
+        const float bound = std::min(casterBounds_[tile].others, casterBounds_[tile].flat);
+        if (!std::isinf(bound)) nearestSearch_.emplace_back(bound, int(tile));
     }
-    return nearest;
+    std::sort(nearestSearch_.begin(), nearestSearch_.end());
+}
+
+float ShadowMap::nearestDepth() const {
+    std::call_once(nearestOnce_, [&] {
+        // Traced until the nearest depth found is below every bound left: the least depth of the
+        // whole map, from the few tiles near the surface nearest the light.
+        const Level& base = boundLevel();
+        float nearest = std::numeric_limits<float>::infinity();
+        for (const auto& [bound, tile] : nearestSearch_) {
+            if (bound >= nearest) break;
+            traceTileOnce(base, tile);
+            const int x0 = (tile % base.tilesX) * kTileTexels;
+            const int y0 = (tile / base.tilesX) * kTileTexels;
+            for (int y = y0; y < std::min(y0 + kTileTexels, base.height); ++y)
+                for (int x = x0; x < std::min(x0 + kTileTexels, base.width); ++x)
+                    nearest = std::min(nearest, base.depths[base.index(x, y)]);
+        }
+        nearestDepth_ = nearest;
+    });
+    return nearestDepth_;
 }
 
 void ShadowMap::traceTile(const Level& level, int tile) const {
@@ -968,14 +973,14 @@ float ShadowMap::visibility(const ShadowReceiver& receiver, ShadowFilter filter,
                           slopeLength,
                           footprint,
                           facing >= kMinFacing ? receiver.object : ShadowReceiver::kNoObject,
-                          tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f)};
+                          tanHalfAngle_ * std::max(receiverDepth - nearestDepth(), 0.0f)};
         if (nothingCanBlockLines(line)) return 1.0f;
         return lineVisibility(line, filter, seed, samples);
     }
 
     // The widest penumbra possible here: from the surface nearest to the light anywhere.
     const float searchRadius =
-        std::min(tanHalfAngle_ * std::max(receiverDepth - nearestDepth_, 0.0f),
+        std::min(tanHalfAngle_ * std::max(receiverDepth - nearestDepth(), 0.0f),
                  kMaxSearchTexels * baseTexelWorld);
     // A sample blocks where the stored depth is below the receiver's plane there (less a bias):
     // nowhere if no surface over the texels the samples may read (their centres are within one

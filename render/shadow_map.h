@@ -39,6 +39,7 @@
 #include <memory>
 #include <mutex>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "render/scene.h"
@@ -194,6 +195,9 @@ class ShadowMap {
     }
     /// Levels: kLevels and the finer ones the map added below them.
     int levelCount() const { return int(levels_.size()); }
+    /// The smallest depth of the base level (the blocker nearest the light), found on first use
+    /// from only the tiles that may hold it: a map no lookup reaches traces nothing for it.
+    float nearestDepth() const;
     /// Texels traced so far (whole tiles, clipped to their level), all levels.
     std::uint64_t tracedTexels() const { return tracedTexels_.load(std::memory_order_relaxed); }
     /// Texels of all levels, traced or not.
@@ -261,9 +265,8 @@ class ShadowMap {
     void traceLayers(const Level& level, std::span<Ray> rays, std::span<SurfaceHit> hits,
                      std::span<bool> found, std::span<const std::size_t> texels,
                      TraceCounters& counters) const;
-    /// Fills casterBounds_ and returns the smallest depth of the base level, from only the
-    /// tiles that may hold it.
-    float boundDepths();
+    /// Fills casterBounds_, and nearestSearch_ with the tiles that may hold a depth.
+    void boundDepths();
     /// The level whose tiles the caster bounds are kept on: the base (finer levels would only
     /// multiply the bounds' tiles and the work of reading them).
     const Level& boundLevel() const { return levels_[boundLevel_]; }
@@ -342,10 +345,14 @@ class ShadowMap {
             return {-1, -1};
         return {int(x), int(y)};
     }
-    float nearestDepth_ = 0.0f;   ///< smallest stored depth (the blocker nearest the light)
-    float startDepth_ = 0.0f;     ///< where the light rays start: in front of everything
-    std::vector<Level> levels_;   ///< the finest first
-    std::size_t boundLevel_ = 0;  ///< the base level's index: the finer levels' count
+    /// The base level's tiles with a finite caster bound, by increasing bound: nearestDepth()
+    /// traces them in this order until the nearest depth found is below every bound left.
+    std::vector<std::pair<float, int>> nearestSearch_;
+    mutable std::once_flag nearestOnce_;
+    mutable float nearestDepth_ = 0.0f;  ///< nearestDepth(), once found
+    float startDepth_ = 0.0f;            ///< where the light rays start: in front of everything
+    std::vector<Level> levels_;          ///< the finest first
+    std::size_t boundLevel_ = 0;         ///< the base level's index: the finer levels' count
     /// Per tile of the bound level: lower bounds of the depth of any surface there, from the
     /// shells over the tile's square.
     struct CasterBounds {

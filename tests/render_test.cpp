@@ -747,6 +747,7 @@ TEST(ShadowMap, ReceiversOnAFlatSlabWithNothingElseOverTheirDiskTakeNoSamples) {
     const LightShadowMaps maps(tracer, scene.lights[0], 1024);
     const ShadowMap& map = onlyMap(maps);
     const glm::vec3 up(0.0f, 0.0f, 1.0f);
+    map.nearestDepth();  // its search traces the tiles over the occluder, once
     for (ShadowFilter filter : {ShadowFilter::Full, ShadowFilter::Adaptive}) {
         const std::uint64_t traced = map.tracedTexels();
         // On the ground (object 0) far beside the occluder: only the ground's own slab is over
@@ -799,8 +800,11 @@ TEST(ShadowMap, TracesOnlyWhereLookupsReachAndAgreesWithEveryTileTraced) {
     for (int y = 0; y < whole.height(); y += ShadowMap::kTileTexels)
         for (int x = 0; x < whole.width(); x += ShadowMap::kTileTexels) whole.depthAt(x, y);
     EXPECT_EQ(whole.tracedTexels(), allTexels);
-    // Before any lookup only the tiles that may hold the nearest depth are traced: those over the
-    // occluder (256 x 256 of the 1024 x 1024 texels) and a tile of margin around it.
+    // Nothing is traced before a lookup asks; the search for the nearest depth (which a lookup
+    // starts) traces only the tiles that may hold it: those over the occluder (256 x 256 of the
+    // 1024 x 1024 texels) and a tile of margin around it.
+    EXPECT_EQ(lazy.tracedTexels(), 0u);
+    lazy.nearestDepth();
     const std::uint64_t searched = lazy.tracedTexels();
     EXPECT_GE(searched, std::uint64_t(256 * 256));
     EXPECT_LE(searched, std::uint64_t(320 * 320));
@@ -837,6 +841,8 @@ TEST(ShadowMap, ReceiversWithLargeFootprintsReadCoarserLevels) {
     const LightShadowMaps coarseMaps(tracer, scene.lights[0], 1024);
     const ShadowMap& coarse = onlyMap(coarseMaps);
     ASSERT_EQ(fine.tracedTexels(), coarse.tracedTexels());  // the nearest depth's tiles
+    fine.nearestDepth();  // the same search in both maps, counted apart
+    coarse.nearestDepth();
     const std::uint64_t searched = fine.tracedTexels();
     const glm::vec3 up(0.0f, 0.0f, 1.0f);
     // Pixels 8 finest texels wide read the coarsest level, whose texels are that wide.
@@ -1566,6 +1572,23 @@ TEST(Renderer, ShadowMapsTraceWhatTheViewNeedsAndDoNotDependOnTheThreadCount) {
     EXPECT_GT(one.stats.shadowMapSamples, 0u);
     EXPECT_GT(one.stats.shadowMapTexels, 0u);
     EXPECT_LT(one.stats.shadowMapTexels, one.stats.shadowMapTexelsAll / 2);
+}
+
+TEST(Renderer, AViewThatLooksUpFromTheSceneTracesNoShadowMap) {
+    // The camera above the sphere and the plane looks up and away: the view is sky alone, no
+    // lookup reaches the light's map, and the map traces nothing, not even the search for the
+    // blocker nearest the light (which a lookup would start).
+    const Scene scene =
+        sphereAbovePlane({{0.3f, -0.9f, 0.9f}, {0.45f, -1.8f, 1.8f}, {0.0f, 0.0f, 1.0f}, 40.0f});
+    RenderOptions options;
+    options.width = 64;
+    options.height = 48;
+    options.shadowMapResolution = 512;
+    const RenderResult result = renderScene(scene, options);
+    EXPECT_EQ(result.stats.baseHits, 0u);
+    EXPECT_GT(result.stats.shadowMapTexelsAll, 0u);  // the map exists
+    EXPECT_EQ(result.stats.shadowMapSamples, 0u);
+    EXPECT_EQ(result.stats.shadowMapTexels, 0u);
 }
 
 TEST(Renderer, RejectsBadOptionsAndScenes) {
