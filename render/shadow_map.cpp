@@ -688,22 +688,22 @@ void ShadowMap::boundDepths() {
                 CasterBounds::mergedFlatObject(merged.flatObject, bounds[tile].flatObject);
         }
     });
-    // Tiles by increasing bound (ties by index): the order of nearestDepth()'s search.
-    nearestSearch_.clear();
-    for (std::size_t tile = 0; tile < casterBounds_.size(); ++tile) {
-        const float bound = std::min(casterBounds_[tile].others, casterBounds_[tile].flat);
-        if (!std::isinf(bound)) nearestSearch_.emplace_back(bound, int(tile));
-    }
-    std::sort(nearestSearch_.begin(), nearestSearch_.end());
 }
 
 float ShadowMap::nearestDepth() const {
     std::call_once(nearestOnce_, [&] {
         // Traced until the nearest depth found is below every bound left: the least depth of the
         // whole map, from the few tiles near the surface nearest the light.
+        // The tiles with a finite bound, by increasing bound (ties by index).
+        std::vector<std::pair<float, int>> search;
+        for (std::size_t tile = 0; tile < casterBounds_.size(); ++tile) {
+            const float bound = std::min(casterBounds_[tile].others, casterBounds_[tile].flat);
+            if (!std::isinf(bound)) search.emplace_back(bound, int(tile));
+        }
+        std::sort(search.begin(), search.end());
         const Level& base = boundLevel();
         float nearest = std::numeric_limits<float>::infinity();
-        for (const auto& [bound, tile] : nearestSearch_) {
+        for (const auto& [bound, tile] : search) {
             if (bound >= nearest) break;
             traceTileOnce(base, tile);
             const int x0 = (tile % base.tilesX) * kTileTexels;

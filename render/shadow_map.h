@@ -39,7 +39,6 @@
 #include <memory>
 #include <mutex>
 #include <span>
-#include <utility>
 #include <vector>
 
 #include "render/scene.h"
@@ -265,7 +264,7 @@ class ShadowMap {
     void traceLayers(const Level& level, std::span<Ray> rays, std::span<SurfaceHit> hits,
                      std::span<bool> found, std::span<const std::size_t> texels,
                      TraceCounters& counters) const;
-    /// Fills casterBounds_, and nearestSearch_ with the tiles that may hold a depth.
+    /// Fills casterBounds_.
     void boundDepths();
     /// The level whose tiles the caster bounds are kept on: the base (finer levels would only
     /// multiply the bounds' tiles and the work of reading them).
@@ -345,9 +344,6 @@ class ShadowMap {
             return {-1, -1};
         return {int(x), int(y)};
     }
-    /// The base level's tiles with a finite caster bound, by increasing bound: nearestDepth()
-    /// traces them in this order until the nearest depth found is below every bound left.
-    std::vector<std::pair<float, int>> nearestSearch_;
     mutable std::once_flag nearestOnce_;
     mutable float nearestDepth_ = 0.0f;  ///< nearestDepth(), once found
     float startDepth_ = 0.0f;            ///< where the light rays start: in front of everything
