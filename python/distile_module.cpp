@@ -9,6 +9,7 @@
 #include <pybind11/stl/filesystem.h>
 #include <tbb/global_control.h>
 
+#include <cctype>
 #include <chrono>
 #include <cstdint>
 #include <cstring>
@@ -21,6 +22,7 @@
 
 #include "check/reports.h"
 #include "check/tile_check.h"
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/fnv1a.h"
 #include "common/input_file.h"
@@ -122,6 +124,36 @@ std::pair<PyTile, std::vector<std::string>> bakeRecipe(const std::string& recipe
         TileCache tiles;
         tile = bakeRecipeTile(recipeJson, fs::path("."), name, tiles,
                               [&](const std::string& warning) { warnings.push_back(warning); });
+    }
+    return {PyTile{tile}, warnings};
+}
+
+/// bakeRecipe with the recipe's level set written to `vdbFile`, tiled `repeatX` x `repeatY` times
+/// (as `distile bake --vdb --repeat`): the file checked before the bake and written once the bake
+/// succeeded (common/atomic_file.h). Always bakes: the bake cache holds tiles only.
+std::pair<PyTile, std::vector<std::string>> bakeRecipeWithLevelSet(const std::string& recipeJson,
+                                                                   const std::string& name,
+                                                                   const fs::path& vdbFile,
+                                                                   int repeatX, int repeatY) {
+    std::vector<std::string> warnings;
+    std::shared_ptr<const Tile> tile;
+    {
+        py::gil_scoped_release released;
+        std::string extension = vdbFile.extension().string();
+        for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+        if (extension != ".vdb") {
+            throw InputError(name + ": vdb: '" + vdbFile.string() +
+                             "' is not accepted; the level set is written as an OpenVDB file, "
+                             "which ends in .vdb");
+        }
+        OutputFiles outputs;
+        const fs::path temporary = outputs.add(vdbFile, name + ": vdb");
+        RecipeLevelSet baked =
+            bakeRecipeLevelSet(recipeJson, fs::path("."), name, repeatX, repeatY,
+                               [&](const std::string& warning) { warnings.push_back(warning); });
+        baked.levelSet.save(temporary);
+        outputs.commit();
+        tile = std::move(baked.tile);
     }
     return {PyTile{tile}, warnings};
 }
@@ -437,6 +469,8 @@ PYBIND11_MODULE(_distile, module) {
         },
         py::arg("file"), "Read a tile file (.exr) written by distile");
     module.def("bake_recipe", &bakeRecipe, py::arg("recipe_json"), py::arg("name"));
+    module.def("bake_recipe_with_level_set", &bakeRecipeWithLevelSet, py::arg("recipe_json"),
+               py::arg("name"), py::arg("vdb"), py::arg("repeat_x"), py::arg("repeat_y"));
 
     py::class_<PyRender>(module, "Render", "A rendered image with its statistics and AOVs")
         .def_property_readonly(

@@ -419,6 +419,33 @@ struct BakedTile {
     std::shared_ptr<const TriangleSoup> placedMesh;  ///< null unless "bake": "mesh"
 };
 
+/// A recipe's level set asked for with its tile (bakeRecipeLevelSet): the bake cache holds
+/// tiles only, so such a recipe is always baked, and neither `tiles` nor the cache is read.
+struct LevelSetRequest {
+    int repeatX = 1, repeatY = 1;      ///< the level set tiled so many times (LevelSet::repeated)
+    std::optional<LevelSet> levelSet;  ///< the bake's, once baked
+};
+
+/// Refuses `request`'s repeats for the level set of `options` (LevelSet::checkRepeat) under the
+/// keyword "repeat", before the bake.
+void checkRepeat(const Field& spec, const BakeOptions& options, const LevelSetRequest& request) {
+    try {
+        LevelSet::checkRepeat(options.size, validatedHalfBandTexels(options), request.repeatX,
+                              request.repeatY);
+    } catch (const InputError& error) {
+        throw InputError(spec.name() + ": repeat: " + error.problem());
+    }
+}
+
+/// The tile of `baked`, its level set tiled into `request`.
+Tile keepLevelSet(BakeResult baked, LevelSetRequest& request) {
+    if (request.repeatX > 1 || request.repeatY > 1)
+        request.levelSet.emplace(baked.levelSet.repeated(request.repeatX, request.repeatY));
+    else
+        request.levelSet.emplace(std::move(baked.levelSet));
+    return std::move(baked.tile);
+}
+
 /// `tile` recording `path` as its source file. A recipe names its input file by the file's bytes,
 /// so the tile that `tiles` or the bake cache hold for it may have been baked from a copy of the
 /// file elsewhere and record that copy: the tile a bake returns would then depend on what was
@@ -434,19 +461,28 @@ std::shared_ptr<const Tile> recordingSource(std::shared_ptr<const Tile> tile,
 
 /// The tile of a recipe that bakes the file `source` read (`bake` bakes it again from its path):
 /// from `tiles` or the bake cache when there, else baked and recorded there, its source file
-/// recorded in its provenance.
+/// recorded in its provenance; with `levelSet`, baked and its level set kept there, no cache read
+/// or written.
 /// The bake's errors are told under the spec's keys or its "file".
 BakedTile bakedFileTile(const Field& spec, TileCache& tiles, const std::string& recipe,
-                        const RecipeFile& source, const std::function<Tile()>& bake) {
+                        const RecipeFile& source, const std::function<BakeResult()>& bake,
+                        LevelSetRequest* levelSet) {
     const fs::path& path = source.path;
     const std::string key = "bake:" + recipe;
-    if (auto found = tiles.find(key); found != tiles.end())
-        return {recordingSource(found->second, path), nullptr};
+    if (!levelSet) {
+        if (auto found = tiles.find(key); found != tiles.end())
+            return {recordingSource(found->second, path), nullptr};
+    }
     try {
+        if (levelSet) {
+            Tile tile = keepLevelSet(bake(), *levelSet);
+            recordSourceFile(tile.provenance, path);
+            return {std::make_shared<const Tile>(std::move(tile)), nullptr};
+        }
         auto tile = cachedBake(
             recipe,
             [&] {
-                Tile baked = bake();
+                Tile baked = bake().tile;
                 recordSourceFile(baked.provenance, path);
                 return baked;
             },
@@ -485,7 +521,8 @@ MeshPlacement meshPlacementOf(const Field& spec) {
 /// `"tile": {"bake": "vdb", "file": ..., "grid": ..., "iso": ..., "fit" | "scale"/"offset" |
 /// "window": [X0, Y0, Z0, X1, Y1, Z1]}`: the level set baked as `distile bake vdb` does
 /// (bake/vdb_bake.h).
-BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& tiles, Pass pass) {
+BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& tiles, Pass pass,
+                       LevelSetRequest* levelSet) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "grid", "iso", "fit",
                         "scale", "offset", "window"});
     const BakeOptions options = bakeOptionsOf(spec);
@@ -519,22 +556,26 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
     }
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
+    if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string recipe = vdbRecipe(bytes, gridName, iso, placement, options);
-    return bakedFileTile(spec, tiles, recipe, source, [&] {
-        const VdbVolume volume = VdbVolume::read(path, gridName, iso);
-        return bakeVdb(volume, placement, options, path.filename().string()).bake.tile;
-    });
+    return bakedFileTile(
+        spec, tiles, recipe, source,
+        [&] {
+            const VdbVolume volume = VdbVolume::read(path, gridName, iso);
+            return bakeVdb(volume, placement, options, path.filename().string()).bake;
+        },
+        levelSet);
 }
 
 /// `"tile": {"bake": "mesh", "file": ..., "size": ..., "scale": ..., "offset": ...}`: the detail
 /// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
 /// scale or offset is given. The mesh's warnings go to `warn`.
 BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                        const SceneWarningCallback& warn, Pass pass) {
+                        const SceneWarningCallback& warn, Pass pass, LevelSetRequest* levelSet) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "fit", "scale", "offset",
                         "unsigned", "thickness"});
     BakeOptions options = bakeOptionsOf(spec);
-    options.fillLevelSetMargins = false;  // a scene keeps the tile only
+    options.fillLevelSetMargins = levelSet != nullptr;  // only a written level set needs them
     const MeshPlacement placement = meshPlacementOf(spec);
     MeshSignOptions sign;
     if (spec.has("unsigned")) sign.unsignedDistance = spec["unsigned"].boolean();
@@ -553,6 +594,7 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const Field file = spec["file"];
+    if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string recipe = meshRecipe(bytes, placement, sign, options);
     BakedTile baked;
     try {
@@ -561,7 +603,12 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
         baked.placedMesh =
             std::make_shared<const TriangleSoup>(placeMesh(mesh, placement, options.size));
         const std::string key = "bake:" + recipe;
-        if (auto found = tiles.find(key); found != tiles.end()) {
+        if (levelSet) {
+            Tile tile = keepLevelSet(
+                bakeSolidMesh(mesh, placement, options, path.string(), {}, sign).result, *levelSet);
+            recordSourceFile(tile.provenance, path);
+            baked.tile = std::make_shared<const Tile>(std::move(tile));
+        } else if (auto found = tiles.find(key); found != tiles.end()) {
             baked.tile = found->second;
         } else {
             baked.tile = cachedBake(
@@ -590,8 +637,8 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
 
 /// `"tile": {"bake": "heightmap", "file": ..., "height_texels": ...}`: the image baked as
 /// `distile bake heightmap` does.
-BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                             Pass pass) {
+BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCache& tiles, Pass pass,
+                             LevelSetRequest* levelSet) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "height_texels"});
     const BakeOptions options = bakeOptionsOf(spec);
     HeightMapOptions heightMap;
@@ -603,10 +650,11 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     }
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
+    if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
-    return bakedFileTile(spec, tiles, recipe, source, [&] {
-        return bakeHeightMap(readHeightImage(path), heightMap, options).tile;
-    });
+    return bakedFileTile(
+        spec, tiles, recipe, source,
+        [&] { return bakeHeightMap(readHeightImage(path), heightMap, options); }, levelSet);
 }
 
 /// The chain mail of `"bake": "chainmail"`, under the names of `distile bake chainmail`'s flags
@@ -662,10 +710,10 @@ GratingOptions gratingOf(const Field& spec) {
 
 /// The tile of a procedural pattern with the verdict of its check against the analytic truth
 /// recorded (check/tile_check.h), so a cached tile warns as a fresh one does.
-Tile checkedProceduralBake(const ProceduralOptions& procedural, const BakeOptions& options) {
-    Tile tile = bakeProcedural(procedural, options).tile;
-    recordAnalyticCheck(tile);
-    return tile;
+BakeResult checkedProceduralBake(const ProceduralOptions& procedural, const BakeOptions& options) {
+    BakeResult baked = bakeProcedural(procedural, options);
+    recordAnalyticCheck(baked.tile);
+    return baked;
 }
 
 /// Gives `warn` the warning of a tile whose recorded check missed the tolerances, naming the
@@ -677,15 +725,16 @@ void warnOfRecordedCheck(const Tile& tile, const Field& field, const SceneWarnin
 }
 
 BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                    const SceneWarningCallback& warn, Pass pass) {
+                    const SceneWarningCallback& warn, Pass pass,
+                    LevelSetRequest* levelSet = nullptr) {
     if (!spec.has("bake")) {
         spec.fail(
             "missing field 'bake' (the detail to bake: chainmail, grating, heightmap, mesh, vdb)");
     }
     const std::string kind = spec["bake"].string();
-    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn, pass);
-    if (kind == "heightmap") return bakedHeightMapTile(spec, folder, tiles, pass);
-    if (kind == "vdb") return bakedVdbTile(spec, folder, tiles, pass);
+    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn, pass, levelSet);
+    if (kind == "heightmap") return bakedHeightMapTile(spec, folder, tiles, pass, levelSet);
+    if (kind == "vdb") return bakedVdbTile(spec, folder, tiles, pass, levelSet);
     ProceduralOptions procedural;
     std::string recipe;
     if (kind == "chainmail") {
@@ -711,10 +760,20 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
         }
         return {};
     }
+    if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string key = "bake:" + recipe;
-    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
+    if (!levelSet) {
+        if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
+    }
     try {
-        auto tile = cachedBake(recipe, [&] { return checkedProceduralBake(procedural, options); });
+        if (levelSet) {
+            auto tile = std::make_shared<const Tile>(
+                keepLevelSet(checkedProceduralBake(procedural, options), *levelSet));
+            warnOfRecordedCheck(*tile, spec, warn);
+            return {tile, nullptr};
+        }
+        auto tile =
+            cachedBake(recipe, [&] { return checkedProceduralBake(procedural, options).tile; });
         tiles[key] = tile;
         warnOfRecordedCheck(*tile, spec, warn);
         return {tile, nullptr};
@@ -942,6 +1001,19 @@ std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson, const 
     return bakedTile(Field(document, "", name), folder, tiles, warn, Pass::Load).tile;
 }
 
+RecipeLevelSet bakeRecipeLevelSet(const std::string& recipeJson, const fs::path& folder,
+                                  const std::string& name, int repeatX, int repeatY,
+                                  const SceneWarningCallback& warn) {
+    const json document = parseJson(recipeJson, name);
+    TileCache unused;
+    LevelSetRequest request;
+    request.repeatX = repeatX;
+    request.repeatY = repeatY;
+    std::shared_ptr<const Tile> tile =
+        bakedTile(Field(document, "", name), folder, unused, warn, Pass::Load, &request).tile;
+    return {std::move(tile), std::move(*request.levelSet)};
+}
+
 /// The grid of the origin a scene is moved to (loadSceneJson): world units.
 constexpr double kOriginGridWorld = 1024.0;
 
@@ -1101,8 +1173,9 @@ SceneFile demoScene(TileCache& tiles) {
     tbb::parallel_invoke([&] { meshes = demoMeshes(); },
                          [&] {
                              if (tiles.count(key)) return;
-                             tiles[key] = cachedBake(chainmailRecipe({}, {}),
-                                                     [] { return checkedProceduralBake({}, {}); });
+                             tiles[key] = cachedBake(chainmailRecipe({}, {}), [] {
+                                 return checkedProceduralBake({}, {}).tile;
+                             });
                          });
     SceneFile demo;
     demo.scene = distile::demoScene(tiles[key], std::move(meshes));

@@ -36,6 +36,7 @@
 #include "common/error.h"
 #include "common/triangle_soup.h"
 #include "render/scene.h"
+#include "vdb/level_set.h"
 
 namespace distile {
 
@@ -83,6 +84,22 @@ std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson,
                                            const std::filesystem::path& folder,
                                            const std::string& name, TileCache& tiles,
                                            const SceneWarningCallback& warn = {});
+
+/// A recipe's tile and the level set it was sampled from.
+struct RecipeLevelSet {
+    std::shared_ptr<const Tile> tile;
+    LevelSet levelSet;
+};
+
+/// bakeRecipeTile's recipe baked with its level set, as `distile bake --vdb` bakes it (its band's
+/// margin above and below the tile included), tiled `repeatX` x `repeatY` times
+/// (LevelSet::repeated; repeats it refuses are refused under "repeat" before the bake). The bake
+/// cache holds tiles only: this always bakes, and reads and fills no cache; the tile is
+/// bakeRecipeTile's.
+RecipeLevelSet bakeRecipeLevelSet(const std::string& recipeJson,
+                                  const std::filesystem::path& folder, const std::string& name,
+                                  int repeatX = 1, int repeatY = 1,
+                                  const SceneWarningCallback& warn = {});
 
 /// The built-in demo: chain mail on a torus (curved) lying on a plane (flat).
 SceneFile demoScene(TileCache& tiles);

@@ -924,6 +924,41 @@ TEST(BakeCache, AMeshTileRecordsTheFileGivenNotTheCopyBakedBefore) {
     EXPECT_TRUE(std::ranges::equal(fromProcess->distancesTexels(), a->distancesTexels()));
 }
 
+TEST(BakeCache, ARecipesLevelSetIsBakedWithItsTileAndNoCacheIsReadOrWritten) {
+    // A grating kept exact at the texel centres: the level set's voxels are the tile's texels.
+    const TempFolder folder("distile_bake_cache_level_set");
+    const std::string recipe =
+        R"({"bake": "grating", "size": "32x32x16", "bars": 2, "exact_texels": true})";
+    setenv("DISTILE_CACHE", folder.path("cache").c_str(), 1);
+    const RecipeLevelSet baked = bakeRecipeLevelSet(recipe, ".", "g.json", 2, 1);
+    EXPECT_FALSE(fs::exists(folder.path("cache")));  // level sets are not cached; nor is the tile
+    TileCache process;
+    const auto tile = bakeRecipeTile(recipe, ".", "g.json", process);
+    unsetenv("DISTILE_CACHE");
+    EXPECT_TRUE(std::ranges::equal(baked.tile->distancesTexels(), tile->distancesTexels()));
+    EXPECT_EQ(baked.levelSet.tileSize(), (Size3{64, 32, 16}));
+    const float band = baked.levelSet.halfBandTexels();
+    int compared = 0;
+    for (int k = 0; k < 16; k += 3)
+        for (int j = 0; j < 32; j += 5)
+            for (int i = 0; i < 32; i += 7) {
+                const float texel = tile->at(i, j, k);
+                if (std::abs(texel) >= band) continue;  // outside the band: the background
+                ++compared;
+                EXPECT_EQ(baked.levelSet.voxelDistanceTexels(i, j, k), texel);
+                EXPECT_EQ(baked.levelSet.voxelDistanceTexels(i + 32, j, k), texel);
+            }
+    EXPECT_GT(compared, 100);
+    // Repeats the level set refuses are refused under "repeat", before the bake.
+    try {
+        bakeRecipeLevelSet(recipe, ".", "g.json", 65, 1);
+        ADD_FAILURE() << "65 repeats accepted";
+    } catch (const InputError& error) {
+        EXPECT_TRUE(std::string(error.what()).starts_with("g.json: repeat: 65x1 is not accepted"))
+            << error.what();
+    }
+}
+
 TEST(BakeCache, AProceduralTileThatMissesTheCheckWarnsBakedOrCached) {
     // The default chain mail at 64 texels wide has wires 0.53 texel in radius: its bake misses
     // the check's tolerances. Two rings a row, tilted 5 degrees, with wires 2.1 texels thick,

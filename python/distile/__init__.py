@@ -122,25 +122,59 @@ def set_threads(threads):
     _distile.set_threads(_keyword("set_threads", "threads", threads, "int"))
 
 
+def _file_name(detail, keyword, file):
+    """The file name `file` (str, bytes or os.PathLike) of keyword `keyword` of a bake, absolute;
+    one the recipe's JSON cannot carry is InputError."""
+    path = _os.fsdecode(_os.fspath(file))
+    if "\0" in path:
+        raise InputError(f"bake {detail}: {keyword}: {path!r} is not accepted; a file name cannot "
+                         "hold a NUL character")
+    path = _os.path.abspath(path)
+    try:
+        path.encode("utf-8")
+    except UnicodeEncodeError:
+        raise InputError(f"bake {detail}: {keyword}: {path!r} is not accepted; bake() takes file "
+                         "names in UTF-8 (the distile command takes any)") from None
+    return path
+
+
+def _repeat(detail, repeat):
+    """The (N, M) of a bake's `repeat`: two whole numbers, or "NxM" as `distile bake --repeat`
+    takes it; the level set checks their range."""
+    if isinstance(repeat, str):
+        parts = repeat.lower().split("x")
+        if len(parts) == 2 and all(part.strip().isdigit() for part in parts):
+            return int(parts[0]), int(parts[1])
+        raise InputError(f"bake {detail}: repeat: {repeat!r} is not accepted; give \"NxM\" or "
+                         "(N, M), e.g. (2, 2)")
+    components = repeat.tolist() if hasattr(repeat, "tolist") else repeat
+    if isinstance(components, (tuple, list)) and len(components) == 2:
+        return tuple(_keyword(f"bake_{detail}", "repeat", count, "int") for count in components)
+    raise TypeError(f"bake_{detail}(): repeat must be two whole numbers (N, M) or \"NxM\", "
+                    f"not {repeat!r} ({type(repeat).__name__})")
+
+
 def _bake(detail, file, options):
     """bake()'s work; its warnings are told at the line that called bake() or bake_*()."""
     recipe = {"bake": detail}
     if file is not None:
-        path = _os.fsdecode(_os.fspath(file))
-        if "\0" in path:
-            raise InputError(f"bake {detail}: file: {path!r} is not accepted; a file name cannot "
-                             "hold a NUL character")
-        path = _os.path.abspath(path)
-        try:
-            path.encode("utf-8")
-        except UnicodeEncodeError:
-            raise InputError(f"bake {detail}: file: {path!r} is not accepted; bake() takes file "
-                             "names in UTF-8 (the distile command takes any)") from None
-        recipe["file"] = path
+        recipe["file"] = _file_name(detail, "file", file)
+    options = dict(options)
+    vdb = options.pop("vdb", None)
+    repeat = options.pop("repeat", None)
     for name, value in options.items():
         recipe[name] = list(value) if isinstance(value, tuple) else value
         _json_text(recipe[name], name)  # a NaN refused under its keyword
-    tile, found = _distile.bake_recipe(_json_text(recipe, "bake"), "bake " + str(detail))
+    name = "bake " + str(detail)
+    if vdb is None:
+        if repeat is not None:
+            raise InputError(f"{name}: repeat: needs vdb=FILE (it tiles the level set written "
+                             "there)")
+        tile, found = _distile.bake_recipe(_json_text(recipe, "bake"), name)
+    else:
+        repeat_x, repeat_y = (1, 1) if repeat is None else _repeat(detail, repeat)
+        tile, found = _distile.bake_recipe_with_level_set(
+            _json_text(recipe, "bake"), name, _file_name(detail, "vdb", vdb), repeat_x, repeat_y)
     for warning in found:
         _warnings.warn(warning, stacklevel=3)
     return tile
@@ -152,37 +186,41 @@ def bake(detail, file=None, **options):
     keywords: size="WxHxD" (or (W, H, D)), band, exact_texels, and the detail's own (a scene's
     bake recipe takes the same; docs/scene.md). The tile is kept in the bake cache
     (DISTILE_CACHE), so baking the same recipe again reads it back. What is odd about a mesh
-    is told as a UserWarning."""
+    is told as a UserWarning. vdb=FILE also writes the level set the tile was sampled from (as
+    --vdb; such a bake always runs: the cache keeps tiles only), repeat=(N, M) tiles it (as
+    --repeat)."""
     return _bake(detail, file, options)
 
 
 def bake_chainmail(**options):
     """Chain mail (``distile bake chainmail``): weave, rings_per_row, rows, ring_radius,
-    wire_radius, tilt, small_ring_radius, small_wire_radius, and size, band, exact_texels."""
+    wire_radius, tilt, small_ring_radius, small_wire_radius, and size, band, exact_texels, vdb,
+    repeat (bake())."""
     return _bake("chainmail", None, options)
 
 
 def bake_grating(**options):
     """A grating (``distile bake grating``): bars, bar_width, bar_height, edge_radius,
-    layer_gap, and size, band, exact_texels."""
+    layer_gap, and size, band, exact_texels, vdb, repeat (bake())."""
     return _bake("grating", None, options)
 
 
 def bake_mesh(file, **options):
     """A detail mesh, OBJ, PLY, OFF or STL (``distile bake mesh FILE``): fit, scale,
-    offset=(x, y, z), unsigned, thickness, and size, band, exact_texels."""
+    offset=(x, y, z), unsigned, thickness, and size, band, exact_texels, vdb, repeat (bake())."""
     return _bake("mesh", file, options)
 
 
 def bake_heightmap(file, **options):
     """A grey image as heights (``distile bake heightmap IMAGE``): height_texels, and size,
-    band, exact_texels."""
+    band, exact_texels, vdb, repeat (bake())."""
     return _bake("heightmap", file, options)
 
 
 def bake_vdb(file, **options):
     """A level set or fog volume from a .vdb file (``distile bake vdb FILE``): grid, iso, fit,
-    scale, offset, window=(x0, y0, z0, x1, y1, z1), and size, band, exact_texels."""
+    scale, offset, window=(x0, y0, z0, x1, y1, z1), and size, band, exact_texels, vdb, repeat
+    (bake())."""
     return _bake("vdb", file, options)
 
 
