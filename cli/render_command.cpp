@@ -2,11 +2,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <initializer_list>
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
+#include <string_view>
 
 #include "bake/provenance.h"
 #include "cli/arguments.h"
@@ -48,12 +49,15 @@ struct RenderArguments {
 class RenderOutputs {
   public:
     /// `aovs`: the names of the AOVs (render/render_files.h kAovFiles) the render writes with
-    /// --aovs.
-    RenderOutputs(const fs::path& image, bool withAovs, std::initializer_list<std::string> aovs)
+    /// --aovs; empty: all of them.
+    RenderOutputs(const fs::path& image, bool withAovs, std::span<const char* const> aovs = {})
         : image_(files_.add(image, "-o")) {
         if (!withAovs) return;
         for (const AovFile& aov : kAovFiles) {
-            if (std::find(aovs.begin(), aovs.end(), aov.name) == aovs.end()) continue;
+            if (!aovs.empty() && std::ranges::none_of(aovs, [&](const char* name) {
+                    return std::string_view(name) == aov.name;
+                }))
+                continue;
             aovs_[aov.name] = files_.add(aovPath(image, aov.name, aov.extension),
                                          "-o (its AOV " + std::string(aov.name) + ")");
         }
@@ -181,6 +185,34 @@ InputError underRenderNames(const InputError& error, const RenderArguments& argu
     return scene.empty() ? inScene : inScene.renamed(scene.string() + ": " + inScene.field());
 }
 
+/// The render flags a world reference does not read: it traces the detail as a world-space mesh
+/// (exact hits, one ray per pixel) and shades with its own shadow rays.
+constexpr const char* kFlagsBesideAWorldReference[] = {
+    "--spp",           "--iterations", "--epsilon", "--march",      "--relaxation", "--filter",
+    "--normal-filter", "--shell",      "--shadows", "--no-shadows", "--no-skip"};
+
+/// Refuses what `command`'s flags ask that the render would not do: a flag of the tile renderer
+/// beside --reference world or world-levelset, --reference-voxels without world-levelset.
+void refuseIgnoredFlags(const CLI::App& command, const RenderArguments& arguments) {
+    const bool world =
+        arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset";
+    if (world) {
+        for (const char* flag : kFlagsBesideAWorldReference) {
+            if (command.get_option(flag)->count() == 0) continue;
+            throw InputError(std::string(flag) + ": does not apply to --reference " +
+                             arguments.referenceKind +
+                             ", which traces the detail as a world-space mesh (exact hits, one "
+                             "ray per pixel, 16 shadow rays per light); leave it out");
+        }
+    }
+    if (command.get_option("--reference-voxels")->count() > 0 &&
+        arguments.referenceKind != "world-levelset") {
+        throw InputError(
+            "--reference-voxels: applies to --reference world-levelset only (the voxels of its "
+            "level set)");
+    }
+}
+
 void runRender(RenderArguments arguments) {
     requireOutput(arguments.output, "-o", {".png", ".exr", ".tif", ".tiff"});
     // The image is written at the end. A PNG is written with libpng and an EXR (the AOVs are
@@ -189,12 +221,10 @@ void runRender(RenderArguments arguments) {
     // The outputs are checked (and reserved) before the scene is read and its tiles baked.
     const bool worldReference =
         arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset";
-    RenderOutputs outputs = worldReference
-                                ? RenderOutputs(arguments.output, arguments.options.outputAovs,
-                                                {"depth", "normal", "texel_scale"})
-                                : RenderOutputs(arguments.output, arguments.options.outputAovs,
-                                                {"depth", "normal", "iterations", "shadow_samples",
-                                                 "shadow_map_samples", "curvature", "texel_scale"});
+    RenderOutputs outputs =
+        worldReference
+            ? RenderOutputs(arguments.output, arguments.options.outputAovs, kWorldReferenceAovs)
+            : RenderOutputs(arguments.output, arguments.options.outputAovs);
     const auto commandStart = std::chrono::steady_clock::now();
     TileCache tiles;
     const auto warn = [](const std::string& warning) {
@@ -413,9 +443,10 @@ void addRenderCommand(CLI::App& app) {
                      "a level set estimated to need more than 1 GiB is refused. Default: 2, or "
                      "the finest that fits in 1 GiB")
         ->check(finiteRange(0.25, 16.0));
-    command->callback([arguments, reference] {
+    command->callback([command, arguments, reference] {
         arguments->referenceGiven = reference->count() > 0;
         try {
+            refuseIgnoredFlags(*command, *arguments);
             runRender(*arguments);
         } catch (const InputError& error) {
             throw underRenderNames(error, *arguments);

@@ -9,6 +9,7 @@
 #include <pybind11/stl/filesystem.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cstdint>
@@ -16,6 +17,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -30,6 +32,7 @@
 #include "render/compare.h"
 #include "render/render_files.h"
 #include "render/renderer.h"
+#include "render/world_reference.h"
 #include "sampler/tile.h"
 #include "sampler/tile_io.h"
 #include "scene/scene_file.h"
@@ -49,6 +52,7 @@ struct PyTile {
 /// A render as Python holds it.
 struct PyRender {
     std::shared_ptr<const RenderResult> result;
+    bool worldReference = false;  ///< its AOVs only kWorldReferenceAovs (render/world_reference.h)
 };
 
 /// The tile a Python Tile holds. pybind11_object.__new__ (the base's, which the module's own
@@ -69,10 +73,27 @@ const Tile& tileOf(py::handle self) {
     return *held.tile;
 }
 
-/// The render a Python Render holds (see tileOf).
+/// The Python Render (see tileOf).
+const PyRender& pyRenderOf(py::handle self) {
+    return filled<PyRender>(self, "this distile.Render is empty: renders come from render()");
+}
+
+/// The render a Python Render holds.
 const RenderResult& renderOf(py::handle self) {
-    return *filled<PyRender>(self, "this distile.Render is empty: renders come from render()")
-                .result;
+    return *pyRenderOf(self).result;
+}
+
+/// The names of the AOVs of kAovFiles a render holds: a world reference's, else all (empty).
+std::span<const char* const> aovNames(const PyRender& render) {
+    if (render.worldReference) return kWorldReferenceAovs;
+    return {};
+}
+
+/// Whether AOV `name` is among `names` (empty: all).
+bool holdsAov(std::span<const char* const> names, const char* name) {
+    return names.empty() || std::ranges::any_of(names, [&](const char* held) {
+               return std::strcmp(held, name) == 0;
+           });
 }
 
 /// `values` (row-major, `channels` floats per element) as a read-only NumPy array of `shape`
@@ -162,7 +183,9 @@ std::pair<PyTile, std::vector<std::string>> bakeRecipeWithLevelSet(const std::st
 struct PyRenderArguments {
     std::optional<int> width, height, spp;
     bool aovs = false;
-    bool reference = false;
+    /// "analytic", "world" or "world-levelset" (the package's reference=True: "analytic").
+    std::optional<std::string> reference;
+    std::optional<double> referenceVoxels;
     std::optional<int> iterations;
     std::optional<float> epsilon;
     std::optional<std::string> march;
@@ -211,6 +234,7 @@ PyRenderArguments renderArguments(const py::dict& keywords) {
     return fromKeywords<A>(
         keywords, {member("width", &A::width), member("height", &A::height), member("spp", &A::spp),
                    member("aovs", &A::aovs), member("reference", &A::reference),
+                   member("reference_voxels", &A::referenceVoxels),
                    member("iterations", &A::iterations), member("epsilon", &A::epsilon),
                    member("march", &A::march), member("relaxation", &A::relaxation),
                    member("filter", &A::filter), member("normal_filter", &A::normalFilter),
@@ -236,7 +260,7 @@ RenderOptions renderOptions(const PyRenderArguments& arguments, const ImageSetti
     options.height = arguments.height.value_or(image.height);
     options.samplesPerPixel = arguments.spp.value_or(image.samplesPerPixel);
     options.outputAovs = arguments.aovs;
-    options.reference = arguments.reference;
+    options.reference = arguments.reference.has_value();
     if (arguments.iterations) options.march.maxIterations = *arguments.iterations;
     if (arguments.epsilon) options.march.epsilonTexels = *arguments.epsilon;
     if (arguments.relaxation) options.march.relaxation = *arguments.relaxation;
@@ -283,21 +307,84 @@ ProgressCallback handlingPythonSignals() {
     };
 }
 
+/// The world reference's options of `arguments` (reference "world" or "world-levelset"), as
+/// `distile render --reference world` takes them; the keywords it would ignore are refused.
+WorldReferenceOptions worldReferenceOptions(const PyRenderArguments& arguments,
+                                            const ImageSettings& image) {
+    const std::pair<const char*, bool> ignored[] = {
+        {"spp", arguments.spp.has_value()},
+        {"iterations", arguments.iterations.has_value()},
+        {"epsilon", arguments.epsilon.has_value()},
+        {"march", arguments.march.has_value()},
+        {"relaxation", arguments.relaxation.has_value()},
+        {"filter", arguments.filter.has_value()},
+        {"normal_filter", arguments.normalFilter.has_value()},
+        {"shell", arguments.shell.has_value()},
+        {"shadows", arguments.shadows.has_value()}};
+    for (const auto& [keyword, given] : ignored) {
+        if (!given) continue;
+        throw InputError(std::string(keyword) + ": does not apply to reference='" +
+                         *arguments.reference +
+                         "', which traces the detail as a world-space mesh (exact hits, one ray "
+                         "per pixel, 16 shadow rays per light); leave it out");
+    }
+    WorldReferenceOptions options;
+    options.width = arguments.width.value_or(image.width);
+    options.height = arguments.height.value_or(image.height);
+    options.outputAovs = arguments.aovs;
+    options.method = *arguments.reference == "world-levelset" ? WorldReferenceMethod::LevelSet
+                                                              : WorldReferenceMethod::Bvh;
+    if (arguments.referenceVoxels) options.levelSet.voxelsPerTexel = *arguments.referenceVoxels;
+    return options;
+}
+
+/// Refuses a `reference` the command does not take, and reference_voxels beside any reference
+/// but world-levelset or beyond the command's range.
+void checkReference(const PyRenderArguments& arguments) {
+    const std::optional<std::string>& reference = arguments.reference;
+    if (reference && *reference != "analytic" && *reference != "world" &&
+        *reference != "world-levelset") {
+        throw InputError("reference: '" + quotedInput(*reference) +
+                         "' is not accepted; accepted: True (\"analytic\"), \"world\", "
+                         "\"world-levelset\"");
+    }
+    if (!arguments.referenceVoxels) return;
+    if (reference != "world-levelset") {
+        throw InputError(
+            "reference_voxels: applies to reference='world-levelset' only (the voxels of its "
+            "level set)");
+    }
+    const double voxels = *arguments.referenceVoxels;
+    if (!(voxels >= 0.25 && voxels <= 16.0)) {
+        throw InputError("reference_voxels: " + numberText(voxels) +
+                         " is not accepted; it must be in [0.25, 16] world voxels per texel");
+    }
+}
+
 /// Renders the scene `load` reads (passing its warnings to the callback), as `distile render`
 /// does: the render's warnings after the scene's. Ctrl-C ends the render's pixels
 /// (KeyboardInterrupt).
 PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarningCallback&)>& load,
                       const PyRenderArguments& arguments) {
     auto result = std::make_shared<RenderResult>();
+    const bool world = arguments.reference == "world" || arguments.reference == "world-levelset";
     py::gil_scoped_release released;
     try {
+        checkReference(arguments);
         TileCache tiles;
         std::vector<std::string> sceneWarnings;
         SceneFile sceneFile =
             load(tiles, [&](const std::string& warning) { sceneWarnings.push_back(warning); });
-        const RenderOptions options = renderOptions(arguments, sceneFile.image);
-        if (options.reference) attachTruth(sceneFile);
-        *result = renderScene(sceneFile.scene, options, handlingPythonSignals());
+        if (world) {
+            const WorldReferenceOptions options = worldReferenceOptions(arguments, sceneFile.image);
+            attachTruth(sceneFile);  // analytic detail where there is one, else the tile
+            *result =
+                renderWorldReference(sceneFile.scene, options, handlingPythonSignals()).render;
+        } else {
+            const RenderOptions options = renderOptions(arguments, sceneFile.image);
+            if (options.reference) attachTruth(sceneFile);
+            *result = renderScene(sceneFile.scene, options, handlingPythonSignals());
+        }
         result->warnings.insert(result->warnings.begin(), sceneWarnings.begin(),
                                 sceneWarnings.end());
     } catch (const InputError& error) {
@@ -306,7 +393,7 @@ PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarni
         py::gil_scoped_acquire acquired;
         throw py::error_already_set();
     }
-    return PyRender{result};
+    return PyRender{result, world};
 }
 
 py::dict renderStats(const RenderStats& stats) {
@@ -479,15 +566,18 @@ PYBIND11_MODULE(_distile, module) {
         .def_property_readonly(
             "aovs",
             [](py::object self) {
-                const RenderResult& render = renderOf(self);
+                const PyRender& held = pyRenderOf(self);
+                const RenderResult& render = *held.result;
                 py::dict out;
                 if (!render.aovs) return out;
-                for (const AovFile& aov : kAovFiles)
-                    out[aov.name] = imageView((*render.aovs).*aov.layer, self);
+                for (const AovFile& aov : kAovFiles) {
+                    if (holdsAov(aovNames(held), aov.name))
+                        out[aov.name] = imageView((*render.aovs).*aov.layer, self);
+                }
                 return out;
             },
             "The AOVs by name (depth, normal, ...), each a (height, width, 3) view; empty "
-            "without aovs=True")
+            "without aovs=True (a world reference's: depth, normal, texel_scale)")
         .def_property_readonly(
             "stats", [](py::handle self) { return renderStats(renderOf(self).stats); },
             "Counters as distile render prints them: rays, base_hits (rays that hit a surface), "
@@ -500,9 +590,9 @@ PYBIND11_MODULE(_distile, module) {
         .def(
             "save",
             [](py::handle self, const fs::path& file) {
-                const RenderResult& render = renderOf(self);
+                const PyRender& held = pyRenderOf(self);
                 py::gil_scoped_release released;
-                writeRenderFiles(render, file);
+                writeRenderFiles(*held.result, file, aovNames(held));
             },
             py::arg("file"),
             "Write the image (.png, .exr, .tif) and, with AOVs, each beside it as `distile "

@@ -1,5 +1,7 @@
 #include "render/render_files.h"
 
+#include <algorithm>
+#include <string_view>
 #include <utility>
 
 #include "common/atomic_file.h"
@@ -13,12 +15,17 @@ fs::path aovPath(const fs::path& image, const std::string& name, const std::stri
     return image.parent_path() / (image.stem().string() + "." + name + extension);
 }
 
-void writeRenderFiles(const RenderResult& render, const fs::path& image) {
+void writeRenderFiles(const RenderResult& render, const fs::path& image,
+                      std::span<const char* const> aovs) {
     requireImageExtension(image);  // named as given, not as its temporary
     OutputFiles files;
     writeImage(render.image, files.add(image, "image"));
     if (render.aovs) {
         for (const AovFile& aov : kAovFiles) {
+            if (!aovs.empty() && std::ranges::none_of(aovs, [&](const char* name) {
+                    return std::string_view(name) == aov.name;
+                }))
+                continue;
             writeImage((*render.aovs).*aov.layer,
                        files.add(aovPath(image, aov.name, aov.extension),
                                  "image (its AOV " + std::string(aov.name) + ")"));

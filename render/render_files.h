@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <span>
 #include <string>
 
 #include "render/compare.h"
@@ -34,9 +35,10 @@ inline constexpr AovFile kAovFiles[] = {
 };
 
 /// Writes `render`'s image to `image` (writeImage chooses the format by extension) and, when it
-/// has AOVs, each AOV beside it (aovPath), all or none (common/atomic_file.h). Throws as
-/// OutputFiles::add and writeImage.
-void writeRenderFiles(const RenderResult& render, const std::filesystem::path& image);
+/// has AOVs, each AOV beside it (aovPath), or those of kAovFiles named in `aovs` when it is not
+/// empty, all or none (common/atomic_file.h). Throws as OutputFiles::add and writeImage.
+void writeRenderFiles(const RenderResult& render, const std::filesystem::path& image,
+                      std::span<const char* const> aovs = {});
 
 /// The layers `compare` reads of a render written with its AOVs: the image and its depth, normal
 /// and texel-scale AOVs.

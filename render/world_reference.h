@@ -48,6 +48,10 @@ struct WorldReferenceOptions {
     int shadowSamples = 16;
 };
 
+/// The AOVs (render/render_files.h kAovFiles) a world reference fills: what `distile compare`
+/// reads. Its other AOVs are black.
+inline constexpr const char* kWorldReferenceAovs[] = {"depth", "normal", "texel_scale"};
+
 struct WorldReferenceResult {
     /// The image, shaded as the file note says. AOVs, when requested: depth and normal as
     /// RenderAovs holds them (a back face's normal is its base normal, unflipped, as the

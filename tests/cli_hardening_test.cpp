@@ -479,6 +479,29 @@ TEST_F(Hardening, CostlyOptionsHaveUpperBounds) {
               cli::kExitInput);
 }
 
+TEST_F(Hardening, FlagsARenderWouldIgnoreAreRefused) {
+    // The tile renderer's flags beside a world reference, the level set's voxels beside any
+    // other reference: each once ignored without a word.
+    const std::string sheet = sourceFile("data/scenes/sheet.json");
+    for (const char* flag : {"--iterations=8", "--shadows=none", "--no-shadows", "--spp=4",
+                             "--shell=planar", "--no-skip=empty-space"}) {
+        const std::string name = std::string(flag).substr(0, std::string(flag).find('='));
+        EXPECT_EQ(expectInputError({"render", sheet, "-o", "r.png", "--reference", "world", flag},
+                                   "r.png", {name + ": does not apply to --reference world"})
+                      .status,
+                  cli::kExitInput);
+    }
+    for (const char* reference : {"--reference=analytic", "--reference=world"}) {
+        EXPECT_EQ(
+            expectInputError({"render", sheet, "-o", "r.png", reference, "--reference-voxels", "2"},
+                             "r.png",
+                             {"--reference-voxels: applies to --reference "
+                              "world-levelset only"})
+                .status,
+            cli::kExitInput);
+    }
+}
+
 TEST_F(Hardening, AWorldLevelSetBeyondTheMemoryBudgetIsRefusedNotAborted) {
     limitRuns({60, kTwoGigabytesKiB});  // building the world mesh takes a few seconds
     EXPECT_EQ(expectInputError({"render", sourceFile("data/scenes/sheet.json"), "--width", "64",

@@ -95,6 +95,13 @@ def _keyword(function, name, value, kind):
         if not is_bool and (isinstance(value, _numbers.Real) or _numpy_scalar(value, "iuf")):
             return float(value)
         raise TypeError(f"{function}(): {name} must be a number, {got}")
+    if kind == "reference":  # True: the analytic reference; False or None: none
+        if is_bool or value is None:
+            return "analytic" if value else None
+        if isinstance(value, str):
+            return value
+        raise TypeError(f"{function}(): {name} must be True, False, \"analytic\", \"world\" or "
+                        f"\"world-levelset\", {got}")
     if kind == "str":
         if isinstance(value, str):
             return value
@@ -232,7 +239,8 @@ _CHECK_KEYWORDS = {
 }
 
 _RENDER_KEYWORDS = {
-    "width": "int?", "height": "int?", "spp": "int?", "aovs": "bool", "reference": "bool",
+    "width": "int?", "height": "int?", "spp": "int?", "aovs": "bool", "reference": "reference",
+    "reference_voxels": "float?",
     "iterations": "int?", "epsilon": "float?", "march": "str?", "relaxation": "float?",
     "filter": "str?", "normal_filter": "str?", "shell": "str?", "shadows": "str?",
 }
@@ -258,11 +266,14 @@ def render(scene, **options):
     """Render `scene` (a scene file, or a dict in the scene format; its relative paths from
     the current folder) as ``distile render`` does, to a Render: ``.image`` (linear RGB,
     (height, width, 3) float32), ``.aovs`` (with aovs=True), ``.stats``, ``.save(path)``.
-    Keywords as the command's flags: width, height, spp, aovs, reference (True: the analytic
-    reference), iterations, epsilon, march, relaxation, filter, normal_filter, shell, shadows
-    ("none", "full", "adaptive"). What the command prints as warnings is told as UserWarnings
-    and kept in ``.warnings``."""
+    Keywords as the command's flags: width, height, spp, aovs, reference (True or "analytic":
+    the analytic reference; "world" or "world-levelset": the world reference, which takes only
+    width, height, aovs and, for "world-levelset", reference_voxels), iterations, epsilon,
+    march, relaxation, filter, normal_filter, shell, shadows ("none", "full", "adaptive").
+    What the command prints as warnings is told as UserWarnings and kept in ``.warnings``."""
     arguments = _checked_keywords("render", options, _RENDER_KEYWORDS)
+    if arguments.get("reference", 0) is None:
+        del arguments["reference"]
     if isinstance(scene, dict):
         result = _distile.render_scene_json(_json_text(scene, "scene"), ".", "scene", arguments)
     else:

@@ -373,6 +373,56 @@ def test_render_is_byte_identical_to_the_commands(tmp_path, source_dir, distile_
         distile.compare(3, rendered)
 
 
+def test_world_reference_is_the_commands(tmp_path, distile_command):
+    """reference="world": the command's --reference world, file for file, and the truth the
+    curved shell's render is measured against."""
+    scene = {"objects": [{"mesh": "sphere", "material": {
+        "tile": {"bake": "grating", "size": "32x32x16", "bars": 2}, "uv_scale": [4, 2],
+        "depth": 0.08}}]}
+    (tmp_path / "scene.json").write_text(json.dumps(scene))
+    run = distile_command("render", tmp_path / "scene.json", "-o", tmp_path / "command.png",
+                          "--width", "64", "--height", "48", "--aovs", "--reference", "world")
+    assert run.returncode == 0, run.stderr
+    with warnings.catch_warnings():  # a 32-texel grating misses the check's tolerances
+        warnings.simplefilter("ignore")
+        reference = distile.render(scene, width=64, height=48, aovs=True, reference="world")
+        render = distile.render(scene, width=64, height=48, aovs=True)
+    assert sorted(reference.aovs) == ["depth", "normal", "texel_scale"]
+    reference.save(tmp_path / "python.png")
+    written = sorted(path.name for path in tmp_path.glob("python*"))
+    assert written == ["python.depth.exr", "python.normal.png", "python.png",
+                       "python.texel_scale.exr"]
+    for name in written:
+        command = tmp_path / name.replace("python", "command")
+        assert without_write_time(tmp_path / name) == without_write_time(command), name
+    # The curved shell's render lies within a few hundredths of a texel of it (the interior
+    # pixels; 0.014 measured), and misses or hits alone at a few silhouette pixels.
+    comparison = distile.compare(render, reference)
+    assert comparison["interior"]["pixels"] > 400
+    assert comparison["interior"]["hit_error_mean"] < 0.05
+    assert comparison["coverage_mismatches"] < 20
+
+
+def test_world_reference_refuses_what_it_would_ignore():
+    scene = {"objects": [{"mesh": "sphere"}]}
+    for keyword, value in [("iterations", 8), ("spp", 2), ("shadows", "none"), ("shell", "planar")]:
+        with pytest.raises(distile.InputError, match=f"{keyword}: does not apply to "
+                                                     "reference='world'"):
+            distile.render(scene, width=8, height=8, reference="world", **{keyword: value})
+    with pytest.raises(distile.InputError, match="reference_voxels: applies to "
+                                                 "reference='world-levelset' only"):
+        distile.render(scene, width=8, height=8, reference=True, reference_voxels=2)
+    with pytest.raises(distile.InputError, match=r"reference_voxels: 100 is not accepted"):
+        distile.render(scene, width=8, height=8, reference="world-levelset",
+                       reference_voxels=100)
+    with pytest.raises(distile.InputError, match="reference: 'worlds' is not accepted"):
+        distile.render(scene, width=8, height=8, reference="worlds")
+    with pytest.raises(TypeError, match="reference must be True, False"):
+        distile.render(scene, width=8, height=8, reference=3)
+    # False is no reference: the tiles' render.
+    assert distile.render(scene, width=8, height=8, reference=False).stats["rays"] == 64
+
+
 def test_check_matches_the_commands_report(tmp_path, distile_command):
     tile = distile.bake_chainmail(size="64x64x8", rings_per_row=4, rows=6)
     tile.save(tmp_path / "chain.exr")
