@@ -36,6 +36,7 @@
 #include "sampler/tile.h"
 #include "sampler/tile_io.h"
 #include "scene/scene_file.h"
+#include "view/contact_sheet.h"
 
 namespace py = pybind11;
 namespace fs = std::filesystem;
@@ -419,15 +420,38 @@ RenderLayersView layers(const RenderResult& render) {
 }
 
 /// Each Render's layers in memory; each path's read back from the files `distile render --aovs`
-/// writes.
-py::object compareAny(const py::object& a, const py::object& b) {
-    auto compareViews = [](const RenderLayersView& viewA, const RenderLayersView& viewB) {
+/// writes. The difference image and the hit-error heat map are written where `difference` and
+/// `heatMap` say (as `distile compare -o --heatmap`; empty: not written), checked before the
+/// comparison, and named in the report.
+py::object compareAny(const py::object& a, const py::object& b, const fs::path& difference,
+                      const fs::path& heatMap) {
+    OutputFiles outputs;
+    const auto reserve = [&](const fs::path& image, const std::string& keyword) {
+        try {
+            requireImageExtension(image);
+        } catch (const InputError& error) {
+            throw InputError(keyword + ": " + error.what());
+        }
+        return outputs.add(image, keyword);
+    };
+    const fs::path differenceTemporary =
+        difference.empty() ? fs::path() : reserve(difference, "compare: difference");
+    const fs::path heatMapTemporary =
+        heatMap.empty() ? fs::path() : reserve(heatMap, "compare: heatmap");
+    auto compareViews = [&](const RenderLayersView& viewA, const RenderLayersView& viewB) {
         RenderComparison comparison;
         {
             py::gil_scoped_release released;
-            comparison = compareRenders(viewA, viewB);
+            Image differenceImage, heatMapImage;
+            comparison = compareRenders(viewA, viewB, &differenceImage, &heatMapImage);
+            if (!difference.empty()) writeImage(differenceImage, differenceTemporary);
+            if (!heatMap.empty()) writeImage(heatMapImage, heatMapTemporary);
+            outputs.commit();
         }
-        return jsonValue(reportText(renderComparisonJson(comparison)));
+        nlohmann::json report = renderComparisonJson(comparison);
+        if (!difference.empty()) report["difference"] = difference.string();
+        if (!heatMap.empty()) report["heatmap"] = heatMap.string();
+        return jsonValue(reportText(report));
     };
     std::optional<RenderFiles> filesA, filesB;
     auto view = [](const py::object& render, std::optional<RenderFiles>& files,
@@ -618,18 +642,40 @@ PYBIND11_MODULE(_distile, module) {
                 renderArguments(arguments));
         },
         py::arg("scene_json"), py::arg("folder"), py::arg("name"), py::arg("arguments"));
-    module.def("compare", &compareAny, py::arg("a"), py::arg("b"));
+    module.def("compare", &compareAny, py::arg("a"), py::arg("b"),
+               py::arg("difference") = fs::path(), py::arg("heatmap") = fs::path());
 
     module.def(
         "check_tile",
         [](py::handle tile, const std::string& tileName, const fs::path& tileFile,
-           const py::dict& keywords) {
+           const py::dict& keywords, const fs::path& plot) {
             const Tile& checked = tileOf(tile);
             const TileCheckOptions options = checkOptions(keywords);
             TileCheck check;
+            std::vector<std::string> warnings;
             try {
                 py::gil_scoped_release released;
+                // The plot (as `distile check --plot`) is checked before the check and written
+                // after it.
+                OutputFiles outputs;
+                fs::path plotTemporary;
+                if (!plot.empty()) {
+                    std::string extension = plot.extension().string();
+                    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+                    if (extension != ".png") {
+                        throw InputError("check: plot: '" + plot.string() +
+                                         "' is not accepted; the plot is a PNG (.png)");
+                    }
+                    plotTemporary = outputs.add(plot, "check: plot");
+                }
                 check = checkTile(checked, tileName, tileFile, options);
+                if (!plot.empty()) {
+                    if (!writeTileErrorPlot(checked, check.truth, check.bandTexels, plotTemporary))
+                        warnings.push_back(
+                            "check: plot: the labels were left out: no DejaVu Sans font (Debian: "
+                            "fonts-dejavu-core)");
+                    outputs.commit();
+                }
             } catch (const InputError& error) {
                 // Under check()'s keywords, not the C++ members.
                 throw shownUnder(error, {{"maxOverestimateTexels", "max_overestimate"},
@@ -640,9 +686,12 @@ PYBIND11_MODULE(_distile, module) {
                                          {"meshScale", "scale"},
                                          {"meshOffsetTexels", "offset"}});
             }
-            return jsonValue(reportText(tileCheckJson(check, options, tileName)));
+            nlohmann::json report = tileCheckJson(check, options, tileName);
+            if (!plot.empty()) report["plot"] = plot.string();
+            return py::make_tuple(jsonValue(reportText(report)), warnings);
         },
-        py::arg("tile"), py::arg("tile_name"), py::arg("tile_file"), py::arg("options"));
+        py::arg("tile"), py::arg("tile_name"), py::arg("tile_file"), py::arg("options"),
+        py::arg("plot") = fs::path());
 
     // Tiles and renders come from the module's functions only. Python's default __new__ would
     // make an instance no constructor filled, whose accessors read freed or unwritten memory (a

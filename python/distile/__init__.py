@@ -246,20 +246,27 @@ _RENDER_KEYWORDS = {
 }
 
 
-def check(tile, against=None, **options):
+def check(tile, against=None, plot=None, **options):
     """How far `tile` (a Tile or a tile file) is from its truth, as ``distile check --json``:
     the report as a dict (``passed``, ``failures``, ``rms``, ``max_abs``, ...). `against`:
-    None (the tile's own truth), "analytic", a mesh file or a level set (.vdb). Keywords:
-    samples, seed, max_overestimate, max_overestimate_share, max_rms, max_tracer_overestimate,
-    max_near_error, allow_sign_errors, scale, offset=(x, y, z)."""
+    None (the tile's own truth), "analytic", a mesh file or a level set (.vdb). `plot`: a .png
+    to draw where the error lies (as --plot). Keywords: samples, seed, max_overestimate,
+    max_overestimate_share, max_rms, max_tracer_overestimate, max_near_error,
+    allow_sign_errors, scale, offset=(x, y, z)."""
     settings = _checked_keywords("check", options, _CHECK_KEYWORDS)
     if against is not None:
         settings["against"] = _os.fsdecode(_os.fspath(against))
+    plot = "" if plot is None else _os.fsdecode(_os.fspath(plot))
     if isinstance(tile, Tile):
-        return _distile.check_tile(tile, "tile", "", settings)
-    path = _os.fsdecode(_os.fspath(tile))
-    # The name as the file's bytes: any a Linux name may hold, as the command takes them.
-    return _distile.check_tile(load_tile(path), _os.fsencode(path), path, settings)
+        report, found = _distile.check_tile(tile, "tile", "", settings, plot)
+    else:
+        path = _os.fsdecode(_os.fspath(tile))
+        # The name as the file's bytes: any a Linux name may hold, as the command takes them.
+        report, found = _distile.check_tile(load_tile(path), _os.fsencode(path), path, settings,
+                                            plot)
+    for warning in found:
+        _warnings.warn(warning, stacklevel=2)
+    return report
 
 
 def render(scene, **options):
@@ -283,9 +290,11 @@ def render(scene, **options):
     return result
 
 
-def compare(a, b):
+def compare(a, b, difference=None, heatmap=None):
     """How far render `a` is from render `b` (usually the reference), as
     ``distile compare --json``: a dict of coverage mismatches, hit errors in texels (interior,
     silhouette, all), normal error and PSNR. Each is a Render made with aovs=True, or the
-    image file of one written with its AOVs."""
-    return _distile.compare(a, b)
+    image file of one written with its AOVs. `difference` and `heatmap`: where to write the
+    difference image and the hit-error heat map (as -o and --heatmap; .png, .exr, .tif)."""
+    return _distile.compare(a, b, "" if difference is None else _os.fspath(difference),
+                            "" if heatmap is None else _os.fspath(heatmap))

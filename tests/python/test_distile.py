@@ -440,6 +440,50 @@ def test_check_matches_the_commands_report(tmp_path, distile_command):
         distile.check(tile, samples=0)
 
 
+def test_check_plots_and_compare_images_are_the_commands(tmp_path, distile_command):
+    """check(plot=) as --plot, compare(difference=, heatmap=) as -o and --heatmap: the same
+    files; their paths checked before the work, nothing written when refused."""
+    tile = distile.bake_grating(size="32x32x16", bars=2)
+    tile.save(tmp_path / "grating.exr")
+    run = distile_command("check", tmp_path / "grating.exr", "--plot", tmp_path / "command.png")
+    assert run.returncode == 0, run.stderr
+    report = distile.check(tmp_path / "grating.exr", plot=tmp_path / "python.png")
+    assert report["plot"] == str(tmp_path / "python.png")
+    assert (tmp_path / "python.png").read_bytes() == (tmp_path / "command.png").read_bytes()
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps({"objects": [{"mesh": "sphere", "material": {
+        "tile": {"bake": "grating", "size": "32x32x16", "bars": 2}, "depth": 0.08}}]}))
+    for name, shell in [("a", "curved"), ("b", "planar")]:
+        run = distile_command("render", scene, "-o", tmp_path / f"{name}.png", "--width", "48",
+                              "--height", "32", "--aovs", "--shell", shell)
+        assert run.returncode == 0, run.stderr
+    run = distile_command("compare", tmp_path / "a.png", tmp_path / "b.png", "--json",
+                          "-o", tmp_path / "command_diff.png", "--heatmap",
+                          tmp_path / "command_heat.png")
+    assert run.returncode == 0, run.stderr
+    comparison = distile.compare(tmp_path / "a.png", tmp_path / "b.png",
+                                 difference=tmp_path / "python_diff.png",
+                                 heatmap=tmp_path / "python_heat.png")
+    from_command = json.loads(run.stdout)
+    assert comparison["coverage_mismatches"] == from_command["coverage_mismatches"]
+    assert comparison["difference"] == str(tmp_path / "python_diff.png")
+    for kind in ["diff", "heat"]:
+        assert ((tmp_path / f"python_{kind}.png").read_bytes() ==
+                (tmp_path / f"command_{kind}.png").read_bytes())
+    before = sorted(tmp_path.iterdir())
+    with pytest.raises(distile.InputError, match="check: plot: .* the plot is a PNG"):
+        distile.check(tile, plot=tmp_path / "plot.jpg")
+    with pytest.raises(distile.InputError, match="check: plot: .* folder .* does not exist"):
+        distile.check(tile, plot=tmp_path / "no" / "plot.png")
+    with pytest.raises(distile.InputError, match="compare: difference: .*'.txt' is not accepted"):
+        distile.compare(tmp_path / "a.png", tmp_path / "b.png", difference=tmp_path / "d.txt")
+    # A comparison that fails writes neither image.
+    with pytest.raises(distile.InputError, match="B: image .*missing.png does not exist"):
+        distile.compare(tmp_path / "a.png", tmp_path / "missing.png",
+                        difference=tmp_path / "d.png", heatmap=tmp_path / "h.png")
+    assert sorted(tmp_path.iterdir()) == before
+
+
 def test_renders_release_the_gil():
     # While one thread renders, this one keeps running Python: with the GIL held for the whole
     # render it could not run a single iteration between the render's start and end. The render
