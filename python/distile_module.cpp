@@ -10,6 +10,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <chrono>
 #include <cstdint>
@@ -37,6 +38,7 @@
 #include "sampler/tile_io.h"
 #include "scene/scene_file.h"
 #include "view/contact_sheet.h"
+#include "view/tile_page.h"
 
 namespace py = pybind11;
 namespace fs = std::filesystem;
@@ -150,6 +152,23 @@ std::pair<PyTile, std::vector<std::string>> bakeRecipe(const std::string& recipe
     return {PyTile{tile}, warnings};
 }
 
+/// Throws InputError naming `shownAs` unless `file` ends in `extension` (any case); `what` says
+/// why.
+void requireExtension(const fs::path& file, const std::string& shownAs, const char* extension,
+                      const char* what) {
+    std::string given = file.extension().string();
+    for (char& c : given) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (given != extension) {
+        throw InputError(shownAs + ": '" + file.string() + "' is not accepted; " + what +
+                         ", which ends in " + extension);
+    }
+}
+
+/// Tells `warning` to Python as a UserWarning (the GIL held); an error if warnings are errors.
+void warnPython(const std::string& warning) {
+    if (PyErr_WarnEx(PyExc_UserWarning, warning.c_str(), 1) != 0) throw py::error_already_set();
+}
+
 /// bakeRecipe with the recipe's level set written to `vdbFile`, tiled `repeatX` x `repeatY` times
 /// (as `distile bake --vdb --repeat`): the file checked before the bake and written once the bake
 /// succeeded (common/atomic_file.h). Always bakes: the bake cache holds tiles only.
@@ -161,13 +180,7 @@ std::pair<PyTile, std::vector<std::string>> bakeRecipeWithLevelSet(const std::st
     std::shared_ptr<const Tile> tile;
     {
         py::gil_scoped_release released;
-        std::string extension = vdbFile.extension().string();
-        for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
-        if (extension != ".vdb") {
-            throw InputError(name + ": vdb: '" + vdbFile.string() +
-                             "' is not accepted; the level set is written as an OpenVDB file, "
-                             "which ends in .vdb");
-        }
+        requireExtension(vdbFile, name + ": vdb", ".vdb", "the level set is an OpenVDB file");
         OutputFiles outputs;
         const fs::path temporary = outputs.add(vdbFile, name + ": vdb");
         RecipeLevelSet baked =
@@ -564,13 +577,71 @@ PYBIND11_MODULE(_distile, module) {
             "Write the tile as an EXR atlas (as `distile bake -o`, `--half` with half=True)")
         .def(
             "save_png",
-            [](py::handle self, const fs::path& file, int bits) {
+            [](py::handle self, const fs::path& file, int bits, bool keepSign) {
                 const Tile& tile = tileOf(self);
                 py::gil_scoped_release released;
-                writeTilePng(tile, file, bits);
+                if (!keepSign) return writeTilePng(tile, file, bits);
+                if (bits != 16)
+                    throw InputError(
+                        "save_png: signed: the atlas that keeps the sign is 16-bit "
+                        "(bits=16), not " +
+                        std::to_string(bits) + "-bit");
+                writeSignedTilePng(tile, file);
             },
-            py::arg("file"), py::arg("bits") = 16,
-            "Write the 8- or 16-bit PNG atlas (as `distile bake --png8/--png16`)");
+            py::arg("file"), py::arg("bits") = 16, py::arg("signed") = false,
+            "Write the 8- or 16-bit PNG atlas (as `distile bake --png8/--png16`; signed=True: "
+            "--png16-signed, 0.5 + distance / 2R)")
+        .def(
+            "save_preview",
+            [](py::handle self, const fs::path& file) {
+                const Tile& tile = tileOf(self);
+                bool labelled = true;
+                {
+                    py::gil_scoped_release released;
+                    requireExtension(file, "save_preview", ".png", "the contact sheet is a PNG");
+                    labelled = writeTilePreview(tile, file);
+                }
+                if (!labelled)
+                    warnPython(
+                        "save_preview: the labels were left out: no DejaVu Sans font "
+                        "(Debian: fonts-dejavu-core)");
+            },
+            py::arg("file"),
+            "Draw the tile's slices as a contact sheet (as `distile preview -o`, .png)")
+        .def(
+            "save_view",
+            [](py::handle self, const fs::path& file, const std::string& object,
+               std::optional<std::array<float, 2>> uvScale, std::optional<float> depth,
+               std::optional<std::array<float, 2>> sphereUvScale, std::optional<float> sphereDepth,
+               bool openFloor, const std::string& title) {
+                const Tile& tile = tileOf(self);
+                TilePageView view;
+                view.object = object;
+                if (uvScale) view.uvScale = {(*uvScale)[0], (*uvScale)[1]};
+                if (depth) view.depthWorld = *depth;
+                if (sphereUvScale) view.sphereUvScale = {(*sphereUvScale)[0], (*sphereUvScale)[1]};
+                if (sphereDepth) view.sphereDepthWorld = *sphereDepth;
+                view.solidFloor = !openFloor;
+                py::gil_scoped_release released;
+                requireExtension(file, "save_view", ".html", "the page is HTML");
+                try {
+                    writeTilePage(tile, title, view, file);
+                } catch (const InputError& error) {
+                    throw shownUnder(error, {{"uvScale.x", "uv_scale"},
+                                             {"uvScale.y", "uv_scale"},
+                                             {"depthWorld", "depth"},
+                                             {"sphereUvScale.x", "sphere_uv_scale"},
+                                             {"sphereUvScale.y", "sphere_uv_scale"},
+                                             {"sphereDepthWorld", "sphere_depth"}});
+                }
+            },
+            py::arg("file"), py::kw_only(), py::arg("object") = "plane",
+            py::arg("uv_scale") = py::none(), py::arg("depth") = py::none(),
+            py::arg("sphere_uv_scale") = py::none(), py::arg("sphere_depth") = py::none(),
+            py::arg("open_floor") = false, py::arg("title") = "tile",
+            "Write the web page that draws the tile with the reference shader (as `distile "
+            "view -o`, .html): object \"plane\" or \"sphere\", uv_scale=(u, v), depth, "
+            "sphere_uv_scale, sphere_depth, open_floor, title");
 
     module.def(
         "load_tile",
@@ -660,12 +731,7 @@ PYBIND11_MODULE(_distile, module) {
                 OutputFiles outputs;
                 fs::path plotTemporary;
                 if (!plot.empty()) {
-                    std::string extension = plot.extension().string();
-                    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
-                    if (extension != ".png") {
-                        throw InputError("check: plot: '" + plot.string() +
-                                         "' is not accepted; the plot is a PNG (.png)");
-                    }
+                    requireExtension(plot, "check: plot", ".png", "the plot is a PNG");
                     plotTemporary = outputs.add(plot, "check: plot");
                 }
                 check = checkTile(checked, tileName, tileFile, options);

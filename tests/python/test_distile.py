@@ -297,6 +297,39 @@ def test_save_and_load_round_trip(tmp_path):
     assert (tmp_path / "grating.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_tile_pictures_are_the_commands(tmp_path, distile_command):
+    """save_preview as `distile preview`, save_view as `distile view`, save_png(signed=True) as
+    --png16-signed: the same files."""
+    run = distile_command("bake", "grating", "--size", "32x32x16", "--bars", "2",
+                          "-o", tmp_path / "grating.exr", "--png16-signed",
+                          tmp_path / "command_signed.png")
+    assert run.returncode == 0, run.stderr
+    for arguments in [("preview", tmp_path / "grating.exr", "-o", tmp_path / "command.png"),
+                      ("view", tmp_path / "grating.exr", "-o", tmp_path / "command.html",
+                       "--object", "sphere", "--sphere-depth", "0.05", "--uv-scale", "2", "3",
+                       "--open-floor")]:
+        run = distile_command(*arguments)
+        assert run.returncode == 0, run.stderr
+    tile = distile.load_tile(tmp_path / "grating.exr")
+    tile.save_preview(tmp_path / "python.png")
+    tile.save_view(tmp_path / "python.html", object="sphere", sphere_depth=0.05, uv_scale=(2, 3),
+                   open_floor=True, title="grating.exr")
+    tile.save_png(tmp_path / "python_signed.png", signed=True)
+    for name in ["python.png", "python.html", "python_signed.png"]:
+        command = tmp_path / name.replace("python", "command")
+        assert (tmp_path / name).read_bytes() == command.read_bytes(), name
+    before = sorted(tmp_path.iterdir())
+    with pytest.raises(distile.InputError, match="save_png: signed: .* 16-bit"):
+        tile.save_png(tmp_path / "s.png", bits=8, signed=True)
+    with pytest.raises(distile.InputError, match="save_preview: .* ends in .png"):
+        tile.save_preview(tmp_path / "p.jpg")
+    with pytest.raises(distile.InputError, match="object: 'cube' is not accepted"):
+        tile.save_view(tmp_path / "v.html", object="cube")
+    with pytest.raises(distile.InputError, match="uv_scale: 0 is not accepted"):
+        tile.save_view(tmp_path / "v.html", uv_scale=(0, 1))
+    assert sorted(tmp_path.iterdir()) == before
+
+
 def test_errors_are_value_errors_with_the_commands_messages(tmp_path, distile_command):
     with pytest.raises(distile.InputError, match="size") as raised:
         distile.bake_chainmail(size="1x64x8")
