@@ -208,6 +208,7 @@ struct PyRenderArguments {
     std::optional<std::string> normalFilter;
     std::optional<std::string> shell;
     std::optional<std::string> shadows;
+    std::vector<std::string> noSkip;  ///< --no-skip: the skips switched off (RenderSkipSwitch)
 };
 
 /// A member of T that fromKeywords sets from the keyword `name`.
@@ -246,13 +247,14 @@ T fromKeywords(const py::dict& keywords, std::initializer_list<KeywordMember<T>>
 PyRenderArguments renderArguments(const py::dict& keywords) {
     using A = PyRenderArguments;
     return fromKeywords<A>(
-        keywords, {member("width", &A::width), member("height", &A::height), member("spp", &A::spp),
-                   member("aovs", &A::aovs), member("reference", &A::reference),
-                   member("reference_voxels", &A::referenceVoxels),
-                   member("iterations", &A::iterations), member("epsilon", &A::epsilon),
-                   member("march", &A::march), member("relaxation", &A::relaxation),
-                   member("filter", &A::filter), member("normal_filter", &A::normalFilter),
-                   member("shell", &A::shell), member("shadows", &A::shadows)});
+        keywords,
+        {member("width", &A::width), member("height", &A::height), member("spp", &A::spp),
+         member("aovs", &A::aovs), member("reference", &A::reference),
+         member("reference_voxels", &A::referenceVoxels), member("iterations", &A::iterations),
+         member("epsilon", &A::epsilon), member("march", &A::march),
+         member("relaxation", &A::relaxation), member("filter", &A::filter),
+         member("normal_filter", &A::normalFilter), member("shell", &A::shell),
+         member("shadows", &A::shadows), member("no_skip", &A::noSkip)});
 }
 
 TileCheckOptions checkOptions(const py::dict& keywords) {
@@ -291,6 +293,18 @@ RenderOptions renderOptions(const PyRenderArguments& arguments, const ImageSetti
         options.shadowFilter =
             named(*arguments.shadows, kShadowFilters, shadowFilterName, "shadows");
     options.selfShadows = options.shadowFilter != ShadowFilter::None;
+    for (const std::string& name : arguments.noSkip) {
+        const auto skip = std::ranges::find_if(
+            kRenderSkipSwitches, [&](const RenderSkipSwitch& known) { return name == known.name; });
+        if (skip == std::end(kRenderSkipSwitches)) {
+            std::string accepted;
+            for (const RenderSkipSwitch& known : kRenderSkipSwitches)
+                accepted += std::string(accepted.empty() ? "" : ", ") + known.name;
+            throw InputError("no_skip: '" + quotedInput(name) +
+                             "' is not accepted; accepted: " + accepted);
+        }
+        options.skips.*skip->enabled = false;
+    }
     return options;
 }
 
@@ -334,7 +348,8 @@ WorldReferenceOptions worldReferenceOptions(const PyRenderArguments& arguments,
         {"filter", arguments.filter.has_value()},
         {"normal_filter", arguments.normalFilter.has_value()},
         {"shell", arguments.shell.has_value()},
-        {"shadows", arguments.shadows.has_value()}};
+        {"shadows", arguments.shadows.has_value()},
+        {"no_skip", !arguments.noSkip.empty()}};
     for (const auto& [keyword, given] : ignored) {
         if (!given) continue;
         throw InputError(std::string(keyword) + ": does not apply to reference='" +

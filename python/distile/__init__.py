@@ -95,6 +95,11 @@ def _keyword(function, name, value, kind):
         if not is_bool and (isinstance(value, _numbers.Real) or _numpy_scalar(value, "iuf")):
             return float(value)
         raise TypeError(f"{function}(): {name} must be a number, {got}")
+    if kind == "names":  # one name or several
+        names = [value] if isinstance(value, str) else value
+        if isinstance(names, (list, tuple)) and all(isinstance(item, str) for item in names):
+            return list(names)
+        raise TypeError(f"{function}(): {name} must be a name or a list of names, {got}")
     if kind == "reference":  # True: the analytic reference; False or None: none
         if is_bool or value is None:
             return "analytic" if value else None
@@ -240,7 +245,7 @@ _CHECK_KEYWORDS = {
 
 _RENDER_KEYWORDS = {
     "width": "int?", "height": "int?", "spp": "int?", "aovs": "bool", "reference": "reference",
-    "reference_voxels": "float?",
+    "reference_voxels": "float?", "no_skip": "names",
     "iterations": "int?", "epsilon": "float?", "march": "str?", "relaxation": "float?",
     "filter": "str?", "normal_filter": "str?", "shell": "str?", "shadows": "str?",
 }
@@ -276,7 +281,8 @@ def render(scene, **options):
     Keywords as the command's flags: width, height, spp, aovs, reference (True or "analytic":
     the analytic reference; "world" or "world-levelset": the world reference, which takes only
     width, height, aovs and, for "world-levelset", reference_voxels), iterations, epsilon,
-    march, relaxation, filter, normal_filter, shell, shadows ("none", "full", "adaptive").
+    march, relaxation, filter, normal_filter, shell, shadows ("none", "full", "adaptive"),
+    no_skip (a skip's name or a list of them: the work the renderer skips done anyway).
     What the command prints as warnings is told as UserWarnings and kept in ``.warnings``."""
     arguments = _checked_keywords("render", options, _RENDER_KEYWORDS)
     if arguments.get("reference", 0) is None:

@@ -436,6 +436,24 @@ def test_world_reference_is_the_commands(tmp_path, distile_command):
     assert comparison["coverage_mismatches"] < 20
 
 
+def test_no_skip_does_the_work_the_command_does(tmp_path, source_dir, distile_command):
+    """no_skip as --no-skip: the same image (shell culling changes none) for more shells
+    traced."""
+    scene = source_dir / "data/scenes/torus_on_sheet.json"
+    run = distile_command("render", scene, "-o", tmp_path / "command.png", "--width", "64",
+                          "--height", "48", "--no-skip", "shell-culling", "--no-skip",
+                          "unlit-shadows")
+    assert run.returncode == 0, run.stderr
+    culled = distile.render(scene, width=64, height=48)
+    every = distile.render(scene, width=64, height=48, no_skip=["shell-culling", "unlit-shadows"])
+    every.save(tmp_path / "python.png")
+    assert (tmp_path / "python.png").read_bytes() == (tmp_path / "command.png").read_bytes()
+    np.testing.assert_array_equal(every.image, culled.image)
+    assert every.stats["shells_traced"] > culled.stats["shells_traced"]
+    with pytest.raises(distile.InputError, match="no_skip: 'x' is not accepted; accepted: "):
+        distile.render(scene, width=8, height=8, no_skip="x")
+
+
 def test_world_reference_refuses_what_it_would_ignore():
     scene = {"objects": [{"mesh": "sphere"}]}
     for keyword, value in [("iterations", 8), ("spp", 2), ("shadows", "none"), ("shell", "planar")]:
