@@ -138,17 +138,58 @@ Value named(const std::string& name, const Value (&values)[N], const char* (*nam
                               "'" + quotedInput(name) + "' is not accepted; accepted: " + accepted);
 }
 
-/// The tile of a bake recipe (scene/scene_file.h bakeRecipeTile) and the warnings of its bake.
+/// Thrown through a library's work when Python raised in its progress callback: a pending
+/// signal's handler (Ctrl-C: KeyboardInterrupt) or the caller's `progress`; the Python error is
+/// set.
+struct PythonRaised {};
+
+/// A progress callback that, at most every 50 ms (taking the GIL may wait for another Python
+/// thread), lets Python handle pending signals and calls `report` (a callable, or None) with the
+/// fraction done. Called on the thread that started the work (with the GIL released); a handler
+/// or `report` that raises ends the work (PythonRaised). `report` must outlive the work; the
+/// callback holds its address, not a reference count (copies of it are made without the GIL).
+ProgressCallback pythonProgress(const py::object& report) {
+    return
+        [report = &report, last = std::chrono::steady_clock::now()](double fractionDone) mutable {
+            const auto now = std::chrono::steady_clock::now();
+            if (now - last < std::chrono::milliseconds(50)) return;
+            last = now;
+            py::gil_scoped_acquire acquired;
+            if (PyErr_CheckSignals() != 0) throw PythonRaised{};
+            if (report->is_none()) return;
+            try {
+                (*report)(fractionDone);
+            } catch (py::error_already_set& error) {
+                error.restore();
+                throw PythonRaised{};
+            }
+        };
+}
+
+/// Runs `work` (which releases the GIL) and turns PythonRaised into the Python error it left.
+template <class Work>
+auto raisingPythonErrors(const Work& work) {
+    try {
+        return work();
+    } catch (const PythonRaised&) {
+        throw py::error_already_set();
+    }
+}
+
+/// The tile of a bake recipe (scene/scene_file.h bakeRecipeTile) and the warnings of its bake,
+/// reporting to `progress` (pythonProgress).
 std::pair<PyTile, std::vector<std::string>> bakeRecipe(const std::string& recipeJson,
-                                                       const std::string& name) {
+                                                       const std::string& name,
+                                                       const py::object& progress) {
     std::vector<std::string> warnings;
-    std::shared_ptr<const Tile> tile;
-    {
+    const auto tile = raisingPythonErrors([&] {
+        const ProgressCallback report = pythonProgress(progress);
         py::gil_scoped_release released;
         TileCache tiles;
-        tile = bakeRecipeTile(recipeJson, fs::path("."), name, tiles,
-                              [&](const std::string& warning) { warnings.push_back(warning); });
-    }
+        return bakeRecipeTile(
+            recipeJson, fs::path("."), name, tiles,
+            [&](const std::string& warning) { warnings.push_back(warning); }, report);
+    });
     return {PyTile{tile}, warnings};
 }
 
@@ -175,21 +216,22 @@ void warnPython(const std::string& warning) {
 std::pair<PyTile, std::vector<std::string>> bakeRecipeWithLevelSet(const std::string& recipeJson,
                                                                    const std::string& name,
                                                                    const fs::path& vdbFile,
-                                                                   int repeatX, int repeatY) {
+                                                                   int repeatX, int repeatY,
+                                                                   const py::object& progress) {
     std::vector<std::string> warnings;
-    std::shared_ptr<const Tile> tile;
-    {
+    const auto tile = raisingPythonErrors([&] {
+        const ProgressCallback report = pythonProgress(progress);
         py::gil_scoped_release released;
         requireExtension(vdbFile, name + ": vdb", ".vdb", "the level set is an OpenVDB file");
         OutputFiles outputs;
         const fs::path temporary = outputs.add(vdbFile, name + ": vdb");
-        RecipeLevelSet baked =
-            bakeRecipeLevelSet(recipeJson, fs::path("."), name, repeatX, repeatY,
-                               [&](const std::string& warning) { warnings.push_back(warning); });
+        RecipeLevelSet baked = bakeRecipeLevelSet(
+            recipeJson, fs::path("."), name, repeatX, repeatY,
+            [&](const std::string& warning) { warnings.push_back(warning); }, report);
         baked.levelSet.save(temporary);
         outputs.commit();
-        tile = std::move(baked.tile);
-    }
+        return baked.tile;
+    });
     return {PyTile{tile}, warnings};
 }
 
@@ -318,23 +360,6 @@ InputError underRenderKeyword(const InputError& error) {
     return shown.field() != error.field() ? shown : underSceneJsonPath(error);
 }
 
-/// Thrown through a library's work when Python's handler of a pending signal raised (Ctrl-C:
-/// KeyboardInterrupt); the Python error is set.
-struct PythonSignalRaised {};
-
-/// A progress callback that lets Python handle pending signals, at most every 50 ms (taking
-/// the GIL may wait for another Python thread). Called on the thread that started the work
-/// (with the GIL released); a handler that raises ends the work.
-ProgressCallback handlingPythonSignals() {
-    return [last = std::chrono::steady_clock::now()](double) mutable {
-        const auto now = std::chrono::steady_clock::now();
-        if (now - last < std::chrono::milliseconds(50)) return;
-        last = now;
-        py::gil_scoped_acquire acquired;
-        if (PyErr_CheckSignals() != 0) throw PythonSignalRaised{};
-    };
-}
-
 /// The world reference's options of `arguments` (reference "world" or "world-levelset"), as
 /// `distile render --reference world` takes them; the keywords it would ignore are refused.
 WorldReferenceOptions worldReferenceOptions(const PyRenderArguments& arguments,
@@ -391,12 +416,13 @@ void checkReference(const PyRenderArguments& arguments) {
 }
 
 /// Renders the scene `load` reads (passing its warnings to the callback), as `distile render`
-/// does: the render's warnings after the scene's. Ctrl-C ends the render's pixels
-/// (KeyboardInterrupt).
+/// does: the render's warnings after the scene's. The pixels report to `progress`
+/// (pythonProgress): Ctrl-C ends them (KeyboardInterrupt).
 PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarningCallback&)>& load,
-                      const PyRenderArguments& arguments) {
+                      const PyRenderArguments& arguments, const py::object& progress) {
     auto result = std::make_shared<RenderResult>();
     const bool world = arguments.reference == "world" || arguments.reference == "world-levelset";
+    const ProgressCallback report = pythonProgress(progress);
     py::gil_scoped_release released;
     try {
         checkReference(arguments);
@@ -407,18 +433,17 @@ PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarni
         if (world) {
             const WorldReferenceOptions options = worldReferenceOptions(arguments, sceneFile.image);
             attachTruth(sceneFile);  // analytic detail where there is one, else the tile
-            *result =
-                renderWorldReference(sceneFile.scene, options, handlingPythonSignals()).render;
+            *result = renderWorldReference(sceneFile.scene, options, report).render;
         } else {
             const RenderOptions options = renderOptions(arguments, sceneFile.image);
             if (options.reference) attachTruth(sceneFile);
-            *result = renderScene(sceneFile.scene, options, handlingPythonSignals());
+            *result = renderScene(sceneFile.scene, options, report);
         }
         result->warnings.insert(result->warnings.begin(), sceneWarnings.begin(),
                                 sceneWarnings.end());
     } catch (const InputError& error) {
         throw underRenderKeyword(error);
-    } catch (const PythonSignalRaised&) {
+    } catch (const PythonRaised&) {
         py::gil_scoped_acquire acquired;
         throw py::error_already_set();
     }
@@ -665,9 +690,11 @@ PYBIND11_MODULE(_distile, module) {
             return PyTile{std::make_shared<const Tile>(readTileExr(file))};
         },
         py::arg("file"), "Read a tile file (.exr) written by distile");
-    module.def("bake_recipe", &bakeRecipe, py::arg("recipe_json"), py::arg("name"));
+    module.def("bake_recipe", &bakeRecipe, py::arg("recipe_json"), py::arg("name"),
+               py::arg("progress") = py::none());
     module.def("bake_recipe_with_level_set", &bakeRecipeWithLevelSet, py::arg("recipe_json"),
-               py::arg("name"), py::arg("vdb"), py::arg("repeat_x"), py::arg("repeat_y"));
+               py::arg("name"), py::arg("vdb"), py::arg("repeat_x"), py::arg("repeat_y"),
+               py::arg("progress") = py::none());
 
     py::class_<PyRender>(module, "Render", "A rendered image with its statistics and AOVs")
         .def_property_readonly(
@@ -709,25 +736,26 @@ PYBIND11_MODULE(_distile, module) {
             "render --aovs` does");
     module.def(
         "render_scene_file",
-        [](const fs::path& file, const py::dict& arguments) {
+        [](const fs::path& file, const py::dict& arguments, const py::object& progress) {
             return renderLoaded(
                 [&](TileCache& tiles, const SceneWarningCallback& warn) {
                     return loadSceneFile(file, tiles, warn);
                 },
-                renderArguments(arguments));
+                renderArguments(arguments), progress);
         },
-        py::arg("file"), py::arg("arguments"));
+        py::arg("file"), py::arg("arguments"), py::arg("progress") = py::none());
     module.def(
         "render_scene_json",
         [](const std::string& sceneJson, const fs::path& folder, const std::string& name,
-           const py::dict& arguments) {
+           const py::dict& arguments, const py::object& progress) {
             return renderLoaded(
                 [&](TileCache& tiles, const SceneWarningCallback& warn) {
                     return loadSceneJson(sceneJson, folder, name, tiles, warn);
                 },
-                renderArguments(arguments));
+                renderArguments(arguments), progress);
         },
-        py::arg("scene_json"), py::arg("folder"), py::arg("name"), py::arg("arguments"));
+        py::arg("scene_json"), py::arg("folder"), py::arg("name"), py::arg("arguments"),
+        py::arg("progress") = py::none());
     module.def("compare", &compareAny, py::arg("a"), py::arg("b"),
                py::arg("difference") = fs::path(), py::arg("heatmap") = fs::path());
 

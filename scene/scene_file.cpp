@@ -522,7 +522,7 @@ MeshPlacement meshPlacementOf(const Field& spec) {
 /// "window": [X0, Y0, Z0, X1, Y1, Z1]}`: the level set baked as `distile bake vdb` does
 /// (bake/vdb_bake.h).
 BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& tiles, Pass pass,
-                       LevelSetRequest* levelSet) {
+                       LevelSetRequest* levelSet, const ProgressCallback& progress) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "grid", "iso", "fit",
                         "scale", "offset", "window"});
     const BakeOptions options = bakeOptionsOf(spec);
@@ -562,7 +562,7 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
         spec, tiles, recipe, source,
         [&] {
             const VdbVolume volume = VdbVolume::read(path, gridName, iso);
-            return bakeVdb(volume, placement, options, path.filename().string()).bake;
+            return bakeVdb(volume, placement, options, path.filename().string(), progress).bake;
         },
         levelSet);
 }
@@ -571,7 +571,8 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
 /// mesh baked as `distile bake mesh` does (bake/solid_mesh.h), fitted to the footprint unless
 /// scale or offset is given. The mesh's warnings go to `warn`.
 BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& tiles,
-                        const SceneWarningCallback& warn, Pass pass, LevelSetRequest* levelSet) {
+                        const SceneWarningCallback& warn, Pass pass, LevelSetRequest* levelSet,
+                        const ProgressCallback& progress) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "fit", "scale", "offset",
                         "unsigned", "thickness"});
     BakeOptions options = bakeOptionsOf(spec);
@@ -605,7 +606,8 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
         const std::string key = "bake:" + recipe;
         if (levelSet) {
             Tile tile = keepLevelSet(
-                bakeSolidMesh(mesh, placement, options, path.string(), {}, sign).result, *levelSet);
+                bakeSolidMesh(mesh, placement, options, path.string(), progress, sign).result,
+                *levelSet);
             recordSourceFile(tile.provenance, path);
             baked.tile = std::make_shared<const Tile>(std::move(tile));
         } else if (auto found = tiles.find(key); found != tiles.end()) {
@@ -614,8 +616,9 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
             baked.tile = cachedBake(
                 recipe,
                 [&] {
-                    Tile tile = bakeSolidMesh(mesh, placement, options, path.string(), {}, sign)
-                                    .result.tile;
+                    Tile tile =
+                        bakeSolidMesh(mesh, placement, options, path.string(), progress, sign)
+                            .result.tile;
                     recordSourceFile(tile.provenance, path);
                     return tile;
                 },
@@ -638,7 +641,7 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
 /// `"tile": {"bake": "heightmap", "file": ..., "height_texels": ...}`: the image baked as
 /// `distile bake heightmap` does.
 BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCache& tiles, Pass pass,
-                             LevelSetRequest* levelSet) {
+                             LevelSetRequest* levelSet, const ProgressCallback& progress) {
     spec.requireObject({"bake", "file", "size", "band", "exact_texels", "height_texels"});
     const BakeOptions options = bakeOptionsOf(spec);
     HeightMapOptions heightMap;
@@ -654,7 +657,8 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
     return bakedFileTile(
         spec, tiles, recipe, source,
-        [&] { return bakeHeightMap(readHeightImage(path), heightMap, options); }, levelSet);
+        [&] { return bakeHeightMap(readHeightImage(path), heightMap, options, progress); },
+        levelSet);
 }
 
 /// The chain mail of `"bake": "chainmail"`, under the names of `distile bake chainmail`'s flags
@@ -710,8 +714,9 @@ GratingOptions gratingOf(const Field& spec) {
 
 /// The tile of a procedural pattern with the verdict of its check against the analytic truth
 /// recorded (check/tile_check.h), so a cached tile warns as a fresh one does.
-BakeResult checkedProceduralBake(const ProceduralOptions& procedural, const BakeOptions& options) {
-    BakeResult baked = bakeProcedural(procedural, options);
+BakeResult checkedProceduralBake(const ProceduralOptions& procedural, const BakeOptions& options,
+                                 const ProgressCallback& progress = {}) {
+    BakeResult baked = bakeProcedural(procedural, options, progress);
     recordAnalyticCheck(baked.tile);
     return baked;
 }
@@ -726,15 +731,16 @@ void warnOfRecordedCheck(const Tile& tile, const Field& field, const SceneWarnin
 
 BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
                     const SceneWarningCallback& warn, Pass pass,
-                    LevelSetRequest* levelSet = nullptr) {
+                    LevelSetRequest* levelSet = nullptr, const ProgressCallback& progress = {}) {
     if (!spec.has("bake")) {
         spec.fail(
             "missing field 'bake' (the detail to bake: chainmail, grating, heightmap, mesh, vdb)");
     }
     const std::string kind = spec["bake"].string();
-    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn, pass, levelSet);
-    if (kind == "heightmap") return bakedHeightMapTile(spec, folder, tiles, pass, levelSet);
-    if (kind == "vdb") return bakedVdbTile(spec, folder, tiles, pass, levelSet);
+    if (kind == "mesh") return bakedMeshTile(spec, folder, tiles, warn, pass, levelSet, progress);
+    if (kind == "heightmap")
+        return bakedHeightMapTile(spec, folder, tiles, pass, levelSet, progress);
+    if (kind == "vdb") return bakedVdbTile(spec, folder, tiles, pass, levelSet, progress);
     ProceduralOptions procedural;
     std::string recipe;
     if (kind == "chainmail") {
@@ -768,12 +774,12 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
     try {
         if (levelSet) {
             auto tile = std::make_shared<const Tile>(
-                keepLevelSet(checkedProceduralBake(procedural, options), *levelSet));
+                keepLevelSet(checkedProceduralBake(procedural, options, progress), *levelSet));
             warnOfRecordedCheck(*tile, spec, warn);
             return {tile, nullptr};
         }
-        auto tile =
-            cachedBake(recipe, [&] { return checkedProceduralBake(procedural, options).tile; });
+        auto tile = cachedBake(
+            recipe, [&] { return checkedProceduralBake(procedural, options, progress).tile; });
         tiles[key] = tile;
         warnOfRecordedCheck(*tile, spec, warn);
         return {tile, nullptr};
@@ -996,21 +1002,25 @@ SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarni
 
 std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson, const fs::path& folder,
                                            const std::string& name, TileCache& tiles,
-                                           const SceneWarningCallback& warn) {
+                                           const SceneWarningCallback& warn,
+                                           const ProgressCallback& progress) {
     const json document = parseJson(recipeJson, name);
-    return bakedTile(Field(document, "", name), folder, tiles, warn, Pass::Load).tile;
+    return bakedTile(Field(document, "", name), folder, tiles, warn, Pass::Load, nullptr, progress)
+        .tile;
 }
 
 RecipeLevelSet bakeRecipeLevelSet(const std::string& recipeJson, const fs::path& folder,
                                   const std::string& name, int repeatX, int repeatY,
-                                  const SceneWarningCallback& warn) {
+                                  const SceneWarningCallback& warn,
+                                  const ProgressCallback& progress) {
     const json document = parseJson(recipeJson, name);
     TileCache unused;
     LevelSetRequest request;
     request.repeatX = repeatX;
     request.repeatY = repeatY;
     std::shared_ptr<const Tile> tile =
-        bakedTile(Field(document, "", name), folder, unused, warn, Pass::Load, &request).tile;
+        bakedTile(Field(document, "", name), folder, unused, warn, Pass::Load, &request, progress)
+            .tile;
     return {std::move(tile), std::move(*request.levelSet)};
 }
 

@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/progress.h"
 #include "common/triangle_soup.h"
 #include "render/scene.h"
 #include "vdb/level_set.h"
@@ -79,11 +80,13 @@ SceneFile loadSceneJson(const std::string& sceneJson, const std::filesystem::pat
 /// `{"bake": "chainmail", "size": "64x64x8"}`; the keys are `distile bake`'s flags without the
 /// dashes, '-' written '_'; docs/scene.md), baked as the command bakes it, once through `tiles`
 /// and the bake cache. Errors as loadSceneJson's, the recipe's keys as their paths under `name`;
-/// a relative "file" resolves from `folder`.
+/// a relative "file" resolves from `folder`. A bake reports to `progress` (common/progress.h),
+/// which may throw to end it.
 std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson,
                                            const std::filesystem::path& folder,
                                            const std::string& name, TileCache& tiles,
-                                           const SceneWarningCallback& warn = {});
+                                           const SceneWarningCallback& warn = {},
+                                           const ProgressCallback& progress = {});
 
 /// A recipe's tile and the level set it was sampled from.
 struct RecipeLevelSet {
@@ -99,7 +102,8 @@ struct RecipeLevelSet {
 RecipeLevelSet bakeRecipeLevelSet(const std::string& recipeJson,
                                   const std::filesystem::path& folder, const std::string& name,
                                   int repeatX = 1, int repeatY = 1,
-                                  const SceneWarningCallback& warn = {});
+                                  const SceneWarningCallback& warn = {},
+                                  const ProgressCallback& progress = {});
 
 /// The built-in demo: chain mail on a torus (curved) lying on a plane (flat).
 SceneFile demoScene(TileCache& tiles);

@@ -166,6 +166,14 @@ def _repeat(detail, repeat):
                     f"not {repeat!r} ({type(repeat).__name__})")
 
 
+def _progress(function, progress):
+    """`progress`: None or a callable of the fraction done; anything else is a TypeError."""
+    if progress is None or callable(progress):
+        return progress
+    raise TypeError(f"{function}(): progress must be a callable of the fraction done (or None), "
+                    f"not {progress!r} ({type(progress).__name__})")
+
+
 def _bake(detail, file, options):
     """bake()'s work; its warnings are told at the line that called bake() or bake_*()."""
     recipe = {"bake": detail}
@@ -174,6 +182,7 @@ def _bake(detail, file, options):
     options = dict(options)
     vdb = options.pop("vdb", None)
     repeat = options.pop("repeat", None)
+    progress = _progress(f"bake_{detail}", options.pop("progress", None))
     for name, value in options.items():
         recipe[name] = list(value) if isinstance(value, tuple) else value
         _json_text(recipe[name], name)  # a NaN refused under its keyword
@@ -182,13 +191,16 @@ def _bake(detail, file, options):
         if repeat is not None:
             raise InputError(f"{name}: repeat: needs vdb=FILE (it tiles the level set written "
                              "there)")
-        tile, found = _distile.bake_recipe(_json_text(recipe, "bake"), name)
+        tile, found = _distile.bake_recipe(_json_text(recipe, "bake"), name, progress)
     else:
         repeat_x, repeat_y = (1, 1) if repeat is None else _repeat(detail, repeat)
         tile, found = _distile.bake_recipe_with_level_set(
-            _json_text(recipe, "bake"), name, _file_name(detail, "vdb", vdb), repeat_x, repeat_y)
+            _json_text(recipe, "bake"), name, _file_name(detail, "vdb", vdb), repeat_x, repeat_y,
+            progress)
     for warning in found:
         _warnings.warn(warning, stacklevel=3)
+    if progress is not None:
+        progress(1.0)
     return tile
 
 
@@ -284,13 +296,18 @@ def render(scene, **options):
     march, relaxation, filter, normal_filter, shell, shadows ("none", "full", "adaptive"),
     no_skip (a skip's name or a list of them: the work the renderer skips done anyway).
     What the command prints as warnings is told as UserWarnings and kept in ``.warnings``."""
+    options = dict(options)
+    progress = _progress("render", options.pop("progress", None))
     arguments = _checked_keywords("render", options, _RENDER_KEYWORDS)
     if arguments.get("reference", 0) is None:
         del arguments["reference"]
     if isinstance(scene, dict):
-        result = _distile.render_scene_json(_json_text(scene, "scene"), ".", "scene", arguments)
+        result = _distile.render_scene_json(_json_text(scene, "scene"), ".", "scene", arguments,
+                                            progress)
     else:
-        result = _distile.render_scene_file(_os.fspath(scene), arguments)
+        result = _distile.render_scene_file(_os.fspath(scene), arguments, progress)
+    if progress is not None:
+        progress(1.0)
     for warning in result.warnings:
         _warnings.warn(warning, stacklevel=2)
     return result

@@ -561,6 +561,54 @@ def test_renders_release_the_gil():
     assert len(during) >= 10
 
 
+def test_progress_reports_bakes_and_renders_and_can_end_them(tmp_path, source_dir):
+    """progress=callable: the fraction done, rising, then 1.0 once done; raising in it ends the
+    work with that error and writes nothing."""
+    for work in [
+            lambda report: distile.bake_grating(size="128x128x32", bars=4,
+                                                vdb=tmp_path / "g.vdb", progress=report),
+            lambda report: distile.render(source_dir / "data/scenes/sheet.json", width=320,
+                                          height=256, shadows="none", progress=report)]:
+        fractions = []
+        work(fractions.append)
+        assert len(fractions) >= 2
+        assert fractions == sorted(fractions)
+        assert 0.0 <= fractions[0] < 1.0 and fractions[-1] == 1.0
+    (tmp_path / "g.vdb").unlink()
+
+    def enough(fraction):
+        if fraction > 0.0:
+            raise ArithmeticError("enough")
+
+    with pytest.raises(ArithmeticError, match="enough"):
+        distile.bake_grating(size="128x128x32", bars=4, vdb=tmp_path / "g.vdb", progress=enough)
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(TypeError, match="progress must be a callable"):
+        distile.render({"objects": [{"mesh": "plane"}]}, width=8, height=8, progress=1)
+
+
+def test_ctrl_c_ends_a_bake_at_its_next_report(tmp_path):
+    # The default chain mail with its level set (always baked: about 1.7 s on two cores). Ctrl-C
+    # (SIGINT) 0.3 s in raises KeyboardInterrupt at the bake's next report, and no file is left.
+    sent = []
+
+    def interrupt():
+        sent.append(time.monotonic())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    timer = threading.Timer(0.3, interrupt)
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            distile.bake_chainmail(vdb=tmp_path / "chain.vdb")
+        raised = time.monotonic()
+    finally:
+        timer.cancel()
+    assert len(sent) == 1
+    assert raised - sent[0] < 1.0
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_ctrl_c_ends_a_render_at_its_next_block_of_pixels(source_dir):
     # A render of 2^24 camera samples of the torus on the sheet (several seconds on two cores),
     # its tile baked beforehand. Ctrl-C (SIGINT) half a second in raises KeyboardInterrupt as the
