@@ -425,7 +425,9 @@ void addRenderCommand(CLI::App& app) {
                 "ambient, Blinn-Phong, 16 soft-shadow rays per light; the meshes and BVH of a "
                 "scene estimated to need more than 8 GiB are refused); world-levelset: the same "
                 "mesh as an OpenVDB level set (--reference-voxels) for its hits, refined the "
-                "same way, much slower: the check of the world reference")
+                "same way, much slower: the check of the world reference. Both world references "
+                "refuse the tile renderer's flags (--spp, --iterations, --epsilon, --march, "
+                "--relaxation, --filter, --normal-filter, --shell, --shadows, --no-skip)")
             ->expected(0, 1)
             ->check(
                 [](const std::string& kind) {
