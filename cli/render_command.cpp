@@ -185,24 +185,18 @@ InputError underRenderNames(const InputError& error, const RenderArguments& argu
     return scene.empty() ? inScene : inScene.renamed(scene.string() + ": " + inScene.field());
 }
 
-/// The render flags a world reference does not read: it traces the detail as a world-space mesh
-/// (exact hits, one ray per pixel) and shades with its own shadow rays.
-constexpr const char* kFlagsBesideAWorldReference[] = {
-    "--spp",           "--iterations", "--epsilon", "--march",      "--relaxation", "--filter",
-    "--normal-filter", "--shell",      "--shadows", "--no-shadows", "--no-skip"};
-
 /// Refuses what `command`'s flags ask that the render would not do: a flag of the tile renderer
-/// beside --reference world or world-levelset, --reference-voxels without world-levelset.
+/// beside --reference world or world-levelset (kSettingsAWorldReferenceIgnores),
+/// --reference-voxels without world-levelset.
 void refuseIgnoredFlags(const CLI::App& command, const RenderArguments& arguments) {
     const bool world =
         arguments.referenceKind == "world" || arguments.referenceKind == "world-levelset";
     if (world) {
-        for (const char* flag : kFlagsBesideAWorldReference) {
+        for (const char* setting : kSettingsAWorldReferenceIgnores) {
+            const std::string flag = std::string("--") + setting;
             if (command.get_option(flag)->count() == 0) continue;
-            throw InputError(std::string(flag) + ": does not apply to --reference " +
-                             arguments.referenceKind +
-                             ", which traces the detail as a world-space mesh (exact hits, one "
-                             "ray per pixel, 16 shadow rays per light); leave it out");
+            throw InputError(flag + ": does not apply to --reference " + arguments.referenceKind +
+                             ", which " + kWorldReferenceReads + "; leave it out");
         }
     }
     if (command.get_option("--reference-voxels")->count() > 0 &&

@@ -361,27 +361,9 @@ InputError underRenderKeyword(const InputError& error) {
 }
 
 /// The world reference's options of `arguments` (reference "world" or "world-levelset"), as
-/// `distile render --reference world` takes them; the keywords it would ignore are refused.
+/// `distile render --reference world` takes them.
 WorldReferenceOptions worldReferenceOptions(const PyRenderArguments& arguments,
                                             const ImageSettings& image) {
-    const std::pair<const char*, bool> ignored[] = {
-        {"spp", arguments.spp.has_value()},
-        {"iterations", arguments.iterations.has_value()},
-        {"epsilon", arguments.epsilon.has_value()},
-        {"march", arguments.march.has_value()},
-        {"relaxation", arguments.relaxation.has_value()},
-        {"filter", arguments.filter.has_value()},
-        {"normal_filter", arguments.normalFilter.has_value()},
-        {"shell", arguments.shell.has_value()},
-        {"shadows", arguments.shadows.has_value()},
-        {"no_skip", !arguments.noSkip.empty()}};
-    for (const auto& [keyword, given] : ignored) {
-        if (!given) continue;
-        throw InputError(std::string(keyword) + ": does not apply to reference='" +
-                         *arguments.reference +
-                         "', which traces the detail as a world-space mesh (exact hits, one ray "
-                         "per pixel, 16 shadow rays per light); leave it out");
-    }
     WorldReferenceOptions options;
     options.width = arguments.width.value_or(image.width);
     options.height = arguments.height.value_or(image.height);
@@ -392,15 +374,29 @@ WorldReferenceOptions worldReferenceOptions(const PyRenderArguments& arguments,
     return options;
 }
 
-/// Refuses a `reference` the command does not take, and reference_voxels beside any reference
-/// but world-levelset or beyond the command's range.
-void checkReference(const PyRenderArguments& arguments) {
+/// Refuses a `reference` the command does not take, the keywords of `keywords` a world
+/// reference would ignore (kSettingsAWorldReferenceIgnores; None or an empty list asks nothing),
+/// and reference_voxels beside any reference but world-levelset or beyond the command's range.
+/// The GIL held.
+void checkReference(const PyRenderArguments& arguments, const py::dict& keywords) {
     const std::optional<std::string>& reference = arguments.reference;
     if (reference && *reference != "analytic" && *reference != "world" &&
         *reference != "world-levelset") {
         throw InputError("reference: '" + quotedInput(*reference) +
                          "' is not accepted; accepted: True (\"analytic\"), \"world\", "
                          "\"world-levelset\"");
+    }
+    if (reference == "world" || reference == "world-levelset") {
+        for (const char* setting : kSettingsAWorldReferenceIgnores) {
+            std::string keyword = setting;
+            std::ranges::replace(keyword, '-', '_');
+            if (!keywords.contains(keyword)) continue;
+            const py::object value = keywords[keyword.c_str()];
+            if (value.is_none() || (py::isinstance<py::list>(value) && py::len(value) == 0))
+                continue;
+            throw InputError(keyword + ": does not apply to reference='" + *reference +
+                             "', which " + kWorldReferenceReads + "; leave it out");
+        }
     }
     if (!arguments.referenceVoxels) return;
     if (reference != "world-levelset") {
@@ -419,34 +415,35 @@ void checkReference(const PyRenderArguments& arguments) {
 /// does: the render's warnings after the scene's. The pixels report to `progress`
 /// (pythonProgress): Ctrl-C ends them (KeyboardInterrupt).
 PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarningCallback&)>& load,
-                      const PyRenderArguments& arguments, const py::object& progress) {
-    auto result = std::make_shared<RenderResult>();
+                      const py::dict& keywords, const py::object& progress) {
+    const PyRenderArguments arguments = renderArguments(keywords);
+    checkReference(arguments, keywords);
     const bool world = arguments.reference == "world" || arguments.reference == "world-levelset";
-    const ProgressCallback report = pythonProgress(progress);
-    py::gil_scoped_release released;
-    try {
-        checkReference(arguments);
-        TileCache tiles;
-        std::vector<std::string> sceneWarnings;
-        SceneFile sceneFile =
-            load(tiles, [&](const std::string& warning) { sceneWarnings.push_back(warning); });
-        if (world) {
-            const WorldReferenceOptions options = worldReferenceOptions(arguments, sceneFile.image);
-            attachTruth(sceneFile);  // analytic detail where there is one, else the tile
-            *result = renderWorldReference(sceneFile.scene, options, report).render;
-        } else {
-            const RenderOptions options = renderOptions(arguments, sceneFile.image);
-            if (options.reference) attachTruth(sceneFile);
-            *result = renderScene(sceneFile.scene, options, report);
+    auto result = std::make_shared<RenderResult>();
+    raisingPythonErrors([&] {
+        const ProgressCallback report = pythonProgress(progress);
+        py::gil_scoped_release released;
+        try {
+            TileCache tiles;
+            std::vector<std::string> sceneWarnings;
+            SceneFile sceneFile =
+                load(tiles, [&](const std::string& warning) { sceneWarnings.push_back(warning); });
+            if (world) {
+                const WorldReferenceOptions options =
+                    worldReferenceOptions(arguments, sceneFile.image);
+                attachTruth(sceneFile);  // analytic detail where there is one, else the tile
+                *result = renderWorldReference(sceneFile.scene, options, report).render;
+            } else {
+                const RenderOptions options = renderOptions(arguments, sceneFile.image);
+                if (options.reference) attachTruth(sceneFile);
+                *result = renderScene(sceneFile.scene, options, report);
+            }
+            result->warnings.insert(result->warnings.begin(), sceneWarnings.begin(),
+                                    sceneWarnings.end());
+        } catch (const InputError& error) {
+            throw underRenderKeyword(error);
         }
-        result->warnings.insert(result->warnings.begin(), sceneWarnings.begin(),
-                                sceneWarnings.end());
-    } catch (const InputError& error) {
-        throw underRenderKeyword(error);
-    } catch (const PythonRaised&) {
-        py::gil_scoped_acquire acquired;
-        throw py::error_already_set();
-    }
+    });
     return PyRender{result, world};
 }
 
@@ -741,7 +738,7 @@ PYBIND11_MODULE(_distile, module) {
                 [&](TileCache& tiles, const SceneWarningCallback& warn) {
                     return loadSceneFile(file, tiles, warn);
                 },
-                renderArguments(arguments), progress);
+                arguments, progress);
         },
         py::arg("file"), py::arg("arguments"), py::arg("progress") = py::none());
     module.def(
@@ -752,7 +749,7 @@ PYBIND11_MODULE(_distile, module) {
                 [&](TileCache& tiles, const SceneWarningCallback& warn) {
                     return loadSceneJson(sceneJson, folder, name, tiles, warn);
                 },
-                renderArguments(arguments), progress);
+                arguments, progress);
         },
         py::arg("scene_json"), py::arg("folder"), py::arg("name"), py::arg("arguments"),
         py::arg("progress") = py::none());

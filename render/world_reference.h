@@ -48,6 +48,17 @@ struct WorldReferenceOptions {
     int shadowSamples = 16;
 };
 
+/// The tile renderer's settings a world reference does not read, by the `distile render` flag
+/// that sets each, without its dashes (the Python module's keyword: the same with '_' for '-'):
+/// the command and the module refuse them beside a world reference, as kWorldReferenceReads says.
+inline constexpr const char* kSettingsAWorldReferenceIgnores[] = {
+    "spp",           "iterations", "epsilon", "march",      "relaxation", "filter",
+    "normal-filter", "shell",      "shadows", "no-shadows", "no-skip"};
+/// What a world reference does instead, for the message that refuses one of them.
+inline constexpr const char* kWorldReferenceReads =
+    "traces the detail as a world-space mesh (exact hits, one ray per pixel, 16 shadow rays per "
+    "light)";
+
 /// The AOVs (render/render_files.h kAovFiles) a world reference fills: what `distile compare`
 /// reads. Its other AOVs are black.
 inline constexpr const char* kWorldReferenceAovs[] = {"depth", "normal", "texel_scale"};

@@ -562,16 +562,17 @@ def test_renders_release_the_gil():
 
 
 def test_progress_reports_bakes_and_renders_and_can_end_them(tmp_path, source_dir):
-    """progress=callable: the fraction done, rising, then 1.0 once done; raising in it ends the
-    work with that error and writes nothing."""
+    """progress=callable: the fraction done, rising, every 50 ms at most, then 1.0 once done;
+    raising in it ends the work with that error and writes nothing. The work is long enough for
+    several reports (the bake about 1 s, the render 0.3 s on two cores)."""
     for work in [
-            lambda report: distile.bake_grating(size="128x128x32", bars=4,
+            lambda report: distile.bake_grating(size="256x256x32", bars=8,
                                                 vdb=tmp_path / "g.vdb", progress=report),
-            lambda report: distile.render(source_dir / "data/scenes/sheet.json", width=320,
-                                          height=256, shadows="none", progress=report)]:
+            lambda report: distile.render(source_dir / "data/scenes/torus_on_sheet.json",
+                                          width=640, height=512, progress=report)]:
         fractions = []
         work(fractions.append)
-        assert len(fractions) >= 2
+        assert len(fractions) >= 3
         assert fractions == sorted(fractions)
         assert 0.0 <= fractions[0] < 1.0 and fractions[-1] == 1.0
     (tmp_path / "g.vdb").unlink()
@@ -581,7 +582,7 @@ def test_progress_reports_bakes_and_renders_and_can_end_them(tmp_path, source_di
             raise ArithmeticError("enough")
 
     with pytest.raises(ArithmeticError, match="enough"):
-        distile.bake_grating(size="128x128x32", bars=4, vdb=tmp_path / "g.vdb", progress=enough)
+        distile.bake_grating(size="256x256x32", bars=8, vdb=tmp_path / "g.vdb", progress=enough)
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(TypeError, match="progress must be a callable"):
         distile.render({"objects": [{"mesh": "plane"}]}, width=8, height=8, progress=1)
