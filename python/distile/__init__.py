@@ -212,39 +212,40 @@ def bake(detail, file=None, **options):
     (DISTILE_CACHE), so baking the same recipe again reads it back. What is odd about a mesh
     is told as a UserWarning. vdb=FILE also writes the level set the tile was sampled from (as
     --vdb; such a bake always runs: the cache keeps tiles only), repeat=(N, M) tiles it (as
-    --repeat)."""
+    --repeat). progress: a callable given the fraction done (Ctrl-C ends a bake at a report)."""
     return _bake(detail, file, options)
 
 
 def bake_chainmail(**options):
     """Chain mail (``distile bake chainmail``): weave, rings_per_row, rows, ring_radius,
     wire_radius, tilt, small_ring_radius, small_wire_radius, and size, band, exact_texels, vdb,
-    repeat (bake())."""
+    repeat, progress (bake())."""
     return _bake("chainmail", None, options)
 
 
 def bake_grating(**options):
     """A grating (``distile bake grating``): bars, bar_width, bar_height, edge_radius,
-    layer_gap, and size, band, exact_texels, vdb, repeat (bake())."""
+    layer_gap, and size, band, exact_texels, vdb, repeat, progress (bake())."""
     return _bake("grating", None, options)
 
 
 def bake_mesh(file, **options):
     """A detail mesh, OBJ, PLY, OFF or STL (``distile bake mesh FILE``): fit, scale,
-    offset=(x, y, z), unsigned, thickness, and size, band, exact_texels, vdb, repeat (bake())."""
+    offset=(x, y, z), unsigned, thickness, and size, band, exact_texels, vdb, repeat, progress
+    (bake())."""
     return _bake("mesh", file, options)
 
 
 def bake_heightmap(file, **options):
     """A grey image as heights (``distile bake heightmap IMAGE``): height_texels, and size,
-    band, exact_texels, vdb, repeat (bake())."""
+    band, exact_texels, vdb, repeat, progress (bake())."""
     return _bake("heightmap", file, options)
 
 
 def bake_vdb(file, **options):
     """A level set or fog volume from a .vdb file (``distile bake vdb FILE``): grid, iso, fit,
-    scale, offset, window=(x0, y0, z0, x1, y1, z1), and size, band, exact_texels, vdb, repeat
-    (bake())."""
+    scale, offset, window=(x0, y0, z0, x1, y1, z1), and size, band, exact_texels, vdb, repeat,
+    progress (bake())."""
     return _bake("vdb", file, options)
 
 
@@ -294,7 +295,8 @@ def render(scene, **options):
     the analytic reference; "world" or "world-levelset": the world reference, which takes only
     width, height, aovs and, for "world-levelset", reference_voxels), iterations, epsilon,
     march, relaxation, filter, normal_filter, shell, shadows ("none", "full", "adaptive"),
-    no_skip (a skip's name or a list of them: the work the renderer skips done anyway).
+    no_skip (a skip's name or a list of them: the work the renderer skips done anyway), and
+    progress (a callable given the fraction done).
     What the command prints as warnings is told as UserWarnings and kept in ``.warnings``."""
     options = dict(options)
     progress = _progress("render", options.pop("progress", None))
