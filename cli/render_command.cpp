@@ -224,8 +224,14 @@ void runRender(RenderArguments arguments) {
     const auto warn = [](const std::string& warning) {
         std::fprintf(stderr, "distile: warning: %s\n", warning.c_str());
     };
-    SceneFile sceneFile =
-        arguments.scene.empty() ? demoScene(tiles) : loadSceneFile(arguments.scene, tiles, warn);
+    // A bar for each tile the scene bakes (none for tiles from the cache).
+    const BakeProgress bakeProgress = [](const std::string& what) {
+        auto bar = std::make_shared<ProgressBar>("bake " + what);
+        return ProgressCallback([bar](double fractionDone) { (*bar)(fractionDone); });
+    };
+    SceneFile sceneFile = arguments.scene.empty()
+                              ? demoScene(tiles, bakeProgress)
+                              : loadSceneFile(arguments.scene, tiles, warn, bakeProgress);
     if (worldReference) {
         runWorldReference(arguments, std::move(sceneFile), outputs);
         return;

@@ -411,23 +411,29 @@ void checkReference(const PyRenderArguments& arguments, const py::dict& keywords
     }
 }
 
+/// How a render's scene is read: into the tile cache, its warnings and bakes to the callbacks.
+using SceneLoad =
+    std::function<SceneFile(TileCache&, const SceneWarningCallback&, const BakeProgress&)>;
+
 /// Renders the scene `load` reads (passing its warnings to the callback), as `distile render`
 /// does: the render's warnings after the scene's. The pixels report to `progress`
-/// (pythonProgress): Ctrl-C ends them (KeyboardInterrupt).
-PyRender renderLoaded(const std::function<SceneFile(TileCache&, const SceneWarningCallback&)>& load,
-                      const py::dict& keywords, const py::object& progress) {
+/// (pythonProgress); Ctrl-C ends them, or the bake of a tile of the scene (KeyboardInterrupt).
+PyRender renderLoaded(const SceneLoad& load, const py::dict& keywords, const py::object& progress) {
     const PyRenderArguments arguments = renderArguments(keywords);
     checkReference(arguments, keywords);
     const bool world = arguments.reference == "world" || arguments.reference == "world-levelset";
     auto result = std::make_shared<RenderResult>();
+    const py::object none = py::none();
     raisingPythonErrors([&] {
         const ProgressCallback report = pythonProgress(progress);
+        const ProgressCallback signals = pythonProgress(none);  // the scene's bakes: Ctrl-C only
         py::gil_scoped_release released;
         try {
             TileCache tiles;
             std::vector<std::string> sceneWarnings;
-            SceneFile sceneFile =
-                load(tiles, [&](const std::string& warning) { sceneWarnings.push_back(warning); });
+            SceneFile sceneFile = load(
+                tiles, [&](const std::string& warning) { sceneWarnings.push_back(warning); },
+                [&](const std::string&) { return signals; });
             if (world) {
                 const WorldReferenceOptions options =
                     worldReferenceOptions(arguments, sceneFile.image);
@@ -735,8 +741,9 @@ PYBIND11_MODULE(_distile, module) {
         "render_scene_file",
         [](const fs::path& file, const py::dict& arguments, const py::object& progress) {
             return renderLoaded(
-                [&](TileCache& tiles, const SceneWarningCallback& warn) {
-                    return loadSceneFile(file, tiles, warn);
+                [&](TileCache& tiles, const SceneWarningCallback& warn,
+                    const BakeProgress& bakeProgress) {
+                    return loadSceneFile(file, tiles, warn, bakeProgress);
                 },
                 arguments, progress);
         },
@@ -746,8 +753,9 @@ PYBIND11_MODULE(_distile, module) {
         [](const std::string& sceneJson, const fs::path& folder, const std::string& name,
            const py::dict& arguments, const py::object& progress) {
             return renderLoaded(
-                [&](TileCache& tiles, const SceneWarningCallback& warn) {
-                    return loadSceneJson(sceneJson, folder, name, tiles, warn);
+                [&](TileCache& tiles, const SceneWarningCallback& warn,
+                    const BakeProgress& bakeProgress) {
+                    return loadSceneJson(sceneJson, folder, name, tiles, warn, bakeProgress);
                 },
                 arguments, progress);
         },

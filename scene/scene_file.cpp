@@ -840,18 +840,33 @@ BaseMesh loadMesh(const Field& field, const fs::path& folder) {
     return loadBaseMesh(meshFile(field, folder));
 }
 
+/// A progress callback that asks `bakeProgress` for the callback of the bake of `what` on its
+/// first report (a bake reports; a tile read from a cache does not) and reports to it; that
+/// callback lives as long as this one's copies. None without `bakeProgress`.
+ProgressCallback reportingBake(const BakeProgress& bakeProgress, const std::string& what) {
+    if (!bakeProgress) return {};
+    auto made = std::make_shared<ProgressCallback>();
+    return [bakeProgress, what, made](double fractionDone) {
+        if (!*made) *made = bakeProgress(what);
+        if (*made) (*made)(fractionDone);
+    };
+}
+
 /// The material of `field`; stores the placed mesh of a `"bake": "mesh"` tile in `placedMesh`
-/// and gives the warnings of its bake to `warn`. Pass::Check reads the fields and looks for the
-/// files only: the material has no tile or colour texture.
+/// and gives the warnings of its bake to `warn`, its progress to the callback `bakeProgress`
+/// makes. Pass::Check reads the fields and looks for the files only: the material has no tile or
+/// colour texture.
 Material loadMaterial(const Field& field, const fs::path& folder, TileCache& tiles,
                       std::shared_ptr<const TriangleSoup>& placedMesh,
-                      const SceneWarningCallback& warn, Pass pass) {
+                      const SceneWarningCallback& warn, Pass pass,
+                      const BakeProgress& bakeProgress) {
     field.requireObject({"tile", "uv_scale", "depth", "floor", "color"});
     Material material;
     if (field.has("tile")) {
         const Field tile = field["tile"];
         if (tile.value().is_object()) {
-            BakedTile baked = bakedTile(tile, folder, tiles, warn, pass);
+            BakedTile baked = bakedTile(tile, folder, tiles, warn, pass, nullptr,
+                                        reportingBake(bakeProgress, tile.name()));
             material.tile = std::move(baked.tile);
             placedMesh = std::move(baked.placedMesh);
         } else {
@@ -992,12 +1007,13 @@ json parseJson(const std::string& text, const std::string& name) {
 
 }  // namespace
 
-SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarningCallback& warn) {
+SceneFile loadSceneFile(const fs::path& file, TileCache& tiles, const SceneWarningCallback& warn,
+                        const BakeProgress& bakeProgress) {
     requireWithinMemoryBudget(file, "a scene file", requireRegularFile(file, "a scene .json file"));
     std::ifstream in(file);
     const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     const fs::path folder = file.has_parent_path() ? file.parent_path() : fs::path(".");
-    return loadSceneJson(text, folder, file.string(), tiles, warn);
+    return loadSceneJson(text, folder, file.string(), tiles, warn, bakeProgress);
 }
 
 std::shared_ptr<const Tile> bakeRecipeTile(const std::string& recipeJson, const fs::path& folder,
@@ -1028,8 +1044,8 @@ RecipeLevelSet bakeRecipeLevelSet(const std::string& recipeJson, const fs::path&
 constexpr double kOriginGridWorld = 1024.0;
 
 SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
-                        const std::string& name, TileCache& tiles,
-                        const SceneWarningCallback& warn) {
+                        const std::string& name, TileCache& tiles, const SceneWarningCallback& warn,
+                        const BakeProgress& bakeProgress) {
     const json document = parseJson(sceneJson, name);
     const std::string& fileName = name;
     const Field root(document, "", fileName);
@@ -1133,8 +1149,8 @@ SceneFile loadSceneJson(const std::string& sceneJson, const fs::path& folder,
                 applyTransform(parsed.mesh, placement);
             std::shared_ptr<const TriangleSoup> placedMesh;
             if (object.has("material")) {
-                parsed.material =
-                    loadMaterial(object["material"], folder, tiles, placedMesh, warn, pass);
+                parsed.material = loadMaterial(object["material"], folder, tiles, placedMesh, warn,
+                                               pass, bakeProgress);
             }
             if (pass == Pass::Check) continue;
             scene.objects.push_back(std::move(parsed));
@@ -1176,17 +1192,18 @@ InputError underSceneJsonPath(const InputError& error) {
     return error.field().empty() ? error : error.renamed(sceneJsonPath(error.field()));
 }
 
-SceneFile demoScene(TileCache& tiles) {
+SceneFile demoScene(TileCache& tiles, const BakeProgress& bakeProgress) {
     auto key = std::string("bake:demo-chainmail");
     // The meshes are built while the tile is read (or baked): neither needs the other.
     DemoMeshes meshes;
-    tbb::parallel_invoke([&] { meshes = demoMeshes(); },
-                         [&] {
-                             if (tiles.count(key)) return;
-                             tiles[key] = cachedBake(chainmailRecipe({}, {}), [] {
-                                 return checkedProceduralBake({}, {}).tile;
-                             });
-                         });
+    tbb::parallel_invoke(
+        [&] { meshes = demoMeshes(); },
+        [&] {
+            if (tiles.count(key)) return;
+            const ProgressCallback progress = reportingBake(bakeProgress, "the demo's tile");
+            tiles[key] = cachedBake(chainmailRecipe({}, {}),
+                                    [&] { return checkedProceduralBake({}, {}, progress).tile; });
+        });
     SceneFile demo;
     demo.scene = distile::demoScene(tiles[key], std::move(meshes));
     return demo;

@@ -64,17 +64,25 @@ using TileCache = std::map<std::string, std::shared_ptr<const Tile>>;
 /// as soon as it is found: before a later error ends the load. The library prints nothing.
 using SceneWarningCallback = std::function<void(const std::string& warning)>;
 
+/// Called as a scene's tile starts to bake, with what is baked (the field that asks for it, e.g.
+/// "scene.json: objects[0].material.tile"); returns the callback that bake reports its progress
+/// to (common/progress.h), which is destroyed when the bake ends. A tile read from `tiles` or
+/// the bake cache makes none.
+using BakeProgress = std::function<ProgressCallback(const std::string& what)>;
+
 /// The scene in `file`, its tiles read or baked once through `tiles` (pass the same cache to load
-/// several scenes that share tiles); warnings go to `warn` (none: dropped). Throws as the file
-/// note says.
+/// several scenes that share tiles); warnings go to `warn` (none: dropped), the progress of each
+/// bake to the callback `bakeProgress` makes for it. Throws as the file note says.
 SceneFile loadSceneFile(const std::filesystem::path& file, TileCache& tiles,
-                        const SceneWarningCallback& warn = {});
+                        const SceneWarningCallback& warn = {},
+                        const BakeProgress& bakeProgress = {});
 
 /// The scene in `sceneJson` (the text of a scene file), named `name` in its errors (as a file's
 /// name is), its relative paths resolved from `folder`; otherwise as loadSceneFile.
 SceneFile loadSceneJson(const std::string& sceneJson, const std::filesystem::path& folder,
                         const std::string& name, TileCache& tiles,
-                        const SceneWarningCallback& warn = {});
+                        const SceneWarningCallback& warn = {},
+                        const BakeProgress& bakeProgress = {});
 
 /// The tile of one bake recipe, as a scene material's `"tile"` writes it (JSON text, e.g.
 /// `{"bake": "chainmail", "size": "64x64x8"}`; the keys are `distile bake`'s flags without the
@@ -105,8 +113,9 @@ RecipeLevelSet bakeRecipeLevelSet(const std::string& recipeJson,
                                   const SceneWarningCallback& warn = {},
                                   const ProgressCallback& progress = {});
 
-/// The built-in demo: chain mail on a torus (curved) lying on a plane (flat).
-SceneFile demoScene(TileCache& tiles);
+/// The built-in demo: chain mail on a torus (curved) lying on a plane (flat); a bake of its tile
+/// (when no cache has it) reports as loadSceneFile's do, as "the demo's tile".
+SceneFile demoScene(TileCache& tiles, const BakeProgress& bakeProgress = {});
 
 /// Gives each tiled object the exact truth of its detail, for reference renders and peers:
 /// - a tile baked from procedural detail: the analytic distance (Material::analyticDistance) of

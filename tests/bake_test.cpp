@@ -959,6 +959,33 @@ TEST(BakeCache, ARecipesLevelSetIsBakedWithItsTileAndNoCacheIsReadOrWritten) {
     }
 }
 
+TEST(BakeCache, AScenesBakesReportTheirProgressAndTilesFromTheCacheNone) {
+    // Two objects share one recipe: it is baked once, and reports under the first's field. A
+    // second load reads it from the disk cache: no report. Each bake's callback ends with it.
+    const TempFolder folder("distile_bake_cache_progress");
+    const std::string material = R"({"tile": {"bake": "grating", "size": "32x32x16", "bars": 2}})";
+    const std::string scene = R"({"objects": [{"mesh": "plane", "material": )" + material +
+                              R"(}, {"mesh": "sphere", "material": )" + material + "}]}";
+    setenv("DISTILE_CACHE", folder.path("cache").c_str(), 1);
+    std::vector<std::string> bakes;
+    std::vector<double> fractions;
+    const auto token = std::make_shared<int>(0);
+    const BakeProgress bakeProgress = [&](const std::string& what) {
+        bakes.push_back(what);
+        return ProgressCallback([&, token](double done) { fractions.push_back(done); });
+    };
+    TileCache first, second;
+    loadSceneJson(scene, ".", "s.json", first, {}, bakeProgress);
+    EXPECT_EQ(token.use_count(), 1);  // the bake's callback is gone
+    loadSceneJson(scene, ".", "s.json", second, {}, bakeProgress);
+    unsetenv("DISTILE_CACHE");
+    ASSERT_EQ(bakes, std::vector<std::string>{"s.json: objects[0].material.tile"});
+    ASSERT_GE(fractions.size(), 2u);
+    EXPECT_TRUE(std::ranges::is_sorted(fractions));
+    EXPECT_GT(fractions.front(), 0.0);
+    EXPECT_LE(fractions.back(), 1.0);
+}
+
 TEST(BakeCache, AProceduralTileThatMissesTheCheckWarnsBakedOrCached) {
     // The default chain mail at 64 texels wide has wires 0.53 texel in radius: its bake misses
     // the check's tolerances. Two rings a row, tilted 5 degrees, with wires 2.1 texels thick,
