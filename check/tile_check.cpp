@@ -15,6 +15,7 @@
 #include "bake/soup_distance.h"
 #include "bake/vdb_bake.h"
 #include "common/error.h"
+#include "common/input_file.h"
 #include "mesh/detail_mesh.h"
 #include "sampler/filters.h"
 #include "truth/mesh_truth.h"
@@ -41,13 +42,6 @@ void requireTolerance(const char* field, double value, double highest) {
     std::ostringstream problem;
     problem << value << " is not accepted; give a finite number in [0, " << highest << "]";
     throw InputError::inField(field, problem.str());
-}
-
-/// Lower-case extension with the dot, e.g. ".vdb".
-std::string lowerExtension(const fs::path& path) {
-    std::string extension = path.extension().string();
-    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return extension;
 }
 
 /// Whether `file` is a level set distile wrote (LevelSet::load reads it).

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "common/error.h"
+#include "common/input_file.h"
 
 namespace distile::cli {
 
@@ -44,13 +45,6 @@ CLI::Validator integerRange(std::int64_t lowest, std::int64_t highest) {
             return "'" + value + "' is not accepted; give an integer in " + range;
         },
         "INT in " + range);
-}
-
-std::string lowerExtension(const fs::path& path) {
-    std::string extension = path.extension().string();
-    std::transform(extension.begin(), extension.end(), extension.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
-    return extension;
 }
 
 void requireOutput(const fs::path& path, const std::string& option,

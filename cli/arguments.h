@@ -31,7 +31,4 @@ CLI::Validator finiteRange(double lowest, double highest);
 /// out of range when it is not an integer.
 CLI::Validator integerRange(std::int64_t lowest, std::int64_t highest);
 
-/// Lower-case extension with the dot, e.g. ".exr".
-std::string lowerExtension(const std::filesystem::path& path);
-
 }  // namespace distile::cli

@@ -54,10 +54,7 @@ class RenderOutputs {
         : image_(files_.add(image, "-o")) {
         if (!withAovs) return;
         for (const AovFile& aov : kAovFiles) {
-            if (!aovs.empty() && std::ranges::none_of(aovs, [&](const char* name) {
-                    return std::string_view(name) == aov.name;
-                }))
-                continue;
+            if (!holdsAov(aovs, aov.name)) continue;
             aovs_[aov.name] = files_.add(aovPath(image, aov.name, aov.extension),
                                          "-o (its AOV " + std::string(aov.name) + ")");
         }

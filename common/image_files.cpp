@@ -88,15 +88,7 @@ std::unique_ptr<Input> open(const fs::path& file, std::string_view acceptedNote)
     return input;
 }
 
-namespace {
-
-std::string lowerExtension(const fs::path& file) {
-    std::string extension = file.extension().string();
-    for (char& c : extension) c = char(std::tolower((unsigned char)c));
-    return extension;
-}
-
-}  // namespace
+namespace {}  // namespace
 
 bool writesWithoutModule(const fs::path& file) {
     const std::string extension = lowerExtension(file);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cctype>
 #include <fstream>
 #include <limits>
 #include <mutex>
@@ -60,6 +61,12 @@ std::string recordedInputKind(const fs::path& file) {
         if (input.device == identity.st_dev && input.inode == identity.st_ino) return input.kind;
     }
     return {};
+}
+
+std::string lowerExtension(const fs::path& file) {
+    std::string extension = file.extension().string();
+    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return extension;
 }
 
 std::uint64_t requireRegularFile(const fs::path& file, std::string_view expected) {

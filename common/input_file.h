@@ -16,6 +16,9 @@ namespace distile {
 /// grids), bytes: 1 GiB, so a run stays within 2 GB with its own working memory.
 inline constexpr std::uint64_t kInputMemoryBudgetBytes = std::uint64_t(1) << 30;
 
+/// The file's extension, with its dot, in lower case ("Ring.OBJ" -> ".obj"; none: "").
+std::string lowerExtension(const std::filesystem::path& file);
+
 /// Throws InputError unless `file` exists and is a regular file (or a link to one): a folder, a
 /// device, a pipe or a socket is refused with a message naming `expected` (e.g. "a tile .exr
 /// file"). Returns the file's size in bytes.

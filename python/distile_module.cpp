@@ -92,13 +92,6 @@ std::span<const char* const> aovNames(const PyRender& render) {
     return {};
 }
 
-/// Whether AOV `name` is among `names` (empty: all).
-bool holdsAov(std::span<const char* const> names, const char* name) {
-    return names.empty() || std::ranges::any_of(names, [&](const char* held) {
-               return std::strcmp(held, name) == 0;
-           });
-}
-
 /// `values` (row-major, `channels` floats per element) as a read-only NumPy array of `shape`
 /// that keeps `owner` alive instead of copying.
 py::array readOnlyView(const float* values, std::vector<py::ssize_t> shape, py::handle owner) {
@@ -197,9 +190,7 @@ std::pair<PyTile, std::vector<std::string>> bakeRecipe(const std::string& recipe
 /// why.
 void requireExtension(const fs::path& file, const std::string& shownAs, const char* extension,
                       const char* what) {
-    std::string given = file.extension().string();
-    for (char& c : given) c = char(std::tolower(static_cast<unsigned char>(c)));
-    if (given != extension) {
+    if (lowerExtension(file) != extension) {
         throw InputError(shownAs + ": '" + file.string() + "' is not accepted; " + what +
                          ", which ends in " + extension);
     }

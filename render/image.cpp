@@ -33,9 +33,7 @@ constexpr std::size_t kMaxPixels = std::size_t(1) << 28;
 enum class ImageFormat { Png, Tiff, Exr };
 
 ImageFormat formatFromExtension(const fs::path& file) {
-    std::string extension = file.extension().string();
-    std::transform(extension.begin(), extension.end(), extension.begin(),
-                   [](unsigned char c) { return char(std::tolower(c)); });
+    const std::string extension = lowerExtension(file);
     if (extension == ".png") return ImageFormat::Png;
     if (extension == ".tif" || extension == ".tiff") return ImageFormat::Tiff;
     if (extension == ".exr") return ImageFormat::Exr;

@@ -15,6 +15,11 @@ fs::path aovPath(const fs::path& image, const std::string& name, const std::stri
     return image.parent_path() / (image.stem().string() + "." + name + extension);
 }
 
+bool holdsAov(std::span<const char* const> aovs, std::string_view name) {
+    return aovs.empty() ||
+           std::ranges::any_of(aovs, [&](const char* held) { return name == held; });
+}
+
 void writeRenderFiles(const RenderResult& render, const fs::path& image,
                       std::span<const char* const> aovs) {
     requireImageExtension(image);  // named as given, not as its temporary
@@ -22,10 +27,7 @@ void writeRenderFiles(const RenderResult& render, const fs::path& image,
     writeImage(render.image, files.add(image, "image"));
     if (render.aovs) {
         for (const AovFile& aov : kAovFiles) {
-            if (!aovs.empty() && std::ranges::none_of(aovs, [&](const char* name) {
-                    return std::string_view(name) == aov.name;
-                }))
-                continue;
+            if (!holdsAov(aovs, aov.name)) continue;
             writeImage((*render.aovs).*aov.layer,
                        files.add(aovPath(image, aov.name, aov.extension),
                                  "image (its AOV " + std::string(aov.name) + ")"));

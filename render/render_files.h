@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <string_view>
 
 #include "render/compare.h"
 #include "render/image.h"
@@ -33,6 +34,9 @@ inline constexpr AovFile kAovFiles[] = {
     {"curvature", ".png", &RenderAovs::curvature},
     {"texel_scale", ".exr", &RenderAovs::texelScale},
 };
+
+/// Whether `aovs` (names of kAovFiles; empty: every AOV) holds the AOV `name`.
+bool holdsAov(std::span<const char* const> aovs, std::string_view name);
 
 /// Writes `render`'s image to `image` (writeImage chooses the format by extension) and, when it
 /// has AOVs, each AOV beside it (aovPath), or those of kAovFiles named in `aovs` when it is not

@@ -42,12 +42,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string lowerExtension(const std::filesystem::path& file) {
-    std::string extension = file.extension().string();
-    for (char& c : extension) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return extension;
-}
-
 constexpr const char* kFormatVersion = "0.1.0";
 constexpr const char* kChannelName = "distance";
 constexpr float kHalfMax = 65504.0f;

@@ -419,8 +419,8 @@ struct BakedTile {
     std::shared_ptr<const TriangleSoup> placedMesh;  ///< null unless "bake": "mesh"
 };
 
-/// A recipe's level set asked for with its tile (bakeRecipeLevelSet): the bake cache holds
-/// tiles only, so such a recipe is always baked, and neither `tiles` nor the cache is read.
+/// A recipe's level set asked for with its tile (bakeRecipeLevelSet, with an empty TileCache):
+/// the bake cache holds tiles only, so such a recipe is always baked (bakeThroughCache).
 struct LevelSetRequest {
     int repeatX = 1, repeatY = 1;      ///< the level set tiled so many times (LevelSet::repeated)
     std::optional<LevelSet> levelSet;  ///< the bake's, once baked
@@ -437,13 +437,22 @@ void checkRepeat(const Field& spec, const BakeOptions& options, const LevelSetRe
     }
 }
 
-/// The tile of `baked`, its level set tiled into `request`.
-Tile keepLevelSet(BakeResult baked, LevelSetRequest& request) {
-    if (request.repeatX > 1 || request.repeatY > 1)
-        request.levelSet.emplace(baked.levelSet.repeated(request.repeatX, request.repeatY));
+/// The tile `bake` makes for `recipe`, through the bake cache (cachedBake, `sourceHash` as
+/// there); with `levelSet`, baked here and its level set tiled into `levelSet`, the cache
+/// neither read nor written.
+std::shared_ptr<const Tile> bakeThroughCache(const std::string& recipe,
+                                             const std::function<BakeResult()>& bake,
+                                             LevelSetRequest* levelSet,
+                                             const std::string& sourceHash = {}) {
+    if (!levelSet)
+        return cachedBake(
+            recipe, [&] { return bake().tile; }, sourceHash);
+    BakeResult baked = bake();
+    if (levelSet->repeatX > 1 || levelSet->repeatY > 1)
+        levelSet->levelSet.emplace(baked.levelSet.repeated(levelSet->repeatX, levelSet->repeatY));
     else
-        request.levelSet.emplace(std::move(baked.levelSet));
-    return std::move(baked.tile);
+        levelSet->levelSet.emplace(std::move(baked.levelSet));
+    return std::make_shared<const Tile>(std::move(baked.tile));
 }
 
 /// `tile` recording `path` as its source file. A recipe names its input file by the file's bytes,
@@ -461,32 +470,24 @@ std::shared_ptr<const Tile> recordingSource(std::shared_ptr<const Tile> tile,
 
 /// The tile of a recipe that bakes the file `source` read (`bake` bakes it again from its path):
 /// from `tiles` or the bake cache when there, else baked and recorded there, its source file
-/// recorded in its provenance; with `levelSet`, baked and its level set kept there, no cache read
-/// or written.
+/// recorded in its provenance; with `levelSet`, as bakeThroughCache bakes it.
 /// The bake's errors are told under the spec's keys or its "file".
 BakedTile bakedFileTile(const Field& spec, TileCache& tiles, const std::string& recipe,
                         const RecipeFile& source, const std::function<BakeResult()>& bake,
                         LevelSetRequest* levelSet) {
     const fs::path& path = source.path;
     const std::string key = "bake:" + recipe;
-    if (!levelSet) {
-        if (auto found = tiles.find(key); found != tiles.end())
-            return {recordingSource(found->second, path), nullptr};
-    }
+    if (auto found = tiles.find(key); found != tiles.end())
+        return {recordingSource(found->second, path), nullptr};
     try {
-        if (levelSet) {
-            Tile tile = keepLevelSet(bake(), *levelSet);
-            recordSourceFile(tile.provenance, path);
-            return {std::make_shared<const Tile>(std::move(tile)), nullptr};
-        }
-        auto tile = cachedBake(
+        auto tile = bakeThroughCache(
             recipe,
             [&] {
-                Tile baked = bake().tile;
-                recordSourceFile(baked.provenance, path);
+                BakeResult baked = bake();
+                recordSourceFile(baked.tile.provenance, path);
                 return baked;
             },
-            contentHash(source.bytes));
+            levelSet, contentHash(source.bytes));
         tiles[key] = tile;
         return {recordingSource(tile, path), nullptr};
     } catch (const InputError& error) {
@@ -604,25 +605,19 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
         baked.placedMesh =
             std::make_shared<const TriangleSoup>(placeMesh(mesh, placement, options.size));
         const std::string key = "bake:" + recipe;
-        if (levelSet) {
-            Tile tile = keepLevelSet(
-                bakeSolidMesh(mesh, placement, options, path.string(), progress, sign).result,
-                *levelSet);
-            recordSourceFile(tile.provenance, path);
-            baked.tile = std::make_shared<const Tile>(std::move(tile));
-        } else if (auto found = tiles.find(key); found != tiles.end()) {
+        if (auto found = tiles.find(key); found != tiles.end()) {
             baked.tile = found->second;
         } else {
-            baked.tile = cachedBake(
+            baked.tile = bakeThroughCache(
                 recipe,
                 [&] {
-                    Tile tile =
+                    BakeResult result =
                         bakeSolidMesh(mesh, placement, options, path.string(), progress, sign)
-                            .result.tile;
-                    recordSourceFile(tile.provenance, path);
-                    return tile;
+                            .result;
+                    recordSourceFile(result.tile.provenance, path);
+                    return result;
                 },
-                contentHash(bytes));
+                levelSet, contentHash(bytes));
             tiles[key] = baked.tile;
         }
         baked.tile = recordingSource(baked.tile, path);
@@ -768,18 +763,10 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
     }
     if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string key = "bake:" + recipe;
-    if (!levelSet) {
-        if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
-    }
+    if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
     try {
-        if (levelSet) {
-            auto tile = std::make_shared<const Tile>(
-                keepLevelSet(checkedProceduralBake(procedural, options, progress), *levelSet));
-            warnOfRecordedCheck(*tile, spec, warn);
-            return {tile, nullptr};
-        }
-        auto tile = cachedBake(
-            recipe, [&] { return checkedProceduralBake(procedural, options, progress).tile; });
+        auto tile = bakeThroughCache(
+            recipe, [&] { return checkedProceduralBake(procedural, options, progress); }, levelSet);
         tiles[key] = tile;
         warnOfRecordedCheck(*tile, spec, warn);
         return {tile, nullptr};
