@@ -426,9 +426,11 @@ struct LevelSetRequest {
     std::optional<LevelSet> levelSet;  ///< the bake's, once baked
 };
 
-/// Refuses `request`'s repeats for the level set of `options` (LevelSet::checkRepeat) under the
-/// keyword "repeat", before the bake.
-void checkRepeat(const Field& spec, const BakeOptions& options, const LevelSetRequest& request) {
+/// Refuses `request`'s repeats for the level set of the recipe `spec` (LevelSet::checkRepeat)
+/// under the keyword "repeat", before the bake; its size and band first under their own keys.
+void checkRepeat(const Field& spec, const LevelSetRequest& request) {
+    const BakeOptions options = bakeOptionsOf(spec);
+    checkBakeOptions(spec, options);
     try {
         LevelSet::checkRepeat(options.size, validatedHalfBandTexels(options), request.repeatX,
                               request.repeatY);
@@ -557,7 +559,6 @@ BakedTile bakedVdbTile(const Field& spec, const fs::path& folder, TileCache& til
     }
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
-    if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string recipe = vdbRecipe(bytes, gridName, iso, placement, options);
     return bakedFileTile(
         spec, tiles, recipe, source,
@@ -596,7 +597,6 @@ BakedTile bakedMeshTile(const Field& spec, const fs::path& folder, TileCache& ti
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
     const Field file = spec["file"];
-    if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string recipe = meshRecipe(bytes, placement, sign, options);
     BakedTile baked;
     try {
@@ -648,7 +648,6 @@ BakedTile bakedHeightMapTile(const Field& spec, const fs::path& folder, TileCach
     }
     const fs::path& path = source.path;
     const std::string& bytes = source.bytes;
-    if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string recipe = heightMapRecipe(bytes, heightMap, options);
     return bakedFileTile(
         spec, tiles, recipe, source,
@@ -761,7 +760,6 @@ BakedTile bakedTile(const Field& spec, const fs::path& folder, TileCache& tiles,
         }
         return {};
     }
-    if (levelSet) checkRepeat(spec, options, *levelSet);
     const std::string key = "bake:" + recipe;
     if (auto found = tiles.find(key); found != tiles.end()) return {found->second, nullptr};
     try {
@@ -1021,6 +1019,7 @@ RecipeLevelSet bakeRecipeLevelSet(const std::string& recipeJson, const fs::path&
     LevelSetRequest request;
     request.repeatX = repeatX;
     request.repeatY = repeatY;
+    checkRepeat(Field(document, "", name), request);
     std::shared_ptr<const Tile> tile =
         bakedTile(Field(document, "", name), folder, unused, warn, Pass::Load, &request, progress)
             .tile;

@@ -271,6 +271,9 @@ def test_a_refused_level_set_bake_writes_nothing(tmp_path):
     # Repeats beyond the level set's limits are refused before the bake, as --repeat.
     with pytest.raises(distile.InputError, match="repeat: 65x1 is not accepted"):
         distile.bake_grating(size="32x32x16", bars=2, vdb=tmp_path / "g.vdb", repeat=(65, 1))
+    # A bad band is told under its own key, not as a repeat the band makes too large.
+    with pytest.raises(distile.InputError, match="bake grating: band: 0.5 texels is not accepted"):
+        distile.bake_grating(size="32x32x16", bars=2, band=0.5, vdb=tmp_path / "g.vdb")
     with pytest.raises(distile.InputError, match="repeat: '2x' is not accepted"):
         distile.bake_grating(size="32x32x16", bars=2, vdb=tmp_path / "g.vdb", repeat="2x")
     with pytest.raises(TypeError, match="repeat must be two whole numbers"):
